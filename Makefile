@@ -1,0 +1,37 @@
+# pbrcheck: `make demo` sets up and runs the main job; `make test` sets up and runs the tests.
+# Set-up is idempotent: system packages are checked with dpkg-query (installed only when missing,
+# which needs root), the virtualenv is rebuilt only when pyproject.toml changes.
+
+PYTHON     ?= python3
+VENV       := .venv
+PY         := $(VENV)/bin/python
+STAMP      := $(VENV)/.pbrcheck-installed
+# Minimal Debian packages: EGL + GL dispatch and Mesa's llvmpipe for headless moderngl,
+# LLVM 19 for Dr.Jit's LLVM backend (Mesa's LLVM 15 makes Dr.Jit 1.5 abort).
+SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19
+
+.PHONY: setup system-packages demo test bench report clean
+
+setup: system-packages $(STAMP)
+
+system-packages:
+	@bash tools/ensure-system-packages.sh $(SYSTEM_PACKAGES)
+
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install --quiet --upgrade pip >/dev/null
+	$(PY) -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/pbrcheck demo
+
+test: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	$(VENV)/bin/pbrcheck bench reference
+	$(VENV)/bin/pbrcheck bench realtime
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,1 @@
+"""Comparator, accuracy report, CI error-budget gate and fits."""

@@ -1,0 +1,137 @@
+"""EXR images: float32 channels plus string metadata, through the OpenEXR 3.x ``File`` API.
+
+Channel names both renderers write (all float32, (H, W), row 0 at the top):
+
+* ``R``, ``G``, ``B``: linear radiance;
+* ``variance.R``, ``variance.G``, ``variance.B``: variance of the reference's pixel estimate;
+* ``N.X``, ``N.Y``, ``N.Z``: world shading normal (0 on background);
+* ``NdotV``: cosine between the normal and the direction to the camera (0 on background);
+* ``object``: object index in scene order, -1 on background (exact small integers in float32);
+* ``coverage``: fraction of the pixel covered by geometry.
+
+Metadata is a flat ``dict[str, str]`` stored as EXR string attributes named ``pbrcheck.<key>``;
+hashes and large integers are strings because OpenEXR silently loses large ints. Compression is ZIP
+(Mitsuba cannot read ZSTD or HTJ2K). Writes are atomic: a temporary file in the target directory,
+then ``os.replace``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ImageIOError
+
+META_PREFIX = "pbrcheck."
+RGB = ("R", "G", "B")
+VARIANCE = ("variance.R", "variance.G", "variance.B")
+NORMAL = ("N.X", "N.Y", "N.Z")
+AOVS = NORMAL + ("NdotV", "object", "coverage")
+
+
+@dataclass
+class Image:
+    """Named float32 channels of one size and string metadata."""
+
+    channels: dict[str, np.ndarray]
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self):
+        shapes = {np.shape(v) for v in self.channels.values()}
+        if len(shapes) > 1:
+            raise ValueError(f"channels differ in shape: {sorted(shapes)}")
+        self.channels = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in self.channels.items()}
+
+    @classmethod
+    def from_rgb(cls, rgb: np.ndarray, meta: dict | None = None, **extra: np.ndarray) -> "Image":
+        ch = {c: rgb[..., i] for i, c in enumerate(RGB)}
+        ch.update(extra)
+        return cls(ch, dict(meta or {}))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return next(iter(self.channels.values())).shape
+
+    @property
+    def rgb(self) -> np.ndarray:
+        return np.stack([self.channels[c] for c in RGB], axis=-1)
+
+    def stack(self, names) -> np.ndarray:
+        return np.stack([self.channels[c] for c in names], axis=-1)
+
+    def has(self, *names: str) -> bool:
+        return all(n in self.channels for n in names)
+
+    @property
+    def variance(self) -> np.ndarray | None:
+        return self.stack(VARIANCE) if self.has(*VARIANCE) else None
+
+    def meta_json(self, key: str, default=None):
+        v = self.meta.get(key)
+        return default if v is None else json.loads(v)
+
+
+def _meta_value(v) -> str:
+    return v if isinstance(v, str) else json.dumps(v, sort_keys=True)
+
+
+def write_exr(path: str | Path, image: Image) -> Path:
+    """Write atomically; metadata values that are not strings are stored as JSON strings."""
+    import OpenEXR
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for k, v in image.meta.items():
+        header[META_PREFIX + k] = _meta_value(v)
+    channels = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in image.channels.items()}
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.exr", dir=path.parent)
+    os.close(fd)
+    try:
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+        os.replace(tmp, path)
+    except Exception as e:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise ImageIOError(str(path), f"cannot write EXR ({e})") from None
+    return path
+
+
+def read_exr(path: str | Path, require: tuple[str, ...] = ()) -> Image:
+    """Read every channel as float32 (H, W) and the ``pbrcheck.*`` metadata.
+
+    Interleaved ``RGB``/``RGBA`` images from other tools are split into ``R``, ``G``, ``B`` (``A``).
+    Raises :class:`ImageIOError` for a missing or unreadable file or a missing required channel.
+    """
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise ImageIOError(str(path), "no such file")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            hdr = dict(f.header())  # copy: reading channels clears the live header dict
+            chans = {name: np.array(c.pixels, dtype=np.float32) for name, c in f.channels().items()}
+    except Exception as e:
+        raise ImageIOError(str(path), f"not a readable EXR ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+    out: dict[str, np.ndarray] = {}
+    for name, a in chans.items():
+        if a.ndim == 3:  # interleaved (only when a tool wrote e.g. "RGB" as one channel group)
+            for i, c in enumerate(name[: a.shape[2]]):
+                out[c] = a[..., i]
+        else:
+            out[name] = a
+    missing = [c for c in require if c not in out]
+    if missing:
+        raise ImageIOError(str(path), f"missing channel(s) {', '.join(missing)} (has {', '.join(sorted(out))})")
+    meta = {k[len(META_PREFIX):]: (v if isinstance(v, str) else str(v)) for k, v in hdr.items()
+            if isinstance(k, str) and k.startswith(META_PREFIX)}
+    return Image(out, meta)

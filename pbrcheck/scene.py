@@ -1,0 +1,578 @@
+"""The scene model both renderers read, and its TOML loader.
+
+A scene file names a camera, exactly one environment, optional point lights, the ground-truth BRDF
+model and a list of objects (spheres, planes and sphere grids, the latter expanded here into one
+sphere object each). The field names are a contract (see README.md, "Scene files").
+
+Every problem is a :class:`~pbrcheck.errors.SceneError` naming the file, the dotted field, what was
+expected and what was found. Loading never writes anything.
+
+Object ids are the index in :attr:`Scene.objects` after expansion (the ``object`` AOV of both
+renderers); ``-1`` is the background.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import asdict, dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+NDFS = ("ggx", "beckmann", "blinn_phong")
+GEOMETRIES = ("smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct")
+FRESNELS = ("schlick", "none")
+ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
+OBJECT_TYPES = ("sphere", "plane", "sphere_grid")
+
+# Smallest |up x view| (sine of the angle) accepted before the camera frame is called degenerate.
+CAMERA_UP_PARALLEL_SINE = 1e-6
+# Longest side of an image either renderer is asked to make (a typo guard, 16k).
+MAX_IMAGE_SIDE = 16384
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera. ``fov`` is the *horizontal* field of view in degrees; pixel (row i, column j)
+    has its centre at ndc ``x = 2 (j + 0.5) / width - 1``, ``y = 1 - 2 (i + 0.5) / height`` (row 0 at
+    the top). See :mod:`pbrcheck.camera`."""
+
+    origin: Vec3 = (0.0, 0.0, 6.0)
+    target: Vec3 = (0.0, 0.0, 0.0)
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov: float = 40.0
+    width: int = 256
+    height: int = 256
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Exactly one environment. All types become one equirectangular radiance image in Mitsuba's
+    convention (:mod:`pbrcheck.environment`); ``scale`` and ``rotation`` (degrees about +Y) apply
+    to every type alike."""
+
+    type: str = "constant"
+    radiance: Vec3 = (1.0, 1.0, 1.0)          # constant
+    path: str | None = None                   # file (absolute after loading)
+    scale: float = 1.0
+    rotation: float = 0.0
+    # sky
+    sun_direction: Vec3 = (0.3, 0.8, 0.5)
+    sun_angular_diameter: float = 0.53
+    sun_radiance: Vec3 = (2000.0, 1900.0, 1700.0)
+    sky_radiance: Vec3 = (0.35, 0.5, 0.9)
+    horizon_radiance: Vec3 = (0.9, 0.9, 0.95)
+    ground_radiance: Vec3 = (0.2, 0.18, 0.15)
+    resolution: tuple[int, int] = (1024, 512)  # sky raster (width, height)
+
+
+@dataclass(frozen=True)
+class PointLight:
+    position: Vec3
+    intensity: Vec3  # radiant intensity, W/sr: irradiance at distance d is I cos / d^2
+    type: str = "point"
+
+
+@dataclass(frozen=True)
+class BRDFModel:
+    ndf: str = "ggx"
+    geometry: str = "smith_ggx_correlated"
+    fresnel: str = "schlick"
+
+
+@dataclass(frozen=True)
+class Material:
+    """F0 = mix(specular, base_color, metallic); alpha = roughness^2 (roughness is perceptual)."""
+
+    base_color: Vec3 = (1.0, 1.0, 1.0)
+    metallic: float = 0.0
+    roughness: float = 0.5
+    specular: float = 0.04
+
+    @property
+    def alpha(self) -> float:
+        return self.roughness * self.roughness
+
+    @property
+    def f0(self) -> Vec3:
+        m = self.metallic
+        return tuple(self.specular * (1.0 - m) + c * m for c in self.base_color)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    id: int
+    center: Vec3
+    radius: float
+    material: Material
+    name: str = ""
+    type: str = "sphere"
+
+
+@dataclass(frozen=True)
+class Plane:
+    """A rectangle of ``size = (sx, sy)`` centred at ``center`` with unit ``normal``; its in-plane
+    axes are :func:`plane_frame` of the normal (sx along the tangent, sy along the bitangent)."""
+
+    id: int
+    center: Vec3
+    normal: Vec3
+    size: tuple[float, float]
+    material: Material
+    name: str = ""
+    type: str = "plane"
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    description: str
+    camera: Camera
+    environment: Environment
+    lights: tuple[PointLight, ...]
+    brdf: BRDFModel
+    objects: tuple[Sphere | Plane, ...]
+    source: str = "<dict>"
+    # The grid layout of sphere_grid objects, for reports: (first id, rows, columns, metallic range,
+    # roughness range) per grid.
+    grids: tuple[dict, ...] = field(default_factory=tuple)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Resolved scene as plain data (objects expanded, defaults filled)."""
+        d = {
+            "name": self.name,
+            "description": self.description,
+            "camera": asdict(self.camera),
+            "environment": _environment_dict(self.environment),
+            "lights": [asdict(l) for l in self.lights],
+            "brdf": asdict(self.brdf),
+            "objects": [asdict(o) for o in self.objects],
+        }
+        return _plain(d)
+
+    def content_dict(self) -> dict[str, Any]:
+        """What determines the pixels: :meth:`to_dict` less name, description and file paths."""
+        d = self.to_dict()
+        for k in ("name", "description"):
+            d.pop(k)
+        d["environment"].pop("path", None)
+        for o in d["objects"]:
+            o.pop("name", None)
+        return d
+
+    def with_camera(self, **changes) -> "Scene":
+        return replace(self, camera=replace(self.camera, **changes))
+
+
+def _environment_dict(env: Environment) -> dict[str, Any]:
+    keep = {"type", "scale", "rotation"}
+    if env.type == "constant":
+        keep |= {"radiance"}
+    elif env.type == "file":
+        keep |= {"path"}
+    elif env.type == "sky":
+        keep |= {"sun_direction", "sun_angular_diameter", "sun_radiance", "sky_radiance",
+                 "horizon_radiance", "ground_radiance", "resolution"}
+    return {k: v for k, v in asdict(env).items() if k in keep}
+
+
+def _plain(x):
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return x
+
+
+def scene_hash(scene: Scene, environment_hash: str | None = None) -> str:
+    """SHA-256 of what determines the pixels: the resolved scene (less names) and the environment's
+    pixels (``environment_hash``; computed by loading the environment when not given)."""
+    if environment_hash is None:
+        from .environment import load_environment
+
+        environment_hash = load_environment(scene).content_hash
+    blob = json.dumps({"scene": scene.content_dict(), "environment_pixels": environment_hash},
+                      sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def plane_frame(normal: Vec3) -> tuple[Vec3, Vec3, Vec3]:
+    """(tangent, bitangent, normal) of a plane: an orthonormal right-handed frame, deterministic in
+    the normal. The tangent is +X projected into the plane, or +Z where the normal is within ~8
+    degrees of X, so that a floor (normal +Y) has its ``size[0]`` along X and ``size[1]`` along -Z."""
+    n = _normalize(normal)
+    hint = (1.0, 0.0, 0.0) if abs(n[0]) < 0.99 else (0.0, 0.0, 1.0)
+    d = _dot(hint, n)
+    t = _normalize(tuple(h - d * c for h, c in zip(hint, n)))
+    b = _cross(n, t)
+    return t, b, n
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading and validation
+# ---------------------------------------------------------------------------------------------
+
+
+class _Ctx:
+    """Where we are: the file (for messages) and its directory (for relative paths)."""
+
+    def __init__(self, file: str, base_dir: Path | None):
+        self.file = file
+        self.base_dir = base_dir
+
+    def err(self, fieldname: str, expected: str, found: object = None) -> SceneError:
+        return SceneError(self.file, fieldname, expected, found)
+
+
+def _check_keys(ctx: _Ctx, table: dict, allowed: set[str], where: str) -> None:
+    if not isinstance(table, dict):
+        raise ctx.err(where, "a table", table)
+    for k in table:
+        if k not in allowed:
+            raise ctx.err(f"{where}.{k}" if where else k, "one of the keys " + ", ".join(sorted(allowed)),
+                          f"unknown key {k!r}")
+
+
+def _num(ctx, t, key, where, default=None, *, lo=None, hi=None, lo_open=False, integer=False):
+    f = f"{where}.{key}" if where else key
+    if key not in t:
+        if default is None:
+            raise ctx.err(f, "a number (required)", "nothing")
+        return default
+    v = t[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise ctx.err(f, "an integer" if integer else "a number", v)
+    if not math.isfinite(v):
+        raise ctx.err(f, "a finite number", v)
+    if lo is not None and (v <= lo if lo_open else v < lo):
+        raise ctx.err(f, f"a number {'>' if lo_open else '>='} {lo}", v)
+    if hi is not None and v > hi:
+        raise ctx.err(f, f"a number <= {hi}", v)
+    return int(v) if integer else float(v)
+
+
+def _vec3(ctx, t, key, where, default=None, *, nonneg=False, nonzero=False):
+    f = f"{where}.{key}" if where else key
+    if key not in t:
+        if default is None:
+            raise ctx.err(f, "an array of 3 numbers (required)", "nothing")
+        return default
+    v = t[key]
+    if (not isinstance(v, list) or len(v) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+        raise ctx.err(f, "an array of 3 numbers", v)
+    if not all(math.isfinite(x) for x in v):
+        raise ctx.err(f, "3 finite numbers", v)
+    if nonneg and any(x < 0 for x in v):
+        raise ctx.err(f, "3 non-negative numbers", v)
+    if nonzero and math.sqrt(sum(x * x for x in v)) < 1e-12:
+        raise ctx.err(f, "a non-zero vector", v)
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _str(ctx, t, key, where, default=None, choices=None):
+    f = f"{where}.{key}" if where else key
+    if key not in t:
+        if default is None:
+            raise ctx.err(f, "a string (required)", "nothing")
+        return default
+    v = t[key]
+    if not isinstance(v, str):
+        raise ctx.err(f, "a string", v)
+    if choices is not None and v not in choices:
+        raise ctx.err(f, "one of " + " | ".join(choices), v)
+    return v
+
+
+def _range2(ctx, t, key, where, default):
+    f = f"{where}.{key}"
+    if key not in t:
+        return default
+    v = t[key]
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = [v, v]
+    if (not isinstance(v, list) or len(v) != 2
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+        raise ctx.err(f, "a number or an array [min, max] in [0, 1]", v)
+    if any(not (0.0 <= x <= 1.0) for x in v):
+        raise ctx.err(f, "values in [0, 1]", v)
+    return (float(v[0]), float(v[1]))
+
+
+def _camera(ctx, t) -> Camera:
+    _check_keys(ctx, t, {"origin", "target", "up", "fov", "width", "height"}, "camera")
+    c = Camera(
+        origin=_vec3(ctx, t, "origin", "camera", Camera.origin),
+        target=_vec3(ctx, t, "target", "camera", Camera.target),
+        up=_vec3(ctx, t, "up", "camera", Camera.up, nonzero=True),
+        fov=_num(ctx, t, "fov", "camera", Camera.fov, lo=0.0, lo_open=True, hi=179.0),
+        width=_num(ctx, t, "width", "camera", Camera.width, lo=1, hi=MAX_IMAGE_SIDE, integer=True),
+        height=_num(ctx, t, "height", "camera", Camera.height, lo=1, hi=MAX_IMAGE_SIDE, integer=True),
+    )
+    view = tuple(a - b for a, b in zip(c.target, c.origin))
+    if _norm(view) < 1e-12:
+        raise ctx.err("camera.target", "a point different from camera.origin", list(c.target))
+    s = _norm(_cross(_normalize(view), _normalize(c.up)))
+    if s < CAMERA_UP_PARALLEL_SINE:
+        raise ctx.err("camera.up", "a vector not parallel to the view direction", list(c.up))
+    return c
+
+
+def _environment(ctx, t) -> Environment:
+    if not isinstance(t, dict):
+        raise ctx.err("environment", "a table", t)
+    typ = _str(ctx, t, "type", "environment", choices=ENVIRONMENT_TYPES)
+    common = {"type", "scale", "rotation"}
+    per_type = {
+        "constant": {"radiance"},
+        "file": {"path"},
+        "sky": {"sun_direction", "sun_angular_diameter", "sun_radiance", "sky_radiance",
+                "horizon_radiance", "ground_radiance", "resolution"},
+        "none": set(),
+    }
+    _check_keys(ctx, t, common | per_type[typ], "environment")
+    kw: dict[str, Any] = {
+        "type": typ,
+        "scale": _num(ctx, t, "scale", "environment", 1.0, lo=0.0),
+        "rotation": _num(ctx, t, "rotation", "environment", 0.0),
+    }
+    if typ == "constant":
+        kw["radiance"] = _vec3(ctx, t, "radiance", "environment", (1.0, 1.0, 1.0), nonneg=True)
+    elif typ == "file":
+        p = _str(ctx, t, "path", "environment")
+        path = Path(p)
+        if not path.is_absolute():
+            path = (ctx.base_dir or Path.cwd()) / path
+        if not path.is_file():
+            raise ctx.err("environment.path", "an existing .exr or .hdr file", str(path))
+        if path.suffix.lower() not in (".exr", ".hdr"):
+            raise ctx.err("environment.path", "a .exr or .hdr file", str(path))
+        kw["path"] = str(path.resolve())
+    elif typ == "sky":
+        d = Environment()
+        kw["sun_direction"] = _normalize(_vec3(ctx, t, "sun_direction", "environment", d.sun_direction, nonzero=True))
+        kw["sun_angular_diameter"] = _num(ctx, t, "sun_angular_diameter", "environment", d.sun_angular_diameter,
+                                          lo=0.0, lo_open=True, hi=90.0)
+        for k in ("sun_radiance", "sky_radiance", "horizon_radiance", "ground_radiance"):
+            kw[k] = _vec3(ctx, t, k, "environment", getattr(d, k), nonneg=True)
+        if "resolution" in t:
+            r = t["resolution"]
+            if (not isinstance(r, list) or len(r) != 2 or any(isinstance(x, bool) or not isinstance(x, int) for x in r)
+                    or not (2 <= r[0] <= 16384 and 3 <= r[1] <= 8192)):
+                raise ctx.err("environment.resolution", "[width, height] integers, width in [2, 16384], height in [3, 8192]", r)
+            kw["resolution"] = (r[0], r[1])
+    return Environment(**kw)
+
+
+def _lights(ctx, lst) -> tuple[PointLight, ...]:
+    if not isinstance(lst, list):
+        raise ctx.err("lights", "an array of tables [[lights]]", lst)
+    out = []
+    for i, t in enumerate(lst):
+        w = f"lights[{i}]"
+        _check_keys(ctx, t, {"type", "position", "intensity"}, w)
+        _str(ctx, t, "type", w, "point", choices=("point",))
+        out.append(PointLight(position=_vec3(ctx, t, "position", w),
+                              intensity=_vec3(ctx, t, "intensity", w, nonneg=True)))
+    return tuple(out)
+
+
+def _brdf(ctx, t) -> BRDFModel:
+    _check_keys(ctx, t, {"ndf", "geometry", "fresnel"}, "brdf")
+    return BRDFModel(
+        ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDFS),
+        geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRIES),
+        fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNELS),
+    )
+
+
+def _material(ctx, t, where, *, grid=False) -> Material:
+    keys = {"base_color", "specular"} if grid else {"base_color", "metallic", "roughness", "specular"}
+    _check_keys(ctx, t, keys, where)
+    d = Material()
+    return Material(
+        base_color=_vec3(ctx, t, "base_color", where, d.base_color, nonneg=True),
+        metallic=d.metallic if grid else _num(ctx, t, "metallic", where, d.metallic, lo=0.0, hi=1.0),
+        roughness=d.roughness if grid else _num(ctx, t, "roughness", where, d.roughness, lo=0.0, hi=1.0),
+        specular=_num(ctx, t, "specular", where, d.specular, lo=0.0, hi=1.0),
+    )
+
+
+def _objects(ctx, lst):
+    if not isinstance(lst, list) or not lst:
+        raise ctx.err("objects", "a non-empty array of tables [[objects]]", lst)
+    objects: list[Sphere | Plane] = []
+    grids: list[dict] = []
+    for i, t in enumerate(lst):
+        w = f"objects[{i}]"
+        if not isinstance(t, dict):
+            raise ctx.err(w, "a table", t)
+        typ = _str(ctx, t, "type", w, choices=OBJECT_TYPES)
+        name = t.get("name", "")
+        if not isinstance(name, str):
+            raise ctx.err(f"{w}.name", "a string", name)
+        if typ == "sphere":
+            _check_keys(ctx, t, {"type", "name", "center", "radius", "material"}, w)
+            objects.append(Sphere(id=len(objects), name=name or f"sphere{len(objects)}",
+                                  center=_vec3(ctx, t, "center", w, (0.0, 0.0, 0.0)),
+                                  radius=_num(ctx, t, "radius", w, 1.0, lo=0.0, lo_open=True),
+                                  material=_material(ctx, t.get("material", {}), f"{w}.material")))
+        elif typ == "plane":
+            _check_keys(ctx, t, {"type", "name", "center", "normal", "size", "material"}, w)
+            size = t.get("size", [10.0, 10.0])
+            if isinstance(size, (int, float)) and not isinstance(size, bool):
+                size = [size, size]
+            if (not isinstance(size, list) or len(size) != 2
+                    or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not x > 0 or not math.isfinite(x)
+                           for x in size)):
+                raise ctx.err(f"{w}.size", "a positive number or [sx, sy]", size)
+            objects.append(Plane(id=len(objects), name=name or f"plane{len(objects)}",
+                                 center=_vec3(ctx, t, "center", w, (0.0, 0.0, 0.0)),
+                                 normal=_normalize(_vec3(ctx, t, "normal", w, (0.0, 1.0, 0.0), nonzero=True)),
+                                 size=(float(size[0]), float(size[1])),
+                                 material=_material(ctx, t.get("material", {}), f"{w}.material")))
+        else:
+            _check_keys(ctx, t, {"type", "name", "center", "rows", "columns", "spacing", "radius",
+                                 "metallic", "roughness", "right", "up", "material"}, w)
+            center = _vec3(ctx, t, "center", w, (0.0, 0.0, 0.0))
+            rows = _num(ctx, t, "rows", w, 4, lo=1, hi=64, integer=True)
+            cols = _num(ctx, t, "columns", w, 6, lo=1, hi=64, integer=True)
+            radius = _num(ctx, t, "radius", w, 0.45, lo=0.0, lo_open=True)
+            spacing = _num(ctx, t, "spacing", w, 2.2 * radius, lo=0.0, lo_open=True)
+            met = _range2(ctx, t, "metallic", w, (0.0, 1.0))
+            rough = _range2(ctx, t, "roughness", w, (0.0, 1.0))
+            right = _normalize(_vec3(ctx, t, "right", w, (1.0, 0.0, 0.0), nonzero=True))
+            up = _normalize(_vec3(ctx, t, "up", w, (0.0, 1.0, 0.0), nonzero=True))
+            if abs(_dot(right, up)) > 1e-6:
+                raise ctx.err(f"{w}.up", "a vector perpendicular to right", list(up))
+            base = _material(ctx, t.get("material", {}), f"{w}.material", grid=True)
+            first = len(objects)
+            for r in range(rows):           # bottom to top: metallic
+                m = met[0] + (met[1] - met[0]) * (r / (rows - 1) if rows > 1 else 0.0)
+                for c in range(cols):       # left to right: roughness
+                    g = rough[0] + (rough[1] - rough[0]) * (c / (cols - 1) if cols > 1 else 0.0)
+                    x = (c - (cols - 1) / 2) * spacing
+                    y = (r - (rows - 1) / 2) * spacing
+                    pos = tuple(center[k] + x * right[k] + y * up[k] for k in range(3))
+                    objects.append(Sphere(id=len(objects), name=f"{name or 'grid'}[r{r},c{c}]",
+                                          center=pos, radius=radius,
+                                          material=replace(base, metallic=round(m, 9), roughness=round(g, 9))))
+            grids.append({"first_id": first, "rows": rows, "columns": cols, "metallic": met, "roughness": rough})
+    return tuple(objects), tuple(grids)
+
+
+def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None) -> Scene:
+    """Validate a parsed scene table; raise :class:`SceneError` on the first problem."""
+    ctx = _Ctx(file, base_dir)
+    if not isinstance(data, dict):
+        raise ctx.err("", "a table", data)
+    _check_keys(ctx, data, {"name", "description", "camera", "environment", "lights", "brdf", "objects"}, "")
+    if "environment" not in data:
+        raise ctx.err("environment", "exactly one [environment] table", "nothing")
+    objects, grids = _objects(ctx, data.get("objects"))
+    return Scene(
+        name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
+        description=_str(ctx, data, "description", "", ""),
+        camera=_camera(ctx, data.get("camera", {})),
+        environment=_environment(ctx, data["environment"]),
+        lights=_lights(ctx, data.get("lights", [])),
+        brdf=_brdf(ctx, data.get("brdf", {})),
+        objects=objects,
+        source=file,
+        grids=grids,
+    )
+
+
+def builtin_scene_names() -> list[str]:
+    root = resources.files("pbrcheck") / "scenes"
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_scene_path(name: str) -> Path:
+    return Path(str(resources.files("pbrcheck") / "scenes" / f"{name}.toml"))
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """Load a built-in scene by name (``spheres``) or a TOML file by path."""
+    s = str(name_or_path)
+    p = Path(s)
+    if not p.suffix and s in builtin_scene_names():
+        p = builtin_scene_path(s)
+    elif not p.exists():
+        known = ", ".join(builtin_scene_names())
+        raise SceneError(s, None, f"a scene file or a built-in scene name ({known})",
+                         message=f"{s}: no such scene file, and not a built-in scene ({known})")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise SceneError(str(p), None, "a readable file", message=f"{p}: cannot read: {e.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(str(p), None, "valid TOML", message=f"{p}: invalid TOML: {e}") from None
+    return scene_from_dict(data, file=str(p), base_dir=p.parent)
+
+
+def dump_toml(d: dict) -> str:
+    """Minimal TOML writer for resolved scenes (tables, arrays of tables, scalars, flat arrays)."""
+    lines: list[str] = []
+
+    def val(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        if v is None:
+            return '""'
+        raise TypeError(v)
+
+    def table(prefix, t):
+        subs = []
+        for k, v in t.items():
+            if isinstance(v, dict):
+                subs.append(("t", k, v))
+            elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+                subs.append(("a", k, v))
+            else:
+                lines.append(f"{k} = {val(v)}")
+        for kind, k, v in subs:
+            name = f"{prefix}.{k}" if prefix else k
+            if kind == "t":
+                lines.append(f"\n[{name}]")
+                table(name, v)
+            else:
+                for item in v:
+                    lines.append(f"\n[[{name}]]")
+                    table(name, item)
+
+    table("", d)
+    return "\n".join(lines).lstrip() + "\n"
+
+
+# small vector helpers (pure Python: scenes are tiny)
+def _dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _norm(a):
+    return math.sqrt(_dot(a, a))
+
+
+def _normalize(a):
+    n = _norm(a)
+    return tuple(x / n for x in a)

@@ -1,0 +1,1 @@
+"""Real-time GLSL split-sum renderer through headless moderngl."""

@@ -1,0 +1,1 @@
+"""Mitsuba 3 reference renderer: the ground truth."""
