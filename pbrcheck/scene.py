@@ -418,14 +418,17 @@ def _objects(ctx, lst):
         name = t.get("name", "")
         if not isinstance(name, str):
             raise ctx.err(f"{w}.name", "a string", name)
+        if typ != "sphere_grid" and "id" in t and t["id"] != len(objects):
+            # resolved scenes (check-scene output) carry ids; they must be the index after expansion
+            raise ctx.err(f"{w}.id", f"{len(objects)} (the object's index after sphere grids are expanded)", t["id"])
         if typ == "sphere":
-            _check_keys(ctx, t, {"type", "name", "center", "radius", "material"}, w)
+            _check_keys(ctx, t, {"type", "name", "id", "center", "radius", "material"}, w)
             objects.append(Sphere(id=len(objects), name=name or f"sphere{len(objects)}",
                                   center=_vec3(ctx, t, "center", w, (0.0, 0.0, 0.0)),
                                   radius=_num(ctx, t, "radius", w, 1.0, lo=0.0, lo_open=True),
                                   material=_material(ctx, t.get("material", {}), f"{w}.material")))
         elif typ == "plane":
-            _check_keys(ctx, t, {"type", "name", "center", "normal", "size", "material"}, w)
+            _check_keys(ctx, t, {"type", "name", "id", "center", "normal", "size", "material"}, w)
             size = t.get("size", [10.0, 10.0])
             if isinstance(size, (int, float)) and not isinstance(size, bool):
                 size = [size, size]
@@ -575,4 +578,6 @@ def _norm(a):
 
 def _normalize(a):
     n = _norm(a)
+    if abs(n - 1.0) < 1e-12:  # idempotent: a resolved scene re-loads bit-identically (same hash)
+        return tuple(float(x) for x in a)
     return tuple(x / n for x in a)
