@@ -1,0 +1,356 @@
+"""The scene's material model as a Mitsuba 3 BSDF (``pbr_material``), written in Python over Dr.Jit.
+
+Same model and the same term names as the numpy ground truth :mod:`pbrcheck.brdf` (the equations
+cited there)::
+
+    F0 = mix(specular, base_color, metallic),   alpha = max(roughness^2, MIN_ALPHA)
+    f(l, v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
+
+with ``D`` one of D_GGX [Walter07 eq. 33], D_Beckmann [Walter07 eq. 25], D_BlinnPhong [Walter07
+eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithGGX
+[Heitz14 eq. 98 with eq. 43/72], G_SchlickGGX with k = alpha/2 (ibl) or (roughness+1)^2/8 (direct)
+[Karis13 eq. 4]; ``F`` F_Schlick [Schlick94 eq. 15] or ``none`` (F = 1, so the diffuse (1 - F)
+term vanishes). All computations are in the local shading frame (n = +Z), where the NDFs are written
+in their numerically stable forms (identical functions): with ``s = h.x^2 + h.y^2 = sin^2(theta_h)``,
+
+* D_GGX = 1 / (pi a^2 (s / a^2 + h.z^2)^2)           (= a^2 / (pi (h.z^2 (a^2 - 1) + 1)^2))
+* D_Beckmann = exp(-s / (a^2 h.z^2)) / (pi a^2 h.z^4) (tan^2 = s / h.z^2)
+* D_BlinnPhong = (n + 2) / (2 pi) exp(n/2 log1p(-s))  (h.z^n)
+
+so that narrow lobes stay accurate in float32 (1 - cos(theta_h) underflows, sin^2 does not).
+
+Sampling: the specular lobe is chosen with probability ``P_spec = S / (S + Dif)`` where
+``S = mean_rgb F(n.v)`` (1 without Fresnel) and ``Dif = mean_rgb (1 - F(n.v)) (1 - metallic)
+base_color`` (0 without Fresnel), the lobes' albedos estimated at h = n; the diffuse lobe is sampled
+with the cosine, ggx by visible normals [Heitz18] (pdf ``G1(v) max(0, v.h) D(h) / (n.v) / (4 v.h)``,
+with the Smith GGX G1 of the sampler whatever the ``geometry`` term is), beckmann and blinn_phong by
+``D(h) cos(theta_h)`` (pdf ``D(h) (n.h) / (4 v.h)``) [Walter07 eq. 28 and sec. 5.2]. ``pdf`` and
+``eval_pdf`` return the exact mixture ``P_spec pdf_spec + (1 - P_spec) cos / pi``, and ``sample``
+returns ``f cos / pdf`` of that mixture.
+
+Roughness 0: when ``alpha < pbrcheck.brdf.DELTA_LOBE_ALPHA`` (roughness < 0.01, e.g. 0 or 1e-4) the
+specular lobe is replaced by its mirror limit, a Dirac delta component (``DeltaReflection``): it is
+sampled as the mirror direction with discrete probability ``P_spec`` and weight
+``F(n.v) G(v, v) / P_spec`` (the limit of ``int D G F / (4 n.l n.v) cos dl`` as alpha -> 0, with
+v.h = n.v); ``eval``/``pdf`` then return the diffuse lobe only (a delta cannot be evaluated). The
+choice is made from the roughness in the scene (and re-made in ``parameters_changed``).
+
+Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``) are exposed
+by ``traverse``; ``parameters_changed`` makes them opaque (``dr.make_opaque``) so a new value does not
+rebuild the kernel.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
+from pbrcheck.scene import FRESNELS, GEOMETRIES, NDFS
+
+import drjit as dr
+import mitsuba as mi
+
+PLUGIN_NAME = "pbr_material"
+INV_PI = 1.0 / math.pi
+
+
+def _log1p_neg(s):
+    """log(1 - s) for s in [0, 1], accurate for small s (series below 1e-2: error < s^5/5)."""
+    series = -s * (1.0 + s * (0.5 + s * (1.0 / 3.0 + s * 0.25)))
+    return dr.select(s < 1e-2, series, dr.log(dr.maximum(1.0 - s, 1e-30)))
+
+
+def _neg_expm1(x):
+    """1 - exp(x) for x <= 0, accurate for small |x|."""
+    series = -x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)))
+    return dr.select(x > -1e-2, series, 1.0 - dr.exp(x))
+
+
+def blinn_phong_exponent(alpha):
+    """[Walter07] sec. 5.2: n = 2 / alpha^2 - 2."""
+    return dr.maximum(2.0 / (alpha * alpha) - 2.0, 0.0)
+
+
+# ---- NDFs D(h), h in the local frame -------------------------------------------------------------
+
+def D_GGX(h, alpha):
+    a2 = alpha * alpha
+    s = h.x * h.x + h.y * h.y
+    t = s / a2 + h.z * h.z
+    return dr.select(h.z > 0, INV_PI / (a2 * t * t), 0.0)
+
+
+def D_Beckmann(h, alpha):
+    a2 = alpha * alpha
+    s = h.x * h.x + h.y * h.y
+    c2 = dr.maximum(h.z * h.z, COS_EPS)
+    return dr.select(h.z > 0, dr.exp(-s / (a2 * c2)) * INV_PI / (a2 * c2 * c2), 0.0)
+
+
+def D_BlinnPhong(h, alpha):
+    n = blinn_phong_exponent(alpha)
+    s = dr.clip(h.x * h.x + h.y * h.y, 0.0, 1.0)
+    v = (n + 2.0) * (0.5 * INV_PI) * dr.exp(0.5 * n * _log1p_neg(s))
+    return dr.select(h.z > 0, v, 0.0)
+
+
+NDF = {"ggx": D_GGX, "beckmann": D_Beckmann, "blinn_phong": D_BlinnPhong}
+
+
+# ---- geometry terms G(l, v) (cosines clamped to [0, 1]) ------------------------------------------
+
+def G1_SmithGGX(c, alpha):
+    a2 = alpha * alpha
+    return 2.0 * c / dr.maximum(c + dr.sqrt(a2 + (1.0 - a2) * c * c), COS_EPS)
+
+
+def G_SmithGGX(NoV, NoL, alpha):
+    return G1_SmithGGX(NoV, alpha) * G1_SmithGGX(NoL, alpha)
+
+
+def G_SmithGGXCorrelated(NoV, NoL, alpha):
+    a2 = alpha * alpha
+    den = NoL * dr.sqrt(a2 + (1.0 - a2) * NoV * NoV) + NoV * dr.sqrt(a2 + (1.0 - a2) * NoL * NoL)
+    return 2.0 * NoV * NoL / dr.maximum(den, COS_EPS)
+
+
+def G1_SchlickGGX(c, k):
+    return c / dr.maximum(c * (1.0 - k) + k, COS_EPS)
+
+
+def geometry_term(geometry, NoV, NoL, roughness, alpha):
+    NoV = dr.clip(NoV, 0.0, 1.0)
+    NoL = dr.clip(NoL, 0.0, 1.0)
+    if geometry == "smith_ggx_correlated":
+        return G_SmithGGXCorrelated(NoV, NoL, alpha)
+    if geometry == "smith_ggx":
+        return G_SmithGGX(NoV, NoL, alpha)
+    if geometry == "schlick_ggx_ibl":
+        k = alpha * 0.5
+    elif geometry == "schlick_ggx_direct":
+        k = (roughness + 1.0) * (roughness + 1.0) * 0.125
+    else:
+        raise ValueError(f"unknown geometry term {geometry!r}")
+    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+def fresnel_term(fresnel, VoH, F0):
+    if fresnel == "none":
+        return mi.Color3f(1.0)
+    c = dr.clip(VoH, 0.0, 1.0)
+    w = dr.square(dr.square(1.0 - c)) * (1.0 - c)
+    return F0 + (1.0 - F0) * w
+
+
+def _mean(c):
+    return (c.x + c.y + c.z) * (1.0 / 3.0)
+
+
+class PBRMaterial(mi.BSDF):
+    """``{"type": "pbr_material", "base_color": [r,g,b], "metallic", "roughness", "specular",
+    "ndf", "geometry", "fresnel"}``."""
+
+    def __init__(self, props):
+        mi.BSDF.__init__(self, props)
+
+        def get(name, default):
+            return props.get(name, default) if hasattr(props, "get") else (props[name] if name in props else default)
+
+        bc = get("base_color", [1.0, 1.0, 1.0])
+        if isinstance(bc, (int, float)):
+            bc = [bc] * 3
+        self.base_color = mi.Color3f(*[float(x) for x in bc])
+        self.metallic = mi.Float(float(get("metallic", 0.0)))
+        self.roughness = mi.Float(float(get("roughness", 0.5)))
+        self.specular = mi.Float(float(get("specular", 0.04)))
+        self.ndf = str(get("ndf", "ggx"))
+        self.geometry = str(get("geometry", "smith_ggx_correlated"))
+        self.fresnel = str(get("fresnel", "schlick"))
+        if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
+            raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
+        self._update()
+
+    # ---- parameters ------------------------------------------------------------------------
+    def _update(self):
+        r = float(dr.slice(self.roughness)) if dr.width(self.roughness) == 1 else 0.5
+        self.delta = max(r * r, MIN_ALPHA) < DELTA_LOBE_ALPHA
+        spec = mi.BSDFFlags.DeltaReflection if self.delta else mi.BSDFFlags.GlossyReflection
+        comps = [spec | mi.BSDFFlags.FrontSide]
+        flags = spec | mi.BSDFFlags.FrontSide
+        if self.fresnel != "none":
+            comps.append(mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide)
+            flags = flags | mi.BSDFFlags.DiffuseReflection
+        self.m_components = comps
+        self.m_flags = flags
+
+    def traverse(self, callback):
+        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
+        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
+        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
+        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=None):
+        self._update()
+        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
+
+    def to_string(self):
+        return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "
+                f"delta={self.delta}, base_color={self.base_color}, metallic={self.metallic}, "
+                f"roughness={self.roughness}, specular={self.specular}]")
+
+    # ---- shared pieces ---------------------------------------------------------------------
+    def _alpha(self):
+        return dr.maximum(self.roughness * self.roughness, MIN_ALPHA)
+
+    def _f0(self):
+        return self.specular * (1.0 - self.metallic) + self.base_color * self.metallic
+
+    def _p_spec(self, NoV, F0):
+        """Probability of choosing the specular lobe: its albedo estimate over the total."""
+        if self.fresnel == "none":
+            return dr.full(mi.Float, 1.0, dr.width(NoV))
+        F = fresnel_term(self.fresnel, NoV, F0)
+        s = _mean(F)
+        d = _mean((1.0 - F) * self.base_color) * (1.0 - self.metallic)
+        tot = s + d
+        return dr.select(tot > 0, s / dr.maximum(tot, 1e-20), 1.0)
+
+    def _spec_pdf(self, wi, wo, h, alpha):
+        """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
+        VoH = dr.dot(wi, h)
+        jac = 1.0 / dr.maximum(4.0 * dr.abs(dr.dot(wo, h)), 1e-20)
+        if self.ndf == "ggx":
+            # [Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)
+            pdf_h = G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(VoH, 0.0) * D_GGX(h, alpha) \
+                / dr.maximum(wi.z, COS_EPS)
+        else:
+            pdf_h = NDF[self.ndf](h, alpha) * dr.maximum(h.z, 0.0)
+        return pdf_h * jac
+
+    def _sample_h(self, wi, u, alpha):
+        if self.ndf == "ggx":
+            # [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch.
+            vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
+            lensq = vh.x * vh.x + vh.y * vh.y
+            inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
+            T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
+            T2 = dr.cross(vh, T1)
+            r = dr.sqrt(u.x)
+            phi = 2.0 * dr.pi * u.y
+            t1 = r * dr.cos(phi)
+            t2 = r * dr.sin(phi)
+            s = 0.5 * (1.0 + vh.z)
+            t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
+            nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
+            return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
+        phi = 2.0 * dr.pi * u.y
+        if self.ndf == "beckmann":
+            # [Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u)
+            t2 = -alpha * alpha * _log1p_neg(u.x)
+            cos_t = dr.rsqrt(1.0 + t2)
+            sin_t = dr.sqrt(t2) * cos_t
+        else:
+            # pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))
+            n = blinn_phong_exponent(alpha)
+            x = _log1p_neg(u.x) / (n + 2.0)
+            cos_t = dr.exp(x)
+            sin_t = dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0))
+        return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
+
+    def _eval_pdf(self, si, wo, active):
+        """(f cos, pdf) of the non-delta part, local frame."""
+        wi = si.wi
+        NoV = mi.Frame3f.cos_theta(wi)
+        NoL = mi.Frame3f.cos_theta(wo)
+        valid = active & (NoV > 0) & (NoL > 0)
+        F0 = self._f0()
+        alpha = self._alpha()
+        h = dr.normalize(wi + wo)
+        VoH = dr.clip(dr.dot(wi, h), 0.0, 1.0)
+        F = fresnel_term(self.fresnel, VoH, F0)
+        p_spec = self._p_spec(dr.clip(NoV, 0, 1), F0)
+        value = mi.Color3f(0.0)
+        pdf = mi.Float(0.0)
+        if self.fresnel != "none":
+            value += (1.0 - F) * (1.0 - self.metallic) * self.base_color * (INV_PI * NoL)
+            pdf += (1.0 - p_spec) * INV_PI * NoL
+        if not self.delta:
+            D = NDF[self.ndf](h, alpha)
+            G = geometry_term(self.geometry, NoV, NoL, self.roughness, alpha)
+            value += F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
+            pdf += p_spec * self._spec_pdf(wi, wo, h, alpha)
+        return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
+
+    # ---- the BSDF interface -------------------------------------------------------------------
+    def eval(self, ctx, si, wo, active=True):
+        return self._eval_pdf(si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self._eval_pdf(si, wo, active)[1]
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        return self._eval_pdf(si, wo, active)
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        wi = si.wi
+        NoV = mi.Frame3f.cos_theta(wi)
+        active = mi.Bool(active) & (NoV > 0)
+        F0 = self._f0()
+        alpha = self._alpha()
+        p_spec = self._p_spec(dr.clip(NoV, 0, 1), F0)
+        choose_spec = sample1 < p_spec
+
+        bs = dr.zeros(mi.BSDFSample3f)
+        bs.eta = 1.0
+        wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
+        if self.delta:
+            wo_spec = mi.Vector3f(-wi.x, -wi.y, wi.z)
+        else:
+            h = self._sample_h(wi, sample2, alpha)
+            wo_spec = 2.0 * dr.dot(wi, h) * h - wi
+        bs.wo = dr.select(choose_spec, wo_spec, wo_diff)
+        NoL = mi.Frame3f.cos_theta(bs.wo)
+        active &= NoL > 0
+
+        if self.delta:
+            spec_type, spec_comp = mi.UInt32(+mi.BSDFFlags.DeltaReflection), 0
+        else:
+            spec_type, spec_comp = mi.UInt32(+mi.BSDFFlags.GlossyReflection), 0
+        bs.sampled_type = dr.select(choose_spec, spec_type, mi.UInt32(+mi.BSDFFlags.DiffuseReflection))
+        bs.sampled_component = dr.select(choose_spec, mi.UInt32(spec_comp), mi.UInt32(1))
+
+        value, pdf = self._eval_pdf(si, bs.wo, active)
+        if self.delta:
+            # Mirror limit: weight F(n.v) G(v, v) / P_spec, pdf = the discrete probability.
+            F = fresnel_term(self.fresnel, dr.clip(NoV, 0, 1), F0)
+            G = geometry_term(self.geometry, NoV, NoV, self.roughness, alpha)
+            w_spec = F * G / dr.maximum(p_spec, 1e-20)
+            bs.pdf = dr.select(choose_spec, p_spec, pdf)
+            weight = dr.select(choose_spec, w_spec, value / dr.maximum(pdf, 1e-20))
+        else:
+            bs.pdf = pdf
+            weight = value / dr.maximum(pdf, 1e-20)
+        active &= bs.pdf > 0
+        return bs, dr.select(active, weight, 0.0)
+
+    def eval_diffuse_reflectance(self, si, active=True):
+        return (1.0 - self.metallic) * self.base_color
+
+
+_REGISTERED: set[str] = set()
+
+
+def register() -> None:
+    """Register ``pbr_material`` for the current Mitsuba variant (idempotent)."""
+    v = mi.variant()
+    if v not in _REGISTERED:
+        mi.register_bsdf(PLUGIN_NAME, lambda props: PBRMaterial(props))
+        _REGISTERED.add(v)
+
+
+def material_dict(material, brdf) -> dict:
+    """Mitsuba dict of a :class:`pbrcheck.scene.Material` under a :class:`pbrcheck.scene.BRDFModel`."""
+    return {"type": PLUGIN_NAME, "base_color": list(material.base_color), "metallic": material.metallic,
+            "roughness": material.roughness, "specular": material.specular,
+            "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel}

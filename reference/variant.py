@@ -1,0 +1,47 @@
+"""Choosing the Mitsuba variant: ``cuda_ad_rgb`` where a CUDA GPU works, else ``llvm_ad_rgb``, else
+``scalar_rgb`` (with a warning: ~50x slower, and without wavefront rendering)."""
+
+from __future__ import annotations
+
+import warnings
+
+import pbrcheck  # noqa: F401  (DRJIT_LIBLLVM_PATH before drjit loads)
+
+import drjit as dr
+import mitsuba as mi
+
+PREFERENCE = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+_chosen: str | None = None
+
+
+def _works(variant: str) -> bool:
+    if variant not in mi.variants():
+        return False
+    if variant.startswith("cuda"):
+        return bool(dr.has_backend(dr.JitBackend.CUDA))
+    if variant.startswith("llvm"):
+        return bool(dr.has_backend(dr.JitBackend.LLVM))
+    return True
+
+
+def ensure_variant() -> str:
+    """Set (once per process) and return the variant the reference renders with; registers the BSDF."""
+    global _chosen
+    if _chosen is None:
+        for v in PREFERENCE:
+            if _works(v):
+                _chosen = v
+                break
+        else:  # pragma: no cover
+            from pbrcheck.errors import BackendError
+
+            raise BackendError("no usable Mitsuba variant (cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
+        if _chosen == "scalar_rgb":
+            warnings.warn("pbrcheck reference: no CUDA or LLVM backend; falling back to Mitsuba's "
+                          "scalar_rgb variant (about 50x slower)", RuntimeWarning, stacklevel=2)
+    if mi.variant() != _chosen:
+        mi.set_variant(_chosen)
+    from .bsdf import register
+
+    register()
+    return _chosen
