@@ -148,13 +148,18 @@ def test_llvm19_found_and_exported():
     assert r.returncode == 0 and "19" in r.stdout
 
 
-def test_setup_without_root_prints_the_apt_line():
+def test_setup_without_root_prints_the_apt_line(tmp_path):
     if os.geteuid() != 0 or shutil.which("setpriv") is None:
         pytest.skip("needs root to drop privileges with setpriv")
+    # a copy the unprivileged user can read (the checkout may sit in a private directory)
+    script = Path("/tmp") / f"pbrcheck-ensure-{os.getpid()}.sh"
+    shutil.copy(ROOT / "tools" / "ensure-system-packages.sh", script)
+    script.chmod(0o755)
     r = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "bash",
-                        str(ROOT / "tools" / "ensure-system-packages.sh"), "libegl1", "pbrcheck-no-such-package"],
+                        str(script), "libegl1", "pbrcheck-no-such-package"],
                        capture_output=True, text=True)
-    assert r.returncode == 1
+    script.unlink()
+    assert r.returncode == 1, r.stderr
     assert "apt-get install -y pbrcheck-no-such-package" in r.stderr
     assert "libegl1" not in r.stderr.split("apt-get install -y")[1]  # installed ones are not listed
 
