@@ -1,5 +1,138 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli)."""
+"""CLI subcommands of this package (registered by pbrcheck.cli): compare, report, gate, sweep."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+
+def _jsonable(x):
+    """JSON without NaN/Infinity (not valid JSON): non-finite floats become null."""
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def dump_json(obj) -> str:
+    return json.dumps(_jsonable(obj), indent=2, allow_nan=False)
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return f"{v:.6g}"
+
+
+def _cmd_compare(args) -> int:
+    from pbrcheck.exr import read_exr
+
+    from .maps import write_maps
+    from .metrics import compare_images
+
+    # Everything is read and validated before anything is written.
+    ref = read_exr(args.reference)
+    test = read_exr(args.test)
+    cmp = compare_images(ref, test, ref_name=args.reference, test_name=args.test)
+    summary = {"reference": str(args.reference), "test": str(args.test), **cmp.summary}
+    if args.maps:
+        summary["maps"] = {k: str(p) for k, p in write_maps(Path(args.maps), cmp).items()}
+    if args.json:
+        p = Path(args.json)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(dump_json(summary) + "\n", encoding="utf-8")
+    px = cmp.summary["pixels"]
+    noise = cmp.summary["noise"]
+    print(f"pixels: {px['valid']} valid, {px['edge']} edge, {px['background']} background")
+    for k, v in cmp.metrics.items():
+        flag = ""
+        if noise is not None and noise["within_noise"].get(k):
+            flag = "  (within reference noise)"
+        print(f"{k:<18} {_fmt(v)}{flag}")
+    if noise is not None:
+        print(f"noise floor (mean variance) {_fmt(noise['mean_variance'])}, "
+              f"noise-corrected MSE {_fmt(noise['mse_corrected'])}")
+    return 0
+
+
+def _cmd_gate(args) -> int:
+    from .gate import run_gate
+
+    return run_gate(args.budget, junit=args.junit, summary=args.summary, maps_dir=args.maps,
+                    progress=not args.quiet)
+
+
+def _split_list(s: str | None) -> list[str] | None:
+    if s is None:
+        return None
+    return [x.strip() for x in s.split(",") if x.strip()]
+
+
+def _cmd_report(args) -> int:
+    from .report import build_report
+
+    from pbrcheck.cli import DEFAULT_SCENE
+
+    out = build_report(args.scenes or [DEFAULT_SCENE], presets=_split_list(args.presets), out_dir=Path(args.out),
+                       spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
+                       progress=not args.quiet)
+    print(f"report: {out}")
+    return 0
+
+
+def _cmd_sweep(args) -> int:
+    from .sweep import parse_vary, run_sweep
+
+    vary = parse_vary(args.vary)
+    paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
+                      progress=not args.quiet)
+    for k, p in paths.items():
+        print(f"{k}: {p}")
+    return 0
 
 
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
+    s = sub.add_parser("compare", help="compare a test EXR against a reference EXR (metrics, error maps)")
+    s.add_argument("reference", help="reference EXR")
+    s.add_argument("test", help="test EXR")
+    s.add_argument("--json", metavar="FILE", help="write every metric, per object and per NdotV bin, as JSON")
+    s.add_argument("--maps", metavar="DIR", help="write rel_error.png, flip.png and diff.exr into DIR")
+    s.set_defaults(func=_cmd_compare)
+
+    s = sub.add_parser("report", help="render, compare and write a static HTML accuracy report")
+    s.add_argument("scenes", nargs="*", metavar="SCENE", help="built-in scene names or TOML paths (default: spheres)")
+    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
+    s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
+                   help="also sweep this real-time option (repeatable); default: the main cost knobs")
+    s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_report)
+
+    s = sub.add_parser("gate", help="CI error budget: exit 1 when a metric exceeds its budget")
+    s.add_argument("budget", help="budget TOML file")
+    s.add_argument("--junit", metavar="FILE", help="write JUnit XML")
+    s.add_argument("--summary", metavar="FILE.md", help="write a Markdown summary")
+    s.add_argument("--maps", metavar="DIR", default="out/gate",
+                   help="error maps of failing checks go to DIR/<check> (default out/gate)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_gate)
+
+    s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2",
+                   help="real-time option and its values (repeatable; every combination is rendered)")
+    s.add_argument("--preset", default="default", help="preset the variations start from")
+    s.add_argument("--out", default="out/sweep", metavar="DIR")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_sweep)

@@ -1,0 +1,316 @@
+"""CI error-budget gate: ``pbrcheck gate BUDGET.toml``.
+
+Budget format (TOML; see docs/compare.md)::
+
+    [[check]]
+    name = "spheres-default"         # required, unique
+    scene = "spheres"                # built-in name or TOML path (relative to the budget file)
+    preset = "default"               # real-time preset (default "default")
+    options = { }                    # optional real-time option overrides
+    reference = "refs/spheres.exr"   # stored EXR (relative to the budget file) or "auto"
+    spp = 64                         # with reference = "auto": samples per pixel (default 64)
+    # test = "engine_out.exr"        # instead of preset: gate an image from any engine (scene
+                                     # then only names objects / renders an "auto" reference)
+    [check.max]                      # metric = largest allowed value
+    relmse = 0.01
+    [check.min]                      # optional: metric = smallest allowed value (e.g. psnr)
+    psnr = 30
+
+Outcome per check: ``pass``, ``fail`` (a metric outside its budget) or ``error`` (missing or
+unreadable image, size mismatch, NaN, bad scene...). Exit status: 2 if any check errored (never
+pass on missing data), else 1 if any failed, else 0. A malformed budget is an error before any
+check runs (exit 2, nothing written).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pbrcheck.errors import PbrcheckError
+
+from .metrics import HIGHER_IS_BETTER, METRICS, worse
+
+CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
+DEFAULT_SPP = 64
+
+
+class BudgetError(PbrcheckError):
+    """A malformed budget file (names the file and the field)."""
+
+
+@dataclass
+class Check:
+    name: str
+    max: dict[str, float]
+    min: dict[str, float]
+    reference: str
+    scene: str | None = None
+    preset: str = "default"
+    options: dict = field(default_factory=dict)
+    test: str | None = None
+    spp: int = DEFAULT_SPP
+    mode: str = "local"
+    seed: int = 0
+
+
+@dataclass
+class Result:
+    check: Check
+    status: str                      # pass | fail | error
+    metrics: dict | None = None
+    failures: list[dict] = field(default_factory=list)
+    error: str | None = None
+    exit_code: int = 0
+    seconds: float = 0.0
+    maps: dict = field(default_factory=dict)
+
+
+def _err(file, where, expected, found=None) -> BudgetError:
+    msg = f"{file}: {where}: expected {expected}"
+    if found is not None:
+        msg += f", found {found!r}"
+    return BudgetError(msg)
+
+
+def _bounds(file, where, t) -> dict[str, float]:
+    if not isinstance(t, dict):
+        raise _err(file, where, "a table of metric = number", t)
+    out = {}
+    for k, v in t.items():
+        if k not in METRICS:
+            raise _err(file, f"{where}.{k}", "a metric name (" + ", ".join(METRICS) + ")", k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
+            raise _err(file, f"{where}.{k}", "a number", v)
+        out[k] = float(v)
+    return out
+
+
+def load_budget(path: str | Path) -> tuple[list[Check], Path]:
+    """Parse and validate a budget; returns the checks and the budget's directory."""
+    path = Path(path)
+    if not path.is_file():
+        raise BudgetError(f"{path}: no such budget file")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise BudgetError(f"{path}: invalid TOML: {e}") from None
+    except OSError as e:
+        raise BudgetError(f"{path}: cannot read: {e.strerror}") from None
+    extra = set(data) - {"check"}
+    if extra:
+        raise _err(path, sorted(extra)[0], "only [[check]] tables", sorted(extra)[0])
+    checks = data.get("check")
+    if not isinstance(checks, list) or not checks:
+        raise _err(path, "check", "at least one [[check]] table", checks if checks is not None else "nothing")
+    out: list[Check] = []
+    names = set()
+    for i, t in enumerate(checks):
+        w = f"check[{i}]"
+        if not isinstance(t, dict):
+            raise _err(path, w, "a table", t)
+        for k in t:
+            if k not in CHECK_KEYS:
+                raise _err(path, f"{w}.{k}", "one of the keys " + ", ".join(sorted(CHECK_KEYS)), k)
+        name = t.get("name")
+        if not isinstance(name, str) or not name.strip():
+            raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
+        if name in names:
+            raise _err(path, f"{w}.name", "a unique check name", name)
+        names.add(name)
+        for k in ("scene", "preset", "reference", "test", "mode"):
+            if k in t and not isinstance(t[k], str):
+                raise _err(path, f"{w}.{k}", "a string", t[k])
+        if "reference" not in t:
+            raise _err(path, f"{w}.reference", 'a stored EXR path or "auto" (required)', "nothing")
+        has_test, has_scene = "test" in t, "scene" in t
+        if not (has_test or has_scene):
+            raise _err(path, w, "scene (rendered with preset) or test (an image path)", "neither")
+        if t["reference"] == "auto" and not has_scene:
+            raise _err(path, f"{w}.reference", '"auto" only together with scene', "auto")
+        if has_test and ("preset" in t or "options" in t):
+            raise _err(path, w, "preset/options only with scene, not with test", "test")
+        if "options" in t and not isinstance(t["options"], dict):
+            raise _err(path, f"{w}.options", "a table of real-time options", t["options"])
+        for k in ("spp", "seed"):
+            if k in t and (isinstance(t[k], bool) or not isinstance(t[k], int) or t[k] < (1 if k == "spp" else 0)):
+                raise _err(path, f"{w}.{k}", "a positive integer" if k == "spp" else "an integer >= 0", t[k])
+        mx = _bounds(path, f"{w}.max", t.get("max", {}))
+        mn = _bounds(path, f"{w}.min", t.get("min", {}))
+        if not mx and not mn:
+            raise _err(path, f"{w}.max", "at least one metric budget in [check.max] or [check.min]", "nothing")
+        out.append(Check(name=name, max=mx, min=mn, reference=t["reference"], scene=t.get("scene"),
+                         preset=t.get("preset", "default"), options=dict(t.get("options", {})),
+                         test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
+                         seed=t.get("seed", 0)))
+    return out, path.parent
+
+
+def _resolve(base: Path, p: str) -> Path:
+    q = Path(p).expanduser()
+    return q if q.is_absolute() else base / q
+
+
+def _scene_arg(base: Path, s: str):
+    from pbrcheck.scene import builtin_scene_names, load_scene
+
+    if not Path(s).suffix and s in builtin_scene_names():
+        return load_scene(s)
+    return load_scene(_resolve(base, s))
+
+
+def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progress: bool = True) -> Result:
+    """Evaluate one check; never raises for data problems (they become ``error`` results)."""
+    import time
+
+    from pbrcheck.exr import RGB, read_exr
+
+    from .maps import write_maps
+    from .metrics import compare_images
+
+    t0 = time.perf_counter()
+    res = Result(check, "error")
+    try:
+        scene = _scene_arg(base, check.scene) if check.scene else None
+        if check.reference == "auto":
+            from reference.render import render_reference
+
+            ref = render_reference(scene, spp=check.spp, mode=check.mode, seed=check.seed,
+                                   use_cache=True, progress=progress)
+            ref_name = f"auto reference ({check.scene}, {check.spp} spp)"
+        else:
+            ref_path = _resolve(base, check.reference)
+            ref = read_exr(ref_path, require=RGB)
+            ref_name = str(ref_path)
+        if check.test is not None:
+            test_path = _resolve(base, check.test)
+            test = read_exr(test_path, require=RGB)
+            test_name = str(test_path)
+        else:
+            from realtime.render import render_realtime
+
+            test = render_realtime(scene, check.preset, check.options or None, progress=progress)
+            test_name = f"real-time {check.preset}"
+        cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
+    except PbrcheckError as e:
+        res.error, res.exit_code = str(e), max(e.exit_code, 2)
+        res.seconds = time.perf_counter() - t0
+        return res
+    res.metrics = cmp.metrics
+    for bounds, kind in ((check.max, "max"), (check.min, "min")):
+        for metric, bound in bounds.items():
+            v = cmp.metrics.get(metric)
+            bad = (v is None) or (v > bound if kind == "max" else v < bound)
+            if bad:
+                worst = [{"id": o["id"], "name": o["name"], "value": o["metrics"][metric]}
+                         for o in cmp.worst_objects(metric)]
+                within = (cmp.summary["noise"] or {}).get("within_noise", {}).get(metric)
+                res.failures.append({"metric": metric, "value": v, "budget": bound, "kind": kind,
+                                     "worst_objects": worst, "within_noise": within})
+    res.status = "fail" if res.failures else "pass"
+    res.exit_code = 1 if res.failures else 0
+    if res.failures and maps_dir is not None:
+        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / _safe(check.name), cmp).items()}
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return f"{v:.6g}"
+
+
+def failure_lines(r: Result) -> list[str]:
+    out = []
+    for f in r.failures:
+        op = ">" if f["kind"] == "max" else "<"
+        worst = ", ".join(f"{o['name'] or '#' + str(o['id'])}={_fmt(o['value'])}" for o in f["worst_objects"])
+        note = " (within the reference's noise)" if f.get("within_noise") else ""
+        out.append(f"FAIL {r.check.name}: {f['metric']} = {_fmt(f['value'])} {op} budget {_fmt(f['budget'])}"
+                   f"{note}" + (f"; worst objects: {worst}" if worst else ""))
+    return out
+
+
+def write_junit(path: Path, results: list[Result]) -> Path:
+    suite = ET.Element("testsuite", name="pbrcheck-gate", tests=str(len(results)),
+                       failures=str(sum(r.status == "fail" for r in results)),
+                       errors=str(sum(r.status == "error" for r in results)),
+                       time=f"{sum(r.seconds for r in results):.3f}")
+    for r in results:
+        tc = ET.SubElement(suite, "testcase", classname="pbrcheck.gate", name=r.check.name, time=f"{r.seconds:.3f}")
+        if r.status == "fail":
+            lines = failure_lines(r)
+            ET.SubElement(tc, "failure", message=lines[0]).text = "\n".join(lines)
+        elif r.status == "error":
+            ET.SubElement(tc, "error", message=r.error or "error").text = r.error
+        if r.metrics:
+            ET.SubElement(tc, "system-out").text = "\n".join(f"{k} = {_fmt(v)}" for k, v in r.metrics.items())
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    root = ET.Element("testsuites")
+    root.append(suite)
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    return path
+
+
+def write_summary(path: Path, results: list[Result]) -> Path:
+    icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR"}
+    lines = ["# pbrcheck gate", "", "| check | status | metric | value | budget |", "|---|---|---|---|---|"]
+    for r in results:
+        budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
+        if r.status == "error":
+            lines.append(f"| {r.check.name} | {icon['error']} | | | {r.error} |")
+            continue
+        failed = {f["metric"] for f in r.failures}
+        for m, b, op in budgets:
+            st = "FAIL" if m in failed else "pass"
+            lines.append(f"| {r.check.name} | {st} | {m} | {_fmt(r.metrics.get(m))} | "
+                         f"{'<=' if op == '>' else '>='} {_fmt(b)} |")
+    fails = [l for r in results for l in failure_lines(r)]
+    if fails:
+        lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | None = None,
+             maps_dir: str | None = None, progress: bool = True, stream=None) -> int:
+    import sys
+
+    stream = stream or sys.stdout
+    checks, base = load_budget(budget)
+    results = []
+    for c in checks:
+        r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
+        results.append(r)
+        if r.status == "pass":
+            print(f"pass {c.name}", file=stream)
+        elif r.status == "fail":
+            for line in failure_lines(r):
+                print(line, file=stream)
+            if r.maps:
+                print(f"     error maps: {Path(r.maps['rel_error']).parent}", file=stream)
+        else:
+            print(f"ERROR {c.name}: {r.error}", file=stream)
+    if junit:
+        write_junit(Path(junit), results)
+    if summary:
+        write_summary(Path(summary), results)
+    n = {s: sum(r.status == s for r in results) for s in ("pass", "fail", "error")}
+    print(f"gate: {n['pass']} passed, {n['fail']} failed, {n['error']} error(s)", file=stream)
+    errors = [r.exit_code for r in results if r.status == "error"]
+    if errors:
+        return max(errors)
+    return 1 if n["fail"] else 0

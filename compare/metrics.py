@@ -1,0 +1,366 @@
+"""Image comparison: valid-pixel masking, per-pixel error maps and their summaries.
+
+Notation: ``r`` is the reference, ``t`` the test image, both linear RGB; every mean below is over
+the *valid* pixels (see :func:`pixel_classes`) and over the three RGB channels, ``eps`` is
+:data:`REL_EPS`.
+
+* ``mean_abs`` = mean |t - r|
+* ``rmse``     = sqrt(mean (t - r)^2)
+* ``relmse``   = mean (t - r)^2 / (r^2 + eps)
+* ``smape``    = mean |t - r| / (|t| + |r| + eps)
+* ``rel_p50``, ``rel_p95``, ``rel_p99``, ``rel_max``: percentiles (linear interpolation) and the
+  maximum of |t - r| / (r + eps) over valid pixels and channels
+* ``psnr``     = 10 log10(peak^2 / mean (t - r)^2), ``peak`` = the 99.9th percentile of the
+  reference's luminance Y = 0.2126 R + 0.7152 G + 0.0722 B over valid pixels (a robust "white":
+  the plain maximum of an HDR image is a sun or a firefly). +inf for identical images (``null``
+  in JSON).
+* ``flip_mean``: mean over valid pixels of the HDR-FLIP error map (NVIDIA flip-evaluator, default
+  67 pixels per degree, ACES tone mapper). FLIP is spatial, so it is evaluated on the whole image
+  and only then averaged over the valid pixels. Negative radiance is clipped to 0 first.
+* ``delta_e_itp_mean``, ``delta_e_itp_p95``: ITU-R BT.2124 Delta E_ITP per valid pixel: linear
+  sRGB/Rec.709 is converted to Rec.2020, scaled so that 1.0 = :data:`ITP_NITS_PER_UNIT` cd/m2,
+  negatives clipped to 0, encoded as ICtCp (SMPTE ST 2084 / PQ) and compared
+  (``720 sqrt(dI^2 + (dT/2)^2 + dP^2)``); mean and 95th percentile.
+
+Noise floor (when the reference has ``variance.R/G/B``, the variance of its pixel estimate):
+``mean_variance`` = mean of the variance channels over valid pixels; ``mse_corrected`` =
+mean (t - r)^2 - mean_variance (an unbiased estimate of the squared error against the converged
+image when ``t`` is noise-free). For the per-metric flag every metric is also evaluated on a
+simulated pair ``(r, r + sqrt(2 var) z)`` with a fixed-seed standard normal ``z``: the difference
+two independent renders with the reference's variance would show. A metric is flagged
+``within_noise`` when its value is no worse than :data:`NOISE_EXPLAINS_FACTOR` times that simulated
+value (for ``psnr``, higher is better: no lower than the simulated value less
+10 log10(NOISE_EXPLAINS_FACTOR) dB).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.exr import RGB, VARIANCE, Image
+
+# --- tolerances and constants (each with its reason) -------------------------------------------
+
+#: Added to denominators of relative metrics: keeps near-black pixels (whose relative error is
+#: meaningless) from dominating; 0.01 is 1 % of a diffuse white under unit radiance.
+REL_EPS = 0.01
+#: A pixel is "fully covered" when its coverage AOV is at least this. Coverage is a mean of
+#: per-sample hits; 1e-3 below 1 absorbs float32 rounding of that mean while a pixel missing even
+#: one of 256 samples (coverage <= 0.996) already counts as a partial silhouette pixel.
+FULL_COVERAGE = 0.999
+#: Percentile of the reference luminance used as the PSNR peak: robust against a visible sun or a
+#: firefly, which the plain maximum of an HDR image would be.
+PSNR_PEAK_PERCENTILE = 99.9
+#: Scale of the Delta E_ITP conversion: linear value 1.0 is 100 cd/m2 (SDR reference white).
+ITP_NITS_PER_UNIT = 100.0
+#: A metric within this factor of its value on a simulated noise-only pair is "explained by the
+#: reference's noise". > 1 because the simulated metric is itself a random estimate (tail
+#: percentiles and the maximum fluctuate by tens of percent) and the real difference is correlated
+#: with the reference's own noise, which the simulation ignores.
+NOISE_EXPLAINS_FACTOR = 1.5
+#: Seed of the noise simulation (the flag must be deterministic).
+NOISE_SEED = 12345
+#: Number of equal-width NdotV bins over [0, 1].
+NDOTV_BINS = 10
+#: Luminance weights (Rec.709 / sRGB primaries), also what FLIP uses.
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+METRICS = ("mean_abs", "rmse", "relmse", "smape", "rel_p50", "rel_p95", "rel_p99", "rel_max",
+           "psnr", "flip_mean", "delta_e_itp_mean", "delta_e_itp_p95")
+#: Metrics where larger means better (everything else: smaller is better).
+HIGHER_IS_BETTER = frozenset({"psnr"})
+
+
+class ComparisonError(PbrcheckError):
+    """Two images that cannot be compared (size mismatch, NaN, missing channel, no valid pixel)."""
+
+
+# --- input validation ---------------------------------------------------------------------------
+
+
+def validate_pair(ref: Image, test: Image, ref_name: str = "reference", test_name: str = "test") -> None:
+    """Raise :class:`ComparisonError` (one line) unless both images can be compared."""
+    for img, name in ((ref, ref_name), (test, test_name)):
+        missing = [c for c in RGB if c not in img.channels]
+        if missing:
+            raise ComparisonError(f"{name}: missing channel(s) {', '.join(missing)} "
+                                  f"(has {', '.join(sorted(img.channels)) or 'none'})")
+    if ref.shape != test.shape:
+        (h1, w1), (h2, w2) = ref.shape, test.shape
+        raise ComparisonError(f"size mismatch: {ref_name} is {w1}x{h1}, {test_name} is {w2}x{h2}")
+    for img, name in ((ref, ref_name), (test, test_name)):
+        for c in RGB + VARIANCE + ("object", "coverage", "NdotV"):
+            a = img.channels.get(c)
+            if a is not None and not np.all(np.isfinite(a)):
+                n = int(np.count_nonzero(~np.isfinite(a)))
+                raise ComparisonError(f"{name}: channel {c} has {n} NaN/Inf pixel(s)")
+
+
+# --- masking ------------------------------------------------------------------------------------
+
+
+def _classes_one(img: Image):
+    """(covered, background) masks of one image, or None when it has neither AOV."""
+    obj = img.channels.get("object")
+    cov = img.channels.get("coverage")
+    if obj is None and cov is None:
+        return None
+    hit = (obj >= 0) if obj is not None else (cov > 0)
+    full = hit & (cov >= FULL_COVERAGE) if cov is not None else hit
+    background = ~hit if cov is None else (~hit & (cov <= 0)) if obj is None else ~hit & (cov <= 0)
+    return full, background
+
+
+def pixel_classes(ref: Image, test: Image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(valid, edge, background) boolean masks, disjoint and covering the image.
+
+    *valid*: fully covered object pixels in every image that has ``object``/``coverage`` AOVs, and,
+    when both have ``object``, the same object in both. *background*: no object in either image.
+    *edge*: the rest (partly covered silhouette pixels, or pixels where the images disagree about
+    which object is seen). When neither image has AOVs, every pixel is valid.
+    """
+    shape = ref.shape
+    cls = [c for c in (_classes_one(ref), _classes_one(test)) if c is not None]
+    if not cls:
+        return np.ones(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+    valid = np.logical_and.reduce([c[0] for c in cls])
+    background = np.logical_and.reduce([c[1] for c in cls])
+    if "object" in ref.channels and "object" in test.channels:
+        valid &= np.rint(ref.channels["object"]) == np.rint(test.channels["object"])
+    background &= ~valid
+    edge = ~(valid | background)
+    return valid, edge, background
+
+
+# --- per-pixel maps -----------------------------------------------------------------------------
+
+
+def _flip_exposures(ref_rgb: np.ndarray) -> tuple[float, float]:
+    """HDR-FLIP's own start/stop exposures (ACES, t = 0.85: log2(x_max / Y_max) and
+    log2(x_max / Y_median)), made safe for a black or constant reference, where flip-evaluator
+    would exit the process ("start exposure must be smaller than stop exposure")."""
+    tc = (0.6 * 0.6 * 2.51, 0.6 * 0.03, 0.0, 0.6 * 0.6 * 2.43, 0.6 * 0.59, 0.14)
+    t = 0.85
+    a, b, c = tc[0] - t * tc[3], tc[1] - t * tc[4], tc[2] - t * tc[5]
+    x_max = (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
+    y = ref_rgb.reshape(-1, 3) @ LUMA.astype(np.float32)
+    y_max = max(float(y.max()), 1e-6)
+    y_med = min(max(float(np.median(y)), 1e-6), y_max)
+    start, stop = math.log2(x_max / y_max), math.log2(x_max / y_med)
+    if not stop > start + 1e-3:
+        stop = start + 1.0
+    return start, stop
+
+
+def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
+    """HDR-FLIP error map (H, W) in [0, 1]. Inputs are validated here because flip-evaluator calls
+    ``sys.exit`` on bad input: (H, W, 3), finite; passed as contiguous float32, clipped to >= 0."""
+    import flip_evaluator
+
+    if ref_rgb.shape != test_rgb.shape or ref_rgb.ndim != 3 or ref_rgb.shape[2] != 3:
+        raise ComparisonError(f"FLIP needs two (H, W, 3) images, got {ref_rgb.shape} and {test_rgb.shape}")
+    if not (np.all(np.isfinite(ref_rgb)) and np.all(np.isfinite(test_rgb))):
+        raise ComparisonError("FLIP input has NaN/Inf")
+    r = np.ascontiguousarray(np.clip(ref_rgb, 0.0, None), dtype=np.float32)
+    t = np.ascontiguousarray(np.clip(test_rgb, 0.0, None), dtype=np.float32)
+    start, stop = _flip_exposures(r)
+    err, _, _ = flip_evaluator.evaluate(r, t, "HDR", applyMagma=False, computeMeanError=False,
+                                        parameters={"startExposure": start, "stopExposure": stop})
+    return np.asarray(err, dtype=np.float32).reshape(r.shape[:2])
+
+
+def ictcp(rgb: np.ndarray) -> np.ndarray:
+    """Linear sRGB (1.0 = 100 cd/m2) to ICtCp (BT.2100 PQ) via Rec.2020, negatives clipped."""
+    import colour
+
+    rgb2020 = colour.RGB_to_RGB(rgb.astype(np.float64), colour.RGB_COLOURSPACES["sRGB"],
+                                colour.RGB_COLOURSPACES["ITU-R BT.2020"])
+    rgb2020 = np.clip(rgb2020, 0.0, None) * ITP_NITS_PER_UNIT
+    return colour.RGB_to_ICtCp(rgb2020)
+
+
+def delta_e_itp_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
+    """Per-pixel ITU-R BT.2124 Delta E_ITP (colour-science ``delta_E_ITP``)."""
+    import colour
+
+    return colour.difference.delta_E_ITP(ictcp(ref_rgb), ictcp(test_rgb)).astype(np.float32)
+
+
+@dataclass
+class PixelMaps:
+    """Per-pixel quantities from which every metric is a reduction."""
+
+    ref: np.ndarray            # (H, W, 3)
+    test: np.ndarray           # (H, W, 3)
+    diff: np.ndarray           # t - r
+    rel: np.ndarray            # |t - r| / (r + eps)
+    flip: np.ndarray | None    # (H, W)
+    dE: np.ndarray | None      # (H, W)
+    y_ref: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.y_ref = self.ref @ LUMA.astype(np.float32)
+
+
+def pixel_maps(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, flip: bool = True, itp: bool = True) -> PixelMaps:
+    r = ref_rgb.astype(np.float64)
+    t = test_rgb.astype(np.float64)
+    d = t - r
+    rel = np.abs(d) / (r + REL_EPS)
+    return PixelMaps(ref=r, test=t, diff=d, rel=rel,
+                     flip=flip_map(ref_rgb, test_rgb) if flip else None,
+                     dE=delta_e_itp_map(ref_rgb, test_rgb) if itp else None)
+
+
+def _f(x) -> float:
+    return float(x)
+
+
+def summarize(m: PixelMaps, mask: np.ndarray, *, peak: float | None = None) -> dict[str, float | None]:
+    """Every metric of :data:`METRICS` over ``mask`` (see the module docstring for formulas)."""
+    n = int(mask.sum())
+    if n == 0:
+        return {k: None for k in METRICS}
+    r, t, d = m.ref[mask], m.test[mask], m.diff[mask]
+    sq = d * d
+    mse = _f(sq.mean())
+    rel = m.rel[mask]
+    if peak is None:
+        peak = psnr_peak(m, mask)
+    out: dict[str, float | None] = {
+        "mean_abs": _f(np.abs(d).mean()),
+        "rmse": math.sqrt(mse),
+        "relmse": _f((sq / (r * r + REL_EPS)).mean()),
+        "smape": _f((np.abs(d) / (np.abs(t) + np.abs(r) + REL_EPS)).mean()),
+    }
+    p50, p95, p99 = np.percentile(rel, [50, 95, 99])
+    out.update(rel_p50=_f(p50), rel_p95=_f(p95), rel_p99=_f(p99), rel_max=_f(rel.max()))
+    out["psnr"] = (math.inf if mse == 0 else 10.0 * math.log10(peak * peak / mse)) if peak > 0 else None
+    out["flip_mean"] = _f(m.flip[mask].mean()) if m.flip is not None else None
+    if m.dE is not None:
+        de = m.dE[mask]
+        out["delta_e_itp_mean"] = _f(de.mean())
+        out["delta_e_itp_p95"] = _f(np.percentile(de, 95))
+    else:
+        out["delta_e_itp_mean"] = out["delta_e_itp_p95"] = None
+    return out
+
+
+def psnr_peak(m: PixelMaps, mask: np.ndarray) -> float:
+    """The 99.9th percentile of the reference luminance over ``mask``."""
+    return _f(np.percentile(m.y_ref[mask], PSNR_PEAK_PERCENTILE)) if mask.any() else 0.0
+
+
+def worse(metric: str, value, bound) -> bool:
+    """True when ``value`` is worse than ``bound`` for this metric (None is always worse)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return True
+    return value < bound if metric in HIGHER_IS_BETTER else value > bound
+
+
+# --- the comparison -----------------------------------------------------------------------------
+
+
+@dataclass
+class Comparison:
+    """Result of :func:`compare_images`: ``summary`` is the JSON-able dict; the rest are maps."""
+
+    summary: dict
+    maps: PixelMaps
+    valid: np.ndarray
+    edge: np.ndarray
+    background: np.ndarray
+
+    @property
+    def metrics(self) -> dict:
+        return self.summary["metrics"]
+
+    def worst_objects(self, metric: str, n: int = 3) -> list[dict]:
+        objs = [o for o in self.summary["objects"] if o["metrics"].get(metric) is not None]
+        sign = -1 if metric in HIGHER_IS_BETTER else 1
+        objs.sort(key=lambda o: sign * o["metrics"][metric], reverse=True)
+        return objs[:n]
+
+
+def _object_info(scene, oid: int) -> tuple[str | None, dict | None]:
+    if scene is None or not (0 <= oid < len(scene.objects)):
+        return None, None
+    o = scene.objects[oid]
+    mat = o.material
+    return o.name, {"base_color": list(mat.base_color), "metallic": mat.metallic,
+                    "roughness": mat.roughness, "specular": mat.specular}
+
+
+def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
+                   ref_name: str = "reference", test_name: str = "test") -> Comparison:
+    """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be."""
+    validate_pair(ref, test, ref_name, test_name)
+    valid, edge, background = pixel_classes(ref, test)
+    if not valid.any():
+        raise ComparisonError(f"no valid pixel: {int(edge.sum())} edge and {int(background.sum())} "
+                              "background pixel(s), no fully covered object pixel in both images")
+    m = pixel_maps(ref.rgb, test.rgb)
+    peak = psnr_peak(m, valid)
+    summary: dict = {
+        "size": [ref.shape[1], ref.shape[0]],
+        "pixels": {"valid": int(valid.sum()), "edge": int(edge.sum()), "background": int(background.sum())},
+        "psnr_peak": peak,
+        "metrics": summarize(m, valid, peak=peak),
+    }
+    # Per object (ids from the reference's object AOV, else the test's).
+    objects = []
+    obj = ref.channels.get("object", test.channels.get("object"))
+    if obj is not None:
+        ids = np.rint(obj).astype(np.int64)
+        for oid in np.unique(ids[valid]):
+            mask = valid & (ids == oid)
+            name, material = _object_info(scene, int(oid))
+            objects.append({"id": int(oid), "name": name, "material": material,
+                            "pixels": int(mask.sum()), "metrics": summarize(m, mask, peak=peak)})
+    summary["objects"] = objects
+    # Error against NdotV (the reference's, else the test's).
+    ndv = ref.channels.get("NdotV", test.channels.get("NdotV"))
+    bins = []
+    if ndv is not None:
+        edges = np.linspace(0.0, 1.0, NDOTV_BINS + 1)
+        idx = np.clip(np.digitize(np.clip(ndv, 0.0, 1.0), edges[1:-1]), 0, NDOTV_BINS - 1)
+        for b in range(NDOTV_BINS):
+            mask = valid & (idx == b)
+            s = summarize(m, mask, peak=peak)
+            bins.append({"lo": float(edges[b]), "hi": float(edges[b + 1]), "pixels": int(mask.sum()),
+                         "metrics": {k: s[k] for k in ("mean_abs", "relmse", "smape", "flip_mean",
+                                                        "delta_e_itp_mean")}})
+    summary["ndotv"] = bins
+    summary["noise"] = (noise_floor(ref, m, valid, peak, summary["metrics"])
+                        if noise and ref.variance is not None else None)
+    return Comparison(summary, m, valid, edge, background)
+
+
+def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metrics: dict) -> dict:
+    """Noise floor of the reference and a ``within_noise`` flag per metric (module docstring)."""
+    var = np.clip(ref.variance.astype(np.float64), 0.0, None)
+    mean_var = _f(var[valid].mean())
+    mse = _f((m.diff[valid] ** 2).mean())
+    rng = np.random.default_rng(NOISE_SEED)
+    sim_t = m.ref + np.sqrt(2.0 * var) * rng.standard_normal(m.ref.shape)
+    sim = pixel_maps(m.ref.astype(np.float32), sim_t.astype(np.float32))
+    sim_metrics = summarize(sim, valid, peak=peak)
+    flags = {}
+    for k in METRICS:
+        flags[k] = _within(k, metrics[k], sim_metrics[k])
+    return {"mean_variance": mean_var, "mse": mse, "mse_corrected": mse - mean_var,
+            "factor": NOISE_EXPLAINS_FACTOR, "simulated": sim_metrics, "within_noise": flags}
+
+
+def _within(metric: str, value, sim) -> bool:
+    if value is None or sim is None:
+        return False
+    if metric in HIGHER_IS_BETTER:
+        if math.isinf(value):
+            return True
+        return value >= sim - 10.0 * math.log10(NOISE_EXPLAINS_FACTOR)
+    return value <= NOISE_EXPLAINS_FACTOR * sim
