@@ -82,7 +82,7 @@ def _cmd_report(args) -> int:
 
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=_split_list(args.presets), out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
-                       progress=not args.quiet)
+                       sweep=not args.no_sweep, progress=not args.quiet)
     print(f"report: {out}")
     return 0
 
@@ -113,8 +113,10 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
-                   help="also sweep this real-time option (repeatable); default: the main cost knobs")
+                   help="sweep these real-time options (repeatable, every combination); default: the main cost "
+                        "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
+    s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_report)
 

@@ -1,0 +1,356 @@
+"""Static, offline HTML accuracy report: ``pbrcheck report``.
+
+Layout of ``OUT/``: ``index.html`` and one folder per scene with PNGs (tone-mapped reference and
+real-time images, FLIP and relative-error maps, plots) plus ``metrics.json``. The page uses no
+external URL: styles and the small scripts (reference/real-time slider, an image-decode check that
+sets ``data-images-ok`` on ``<body>``) are inline.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+from pathlib import Path
+
+from .metrics import METRICS
+
+#: Reference spp fractions for the convergence study (error of a lower-spp render with another
+#: seed against the full reference).
+CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
+#: Seed of the convergence renders: different from the reference's so their noise is independent.
+CONVERGENCE_SEED = 1
+#: The report's default sweep over the main cost knobs: each entry is varied alone around the
+#: first preset (a product of all of them would be hundreds of renders). ``runtime_samples`` only
+#: matters with runtime importance sampling, so it is swept together with ``ibl = "runtime"``.
+DEFAULT_SWEEP = (
+    [{"prefilter_samples": n} for n in (64, 256, 1024)]
+    + [{"cube_size": n} for n in (64, 128, 256)]
+    + [{"lut_size": n} for n in (16, 32, 64)]
+    + [{"lut_format": f} for f in ("f16", "f32")]
+    + [{"irradiance": m} for m in ("convolution", "sh9")]
+    + [{"ibl": "runtime", "runtime_samples": n} for n in (16, 64)]
+)
+
+
+def default_sweep(preset: str = "default") -> list[dict]:
+    """:data:`DEFAULT_SWEEP` less the entries the renderer rejects or that repeat ``preset`` itself."""
+    try:
+        from realtime.presets import resolve_options
+
+        base = resolve_options(preset, {})
+    except Exception:  # noqa: BLE001 - no real-time renderer: no sweep
+        return []
+    out = []
+    for combo in DEFAULT_SWEEP:
+        try:
+            opts = resolve_options(preset, combo)
+        except Exception:  # noqa: BLE001 - an option this renderer does not have
+            continue
+        if opts != base and opts not in [resolve_options(preset, c) for c in out]:
+            out.append(combo)
+    return out
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+def _plt():
+    from .maps import _mpl
+
+    return _mpl()[1]
+
+
+def _save(fig, path: Path) -> str:
+    plt = _plt()
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path.name
+
+
+def plot_materials(path: Path, scene, per_preset: dict[str, dict]) -> str | None:
+    """Error against roughness (mean over the grid's metallic rows) and against metallic (mean over
+    roughness columns), for relmse and flip_mean, one line per preset."""
+    if not scene.grids:
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7))
+    for gi, g in enumerate(scene.grids):
+        rows, cols, first = g["rows"], g["columns"], g["first_id"]
+        for preset, objs in per_preset.items():
+            for mi, metric in enumerate(("relmse", "flip_mean")):
+                val = lambda r, c: (objs.get(first + r * cols + c) or {}).get(metric)  # noqa: E731
+                rough = [scene.objects[first + c].material.roughness for c in range(cols)]
+                met = [scene.objects[first + r * cols].material.metallic for r in range(rows)]
+                by_r = [_mean([val(r, c) for r in range(rows)]) for c in range(cols)]
+                by_m = [_mean([val(r, c) for c in range(cols)]) for r in range(rows)]
+                lab = preset if len(scene.grids) == 1 else f"{preset} (grid {gi})"
+                axes[mi][0].plot(rough, by_r, "-o", ms=3, label=lab)
+                axes[mi][1].plot(met, by_m, "-o", ms=3, label=lab)
+    for mi, metric in enumerate(("relmse", "flip_mean")):
+        for j, xl in enumerate(("roughness", "metallic")):
+            ax = axes[mi][j]
+            ax.set_xlabel(xl)
+            ax.set_ylabel(f"{metric} (mean over the other axis)")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def _mean(xs):
+    xs = [x for x in xs if x is not None and math.isfinite(x)]
+    return sum(xs) / len(xs) if xs else float("nan")
+
+
+def plot_ndotv(path: Path, per_preset: dict[str, list]) -> str | None:
+    if not any(per_preset.values()):
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    for preset, bins in per_preset.items():
+        xs = [(b["lo"] + b["hi"]) / 2 for b in bins if b["pixels"]]
+        for ax, metric in zip(axes, ("relmse", "flip_mean")):
+            ax.plot(xs, [b["metrics"][metric] for b in bins if b["pixels"]], "-o", ms=3, label=preset)
+    for ax, metric in zip(axes, ("relmse", "flip_mean")):
+        ax.set_xlabel("NdotV")
+        ax.set_ylabel(metric)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def plot_convergence(path: Path, conv: list[dict], top_spp: int, floor: float | None,
+                     preset_mse: dict[str, float]) -> str | None:
+    if not conv:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    spps = [c["spp"] for c in conv]
+    ax.loglog(spps, [max(c["mse"], 1e-30) for c in conv], "-o", label=f"MSE of n spp vs {top_spp} spp")
+    if all(c["expected"] is not None for c in conv):
+        ax.loglog(spps, [c["expected"] for c in conv], "--", color="gray",
+                  label="expected from variances (unbiased)")
+    if floor is not None:
+        ax.axhline(floor, color="tab:green", lw=1, label=f"noise floor of the {top_spp}-spp reference")
+    for i, (p, mse) in enumerate(preset_mse.items()):
+        if mse is not None and mse > 0:
+            ax.axhline(mse, color=f"C{(i + 3) % 10}", ls=":", lw=1, label=f"real-time {p}")
+    ax.set_xlabel("reference samples per pixel")
+    ax.set_ylabel("MSE over valid pixels")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+TEMPLATE = r"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>pbrcheck accuracy report</title>
+<style>
+body{font-family:system-ui,sans-serif;margin:1.5em;color:#222;max-width:1500px}
+table{border-collapse:collapse;font-size:13px;margin:0.5em 0}
+td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}
+th{background:#f0f0f0} td.l,th.l{text-align:left}
+.noise{color:#777}
+.row{display:flex;flex-wrap:wrap;gap:12px;align-items:flex-start}
+figure{margin:0} figcaption{font-size:12px;color:#555}
+.img{width:300px;image-rendering:pixelated}
+.cmp{position:relative;width:300px;display:inline-block}
+.cmp img{display:block;width:300px;image-rendering:pixelated}
+.cmp img.top{position:absolute;left:0;top:0;clip-path:inset(0 calc(100% - var(--pos,50%)) 0 0)}
+.cmp input{width:300px}
+.plot{max-width:100%}
+code{font-size:12px}
+</style></head>
+<body data-images-ok="pending" data-js-errors="0">
+<script>
+(function(){var n=0;window.addEventListener('error',function(){n++;document.body.setAttribute('data-js-errors',String(n));},true);
+window.addEventListener('load',function(){var imgs=document.images,bad=0;for(var i=0;i<imgs.length;i++){if(!(imgs[i].complete&&imgs[i].naturalWidth>0))bad++;}
+document.body.setAttribute('data-images-ok',bad===0?'yes':'no:'+bad);document.body.setAttribute('data-image-count',String(imgs.length));});})();
+</script>
+<h1>pbrcheck accuracy report</h1>
+<p>Generated {{ generated }} by pbrcheck {{ version }}. Metrics are over valid pixels (fully covered
+object pixels in both images) and RGB; definitions in <code>docs/compare.md</code>. A grey value
+(&asymp;) is within what the reference's own Monte Carlo noise could explain.</p>
+{% for s in scenes %}
+<h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
+<p>{{ s.description }}</p>
+{% for r in s.presets %}
+<h3>{{ s.name }} / preset {{ r.preset }}</h3>
+<div class="row">
+<figure><div class="cmp" style="--pos:50%"><img src="{{ r.rt_png }}" alt="real-time {{ r.preset }}"><img class="top" src="{{ s.ref_png }}" alt="reference">
+<input type="range" min="0" max="100" value="50" aria-label="reference / real-time split"
+ oninput="this.parentNode.style.setProperty('--pos',this.value+'%')"></div>
+<figcaption>slider: reference (left) / real time (right)</figcaption></figure>
+<figure><img class="img" src="{{ s.ref_png }}" alt="reference"><figcaption>reference ({{ s.spp }} spp)</figcaption></figure>
+<figure><img class="img" src="{{ r.rt_png }}" alt="real-time"><figcaption>real time ({{ r.preset }})</figcaption></figure>
+<figure><img class="img" src="{{ r.flip_png }}" alt="FLIP map"><figcaption>HDR-FLIP (0..1, magma)</figcaption></figure>
+<figure><img class="img" src="{{ r.rel_png }}" alt="relative error"><figcaption>|t-r|/(r+0.01), max RGB (0..1, inferno)</figcaption></figure>
+</div>
+{% endfor %}
+<h3>Metrics per preset</h3>
+<table><tr><th class="l">preset</th>{% for m in metric_names %}<th>{{ m }}</th>{% endfor %}<th>precompute (s)</th><th>frame (s)</th><th>valid / edge / bg px</th></tr>
+{% for r in s.presets %}<tr><td class="l">{{ r.preset }}</td>{% for m in metric_names %}<td{% if r.within[m] %} class="noise" title="within reference noise"{% endif %}>{% if r.within[m] %}&asymp;{% endif %}{{ fmt(r.metrics[m]) }}</td>{% endfor %}
+<td>{{ fmt(r.precompute) }}</td><td>{{ fmt(r.frame) }}</td><td>{{ r.pixels.valid }} / {{ r.pixels.edge }} / {{ r.pixels.background }}</td></tr>{% endfor %}
+</table>
+{% if s.noise_floor is not none %}<p>Reference noise floor (mean variance over valid pixels): {{ fmt(s.noise_floor) }}.</p>{% endif %}
+{% for p in s.plots %}<h3>{{ p.title }}</h3><img class="plot" src="{{ p.src }}" alt="{{ p.title }}">{% if p.get("note") %}<p>{{ p.note }}</p>{% endif %}
+{% endfor %}
+{% if s.sweep_rows %}<h3>Sweep table</h3><table><tr><th class="l">options</th><th>precompute (s)</th><th>frame (s)</th><th>relmse</th><th>flip_mean</th></tr>
+{% for r in s.sweep_rows %}<tr><td class="l"><code>{{ r.label }}</code></td><td>{{ fmt(r.precompute_s) }}</td><td>{{ fmt(r.frame_s) }}</td><td>{{ fmt(r.relmse) }}</td><td>{{ fmt(r.flip_mean) }}</td></tr>{% endfor %}
+</table><p>Also as <a href="{{ s.id }}/sweep.csv">CSV</a> and <a href="{{ s.id }}/sweep.json">JSON</a>.</p>{% endif %}
+<h3>Provenance</h3>
+<table>{% for k, v in s.provenance %}<tr><th class="l">{{ k }}</th><td class="l"><code>{{ v }}</code></td></tr>{% endfor %}</table>
+{% endfor %}
+</body></html>
+"""
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, float):
+        if math.isinf(v):
+            return "inf"
+        if math.isnan(v):
+            return "n/a"
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sweep, prog) -> dict:
+    from pbrcheck.scene import load_scene
+    from realtime.render import render_realtime
+    from reference.render import render_reference
+
+    from .maps import write_flip_png, write_rel_png, write_tonemapped
+    from .metrics import compare_images
+    from .sweep import combinations, image_timings, plot_speed_error, sweep_rows, write_table
+
+    scene = load_scene(scene_arg)
+    sid = _safe(scene.name)
+    sd = out_dir / sid
+    sd.mkdir(parents=True, exist_ok=True)
+    ref = render_reference(scene, spp=spp, use_cache=True, progress=False)
+    prog.update(1, f"{scene.name}: reference")
+    write_tonemapped(sd / "reference.png", ref.rgb)
+    results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
+    provenance = [("scene source", scene.source)]
+    for k in ("scene_hash", "spp", "mode", "seed", "variant", "versions", "seconds"):
+        if k in ref.meta:
+            provenance.append((f"reference {k}", ref.meta[k]))
+    noise_floor = None
+    for preset in presets:
+        img = render_realtime(scene, preset, None, progress=False)
+        cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=f"real-time {preset}")
+        p = _safe(preset)
+        write_tonemapped(sd / f"rt_{p}.png", img.rgb)
+        write_flip_png(sd / f"flip_{p}.png", cmp)
+        write_rel_png(sd / f"rel_{p}.png", cmp)
+        pre, frame = image_timings(img)
+        noise = cmp.summary["noise"]
+        if noise is not None:
+            noise_floor = noise["mean_variance"]
+        results.append({"preset": preset, "metrics": cmp.metrics, "pixels": cmp.summary["pixels"],
+                        "within": {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS},
+                        "precompute": pre, "frame": frame, "rt_png": f"{sid}/rt_{p}.png",
+                        "flip_png": f"{sid}/flip_{p}.png", "rel_png": f"{sid}/rel_{p}.png",
+                        "mse": (cmp.metrics["rmse"] or 0.0) ** 2})
+        objs[preset] = {o["id"]: o["metrics"] for o in cmp.summary["objects"]}
+        bins[preset] = cmp.summary["ndotv"]
+        speed_rows.append({"preset": preset, "options": {}, "precompute_s": pre, "frame_s": frame, **cmp.metrics})
+        dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
+                        "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
+        provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
+        prog.update(1, f"{scene.name}: {preset}")
+    plots = []
+    m = plot_materials(sd / "materials.png", scene, objs)
+    if m:
+        plots.append({"title": "Error against roughness and metallic (sphere grid)", "src": f"{sid}/{m}"})
+    n = plot_ndotv(sd / "ndotv.png", bins)
+    if n:
+        plots.append({"title": "Error against NdotV", "src": f"{sid}/{n}"})
+    # Sweep over the cost knobs (from the first preset).
+    combos = combinations(vary) if vary else (default_sweep(presets[0]) if sweep else [])
+    sweep_table = []
+    if combos:
+        srows = sweep_rows(scene, ref, combos, preset=presets[0], progress=prog)
+        write_table(sd, srows, sorted({k for c in combos for k in c}))
+        for r in srows:
+            label = ",".join(f"{k}={v}" for k, v in r["options"].items())
+            sweep_table.append({**r, "label": label})
+            speed_rows.append({**r, "preset": label})
+    sp = plot_speed_error(sd / "speed.png", speed_rows, lambda r: r["preset"],
+                          f"{scene.name}: speed against error")
+    plots.append({"title": "Speed against error (presets" + (" and sweep" if sweep_table else "") + ")",
+                  "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
+    conv = []
+    if convergence:
+        for s in sorted({max(1, int(spp * f)) for f in CONVERGENCE_FRACTIONS if int(spp * f) >= 1 and int(spp * f) < spp}):
+            low = render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
+            c = compare_images(ref, low, noise=False)
+            lv = low.variance
+            exp = None
+            if lv is not None and ref.variance is not None:
+                exp = float(lv[c.valid].mean() + ref.variance[c.valid].mean())
+            conv.append({"spp": s, "mse": (c.metrics["rmse"] or 0.0) ** 2, "relmse": c.metrics["relmse"],
+                         "expected": exp})
+            prog.update(1, f"{scene.name}: convergence {s} spp")
+        cp = plot_convergence(sd / "convergence.png", conv, spp, noise_floor, {r["preset"]: r["mse"] for r in results})
+        if cp:
+            plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
+                          "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
+    (sd / "metrics.json").write_text(json.dumps(_jsonable({"scene": scene.name, "presets": dump,
+                                                            "convergence": conv, "sweep": sweep_table}), indent=1))
+    return {"id": sid, "name": scene.name, "description": scene.description, "spp": ref.meta.get("spp", spp),
+            "ref_png": f"{sid}/reference.png", "presets": results, "plots": plots, "provenance": provenance,
+            "noise_floor": noise_floor, "sweep_rows": sweep_table}
+
+
+def _jsonable(x):
+    from .commands import _jsonable as j
+
+    return j(x)
+
+
+def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
+                 spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
+                 sweep: bool = True, progress: bool = True) -> Path:
+    """Render, compare and write ``out_dir/index.html``; returns its path."""
+    import jinja2
+
+    from pbrcheck import __version__
+    from pbrcheck.errors import PbrcheckError
+    from pbrcheck.progress import Progress
+
+    from .sweep import combinations, parse_vary
+
+    if presets is None:
+        from realtime.presets import PRESETS
+
+        presets = list(PRESETS)
+    if not presets:
+        raise PbrcheckError("report: no preset to compare")
+    if spp < 1:
+        raise PbrcheckError(f"report: --spp must be >= 1, got {spp}")
+    vary_d = parse_vary(vary) if vary else None
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    n_conv = len([f for f in CONVERGENCE_FRACTIONS if 1 <= int(spp * f) < spp]) if convergence else 0
+    n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
+    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
+    sections = []
+    with Progress("report", total=total, enabled=progress) as prog:
+        for s in scenes:
+            sections.append(_scene_section(s, out_dir, presets, spp, vary_d, convergence, sweep, prog))
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
+    page = env.from_string(TEMPLATE).render(
+        scenes=sections, metric_names=METRICS, fmt=_fmt, version=__version__,
+        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
+    index = out_dir / "index.html"
+    index.write_text(page, encoding="utf-8")
+    return index
+
+
+__all__ = ["build_report", "default_sweep"]

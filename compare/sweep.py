@@ -1,0 +1,199 @@
+"""Speed against error: render every combination of real-time options, compare each with the
+reference, tabulate precompute time, frame time and every metric, and plot the Pareto front.
+
+``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
+seconds), split by :func:`split_timings`.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+from pathlib import Path
+
+from pbrcheck.errors import PbrcheckError
+
+from .metrics import METRICS
+
+#: Timing keys (substrings) that belong to the per-frame cost; every other pass is precompute
+#: (prefiltering, irradiance, LUT, shader compile...). An explicit ``frame``/``frame_s`` key wins.
+FRAME_KEYS = ("frame", "draw", "shade", "render")
+#: Timing keys that are totals of other keys and must not be summed again.
+TOTAL_KEYS = ("total",)
+
+
+class SweepError(PbrcheckError):
+    """A malformed ``--vary`` argument."""
+
+
+def _value(s: str):
+    s = s.strip()
+    low = s.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    for conv in (int, float):
+        try:
+            return conv(s)
+        except ValueError:
+            pass
+    return s
+
+
+def parse_vary(items: list[str]) -> dict[str, list]:
+    """``["a=1,2", "b=x,y"]`` -> ``{"a": [1, 2], "b": ["x", "y"]}`` (ints, floats, booleans parsed)."""
+    out: dict[str, list] = {}
+    for it in items or []:
+        key, sep, vals = it.partition("=")
+        key = key.strip()
+        values = [v for v in vals.split(",") if v.strip()]
+        if not sep or not key or not values:
+            raise SweepError(f"--vary {it!r}: expected KEY=V1,V2,...")
+        if key in out:
+            raise SweepError(f"--vary {key}: given twice")
+        out[key] = [_value(v) for v in values]
+    if not out:
+        raise SweepError("--vary: at least one KEY=V1,V2,... is needed")
+    return out
+
+
+def split_timings(timings: dict | None) -> tuple[float | None, float | None]:
+    """(precompute seconds, frame seconds) from a pass -> seconds dict (see :data:`FRAME_KEYS`)."""
+    if not timings:
+        return None, None
+    t = {k: float(v) for k, v in timings.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    for k in ("frame", "frame_s", "frame_seconds"):
+        if k in t:
+            frame = t[k]
+            pre = sum(v for kk, v in t.items() if kk != k and not any(x in kk.lower() for x in FRAME_KEYS + TOTAL_KEYS))
+            return pre, frame
+    frame = sum(v for k, v in t.items() if any(x in k.lower() for x in FRAME_KEYS)
+                and not any(x in k.lower() for x in TOTAL_KEYS))
+    pre = sum(v for k, v in t.items() if not any(x in k.lower() for x in FRAME_KEYS + TOTAL_KEYS))
+    return pre, frame
+
+
+def image_timings(img) -> tuple[float | None, float | None]:
+    try:
+        timings = img.meta_json("timings", {})
+    except (ValueError, TypeError):
+        timings = {}
+    return split_timings(timings if isinstance(timings, dict) else {})
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats in both coordinates (both minimised), by x."""
+    idx = [i for i, (x, y) in enumerate(points) if x is not None and y is not None
+           and math.isfinite(x) and math.isfinite(y)]
+    front = []
+    for i in idx:
+        xi, yi = points[i]
+        dominated = any((points[j][0] <= xi and points[j][1] <= yi) and (points[j][0] < xi or points[j][1] < yi)
+                        for j in idx if j != i)
+        if not dominated:
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])
+
+
+def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -> Path:
+    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked."""
+    from .maps import _mpl
+
+    _, plt = _mpl()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
+    for (ci, tkey), (ri, mkey) in itertools.product(enumerate(("precompute_s", "frame_s")),
+                                                    enumerate(("relmse", "flip_mean"))):
+        ax = axes[ri][ci]
+        pts = [(r.get(tkey), r.get(mkey)) for r in rows]
+        ok = [i for i, (x, y) in enumerate(pts) if x is not None and y is not None]
+        if not ok:
+            ax.text(0.5, 0.5, "no timings", ha="center", va="center", transform=ax.transAxes)
+            continue
+        ax.scatter([pts[i][0] for i in ok], [pts[i][1] for i in ok], s=18, color="tab:blue", zorder=2)
+        for i in ok:
+            ax.annotate(label_key(rows[i]), pts[i], fontsize=6, xytext=(3, 3), textcoords="offset points")
+        front = pareto_front(pts)
+        if front:
+            ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "-o", color="tab:red",
+                    ms=6, mfc="none", label="Pareto front", zorder=3)
+            ax.legend(fontsize=7)
+        ax.set_xlabel(tkey.replace("_s", " time (s)"))
+        ax.set_ylabel(mkey)
+        if all(pts[i][1] > 0 for i in ok):
+            ax.set_yscale("log")
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
+
+
+def combinations(vary: dict[str, list]) -> list[dict]:
+    """Every combination of the varied options (their product), as option dicts."""
+    keys = list(vary)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
+
+
+def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``); one row each."""
+    from realtime.render import render_realtime
+
+    from .metrics import compare_images
+
+    rows = []
+    for options in combos:
+        img = render_realtime(scene, preset, options, progress=False)
+        cmp = compare_images(ref, img, scene=scene, noise=False)
+        pre, frame = image_timings(img)
+        rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
+                     **cmp.metrics})
+        if progress is not None:
+            progress.update(1)
+    return rows
+
+
+def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "sweep") -> dict[str, Path]:
+    from .commands import dump_json
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
+    cols = ["preset", *keys, "precompute_s", "frame_s", *METRICS]
+    with open(csv_path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for r in rows:
+            w.writerow([r["preset"], *(r["options"].get(k, "") for k in keys),
+                        *("" if r.get(c) is None else r[c] for c in cols[1 + len(keys):])])
+    json_path.write_text(dump_json(rows) + "\n", encoding="utf-8")
+    return {"csv": csv_path, "json": json_path}
+
+
+def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
+              spp: int = 64, progress: bool = True) -> dict[str, Path]:
+    from pbrcheck.progress import Progress
+    from pbrcheck.scene import load_scene
+    from reference.render import render_reference
+
+    scene = load_scene(scene_arg)
+    try:
+        from realtime.presets import resolve_options
+
+        for combo in combinations(vary):  # every option and value is checked before rendering
+            resolve_options(preset, combo)
+    except ImportError:
+        pass
+    n = math.prod(len(v) for v in vary.values())
+    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
+        ref = render_reference(scene, spp=spp, use_cache=True, progress=False)
+        p.update(1, "reference")
+        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
+    keys = list(vary)
+    paths = write_table(Path(out_dir), rows, keys)
+    paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
+                                     lambda r: ",".join(f"{k}={r['options'][k]}" for k in keys),
+                                     f"{scene.name}: speed against error ({preset} + variations)")
+    return paths

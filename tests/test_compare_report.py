@@ -1,0 +1,271 @@
+"""``pbrcheck report`` and ``pbrcheck sweep`` on a tiny scene, and gate with reference = "auto".
+
+The renderers are replaced by small numpy ray casters (:func:`fake_reference`, :func:`fake_realtime`)
+so that these tests check the comparator's plumbing quickly and independently of Mitsuba/GL; the
+real renderers are exercised in ``test_compare_real.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import types
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbrcheck.camera import primary_rays
+from pbrcheck.cli import main
+from pbrcheck.exr import Image
+
+SCENE = """
+name = "tiny"
+description = "2 x 3 sphere grid, 24 x 24"
+[camera]
+origin = [0.0, 0.0, 8.0]
+fov = 30.0
+width = 24
+height = 24
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+[[objects]]
+type = "sphere_grid"
+rows = 2
+columns = 3
+radius = 0.6
+spacing = 1.4
+[objects.material]
+base_color = [0.8, 0.5, 0.3]
+"""
+
+
+def raycast(scene):
+    """(rgb, aovs) of a simple analytic shading of the scene's spheres (centre ray, 4 coverage samples)."""
+    cam = scene.camera
+    h, w = cam.height, cam.width
+
+    def hit(offsets):
+        o, d = primary_rays(cam, offsets)
+        best_t = np.full((h, w), np.inf)
+        best = np.full((h, w), -1)
+        for ob in scene.objects:
+            oc = o - np.asarray(ob.center)
+            b = d @ oc
+            c = oc @ oc - ob.radius ** 2
+            disc = b * b - c
+            t = -b - np.sqrt(np.maximum(disc, 0))
+            m = (disc > 0) & (t > 0) & (t < best_t)
+            best_t[m], best[m] = t[m], ob.id
+        return o, d, best_t, best
+
+    o, d, t, ids = hit((0.5, 0.5))
+    cov = np.mean([hit(off)[3] >= 0 for off in ((0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75))], axis=0)
+    rgb = np.zeros((h, w, 3))
+    n = np.zeros((h, w, 3))
+    ndv = np.zeros((h, w))
+    for ob in scene.objects:
+        m = ids == ob.id
+        p = o + d[m] * t[m][:, None]
+        nn = (p - np.asarray(ob.center)) / ob.radius
+        n[m] = nn
+        ndv[m] = np.clip(-(nn * d[m]).sum(-1), 0, 1)
+        mat = ob.material
+        rgb[m] = np.asarray(mat.base_color) * (0.3 + 0.7 * ndv[m][:, None]) * (1 - 0.5 * mat.metallic) \
+            + 0.1 * (1 - mat.roughness)
+    aovs = {"N.X": n[..., 0], "N.Y": n[..., 1], "N.Z": n[..., 2], "NdotV": ndv,
+            "object": ids.astype(np.float32), "coverage": cov}
+    return rgb, aovs
+
+
+CALLS = {"reference": [], "realtime": []}
+
+
+def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progress=True):
+    CALLS["reference"].append(spp)
+    rgb, aovs = raycast(scene)
+    sigma2 = 0.01 / spp
+    rng = np.random.default_rng(seed * 1000 + spp)
+    noisy = rgb + rng.standard_normal(rgb.shape) * np.sqrt(sigma2)
+    var = {f"variance.{c}": np.full(rgb.shape[:2], sigma2, np.float32) for c in "RGB"}
+    return Image.from_rgb(noisy.astype(np.float32), {"scene_hash": "f" * 64, "spp": str(spp), "mode": mode,
+                                                     "seed": str(seed), "variant": "fake", "versions": "{}"},
+                          **var, **aovs)
+
+
+def fake_realtime(scene, preset="default", options=None, *, progress=True):
+    CALLS["realtime"].append((preset, dict(options or {})))
+    rgb, aovs = raycast(scene)
+    opts = dict(options or {})
+    n = opts.get("prefilter_samples", 64)
+    bias = {"default": 1.01, "cheap": 1.2}.get(preset, 1.05) + 1.0 / n
+    timings = {"prefilter": 0.001 * n, "lut": 0.01, "frame": 0.002 if preset == "cheap" else 0.004}
+    return Image.from_rgb((rgb * bias).astype(np.float32), {"preset": preset, "options": json.dumps(opts),
+                                                            "timings": json.dumps(timings)}, **aovs)
+
+
+@pytest.fixture
+def fakes(monkeypatch):
+    ref_mod = types.ModuleType("reference.render")
+    ref_mod.render_reference = fake_reference
+    rt_mod = types.ModuleType("realtime.render")
+    rt_mod.render_realtime = fake_realtime
+    pre_mod = types.ModuleType("realtime.presets")
+    pre_mod.PRESETS = {"default": {}, "cheap": {}}
+
+    def resolve_options(preset, overrides):
+        if preset not in pre_mod.PRESETS:
+            raise ValueError(preset)
+        for k in overrides or {}:
+            if k not in ("prefilter_samples", "lut_size"):
+                from pbrcheck.errors import PbrcheckError
+
+                raise PbrcheckError(f"unknown option {k!r}")
+        return {"prefilter_samples": 64, "lut_size": 32, **(overrides or {})}
+
+    pre_mod.resolve_options = resolve_options
+    for name, mod in (("reference.render", ref_mod), ("realtime.render", rt_mod), ("realtime.presets", pre_mod)):
+        monkeypatch.setitem(sys.modules, name, mod)
+    for v in CALLS.values():
+        v.clear()
+    return CALLS
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    p = tmp_path / "tiny.toml"
+    p.write_text(SCENE)
+    return p
+
+
+class Refs(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.refs = []
+
+    def handle_starttag(self, tag, attrs):
+        for k, v in attrs:
+            if k in ("src", "href") and v:
+                self.refs.append(v)
+
+
+def check_offline_html(index: Path):
+    html = index.read_text()
+    assert not re.search(r"(https?:)?//[a-z0-9]", html, re.I), "external URL in the report"
+    p = Refs()
+    p.feed(html)
+    assert p.refs
+    for r in p.refs:
+        assert not r.startswith(("/", "http", "data:")) and ".." not in r, r
+        assert (index.parent / r).is_file(), f"{r} referenced but missing"
+    return p.refs
+
+
+def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
+    out = tmp_path / "report"
+    rc = main(["report", str(scene_file), "--out", str(out), "--spp", "16", "--quiet"])
+    assert rc == 0
+    index = out / "index.html"
+    refs = check_offline_html(index)
+    names = {Path(r).name for r in refs}
+    assert {"reference.png", "rt_default.png", "rt_cheap.png", "flip_default.png", "rel_cheap.png",
+            "materials.png", "ndotv.png", "speed.png", "convergence.png", "sweep.csv"} <= names
+    html = index.read_text()
+    assert "flip_mean" in html and "relmse" in html and 'type="range"' in html
+    assert "f" * 64 in html  # provenance: the reference's scene hash
+    # all presets by default, the default sweep (here: prefilter_samples and lut_size, one at a time)
+    assert {p for p, _ in fakes["realtime"]} == {"default", "cheap"}
+    swept = [o for _, o in fakes["realtime"] if o]
+    assert {"prefilter_samples": 256} in swept and {"lut_size": 16} in swept
+    # convergence: 16 spp reference plus 1, 2, 4, 8 spp
+    assert sorted(set(fakes["reference"])) == [1, 2, 4, 8, 16]
+    data = json.loads((out / "tiny" / "metrics.json").read_text())
+    assert data["presets"]["cheap"]["metrics"]["relmse"] > data["presets"]["default"]["metrics"]["relmse"]
+
+
+def test_sweep_writes_table_and_pareto_plot(fakes, scene_file, tmp_path, capsys):
+    out = tmp_path / "sweep"
+    rc = main(["sweep", str(scene_file), "--vary", "prefilter_samples=4,64", "--vary", "lut_size=16,32",
+               "--out", str(out), "--spp", "4", "--quiet"])
+    assert rc == 0
+    rows = json.loads((out / "sweep.json").read_text())
+    assert len(rows) == 4
+    assert all(r["precompute_s"] is not None and r["frame_s"] is not None and "flip_mean" in r for r in rows)
+    csv = (out / "sweep.csv").read_text().splitlines()
+    assert csv[0].startswith("preset,lut_size,prefilter_samples,precompute_s,frame_s,mean_abs") or \
+        csv[0].startswith("preset,prefilter_samples,lut_size,precompute_s,frame_s,mean_abs")
+    assert len(csv) == 5 and (out / "pareto.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("vary, msg", [("prefilter_samples", "KEY=V1"), ("bogus=1,2", "unknown option")])
+def test_sweep_bad_vary_exits_2(fakes, scene_file, tmp_path, capsys, vary, msg):
+    assert main(["sweep", str(scene_file), "--vary", vary, "--out", str(tmp_path / "s"), "--quiet"]) == 2
+    assert msg in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+def test_pareto_front():
+    from compare.sweep import pareto_front, split_timings
+
+    pts = [(1, 5), (2, 3), (3, 4), (4, 1), (2, 3.5), (None, 1)]
+    assert pareto_front(pts) == [0, 1, 3]
+    assert split_timings({"prefilter": 1.0, "lut": 0.5, "frame": 0.01, "total": 2}) == (1.5, 0.01)
+    assert split_timings({"prefilter_s": 1.0, "draw_s": 0.25}) == (1.0, 0.25)
+
+
+def test_gate_auto_reference_and_rendered_test(fakes, scene_file, tmp_path, tmp_cache, capsys):
+    budget = tmp_path / "budget.toml"
+    budget.write_text(f"""
+[[check]]
+name = "tiny-default"
+scene = "{scene_file.name}"
+preset = "default"
+reference = "auto"
+spp = 8
+[check.max]
+relmse = 0.05
+[[check]]
+name = "tiny-cheap"
+scene = "{scene_file.name}"
+preset = "cheap"
+reference = "auto"
+spp = 8
+[check.max]
+relmse = 0.01
+""")
+    rc = main(["gate", str(budget), "--quiet", "--maps", str(tmp_path / "maps")])
+    out = capsys.readouterr().out
+    assert rc == 1, out
+    assert "pass tiny-default" in out and "FAIL tiny-cheap: relmse" in out and "worst objects: grid[r" in out
+
+
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+def test_report_opens_in_headless_chromium(fakes, scene_file, tmp_path, tmp_cache):
+    if not CHROMIUM.exists():
+        pytest.skip("/usr/bin/chromium is absent (Debian package 'chromium', installed by the set-up for this test)")
+    out = tmp_path / "report"
+    assert main(["report", str(scene_file), "--out", str(out), "--spp", "4", "--quiet", "--no-convergence",
+                 "--presets", "default"]) == 0
+    profile = tmp_path / "chromium-profile"
+    cmd = [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+           "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={profile}",
+           "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom",
+           (out / "index.html").as_uri()]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr[-2000:]
+    dom = p.stdout
+    assert "pbrcheck accuracy report" in dom
+    m = re.search(r'data-images-ok="([^"]*)"', dom)
+    assert m and m.group(1) == "yes", (m and m.group(1), p.stderr[-2000:])
+    count = int(re.search(r'data-image-count="(\d+)"', dom).group(1))
+    assert count >= 6
+    assert re.search(r'data-js-errors="0"', dom), p.stderr[-2000:]
+    console_errors = [l for l in p.stderr.splitlines() if "CONSOLE" in l and ("rror" in l or "Uncaught" in l)]
+    assert not console_errors, console_errors
