@@ -1,0 +1,156 @@
+"""Headless OpenGL: one cached moderngl EGL context, and GLSL source assembly.
+
+Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include "file.glsl"``
+lines (each file once), prepends ``#version 430`` and the ``#define`` lines of the caller, and keeps a
+line map so that a compile error reported by the driver as ``0:LINE(COL)`` is re-reported as
+``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from pbrcheck.errors import BackendError, ShaderCompileError
+
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+GLSL_VERSION = "#version 430"
+# GL_TEXTURE_CUBE_MAP_SEAMLESS: filter across cube faces (not on by default in core contexts).
+GL_TEXTURE_CUBE_MAP_SEAMLESS = 0x884F
+DEBIAN_PACKAGES = "libegl1 libgl1 libgl1-mesa-dri"
+
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+_ERR_LINE = re.compile(r"(\d+):(\d+)\((\d+)\)")
+
+_ctx = None
+_programs: dict = {}
+
+
+def get_context():
+    """The process-wide standalone EGL context (GL >= 4.3 core, compute shaders)."""
+    global _ctx
+    if _ctx is not None:
+        return _ctx
+    try:
+        import moderngl
+    except ImportError as e:  # pragma: no cover - setup problem
+        raise BackendError(f"moderngl is not installed ({e}); run `make setup`") from None
+    try:
+        ctx = moderngl.create_standalone_context(backend="egl", require=430)
+    except Exception as e:
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise BackendError(
+            f"cannot create a headless OpenGL 4.3 context through EGL ({first}); "
+            f"install the EGL/OpenGL libraries and Mesa's drivers: apt-get install {DEBIAN_PACKAGES}"
+        ) from None
+    try:
+        ctx.enable_direct(GL_TEXTURE_CUBE_MAP_SEAMLESS)
+    except Exception:  # pragma: no cover
+        pass
+    _ctx = ctx
+    return ctx
+
+
+def renderer_name() -> str:
+    return str(get_context().info.get("GL_RENDERER", "?"))
+
+
+@dataclass
+class Source:
+    text: str
+    line_map: list  # line_map[k] = (file, line) of assembled line k+1
+
+
+def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple = ()) -> None:
+    path = SHADER_DIR / name
+    if name in stack:
+        raise ShaderCompileError(f"{name}: #include cycle through {' -> '.join(stack + (name,))}")
+    if name in seen:
+        return
+    if not path.is_file():
+        where = f"{stack[-1]}" if stack else "<entry>"
+        raise ShaderCompileError(f"{where}: #include of missing shader file {name!r}")
+    seen.add(name)
+    for i, line in enumerate(path.read_text().splitlines(), start=1):
+        m = _INCLUDE.match(line)
+        if m:
+            _expand(m.group(1), seen, out_lines, out_map, stack + (name,))
+            out_lines.append(f"// end of {m.group(1)}")
+            out_map.append((name, i))
+        else:
+            out_lines.append(line)
+            out_map.append((name, i))
+
+
+def assemble(entry: str, defines: dict | None = None) -> Source:
+    """The full source of ``entry`` with includes expanded and ``defines`` prepended."""
+    lines = [GLSL_VERSION]
+    lmap = [("<generated>", 1)]
+    for k, v in sorted((defines or {}).items()):
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
+            raise ShaderCompileError(f"<defines>: bad macro name {k!r}")
+        lines.append(f"#define {k} {v}")
+        lmap.append(("<defines>", len(lmap)))
+    _expand(entry, set(), lines, lmap)
+    return Source("\n".join(lines) + "\n", lmap)
+
+
+def map_errors(message: str, src: Source) -> str:
+    """Rewrite every ``0:LINE(COL)`` of a driver message as ``file:line(col)``."""
+
+    def sub(m):
+        k = int(m.group(2))
+        if 1 <= k <= len(src.line_map):
+            f, l = src.line_map[k - 1]
+            return f"{f}:{l}({m.group(3)})"
+        return m.group(0)
+
+    keep = [l for l in message.splitlines() if _ERR_LINE.search(l)]
+    return "; ".join(_ERR_LINE.sub(sub, l).strip() for l in keep) or message.strip()
+
+
+def compute_program(entry: str, defines: dict | None = None):
+    """Compiled (cached) compute shader of ``entry`` with ``defines``."""
+    key = (entry, tuple(sorted((defines or {}).items())))
+    prog = _programs.get(key)
+    if prog is not None:
+        return prog
+    ctx = get_context()
+    src = assemble(entry, defines)
+    try:
+        prog = ctx.compute_shader(src.text)
+    except Exception as e:
+        raise ShaderCompileError(f"{entry}: GLSL compile failed: {map_errors(str(e), src)}") from None
+    _programs[key] = prog
+    return prog
+
+
+def compile_source(text_entry: str, extra: str, defines: dict | None = None, name: str = "<harness>"):
+    """Compile an entry file with an extra generated block (the harness's expression)."""
+    key = ("__extra__", text_entry, extra, tuple(sorted((defines or {}).items())))
+    prog = _programs.get(key)
+    if prog is not None:
+        return prog
+    d = dict(defines or {})
+    src = assemble(text_entry, d)
+    marker = "//@HARNESS@"
+    lines = src.text.split("\n")
+    lmap = list(src.line_map)
+    for k, l in enumerate(lines):
+        if l.strip() == marker:
+            extra_lines = extra.split("\n")
+            lines[k:k + 1] = extra_lines
+            lmap[k:k + 1] = [(name, j + 1) for j in range(len(extra_lines))]
+            break
+    s = Source("\n".join(lines), lmap)
+    try:
+        prog = get_context().compute_shader(s.text)
+    except Exception as e:
+        raise ShaderCompileError(f"{name}: GLSL compile failed: {map_errors(str(e), s)}") from None
+    _programs[key] = prog
+    return prog
+
+
+def groups(n: int, local: int) -> int:
+    return max(1, (int(n) + local - 1) // local)

@@ -1,0 +1,57 @@
+"""Run any GLSL expression of the shader library on numpy arrays (a compute shader).
+
+``run_glsl("D_GGX(x0, x1)", NoH, alpha)`` broadcasts the (up to 8) input arrays, hands element k to
+the shader as floats ``x0`` .. ``x7`` (and its index as ``uint idx``), evaluates the expression
+(float, vec2, vec3 or vec4) and returns float32 ``(..., 4)`` (or ``(...)`` / ``(..., n)`` with
+``components``). Every file of ``realtime/shaders`` that defines terms (brdf, sampling, ibl, env) is
+included, so the tests compare each GLSL term with its numpy twin of the same name.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .gl import compile_source, get_context, groups
+
+
+
+def run_glsl(expr: str, *inputs, components: int = 1, defines: dict | None = None, uniforms: dict | None = None,
+             textures: dict | None = None) -> np.ndarray:
+    if len(inputs) > 8:
+        raise ValueError("at most 8 inputs")
+    arrs = np.broadcast_arrays(*[np.asarray(x, dtype=np.float32) for x in inputs]) if inputs else [np.zeros(1, np.float32)]
+    shape = arrs[0].shape
+    n = int(np.prod(shape)) if shape else 1
+    packed = np.zeros((n, 8), np.float32)
+    for k, a in enumerate(arrs[:8] if inputs else []):
+        packed[:, k] = a.reshape(-1)
+    names = "\n".join(f"    float x{k} = {'ab'[k // 4]}.{'xyzw'[k % 4]};" for k in range(8))
+    extra = f"{names}\n    out_v[i] = _pad({expr});"
+    prog = compile_source("harness.comp", extra, defines, name=f"<harness: {expr}>")
+    ctx = get_context()
+    a = ctx.buffer(np.ascontiguousarray(packed[:, :4]).tobytes())
+    b = ctx.buffer(np.ascontiguousarray(packed[:, 4:]).tobytes())
+    out = ctx.buffer(reserve=max(n, 1) * 16)
+    a.bind_to_storage_buffer(0)
+    b.bind_to_storage_buffer(1)
+    out.bind_to_storage_buffer(2)
+    for unit, (name, tex) in enumerate((textures or {}).items()):
+        tex.use(unit)
+        try:
+            prog[name].value = unit
+        except KeyError:
+            pass
+    for k, v in (uniforms or {}).items():
+        try:
+            prog[k].value = v
+        except KeyError:
+            pass
+    prog["count"].value = n
+    prog.run(groups(n, 64))
+    res = np.frombuffer(out.read(), np.float32).reshape(n, 4).copy()
+    for buf in (a, b, out):
+        buf.release()
+    res = res.reshape(*shape, 4)
+    if components == 1:
+        return res[..., 0]
+    return res[..., :components]

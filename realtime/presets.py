@@ -1,0 +1,217 @@
+"""Options of the real-time renderer and the presets that group them.
+
+Every approximation choice is an option (``--set key=value``); a preset is a complete set of
+values. ``default`` is the most accurate split-sum this project makes (see docs/realtime.md for the
+measurements behind it); the article presets reproduce ``../shared/articles`` 000, 001 and 002,
+their mistakes included.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+from pbrcheck.errors import PbrcheckError
+
+
+class OptionError(PbrcheckError):
+    """A bad ``--set`` key or value, or an unknown preset; names the option."""
+
+
+@dataclass(frozen=True)
+class Option:
+    name: str
+    kind: str                      # "int", "float", "bool", "choice"
+    help: str
+    choices: tuple = ()
+    lo: float | None = None
+    hi: float | None = None
+    power_of_two: bool = False
+
+
+GEOMETRY_CHOICES = ("scene", "smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct",
+                    "schlick_beckmann")
+
+OPTIONS: dict[str, Option] = {o.name: o for o in [
+    Option("shading", "choice", "composition of the terms: material (README model) | article000 | article001 | article002",
+           ("material", "article000", "article001", "article002")),
+    Option("ibl", "choice", "specular image-based lighting: split-sum prefiltered cube | runtime importance sampling",
+           ("splitsum", "runtime")),
+    Option("cube_size", "int", "face size of the environment cube (texels)", lo=4, hi=4096, power_of_two=True),
+    Option("cube_format", "choice", "cube texel format (f16 switches to f32 when radiance > 65504)", ("f16", "f32")),
+    Option("irradiance", "choice", "diffuse irradiance: cube convolution | SH9 (article 002)", ("convolution", "sh9")),
+    Option("irradiance_method", "choice", "convolution: sum over source texels | article 000's polar/azimuth steps",
+           ("texel_sum", "polar_steps")),
+    Option("irradiance_size", "int", "face size of the irradiance cube", lo=1, hi=512),
+    Option("irradiance_source_size", "int", "face size of the source level the irradiance passes read", lo=1, hi=512,
+           power_of_two=True),
+    Option("irradiance_step", "float", "polar_steps angular step (radians; article 000 uses 0.025)", lo=1e-3, hi=0.5),
+    Option("prefilter_samples", "int", "GGX Hammersley samples per prefiltered texel", lo=1, hi=1 << 16),
+    Option("prefilter_filtered", "bool", "filtered importance sampling (GPU Gems 3 ch. 20): source mip from the pdf"),
+    Option("prefilter_nl_weight", "bool", "weight prefilter samples by N.L (article 000)"),
+    Option("prefilter_levels", "int", "levels in the prefiltered mip chain (level 0 = cube_size)", lo=1, hi=13),
+    Option("lod_mapping", "choice", "roughness -> mip level: linear | quadratic | log2", ("linear", "quadratic", "log2")),
+    Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", ("lut", "analytic")),
+    Option("lut_size", "int", "DFG LUT size N (N x N)", lo=2, hi=1024),
+    Option("lut_samples", "int", "samples per DFG LUT texel", lo=1, hi=1 << 16),
+    Option("lut_format", "choice", "DFG LUT format: f16 (RG16F) | f32 (RG32F)", ("f16", "f32")),
+    Option("lut_geometry", "choice", "geometry term integrated into the LUT ('scene': the scene's [brdf] geometry)",
+           GEOMETRY_CHOICES),
+    Option("lut_sampling", "choice", "LUT sampling: GGX visible normals | NDF half vectors", ("vndf", "ndf")),
+    Option("runtime_samples", "int", "samples per pixel of runtime importance sampling", lo=1, hi=1 << 14),
+    Option("runtime_sampling", "choice", "runtime half-vector distribution (article 001 samples Beckmann for GGX)",
+           ("beckmann", "ggx", "vndf")),
+    Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
+    Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
+    Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", "ggx", "beckmann", "blinn_phong")),
+    Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
+    Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", "schlick", "none")),
+    Option("min_roughness", "float", "roughness clamp (article 001: 0.01)", lo=0.0, hi=1.0),
+    Option("reflect_bug", "bool", "article 002's reflect(v, n) with v towards the eye (looks up -r)"),
+    Option("shadows", "bool", "point lights are occluded by the scene's objects"),
+    Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16),
+    Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
+           ("none", "aces")),
+    Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
+]}
+
+DEFAULT = {
+    "shading": "material",
+    "ibl": "splitsum",
+    "cube_size": 256,
+    "cube_format": "f32",
+    "irradiance": "convolution",
+    "irradiance_method": "texel_sum",
+    "irradiance_size": 32,
+    "irradiance_source_size": 32,
+    "irradiance_step": 0.025,
+    "prefilter_samples": 1024,
+    "prefilter_filtered": True,
+    "prefilter_nl_weight": False,
+    "prefilter_levels": 7,
+    "lod_mapping": "quadratic",
+    "dfg": "lut",
+    "lut_size": 64,
+    "lut_samples": 2048,
+    "lut_format": "f32",
+    "lut_geometry": "scene",
+    "lut_sampling": "vndf",
+    "runtime_samples": 64,
+    "runtime_sampling": "vndf",
+    "runtime_lod": True,
+    "runtime_rotate": True,
+    "ndf": "scene",
+    "geometry": "scene",
+    "fresnel": "scene",
+    "min_roughness": 0.0,
+    "reflect_bug": False,
+    "shadows": True,
+    "supersample": 4,
+    "tonemap": "none",
+    "exposure": 1.0,
+}
+
+
+def _preset(**changes) -> dict:
+    d = copy.deepcopy(DEFAULT)
+    d.update(changes)
+    return d
+
+
+PRESETS: dict[str, dict] = {
+    "default": _preset(),
+    # Article 000 (Drevicky 2018): uniform polar/azimuth irradiance, N.L-weighted prefilter with
+    # v = n = r and no source-mip filtering, mip = roughness x max mip, LUT with k = (r+1)^2/8 by GGX
+    # half-vector sampling in RG16F, kD = (1 - F(n.v))(1 - metallic), listing 1 for the lights.
+    # Cube in RGB16F as its implementation (LearnOpenGL-style) does; LUT size not stated: 128.
+    "splitsum_basic": _preset(
+        shading="article000", cube_format="f16", irradiance="convolution", irradiance_method="polar_steps",
+        irradiance_step=0.025, prefilter_samples=1024, prefilter_filtered=False, prefilter_nl_weight=True,
+        prefilter_levels=5, lod_mapping="linear", dfg="lut", lut_size=128, lut_samples=1024, lut_format="f16",
+        lut_geometry="schlick_ggx_direct", lut_sampling="ndf", ndf="ggx", geometry="schlick_ggx_direct",
+        fresnel="schlick"),
+    # Article 001: runtime importance sampling, Beckmann half vectors for the GGX D, mip-filtered
+    # lookups, XOR-rotated Hammersley points, F0 clamped to [0.02, 0.99], roughness >= 0.01.
+    "runtime_is20": _preset(
+        shading="article001", ibl="runtime", runtime_samples=20, runtime_sampling="beckmann", runtime_lod=True,
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+    "runtime_is256": _preset(
+        shading="article001", ibl="runtime", runtime_samples=256, runtime_sampling="beckmann", runtime_lod=True,
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+    # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
+    # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
+    "analytic_mobile": _preset(
+        shading="article002", dfg="analytic", irradiance="sh9", lod_mapping="linear", prefilter_nl_weight=False,
+        prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16"),
+}
+
+
+def parse_value(name: str, raw) -> object:
+    """Validate one option value (strings from the command line, or Python values)."""
+    opt = OPTIONS.get(name)
+    if opt is None:
+        raise OptionError(f"unknown option {name!r}; options are: {', '.join(sorted(OPTIONS))}")
+    try:
+        if opt.kind == "bool":
+            if isinstance(raw, bool):
+                v = raw
+            elif isinstance(raw, str) and raw.lower() in ("true", "1", "yes", "on"):
+                v = True
+            elif isinstance(raw, str) and raw.lower() in ("false", "0", "no", "off"):
+                v = False
+            else:
+                raise ValueError
+        elif opt.kind == "int":
+            if isinstance(raw, bool):
+                raise ValueError
+            if isinstance(raw, float):
+                if not raw.is_integer():
+                    raise ValueError
+                raw = int(raw)
+            v = int(raw)
+        elif opt.kind == "float":
+            if isinstance(raw, bool):
+                raise ValueError
+            v = float(raw)
+            if v != v or v in (float("inf"), float("-inf")):
+                raise ValueError
+        else:
+            v = str(raw)
+            if v not in opt.choices:
+                raise ValueError
+    except (ValueError, TypeError):
+        expect = {"bool": "true | false", "int": "an integer", "float": "a finite number"}.get(
+            opt.kind, " | ".join(opt.choices))
+        raise OptionError(f"option {name}: expected {expect}, found {raw!r}") from None
+    if opt.lo is not None and v < opt.lo or opt.hi is not None and v > opt.hi:
+        raise OptionError(f"option {name}: expected a value in [{opt.lo}, {opt.hi}], found {raw!r}")
+    if opt.power_of_two and (v & (v - 1)) != 0:
+        raise OptionError(f"option {name}: expected a power of two, found {raw!r}")
+    return v
+
+
+def parse_sets(items) -> dict:
+    """``["key=value", ...]`` from ``--set`` into a dict (values still strings)."""
+    out = {}
+    for it in items or ():
+        if "=" not in it:
+            raise OptionError(f"--set {it!r}: expected key=value")
+        k, v = it.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def resolve_options(preset: str = "default", overrides: dict | None = None) -> dict:
+    """The complete option dict of ``preset`` with ``overrides`` applied and validated."""
+    if preset not in PRESETS:
+        raise OptionError(f"unknown preset {preset!r}; presets are: {', '.join(PRESETS)}")
+    d = copy.deepcopy(PRESETS[preset])
+    for k, v in (overrides or {}).items():
+        d[k] = parse_value(k, v)
+    if d["prefilter_levels"] > d["cube_size"].bit_length():
+        raise OptionError(f"option prefilter_levels: at most {d['cube_size'].bit_length()} levels for "
+                          f"cube_size {d['cube_size']}, found {d['prefilter_levels']}")
+    if d["irradiance_source_size"] > d["cube_size"]:
+        raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
+                          f"found {d['irradiance_source_size']}")
+    return d

@@ -1,0 +1,528 @@
+"""The real-time renderer: precompute passes on the GPU, then one compute pass per frame.
+
+Conventions at both ends of every baked artifact
+-----------------------------------------------
+* Cube maps: faces in GL order +X, -X, +Y, -Y, +Z, -Z (layer = face); texel (x, y) of a face of size
+  ``s`` is the direction ``cube_dir(face, ((x, y) + 0.5) / s)`` of ``shaders/env.glsl`` (GL 4.5 table
+  8.19 inverted). World space, no flip: the environment is the scene's radiance function as is.
+* Environment cube: level 0 = radiance at texel centres (point evaluation of
+  :meth:`pbrcheck.environment.EnvMap.radiance`); levels 1.. = box-filtered mips (glGenerateMipmap).
+* Irradiance cube / SH9: E(n) / pi (radiance units: Lambert diffuse = albedo x value).
+* Prefiltered cube: ``prefilter_levels`` levels, level L baked at roughness
+  ``roughness_from_lod(L)`` of the ``lod_mapping`` (shaders/ibl.glsl), read at
+  ``lod_from_roughness`` (its inverse); max level = prefilter_levels - 1.
+* DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
+  smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
+* Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from pbrcheck.camera import camera_frame, tan_half_fov
+from pbrcheck.environment import EnvMap, load_environment
+from pbrcheck.exr import Image
+from pbrcheck.progress import Progress
+from pbrcheck.scene import GEOMETRIES, NDFS, Plane, Scene, plane_frame
+
+from .gl import compute_program, get_context, groups, renderer_name
+from .presets import resolve_options
+
+HALF_MAX = 65504.0
+NDF_INDEX = {n: i for i, n in enumerate(NDFS)}
+GEOMETRY_INDEX = {"smith_ggx_correlated": 0, "smith_ggx": 1, "schlick_ggx_ibl": 2, "schlick_ggx_direct": 3,
+                  "schlick_beckmann": 4}
+SHADING_INDEX = {"material": 0, "article000": 1, "article001": 2, "article002": 3}
+LOD_INDEX = {"linear": 0, "quadratic": 1, "log2": 2}
+RUNTIME_SAMPLING_INDEX = {"beckmann": 0, "ggx": 1, "vndf": 2}
+# Samples of the Kd (diffuse Fresnel) LUT: a smooth 1-D integrand, error < 1e-4 at 4096 points.
+KD_LUT_SAMPLES = 4096
+
+_cache: dict = {}
+_timings: dict = {}   # artifact key -> seconds it took to bake
+
+
+def _set(prog, name, value):
+    try:
+        prog[name].value = value
+    except KeyError:
+        pass
+
+
+def _timed(ctx, fn):
+    t0 = time.perf_counter()
+    out = fn()
+    ctx.finish()
+    return out, time.perf_counter() - t0
+
+
+def _env_key(scene_env) -> str:
+    from dataclasses import asdict
+
+    return json.dumps(asdict(scene_env), sort_keys=True, default=str)
+
+
+def environment_of(scene: Scene) -> EnvMap:
+    key = ("envmap", _env_key(scene.environment))
+    if key not in _cache:
+        _cache[key] = load_environment(scene)
+    return _cache[key]
+
+
+def _bind_env(prog, env_tex, env: EnvMap, unit: int = 0):
+    env_tex.use(unit)
+    _set(prog, "env_equirect", unit)
+    _set(prog, "env_size", (env.width, env.height))
+    R = env.to_world()
+    _set(prog, "env_rot0", tuple(float(x) for x in R[:, 0]))
+    _set(prog, "env_rot1", tuple(float(x) for x in R[:, 1]))
+    _set(prog, "env_rot2", tuple(float(x) for x in R[:, 2]))
+    _set(prog, "env_scale", float(env.scale))
+
+
+def env_texture(env: EnvMap):
+    key = ("env_tex", env.content_hash)
+    if key not in _cache:
+        ctx = get_context()
+        tex = ctx.texture((env.width, env.height), 3, np.ascontiguousarray(env.data, np.float32).tobytes(), dtype="f4")
+        tex.filter = (0x2600, 0x2600)  # GL_NEAREST: read with texelFetch only
+        _cache[key] = tex
+    return _cache[key]
+
+
+def effective_cube_format(env: EnvMap, requested: str) -> tuple[str, str | None]:
+    """f16 cannot hold radiance above 65504 (it would become Inf): switch to f32 and say so."""
+    if requested == "f16" and env.max_radiance * 1.0 > HALF_MAX:
+        return "f32", (f"environment radiance {env.max_radiance:.4g} exceeds the half-float maximum {HALF_MAX:g}: "
+                       f"cube_format f16 replaced by f32")
+    return requested, None
+
+
+def _cube(size: int, fmt: str, levels: int | None = None):
+    ctx = get_context()
+    tex = ctx.texture_cube((size, size), 4, dtype="f2" if fmt == "f16" else "f4")
+    full = size.bit_length()
+    tex.build_mipmaps(0, (levels or full) - 1)
+    tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR
+    return tex
+
+
+def _image_format(fmt: str) -> str:
+    return "rgba16f" if fmt == "f16" else "rgba32f"
+
+
+def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
+    key = ("env_cube", env.content_hash, size, fmt)
+    if key in _cache:
+        timings["env_cube"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("env_to_cube.comp", {"IMAGE_FORMAT": _image_format(fmt)})
+
+    def run():
+        tex = _cube(size, fmt)
+        _bind_env(prog, env_texture(env), env)
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        _set(prog, "face_size", size)
+        prog.run(groups(size, 8), groups(size, 8), 6)
+        tex.build_mipmaps()
+        return tex
+
+    tex, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = tex, dt
+    timings["env_cube"] = dt
+    return tex
+
+
+def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+    src_lod = math.log2(o["cube_size"] / o["irradiance_source_size"])
+    method = 0 if o["irradiance_method"] == "texel_sum" else 1
+    key = ("irr", env.content_hash, o["cube_size"], fmt, o["irradiance_size"], o["irradiance_source_size"], method,
+           o["irradiance_step"] if method else None)
+    if key in _cache:
+        timings["irradiance"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt), "METHOD": method})
+    size = o["irradiance_size"]
+
+    def run():
+        tex = ctx.texture_cube((size, size), 4, dtype="f2" if fmt == "f16" else "f4")
+        tex.filter = (0x2601, 0x2601)
+        cube.use(1)
+        _set(prog, "src_cube", 1)
+        _set(prog, "face_size", size)
+        _set(prog, "src_size", o["irradiance_source_size"])
+        _set(prog, "src_lod", float(src_lod))
+        _set(prog, "step_size", float(o["irradiance_step"]))
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        prog.run(groups(size, 8), groups(size, 8), 6)
+        return tex
+
+    tex, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = tex, dt
+    timings["irradiance"] = dt
+    return tex
+
+
+# Cosine-lobe convolution factors A_l / pi (irradiance over pi), [Ramamoorthi01] eq. 8.
+_SH_A = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
+# Real SH normalization constants of the basis 1, y, z, x, yx, yz, 3z^2-1, zx, x^2-y^2.
+_SH_K = np.array([0.282095, 0.488603, 0.488603, 0.488603, 1.092548, 1.092548, 0.315392, 1.092548, 0.546274])
+
+
+def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.ndarray:
+    """(9, 3) coefficients c_i so that sum_i c_i b_i(n) = E(n) / pi (article 002's basis order)."""
+    size = o["irradiance_source_size"]
+    key = ("sh9", env.content_hash, o["cube_size"], fmt, size)
+    if key in _cache:
+        timings["sh9"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("sh9.comp")
+
+    def run():
+        n = 6 * size * size * 9
+        buf = ctx.buffer(reserve=n * 16)
+        buf.bind_to_storage_buffer(0)
+        cube.use(1)
+        _set(prog, "src_cube", 1)
+        _set(prog, "src_size", size)
+        _set(prog, "src_lod", float(math.log2(o["cube_size"] / size)))
+        prog.run(groups(size, 8), groups(size, 8), 6)
+        ctx.finish()
+        proj = np.frombuffer(buf.read(), np.float32).reshape(-1, 9, 4)[..., :3].astype(np.float64).sum(axis=0)
+        buf.release()
+        # proj_i = int L b_i dw; L_lm = K_i proj_i; E/pi = sum A_l/pi L_lm K_i b_i
+        return proj * (_SH_K ** 2 * _SH_A)[:, None]
+
+    c, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = c, dt
+    timings["sh9"] = dt
+    return c
+
+
+def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+    levels = o["prefilter_levels"]
+    size = o["cube_size"]
+    key = ("pre", env.content_hash, size, fmt, levels, o["prefilter_samples"], o["prefilter_filtered"],
+           o["prefilter_nl_weight"], o["lod_mapping"])
+    if key in _cache:
+        timings["prefilter"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("prefilter.comp", {
+        "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o["prefilter_filtered"]),
+        "NL_WEIGHT": int(o["prefilter_nl_weight"]), "LOD_MAPPING": LOD_INDEX[o["lod_mapping"]]})
+
+    def run():
+        tex = _cube(size, fmt, levels)
+        cube.use(1)
+        _set(prog, "src_cube", 1)
+        _set(prog, "src_face_size", float(size))
+        _set(prog, "max_lod", float(levels - 1))
+        _set(prog, "cube_log2", float(math.log2(size)))
+        _set(prog, "n_samples", int(o["prefilter_samples"]))
+        for L in range(levels):
+            s = max(size >> L, 1)
+            tex.bind_to_image(0, read=False, write=True, level=L)
+            _set(prog, "face_size", s)
+            _set(prog, "level", float(L))
+            prog.run(groups(s, 8), groups(s, 8), 6)
+        return tex
+
+    tex, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = tex, dt
+    timings["prefilter"] = dt
+    return tex
+
+
+def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
+            timings: dict | None = None):
+    """The DFG LUT texture (RG16F or RG32F), see the module docstring for its axes."""
+    if sampling == "vndf" and ndf != "ggx":
+        sampling = "ndf"  # visible-normal sampling exists for GGX only
+    key = ("lut", size, samples, fmt, geometry, ndf, sampling)
+    if key in _cache:
+        if timings is not None:
+            timings["dfg_lut"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("dfg_lut.comp", {
+        "LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f", "SAMPLING": 0 if sampling == "vndf" else 1,
+        "NDF": NDF_INDEX[ndf], "GEOMETRY": GEOMETRY_INDEX[geometry]})
+
+    def run():
+        tex = ctx.texture((size, size), 2, dtype="f2" if fmt == "f16" else "f4")
+        tex.filter = (0x2601, 0x2601)
+        tex.repeat_x = tex.repeat_y = False
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        _set(prog, "lut_size", size)
+        _set(prog, "n_samples", samples)
+        prog.run(groups(size, 8), groups(size, 8), 1)
+        return tex
+
+    tex, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = tex, dt
+    if timings is not None:
+        timings["dfg_lut"] = dt
+    return tex
+
+
+def read_lut(tex) -> np.ndarray:
+    """(N, N, 2) float32: [j, i] = (A, B) at n.v (i+0.5)/N, roughness (j+0.5)/N."""
+    w, h = tex.size
+    dt = np.float16 if tex.dtype == "f2" else np.float32
+    return np.frombuffer(tex.read(), dt).reshape(h, w, 2).astype(np.float32)
+
+
+def kd_lut(size: int, timings: dict):
+    key = ("kd", size)
+    if key in _cache:
+        timings["kd_lut"] = _timings[key]
+        return _cache[key]
+    ctx = get_context()
+    prog = compute_program("kd_lut.comp")
+
+    def run():
+        tex = ctx.texture((size, 1), 1, dtype="f4")
+        tex.filter = (0x2601, 0x2601)
+        tex.repeat_x = tex.repeat_y = False
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        _set(prog, "lut_size", size)
+        _set(prog, "n_samples", KD_LUT_SAMPLES)
+        prog.run(groups(size, 64))
+        return tex
+
+    tex, dt = _timed(ctx, run)
+    _cache[key], _timings[key] = tex, dt
+    timings["kd_lut"] = dt
+    return tex
+
+
+def sample_cube(tex, directions: np.ndarray, lod: float = 0.0) -> np.ndarray:
+    """Read a cube texture at world directions (..., 3) through textureLod; returns (..., 3)."""
+    ctx = get_context()
+    d = np.asarray(directions, np.float32).reshape(-1, 3)
+    n = len(d)
+    inp = np.zeros((n, 4), np.float32)
+    inp[:, :3] = d
+    inp[:, 3] = lod
+    a = ctx.buffer(inp.tobytes())
+    out = ctx.buffer(reserve=max(n, 1) * 16)
+    a.bind_to_storage_buffer(0)
+    out.bind_to_storage_buffer(1)
+    prog = compute_program("sample_cube.comp")
+    tex.use(0)
+    _set(prog, "cube", 0)
+    _set(prog, "count", n)
+    prog.run(groups(n, 64))
+    res = np.frombuffer(out.read(), np.float32).reshape(n, 4)[:, :3].copy()
+    a.release()
+    out.release()
+    return res.reshape(*np.shape(directions)[:-1], 3)
+
+
+def _dummy(kind: str):
+    key = ("dummy", kind)
+    if key not in _cache:
+        ctx = get_context()
+        if kind == "cube":
+            t = ctx.texture_cube((1, 1), 4, np.zeros(6 * 16, np.uint8).tobytes(), dtype="f4")
+        else:
+            t = ctx.texture((1, 1), 4, np.zeros(16, np.uint8).tobytes(), dtype="f4")
+        _cache[key] = t
+    return _cache[key]
+
+
+def _object_buffer(scene: Scene) -> np.ndarray:
+    rows = []
+    for ob in scene.objects:
+        m = ob.material
+        if isinstance(ob, Plane):
+            t, b, n = plane_frame(ob.normal)
+            rows.append([*ob.center, 1.0, *n, 0.0, *t, ob.size[0], *b, ob.size[1],
+                         *m.base_color, m.metallic, m.roughness, m.specular, ob.id, 0.0])
+        else:
+            rows.append([*ob.center, 0.0, 0.0, 0.0, 1.0, ob.radius, 0, 0, 0, 0, 0, 0, 0, 0,
+                         *m.base_color, m.metallic, m.roughness, m.specular, ob.id, 0.0])
+    if not rows:
+        rows.append([0.0] * 24)
+    return np.asarray(rows, np.float32)
+
+
+def resolved_terms(scene: Scene, o: dict) -> dict:
+    ndf = scene.brdf.ndf if o["ndf"] == "scene" else o["ndf"]
+    geometry = scene.brdf.geometry if o["geometry"] == "scene" else o["geometry"]
+    fresnel = scene.brdf.fresnel if o["fresnel"] == "scene" else o["fresnel"]
+    lut_geometry = scene.brdf.geometry if o["lut_geometry"] == "scene" else o["lut_geometry"]
+    return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
+
+
+def render_realtime(scene: Scene, preset: str = "default", options: dict | None = None, *,
+                    progress: bool = True) -> Image:
+    """Render ``scene`` with ``preset`` and option overrides; returns R, G, B and the AOVs.
+
+    Meta: ``preset``, ``options`` (JSON of every option value), ``timings`` (JSON seconds per pass;
+    a pass whose artifact came from this process's cache reports its original bake time and is listed
+    in ``cached_passes``), ``warnings``, ``renderer``, ``terms``.
+    """
+    o = resolve_options(preset, options)
+    ctx = get_context()
+    terms = resolved_terms(scene, o)
+    timings: dict = {}
+    cached_before = {k for k in _cache}
+    warnings = []
+    env = environment_of(scene)
+    fmt, warn = effective_cube_format(env, o["cube_format"])
+    if warn:
+        warnings.append(warn)
+        if progress:
+            print(f"pbrcheck realtime: {warn}", file=sys.stderr)
+    W, H = scene.camera.width, scene.camera.height
+    n_passes = 6
+    with Progress(f"realtime {scene.name} [{preset}]", total=n_passes, enabled=progress) as bar:
+        cube = env_cube(env, o["cube_size"], fmt, timings)
+        bar.update(1, "env_cube")
+        irr = None
+        sh = np.zeros((9, 3))
+        if o["irradiance"] == "sh9":
+            sh = sh9_coefficients(env, cube, o, fmt, timings)
+        else:
+            irr = irradiance_cube(env, cube, o, fmt, timings)
+        bar.update(1, "irradiance")
+        pre = None
+        if o["ibl"] == "splitsum":
+            pre = prefiltered_cube(env, cube, o, fmt, timings)
+        bar.update(1, "prefilter")
+        lut = None
+        if o["dfg"] == "lut":
+            lut = dfg_lut(o["lut_size"], o["lut_samples"], o["lut_format"], terms["lut_geometry"], terms["ndf"],
+                          o["lut_sampling"], timings)
+        bar.update(1, "dfg_lut")
+        kd = kd_lut(o["lut_size"], timings)
+        bar.update(1, "kd_lut")
+
+        shading = o["shading"]
+        if o["ibl"] == "runtime" and shading != "article001":
+            shading = "article001"  # runtime sampling is article 001's composition
+        if o["ibl"] == "splitsum" and shading == "article001":
+            raise_opt = "shading=article001 needs ibl=runtime"
+            from .presets import OptionError
+
+            raise OptionError(f"option shading: {raise_opt}")
+        defines = {
+            "SHADING": SHADING_INDEX[shading], "NDF": NDF_INDEX[terms["ndf"]],
+            "GEOMETRY": GEOMETRY_INDEX[terms["geometry"]], "FRESNEL": 0 if terms["fresnel"] == "schlick" else 1,
+            "IRRADIANCE": 1 if o["irradiance"] == "sh9" else 0, "DFG": 1 if o["dfg"] == "analytic" else 0,
+            "LOD_MAPPING": LOD_INDEX[o["lod_mapping"]], "SHADOWS": int(o["shadows"]),
+            "RUNTIME_SAMPLING": RUNTIME_SAMPLING_INDEX[o["runtime_sampling"]],
+            "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
+            "REFLECT_BUG": int(o["reflect_bug"]),
+        }
+        t0 = time.perf_counter()
+        prog = compute_program("render.comp", defines)
+        timings["compile_frame"] = time.perf_counter() - t0
+
+        objs = ctx.buffer(_object_buffer(scene).tobytes())
+        lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
+        lbuf = ctx.buffer(lights.tobytes())
+        objs.bind_to_storage_buffer(0)
+        lbuf.bind_to_storage_buffer(1)
+        out_color = ctx.texture((W, H), 4, dtype="f4")
+        out_aov = ctx.texture((W, H), 4, dtype="f4")
+        out_obj = ctx.texture((W, H), 1, dtype="f4")
+        out_color.bind_to_image(0, read=False, write=True, level=0)
+        out_aov.bind_to_image(1, read=False, write=True, level=0)
+        out_obj.bind_to_image(2, read=False, write=True, level=0)
+        _bind_env(prog, env_texture(env), env, 0)
+        for unit, name, tex, kind in ((1, "prefiltered", pre, "cube"), (2, "irradiance_cube", irr, "cube"),
+                                      (3, "env_cube", cube, "cube"), (4, "dfg_lut", lut, "2d"), (5, "kd_lut", kd, "2d")):
+            (tex if tex is not None else _dummy(kind)).use(unit)
+            _set(prog, name, unit)
+        try:
+            prog["sh"].write(np.asarray(sh, np.float32).tobytes())
+        except KeyError:
+            pass
+        r, u, f = camera_frame(scene.camera)
+        tx, ty = tan_half_fov(scene.camera)
+        _set(prog, "n_objects", len(scene.objects))
+        _set(prog, "n_lights", len(scene.lights))
+        _set(prog, "cam_origin", tuple(float(x) for x in scene.camera.origin))
+        _set(prog, "cam_right", tuple(float(x) for x in r * tx))
+        _set(prog, "cam_up", tuple(float(x) for x in u * ty))
+        _set(prog, "cam_forward", tuple(float(x) for x in f))
+        _set(prog, "image_size", (W, H))
+        _set(prog, "ss", int(o["supersample"]))
+        _set(prog, "max_lod", float(o["prefilter_levels"] - 1))
+        _set(prog, "cube_log2", float(math.log2(o["cube_size"])))
+        _set(prog, "env_face_size", float(o["cube_size"]))
+        _set(prog, "runtime_samples", int(o["runtime_samples"]))
+        _set(prog, "min_roughness", float(o["min_roughness"]))
+
+        def frame():
+            prog.run(groups(W, 8), groups(H, 8), 1)
+
+        _, timings["frame"] = _timed(ctx, frame)
+        bar.update(1, "frame")
+        color = np.frombuffer(out_color.read(), np.float32).reshape(H, W, 4).copy()
+        aov = np.frombuffer(out_aov.read(), np.float32).reshape(H, W, 4).copy()
+        obj = np.frombuffer(out_obj.read(), np.float32).reshape(H, W).copy()
+        for t in (objs, lbuf, out_color, out_aov, out_obj):
+            t.release()
+
+    cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
+                                   ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
+                    if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
+    meta = {
+        "renderer": "realtime",
+        "gl_renderer": renderer_name(),
+        "preset": preset,
+        "options": json.dumps(o, sort_keys=True),
+        "terms": json.dumps(terms, sort_keys=True),
+        "timings": json.dumps(timings, sort_keys=True),
+        "cached_passes": json.dumps(cached),
+        "cube_format_used": fmt,
+        "warnings": json.dumps(warnings),
+        "scene": scene.name,
+        "conventions": json.dumps({
+            "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
+            "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
+            "prefilter_levels": o["prefilter_levels"],
+            "irradiance": "E(n)/pi",
+            "aovs": "N, NdotV, object at the pixel centre ray; coverage over the s x s samples",
+        }),
+    }
+    return Image({
+        "R": color[..., 0], "G": color[..., 1], "B": color[..., 2],
+        "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
+        "object": obj, "coverage": color[..., 3],
+    }, meta)
+
+
+# Article 002's fitted ACES (Hill's RRT+ODT fit, via MJP's BakingLab).
+_ACES_IN = np.array([[0.59719, 0.35458, 0.04823], [0.07600, 0.90834, 0.01566], [0.02840, 0.13383, 0.83777]])
+_ACES_OUT = np.array([[1.60475, -0.53108, -0.07367], [-0.10208, 1.10813, -0.00605], [-0.00327, -0.07276, 1.07602]])
+
+
+def tonemap_aces(rgb: np.ndarray) -> np.ndarray:
+    """Article 002's toneMapACES: input matrix, RRTAndODTFit, output matrix, saturate."""
+    c = rgb @ _ACES_IN.T
+    a = c * (c + 0.0245786) - 0.000090537
+    b = c * (0.983729 * c + 0.4329510) + 0.238081
+    return np.clip((a / b) @ _ACES_OUT.T, 0.0, 1.0)
+
+
+def display_rgb(image: Image) -> np.ndarray:
+    """Display values of a render: exposure, then the preset's tone map (EXR output stays linear)."""
+    o = json.loads(image.meta.get("options", "{}"))
+    rgb = image.rgb * float(o.get("exposure", 1.0))
+    if o.get("tonemap") == "aces":
+        return tonemap_aces(rgb)
+    return np.clip(rgb, 0.0, 1.0)

@@ -1,0 +1,70 @@
+// ibl.glsl: image-based lighting lookups: roughness <-> prefiltered mip level, DFG lookup, Karis's
+// analytic EnvBRDFApprox, SH9 irradiance (article 002 form), filtered importance sampling's level.
+#include "brdf.glsl"
+
+// LOD_MAPPING: 0 linear, 1 quadratic, 2 log2. MAX_LOD: last level of the prefiltered chain.
+// CUBE_LOG2: log2 of the prefiltered cube's face size (the log2 mapping counts levels from 1x1).
+#ifndef LOD_MAPPING
+#define LOD_MAPPING 0
+#endif
+
+// Source: article 000 (mip = roughness x max mip), Filament's perceptualRoughnessToLod (quadratic),
+// UE4's ComputeReflectionCaptureMipFromRoughness (log2, quoted by article 002).
+// Equation: linear lod = r M; quadratic lod = M r (2 - r); log2 lod = (log2(size) + 1) - 1 - (1 - 1.2 log2 r).
+float lod_from_roughness(float r, float max_lod, float cube_log2) {
+#if LOD_MAPPING == 0
+    return clamp(r, 0.0, 1.0) * max_lod;
+#elif LOD_MAPPING == 1
+    float x = clamp(r, 0.0, 1.0);
+    return max_lod * x * (2.0 - x);
+#else
+    float level_from_1x1 = 1.0 - 1.2 * log2(max(r, 1e-6));
+    return clamp(cube_log2 - level_from_1x1, 0.0, max_lod);
+#endif
+}
+
+// The inverse of lod_from_roughness: the roughness each prefiltered level is baked at.
+float roughness_from_lod(float lod, float max_lod, float cube_log2) {
+    if (max_lod <= 0.0) return 0.0;
+#if LOD_MAPPING == 0
+    return lod / max_lod;
+#elif LOD_MAPPING == 1
+    return 1.0 - sqrt(max(1.0 - lod / max_lod, 0.0));
+#else
+    return clamp(exp2((lod - cube_log2 + 1.0) / 1.2), 0.0, 1.0);
+#endif
+}
+
+// DFG lookup. Convention: texel (row j, column i) holds n.v = (i + 0.5)/N, roughness = (j + 0.5)/N,
+// row 0 smoothest; GL texture coordinates (s, t) = (n.v, roughness) hit texel centres exactly.
+vec2 dfg_lookup(sampler2D lut, float NoV, float roughness) {
+    return texture(lut, vec2(clamp(NoV, 0.0, 1.0), clamp(roughness, 0.0, 1.0))).rg;
+}
+
+// Source: [Karis14] "Physically Based Shading on Mobile" (UE4), quoted by article 002.
+// Equation: r = roughness c0 + c1; a004 = min(r.x^2, 2^(-9.28 n.v)) r.x + r.y;
+// (A, B) = (-1.04, 1.04) a004 + r.zw. Returns (A, B) so that F0 A + B is the specular albedo.
+vec2 EnvBRDFApprox(float NoV, float roughness) {
+    const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022);
+    const vec4 c1 = vec4(1.0, 0.0425, 1.04, -0.04);
+    vec4 r = roughness * c0 + c1;
+    float a004 = min(r.x * r.x, exp2(-9.28 * NoV)) * r.x + r.y;
+    return vec2(-1.04, 1.04) * a004 + r.zw;
+}
+
+// Source: article 002 ("Irradiance as Spherical Harmonic"). Equation: max(sum_i sh_i b_i(n), 0)
+// with b = (1, y, z, x, yx, yz, 3z^2 - 1, zx, x^2 - y^2); the coefficients carry the SH constants
+// and the clamped-cosine convolution, scaled so the result is E(n) / pi.
+vec3 sh9_eval(vec3 sh[9], vec3 n) {
+    return max(sh[0] + sh[1] * n.y + sh[2] * n.z + sh[3] * n.x + sh[4] * (n.y * n.x)
+               + sh[5] * (n.y * n.z) + sh[6] * (3.0 * n.z * n.z - 1.0) + sh[7] * (n.z * n.x)
+               + sh[8] * (n.x * n.x - n.y * n.y), vec3(0.0));
+}
+
+// Source: GPU Gems 3 ch. 20 (Colbert, Krivanek), eq. 13. Equation:
+// lod = max(0.5 log2(Omega_s / Omega_p) + 1, 0), Omega_s = 1 / (N pdf), Omega_p = 4 pi / (6 w^2).
+float filtered_is_lod(float pdf, float n_samples, float face_size) {
+    float omega_s = 1.0 / (n_samples * max(pdf, 1e-30));
+    float omega_p = 4.0 * PI / (6.0 * face_size * face_size);
+    return max(0.5 * log2(omega_s / omega_p) + 1.0, 0.0);
+}
