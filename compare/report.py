@@ -20,6 +20,8 @@ from .metrics import METRICS
 CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
 #: Seed of the convergence renders: different from the reference's so their noise is independent.
 CONVERGENCE_SEED = 1
+#: Reference metadata not shown under provenance (internal bookkeeping).
+PROVENANCE_SKIP = {"cache_key", "cache"}
 #: The report's default sweep over the main cost knobs: each entry is varied alone around the
 #: first preset (a product of all of them would be hundreds of renders). ``runtime_samples`` only
 #: matters with runtime importance sampling, so it is swept together with ``ibl = "runtime"``.
@@ -237,8 +239,8 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
     provenance = [("scene source", scene.source)]
-    for k in ("scene_hash", "spp", "mode", "seed", "variant", "versions", "seconds"):
-        if k in ref.meta:
+    for k in sorted(ref.meta):  # scene hash, spp, mode, seed, variant, versions, seconds...
+        if k not in PROVENANCE_SKIP:
             provenance.append((f"reference {k}", ref.meta[k]))
     noise_floor = None
     for preset in presets:
