@@ -36,6 +36,8 @@ from .metrics import HIGHER_IS_BETTER, METRICS, worse
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
 DEFAULT_SPP = 64
+#: The reference renderer needs two samples per pixel for its variance channels.
+MIN_REFERENCE_SPP = 2
 
 
 class BudgetError(PbrcheckError):
@@ -136,8 +138,9 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         if "options" in t and not isinstance(t["options"], dict):
             raise _err(path, f"{w}.options", "a table of real-time options", t["options"])
         for k in ("spp", "seed"):
-            if k in t and (isinstance(t[k], bool) or not isinstance(t[k], int) or t[k] < (1 if k == "spp" else 0)):
-                raise _err(path, f"{w}.{k}", "a positive integer" if k == "spp" else "an integer >= 0", t[k])
+            lo = MIN_REFERENCE_SPP if k == "spp" else 0
+            if k in t and (isinstance(t[k], bool) or not isinstance(t[k], int) or t[k] < lo):
+                raise _err(path, f"{w}.{k}", f"an integer >= {lo}", t[k])
         mx = _bounds(path, f"{w}.max", t.get("max", {}))
         mn = _bounds(path, f"{w}.min", t.get("min", {}))
         if not mx and not mn:

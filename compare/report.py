@@ -18,6 +18,14 @@ from .metrics import METRICS
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
 CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
+#: The reference renderer needs two samples per pixel for its variance channels.
+MIN_REFERENCE_SPP = 2
+
+
+def _convergence_spps(spp: int) -> list[int]:
+    return sorted({int(spp * f) for f in CONVERGENCE_FRACTIONS if MIN_REFERENCE_SPP <= int(spp * f) < spp})
+
+
 #: Seed of the convergence renders: different from the reference's so their noise is independent.
 CONVERGENCE_SEED = 1
 #: Reference metadata not shown under provenance (internal bookkeeping).
@@ -289,7 +297,7 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
                   "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
     conv = []
     if convergence:
-        for s in sorted({max(1, int(spp * f)) for f in CONVERGENCE_FRACTIONS if int(spp * f) >= 1 and int(spp * f) < spp}):
+        for s in _convergence_spps(spp):
             low = render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
             c = compare_images(ref, low, noise=False)
             lv = low.variance
@@ -334,12 +342,12 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         presets = list(PRESETS)
     if not presets:
         raise PbrcheckError("report: no preset to compare")
-    if spp < 1:
-        raise PbrcheckError(f"report: --spp must be >= 1, got {spp}")
+    if spp < MIN_REFERENCE_SPP:
+        raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {spp}")
     vary_d = parse_vary(vary) if vary else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_conv = len([f for f in CONVERGENCE_FRACTIONS if 1 <= int(spp * f) < spp]) if convergence else 0
+    n_conv = len(_convergence_spps(spp)) if convergence else 0
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
     sections = []

@@ -178,6 +178,8 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     from pbrcheck.scene import load_scene
     from reference.render import render_reference
 
+    if spp < 2:
+        raise SweepError(f"--spp must be >= 2 (the reference's variance needs two samples), got {spp}")
     scene = load_scene(scene_arg)
     try:
         from realtime.presets import resolve_options

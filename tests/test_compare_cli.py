@@ -146,6 +146,7 @@ def test_gate_missing_data_exits_2(exrs, tmp_path, capsys, ref, test, msg):
     ("[[check]]\ntest='img/good.exr'\nreference='img/ref.exr'\n[check.max]\nrelmse=1\n", "name"),
     ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='auto'\n[check.max]\nrelmse=1\n", "auto"),
     ("[[check]]\nname='x'\ntest='img/good.exr'\n[check.max]\nrelmse=1\n", "reference"),
+    ("[[check]]\nname='x'\nscene='spheres'\nreference='auto'\nspp=1\n[check.max]\nrelmse=1\n", "spp"),
     ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='img/ref.exr'\ncolour='red'\n[check.max]\nrelmse=1\n", "colour"),
 ])
 def test_gate_malformed_budget_exits_2_writing_nothing(exrs, tmp_path, capsys, body, msg):

@@ -1,0 +1,106 @@
+"""The comparator against the real renderers (Mitsuba reference, GL real time) on a tiny scene.
+
+Skipped cleanly when a renderer or its backend (LLVM for Dr.Jit, EGL/llvmpipe for GL) is missing.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pbrcheck.cli import main
+from pbrcheck.errors import BackendError
+from pbrcheck.exr import write_exr
+from pbrcheck.scene import load_scene
+
+from test_compare_report import SCENE, check_offline_html
+
+# The fastest real-time preset: runtime importance sampling has no prefilter pass.
+FAST_PRESET = "runtime_is20"
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    p = tmp_path / "tiny.toml"
+    p.write_text(SCENE)
+    return p
+
+
+@pytest.fixture
+def renderers(tmp_cache):
+    ref = pytest.importorskip("reference.render")
+    rt = pytest.importorskip("realtime.render")
+    return ref, rt
+
+
+def _reference(ref_mod, scene, **kw):
+    try:
+        return ref_mod.render_reference(scene, progress=False, **kw)
+    except BackendError as e:
+        pytest.skip(f"reference backend unavailable: {e}")
+
+
+def _realtime(rt_mod, scene, preset):
+    try:
+        return rt_mod.render_realtime(scene, preset, progress=False)
+    except BackendError as e:
+        pytest.skip(f"real-time backend unavailable: {e}")
+
+
+def test_independent_reference_renders_are_within_noise(renderers, scene_file):
+    from compare.metrics import compare_images
+
+    ref_mod, _ = renderers
+    scene = load_scene(scene_file)
+    a = _reference(ref_mod, scene, spp=16, seed=0)
+    b = _reference(ref_mod, scene, spp=16, seed=1)
+    c = compare_images(a, b, scene=scene)
+    assert c.summary["pixels"]["valid"] > 100 and c.summary["pixels"]["edge"] > 0
+    flags = c.summary["noise"]["within_noise"]
+    assert all(flags.values()), flags
+    assert {o["material"]["roughness"] for o in c.summary["objects"]} == {0.0, 0.5, 1.0}
+
+
+def test_gate_with_real_renderers(renderers, scene_file, tmp_path, capsys):
+    ref_mod, rt_mod = renderers
+    scene = load_scene(scene_file)
+    _realtime(rt_mod, scene, FAST_PRESET)  # skip early without GL
+    write_exr(tmp_path / "refs" / "tiny.exr", _reference(ref_mod, scene, spp=16))
+    budget = tmp_path / "budget.toml"
+    budget.write_text(f"""
+[[check]]
+name = "stored"
+scene = "tiny.toml"
+preset = "{FAST_PRESET}"
+reference = "refs/tiny.exr"
+[check.max]
+relmse = 1.0
+flip_mean = 0.5
+[[check]]
+name = "auto-tight"
+scene = "tiny.toml"
+preset = "{FAST_PRESET}"
+reference = "auto"
+spp = 16
+[check.max]
+flip_mean = 1e-4
+""")
+    rc = main(["gate", str(budget), "--quiet", "--maps", str(tmp_path / "maps"), "--junit", str(tmp_path / "j.xml")])
+    out = capsys.readouterr().out
+    assert rc == 1, out
+    assert "pass stored" in out and "FAIL auto-tight: flip_mean" in out
+    assert (tmp_path / "maps" / "auto-tight" / "flip.png").is_file()
+
+
+def test_report_and_sweep_with_real_renderers(renderers, scene_file, tmp_path):
+    ref_mod, rt_mod = renderers
+    _realtime(rt_mod, load_scene(scene_file), FAST_PRESET)
+    out = tmp_path / "report"
+    assert main(["report", str(scene_file), "--presets", FAST_PRESET, "--out", str(out), "--spp", "8",
+                 "--vary", "runtime_samples=4,16", "--quiet"]) == 0
+    check_offline_html(out / "index.html")
+    data = json.loads((out / "tiny" / "metrics.json").read_text())
+    assert data["presets"][FAST_PRESET]["timings"]["frame"] > 0
+    assert [c["spp"] for c in data["convergence"]] == [2, 4]
+    assert len(data["sweep"]) == 2 and all(r["frame_s"] is not None for r in data["sweep"])
