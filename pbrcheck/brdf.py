@@ -350,3 +350,27 @@ def diffuse_albedo(NoV, roughness, F0, *, fresnel="schlick", n_theta=48, n_phi=6
     VoH = h[..., 0] * sv + h[..., 2] * NoV
     F = F0 + (1.0 - F0) * (1.0 - np.clip(VoH, 0, 1)) ** 5
     return float(np.sum((1.0 - F) / PI * 0.5 * ws[:, None] * wp[None, :]) * 2.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# Terms the real-time renderer adds (twins of realtime/shaders/brdf.glsl and ibl.glsl).
+# ------------------------------------------------------------------------------------------------
+
+def G_SchlickBeckmann(NoV, NoL, alpha):
+    """Schlick's approximation of Smith-Beckmann (article 001's catalogue):
+    ``k = alpha sqrt(2 / pi)``, ``G = G1_SchlickGGX(v, k) G1_SchlickGGX(l, k)``."""
+    k = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) * np.sqrt(2.0 / PI)
+    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+def EnvBRDFApprox(NoV, roughness):
+    """[Karis14] "Physically Based Shading on Mobile": analytic fit of the DFG terms, returns (A, B)
+    stacked in a trailing axis: ``r = roughness c0 + c1``, ``a004 = min(r.x^2, 2^(-9.28 n.v)) r.x + r.y``,
+    ``(A, B) = (-1.04, 1.04) a004 + r.zw``."""
+    NoV = np.asarray(NoV, dtype=np.float64)
+    r = np.asarray(roughness, dtype=np.float64)
+    c0 = np.array([-1.0, -0.0275, -0.572, 0.022])
+    c1 = np.array([1.0, 0.0425, 1.04, -0.04])
+    rr = r[..., None] * c0 + c1
+    a004 = np.minimum(rr[..., 0] ** 2, np.exp2(-9.28 * NoV)) * rr[..., 0] + rr[..., 1]
+    return np.stack([-1.04 * a004 + rr[..., 2], 1.04 * a004 + rr[..., 3]], axis=-1)

@@ -92,7 +92,7 @@ DEFAULT = {
     "lod_mapping": "quadratic",
     "dfg": "lut",
     "lut_size": 64,
-    "lut_samples": 2048,
+    "lut_samples": 4096,
     "lut_format": "f32",
     "lut_geometry": "scene",
     "lut_sampling": "vndf",

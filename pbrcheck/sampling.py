@@ -1,0 +1,96 @@
+"""Sampling in numpy: the twins of ``realtime/shaders/sampling.glsl`` (same names, same formulas).
+
+Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
+plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, blinn_phong_exponent
+
+
+def radical_inverse(i):
+    """[Dammertz12]: van der Corput radical inverse in base 2 (32-bit bit reversal)."""
+    i = np.asarray(i, dtype=np.uint64) & np.uint64(0xFFFFFFFF)
+    x = np.zeros_like(i)
+    for b in range(32):
+        x |= ((i >> np.uint64(b)) & np.uint64(1)) << np.uint64(31 - b)
+    return x.astype(np.float64) * 2.0 ** -32
+
+
+def hammersley(i, n):
+    """[Dammertz12]: ``(i / n, radical_inverse(i))``, shape (..., 2)."""
+    i = np.asarray(i)
+    return np.stack([i.astype(np.float64) / float(n), radical_inverse(i)], axis=-1)
+
+
+def _dir(ct, st, phi):
+    return np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=-1)
+
+
+def sample_GGX(u, alpha):
+    """[Walter07] eq. 35-36 (Karis's form): ``phi = 2 pi u0``,
+    ``cos theta_h = sqrt((1 - u1) / (1 + (alpha^2 - 1) u1))``; pdf_h = D_GGX (n.h)."""
+    u = np.asarray(u, dtype=np.float64)
+    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
+    den = np.maximum(1.0 + (a2 - 1.0) * u[..., 1], COS_EPS)
+    ct = np.sqrt(np.clip((1.0 - u[..., 1]) / den, 0.0, 1.0))
+    st = np.sqrt(np.clip(a2 * u[..., 1] / den, 0.0, 1.0))
+    return _dir(ct, st, 2 * np.pi * u[..., 0])
+
+
+def sample_Beckmann(u, alpha):
+    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u1)``; pdf_h = D_Beckmann (n.h)."""
+    u = np.asarray(u, dtype=np.float64)
+    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
+    t2 = -a2 * np.log(np.maximum(1.0 - u[..., 1], 1e-12))
+    ct = 1.0 / np.sqrt(1.0 + t2)
+    return _dir(ct, np.sqrt(t2) * ct, 2 * np.pi * u[..., 0])
+
+
+def sample_BlinnPhong(u, alpha):
+    """[Walter07] sec. 5.2: ``cos theta_h = (1 - u1)^(1/(n+2))``; pdf_h = D_BlinnPhong (n.h)."""
+    u = np.asarray(u, dtype=np.float64)
+    n = blinn_phong_exponent(alpha)
+    ct = np.power(np.maximum(1.0 - u[..., 1], 1e-12), 1.0 / (n + 2.0))
+    return _dir(ct, np.sqrt(np.maximum(1.0 - ct * ct, 0.0)), 2 * np.pi * u[..., 0])
+
+
+def sample_GGX_VNDF(u, v, alpha):
+    """[Heitz18] listing 1: visible normals of GGX seen from ``v`` (..., 3), tangent space."""
+    u = np.asarray(u, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    a = max(float(alpha), MIN_ALPHA) if np.ndim(alpha) == 0 else np.maximum(alpha, MIN_ALPHA)[..., None]
+    vh = np.concatenate([a * v[..., 0:1], a * v[..., 1:2], v[..., 2:3]], axis=-1)
+    vh = vh / np.linalg.norm(vh, axis=-1, keepdims=True)
+    lensq = vh[..., 0] ** 2 + vh[..., 1] ** 2
+    safe = np.where(lensq > 0, lensq, 1.0)
+    t1 = np.where((lensq > 0)[..., None], np.stack([-vh[..., 1], vh[..., 0], np.zeros_like(lensq)], -1)
+                  / np.sqrt(safe)[..., None], np.array([1.0, 0.0, 0.0]))
+    t2 = np.cross(vh, t1)
+    r = np.sqrt(u[..., 0])
+    phi = 2 * np.pi * u[..., 1]
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[..., 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    nh = p1[..., None] * t1 + p2[..., None] * t2 + np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))[..., None] * vh
+    h = np.concatenate([a * nh[..., 0:1], a * nh[..., 1:2], np.maximum(0.0, nh[..., 2:3])], axis=-1)
+    return h / np.linalg.norm(h, axis=-1, keepdims=True)
+
+
+def pdf_GGX_VNDF(v, h, alpha):
+    """[Heitz18] eq. 3: ``G1(v) max(0, v.h) D_GGX(h) / (n.v)``."""
+    v = np.asarray(v, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    return (G1_SmithGGX(v[..., 2], alpha) * np.maximum(np.sum(v * h, -1), 0.0) * D_GGX(h[..., 2], alpha)
+            / np.maximum(v[..., 2], COS_EPS))
+
+
+def sample_cosine(u):
+    """Malley's method: cosine-weighted hemisphere, pdf = cos / pi."""
+    u = np.asarray(u, dtype=np.float64)
+    r = np.sqrt(u[..., 1])
+    phi = 2 * np.pi * u[..., 0]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u[..., 1], 0.0))], -1)
