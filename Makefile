@@ -15,10 +15,10 @@ SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19
 setup: system-packages $(STAMP)
 
 system-packages:
-	@bash tools/ensure-system-packages.sh $(SYSTEM_PACKAGES)
+	@bash tools/ensure-system-packages.sh --python $(PYTHON) $(SYSTEM_PACKAGES)
 
 $(STAMP): pyproject.toml
-	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip --version >/dev/null 2>&1 || { rm -rf $(VENV); $(PYTHON) -m venv $(VENV); }
 	@$(PY) -m pip install --quiet --upgrade pip >/dev/null
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $(STAMP)

@@ -2,7 +2,15 @@
 # Install the Debian packages pbrcheck needs, only if missing. Without root, print the exact
 # apt-get line and fail, changing nothing.
 set -euo pipefail
+# usage: ensure-system-packages.sh [--python PY] PACKAGE...
+# With --python, also make sure PY can create a virtualenv (Debian splits venv/ensurepip into
+# python3-venv, absent on a bare machine).
+python=""
+if [ "${1:-}" = "--python" ]; then python="$2"; shift 2; fi
 missing=()
+if [ -n "$python" ] && ! "$python" -c 'import venv, ensurepip' >/dev/null 2>&1; then
+  missing+=("python3-venv")
+fi
 for p in "$@"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
     missing+=("$p")
