@@ -8,7 +8,8 @@ PY         := $(VENV)/bin/python
 STAMP      := $(VENV)/.pbrcheck-installed
 # Minimal Debian packages: EGL + GL dispatch and Mesa's llvmpipe for headless moderngl,
 # LLVM 19 for Dr.Jit's LLVM backend (Mesa's LLVM 15 makes Dr.Jit 1.5 abort).
-SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19
+# libatomic1: Dr.Jit and Mitsuba link it (absent on a bare Debian; found with a debootstrap minbase).
+SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
 
 .PHONY: setup system-packages demo test bench report clean
 
