@@ -12,12 +12,23 @@ uniform float env_scale;
 // Source: Mitsuba 3 envmap eval, as pbrcheck.environment.lookup_equirect. Equation:
 // u = atan2(x, -z) / 2pi - 0.5 / W (wrapped), v = acos(y) / pi; bilinear on rows theta = pi r / (H-1)
 // with column W a copy of column 0.
+// IEEE atan2 including signed zeros (numpy's arctan2(+-0, -0) = +-pi; llvmpipe's atan returns 0).
+float atan2_ieee(float y, float x) {
+    if (y == 0.0 && x == 0.0) {
+        bool xneg = (floatBitsToUint(x) & 0x80000000u) != 0u;
+        bool yneg = (floatBitsToUint(y) & 0x80000000u) != 0u;
+        float r = xneg ? PI : 0.0;
+        return yneg ? -r : r;
+    }
+    return atan(y, x);
+}
+
 vec3 env_radiance(vec3 d_world) {
     vec3 d = normalize(d_world);
     vec3 dl = vec3(dot(d, env_rot0), dot(d, env_rot1), dot(d, env_rot2));
     int W = env_size.x;
     int H = env_size.y;
-    float u = atan(dl.x, -dl.z) / (2.0 * PI);
+    float u = atan2_ieee(dl.x, -dl.z) / (2.0 * PI);
     float v = acos(clamp(dl.y, -1.0, 1.0)) / PI;
     u = u - 0.5 / float(W);
     u = u - floor(u);

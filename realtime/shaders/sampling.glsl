@@ -39,8 +39,12 @@ vec3 sample_Beckmann(vec2 u, float alpha) {
 vec3 sample_BlinnPhong(vec2 u, float alpha) {
     float n = blinn_phong_exponent(alpha);
     float phi = 2.0 * PI * u.x;
-    float ct = pow(max(1.0 - u.y, 1e-12), 1.0 / (n + 2.0));
-    float st = sqrt(max(1.0 - ct * ct, 0.0));
+    // e = log(cos^2) = 2 log(1 - u.y) / (n + 2); sin^2 = -expm1(e), by its series when e is tiny
+    // (1 - cos^2 would round to 0 in float32 for n ~ 2e14).
+    float e = 2.0 * log(max(1.0 - u.y, 1e-12)) / (n + 2.0);
+    float st2 = e > -1e-3 ? -e * (1.0 + 0.5 * e) : 1.0 - exp(e);
+    float ct = sqrt(max(1.0 - st2, 0.0));
+    float st = sqrt(max(st2, 0.0));
     return vec3(st * cos(phi), st * sin(phi), ct);
 }
 
