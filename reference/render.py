@@ -136,6 +136,11 @@ def camera_rays(scene: Scene, pixel, offset):
     return mi.Ray3f(mi.Point3f(*[float(v) for v in cam.origin]), dr.normalize(d))
 
 
+# Environment and BSDF samples per camera sample in the local estimator (MIS, power heuristic).
+ENV_SAMPLES = 1
+BSDF_SAMPLES = 1
+
+
 def _power(a, b):
     return a * a / (a * a + b * b)
 
@@ -152,22 +157,25 @@ def shade_local(mscene, sampler, ray, lights=()):
     ctx = mi.BSDFContext()
     bsdf = si.bsdf(ray)
     if env is not None:
-        # Environment sample, MIS against the BSDF's density.
-        ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
-        f, bpdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), hit & (ds.pdf > 0))
-        L += dr.select(hit & (ds.pdf > 0), f * em_w * _power(ds.pdf, bpdf), 0.0)
-        # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
-        bs, bw = bsdf.sample(ctx, si, sampler.next_1d(hit), sampler.next_2d(hit), hit)
-        wo = si.to_world(bs.wo)
-        delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-        si_e = dr.zeros(mi.SurfaceInteraction3f)
-        si_e.wi = -wo
-        Le = env.eval(si_e, hit)
-        ds2 = dr.zeros(mi.DirectionSample3f)
-        ds2.d = wo
-        epdf = env.pdf_direction(si, ds2, hit & ~delta)
-        w = dr.select(delta, 1.0, _power(bs.pdf, epdf))
-        L += dr.select(hit & (bs.pdf > 0), bw * Le * w, 0.0)
+        for _ in range(ENV_SAMPLES):
+            # Environment sample, MIS against the BSDF's density (balance over the sample counts).
+            ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+            f, bpdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), hit & (ds.pdf > 0))
+            w = _power(ENV_SAMPLES * ds.pdf, BSDF_SAMPLES * bpdf) / ENV_SAMPLES
+            L += dr.select(hit & (ds.pdf > 0), f * em_w * w, 0.0)
+        for _ in range(BSDF_SAMPLES):
+            # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
+            bs, bw = bsdf.sample(ctx, si, sampler.next_1d(hit), sampler.next_2d(hit), hit)
+            wo = si.to_world(bs.wo)
+            delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            si_e = dr.zeros(mi.SurfaceInteraction3f)
+            si_e.wi = -wo
+            Le = env.eval(si_e, hit)
+            ds2 = dr.zeros(mi.DirectionSample3f)
+            ds2.d = wo
+            epdf = env.pdf_direction(si, ds2, hit & ~delta)
+            w = dr.select(delta, 1.0, _power(BSDF_SAMPLES * bs.pdf, ENV_SAMPLES * epdf)) / BSDF_SAMPLES
+            L += dr.select(hit & (bs.pdf > 0), bw * Le * w, 0.0)
     for pos, inten in lights:
         dv = mi.Point3f(*pos) - si.p
         d2 = dr.squared_norm(dv)
@@ -245,11 +253,15 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
             else:
                 hit = mscene.ray_test(ray)
                 L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(ray), None, True)
-            dr.eval(L, hit)
-            Ln = np.array(L, dtype=np.float64).T.reshape(npix, n, 3)
-            s1 += Ln.sum(axis=1)
-            s2 += (Ln * Ln).sum(axis=1)
-            hits += np.array(hit, dtype=np.float64).reshape(npix, n).sum(axis=1)
+            # Per-pixel sums over this pass's n consecutive lanes (float32 within a pass, float64 across).
+            Lc = mi.Color3f(L)
+            p1 = dr.block_sum(Lc, n)
+            p2 = dr.block_sum(Lc * Lc, n)
+            ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), n)
+            dr.eval(p1, p2, ph)
+            s1 += np.array(p1, dtype=np.float64).T
+            s2 += np.array(p2, dtype=np.float64).T
+            hits += np.array(ph, dtype=np.float64)
             done += n
             k += 1
             prog.update(n)
