@@ -102,6 +102,9 @@ def plot_materials(path: Path, scene, per_preset: dict[str, dict]) -> str | None
     for mi, metric in enumerate(("relmse", "flip_mean")):
         for j, xl in enumerate(("roughness", "metallic")):
             ax = axes[mi][j]
+            ys = [y for line in ax.get_lines() for y in line.get_ydata() if math.isfinite(y)]
+            if ys and min(ys) > 0:
+                ax.set_yscale("log")
             ax.set_xlabel(xl)
             ax.set_ylabel(f"{metric} (mean over the other axis)")
             ax.grid(alpha=0.3)

@@ -166,3 +166,15 @@ def test_gate_min_bound_for_psnr(exrs, tmp_path, capsys):
     body = ("[[check]]\nname='p'\ntest='img/bad.exr'\nreference='img/ref.exr'\n[check.min]\npsnr=40\n")
     assert run_gate(tmp_path, body) == 1
     assert "psnr" in capsys.readouterr().out
+
+
+def test_committed_ci_budget_is_well_formed():
+    from pathlib import Path
+
+    from compare.gate import _scene_arg, load_budget
+
+    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    assert len(checks) >= 2 and all(c.max for c in checks)
+    for c in checks:
+        scene = _scene_arg(base, c.scene)
+        assert scene.camera.width * scene.camera.height <= 200 * 200  # CI size
