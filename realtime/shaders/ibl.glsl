@@ -36,9 +36,24 @@ float roughness_from_lod(float lod, float max_lod, float cube_log2) {
 }
 
 // DFG lookup. Convention: texel (row j, column i) holds n.v = (i + 0.5)/N, roughness = (j + 0.5)/N,
-// row 0 smoothest; GL texture coordinates (s, t) = (n.v, roughness) hit texel centres exactly.
+// row 0 smoothest. Bilinear between texel centres (GL coordinates (s, t) = (n.v, roughness) land on
+// them exactly) and, unlike GL's clamp-to-edge, linear extrapolation from the two outermost rows or
+// columns for n.v or roughness within half a texel of 0 or 1 (roughness 1 is common in scenes).
 vec2 dfg_lookup(sampler2D lut, float NoV, float roughness) {
-    return texture(lut, vec2(clamp(NoV, 0.0, 1.0), clamp(roughness, 0.0, 1.0))).rg;
+    ivec2 size = textureSize(lut, 0);
+    vec2 x = vec2(clamp(NoV, 0.0, 1.0), clamp(roughness, 0.0, 1.0)) * vec2(size) - 0.5;
+    ivec2 i0 = clamp(ivec2(floor(x)), ivec2(0), max(size - 2, ivec2(0)));
+    ivec2 i1 = min(i0 + 1, size - 1);
+    vec2 f = x - vec2(i0);
+    if (size.x < 2) f.x = 0.0;
+    if (size.y < 2) f.y = 0.0;
+    vec2 v00 = texelFetch(lut, ivec2(i0.x, i0.y), 0).rg;
+    vec2 v10 = texelFetch(lut, ivec2(i1.x, i0.y), 0).rg;
+    vec2 v01 = texelFetch(lut, ivec2(i0.x, i1.y), 0).rg;
+    vec2 v11 = texelFetch(lut, ivec2(i1.x, i1.y), 0).rg;
+    vec2 v0 = mix(v00, v10, f.x);
+    vec2 v1 = mix(v01, v11, f.x);
+    return max(mix(v0, v1, f.y), vec2(0.0));
 }
 
 // Source: [Karis14] "Physically Based Shading on Mobile" (UE4), quoted by article 002.
