@@ -45,8 +45,9 @@ from .variant import ensure_variant
 REFERENCE_CODE_VERSION = "1"
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
-# Lanes (rays) per wavefront: bounds memory (~1 KiB of state per lane in the path integrator).
-MAX_LANES = 1 << 19
+# Lanes (rays) per wavefront: bounds memory (~290 MB peak for the path integrator at 2^21) and
+# amortizes the per-pass Python tracing of the BSDF calls.
+MAX_LANES = 1 << 21
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
 AOV_METHOD = "N, NdotV, object: pixel-centre ray; coverage: fraction of box-filter samples hitting geometry"
 
