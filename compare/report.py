@@ -348,6 +348,20 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     if spp < MIN_REFERENCE_SPP:
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {spp}")
     vary_d = parse_vary(vary) if vary else None
+    # Validate everything before rendering or writing: scenes, presets, swept options.
+    from pbrcheck.scene import load_scene
+
+    for s in scenes:
+        load_scene(s)
+    try:
+        from realtime.presets import resolve_options
+    except ImportError:
+        resolve_options = None
+    if resolve_options is not None:
+        for p in presets:
+            resolve_options(p, {})
+        for combo in combinations(vary_d) if vary_d else []:
+            resolve_options(presets[0], combo)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     n_conv = len(_convergence_spps(spp)) if convergence else 0

@@ -119,12 +119,12 @@ def fakes(monkeypatch):
     pre_mod.PRESETS = {"default": {}, "cheap": {}}
 
     def resolve_options(preset, overrides):
+        from pbrcheck.errors import PbrcheckError
+
         if preset not in pre_mod.PRESETS:
-            raise ValueError(preset)
+            raise PbrcheckError(f"unknown preset {preset!r}")
         for k in overrides or {}:
             if k not in ("prefilter_samples", "lut_size"):
-                from pbrcheck.errors import PbrcheckError
-
                 raise PbrcheckError(f"unknown option {k!r}")
         return {"prefilter_samples": 64, "lut_size": 32, **(overrides or {})}
 
@@ -269,3 +269,12 @@ def test_report_opens_in_headless_chromium(fakes, scene_file, tmp_path, tmp_cach
     assert re.search(r'data-js-errors="0"', dom), p.stderr[-2000:]
     console_errors = [l for l in p.stderr.splitlines() if "CONSOLE" in l and ("rror" in l or "Uncaught" in l)]
     assert not console_errors, console_errors
+
+
+@pytest.mark.parametrize("args, msg", [(["--presets", "nope"], "nope"), (["--vary", "bogus=1"], "unknown option"),
+                                       (["--spp", "1"], "--spp")])
+def test_report_bad_arguments_exit_2_writing_nothing(fakes, scene_file, tmp_path, capsys, args, msg):
+    out = tmp_path / "report"
+    assert main(["report", str(scene_file), "--out", str(out), "--quiet", *args]) == 2
+    assert msg in capsys.readouterr().err
+    assert not out.exists()
