@@ -240,6 +240,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     sampler = mi.load_dict({"type": "independent"})
     done = 0
     k = 0
+    shift = None
     with Progress(f"reference {scene.name} ({mode}, {spp} spp)", total=spp, unit="spp",
                   enabled=progress) as prog:
         while done < spp:
@@ -254,10 +255,16 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
             else:
                 hit = mscene.ray_test(ray)
                 L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(ray), None, True)
-            # Per-pixel sums over this pass's n consecutive lanes (float32 within a pass, float64 across).
+            # Per-pixel sums over this pass's n consecutive lanes (float32 within a pass, float64
+            # across), shifted by a per-pixel value K (the first pass's first sample) so that the
+            # variance s2 - s1^2/spp does not cancel catastrophically in float32.
             Lc = mi.Color3f(L)
-            p1 = dr.block_sum(Lc, n)
-            p2 = dr.block_sum(Lc * Lc, n)
+            if shift is None:
+                shift = dr.gather(mi.Color3f, Lc, dr.arange(mi.UInt32, npix) * n)
+                dr.eval(shift)
+            Ld = Lc - dr.gather(mi.Color3f, shift, pixel)
+            p1 = dr.block_sum(Ld, n)
+            p2 = dr.block_sum(Ld * Ld, n)
             ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), n)
             dr.eval(p1, p2, ph)
             s1 += np.array(p1, dtype=np.float64).T
@@ -266,7 +273,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
             done += n
             k += 1
             prog.update(n)
-    mean = s1 / spp
+    mean = s1 / spp + np.array(shift, dtype=np.float64).T
     var = np.maximum(s2 - s1 * s1 / spp, 0.0) / (spp - 1) / spp
     shape_index = {shape_id(i): i for i in range(len(scene.objects))}
     ch = {c: mean[:, i].reshape(H, W) for i, c in enumerate("RGB")}
