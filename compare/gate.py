@@ -202,6 +202,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
         res.error, res.exit_code = str(e), max(e.exit_code, 2)
         res.seconds = time.perf_counter() - t0
         return res
+    except Exception as e:  # noqa: BLE001 - a renderer bug must not read as "over budget" (exit 1)
+        res.error, res.exit_code = f"unexpected {type(e).__name__}: {e}", 2
+        res.seconds = time.perf_counter() - t0
+        return res
     res.metrics = cmp.metrics
     for bounds, kind in ((check.max, "max"), (check.min, "min")):
         for metric, bound in bounds.items():

@@ -110,9 +110,9 @@ def _classes_one(img: Image):
     if obj is None and cov is None:
         return None
     hit = (obj >= 0) if obj is not None else (cov > 0)
-    full = hit & (cov >= FULL_COVERAGE) if cov is not None else hit
-    background = ~hit if cov is None else (~hit & (cov <= 0)) if obj is None else ~hit & (cov <= 0)
-    return full, background
+    if cov is None:
+        return hit, ~hit
+    return hit & (cov >= FULL_COVERAGE), ~hit & (cov <= 0)
 
 
 def pixel_classes(ref: Image, test: Image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -278,3 +278,15 @@ def test_report_bad_arguments_exit_2_writing_nothing(fakes, scene_file, tmp_path
     assert main(["report", str(scene_file), "--out", str(out), "--quiet", *args]) == 2
     assert msg in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_gate_renderer_crash_is_an_error_not_a_failure(fakes, scene_file, tmp_path, monkeypatch, capsys):
+    def boom(*a, **k):
+        raise RuntimeError("GL context lost")
+
+    monkeypatch.setattr(sys.modules["realtime.render"], "render_realtime", boom)
+    budget = tmp_path / "budget.toml"
+    budget.write_text(f'[[check]]\nname = "x"\nscene = "{scene_file.name}"\nreference = "auto"\nspp = 4\n'
+                      '[check.max]\nrelmse = 1\n')
+    assert main(["gate", str(budget), "--quiet"]) == 2
+    assert "GL context lost" in capsys.readouterr().out
