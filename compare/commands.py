@@ -38,9 +38,14 @@ def _cmd_compare(args) -> int:
     from .metrics import compare_images
 
     # Everything is read and validated before anything is written.
+    scene = None
+    if args.scene:
+        from pbrcheck.scene import load_scene
+
+        scene = load_scene(args.scene)
     ref = read_exr(args.reference)
     test = read_exr(args.test)
-    cmp = compare_images(ref, test, ref_name=args.reference, test_name=args.test)
+    cmp = compare_images(ref, test, scene=scene, ref_name=args.reference, test_name=args.test)
     summary = {"reference": str(args.reference), "test": str(args.test), **cmp.summary}
     if args.maps:
         summary["maps"] = {k: str(p) for k, p in write_maps(Path(args.maps), cmp).items()}
@@ -105,6 +110,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("test", help="test EXR")
     s.add_argument("--json", metavar="FILE", help="write every metric, per object and per NdotV bin, as JSON")
     s.add_argument("--maps", metavar="DIR", help="write rel_error.png, flip.png and diff.exr into DIR")
+    s.add_argument("--scene", metavar="SCENE", help="scene the images show: names objects and their materials")
     s.set_defaults(func=_cmd_compare)
 
     s = sub.add_parser("report", help="render, compare and write a static HTML accuracy report")

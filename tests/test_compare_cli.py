@@ -59,6 +59,11 @@ def test_compare_writes_json_and_maps(exrs, tmp_path, capsys):
     diff = read_exr(out / "maps" / "diff.exr")
     assert np.allclose(diff.rgb, img(1.5).rgb - img().rgb, atol=1e-6)
     assert "relmse" in capsys.readouterr().out
+    # with --scene, objects carry names and materials
+    assert main(["compare", str(exrs / "ref.exr"), str(exrs / "bad.exr"), "--scene", "spheres",
+                 "--json", str(out / "s.json")]) == 0
+    objs = json.loads((out / "s.json").read_text())["objects"]
+    assert objs[1]["name"] == "grid[r0,c1]" and objs[1]["material"]["roughness"] == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("other, msg", [("small.exr", "size mismatch"), ("nan.exr", "NaN"),
