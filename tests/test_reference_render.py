@@ -251,3 +251,21 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
               "resolution", "variant"):
         assert k in res, k
     assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0
+
+
+def test_black_environment_point_lights_only():
+    """No envmap emitter (all-black environment): local shades the lights exactly (its only noise is
+    the pixel footprint), path (which picks one light per sample) agrees within its noise."""
+    scene = _sphere_scene(MAT, env={"type": "none"}, size=24,
+                          lights=[LIGHT, {"type": "point", "position": [-3, 1, 2], "intensity": [1, 2, 3]}])
+    a = render_uncached(scene, spp=16, mode="local", progress=False)
+    b = render_uncached(scene, spp=64, mode="path", max_depth=2, progress=False)
+    inside = a.channels["coverage"] == 1
+    assert a.rgb[inside].max() > 0.05
+    # per-sample variance: local's is the footprint's alone, far below path's light selection noise
+    assert a.variance[inside].mean() * 16 < 0.25 * b.variance[inside].mean() * 64
+    assert np.all(a.rgb[a.channels["coverage"] == 0] == 0)
+    for i, c in enumerate(RGB):
+        d = np.abs(a.rgb[..., i] - b.rgb[..., i])
+        sd = np.sqrt(a.variance[..., i] + b.variance[..., i])
+        assert np.all(d <= Z * sd + 1e-4), (d - Z * sd).max()
