@@ -32,7 +32,7 @@ from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
 
-from .metrics import HIGHER_IS_BETTER, METRICS, worse
+from .metrics import METRICS
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
 DEFAULT_SPP = 64
