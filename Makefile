@@ -11,7 +11,10 @@ STAMP      := $(VENV)/.pbrcheck-installed
 # libatomic1: Dr.Jit and Mitsuba link it (absent on a bare Debian; found with a debootstrap minbase).
 SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
 
-.PHONY: setup system-packages demo test bench report clean
+# Only for the report's headless-browser test (skipped where it cannot be installed).
+TEST_PACKAGES := chromium
+
+.PHONY: setup system-packages test-packages demo test gate bench report clean
 
 setup: system-packages $(STAMP)
 
@@ -27,8 +30,15 @@ $(STAMP): pyproject.toml
 demo: setup
 	$(VENV)/bin/pbrcheck demo
 
-test: setup
+test-packages:
+	@bash tools/ensure-system-packages.sh --optional $(TEST_PACKAGES)
+
+test: setup test-packages
 	$(PY) -m pytest -q
+
+# The CI error-budget gate of the shipped shaders (references rendered through the cache).
+gate: setup
+	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md
 
 bench: setup
 	$(VENV)/bin/pbrcheck bench reference

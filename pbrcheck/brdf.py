@@ -286,9 +286,12 @@ def specular_dfg(NoV, roughness, *, ndf="ggx", geometry="smith_ggx_correlated", 
     NoV = float(np.clip(NoV, COS_EPS, 1.0))
     alpha = float(alpha_from_roughness(roughness))
     if alpha < DELTA_LOBE_ALPHA:
-        # Mirror limit: D -> delta(h = n), G(v, v) -> 1, so A + B = 1 and v.h = n.v.
+        # Mirror limit: D -> delta(h = n), so l = reflect(v), n.l = v.h = n.v and
+        # A + B = G(v, v): 1 for the Smith forms and Schlick-GGX with k = alpha/2, but
+        # G1(n.v, 1/8)^2 for schlick_ggx_direct, whose k = (roughness + 1)^2 / 8 stays at 1/8.
+        G = float(geometry_term(geometry, NoV, NoV, roughness))
         Fc = (1.0 - NoV) ** 5
-        return 1.0 - Fc, Fc
+        return G * (1.0 - Fc), G * Fc
     tv = float(np.arccos(NoV))
     sv, cv = np.sin(tv), NoV
     t1, t2 = max(0.0, np.pi / 4 - tv / 2), min(np.pi / 2, np.pi / 4 + tv / 2)

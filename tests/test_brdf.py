@@ -131,9 +131,15 @@ def test_dfg_known_values():
     # roughness 0: the mirror limit, A + B = 1 and B = (1 - n.v)^5 (Schlick)
     A, B = specular_dfg(0.5, 0.0)
     assert (A, B) == pytest.approx((1 - 0.5 ** 5, 0.5 ** 5), abs=1e-12)
-    # ... and the quadrature tends to it
-    A2, B2 = specular_dfg(0.5, 0.011)
-    assert (A2, B2) == pytest.approx((A, B), abs=1e-5)
+    # ... and the quadrature tends to it, for every geometry term (schlick_ggx_direct keeps
+    # k = 1/8 at roughness 0, so its limit is G1(n.v, 1/8)^2, not 1)
+    # A lobe this narrow (alpha 1.2e-4) is a mirror weighted by G(v, v) at its own roughness.
+    for geometry in GEOMETRIES:
+        A2, B2 = specular_dfg(0.5, 0.011, geometry=geometry)
+        g = float(geometry_term(geometry, 0.5, 0.5, 0.011))
+        assert (A2, B2) == pytest.approx((g * A, g * B), abs=1e-5)
+    g = (0.5 / (0.5 * (1 - 1 / 8) + 1 / 8)) ** 2
+    assert sum(specular_dfg(0.5, 0.0, geometry="schlick_ggx_direct")) == pytest.approx(g, abs=1e-12)
     # roughness 1, n.v = 1, separable Smith with GGX: a closed form is not simple, but the
     # correlated and separable forms coincide at n.v = 1 only through G1(v) = 1 -> both equal
     assert sum(specular_dfg(1.0, 1.0, geometry="smith_ggx")) == pytest.approx(
