@@ -377,16 +377,3 @@ def EnvBRDFApprox(NoV, roughness):
     rr = r[..., None] * c0 + c1
     a004 = np.minimum(rr[..., 0] ** 2, np.exp2(-9.28 * NoV)) * rr[..., 0] + rr[..., 1]
     return np.stack([-1.04 * a004 + rr[..., 2], 1.04 * a004 + rr[..., 3]], axis=-1)
-
-
-def specular_dfg_exact(NoV, roughness, *, ndf="ggx", geometry="smith_ggx_correlated", **quad):
-    """:func:`specular_dfg` with the mirror-limit branch (alpha < DELTA_LOBE_ALPHA) keeping the
-    geometry term: for l the mirror of v, ``A + B = G(n.v, n.v)``. The Smith terms tend to 1 there, so
-    this equals :func:`specular_dfg`; Schlick's k of ``schlick_ggx_direct`` ((r+1)^2/8 >= 1/8) does
-    not vanish with alpha, and ``G1(n.v)^2`` is far from 1 at grazing n.v (0.0034 at n.v = 0.0078)."""
-    A, B = specular_dfg(NoV, roughness, ndf=ndf, geometry=geometry, **quad)
-    if float(alpha_from_roughness(roughness)) < DELTA_LOBE_ALPHA:
-        c = float(np.clip(NoV, COS_EPS, 1.0))
-        g = float(geometry_term(geometry, c, c, roughness))
-        return A * g, B * g
-    return A, B

@@ -402,7 +402,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
             pre = prefiltered_cube(env, cube, o, fmt, timings)
         bar.update(1, "prefilter")
         lut = None
-        if o["dfg"] == "lut":
+        if o["dfg"] == "lut" and o["ibl"] == "splitsum":  # runtime sampling integrates the BRDF itself
             lut = dfg_lut(o["lut_size"], o["lut_samples"], o["lut_format"], terms["lut_geometry"], terms["ndf"],
                           o["lut_sampling"], timings)
         bar.update(1, "dfg_lut")

@@ -24,7 +24,7 @@ def _reference(geometry, N, rows):
     key = (geometry, N, tuple(rows))
     if key not in _ref_cache:
         c = (np.arange(N) + 0.5) / N
-        _ref_cache[key] = np.array([[brdf.specular_dfg_exact(nv, c[j], geometry=geometry) for nv in c]
+        _ref_cache[key] = np.array([[brdf.specular_dfg(nv, c[j], geometry=geometry) for nv in c]
                                     for j in rows])
     return _ref_cache[key]
 
