@@ -80,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", help="the main job on the default scene (what `make demo` runs)")
     s.add_argument("--scene", default=DEFAULT_SCENE)
-    s.add_argument("--out", default="out/demo", help="output directory")
+    s.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.set_defaults(func=_cmd_demo)
 
     bench = sub.add_parser("bench", help="benchmarks that print JSON figures")

@@ -1,16 +1,27 @@
-"""``pbrcheck demo`` / ``make demo``: the main job on the default scene."""
+"""``pbrcheck demo`` / ``make demo``: the main job on the default scene.
+
+Validates and summarizes the scene, then renders the Mitsuba reference (cached) and every real-time
+preset, compares them, and writes the static HTML accuracy report to ``--out`` (default
+``out/demo/index.html``).
+"""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from .environment import load_environment
-from .scene import dump_toml, load_scene, scene_hash
+from .scene import load_scene, scene_hash
 
 
 def run(args) -> int:
+    from compare.report import build_report
+
     scene = load_scene(args.scene)
     env = load_environment(scene)
     print(f"pbrcheck demo: scene {scene.name!r}: {scene.description}")
     print(f"  {len(scene.objects)} objects, {len(scene.lights)} point lights, environment "
-          f"{env.width}x{env.height}, hash {scene_hash(scene, env.content_hash)[:16]}")
-    print(dump_toml(scene.to_dict()), end="")
+          f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g}), "
+          f"hash {scene_hash(scene, env.content_hash)[:16]}")
+    out = build_report([args.scene], out_dir=Path(args.out), spp=args.spp)
+    print(f"pbrcheck demo: report written to {out}")
     return 0

@@ -68,7 +68,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", "schlick", "none")),
     Option("min_roughness", "float", "roughness clamp (article 001: 0.01)", lo=0.0, hi=1.0),
     Option("reflect_bug", "bool", "article 002's reflect(v, n) with v towards the eye (looks up -r)"),
-    Option("shadows", "bool", "point lights are occluded by the scene's objects"),
+    Option("shadows", "bool", "point lights are occluded by the scene's objects (off by default: the "
+           "reference's `local` integrator casts no shadow rays, so the default comparison measures "
+           "shading approximations only; turn on against `--mode path`)"),
     Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces")),
@@ -105,7 +107,7 @@ DEFAULT = {
     "fresnel": "scene",
     "min_roughness": 0.0,
     "reflect_bug": False,
-    "shadows": True,
+    "shadows": False,  # as the reference's `local` integrator (no visibility tests)
     "supersample": 4,
     "tonemap": "none",
     "exposure": 1.0,
