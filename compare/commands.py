@@ -86,7 +86,8 @@ def _cmd_report(args) -> int:
 
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=_split_list(args.presets), out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
-                       sweep=not args.no_sweep, progress=not args.quiet)
+                       sweep=not args.no_sweep, progress=not args.quiet,
+                       hardcases=args.hardcases)
     print(f"report: {out}")
     return 0
 
@@ -99,6 +100,25 @@ def _cmd_sweep(args) -> int:
                       progress=not args.quiet)
     for k, p in paths.items():
         print(f"{k}: {p}")
+    return 0
+
+
+def _cmd_hardcases(args) -> int:
+    from .hardcases import run_hardcases, table_markdown, write_hardcases
+
+    settings = {"size": args.size, "spp": args.spp, "presets": _split_list(args.presets),
+                "cases": _split_list(args.cases), "cube_size": args.cube_size}
+    rows = run_hardcases(size=args.size, spp=args.spp, presets=settings["presets"], cases=settings["cases"],
+                         cube_size=args.cube_size, progress=not args.quiet)
+    paths = write_hardcases(rows, Path(args.out), settings)
+    print(table_markdown(rows), end="")
+    for k, p in paths.items():
+        print(f"{k}: {p}")
+    bad = [r for r in rows if not r["finite"]]
+    if bad:
+        print(f"hardcases: {len(bad)} render(s) non-finite or failed: "
+              + ", ".join(f"{r['case']}/{r['preset'] or 'reference'}" for r in bad))
+        return 1
     return 0
 
 
@@ -122,6 +142,7 @@ def register(sub, bench_sub) -> None:
                         "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
+    s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_report)
 
@@ -143,3 +164,15 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_sweep)
+
+    s = sub.add_parser("hardcases", help="hard-case scenes through the reference and every preset: "
+                                         "NaN/Inf check and error table (exit 1 on a non-finite output)")
+    s.add_argument("--out", default="out/hardcases", metavar="DIR", help="output directory (default out/hardcases)")
+    s.add_argument("--spp", type=int, default=16, help="reference samples per pixel (default 16)")
+    s.add_argument("--size", type=int, default=48, help="image height in pixels (default 48)")
+    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
+    s.add_argument("--cases", metavar="C,...", help="only these cases (default: all)")
+    s.add_argument("--cube-size", type=int, default=None, metavar="N",
+                   help="bake N^2 cubes instead of each preset's own (faster; mip count capped to fit)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_hardcases)

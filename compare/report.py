@@ -216,6 +216,12 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 <h3>Provenance</h3>
 <table>{% for k, v in s.provenance %}<tr><th class="l">{{ k }}</th><td class="l"><code>{{ v }}</code></td></tr>{% endfor %}</table>
 {% endfor %}
+{% for x in extras %}
+<h2 id="{{ x.id }}">{{ x.title }}</h2>
+<p>{{ x.note }}</p>
+<table><tr>{% for h in x.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
+{% for row in x.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% endfor %}
 </body></html>
 """
 
@@ -327,10 +333,33 @@ def _jsonable(x):
     return j(x)
 
 
+def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> dict:
+    """The hard-case report section (rendered small: 32 px, 16 spp, 64^2 cubes)."""
+    from .hardcases import TABLE_METRICS, run_hardcases, write_hardcases
+
+    settings = {"size": 32, "spp": 16, "cube_size": 64, "presets": presets}
+    rows = run_hardcases(size=32, spp=16, cube_size=64, presets=presets, progress=progress)
+    write_hardcases(rows, out_dir, settings)
+    bad = sum(not r["finite"] for r in rows)
+    return {"id": "hardcases", "title": "Hard cases",
+            "note": (f"Edge-of-model scenes (pbrcheck hardcases --size 32 --spp 16 --cube-size 64). "
+                     f"{'All outputs finite.' if not bad else f'{bad} output(s) NON-FINITE or failed.'} "
+                     f"Error of each preset against the {settings['spp']}-spp reference."),
+            "headers": ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
+            "rows": [[r["case"], r["renderer"], r["preset"] or "-", "yes" if r["finite"] else "NO",
+                      *[_fmt((r["metrics"] or {}).get(k)) for k in TABLE_METRICS], r["error"] or ""]
+                     for r in rows]}
+
+
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
-                 sweep: bool = True, progress: bool = True) -> Path:
-    """Render, compare and write ``out_dir/index.html``; returns its path."""
+                 sweep: bool = True, progress: bool = True, hardcases: bool = False,
+                 extras: list[dict] | None = None) -> Path:
+    """Render, compare and write ``out_dir/index.html``; returns its path.
+
+    ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
+    its JSON and table go to ``out_dir/hardcases``). ``extras``: further sections, each
+    ``{id, title, note, headers, rows}`` (a plain table)."""
     import jinja2
 
     from pbrcheck import __version__
@@ -371,9 +400,12 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     with Progress("report", total=total, enabled=progress) as prog:
         for s in scenes:
             sections.append(_scene_section(s, out_dir, presets, spp, vary_d, convergence, sweep, prog))
+    extras = list(extras or [])
+    if hardcases:
+        extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=sections, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=sections, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
     index.write_text(page, encoding="utf-8")

@@ -1,0 +1,224 @@
+"""Hard cases: scenes at the edges of the model, through the reference and every real-time preset.
+
+Each case is a scene built in code (:func:`case_scenes`): roughness 0, 1e-4 and 1; grazing views;
+F0 = 0 and F0 = 1; the built-in ``sun`` (radiance above the half-float maximum) and ``hotspot``; a
+2 x 1 environment image (written as an EXR file in a temporary directory); very large (x 1e4) and
+very small (x 1e-4) scene scales. Every case is rendered by the reference (``local`` mode, small
+spp) and by every real-time preset at a small resolution; each output is checked for NaN / Inf
+(colour, and the reference's variance), and the real-time error against the reference is measured
+with :func:`compare.metrics.compare_images` over the valid pixels.
+
+``run_hardcases`` returns rows ``{case, renderer, preset, finite, nonfinite, metrics | error}``;
+``pbrcheck hardcases`` writes them as ``hardcases.json`` and ``hardcases.md`` (a table) and exits 1
+when any output is non-finite.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.scene import Scene, load_scene, scene_from_dict
+
+#: Resolution of the hard-case renders (the command's default; the tests use 16).
+DEFAULT_SIZE = 48
+#: Reference samples per pixel: enough to see a gross error, not a converged image.
+DEFAULT_SPP = 16
+#: Scales of the "very large" and "very small" scene cases.
+SCALES = (1e4, 1e-4)
+#: The metrics the table shows.
+TABLE_METRICS = ("relmse", "rmse", "rel_p95")
+
+_SKY = {"type": "sky", "sun_direction": [0.4, 0.6, 0.7], "sun_angular_diameter": 8.0,
+        "sun_radiance": [60.0, 55.0, 48.0], "resolution": [256, 128]}
+
+
+def _spheres(roughness: float, *, metallic=(0.0, 1.0), base=(0.9, 0.6, 0.3), specular=0.04, env=None,
+             lights=True) -> dict:
+    objs = []
+    for i, m in enumerate(metallic):
+        objs.append({"type": "sphere", "name": f"m{m:g}", "center": [(i - (len(metallic) - 1) / 2) * 1.1, 0, 0],
+                     "radius": 0.5, "material": {"base_color": list(base), "metallic": m,
+                                                 "roughness": roughness, "specular": specular}})
+    d = {"camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov": 40},
+         "environment": copy.deepcopy(env or _SKY), "objects": objs}
+    if lights:
+        d["lights"] = [{"type": "point", "position": [-3.0, 2.0, 4.0], "intensity": [10.0, 10.0, 10.0]}]
+    return d
+
+
+def _grazing() -> dict:
+    return {"camera": {"origin": [0, 0.04, 6], "target": [0, 0, -2], "fov": 50},
+            "environment": copy.deepcopy(_SKY),
+            "lights": [{"type": "point", "position": [0.0, 0.3, -6.0], "intensity": [20.0, 20.0, 20.0]}],
+            "objects": [{"type": "plane", "name": "floor", "center": [0, 0, 0], "normal": [0, 1, 0],
+                         "size": [40.0, 40.0],
+                         "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 1.0, "roughness": 0.2}},
+                        {"type": "sphere", "name": "ball", "center": [0, 0.3, 0], "radius": 0.3,
+                         "material": {"base_color": [0.5, 0.5, 0.5], "metallic": 0.0, "roughness": 0.05}}]}
+
+
+def _scaled(d: dict, s: float) -> dict:
+    """Every length times ``s``; point intensities times s^2 (same irradiance, same image)."""
+    d = copy.deepcopy(d)
+    cam = d["camera"]
+    cam["origin"] = [x * s for x in cam["origin"]]
+    cam["target"] = [x * s for x in cam.get("target", [0, 0, 0])]
+    for o in d["objects"]:
+        o["center"] = [x * s for x in o.get("center", [0, 0, 0])]
+        if "radius" in o:
+            o["radius"] *= s
+        if "size" in o:
+            o["size"] = [x * s for x in o["size"]]
+    for l in d.get("lights", []):
+        l["position"] = [x * s for x in l["position"]]
+        l["intensity"] = [x * s * s for x in l["intensity"]]
+    return d
+
+
+def _builtin(name: str) -> dict:
+    sc = load_scene(name)
+    d = sc.to_dict()
+    d.pop("name", None)
+    d.pop("description", None)
+    return d
+
+
+def case_dicts(tmp_dir: Path) -> dict[str, dict]:
+    """Scene tables of every hard case (the 2 x 1 environment is written into ``tmp_dir``)."""
+    from pbrcheck.exr import Image, write_exr
+
+    env2x1 = Path(tmp_dir) / "env_2x1.exr"
+    write_exr(env2x1, Image.from_rgb(np.array([[[2.0, 1.0, 0.5], [0.1, 0.3, 1.5]]], np.float32)))
+    return {
+        "roughness_0": _spheres(0.0),
+        "roughness_1e-4": _spheres(1e-4),
+        "roughness_1": _spheres(1.0),
+        "grazing": _grazing(),
+        "f0_0": _spheres(0.3, metallic=(0.0, 1.0), base=(0.0, 0.0, 0.0), specular=0.0),
+        "f0_1": _spheres(0.3, metallic=(1.0,), base=(1.0, 1.0, 1.0)),
+        "sun": _builtin("sun"),
+        "hotspot": _builtin("hotspot"),
+        "env_2x1": _spheres(0.4, env={"type": "file", "path": str(env2x1)}),
+        "scale_1e4": _scaled(_spheres(0.3), SCALES[0]),
+        "scale_1e-4": _scaled(_spheres(0.3), SCALES[1]),
+    }
+
+
+def case_scenes(tmp_dir: Path, size: int = DEFAULT_SIZE, only: list[str] | None = None) -> dict[str, Scene]:
+    out = {}
+    for name, d in case_dicts(tmp_dir).items():
+        if only and name not in only:
+            continue
+        d = copy.deepcopy(d)
+        d["name"] = f"hardcase_{name}"
+        cam = d.setdefault("camera", {})
+        aspect = cam.get("width", 1) / cam.get("height", 1)
+        cam["width"] = int(size) if aspect <= 1 else int(round(size * min(aspect, 2)))
+        cam["height"] = int(size)
+        out[name] = scene_from_dict(d)
+    return out
+
+
+def _nonfinite(img) -> int:
+    n = int(np.count_nonzero(~np.isfinite(img.rgb)))
+    v = img.variance
+    if v is not None:
+        n += int(np.count_nonzero(~np.isfinite(v)))
+    return n
+
+
+def small_cube_options(preset: str, cube_size: int) -> dict:
+    """Overrides that bake a ``cube_size`` cube for ``preset`` (mip count capped to fit)."""
+    from realtime.presets import PRESETS
+
+    levels = min(PRESETS[preset]["prefilter_levels"], int(cube_size).bit_length())
+    return {"cube_size": int(cube_size), "prefilter_levels": levels,
+            "irradiance_source_size": min(PRESETS[preset]["irradiance_source_size"], int(cube_size))}
+
+
+def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: list[str] | None = None,
+                  cases: list[str] | None = None, cube_size: int | None = None, options: dict | None = None,
+                  progress: bool = False) -> list[dict]:
+    """Render every case with the reference and each preset; one row per render."""
+    from realtime.presets import PRESETS
+    from realtime.render import render_realtime
+    from reference.render import render_reference
+
+    from .metrics import compare_images
+
+    presets = list(PRESETS) if presets is None else presets
+    for p in presets:
+        if p not in PRESETS:
+            raise PbrcheckError(f"hardcases: unknown preset {p!r}; presets are: {', '.join(PRESETS)}")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pbrcheck_hardcases_") as tmp:
+        scenes = case_scenes(Path(tmp), size, cases)
+        if cases:
+            missing = sorted(set(cases) - set(scenes))
+            if missing:
+                raise PbrcheckError(f"hardcases: unknown case(s) {', '.join(missing)}; cases are: "
+                                    f"{', '.join(case_dicts(Path(tmp)))}")
+        for name, sc in scenes.items():
+            ref = render_reference(sc, spp=spp, mode="local", seed=0, use_cache=False, progress=progress)
+            nf = _nonfinite(ref)
+            ref_ok = nf == 0
+            rows.append({"case": name, "renderer": "reference", "preset": None, "finite": nf == 0,
+                         "nonfinite": nf, "metrics": None, "error": None})
+            for p in presets:
+                o = dict(small_cube_options(p, cube_size) if cube_size else {})
+                o.update(options or {})
+                row = {"case": name, "renderer": "realtime", "preset": p, "metrics": None, "error": None}
+                try:
+                    img = render_realtime(sc, p, o, progress=progress)
+                except PbrcheckError as e:
+                    row.update(finite=False, nonfinite=None, error=f"{type(e).__name__}: {e}")
+                    rows.append(row)
+                    continue
+                nf = _nonfinite(img)
+                row.update(finite=nf == 0, nonfinite=nf)
+                if nf == 0 and ref_ok:
+                    try:
+                        c = compare_images(ref, img, scene=sc, noise=False)
+                        row["metrics"] = {k: c.metrics[k] for k in TABLE_METRICS}
+                    except PbrcheckError as e:
+                        row["error"] = f"{type(e).__name__}: {e}"
+                rows.append(row)
+    return rows
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    return f"{v:.4g}"
+
+
+def table_markdown(rows: list[dict]) -> str:
+    head = "| case | renderer | preset | finite | " + " | ".join(TABLE_METRICS) + " | note |"
+    lines = [head, "|" + " --- |" * (5 + len(TABLE_METRICS))]
+    for r in rows:
+        m = r["metrics"] or {}
+        note = r["error"] or ("" if r["finite"] else f"{r['nonfinite']} non-finite value(s)")
+        lines.append(f"| {r['case']} | {r['renderer']} | {r['preset'] or '-'} | {'yes' if r['finite'] else 'NO'} | "
+                     + " | ".join(_fmt(m.get(k)) for k in TABLE_METRICS) + f" | {note} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_hardcases(rows: list[dict], out_dir: Path, settings: dict) -> dict[str, Path]:
+    from .commands import dump_json
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    js = out_dir / "hardcases.json"
+    js.write_text(dump_json({"settings": settings, "all_finite": all(r["finite"] for r in rows), "rows": rows})
+                  + "\n", encoding="utf-8")
+    md = out_dir / "hardcases.md"
+    md.write_text(table_markdown(rows), encoding="utf-8")
+    return {"json": js, "table": md}

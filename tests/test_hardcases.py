@@ -1,0 +1,81 @@
+"""Hard cases are finite in both renderers, for every preset (at 16 x 16, small cubes)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from compare import hardcases
+from compare.hardcases import run_hardcases
+
+# Tiny renders keep the whole file well under a minute: 16 px, 4 spp, 32^2 cubes.
+SIZE, SPP, CUBE = 16, 4, 32
+# The x 1e4 and x 1e-4 scenes are the same picture (lengths scaled, point intensities by s^2):
+# a real-time image depends on directions only, so their errors against their references agree
+# to float32 precision of the ray-sphere intersection (well under 1 %) unless scale breaks something.
+SCALE_RTOL = 0.01
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return run_hardcases(size=SIZE, spp=SPP, cube_size=CUBE)
+
+
+def test_every_case_and_preset_is_finite(rows):
+    from realtime.presets import PRESETS
+
+    cases = {r["case"] for r in rows}
+    assert cases == {"roughness_0", "roughness_1e-4", "roughness_1", "grazing", "f0_0", "f0_1", "sun",
+                     "hotspot", "env_2x1", "scale_1e4", "scale_1e-4"}
+    assert len(rows) == len(cases) * (1 + len(PRESETS))
+    bad = [(r["case"], r["preset"], r["nonfinite"], r["error"]) for r in rows if not r["finite"]]
+    assert not bad, bad
+    # every real-time render was compared (finite error figures), none failed to compare
+    for r in rows:
+        if r["renderer"] == "realtime":
+            assert r["error"] is None and r["metrics"] is not None, r
+            assert all(np.isfinite(v) for v in r["metrics"].values()), r
+
+
+def test_scale_invariance(rows):
+    big = {r["preset"]: r["metrics"]["relmse"] for r in rows if r["case"] == "scale_1e4" and r["metrics"]}
+    small = {r["preset"]: r["metrics"]["relmse"] for r in rows if r["case"] == "scale_1e-4" and r["metrics"]}
+    assert big.keys() == small.keys() and big
+    for p in big:
+        assert big[p] == pytest.approx(small[p], rel=SCALE_RTOL), (p, big[p], small[p])
+
+
+def test_cli_exits_1_on_non_finite(tmp_path, monkeypatch, capsys):
+    """A renderer that returns NaN is reported and the command exits 1 (the check can fail)."""
+    import realtime.render as rr
+    from pbrcheck.cli import main
+
+    real = rr.render_realtime
+
+    def poisoned(scene, preset="default", options=None, **kw):
+        img = real(scene, preset, options, **kw)
+        img.channels["R"][0, 0] = np.nan
+        return img
+
+    monkeypatch.setattr(rr, "render_realtime", poisoned)
+    code = main(["hardcases", "--out", str(tmp_path), "--size", "8", "--spp", "2", "--cube-size", "16",
+                 "--cases", "roughness_1", "--presets", "default", "--quiet"])
+    assert code == 1
+    d = json.loads((tmp_path / "hardcases.json").read_text())
+    assert d["all_finite"] is False
+    rt = [r for r in d["rows"] if r["renderer"] == "realtime"]
+    assert rt[0]["nonfinite"] == 1
+    assert "NO" in (tmp_path / "hardcases.md").read_text()
+    monkeypatch.setattr(rr, "render_realtime", real)
+    assert main(["hardcases", "--out", str(tmp_path), "--size", "8", "--spp", "2", "--cube-size", "16",
+                 "--cases", "roughness_1", "--presets", "default", "--quiet"]) == 0
+
+
+def test_unknown_case_is_an_error():
+    from pbrcheck.errors import PbrcheckError
+
+    with pytest.raises(PbrcheckError, match="unknown case"):
+        run_hardcases(size=8, spp=1, cases=["nope"], presets=[])
+    assert hardcases.SCALES == (1e4, 1e-4)
