@@ -122,6 +122,28 @@ def _cmd_hardcases(args) -> int:
     return 0
 
 
+def _cmd_fit_lod(args) -> int:
+    from pbrcheck.scene import load_scene
+    from realtime.presets import parse_sets
+
+    from .fitlod import run_fit_lod, table_markdown
+
+    scene = load_scene(args.scene)
+    rough = None
+    if args.roughness:
+        try:
+            rough = [float(x) for x in _split_list(args.roughness)]
+        except ValueError:
+            from pbrcheck.errors import PbrcheckError
+
+            raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
+    res = run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+                      size=args.size, out=Path(args.out), progress=not args.quiet)
+    print(table_markdown(res), end="")
+    print(f"json: {args.out}\nglsl: {res['glsl']}")
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("compare", help="compare a test EXR against a reference EXR (metrics, error maps)")
@@ -176,3 +198,17 @@ def register(sub, bench_sub) -> None:
                    help="bake N^2 cubes instead of each preset's own (faster; mip count capped to fit)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_hardcases)
+
+    s = sub.add_parser("fit-lod", help="per-roughness optimal prefiltered LOD, a fitted monotone mapping, "
+                                       "and every mapping's error")
+    s.add_argument("scene", help="built-in scene name or TOML path (a sphere grid is used as is)")
+    s.add_argument("--roughness", metavar="R1,R2,...", help="roughness values (default: 16 in [0, 1]); "
+                   "they are rendered as metal spheres under the scene's environment")
+    s.add_argument("--out", default="out/fit_lod.json", metavar="FILE.json", help="JSON (the GLSL goes next to it)")
+    s.add_argument("--preset", default="default", help="real-time preset (its chain and cube are fitted)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--size", type=int, default=None, help="image height (default: 96 for the probe grid, "
+                   "the scene's own otherwise)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_fit_lod)

@@ -88,7 +88,7 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
     lines = [GLSL_VERSION]
     lmap = [("<generated>", 1)]
     for k, v in sorted((defines or {}).items()):
-        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\([A-Za-z_][A-Za-z0-9_]*\))?", k):
             raise ShaderCompileError(f"<defines>: bad macro name {k!r}")
         lines.append(f"#define {k} {v}")
         lmap.append(("<defines>", len(lmap)))

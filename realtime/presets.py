@@ -50,7 +50,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("prefilter_filtered", "bool", "filtered importance sampling (GPU Gems 3 ch. 20): source mip from the pdf"),
     Option("prefilter_nl_weight", "bool", "weight prefilter samples by N.L (article 000)"),
     Option("prefilter_levels", "int", "levels in the prefiltered mip chain (level 0 = cube_size)", lo=1, hi=13),
-    Option("lod_mapping", "choice", "roughness -> mip level: linear | quadratic | log2", ("linear", "quadratic", "log2")),
+    Option("lod_mapping", "choice", "roughness -> mip level: linear | quadratic | log2 | fitted:FILE.json (pbrcheck "
+           "fit-lod's fit; bakes the chain of the mapping it was fitted on)", ("linear", "quadratic", "log2")),
+    Option("lod_override", "float", "< 0: off; >= 0: every prefiltered lookup at this mip level, whatever the "
+           "roughness (pbrcheck fit-lod's LOD scan)", lo=-1.0, hi=16.0),
     Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", ("lut", "analytic")),
     Option("lut_size", "int", "DFG LUT size N (N x N)", lo=2, hi=1024),
     Option("lut_samples", "int", "samples per DFG LUT texel", lo=1, hi=1 << 16),
@@ -92,6 +95,7 @@ DEFAULT = {
     "prefilter_nl_weight": False,
     "prefilter_levels": 7,
     "lod_mapping": "quadratic",
+    "lod_override": -1.0,
     "dfg": "lut",
     "lut_size": 64,
     "lut_samples": 4096,
@@ -177,6 +181,8 @@ def parse_value(name: str, raw) -> object:
             v = float(raw)
             if v != v or v in (float("inf"), float("-inf")):
                 raise ValueError
+        elif name == "lod_mapping" and isinstance(raw, str) and raw.startswith("fitted:"):
+            return _fitted_value(raw)
         else:
             v = str(raw)
             if v not in opt.choices:
@@ -190,6 +196,28 @@ def parse_value(name: str, raw) -> object:
     if opt.power_of_two and (v & (v - 1)) != 0:
         raise OptionError(f"option {name}: expected a power of two, found {raw!r}")
     return v
+
+
+def _fitted_value(raw: str) -> str:
+    """``fitted:PATH``: the file must hold a fitted mapping (compare.lodfit); the path is made absolute."""
+    from pathlib import Path
+
+    from compare.lodfit import LodMapping
+
+    path = Path(raw[len("fitted:"):]).expanduser()
+    if not raw[len("fitted:"):]:
+        raise OptionError("option lod_mapping: fitted: needs a file, as in fitted:out/fit_lod.json")
+    LodMapping.load(path)  # raises LodFitError (a PbrcheckError) naming the file
+    return f"fitted:{path.resolve()}"
+
+
+def fitted_mapping(value: str):
+    """The :class:`compare.lodfit.LodMapping` of a ``fitted:PATH`` option value, else None."""
+    if not isinstance(value, str) or not value.startswith("fitted:"):
+        return None
+    from compare.lodfit import LodMapping
+
+    return LodMapping.load(value[len("fitted:"):])
 
 
 def parse_sets(items) -> dict:
@@ -213,6 +241,11 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
     if d["prefilter_levels"] > d["cube_size"].bit_length():
         raise OptionError(f"option prefilter_levels: at most {d['cube_size'].bit_length()} levels for "
                           f"cube_size {d['cube_size']}, found {d['prefilter_levels']}")
+    fm = fitted_mapping(d["lod_mapping"])
+    if fm is not None and (fm.cube_size != d["cube_size"] or fm.mip_count != d["prefilter_levels"]):
+        raise OptionError(f"option lod_mapping: {d['lod_mapping'][len('fitted:'):]} was fitted for a "
+                          f"{fm.cube_size}^2 cube with {fm.mip_count} mips; this render has cube_size "
+                          f"{d['cube_size']} and prefilter_levels {d['prefilter_levels']}")
     if d["irradiance_source_size"] > d["cube_size"]:
         raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
                           f"found {d['irradiance_source_size']}")

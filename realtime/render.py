@@ -10,7 +10,11 @@ Conventions at both ends of every baked artifact
 * Irradiance cube / SH9: E(n) / pi (radiance units: Lambert diffuse = albedo x value).
 * Prefiltered cube: ``prefilter_levels`` levels, level L baked at roughness
   ``roughness_from_lod(L)`` of the ``lod_mapping`` (shaders/ibl.glsl), read at
-  ``lod_from_roughness`` (its inverse); max level = prefilter_levels - 1.
+  ``lod_from_roughness`` (its inverse); max level = prefilter_levels - 1. Two hooks for
+  ``pbrcheck fit-lod``: ``lod_mapping=fitted:FILE`` bakes the chain of the file's ``chain`` mapping
+  and reads it at the fitted function (``LOD_FITTED(r)``, a ``#define`` of
+  :meth:`compare.lodfit.LodMapping.glsl_expr`); ``lod_override >= 0`` reads every object at that
+  level.
 * DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
@@ -32,7 +36,7 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import GEOMETRIES, NDFS, Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name
-from .presets import resolve_options
+from .presets import fitted_mapping, resolve_options
 
 HALF_MAX = 65504.0
 NDF_INDEX = {n: i for i, n in enumerate(NDFS)}
@@ -40,6 +44,14 @@ GEOMETRY_INDEX = {"smith_ggx_correlated": 0, "smith_ggx": 1, "schlick_ggx_ibl": 
                   "schlick_beckmann": 4}
 SHADING_INDEX = {"material": 0, "article000": 1, "article001": 2, "article002": 3}
 LOD_INDEX = {"linear": 0, "quadratic": 1, "log2": 2}
+#: LOD_MAPPING of the frame pass for a fitted mapping (shaders/ibl.glsl: LOD_FITTED(r) is its expression)
+LOD_FITTED_INDEX = 3
+
+
+def chain_mapping(o: dict) -> str:
+    """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``)."""
+    fm = fitted_mapping(o["lod_mapping"])
+    return fm.chain if fm is not None else o["lod_mapping"]
 RUNTIME_SAMPLING_INDEX = {"beckmann": 0, "ggx": 1, "vndf": 2}
 # Samples of the Kd (diffuse Fresnel) LUT: a smooth 1-D integrand, error < 1e-4 at 4096 points.
 KD_LUT_SAMPLES = 4096
@@ -212,15 +224,16 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
 def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
     levels = o["prefilter_levels"]
     size = o["cube_size"]
+    chain = chain_mapping(o)
     key = ("pre", env.content_hash, size, fmt, levels, o["prefilter_samples"], o["prefilter_filtered"],
-           o["prefilter_nl_weight"], o["lod_mapping"])
+           o["prefilter_nl_weight"], chain)
     if key in _cache:
         timings["prefilter"] = _timings[key]
         return _cache[key]
     ctx = get_context()
     prog = compute_program("prefilter.comp", {
         "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o["prefilter_filtered"]),
-        "NL_WEIGHT": int(o["prefilter_nl_weight"]), "LOD_MAPPING": LOD_INDEX[o["lod_mapping"]]})
+        "NL_WEIGHT": int(o["prefilter_nl_weight"]), "LOD_MAPPING": LOD_INDEX[chain]})
 
     def run():
         tex = _cube(size, fmt, levels)
@@ -422,11 +435,14 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
             "SHADING": SHADING_INDEX[shading], "NDF": NDF_INDEX[terms["ndf"]],
             "GEOMETRY": GEOMETRY_INDEX[terms["geometry"]], "FRESNEL": 0 if terms["fresnel"] == "schlick" else 1,
             "IRRADIANCE": 1 if o["irradiance"] == "sh9" else 0, "DFG": 1 if o["dfg"] == "analytic" else 0,
-            "LOD_MAPPING": LOD_INDEX[o["lod_mapping"]], "SHADOWS": int(o["shadows"]),
+            "LOD_MAPPING": LOD_INDEX.get(o["lod_mapping"], LOD_FITTED_INDEX), "SHADOWS": int(o["shadows"]),
             "RUNTIME_SAMPLING": RUNTIME_SAMPLING_INDEX[o["runtime_sampling"]],
             "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
             "REFLECT_BUG": int(o["reflect_bug"]),
         }
+        fm = fitted_mapping(o["lod_mapping"])
+        if fm is not None:
+            defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
         t0 = time.perf_counter()
         prog = compute_program("render.comp", defines)
         timings["compile_frame"] = time.perf_counter() - t0
@@ -466,6 +482,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         _set(prog, "env_face_size", float(o["cube_size"]))
         _set(prog, "runtime_samples", int(o["runtime_samples"]))
         _set(prog, "min_roughness", float(o["min_roughness"]))
+        _set(prog, "lod_override", float(o["lod_override"]))
 
         def frame():
             prog.run(groups(W, 8), groups(H, 8), 1)

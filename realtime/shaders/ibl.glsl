@@ -2,7 +2,8 @@
 // analytic EnvBRDFApprox, SH9 irradiance (article 002 form), filtered importance sampling's level.
 #include "brdf.glsl"
 
-// LOD_MAPPING: 0 linear, 1 quadratic, 2 log2. MAX_LOD: last level of the prefiltered chain.
+// LOD_MAPPING: 0 linear, 1 quadratic, 2 log2, 3 fitted (LOD_FITTED(r) #defined by the caller; the
+// frame pass only). MAX_LOD: last level of the prefiltered chain.
 // CUBE_LOG2: log2 of the prefiltered cube's face size (the log2 mapping counts levels from 1x1).
 #ifndef LOD_MAPPING
 #define LOD_MAPPING 0
@@ -17,6 +18,8 @@ float lod_from_roughness(float r, float max_lod, float cube_log2) {
 #elif LOD_MAPPING == 1
     float x = clamp(r, 0.0, 1.0);
     return max_lod * x * (2.0 - x);
+#elif LOD_MAPPING == 3
+    return min(LOD_FITTED(r), max_lod);  // fitted (pbrcheck fit-lod): defined by the caller
 #else
     float level_from_1x1 = 1.0 - 1.2 * log2(max(r, 1e-6));
     return clamp(cube_log2 - level_from_1x1, 0.0, max_lod);
@@ -26,7 +29,7 @@ float lod_from_roughness(float r, float max_lod, float cube_log2) {
 // The inverse of lod_from_roughness: the roughness each prefiltered level is baked at.
 float roughness_from_lod(float lod, float max_lod, float cube_log2) {
     if (max_lod <= 0.0) return 0.0;
-#if LOD_MAPPING == 0
+#if LOD_MAPPING == 0 || LOD_MAPPING == 3  // 3: never baked with (the chain uses its built-in mapping)
     return lod / max_lod;
 #elif LOD_MAPPING == 1
     return 1.0 - sqrt(max(1.0 - lod / max_lod, 0.0));

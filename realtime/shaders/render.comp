@@ -42,6 +42,7 @@ uniform float cube_log2;
 uniform float env_face_size;
 uniform int runtime_samples;
 uniform float min_roughness;
+uniform float lod_override;   // >= 0: every prefiltered lookup at this level (fit-lod's scan)
 
 const float T_EPS = 1e-4;
 
@@ -113,7 +114,8 @@ vec2 dfg(float NoV, float roughness) {
 }
 
 vec3 prefiltered_radiance(vec3 r, float roughness) {
-    return textureLod(prefiltered, r, lod_from_roughness(roughness, max_lod, cube_log2)).rgb;
+    float lod = lod_override >= 0.0 ? min(lod_override, max_lod) : lod_from_roughness(roughness, max_lod, cube_log2);
+    return textureLod(prefiltered, r, lod).rgb;
 }
 
 uint hash_u(uint x) {

@@ -1,0 +1,233 @@
+"""``pbrcheck fit-lod``: the prefiltered-map LOD each roughness wants, and a smooth mapping fitted to it.
+
+Method
+------
+1. The scene's point lights are removed (they are shaded exactly, not through the prefiltered map),
+   and the reference is rendered once (``local`` mode).
+2. The prefiltered chain of the preset (level L baked at ``roughness_from_lod(L)`` of the preset's
+   ``lod_mapping``, the *chain*) is built once; the frame is rendered with the real-time option
+   ``lod_override = L`` (every object read at level L) for a dense scan of L over
+   ``[0, prefilter_levels - 1]`` (:data:`LOD_STEP`).
+3. Per roughness (objects grouped by their roughness: on a sphere grid, its columns) the relative MSE
+   over that group's valid pixels is a function of L; its minimum on the scan is refined by a parabola
+   through the three scan points around it (clamped to the bracket).
+4. The smooth monotone mapping (:mod:`compare.lodfit`'s basis, non-negative coefficients) is fitted
+   by :func:`compare.lodfit.fit_lod_to_error`: it minimizes the scene error the scan predicts (each
+   roughness's error curve read at the mapping's LOD, weighted by its pixel count), starting from the
+   NNLS fit to the optima (:func:`compare.lodfit.fit_lod_mapping`) and from NNLS fits to each
+   built-in mapping's LODs. On measured curves (noisy, with bumps at some integer levels) the closest
+   smooth curve to the optima can be worse than a built-in mapping; this objective cannot be (up to
+   the scan's interpolation), as far as the built-ins are representable in the basis.
+5. Every mapping is evaluated on the scene: ``linear``, ``quadratic``, ``log2`` (each with its own
+   chain, as the preset would render it) and ``fitted`` (on the chain it was fitted on, through
+   ``lod_mapping=fitted:FILE``).
+
+Without ``--roughness`` a scene holding a sphere grid is used as is; otherwise (or with
+``--roughness``) the scene's environment lights a 4-column grid of white metal spheres with the
+given roughness values (:func:`probe_scene`).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.scene import Scene, scene_from_dict
+
+#: Default roughness samples: 16 values on [0, 1].
+DEFAULT_ROUGHNESS = tuple(float(x) for x in np.linspace(0.0, 1.0, 16))
+#: LOD scan step. The error curve is smooth in L (trilinear filtering between levels); a quarter
+#: level plus the parabola refinement puts the optimum within a few hundredths of a level.
+LOD_STEP = 0.25
+#: Relative-error epsilon, as compare.metrics (1 % of a unit diffuse white).
+from .metrics import REL_EPS  # noqa: E402
+
+BUILTIN = ("linear", "quadratic", "log2")
+
+
+def probe_scene(scene: Scene, roughness, size: int) -> Scene:
+    """White metal spheres at ``roughness`` (4 per row) under ``scene``'s environment, framed."""
+    env = scene.to_dict()["environment"]
+    n = len(roughness)
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    spacing = 1.1
+    objs = []
+    for k, r in enumerate(roughness):
+        i, j = divmod(k, cols)
+        objs.append({"type": "sphere", "name": f"r{r:.3g}",
+                     "center": [(j - (cols - 1) / 2) * spacing, ((rows - 1) / 2 - i) * spacing, 0.0],
+                     "radius": 0.5, "material": {"base_color": [1.0, 1.0, 1.0], "metallic": 1.0,
+                                                 "roughness": float(r)}})
+    extent = max(cols, rows) * spacing
+    dist = extent / 2 / math.tan(math.radians(18)) + 1.0
+    w = max(8, int(round(size * cols / rows)))
+    return scene_from_dict({"name": f"{scene.name}_lodprobe", "camera": {
+        "origin": [0, 0, dist], "target": [0, 0, 0], "fov": 36.0 * (cols / rows if cols >= rows else 1.0),
+        "width": w, "height": int(size)}, "environment": env, "brdf": scene.to_dict()["brdf"], "objects": objs})
+
+
+def _no_lights(scene: Scene) -> Scene:
+    from dataclasses import replace
+
+    return replace(scene, lights=())
+
+
+def _groups(scene: Scene) -> dict[float, list[int]]:
+    g: dict[float, list[int]] = {}
+    for k, o in enumerate(scene.objects):
+        g.setdefault(round(float(o.material.roughness), 6), []).append(k)
+    return dict(sorted(g.items()))
+
+
+def _relmse_maps(ref, img, valid):
+    d = (img.rgb.astype(np.float64) - ref.rgb.astype(np.float64)) ** 2 / (ref.rgb.astype(np.float64) ** 2 + REL_EPS)
+    return d.mean(axis=-1), valid
+
+
+def _group_errors(ref, img, valid, ids, groups) -> dict[float, float]:
+    e, _ = _relmse_maps(ref, img, valid)
+    out = {}
+    for r, members in groups.items():
+        m = valid & np.isin(ids, members)
+        out[r] = float(e[m].mean()) if m.any() else float("nan")
+    return out
+
+
+def _scene_relmse(ref, img, valid) -> float:
+    e, _ = _relmse_maps(ref, img, valid)
+    return float(e[valid].mean())
+
+
+def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> tuple[float, float]:
+    """Refine the scan minimum at index k with a parabola through its neighbours."""
+    if k == 0 or k == len(x) - 1 or not np.all(np.isfinite(y[k - 1:k + 2])):
+        return float(x[k]), float(y[k])
+    x0, x1, x2 = x[k - 1:k + 2]
+    y0, y1, y2 = y[k - 1:k + 2]
+    den = (y0 - 2 * y1 + y2)
+    if den <= 0:
+        return float(x1), float(y1)
+    t = 0.5 * (y0 - y2) / den  # offset in steps from x1
+    t = float(np.clip(t, -1.0, 1.0))
+    h = x1 - x0
+    return float(x1 + t * h), float(y1 - 0.25 * (y0 - y2) * t)
+
+
+def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", options: dict | None = None,
+                spp: int = 64, size: int | None = None, out: Path, lod_step: float = LOD_STEP,
+                progress: bool = False) -> dict:
+    """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``. Returns the JSON."""
+    from realtime.presets import resolve_options
+    from realtime.render import chain_mapping, render_realtime
+    from reference.render import render_reference
+
+    from .commands import dump_json
+    from .lodfit import fit_lod_mapping, fit_lod_to_error
+    from .metrics import pixel_classes
+
+    base = dict(options or {})
+    o = resolve_options(preset, base)
+    if o["ibl"] != "splitsum":
+        raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o['ibl']})")
+    if str(o["lod_mapping"]).startswith("fitted:"):
+        raise PbrcheckError("fit-lod: start from a built-in lod_mapping, not a fitted one")
+    has_grid = bool(scene.grids)
+    if roughness is not None or not has_grid:
+        rs = list(DEFAULT_ROUGHNESS if roughness is None else roughness)
+        if not rs or any(not (0.0 <= r <= 1.0) for r in rs):
+            raise PbrcheckError(f"fit-lod: roughness values must lie in [0, 1], found {rs}")
+        fit_scene = probe_scene(scene, rs, size or 96)
+    else:
+        fit_scene = scene if size is None else scene.with_camera(
+            width=max(8, int(round(size * scene.camera.width / scene.camera.height))), height=int(size))
+    fit_scene = _no_lights(fit_scene)
+    groups = _groups(fit_scene)
+    ref = render_reference(fit_scene, spp=spp, mode="local", progress=progress)
+    max_lod = o["prefilter_levels"] - 1
+    lods = np.arange(0.0, max_lod + 1e-9, lod_step)
+    curves = {r: [] for r in groups}
+    counts = {}
+    valid = ids = None
+    for L in lods:
+        img = render_realtime(fit_scene, preset, {**base, "lod_override": float(L)}, progress=False)
+        if valid is None:
+            valid, _, _ = pixel_classes(ref, img)
+            ids = np.rint(ref.channels["object"]).astype(np.int64)
+            counts = {r: int((valid & np.isin(ids, m)).sum()) for r, m in groups.items()}
+        for r, e in _group_errors(ref, img, valid, ids, groups).items():
+            curves[r].append(e)
+    samples = []
+    for r, ys in curves.items():
+        y = np.asarray(ys)
+        if not np.any(np.isfinite(y)):
+            continue
+        k = int(np.nanargmin(y))
+        lod, err = _parabola_min(lods, y, k)
+        spread = float(np.nanmax(y) - np.nanmin(y))
+        samples.append({"roughness": r, "lod": lod, "relmse": err, "relmse_spread": spread,
+                        "pixels": counts[r], "scan": [float(v) for v in y]})
+    if len(samples) < 2:
+        raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
+    rr = np.array([s["roughness"] for s in samples])
+    yy = np.array([s["lod"] for s in samples])
+    chain = chain_mapping(o)
+    table = np.array([s["scan"] for s in samples])
+    table = np.where(np.isfinite(table), table, np.nanmax(table))
+    starts = [fit_lod_mapping(rr, _builtin_lod(n, rr, o), cube_size=o["cube_size"],
+                              mip_count=o["prefilter_levels"]).coefficients for n in BUILTIN]
+    fitted = fit_lod_to_error(rr, lods, table, cube_size=o["cube_size"], mip_count=o["prefilter_levels"],
+                              weights=[s["pixels"] for s in samples], starts=starts)
+    from dataclasses import replace
+
+    fitted = replace(fitted, chain=chain)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    result = {
+        "scene": scene.name, "fit_scene": fit_scene.name, "preset": preset, "options": base, "spp": spp,
+        "size": [fit_scene.camera.width, fit_scene.camera.height], "lod_step": lod_step,
+        "metric": "relmse over valid pixels (point lights removed)",
+        "samples": samples,
+        "mappings": {"fitted": {**fitted.to_json(), "relmse": None}},
+    }
+    out.write_text(dump_json(result) + "\n", encoding="utf-8")  # the fitted mapping must be on disk to render it
+    for name in BUILTIN:
+        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": name}, progress=False)
+        result["mappings"][name] = {"relmse": _scene_relmse(ref, img, valid),
+                                    "lod": [float(v) for v in _builtin_lod(name, rr, o)]}
+    img = render_realtime(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"}, progress=False)
+    result["mappings"]["fitted"]["relmse"] = _scene_relmse(ref, img, valid)
+    result["mappings"]["fitted"]["lod"] = [float(v) for v in fitted(rr)]
+    optimal = float(np.mean([s["relmse"] for s in samples]))
+    result["per_roughness_optimum_mean_relmse"] = optimal
+    glsl = out.with_suffix(".glsl")
+    glsl.write_text(fitted.glsl(), encoding="utf-8")
+    result["glsl"] = str(glsl)
+    out.write_text(dump_json(result) + "\n", encoding="utf-8")
+    return result
+
+
+def _builtin_lod(name: str, r: np.ndarray, o: dict) -> np.ndarray:
+    """numpy twin of lod_from_roughness (realtime/shaders/ibl.glsl) for the table."""
+    M = o["prefilter_levels"] - 1
+    x = np.clip(r, 0.0, 1.0)
+    if name == "linear":
+        return x * M
+    if name == "quadratic":
+        return M * x * (2 - x)
+    return np.clip(math.log2(o["cube_size"]) - (1.0 - 1.2 * np.log2(np.maximum(r, 1e-6))), 0.0, M)
+
+
+def table_markdown(result: dict) -> str:
+    lines = ["| roughness | optimal LOD | relmse at optimum | fitted LOD |", "| --- | --- | --- | --- |"]
+    fl = result["mappings"]["fitted"]["lod"]
+    for s, f in zip(result["samples"], fl):
+        lines.append(f"| {s['roughness']:.4g} | {s['lod']:.3f} | {s['relmse']:.4g} | {f:.3f} |")
+    lines += ["", "| mapping | relmse over the scene |", "| --- | --- |"]
+    for k, v in result["mappings"].items():
+        lines.append(f"| {k} | {v['relmse']:.5g} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,99 @@
+"""fit-lod on a real (small) scene, the fitted mapping in the real-time renderer, and fit-roughness."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from compare.lodfit import LodFitError, LodMapping
+from pbrcheck.scene import load_scene
+
+# Small but real: the spheres scene (5 x 6 grid, sky with a sun) at 40 px high, 16 spp, 32^2 cubes
+# with 6 mips. The reference is shared by every mapping, so the comparison between mappings is
+# deterministic; the fitted mapping is the smooth monotone fit to the per-roughness optima of this
+# very scene, so it may not be worse than the best built-in mapping by more than float rounding.
+FIT_OPTS = {"cube_size": 32, "prefilter_levels": 6, "prefilter_samples": 256, "supersample": 2}
+FIT_SIZE, FIT_SPP = 40, 16
+#: Relative slack on "no worse than": float32 summation order only.
+NO_WORSE_RTOL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def fit(tmp_path_factory):
+    from compare.fitlod import run_fit_lod
+
+    out = tmp_path_factory.mktemp("fitlod") / "fit.json"
+    res = run_fit_lod(load_scene("spheres"), options=FIT_OPTS, spp=FIT_SPP, size=FIT_SIZE, out=out)
+    return out, res
+
+
+def test_fit_lod_json_shape(fit):
+    out, res = fit
+    d = json.loads(out.read_text())
+    assert len(d["samples"]) == 6  # the grid's six roughness columns
+    for s in d["samples"]:
+        assert {"roughness", "lod", "relmse"} <= set(s)
+        assert 0.0 <= s["lod"] <= FIT_OPTS["prefilter_levels"] - 1 and np.isfinite(s["relmse"])
+    assert set(d["mappings"]) == {"linear", "quadratic", "log2", "fitted"}
+    f = d["mappings"]["fitted"]
+    assert f["cube_size"] == 32 and f["mip_count"] == 6 and f["chain"] == "quadratic"
+    assert len(f["coefficients"]) == 5
+    assert out.with_suffix(".glsl").read_text().startswith("// Fitted roughness -> LOD mapping")
+    # the per-roughness optima rise with roughness overall (rough lobes want blurrier levels)
+    lods = [s["lod"] for s in d["samples"]]
+    assert lods[-1] > lods[0] + 2.0, lods
+
+
+def test_fitted_mapping_no_worse_than_best_builtin(fit):
+    _, res = fit
+    m = res["mappings"]
+    best = min(m[k]["relmse"] for k in ("linear", "quadratic", "log2"))
+    assert m["fitted"]["relmse"] <= best * (1 + NO_WORSE_RTOL), m
+
+
+def test_realtime_uses_fitted_mapping(fit, tmp_path):
+    from realtime.presets import OptionError
+    from realtime.render import render_realtime
+
+    out, _ = fit
+    scene = load_scene("spheres").with_camera(width=24, height=20)
+    lin = render_realtime(scene, "default", {**FIT_OPTS, "lod_mapping": "linear"}, progress=False)
+    fitted = render_realtime(scene, "default", {**FIT_OPTS, "lod_mapping": f"fitted:{out}"}, progress=False)
+    assert np.all(np.isfinite(fitted.rgb))
+    assert np.abs(fitted.rgb - lin.rgb).max() > 1e-3
+    assert json.loads(fitted.meta["options"])["lod_mapping"] == f"fitted:{out.resolve()}"
+    # a cube or mip count other than the fit's is a typed error naming both
+    with pytest.raises(OptionError, match="fitted for a 32\\^2 cube with 6 mips"):
+        render_realtime(scene, "default", {**FIT_OPTS, "cube_size": 64, "lod_mapping": f"fitted:{out}"},
+                        progress=False)
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    with pytest.raises(LodFitError):
+        render_realtime(scene, "default", {**FIT_OPTS, "lod_mapping": f"fitted:{bad}"}, progress=False)
+
+
+def test_fitted_override_equals_glsl_expression():
+    """The #define the renderer injects is the mapping (Python evaluation of the emitted expression)."""
+    m = LodMapping((1.5, 2.0, 0.25, 0.1, 0.7), 256, 9, "log2")
+    expr = m.glsl_expr("r").replace("clamp", "_clamp")
+    for r in np.linspace(-0.2, 1.2, 15):
+        got = eval(expr, {"r": r, "sqrt": np.sqrt, "_clamp": lambda x, a, b: min(max(x, a), b)})
+        assert got == pytest.approx(float(m(r)), abs=1e-6)
+    assert LodMapping.from_json(m.to_json()) == m
+    with pytest.raises(LodFitError, match="chain"):
+        LodMapping.from_json({**m.to_json(), "chain": "cubic"})
+
+
+def test_error_objective_recovers_known_mapping():
+    """Synthetic error curves (L - truth(r))^2 with the minimum on a known mapping: the
+    error-minimizing fit lands on it (within RECOVERY_TOL levels, as tests/test_lodfit.py)."""
+    from compare.lodfit import fit_lod_to_error
+
+    r = np.linspace(0, 1, 16)
+    grid = np.arange(0, 8.001, 0.25)
+    truth = 3 * r + 4 * r * r
+    err = (grid[None, :] - truth[:, None]) ** 2
+    m = fit_lod_to_error(r, grid, err, cube_size=256, mip_count=9)
+    assert np.max(np.abs(m(r) - truth)) < 0.1
