@@ -188,6 +188,16 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             ref_path = _resolve(base, check.reference)
             ref = read_exr(ref_path, require=RGB)
             ref_name = str(ref_path)
+            if scene is not None and ref.meta.get("scene_hash"):
+                # A stored reference of another scene (an edited scene file, a stale EXR) would make
+                # the gate measure a scene mismatch, not the shaders: refuse it.
+                from pbrcheck.scene import scene_hash
+
+                want = scene_hash(scene)
+                if ref.meta["scene_hash"] != want:
+                    raise BudgetError(f"{ref_path}: reference was rendered for scene hash "
+                                      f"{ref.meta['scene_hash'][:16]}, but {check.scene} hashes to {want[:16]}; "
+                                      f"re-render it (pbrcheck reference ... --out {check.reference})")
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)

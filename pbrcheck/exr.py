@@ -92,6 +92,10 @@ def write_exr(path: str | Path, image: Image) -> Path:
     channels = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in image.channels.items()}
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.exr", dir=path.parent)
     os.close(fd)
+    # mkstemp makes 0600 files; give the result the permissions a plain open() would (umask).
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
     try:
         with OpenEXR.File(header, channels) as f:
             f.write(tmp)
