@@ -44,5 +44,10 @@ bench: setup
 	$(VENV)/bin/pbrcheck bench reference
 	$(VENV)/bin/pbrcheck bench realtime
 
+# The committed accuracy report of the shipped shaders (reports/index.html).
+REPORT_SCENES := spheres furnace grazing
+report: setup
+	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --hardcases --out reports
+
 clean:
 	rm -rf $(VENV) build *.egg-info
