@@ -144,6 +144,20 @@ def _cmd_fit_lod(args) -> int:
     return 0
 
 
+def _cmd_explain(args) -> int:
+    from pbrcheck.scene import load_scene
+    from realtime.presets import parse_sets
+
+    from .explain import run_explain, table_markdown, write_explain
+
+    res = run_explain(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+                      size=args.size or None, fitted=args.fitted, progress=not args.quiet)
+    out = write_explain(res, Path(args.out))
+    print(table_markdown(res), end="")
+    print(f"json: {out}\ntable: {out.with_suffix('.md')}")
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("compare", help="compare a test EXR against a reference EXR (metrics, error maps)")
@@ -212,3 +226,15 @@ def register(sub, bench_sub) -> None:
                    "the scene's own otherwise)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_fit_lod)
+
+    s = sub.add_parser("explain", help="error decomposition: make one approximation exact at a time and "
+                                       "measure the error it contributes")
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--fitted", metavar="FILE.json", help="also try this fitted LOD mapping (pbrcheck fit-lod)")
+    s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_explain)
