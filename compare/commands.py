@@ -158,6 +158,22 @@ def _cmd_explain(args) -> int:
     return 0
 
 
+def _cmd_fit_roughness(args) -> int:
+    from pbrcheck.scene import load_scene
+    from realtime.presets import parse_sets
+
+    from .fitrough import run_fit_roughness, table_markdown
+
+    res = run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
+                            size=args.size or None, iterations=args.iterations, spp=args.spp)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(dump_json(res) + "\n", encoding="utf-8")
+    print(table_markdown(res), end="")
+    print(f"json: {out}")
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("compare", help="compare a test EXR against a reference EXR (metrics, error maps)")
@@ -238,3 +254,14 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_explain)
+
+    s = sub.add_parser("fit-roughness", help="apparent roughness: fit the differentiable reference's roughness "
+                                             "per object to the real-time image")
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--iterations", type=int, default=40, help="Adam steps (default 40)")
+    s.add_argument("--spp", type=int, default=16, help="samples per pixel per step (default 16)")
+    s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
+    s.set_defaults(func=_cmd_fit_roughness)
