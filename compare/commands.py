@@ -6,6 +6,8 @@ import json
 import math
 from pathlib import Path
 
+from .metrics import format_value
+
 
 def _jsonable(x):
     """JSON without NaN/Infinity (not valid JSON): non-finite floats become null."""
@@ -22,12 +24,6 @@ def dump_json(obj) -> str:
     return json.dumps(_jsonable(obj), indent=2, allow_nan=False)
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "n/a"
-    if isinstance(v, float) and math.isinf(v):
-        return "inf"
-    return f"{v:.6g}"
 
 
 def _cmd_compare(args) -> int:
@@ -59,10 +55,10 @@ def _cmd_compare(args) -> int:
         flag = ""
         if noise is not None and noise["within_noise"].get(k):
             flag = "  (within reference noise)"
-        print(f"{k:<18} {_fmt(v)}{flag}")
+        print(f"{k:<18} {format_value(v)}{flag}")
     if noise is not None:
-        print(f"noise floor (mean variance) {_fmt(noise['mean_variance'])}, "
-              f"noise-corrected MSE {_fmt(noise['mse_corrected'])}")
+        print(f"noise floor (mean variance) {format_value(noise['mean_variance'])}, "
+              f"noise-corrected MSE {format_value(noise['mse_corrected'])}")
     return 0
 
 

@@ -29,7 +29,6 @@ given roughness values (:func:`probe_scene`).
 
 from __future__ import annotations
 
-import copy
 import math
 from pathlib import Path
 
@@ -174,7 +173,6 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     if len(samples) < 2:
         raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
     rr = np.array([s["roughness"] for s in samples])
-    yy = np.array([s["lod"] for s in samples])
     chain = chain_mapping(o)
     table = np.array([s["scan"] for s in samples])
     table = np.where(np.isfinite(table), table, np.nanmax(table))

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
 
-from .metrics import METRICS
+from .metrics import METRICS, format_value
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
 DEFAULT_SPP = 64
@@ -239,21 +239,15 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "n/a"
-    if isinstance(v, float) and math.isinf(v):
-        return "inf"
-    return f"{v:.6g}"
 
 
 def failure_lines(r: Result) -> list[str]:
     out = []
     for f in r.failures:
         op = ">" if f["kind"] == "max" else "<"
-        worst = ", ".join(f"{o['name'] or '#' + str(o['id'])}={_fmt(o['value'])}" for o in f["worst_objects"])
+        worst = ", ".join(f"{o['name'] or '#' + str(o['id'])}={format_value(o['value'])}" for o in f["worst_objects"])
         note = " (within the reference's noise)" if f.get("within_noise") else ""
-        out.append(f"FAIL {r.check.name}: {f['metric']} = {_fmt(f['value'])} {op} budget {_fmt(f['budget'])}"
+        out.append(f"FAIL {r.check.name}: {f['metric']} = {format_value(f['value'])} {op} budget {format_value(f['budget'])}"
                    f"{note}" + (f"; worst objects: {worst}" if worst else ""))
     return out
 
@@ -271,7 +265,7 @@ def write_junit(path: Path, results: list[Result]) -> Path:
         elif r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
         if r.metrics:
-            ET.SubElement(tc, "system-out").text = "\n".join(f"{k} = {_fmt(v)}" for k, v in r.metrics.items())
+            ET.SubElement(tc, "system-out").text = "\n".join(f"{k} = {format_value(v)}" for k, v in r.metrics.items())
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     root = ET.Element("testsuites")
@@ -291,8 +285,8 @@ def write_summary(path: Path, results: list[Result]) -> Path:
         failed = {f["metric"] for f in r.failures}
         for m, b, op in budgets:
             st = "FAIL" if m in failed else "pass"
-            lines.append(f"| {r.check.name} | {st} | {m} | {_fmt(r.metrics.get(m))} | "
-                         f"{'<=' if op == '>' else '>='} {_fmt(b)} |")
+            lines.append(f"| {r.check.name} | {st} | {m} | {format_value(r.metrics.get(m))} | "
+                         f"{'<=' if op == '>' else '>='} {format_value(b)} |")
     fails = [l for r in results for l in failure_lines(r)]
     if fails:
         lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]

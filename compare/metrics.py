@@ -364,3 +364,12 @@ def _within(metric: str, value, sim) -> bool:
             return True
         return value >= sim - 10.0 * math.log10(NOISE_EXPLAINS_FACTOR)
     return value <= NOISE_EXPLAINS_FACTOR * sim
+
+
+def format_value(v) -> str:
+    """A metric value for tables and messages: 6 significant digits, ``n/a`` for None, ``inf``."""
+    if v is None:
+        return "n/a"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return f"{v:.6g}"

@@ -33,7 +33,7 @@ from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
-from pbrcheck.scene import GEOMETRIES, NDFS, Plane, Scene, plane_frame
+from pbrcheck.scene import NDFS, Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name
 from .presets import fitted_mapping, resolve_options

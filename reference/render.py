@@ -26,7 +26,6 @@ geometry.
 from __future__ import annotations
 
 import hashlib
-import math
 import time
 
 import numpy as np

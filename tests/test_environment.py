@@ -10,7 +10,7 @@ import pytest
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before Mitsuba loads)
 from pbrcheck.environment import (EnvMap, load_environment, lookup_equirect, rasterize_sky,
                                   read_image_file, texel_directions, validate_pixels)
-from pbrcheck.errors import EnvironmentMapError, SceneError
+from pbrcheck.errors import EnvironmentMapError
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import Environment, load_scene, scene_from_dict
 
