@@ -255,7 +255,12 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
     prog.update(1, f"{scene.name}: reference")
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
-    provenance = [("scene source", scene.source)]
+    from pbrcheck.scene import builtin_scene_names, builtin_scene_path
+
+    src = scene.source
+    if scene.name in builtin_scene_names() and src == str(builtin_scene_path(scene.name)):
+        src = f"built-in scene {scene.name} (pbrcheck/scenes/{scene.name}.toml)"  # no machine paths
+    provenance = [("scene source", src)]
     for k in sorted(ref.meta):  # scene hash, spp, mode, seed, variant, versions, seconds...
         if k not in PROVENANCE_SKIP:
             provenance.append((f"reference {k}", ref.meta[k]))
