@@ -75,6 +75,17 @@ def _timed(ctx, fn):
     return out, time.perf_counter() - t0
 
 
+def _baked(name: str, key, timings: dict | None, run):
+    """A precompute pass baked once per process: ``run()`` timed with :func:`_timed` on a miss and
+    kept in ``_cache``; the bake's wall time goes to ``timings[name]`` on a miss and on a hit (a hit
+    reports the original bake, see ``meta["cached_passes"]``)."""
+    if key not in _cache:
+        _cache[key], _timings[key] = _timed(get_context(), run)
+    if timings is not None:
+        timings[name] = _timings[key]
+    return _cache[key]
+
+
 def _env_key(scene_env) -> str:
     from dataclasses import asdict
 
@@ -132,10 +143,6 @@ def _image_format(fmt: str) -> str:
 
 def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
     key = ("env_cube", env.content_hash, size, fmt)
-    if key in _cache:
-        timings["env_cube"] = _timings[key]
-        return _cache[key]
-    ctx = get_context()
     prog = compute_program("env_to_cube.comp", {"IMAGE_FORMAT": _image_format(fmt)})
 
     def run():
@@ -147,10 +154,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
         tex.build_mipmaps()
         return tex
 
-    tex, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = tex, dt
-    timings["env_cube"] = dt
-    return tex
+    return _baked("env_cube", key, timings, run)
 
 
 def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
@@ -158,9 +162,6 @@ def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
     method = 0 if o["irradiance_method"] == "texel_sum" else 1
     key = ("irr", env.content_hash, o["cube_size"], fmt, o["irradiance_size"], o["irradiance_source_size"], method,
            o["irradiance_step"] if method else None)
-    if key in _cache:
-        timings["irradiance"] = _timings[key]
-        return _cache[key]
     ctx = get_context()
     prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt), "METHOD": method})
     size = o["irradiance_size"]
@@ -178,10 +179,7 @@ def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
         prog.run(groups(size, 8), groups(size, 8), 6)
         return tex
 
-    tex, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = tex, dt
-    timings["irradiance"] = dt
-    return tex
+    return _baked("irradiance", key, timings, run)
 
 
 # Cosine-lobe convolution factors A_l / pi (irradiance over pi), [Ramamoorthi01] eq. 8.
@@ -194,9 +192,6 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
     """(9, 3) coefficients c_i so that sum_i c_i b_i(n) = E(n) / pi (article 002's basis order)."""
     size = o["irradiance_source_size"]
     key = ("sh9", env.content_hash, o["cube_size"], fmt, size)
-    if key in _cache:
-        timings["sh9"] = _timings[key]
-        return _cache[key]
     ctx = get_context()
     prog = compute_program("sh9.comp")
 
@@ -215,10 +210,7 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
         # proj_i = int L b_i dw; L_lm = K_i proj_i; E/pi = sum A_l/pi L_lm K_i b_i
         return proj * (_SH_K ** 2 * _SH_A)[:, None]
 
-    c, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = c, dt
-    timings["sh9"] = dt
-    return c
+    return _baked("sh9", key, timings, run)
 
 
 def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
@@ -227,10 +219,6 @@ def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
     chain = chain_mapping(o)
     key = ("pre", env.content_hash, size, fmt, levels, o["prefilter_samples"], o["prefilter_filtered"],
            o["prefilter_nl_weight"], chain)
-    if key in _cache:
-        timings["prefilter"] = _timings[key]
-        return _cache[key]
-    ctx = get_context()
     prog = compute_program("prefilter.comp", {
         "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o["prefilter_filtered"]),
         "NL_WEIGHT": int(o["prefilter_nl_weight"]), "LOD_MAPPING": LOD_INDEX[chain]})
@@ -251,10 +239,7 @@ def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
             prog.run(groups(s, 8), groups(s, 8), 6)
         return tex
 
-    tex, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = tex, dt
-    timings["prefilter"] = dt
-    return tex
+    return _baked("prefilter", key, timings, run)
 
 
 def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
@@ -263,10 +248,6 @@ def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", 
     if sampling == "vndf" and ndf != "ggx":
         sampling = "ndf"  # visible-normal sampling exists for GGX only
     key = ("lut", size, samples, fmt, geometry, ndf, sampling)
-    if key in _cache:
-        if timings is not None:
-            timings["dfg_lut"] = _timings[key]
-        return _cache[key]
     ctx = get_context()
     prog = compute_program("dfg_lut.comp", {
         "LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f", "SAMPLING": 0 if sampling == "vndf" else 1,
@@ -282,11 +263,7 @@ def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", 
         prog.run(groups(size, 8), groups(size, 8), 1)
         return tex
 
-    tex, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = tex, dt
-    if timings is not None:
-        timings["dfg_lut"] = dt
-    return tex
+    return _baked("dfg_lut", key, timings, run)
 
 
 def read_lut(tex) -> np.ndarray:
@@ -298,9 +275,6 @@ def read_lut(tex) -> np.ndarray:
 
 def kd_lut(size: int, timings: dict):
     key = ("kd", size)
-    if key in _cache:
-        timings["kd_lut"] = _timings[key]
-        return _cache[key]
     ctx = get_context()
     prog = compute_program("kd_lut.comp")
 
@@ -314,10 +288,7 @@ def kd_lut(size: int, timings: dict):
         prog.run(groups(size, 64))
         return tex
 
-    tex, dt = _timed(ctx, run)
-    _cache[key], _timings[key] = tex, dt
-    timings["kd_lut"] = dt
-    return tex
+    return _baked("kd_lut", key, timings, run)
 
 
 def sample_cube(tex, directions: np.ndarray, lod: float = 0.0) -> np.ndarray:
