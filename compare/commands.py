@@ -6,6 +6,8 @@ import json
 import math
 from pathlib import Path
 
+from pbrcheck.atomic import write_text_atomic
+
 from .metrics import format_value
 
 
@@ -47,7 +49,7 @@ def _cmd_compare(args) -> int:
     if args.json:
         p = Path(args.json)
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(dump_json(summary) + "\n", encoding="utf-8")
+        write_text_atomic(p, dump_json(summary) + "\n")
     px = cmp.summary["pixels"]
     noise = cmp.summary["noise"]
     print(f"pixels: {px['valid']} valid, {px['edge']} edge, {px['background']} background")
@@ -76,14 +78,14 @@ def _split_list(s: str | None) -> list[str] | None:
 
 
 def _cmd_report(args) -> int:
-    from .report import build_report
-
     from pbrcheck.cli import DEFAULT_SCENE
+
+    from .report import build_report
 
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=_split_list(args.presets), out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases)
+                       hardcases=args.hardcases, research=args.research)
     print(f"report: {out}")
     return 0
 
@@ -133,8 +135,10 @@ def _cmd_fit_lod(args) -> int:
             from pbrcheck.errors import PbrcheckError
 
             raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
+    chains = _split_list(args.chains) if args.chains else None
     res = run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
-                      size=args.size, out=Path(args.out), progress=not args.quiet)
+                      size=args.size, out=Path(args.out), progress=not args.quiet,
+                      **({"chains": chains} if chains else {}))
     print(table_markdown(res), end="")
     print(f"json: {args.out}\nglsl: {res['glsl']}")
     return 0
@@ -164,7 +168,7 @@ def _cmd_fit_roughness(args) -> int:
                             size=args.size or None, iterations=args.iterations, spp=args.spp)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(dump_json(res) + "\n", encoding="utf-8")
+    write_text_atomic(out, dump_json(res) + "\n")
     print(table_markdown(res), end="")
     print(f"json: {out}")
     return 0
@@ -191,6 +195,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
     s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
+    s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
+                   "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_report)
 
@@ -236,6 +242,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--size", type=int, default=None, help="image height (default: 96 for the probe grid, "
                    "the scene's own otherwise)")
+    s.add_argument("--chains", metavar="C1,C2,...", help="prefiltered chains to scan and fit on (built-in "
+                   "mappings; default: linear,quadratic,log2; the best-predicting one is kept)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_fit_lod)
 

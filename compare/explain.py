@@ -5,18 +5,23 @@ valid pixels). Then one approximation at a time is replaced by its exact (or muc
 counterpart through real-time options (:data:`SOURCES`), the scene re-rendered and re-measured.
 A source's *contribution* is ``error(preset) - error(preset with that source made exact)``: positive
 when the approximation costs accuracy, near zero when it does not matter here, negative when the
-approximation happens to cancel another one. Finally every fix except ``v=n=r`` is applied at once
-(``all_exact``). Nothing is assumed: every row is a render.
+approximation happens to cancel another one. Then every fix is applied at once (``all_exact``) and
+every fix but ``v=n=r`` (``all_but_vnr``: the best this split sum can do). Nothing is assumed:
+every row is a render. What ``all_exact`` leaves is the reference's own noise (``noise_relmse``, the
+relmse its variance alone explains) plus what no option here changes (the diffuse term's split,
+texture filtering).
 
 Sources and their exact counterparts:
 
 * ``lut``: DFG term from a 256^2 RG32F LUT at 16384 samples per texel (replaces a small or half-float
   LUT, or Karis's analytic fit).
 * ``prefilter_samples``: 8192 samples per prefiltered texel, filtered importance sampling.
-* ``v=n=r``: the split sum's prefiltered lobe assumes v = n = r; replaced by runtime importance
-  sampling (GGX visible normals, 1024 samples per pixel, mip-filtered lookups). The renderer's
-  runtime path composes with article 001's formulas (F0 clamped to [0.02, 0.99], diffuse without
-  the Fresnel weight), so this row measures that composition too; it is left out of ``all_exact``.
+* ``v=n=r``: the split sum's prefiltered lobe assumes v = n = r and splits the integral of a
+  product into a product of integrals; replaced by runtime importance sampling of the same
+  integrand (the scene's D, G, F; GGX visible normals for a GGX NDF, Beckmann half vectors for a
+  Beckmann one; 4096 samples per pixel, mip-filtered lookups) in the material composition. For a
+  preset with an article's composition the row also switches to the material composition (only it
+  and article 001's have a runtime-sampled specular), so it then includes ``composition``.
 * ``lod_mapping``: the built-in mapping that measures best on this scene (or ``--fitted FILE``'s
   fitted mapping when given and better).
 * ``irradiance``: cube convolution summing every texel of a 64^2 source into a 64^2 cube.
@@ -30,6 +35,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from pbrcheck.atomic import write_text_atomic
+import numpy as np
+
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene
 
@@ -38,9 +46,15 @@ DEFAULT_SPP = 64
 #: The metric the contributions are computed on (all metrics are kept in the JSON).
 PRIMARY = "relmse"
 KEEP = ("relmse", "rmse", "rel_p95", "flip_mean")
+from .metrics import REL_EPS  # noqa: E402
 
 
-def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0) -> dict[str, dict]:
+#: Runtime samples per pixel of the exact specular (``v=n=r``): with mip-filtered lookups the
+#: estimator's noise at 4096 samples is far below the 64..256-spp reference's.
+RUNTIME_SAMPLES = 4096
+
+
+def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx") -> dict[str, dict]:
     """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests)."""
     import math
 
@@ -48,20 +62,25 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0) -> dict
     levels = max(1, min(cube.bit_length(), o["prefilter_levels"] + int(math.log2(cube / o["cube_size"]))))
     irr_src = min(64, o["cube_size"])
     s = lambda n: max(16, int(n * samples_scale))  # noqa: E731
+    composition = {"shading": "material", "reflect_bug": False, "min_roughness": 0.0}
+    ndf = o["ndf"] if o["ndf"] != "scene" else scene_ndf
+    vnr = {"ibl": "runtime", "runtime_samples": s(RUNTIME_SAMPLES), "runtime_lod": True, "runtime_rotate": True,
+           "runtime_sampling": {"ggx": "vndf", "beckmann": "beckmann"}.get(ndf, "none")}
+    if o["shading"] != "material":
+        vnr.update(composition)
     return {
         "lut": {"dfg": "lut", "lut_size": 256 if samples_scale >= 1 else 64, "lut_format": "f32",
                 "lut_samples": s(16384), "lut_sampling": "vndf"},
         "prefilter_samples": {"prefilter_samples": s(8192), "prefilter_filtered": True,
                               "prefilter_nl_weight": False},
-        "v=n=r": {"ibl": "runtime", "runtime_samples": s(1024), "runtime_sampling": "vndf", "runtime_lod": True,
-                  "runtime_rotate": True},
+        "v=n=r": vnr,
         "irradiance": {"irradiance": "convolution", "irradiance_method": "texel_sum", "irradiance_size": 64,
                        "irradiance_source_size": irr_src},
         "cube": {"cube_size": cube, "cube_format": "f32",
                  "prefilter_levels": levels,
                  "irradiance_source_size": min(o["irradiance_source_size"], cube)},
         "terms": {"ndf": "scene", "geometry": "scene", "fresnel": "scene", "lut_geometry": "scene"},
-        "composition": {"shading": "material", "reflect_bug": False, "min_roughness": 0.0},
+        "composition": composition,
     }
 
 
@@ -87,13 +106,22 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         return {k: c.metrics[k] for k in KEEP}
 
     baseline = measure({})
+    valid = compare_images(ref, render_realtime(scene, preset, base, progress=False), noise=False).valid
+    noise_relmse = None
+    if ref.variance is not None:
+        r64 = ref.rgb.astype(np.float64)
+        noise_relmse = float((np.clip(ref.variance, 0, None) / (r64 * r64 + REL_EPS))[valid].mean())
     rows = []
-    srcs = sources(o, cube_max=cube_max, samples_scale=samples_scale)
+    srcs = sources(o, cube_max=cube_max, samples_scale=samples_scale, scene_ndf=scene.brdf.ndf)
     if o["ibl"] == "runtime":
-        # Already runtime sampling: the exact counterpart of its sample count and distribution.
-        srcs["v=n=r"] = {"runtime_samples": srcs["v=n=r"]["runtime_samples"], "runtime_sampling": "vndf"}
-        srcs.pop("composition")  # runtime sampling only exists with article 001's composition
+        # Already runtime sampling: its exact counterpart is the same estimator at many samples in
+        # the material composition (composition is then part of this row).
+        srcs.pop("lut")
     for name, over in srcs.items():
+        if over.get("runtime_sampling") == "none":
+            rows.append({"source": name, "options": over, "metrics": None, "contribution": None,
+                         "error": f"no runtime sampler for the {scene.brdf.ndf} NDF (GGX and Beckmann have one)"})
+            continue
         try:
             m = measure(over)
         except PbrcheckError as e:
@@ -114,21 +142,23 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
                 best = (over, m)
         rows.append({"source": "lod_mapping", "options": best[0], "metrics": best[1],
                      "contribution": baseline[PRIMARY] - best[1][PRIMARY], "error": None})
-    # Everything but v=n=r at once.
-    allo = {}
+    # Every fix at once, and every fix but v=n=r (the best split sum).
     fitted_lod = any(r["source"] == "lod_mapping" and str(r["options"]["lod_mapping"]).startswith("fitted:")
                      for r in rows)
-    for r in rows:
-        if r["source"] == "v=n=r" or r["metrics"] is None or (fitted_lod and r["source"] == "cube"):
-            continue  # a fitted mapping holds for its own cube size and mip count only
-        allo.update(r["options"])
-    if o["ibl"] == "runtime":
-        allo.update(srcs["v=n=r"])
-    m_all = measure(allo)
+    combined = {}
+    for label, skip in (("all_but_vnr", ("v=n=r",)), ("all_exact", ())):
+        allo = {}
+        for r in rows:
+            if r["source"] in skip or r["metrics"] is None or (fitted_lod and r["source"] == "cube"):
+                continue  # a fitted mapping holds for its own cube size and mip count only
+            allo.update(r["options"])
+        if o["ibl"] == "runtime" and label == "all_but_vnr":
+            continue  # a runtime-sampling preset has no split sum to keep
+        m = measure(allo)
+        combined[label] = {"options": allo, "metrics": m, "contribution": baseline[PRIMARY] - m[PRIMARY]}
     return {"scene": scene.name, "preset": preset, "options": base, "spp": spp,
             "size": [scene.camera.width, scene.camera.height], "metric": PRIMARY,
-            "baseline": baseline, "sources": rows,
-            "all_exact": {"options": allo, "metrics": m_all, "contribution": baseline[PRIMARY] - m_all[PRIMARY]}}
+            "baseline": baseline, "noise_relmse": noise_relmse, "sources": rows, **combined}
 
 
 def table_markdown(res: dict) -> str:
@@ -139,12 +169,17 @@ def table_markdown(res: dict) -> str:
     lines = [f"scene {res['scene']}, preset {res['preset']}: {PRIMARY} {f(b)} against the {res['spp']}-spp reference",
              "", f"| source made exact | {PRIMARY} after | contribution | share of {PRIMARY} | flip_mean after |",
              "| --- | --- | --- | --- | --- |"]
-    for r in res["sources"] + [{"source": "all_exact (all but v=n=r)", **res["all_exact"], "error": None}]:
+    extra = [{"source": lab, **res[k], "error": None} for k, lab in (
+        ("all_but_vnr", "all but v=n=r (the best split sum)"), ("all_exact", "all exact")) if k in res]
+    for r in res["sources"] + extra:
         m = r["metrics"] or {}
         share = None if r["contribution"] is None or b <= 0 else 100 * r["contribution"] / b
         lines.append(f"| {r['source']} | {f(m.get(PRIMARY))} | {f(r['contribution'])} | "
                      f"{'n/a' if share is None else f'{share:.1f} %'} | {f(m.get('flip_mean'))} |"
                      + (f" {r['error']}" if r.get("error") else ""))
+    if res.get("noise_relmse") is not None:
+        lines += ["", f"The reference's own noise explains relmse {f(res['noise_relmse'])} "
+                      f"(mean variance / (ref^2 + {REL_EPS}) over valid pixels)."]
     return "\n".join(lines) + "\n"
 
 
@@ -153,6 +188,6 @@ def write_explain(res: dict, out: Path) -> Path:
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(dump_json(res) + "\n", encoding="utf-8")
-    out.with_suffix(".md").write_text(table_markdown(res), encoding="utf-8")
+    write_text_atomic(out, dump_json(res) + "\n")
+    write_text_atomic(out.with_suffix(".md"), table_markdown(res))
     return out

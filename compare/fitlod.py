@@ -4,10 +4,10 @@ Method
 ------
 1. The scene's point lights are removed (they are shaded exactly, not through the prefiltered map),
    and the reference is rendered once (``local`` mode).
-2. The prefiltered chain of the preset (level L baked at ``roughness_from_lod(L)`` of the preset's
-   ``lod_mapping``, the *chain*) is built once; the frame is rendered with the real-time option
-   ``lod_override = L`` (every object read at level L) for a dense scan of L over
-   ``[0, prefilter_levels - 1]`` (:data:`LOD_STEP`).
+2. For each *chain* (the prefiltered levels baked with a built-in mapping: level L holds
+   ``roughness_from_lod(L)`` of ``linear``, ``quadratic`` or ``log2``), built once, the frame is
+   rendered with the real-time option ``lod_override = L`` (every object read at level L) for a
+   dense scan of L over ``[0, prefilter_levels - 1]`` (:data:`LOD_STEP`).
 3. Per roughness (objects grouped by their roughness: on a sphere grid, its columns) the relative MSE
    over that group's valid pixels is a function of L; its minimum on the scan is refined by a parabola
    through the three scan points around it (clamped to the bracket).
@@ -15,12 +15,14 @@ Method
    by :func:`compare.lodfit.fit_lod_to_error`: it minimizes the scene error the scan predicts (each
    roughness's error curve read at the mapping's LOD, weighted by its pixel count), starting from the
    NNLS fit to the optima (:func:`compare.lodfit.fit_lod_mapping`) and from NNLS fits to each
-   built-in mapping's LODs. On measured curves (noisy, with bumps at some integer levels) the closest
-   smooth curve to the optima can be worse than a built-in mapping; this objective cannot be (up to
-   the scan's interpolation), as far as the built-ins are representable in the basis.
-5. Every mapping is evaluated on the scene: ``linear``, ``quadratic``, ``log2`` (each with its own
-   chain, as the preset would render it) and ``fitted`` (on the chain it was fitted on, through
-   ``lod_mapping=fitted:FILE``).
+   built-in mapping's LODs, and from ``linear`` and ``quadratic`` themselves (members of the basis).
+   On measured curves (noisy, with bumps at some integer levels) the closest smooth curve to the
+   optima can be worse than a built-in mapping; this objective cannot be (up to the scan's
+   interpolation) for ``linear`` and ``quadratic``. The chain whose fit predicts the lowest scene
+   error is kept (``chain`` in the JSON; every chain's prediction is under ``chains``).
+5. Every mapping is evaluated on the scene by a render: ``linear``, ``quadratic``, ``log2`` (each
+   with its own chain, as the preset would render it) and ``fitted`` (on the chain it was fitted on,
+   through ``lod_mapping=fitted:FILE``).
 
 Without ``--roughness`` a scene holding a sphere grid is used as is; otherwise (or with
 ``--roughness``) the scene's environment lights a 4-column grid of white metal spheres with the
@@ -34,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene, scene_from_dict
 
@@ -117,24 +120,78 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> tuple[float, float]:
     return float(x1 + t * h), float(y1 - 0.25 * (y0 - y2) * t)
 
 
+def _exact_coefficients(name: str, M: float) -> list[float] | None:
+    """A built-in mapping as coefficients of :mod:`compare.lodfit`'s basis, when it is a member."""
+    if name == "linear":
+        return [M, 0.0, 0.0, 0.0, 0.0, 0.0]
+    if name == "quadratic":
+        return [0.0, 0.0, 0.0, 0.0, 0.0, M]
+    return None  # log2 (clamped logarithm): only its NNLS approximation is a start
+
+
+def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tuple[list[dict], np.ndarray, dict]:
+    """Render ``fit_scene`` at every LOD of ``lods`` on the prefiltered chain baked with ``chain``;
+    per roughness group the error curve, its refined minimum and the group's pixel count."""
+    from realtime.render import render_realtime
+
+    from .metrics import pixel_classes
+
+    curves = {r: [] for r in groups}
+    valid = ids = None
+    counts = {}
+    for L in lods:
+        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": chain, "lod_override": float(L)},
+                              progress=False)
+        if valid is None:
+            valid, _, _ = pixel_classes(ref, img)
+            ids = np.rint(ref.channels["object"]).astype(np.int64)
+            counts = {r: int((valid & np.isin(ids, m)).sum()) for r, m in groups.items()}
+        for r, e in _group_errors(ref, img, valid, ids, groups).items():
+            curves[r].append(e)
+        prog.update(1, f"{chain} chain, LOD {L:.2f}")
+    samples = []
+    for r, ys in curves.items():
+        y = np.asarray(ys)
+        if not np.any(np.isfinite(y)):
+            continue
+        k = int(np.nanargmin(y))
+        lod, err = _parabola_min(lods, y, k)
+        spread = float(np.nanmax(y) - np.nanmin(y))
+        samples.append({"roughness": r, "lod": lod, "relmse": err, "relmse_spread": spread,
+                        "pixels": counts[r], "scan": [float(v) for v in y]})
+    return samples, valid, counts
+
+
 def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", options: dict | None = None,
                 spp: int = 64, size: int | None = None, out: Path, lod_step: float = LOD_STEP,
-                progress: bool = False) -> dict:
-    """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``. Returns the JSON."""
+                chains=BUILTIN, progress: bool = False) -> dict:
+    """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``. Returns the JSON.
+
+    ``chains``: the built-in mappings whose prefiltered chains are scanned and fitted on (default all
+    three). The mapping is fitted on each; the chain whose fit predicts the lowest scene error wins.
+    Scanning every chain is what lets the fit compete with each built-in mapping *on its own chain*
+    (reading the quadratic chain at the linear mapping's LOD is not the linear mapping).
+    """
+    from dataclasses import replace
+
+    from pbrcheck.progress import Progress
     from realtime.presets import resolve_options
-    from realtime.render import chain_mapping, render_realtime
+    from realtime.render import render_realtime
     from reference.render import render_reference
 
     from .commands import dump_json
-    from .lodfit import fit_lod_mapping, fit_lod_to_error
-    from .metrics import pixel_classes
+    from .lodfit import fit_lod_mapping, fit_lod_to_error, predicted_error
 
     base = dict(options or {})
+    base.pop("lod_override", None)
     o = resolve_options(preset, base)
     if o["ibl"] != "splitsum":
         raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o['ibl']})")
     if str(o["lod_mapping"]).startswith("fitted:"):
         raise PbrcheckError("fit-lod: start from a built-in lod_mapping, not a fitted one")
+    chains = tuple(chains)
+    if not chains or any(c not in BUILTIN for c in chains):
+        raise PbrcheckError(f"fit-lod: chains: expected some of {', '.join(BUILTIN)}, found {list(chains)}")
     has_grid = bool(scene.grids)
     if roughness is not None or not has_grid:
         rs = list(DEFAULT_ROUGHNESS if roughness is None else roughness)
@@ -147,65 +204,63 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     fit_scene = _no_lights(fit_scene)
     groups = _groups(fit_scene)
     ref = render_reference(fit_scene, spp=spp, mode="local", progress=progress)
-    max_lod = o["prefilter_levels"] - 1
-    lods = np.arange(0.0, max_lod + 1e-9, lod_step)
-    curves = {r: [] for r in groups}
-    counts = {}
-    valid = ids = None
-    for L in lods:
-        img = render_realtime(fit_scene, preset, {**base, "lod_override": float(L)}, progress=False)
-        if valid is None:
-            valid, _, _ = pixel_classes(ref, img)
-            ids = np.rint(ref.channels["object"]).astype(np.int64)
-            counts = {r: int((valid & np.isin(ids, m)).sum()) for r, m in groups.items()}
-        for r, e in _group_errors(ref, img, valid, ids, groups).items():
-            curves[r].append(e)
-    samples = []
-    for r, ys in curves.items():
-        y = np.asarray(ys)
-        if not np.any(np.isfinite(y)):
-            continue
-        k = int(np.nanargmin(y))
-        lod, err = _parabola_min(lods, y, k)
-        spread = float(np.nanmax(y) - np.nanmin(y))
-        samples.append({"roughness": r, "lod": lod, "relmse": err, "relmse_spread": spread,
-                        "pixels": counts[r], "scan": [float(v) for v in y]})
-    if len(samples) < 2:
-        raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
-    rr = np.array([s["roughness"] for s in samples])
-    chain = chain_mapping(o)
-    table = np.array([s["scan"] for s in samples])
-    table = np.where(np.isfinite(table), table, np.nanmax(table))
-    starts = [fit_lod_mapping(rr, _builtin_lod(n, rr, o), cube_size=o["cube_size"],
-                              mip_count=o["prefilter_levels"]).coefficients for n in BUILTIN]
-    fitted = fit_lod_to_error(rr, lods, table, cube_size=o["cube_size"], mip_count=o["prefilter_levels"],
-                              weights=[s["pixels"] for s in samples], starts=starts)
-    from dataclasses import replace
-
-    fitted = replace(fitted, chain=chain)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    result = {
-        "scene": scene.name, "fit_scene": fit_scene.name, "preset": preset, "options": base, "spp": spp,
-        "size": [fit_scene.camera.width, fit_scene.camera.height], "lod_step": lod_step,
-        "metric": "relmse over valid pixels (point lights removed)",
-        "samples": samples,
-        "mappings": {"fitted": {**fitted.to_json(), "relmse": None}},
-    }
-    out.write_text(dump_json(result) + "\n", encoding="utf-8")  # the fitted mapping must be on disk to render it
-    for name in BUILTIN:
-        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": name}, progress=False)
-        result["mappings"][name] = {"relmse": _scene_relmse(ref, img, valid),
-                                    "lod": [float(v) for v in _builtin_lod(name, rr, o)]}
-    img = render_realtime(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"}, progress=False)
+    M = o["prefilter_levels"] - 1
+    lods = np.arange(0.0, M + 1e-9, lod_step)
+    per_chain = {}
+    valid = None
+    with Progress("fit-lod scan", total=len(chains) * len(lods) + len(BUILTIN) + 1, enabled=progress) as prog:
+        for chain in chains:
+            samples, valid, _ = _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog)
+            if len(samples) < 2:
+                raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
+            rr = np.array([s["roughness"] for s in samples])
+            table = np.array([s["scan"] for s in samples])
+            table = np.where(np.isfinite(table), table, np.nanmax(table))
+            weights = [s["pixels"] for s in samples]
+            starts = [fit_lod_mapping(rr, _builtin_lod(n, rr, o), cube_size=o["cube_size"],
+                                      mip_count=o["prefilter_levels"]).coefficients for n in BUILTIN]
+            starts += [c for c in (_exact_coefficients(n, M) for n in BUILTIN) if c is not None]
+            fitted = replace(fit_lod_to_error(rr, lods, table, cube_size=o["cube_size"],
+                                              mip_count=o["prefilter_levels"], weights=weights, starts=starts),
+                             chain=chain)
+            per_chain[chain] = {
+                "samples": samples, "mapping": fitted,
+                "predicted_relmse": predicted_error(fitted(rr), lods, table, weights),
+                # the chain's own built-in mapping read off the scan: the interpolation check
+                "builtin_predicted_relmse": predicted_error(_builtin_lod(chain, rr, o), lods, table, weights)}
+        best_chain = min(per_chain, key=lambda c: per_chain[c]["predicted_relmse"])
+        samples = per_chain[best_chain]["samples"]
+        fitted = per_chain[best_chain]["mapping"]
+        rr = np.array([s["roughness"] for s in samples])
+        out = Path(out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        result = {
+            "scene": scene.name, "fit_scene": fit_scene.name, "preset": preset, "options": base, "spp": spp,
+            "size": [fit_scene.camera.width, fit_scene.camera.height], "lod_step": lod_step,
+            "metric": "relmse over valid pixels (point lights removed)",
+            "chain": best_chain,
+            "samples": samples,
+            "chains": {c: {"predicted_relmse": v["predicted_relmse"],
+                           "builtin_predicted_relmse": v["builtin_predicted_relmse"],
+                           "coefficients": list(v["mapping"].coefficients),
+                           "optimal_lod": [s["lod"] for s in v["samples"]]} for c, v in per_chain.items()},
+            "mappings": {"fitted": {**fitted.to_json(), "relmse": None}},
+        }
+        write_text_atomic(out, dump_json(result) + "\n")  # the fitted mapping must be on disk to render it
+        for name in BUILTIN:
+            img = render_realtime(fit_scene, preset, {**base, "lod_mapping": name}, progress=False)
+            result["mappings"][name] = {"relmse": _scene_relmse(ref, img, valid),
+                                        "lod": [float(v) for v in _builtin_lod(name, rr, o)]}
+            prog.update(1, f"evaluate {name}")
+        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"}, progress=False)
+        prog.update(1, "evaluate fitted")
     result["mappings"]["fitted"]["relmse"] = _scene_relmse(ref, img, valid)
     result["mappings"]["fitted"]["lod"] = [float(v) for v in fitted(rr)]
-    optimal = float(np.mean([s["relmse"] for s in samples]))
-    result["per_roughness_optimum_mean_relmse"] = optimal
+    result["per_roughness_optimum_mean_relmse"] = float(np.mean([s["relmse"] for s in samples]))
     glsl = out.with_suffix(".glsl")
-    glsl.write_text(fitted.glsl(), encoding="utf-8")
+    write_text_atomic(glsl, fitted.glsl())
     result["glsl"] = str(glsl)
-    out.write_text(dump_json(result) + "\n", encoding="utf-8")
+    write_text_atomic(out, dump_json(result) + "\n")
     return result
 
 
@@ -221,7 +276,11 @@ def _builtin_lod(name: str, r: np.ndarray, o: dict) -> np.ndarray:
 
 
 def table_markdown(result: dict) -> str:
-    lines = ["| roughness | optimal LOD | relmse at optimum | fitted LOD |", "| --- | --- | --- | --- |"]
+    lines = [f"fitted on the {result['chain']} chain (the chain whose fit predicts the lowest scene error)", "",
+             "| chain | fit's predicted relmse | chain's own mapping, predicted |", "| --- | --- | --- |"]
+    for c, v in result.get("chains", {}).items():
+        lines.append(f"| {c} | {v['predicted_relmse']:.5g} | {v['builtin_predicted_relmse']:.5g} |")
+    lines += ["", "| roughness | optimal LOD | relmse at optimum | fitted LOD |", "| --- | --- | --- | --- |"]
     fl = result["mappings"]["fitted"]["lod"]
     for s, f in zip(result["samples"], fl):
         lines.append(f"| {s['roughness']:.4g} | {s['lod']:.3f} | {s['relmse']:.4g} | {f:.3f} |")

@@ -24,7 +24,12 @@ SPP = 16
 def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, *, iterations: int = ITERATIONS,
                   lr: float = LR, spp: int = SPP, start=None) -> list[dict]:
     """Fit every object's reference roughness to ``target_rgb`` (H, W, 3); one row per object."""
-    from reference.diff import fit_materials, load_differentiable_scene, param_key, render_image
+    from reference.diff import (
+        fit_materials,
+        load_differentiable_scene,
+        param_key,
+        render_image,
+    )
     from reference.render import _mi
 
     mi, _ = _mi()

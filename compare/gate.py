@@ -30,6 +30,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 
 from .metrics import METRICS, format_value
@@ -292,7 +293,7 @@ def write_summary(path: Path, results: list[Result]) -> Path:
         lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(path, "\n".join(lines) + "\n")
     return path
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene, load_scene, scene_from_dict
 
@@ -217,8 +218,8 @@ def write_hardcases(rows: list[dict], out_dir: Path, settings: dict) -> dict[str
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js = out_dir / "hardcases.json"
-    js.write_text(dump_json({"settings": settings, "all_finite": all(r["finite"] for r in rows), "rows": rows})
-                  + "\n", encoding="utf-8")
+    write_text_atomic(js, dump_json({"settings": settings, "all_finite": all(r["finite"] for r in rows),
+                                     "rows": rows}) + "\n")
     md = out_dir / "hardcases.md"
-    md.write_text(table_markdown(rows), encoding="utf-8")
+    write_text_atomic(md, table_markdown(rows))
     return {"json": js, "table": md}

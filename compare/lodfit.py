@@ -3,12 +3,14 @@
 Given per-roughness optimal LODs ``lod_i`` (the continuous mip level that minimizes the real-time
 specular error against the reference), fit
 
-    lod(r) = sum_k c_k b_k(r),    c_k >= 0,    b_k in {r, r^2, r^3, r^4, sqrt(r)}
+    lod(r) = sum_k c_k b_k(r),    c_k >= 0,    b_k in {r, r^2, r^3, r^4, sqrt(r), r (2 - r)}
 
 Every basis function is increasing on [0, 1] with ``b_k(0) = 0``, so non-negative coefficients make
 the mapping monotone non-decreasing with ``lod(0) = 0`` (roughness 0 samples the base level), and
 the fit is a non-negative least-squares problem (Lawson & Hanson 1974, ``scipy.optimize.nnls``),
-optionally weighted. The result is clamped to ``[0, mip_count - 1]`` when evaluated, as the GPU's
+optionally weighted. ``r (2 - r)`` is there so that both smooth built-in mappings are members of
+the family (``linear`` = M r, ``quadratic`` = M r (2 - r)): a fit started from a built-in can only
+improve on it. The result is clamped to ``[0, mip_count - 1]`` when evaluated, as the GPU's
 ``textureLod`` does.
 
 The fitted mapping only holds for the cube size and mip count it was measured with; both are kept
@@ -28,14 +30,14 @@ import numpy as np
 
 from pbrcheck.errors import PbrcheckError
 
-BASIS_NAMES = ("r", "r^2", "r^3", "r^4", "sqrt(r)")
+BASIS_NAMES = ("r", "r^2", "r^3", "r^4", "sqrt(r)", "r(2-r)")
 #: Built-in mappings a prefiltered chain can be baked with (realtime/shaders/ibl.glsl).
 CHAINS = ("linear", "quadratic", "log2")
 
 
 def _basis(r: np.ndarray) -> np.ndarray:
     r = np.clip(np.asarray(r, dtype=np.float64), 0.0, 1.0)
-    return np.stack([r, r * r, r ** 3, r ** 4, np.sqrt(r)], axis=-1)
+    return np.stack([r, r * r, r ** 3, r ** 4, np.sqrt(r), r * (2.0 - r)], axis=-1)
 
 
 class LodFitError(PbrcheckError):
@@ -82,18 +84,20 @@ class LodMapping:
         """One GLSL expression of ``var`` (clamped as :meth:`__call__`), for a ``#define``."""
         c = [f"{x:.9g}" for x in self.coefficients]
         x = f"clamp({var}, 0.0, 1.0)"
-        return (f"clamp({x} * ({c[0]} + {x} * ({c[1]} + {x} * ({c[2]} + {x} * {c[3]}))) + {c[4]} * sqrt({x}), "
-                f"0.0, {float(self.mip_count - 1):.1f})")
+        return (f"clamp({x} * ({c[0]} + {x} * ({c[1]} + {x} * ({c[2]} + {x} * {c[3]}))) + {c[4]} * sqrt({x}) "
+                f"+ {c[5]} * {x} * (2.0 - {x}), 0.0, {float(self.mip_count - 1):.1f})")
 
     def glsl(self, name: str = "roughnessToLodFitted") -> str:
         """The mapping as a GLSL function (same clamp as :meth:`__call__`)."""
         c = [f"{x:.9g}" for x in self.coefficients]
         return (
             f"// Fitted roughness -> LOD mapping (pbrcheck fit-lod), valid for a {self.cube_size}^2 cube\n"
-            f"// with {self.mip_count} mips, on a chain baked with the {self.chain} mapping: lod = sum c_k b_k(r), b = (r, r^2, r^3, r^4, sqrt(r)), c_k >= 0.\n"
+            f"// with {self.mip_count} mips, on a chain baked with the {self.chain} mapping: lod = sum c_k b_k(r),\n"
+            f"// b = (r, r^2, r^3, r^4, sqrt(r), r (2 - r)), c_k >= 0 (monotone, lod(0) = 0).\n"
             f"float {name}(float r) {{\n"
             f"    r = clamp(r, 0.0, 1.0);\n"
-            f"    float lod = r * ({c[0]} + r * ({c[1]} + r * ({c[2]} + r * {c[3]}))) + {c[4]} * sqrt(r);\n"
+            f"    float lod = r * ({c[0]} + r * ({c[1]} + r * ({c[2]} + r * {c[3]}))) + {c[4]} * sqrt(r)\n"
+            f"              + {c[5]} * r * (2.0 - r);\n"
             f"    return clamp(lod, 0.0, {float(self.mip_count - 1):.1f});\n"
             f"}}\n"
         )
@@ -111,6 +115,18 @@ def fit_lod_mapping(roughness, lod, *, cube_size: int, mip_count: int, weights=N
     A = _basis(r) * w[:, None]
     coef, _ = nnls(A, y * w)
     return LodMapping(tuple(float(x) for x in coef), int(cube_size), int(mip_count))
+
+
+def predicted_error(lod, lod_grid, errors, weights=None) -> float:
+    """The scene error a scan predicts for reading roughness ``i`` at ``lod[i]``:
+    ``sum_i w_i errors_i(lod_i) / sum_i w_i``, each measured curve ``errors[i]`` (on ``lod_grid``)
+    interpolated linearly. With ``w_i`` the pixel count of roughness ``i`` this is the relmse over
+    the scene's pixels (relmse is a per-pixel mean)."""
+    e = np.asarray(errors, dtype=np.float64)
+    lod = np.asarray(lod, dtype=np.float64)
+    w = np.ones(e.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
+    w = w / w.sum()
+    return float(sum(wi * np.interp(li, lod_grid, ei) for wi, li, ei in zip(w, lod, e)))
 
 
 def fit_lod_to_error(roughness, lod_grid, errors, *, cube_size: int, mip_count: int, weights=None,
@@ -132,14 +148,11 @@ def fit_lod_to_error(roughness, lod_grid, errors, *, cube_size: int, mip_count: 
     e = np.asarray(errors, dtype=np.float64)
     if e.shape != (r.size, g.size) or not np.all(np.isfinite(e)):
         raise LodFitError(f"fit-lod: errors must be a finite {r.size} x {g.size} table, found shape {e.shape}")
-    w = np.ones_like(r) if weights is None else np.asarray(weights, dtype=np.float64)
-    w = w / w.sum()
     B = _basis(r)
     top = float(mip_count - 1)
 
     def predicted(c):
-        lod = np.clip(B @ np.maximum(c, 0.0), 0.0, top)
-        return float(sum(wi * np.interp(li, g, ei) for wi, li, ei in zip(w, lod, e)))
+        return predicted_error(np.clip(B @ np.maximum(c, 0.0), 0.0, top), g, e, weights)
 
     opt_lod = g[np.argmin(e, axis=1)]
     x0s = [np.asarray(fit_lod_mapping(r, opt_lod, cube_size=cube_size, mip_count=mip_count).coefficients)]

@@ -13,6 +13,8 @@ import json
 import math
 from pathlib import Path
 
+from pbrcheck.atomic import write_text_atomic
+
 from .metrics import METRICS
 
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
@@ -219,8 +221,12 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 {% for x in extras %}
 <h2 id="{{ x.id }}">{{ x.title }}</h2>
 <p>{{ x.note }}</p>
-<table><tr>{% for h in x.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
-{% for row in x.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
+<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
+{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% endfor %}
+{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
+{% endfor %}
 {% endfor %}
 </body></html>
 """
@@ -245,7 +251,13 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
 
     from .maps import write_flip_png, write_rel_png, write_tonemapped
     from .metrics import compare_images
-    from .sweep import combinations, image_timings, plot_speed_error, sweep_rows, write_table
+    from .sweep import (
+        combinations,
+        image_timings,
+        plot_speed_error,
+        sweep_rows,
+        write_table,
+    )
 
     scene = load_scene(scene_arg)
     sid = _safe(scene.name)
@@ -325,8 +337,8 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
         if cp:
             plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
                           "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
-    (sd / "metrics.json").write_text(json.dumps(_jsonable({"scene": scene.name, "presets": dump,
-                                                            "convergence": conv, "sweep": sweep_table}), indent=1))
+    write_text_atomic(sd / "metrics.json", json.dumps(_jsonable({"scene": scene.name, "presets": dump,
+                                                             "convergence": conv, "sweep": sweep_table}), indent=1))
     return {"id": sid, "name": scene.name, "description": scene.description, "spp": ref.meta.get("spp", spp),
             "ref_png": f"{sid}/reference.png", "presets": results, "plots": plots, "provenance": provenance,
             "noise_floor": noise_floor, "sweep_rows": sweep_table}
@@ -350,21 +362,24 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
             "note": (f"Edge-of-model scenes (pbrcheck hardcases --size 32 --spp 16 --cube-size 64). "
                      f"{'All outputs finite.' if not bad else f'{bad} output(s) NON-FINITE or failed.'} "
                      f"Error of each preset against the {settings['spp']}-spp reference."),
-            "headers": ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
-            "rows": [[r["case"], r["renderer"], r["preset"] or "-", "yes" if r["finite"] else "NO",
-                      *[_fmt((r["metrics"] or {}).get(k)) for k in TABLE_METRICS], r["error"] or ""]
-                     for r in rows]}
+            "tables": [{"caption": "", "headers": ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
+                        "rows": [[r["case"], r["renderer"], r["preset"] or "-", "yes" if r["finite"] else "NO",
+                                  *[_fmt((r["metrics"] or {}).get(k)) for k in TABLE_METRICS], r["error"] or ""]
+                                 for r in rows]}],
+            "images": []}
 
 
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 extras: list[dict] | None = None) -> Path:
+                 research: bool = False, extras: list[dict] | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
-    its JSON and table go to ``out_dir/hardcases``). ``extras``: further sections, each
-    ``{id, title, note, headers, rows}`` (a plain table)."""
+    its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
+    the error decomposition and the apparent-roughness sections for the first scene
+    (:mod:`compare.research`; files under ``out_dir/research``). ``extras``: further sections, each
+    ``{id, title, note, tables: [{caption, headers, rows}], images: [{title, src}]}``."""
     import jinja2
 
     from pbrcheck import __version__
@@ -406,6 +421,10 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         for s in scenes:
             sections.append(_scene_section(s, out_dir, presets, spp, vary_d, convergence, sweep, prog))
     extras = list(extras or [])
+    if research:
+        from .research import research_sections
+
+        extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=spp, progress=progress)
     if hardcases:
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
@@ -413,7 +432,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         scenes=sections, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
-    index.write_text(page, encoding="utf-8")
+    write_text_atomic(index, page)
     return index
 
 

@@ -12,6 +12,7 @@ import itertools
 import math
 from pathlib import Path
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 
 from .metrics import METRICS
@@ -167,7 +168,7 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
         for r in rows:
             w.writerow([r["preset"], *(r["options"].get(k, "") for k in keys),
                         *("" if r.get(c) is None else r[c] for c in cols[1 + len(keys):])])
-    json_path.write_text(dump_json(rows) + "\n", encoding="utf-8")
+    write_text_atomic(json_path, dump_json(rows) + "\n")
     return {"csv": csv_path, "json": json_path}
 
 

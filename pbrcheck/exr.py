@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import temp_beside
 from .errors import ImageIOError
 
 META_PREFIX = "pbrcheck."
@@ -90,12 +90,7 @@ def write_exr(path: str | Path, image: Image) -> Path:
     for k, v in image.meta.items():
         header[META_PREFIX + k] = _meta_value(v)
     channels = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in image.channels.items()}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.exr", dir=path.parent)
-    os.close(fd)
-    # mkstemp makes 0600 files; give the result the permissions a plain open() would (umask).
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
+    tmp = temp_beside(path, ".tmp.exr")  # default permissions, same folder: os.replace is atomic
     try:
         with OpenEXR.File(header, channels) as f:
             f.write(tmp)

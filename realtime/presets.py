@@ -246,6 +246,12 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
         raise OptionError(f"option lod_mapping: {d['lod_mapping'][len('fitted:'):]} was fitted for a "
                           f"{fm.cube_size}^2 cube with {fm.mip_count} mips; this render has cube_size "
                           f"{d['cube_size']} and prefilter_levels {d['prefilter_levels']}")
+    # Which compositions have which specular IBL (realtime/shaders/render.comp): article 001 is
+    # runtime sampling only, articles 000 and 002 are split sum only, the material model has both.
+    ibl_of = {"article001": ("runtime",), "article000": ("splitsum",), "article002": ("splitsum",)}
+    if d["ibl"] not in ibl_of.get(d["shading"], ("splitsum", "runtime")):
+        raise OptionError(f"option ibl: shading={d['shading']} has no ibl={d['ibl']} "
+                          f"(it needs ibl={ibl_of[d['shading']][0]})")
     if d["irradiance_source_size"] > d["cube_size"]:
         raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
                           f"found {d['irradiance_source_size']}")

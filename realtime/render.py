@@ -394,14 +394,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         kd = kd_lut(o["lut_size"], timings)
         bar.update(1, "kd_lut")
 
-        shading = o["shading"]
-        if o["ibl"] == "runtime" and shading != "article001":
-            shading = "article001"  # runtime sampling is article 001's composition
-        if o["ibl"] == "splitsum" and shading == "article001":
-            raise_opt = "shading=article001 needs ibl=runtime"
-            from .presets import OptionError
-
-            raise OptionError(f"option shading: {raise_opt}")
+        shading = o["shading"]  # its combination with ibl is checked by resolve_options
         defines = {
             "SHADING": SHADING_INDEX[shading], "NDF": NDF_INDEX[terms["ndf"]],
             "GEOMETRY": GEOMETRY_INDEX[terms["geometry"]], "FRESNEL": 0 if terms["fresnel"] == "schlick" else 1,
@@ -409,7 +402,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
             "LOD_MAPPING": LOD_INDEX.get(o["lod_mapping"], LOD_FITTED_INDEX), "SHADOWS": int(o["shadows"]),
             "RUNTIME_SAMPLING": RUNTIME_SAMPLING_INDEX[o["runtime_sampling"]],
             "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
-            "REFLECT_BUG": int(o["reflect_bug"]),
+            "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
         }
         fm = fitted_mapping(o["lod_mapping"])
         if fm is not None:

@@ -30,4 +30,40 @@ def test_explain_measures_every_source():
     # measured, not assumed: the sources that change this preset's pixels change the error
     changed = [r["source"] for r in res["sources"] if abs(r["contribution"]) > 1e-9]
     assert {"terms", "composition", "prefilter_samples"} <= set(changed), changed
-    assert res["all_exact"]["metrics"]["relmse"] <= b, res["all_exact"]
+    # the best split sum is better than the preset, and dropping the split sum itself better still
+    assert res["all_but_vnr"]["metrics"]["relmse"] <= b, res["all_but_vnr"]
+    assert res["all_exact"]["metrics"]["relmse"] <= res["all_but_vnr"]["metrics"]["relmse"], res["all_exact"]
+    # an article composition has no runtime-sampled specular: v=n=r moves to the material model
+    vnr = next(r for r in res["sources"] if r["source"] == "v=n=r")
+    assert vnr["options"]["shading"] == "material" and vnr["options"]["ibl"] == "runtime"
+    assert res["noise_relmse"] is not None and 0 < res["noise_relmse"] < b
+
+
+def test_vnr_row_keeps_the_material_composition_and_the_scene_ndf():
+    from compare.explain import sources
+    from realtime.presets import resolve_options
+
+    o = resolve_options("default", {})
+    assert "shading" not in sources(o)["v=n=r"]  # default already composes with the material model
+    assert sources(o, scene_ndf="beckmann")["v=n=r"]["runtime_sampling"] == "beckmann"
+    assert sources(o, scene_ndf="ggx")["v=n=r"]["runtime_sampling"] == "vndf"
+
+
+def test_runtime_material_composition_renders_and_articles_reject_it():
+    """ibl=runtime with the material composition is the split sum's exact counterpart; the article
+    compositions that have no runtime specular are a typed option error, before any render."""
+    import pytest
+
+    from realtime.presets import OptionError, resolve_options
+    from realtime.render import render_realtime
+
+    scene = load_scene("spheres").with_camera(width=20, height=16)
+    img = render_realtime(scene, "default", {**OPTS, "ibl": "runtime", "runtime_samples": 64}, progress=False)
+    assert np.all(np.isfinite(img.rgb))
+    split = render_realtime(scene, "default", OPTS, progress=False)
+    assert np.abs(img.rgb - split.rgb).max() > 1e-3
+    for shading in ("article000", "article002"):
+        with pytest.raises(OptionError, match="ibl"):
+            resolve_options("default", {"shading": shading, "ibl": "runtime"})
+    with pytest.raises(OptionError, match="ibl"):
+        resolve_options("default", {"shading": "article001"})

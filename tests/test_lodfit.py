@@ -42,7 +42,7 @@ def test_json_round_trip_and_validation(tmp_path):
     p = tmp_path / "fit.json"
     p.write_text(json.dumps({"mappings": {"fitted": m.to_json()}}))
     assert LodMapping.load(p) == m
-    p.write_text(json.dumps({"coefficients": [-1, 0, 0, 0, 0], "cube_size": 64, "mip_count": 7}))
+    p.write_text(json.dumps({"coefficients": [-1, 0, 0, 0, 0, 0], "cube_size": 64, "mip_count": 7}))
     with pytest.raises(LodFitError, match="non-negative"):
         LodMapping.load(p)
     with pytest.raises(LodFitError, match="cannot read"):
@@ -51,10 +51,40 @@ def test_json_round_trip_and_validation(tmp_path):
 
 def test_glsl_matches_python():
     """Evaluate the emitted GLSL expression with Python semantics on a grid."""
-    m = LodMapping((1.5, 2.0, 0.25, 0.1, 0.7), 256, 9)
+    m = LodMapping((1.5, 2.0, 0.25, 0.1, 0.7, 0.4), 256, 9)
     src = m.glsl()
     assert "float roughnessToLodFitted(float r)" in src
     expr = src.split("float lod = ")[1].split(";")[0]
     for r in np.linspace(0, 1, 11):
-        lod = eval(expr, {"r": r, "sqrt": np.sqrt})
+        lod = eval("(" + expr + ")", {"r": r, "sqrt": np.sqrt})
         assert min(max(lod, 0), 8) == pytest.approx(float(m(r)), abs=1e-6)
+
+
+def test_builtin_smooth_mappings_are_members_of_the_family():
+    """linear = M r and quadratic = M r (2 - r) (realtime/shaders/ibl.glsl) are exact members, so a
+    fit started from either cannot end worse than it."""
+    from compare.fitlod import _builtin_lod, _exact_coefficients
+
+    o = {"prefilter_levels": 9, "cube_size": 256}
+    r = np.linspace(0, 1, 33)
+    for name in ("linear", "quadratic"):
+        m = LodMapping(tuple(_exact_coefficients(name, 8.0)), 256, 9)
+        assert np.max(np.abs(m(r) - _builtin_lod(name, r, o))) < 1e-12
+
+
+def test_error_fit_never_worse_than_its_starts():
+    """On bumpy measured-like curves (optimum on a noisy quadratic, a bump at an integer level) the
+    error objective ends at or below every start it was given, as predicted by the same scan."""
+    from compare.lodfit import fit_lod_to_error, predicted_error
+
+    rng = np.random.default_rng(3)
+    r = np.linspace(0, 1, 6)
+    grid = np.arange(0, 5.001, 0.25)
+    opt = 5 * r * (2 - r) + rng.uniform(-0.4, 0.4, r.size)
+    err = 0.1 * np.abs(grid[None, :] - opt[:, None]) ** 1.5 + 0.05 * (np.abs(grid - 3.0) < 0.3)[None, :]
+    quad = [0, 0, 0, 0, 0, 5.0]
+    lin = [5.0, 0, 0, 0, 0, 0]
+    m = fit_lod_to_error(r, grid, err, cube_size=32, mip_count=6, starts=[quad, lin])
+    got = predicted_error(m(r), grid, err)
+    for c in (quad, lin):
+        assert got <= predicted_error(LodMapping(tuple(c), 32, 6)(r), grid, err) + 1e-12

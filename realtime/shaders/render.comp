@@ -4,7 +4,9 @@
 // Row 0 of the images is the top of the picture (gl_GlobalInvocationID.y = row).
 //
 // SHADING 0 "material": the README material model: split-sum specular prefiltered(r, lod) (F0 A + B),
-//   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights.
+//   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights. With
+//   IBL_RUNTIME the specular is runtime importance sampling of the environment instead (the same
+//   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
 // SHADING 1 "article000": article 000's PBR.frag (listings 1 and 4, with their mistakes).
 // SHADING 2 "article001": runtime importance sampling of the environment (article 001).
 // SHADING 3 "article002": article 002's lerp composition with EnvBRDFApprox.
@@ -192,15 +194,22 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
 
 #if SHADING == 0
     vec3 F0 = mix(vec3(spec_level), base, metallic);
+#if FRESNEL == 0
+    vec3 kd = (1.0 - F0) * texture(kd_lut, vec2(NoV, 0.5)).r;
+#else
+    vec3 kd = vec3(0.0);
+#endif
+#if IBL_RUNTIME
+    color += runtime_specular(n, v, roughness, F0, pixel_seed);
+#else
     vec2 AB = dfg(NoV, roughness);
 #if FRESNEL == 0
     vec3 spec_albedo = F0 * AB.x + AB.y;
-    vec3 kd = (1.0 - F0) * texture(kd_lut, vec2(NoV, 0.5)).r;
 #else
     vec3 spec_albedo = vec3(AB.x + AB.y);
-    vec3 kd = vec3(0.0);
 #endif
     color += prefiltered_radiance(r, roughness) * spec_albedo;
+#endif
     color += (1.0 - metallic) * base * kd * irradiance_over_pi(n);
     for (int i = 0; i < n_lights; ++i) {
         vec3 ld = lights[2 * i].xyz - p;

@@ -1,0 +1,215 @@
+"""The report's research sections: LOD fit (before / after), error decomposition, apparent roughness.
+
+Each section runs the command of the same name (:mod:`compare.fitlod`, :mod:`compare.explain`,
+:mod:`compare.fitrough`) on one scene at a reduced size, writes its JSON / Markdown / GLSL under
+``OUT/research/`` and returns a report section ``{id, title, note, tables, images}``
+(:data:`compare.report.TEMPLATE`). Sizes are stated in each section's note; they are chosen so the
+three together take a few minutes on two CPU cores.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+#: fit-lod: image height of the scan, reference spp. The fit is for the preset's own cube size and
+#: mip count, so the fitted mapping applies to the full-size report render unchanged.
+FITLOD_SIZE, FITLOD_SPP = 64, 128
+#: explain: image height and reference spp (the noise this leaves is printed with the table).
+EXPLAIN_SIZE, EXPLAIN_SPP = 64, 256
+#: fit-roughness: image height (the reference is re-rendered at every Adam step).
+FITROUGH_SIZE = 48
+
+
+def _fmt(v) -> str:
+    from .report import _fmt as f
+
+    return f(v)
+
+
+def _pct(part, whole) -> str:
+    if part is None or whole is None or not whole:
+        return "n/a"
+    return f"{100.0 * part / whole:+.1f} %"
+
+
+def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", report_spp: int,
+                    progress: bool = False) -> dict:
+    """``pbrcheck fit-lod`` on ``scene_name``, then the report scene rendered by ``preset`` before
+    (its own mapping) and after (``lod_mapping=fitted:FILE``) against the report's reference."""
+    from pbrcheck.scene import load_scene
+    from realtime.presets import resolve_options
+    from realtime.render import render_realtime
+    from reference.render import render_reference
+
+    from .fitlod import run_fit_lod
+    from .maps import _mpl
+    from .metrics import compare_images
+
+    scene = load_scene(scene_name)
+    out = out_dir / "fit_lod.json"
+    res = run_fit_lod(scene, preset=preset, spp=FITLOD_SPP, size=FITLOD_SIZE, out=out, progress=progress)
+    own = resolve_options(preset, {})["lod_mapping"]
+    # Before / after on the report's own render (full size, point lights on, report spp).
+    ref = render_reference(scene, spp=report_spp, use_cache=True, progress=False)
+    before = compare_images(ref, render_realtime(scene, preset, None, progress=False), noise=False).metrics
+    after = compare_images(ref, render_realtime(scene, preset, {"lod_mapping": f"fitted:{out}"}, progress=False),
+                           noise=False).metrics
+    m = res["mappings"]
+    t_maps = {"caption": f"Every mapping on the fit scene ({res['size'][0]} x {res['size'][1]}, point lights "
+                         f"removed, {FITLOD_SPP}-spp reference)",
+              "headers": ["mapping", "chain", "relmse (render)", "vs the preset's own"],
+              "rows": [[k, res["chain"] if k == "fitted" else k, _fmt(v["relmse"]),
+                        _pct(v["relmse"] - m[own]["relmse"], m[own]["relmse"])] for k, v in m.items()]}
+    t_ba = {"caption": f"Before / after on the report's render of {scene.name} ({scene.camera.width} x "
+                       f"{scene.camera.height}, lights on, {report_spp}-spp reference)",
+            "headers": ["preset", "lod_mapping", "relmse", "rmse", "flip_mean", "rel_p95"],
+            "rows": [[preset, f"{own} (before)", *[_fmt(before[k]) for k in ("relmse", "rmse", "flip_mean", "rel_p95")]],
+                     [preset, f"fitted on the {res['chain']} chain (after)",
+                      *[_fmt(after[k]) for k in ("relmse", "rmse", "flip_mean", "rel_p95")]]]}
+    t_chain = {"caption": "Scan prediction per chain (interpolated scan; the chosen chain has the lowest)",
+               "headers": ["chain", "fit's predicted relmse", "chain's own mapping, predicted"],
+               "rows": [[c, _fmt(v["predicted_relmse"]), _fmt(v["builtin_predicted_relmse"])]
+                        for c, v in res["chains"].items()]}
+    t_opt = {"caption": "Optimal LOD per roughness (scan minimum refined by a parabola) and the mappings",
+             "headers": ["roughness", "optimal LOD", "relmse at optimum", "fitted", "linear", "quadratic", "log2"],
+             "rows": [[f"{s['roughness']:.3g}", f"{s['lod']:.2f}", _fmt(s["relmse"]),
+                       *[f"{m[k]['lod'][i]:.2f}" for k in ("fitted", "linear", "quadratic", "log2")]]
+                      for i, s in enumerate(res["samples"])]}
+    plt = _mpl()[1]
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    rr = np.linspace(0, 1, 201)
+    from .lodfit import LodMapping
+
+    fm = LodMapping.from_json(m["fitted"])
+    from .fitlod import _builtin_lod
+
+    o = resolve_options(preset, {})
+    for k in ("linear", "quadratic", "log2"):
+        ax.plot(rr, _builtin_lod(k, rr, o), lw=1, label=f"{k} (relmse {m[k]['relmse']:.4g})")
+    ax.plot(rr, fm(rr), "k-", lw=2, label=f"fitted, {res['chain']} chain (relmse {m['fitted']['relmse']:.4g})")
+    for c, v in res["chains"].items():
+        ax.plot([s["roughness"] for s in res["samples"]], v["optimal_lod"], "o", ms=4, mfc="none",
+                label=f"optimal LOD on the {c} chain")
+    ax.set_xlabel("roughness")
+    ax.set_ylabel("prefiltered LOD")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    plot = _save(fig, out_dir / "fit_lod.png")
+    return {"id": "fit-lod", "title": f"LOD fit: roughness -> prefiltered level ({scene.name}, preset {preset})",
+            "note": (f"pbrcheck fit-lod {scene.name} --size {FITLOD_SIZE} --spp {FITLOD_SPP} --preset {preset}: "
+                     f"each roughness read at every level of each built-in chain (step {res['lod_step']}), "
+                     f"a smooth monotone mapping fitted to the measured error, every mapping rendered. "
+                     f"Files: research/fit_lod.json, research/fit_lod.glsl."),
+            "tables": [t_ba, t_maps, t_chain, t_opt],
+            "images": [{"title": "LOD against roughness", "src": f"research/{plot}"}]}
+
+
+def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default", progress: bool = False) -> dict:
+    from pbrcheck.scene import load_scene
+
+    from .explain import PRIMARY, run_explain, write_explain
+
+    res = run_explain(load_scene(scene_name), preset=preset, spp=EXPLAIN_SPP, size=EXPLAIN_SIZE,
+                      fitted=str(out_dir / "fit_lod.json") if (out_dir / "fit_lod.json").exists() else None,
+                      progress=progress)
+    write_explain(res, out_dir / f"explain_{preset}.json")
+    b = res["baseline"][PRIMARY]
+    rows = [["(preset as shipped)", "", _fmt(b), "", "", _fmt(res["baseline"]["flip_mean"])]]
+    for r in res["sources"]:
+        mm = r["metrics"] or {}
+        opts = ", ".join(f"{k}={v}" for k, v in r["options"].items())
+        rows.append([r["source"], opts if not r["error"] else r["error"], _fmt(mm.get(PRIMARY)),
+                     _fmt(r["contribution"]), _pct(r["contribution"], b), _fmt(mm.get("flip_mean"))])
+    for k, lab in (("all_but_vnr", "all but v=n=r (the best split sum)"), ("all_exact", "all exact")):
+        if k in res:
+            rows.append([lab, "", _fmt(res[k]["metrics"][PRIMARY]), _fmt(res[k]["contribution"]),
+                         _pct(res[k]["contribution"], b), _fmt(res[k]["metrics"]["flip_mean"])])
+    noise = res.get("noise_relmse")
+    return {"id": f"explain-{preset}", "title": f"Error decomposition ({scene_name}, preset {preset})",
+            "note": (f"pbrcheck explain {scene_name} --preset {preset} --size {EXPLAIN_SIZE} --spp {EXPLAIN_SPP}: "
+                     f"one approximation at a time made exact, the scene re-rendered; contribution = relmse "
+                     f"of the preset - relmse with that source exact. The {EXPLAIN_SPP}-spp reference's own "
+                     f"noise explains relmse {_fmt(noise)}. Files: research/explain_{preset}.json, .md."),
+            "tables": [{"caption": "", "headers": ["source made exact", "options", f"{PRIMARY} after",
+                                                   "contribution", "share", "flip_mean after"], "rows": rows}],
+            "images": []}
+
+
+def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *, progress: bool = False) -> dict:
+    from pbrcheck.progress import Progress
+    from pbrcheck.scene import load_scene
+
+    from .commands import dump_json
+    from .fitrough import run_fit_roughness
+    from .maps import _mpl
+
+    scene = load_scene(scene_name)
+    results = {}
+    with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:
+        for p in presets:
+            results[p] = run_fit_roughness(scene, preset=p, size=FITROUGH_SIZE)
+            prog.update(1, p)
+    from pbrcheck.atomic import write_text_atomic
+
+    write_text_atomic(out_dir / "fit_roughness.json", dump_json(results) + "\n")
+    plt = _mpl()[1]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), sharey=True)
+    metallic = [o.material.metallic for o in scene.objects]
+    for ax, (lab, sel) in zip(axes, (("metals (metallic >= 0.5)", lambda m: m >= 0.5),
+                                     ("dielectrics (metallic < 0.5)", lambda m: m < 0.5))):
+        ax.plot([0, 1], [0, 1], color="gray", lw=1, ls="--", label="r* = r")
+        for i, (p, res) in enumerate(results.items()):
+            pts = [(o["roughness"], o["apparent_roughness"]) for o in res["objects"] if sel(metallic[o["object"]])]
+            if pts:
+                x, y = zip(*pts)
+                ax.plot(x, y, "o", ms=4, color=f"C{i}", alpha=0.75, label=p)
+        ax.set_title(lab, fontsize=9)
+        ax.set_xlabel("material roughness r")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("apparent roughness r* (reference fitted to the preset)")
+    axes[0].legend(fontsize=7)
+    plot = _save(fig, out_dir / "fit_roughness.png")
+    # Table: per preset and material roughness, the mean r* over the metal objects (their fit is
+    # well constrained) and the mean final loss.
+    rough = sorted({round(o.material.roughness, 6) for o in scene.objects})
+    rows = []
+    for p, res in results.items():
+        for r in rough:
+            obj = [o for o in res["objects"] if round(o["roughness"], 6) == r]
+            met = [o["apparent_roughness"] for o in obj if metallic[o["object"]] >= 0.5]
+            die = [o["apparent_roughness"] for o in obj if metallic[o["object"]] < 0.5]
+            loss = [o["loss"] for o in obj if o["loss"] is not None]
+            rows.append([p, f"{r:.3g}", _fmt(float(np.mean(met))) if met else "n/a",
+                         _fmt(float(np.mean(die))) if die else "n/a",
+                         _fmt(float(np.mean(loss))) if loss else "n/a"])
+    return {"id": "fit-roughness", "title": f"Apparent roughness ({scene.name})",
+            "note": (f"pbrcheck fit-roughness {scene.name} --size {FITROUGH_SIZE} --preset P: each object's "
+                     f"roughness in the differentiable reference fitted (Adam, L2) to the preset's image. "
+                     f"r* > r: the preset looks rougher than its material; r* < r: sharper. Roughness only "
+                     f"moves a weak specular on dielectrics, so their r* is poorly constrained. "
+                     f"File: research/fit_roughness.json."),
+            "tables": [{"caption": "Mean r* per material roughness", "headers": [
+                "preset", "roughness r", "r* (metals)", "r* (dielectrics)", "final loss (MSE, mean)"],
+                "rows": rows}],
+            "images": [{"title": "Apparent against material roughness", "src": f"research/{plot}"}]}
+
+
+def _save(fig, path: Path) -> str:
+    from .report import _save as save
+
+    return save(fig, path)
+
+
+def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: int,
+                      progress: bool = False) -> list[dict]:
+    """The three research sections for ``scene_name`` (files under ``out_dir``)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, progress=progress)]
+    secs.append(explain_section(scene_name, out_dir, progress=progress))
+    secs.append(fit_roughness_section(scene_name, out_dir, presets, progress=progress))
+    return secs
+
+
+__all__ = ["research_sections", "fit_lod_section", "explain_section", "fit_roughness_section"]
