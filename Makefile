@@ -47,7 +47,7 @@ bench: setup
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing
 report: setup
-	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --hardcases --out reports
+	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --hardcases --research --out reports
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -9,17 +9,30 @@ three together take a few minutes on two CPU cores.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-#: fit-lod: image height of the scan, reference spp. The fit is for the preset's own cube size and
-#: mip count, so the fitted mapping applies to the full-size report render unchanged.
-FITLOD_SIZE, FITLOD_SPP = 64, 128
-#: explain: image height and reference spp (the noise this leaves is printed with the table).
-EXPLAIN_SIZE, EXPLAIN_SPP = 64, 256
-#: fit-roughness: image height (the reference is re-rendered at every Adam step).
-FITROUGH_SIZE = 48
+@dataclass(frozen=True)
+class ResearchSettings:
+    """Sizes of the research runs. ``options``: real-time option overrides applied to every render
+    of every section (empty for the report: the presets as shipped; tests shrink the cubes)."""
+
+    #: fit-lod: image height of the scan and reference spp. The fit is for the preset's own cube
+    #: size and mip count, so the fitted mapping applies to the full-size report render unchanged.
+    fitlod_size: int = 64
+    fitlod_spp: int = 128
+    #: explain: image height and reference spp (the noise this leaves is printed with the table).
+    explain_size: int = 64
+    explain_spp: int = 256
+    #: fit-roughness: image height (the reference is re-rendered at every Adam step) and steps.
+    fitrough_size: int = 48
+    fitrough_iterations: int = 40
+    options: dict = field(default_factory=dict)
+    #: explain's exact counterparts at this fraction of their sample counts (1 in the report)
+    samples_scale: float = 1.0
+    cube_max: int = 512
 
 
 def _fmt(v) -> str:
@@ -35,7 +48,7 @@ def _pct(part, whole) -> str:
 
 
 def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", report_spp: int,
-                    progress: bool = False) -> dict:
+                    st: ResearchSettings = ResearchSettings(), progress: bool = False) -> dict:
     """``pbrcheck fit-lod`` on ``scene_name``, then the report scene rendered by ``preset`` before
     (its own mapping) and after (``lod_mapping=fitted:FILE``) against the report's reference."""
     from pbrcheck.scene import load_scene
@@ -49,16 +62,18 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
 
     scene = load_scene(scene_name)
     out = out_dir / "fit_lod.json"
-    res = run_fit_lod(scene, preset=preset, spp=FITLOD_SPP, size=FITLOD_SIZE, out=out, progress=progress)
-    own = resolve_options(preset, {})["lod_mapping"]
+    opts = dict(st.options)
+    res = run_fit_lod(scene, preset=preset, options=opts, spp=st.fitlod_spp, size=st.fitlod_size, out=out,
+                      progress=progress)
+    own = resolve_options(preset, opts)["lod_mapping"]
     # Before / after on the report's own render (full size, point lights on, report spp).
     ref = render_reference(scene, spp=report_spp, use_cache=True, progress=False)
-    before = compare_images(ref, render_realtime(scene, preset, None, progress=False), noise=False).metrics
-    after = compare_images(ref, render_realtime(scene, preset, {"lod_mapping": f"fitted:{out}"}, progress=False),
-                           noise=False).metrics
+    before = compare_images(ref, render_realtime(scene, preset, opts, progress=False), noise=False).metrics
+    after = compare_images(ref, render_realtime(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"},
+                                                progress=False), noise=False).metrics
     m = res["mappings"]
     t_maps = {"caption": f"Every mapping on the fit scene ({res['size'][0]} x {res['size'][1]}, point lights "
-                         f"removed, {FITLOD_SPP}-spp reference)",
+                         f"removed, {st.fitlod_spp}-spp reference)",
               "headers": ["mapping", "chain", "relmse (render)", "vs the preset's own"],
               "rows": [[k, res["chain"] if k == "fitted" else k, _fmt(v["relmse"]),
                         _pct(v["relmse"] - m[own]["relmse"], m[own]["relmse"])] for k, v in m.items()]}
@@ -85,7 +100,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     fm = LodMapping.from_json(m["fitted"])
     from .fitlod import _builtin_lod
 
-    o = resolve_options(preset, {})
+    o = resolve_options(preset, opts)
     for k in ("linear", "quadratic", "log2"):
         ax.plot(rr, _builtin_lod(k, rr, o), lw=1, label=f"{k} (relmse {m[k]['relmse']:.4g})")
     ax.plot(rr, fm(rr), "k-", lw=2, label=f"fitted, {res['chain']} chain (relmse {m['fitted']['relmse']:.4g})")
@@ -98,7 +113,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     ax.legend(fontsize=7)
     plot = _save(fig, out_dir / "fit_lod.png")
     return {"id": "fit-lod", "title": f"LOD fit: roughness -> prefiltered level ({scene.name}, preset {preset})",
-            "note": (f"pbrcheck fit-lod {scene.name} --size {FITLOD_SIZE} --spp {FITLOD_SPP} --preset {preset}: "
+            "note": (f"pbrcheck fit-lod {scene.name} --size {st.fitlod_size} --spp {st.fitlod_spp} --preset {preset}: "
                      f"each roughness read at every level of each built-in chain (step {res['lod_step']}), "
                      f"a smooth monotone mapping fitted to the measured error, every mapping rendered. "
                      f"Files: research/fit_lod.json, research/fit_lod.glsl."),
@@ -106,12 +121,14 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
             "images": [{"title": "LOD against roughness", "src": f"research/{plot}"}]}
 
 
-def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default", progress: bool = False) -> dict:
+def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
+                    st: ResearchSettings = ResearchSettings(), progress: bool = False) -> dict:
     from pbrcheck.scene import load_scene
 
     from .explain import PRIMARY, run_explain, write_explain
 
-    res = run_explain(load_scene(scene_name), preset=preset, spp=EXPLAIN_SPP, size=EXPLAIN_SIZE,
+    res = run_explain(load_scene(scene_name), preset=preset, options=dict(st.options), spp=st.explain_spp,
+                      size=st.explain_size, cube_max=st.cube_max, samples_scale=st.samples_scale,
                       fitted=str(out_dir / "fit_lod.json") if (out_dir / "fit_lod.json").exists() else None,
                       progress=progress)
     write_explain(res, out_dir / f"explain_{preset}.json")
@@ -127,17 +144,22 @@ def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
             rows.append([lab, "", _fmt(res[k]["metrics"][PRIMARY]), _fmt(res[k]["contribution"]),
                          _pct(res[k]["contribution"], b), _fmt(res[k]["metrics"]["flip_mean"])])
     noise = res.get("noise_relmse")
+    left = None if noise is None or "all_exact" not in res else res["all_exact"]["metrics"][PRIMARY] - noise
     return {"id": f"explain-{preset}", "title": f"Error decomposition ({scene_name}, preset {preset})",
-            "note": (f"pbrcheck explain {scene_name} --preset {preset} --size {EXPLAIN_SIZE} --spp {EXPLAIN_SPP}: "
+            "note": (f"pbrcheck explain {scene_name} --preset {preset} --size {st.explain_size} --spp {st.explain_spp}: "
                      f"one approximation at a time made exact, the scene re-rendered; contribution = relmse "
-                     f"of the preset - relmse with that source exact. The {EXPLAIN_SPP}-spp reference's own "
-                     f"noise explains relmse {_fmt(noise)}. Files: research/explain_{preset}.json, .md."),
+                     f"of the preset - relmse with that source exact. The {st.explain_spp}-spp reference's own "
+                     f"noise explains relmse {_fmt(noise)}; what all-exact leaves above it ({_fmt(left)}) "
+                     f"comes from what no option replaces (the diffuse split Kd(n.v) E(n), the runtime "
+                     f"estimator's mip filtering, texel filtering). "
+                     f"Files: research/explain_{preset}.json, .md."),
             "tables": [{"caption": "", "headers": ["source made exact", "options", f"{PRIMARY} after",
                                                    "contribution", "share", "flip_mean after"], "rows": rows}],
             "images": []}
 
 
-def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *, progress: bool = False) -> dict:
+def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
+                          st: ResearchSettings = ResearchSettings(), progress: bool = False) -> dict:
     from pbrcheck.progress import Progress
     from pbrcheck.scene import load_scene
 
@@ -149,7 +171,8 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
     results = {}
     with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:
         for p in presets:
-            results[p] = run_fit_roughness(scene, preset=p, size=FITROUGH_SIZE)
+            results[p] = run_fit_roughness(scene, preset=p, options=dict(st.options), size=st.fitrough_size,
+                                           iterations=st.fitrough_iterations)
             prog.update(1, p)
     from pbrcheck.atomic import write_text_atomic
 
@@ -185,7 +208,7 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
                          _fmt(float(np.mean(die))) if die else "n/a",
                          _fmt(float(np.mean(loss))) if loss else "n/a"])
     return {"id": "fit-roughness", "title": f"Apparent roughness ({scene.name})",
-            "note": (f"pbrcheck fit-roughness {scene.name} --size {FITROUGH_SIZE} --preset P: each object's "
+            "note": (f"pbrcheck fit-roughness {scene.name} --size {st.fitrough_size} --preset P: each object's "
                      f"roughness in the differentiable reference fitted (Adam, L2) to the preset's image. "
                      f"r* > r: the preset looks rougher than its material; r* < r: sharper. Roughness only "
                      f"moves a weak specular on dielectrics, so their r* is poorly constrained. "
@@ -203,13 +226,13 @@ def _save(fig, path: Path) -> str:
 
 
 def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: int,
-                      progress: bool = False) -> list[dict]:
+                      st: ResearchSettings = ResearchSettings(), progress: bool = False) -> list[dict]:
     """The three research sections for ``scene_name`` (files under ``out_dir``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, progress=progress)]
-    secs.append(explain_section(scene_name, out_dir, progress=progress))
-    secs.append(fit_roughness_section(scene_name, out_dir, presets, progress=progress))
+    secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, st=st, progress=progress)]
+    secs.append(explain_section(scene_name, out_dir, st=st, progress=progress))
+    secs.append(fit_roughness_section(scene_name, out_dir, presets, st=st, progress=progress))
     return secs
 
 
-__all__ = ["research_sections", "fit_lod_section", "explain_section", "fit_roughness_section"]
+__all__ = ["ResearchSettings", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section"]
