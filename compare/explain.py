@@ -26,7 +26,8 @@ Sources and their exact counterparts:
   fitted mapping when given and better).
 * ``irradiance``: cube convolution summing every texel of a 64^2 source into a 64^2 cube.
 * ``cube``: a 512^2 float32 environment cube (texel resolution and half-float precision).
-* ``terms``: the scene's own D, G and F terms, in the frame and in the LUT.
+* ``geometry``: the scene's own G term, in the frame (point lights, runtime sampling) and in the LUT.
+* ``ndf_fresnel``: the scene's own D and F terms.
 * ``composition``: the README material model's composition (``shading=material``, correct
   reflection vector, no roughness clamp) instead of an article's.
 """
@@ -81,7 +82,8 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
         "cube": {"cube_size": cube, "cube_format": "f32",
                  "prefilter_levels": levels,
                  "irradiance_source_size": min(o["irradiance_source_size"], cube)},
-        "terms": {"ndf": "scene", "geometry": "scene", "fresnel": "scene", "lut_geometry": "scene"},
+        "geometry": {"geometry": "scene", "lut_geometry": "scene"},
+        "ndf_fresnel": {"ndf": "scene", "fresnel": "scene"},
         "composition": composition,
     }
 

@@ -12,10 +12,18 @@ render's MSE over the object's pixels (object AOV of the real-time image).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from pbrcheck.brdf import DELTA_LOBE_ALPHA
 from pbrcheck.scene import Scene
 
+#: Lowest roughness the fit may reach. Below sqrt(DELTA_LOBE_ALPHA) = 0.01 the reference BSDF is a
+#: Dirac mirror lobe (reference/bsdf.py) whose value does not depend on roughness: no derivative, and
+#: Mitsuba's prb raises when no fitted parameter is attached. A mirror material's r* reads "as sharp
+#: as roughness 0.01". 5 % above the threshold: 0.01 squared in float32 is 9.99e-5, still a mirror.
+ROUGH_MIN = 1.05 * math.sqrt(DELTA_LOBE_ALPHA)
 ITERATIONS = 40
 LR = 0.03
 SPP = 16
@@ -37,10 +45,10 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
     keys = [param_key(i, "roughness") for i in range(len(scene.objects))]
     for i, k in enumerate(keys):
         r0 = scene.objects[i].material.roughness if start is None else start[i]
-        params[k] = mi.Float(float(np.clip(r0, 0.0, 1.0)))
+        params[k] = mi.Float(float(np.clip(r0, ROUGH_MIN, 1.0)))
     params.update()
     losses = fit_materials(ms, params, keys, np.asarray(target_rgb, np.float32), iterations=iterations, lr=lr,
-                           spp=spp)
+                           spp=spp, clamp=(ROUGH_MIN, 1.0))
     final = render_image(ms, params, spp=4 * spp, seed=10_000)
     rows = []
     for i, (ob, k) in enumerate(zip(scene.objects, keys)):

@@ -211,7 +211,10 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
             "note": (f"pbrcheck fit-roughness {scene.name} --size {st.fitrough_size} --preset P: each object's "
                      f"roughness in the differentiable reference fitted (Adam, L2) to the preset's image. "
                      f"r* > r: the preset looks rougher than its material; r* < r: sharper. Roughness only "
-                     f"moves a weak specular on dielectrics, so their r* is poorly constrained. "
+                     f"moves a weak specular on dielectrics, so their r* is poorly constrained. Known "
+                     f"limitation: below r ~ 0.3 under a small bright sun the fit drifts low even against "
+                     f"the reference itself (a 0.2 target fitted from 0.4 ends at 0.06 with 64 spp per "
+                     f"step, lr 0.03): read r* < 0.3 as unreliable (docs/research.md). "
                      f"File: research/fit_roughness.json."),
             "tables": [{"caption": "Mean r* per material roughness", "headers": [
                 "preset", "roughness r", "r* (metals)", "r* (dielectrics)", "final loss (MSE, mean)"],

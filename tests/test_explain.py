@@ -21,8 +21,8 @@ def test_explain_measures_every_source():
     res = run_explain(load_scene("spheres"), preset="splitsum_basic", options=OPTS, spp=SPP, size=SIZE,
                       cube_max=64, samples_scale=0.125)
     names = [r["source"] for r in res["sources"]]
-    assert names == ["lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "terms", "composition",
-                     "lod_mapping"]
+    assert names == ["lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "geometry", "ndf_fresnel",
+                     "composition", "lod_mapping"]
     b = res["baseline"]["relmse"]
     assert np.isfinite(b) and b > 0
     for r in res["sources"]:
@@ -31,7 +31,7 @@ def test_explain_measures_every_source():
         assert r["contribution"] == b - r["metrics"]["relmse"]
     # measured, not assumed: the sources that change this preset's pixels change the error
     changed = [r["source"] for r in res["sources"] if abs(r["contribution"]) > 1e-9]
-    assert {"terms", "composition", "prefilter_samples"} <= set(changed), changed
+    assert {"geometry", "composition", "prefilter_samples"} <= set(changed), changed
     # the best split sum is better than the preset, and dropping the split sum itself better still
     assert res["all_but_vnr"]["metrics"]["relmse"] <= b, res["all_but_vnr"]
     assert res["all_exact"]["metrics"]["relmse"] <= res["all_but_vnr"]["metrics"]["relmse"], res["all_exact"]

@@ -121,3 +121,22 @@ def test_fit_roughness_recovers_known_roughness():
     rows = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.65])
     assert abs(rows[0]["apparent_roughness"] - 0.35) < ROUGH_TOL, rows
     assert rows[0]["loss"] is not None and np.isfinite(rows[0]["loss"])
+
+
+def test_fit_roughness_on_a_mirror_stays_differentiable():
+    """A roughness-0 material starts the fit at ROUGH_MIN (the reference's mirror lobe below it has no
+    roughness derivative: Mitsuba's prb used to raise "not attached to the AD graph" when every fitted
+    object was a mirror); r* stays within [ROUGH_MIN, 1]."""
+    from compare.fitrough import ROUGH_MIN, fit_roughness
+    from pbrcheck.scene import scene_from_dict
+    from reference.render import render_uncached
+
+    scene = scene_from_dict({
+        "camera": {"origin": [0, 0, 4], "fov": 40, "width": 12, "height": 12},
+        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 20.0,
+                        "sun_radiance": [5, 5, 5], "resolution": [64, 32]},
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [0.9, 0.9, 0.9], "metallic": 1.0, "roughness": 0.0}}]})
+    target = render_uncached(scene, spp=64, progress=False)
+    rows = fit_roughness(scene, target.rgb, target.channels["object"], iterations=5)
+    assert ROUGH_MIN <= rows[0]["apparent_roughness"] <= 1.0 and np.isfinite(rows[0]["loss"]), rows

@@ -86,8 +86,8 @@ def test_fit_lod_before_after_is_measured(sections):
 def test_explain_section_has_every_source_and_the_combinations(sections):
     _, secs = sections
     names = [r[0] for r in secs[1]["tables"][0]["rows"]]
-    for src in ("lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "terms", "composition",
-                "lod_mapping", "all but v=n=r (the best split sum)", "all exact"):
+    for src in ("lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "geometry", "ndf_fresnel",
+                "composition", "lod_mapping", "all but v=n=r (the best split sum)", "all exact"):
         assert src in names, names
 
 
