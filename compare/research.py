@@ -101,12 +101,13 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     from .fitlod import _builtin_lod
 
     o = resolve_options(preset, opts)
+    colour = {"linear": "C0", "quadratic": "C1", "log2": "C2"}  # a chain's line and its optima alike
     for k in ("linear", "quadratic", "log2"):
-        ax.plot(rr, _builtin_lod(k, rr, o), lw=1, label=f"{k} (relmse {m[k]['relmse']:.4g})")
+        ax.plot(rr, _builtin_lod(k, rr, o), lw=1, color=colour[k], label=f"{k} (relmse {m[k]['relmse']:.4g})")
     ax.plot(rr, fm(rr), "k-", lw=2, label=f"fitted, {res['chain']} chain (relmse {m['fitted']['relmse']:.4g})")
     for c, v in res["chains"].items():
-        ax.plot([s["roughness"] for s in res["samples"]], v["optimal_lod"], "o", ms=4, mfc="none",
-                label=f"optimal LOD on the {c} chain")
+        ax.plot([s["roughness"] for s in res["samples"]], v["optimal_lod"], "o", ms=5, mfc="none",
+                color=colour[c], label=f"optimal LOD on the {c} chain")
     ax.set_xlabel("roughness")
     ax.set_ylabel("prefiltered LOD")
     ax.grid(alpha=0.3)
