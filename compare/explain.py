@@ -104,13 +104,17 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
                                   height=int(size))
     ref = render_reference(scene, spp=spp, mode="local", progress=progress)
 
+    valid = None
+
     def measure(over: dict) -> dict:
+        nonlocal valid
         img = render_realtime(scene, preset, {**base, **over}, progress=False)
         c = compare_images(ref, img, scene=scene, noise=False)
+        if valid is None:
+            valid = c.valid  # the baseline's valid pixels, for the noise figure
         return {k: c.metrics[k] for k in KEEP}
 
     baseline = measure({})
-    valid = compare_images(ref, render_realtime(scene, preset, base, progress=False), noise=False).valid
     noise_relmse = None
     if ref.variance is not None:
         r64 = ref.rgb.astype(np.float64)
