@@ -106,17 +106,23 @@ def test_error_objective_recovers_known_mapping():
 ROUGH_TOL = 0.06
 
 
+def _metal_sphere(size: int, env_resolution, base_color, roughness: float):
+    """One metal sphere filling a size x size image under a soft 20-degree sun."""
+    from pbrcheck.scene import scene_from_dict
+
+    return scene_from_dict({
+        "camera": {"origin": [0, 0, 4], "fov": 40, "width": size, "height": size},
+        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 20.0,
+                        "sun_radiance": [5, 5, 5], "resolution": list(env_resolution)},
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": list(base_color), "metallic": 1.0, "roughness": roughness}}]})
+
+
 def test_fit_roughness_recovers_known_roughness():
     from compare.fitrough import fit_roughness
-    from pbrcheck.scene import scene_from_dict
     from reference.render import render_uncached
 
-    scene = scene_from_dict({
-        "camera": {"origin": [0, 0, 4], "fov": 40, "width": 24, "height": 24},
-        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 20.0,
-                        "sun_radiance": [5, 5, 5], "resolution": [128, 64]},
-        "objects": [{"type": "sphere", "radius": 1.0,
-                     "material": {"base_color": [0.9, 0.6, 0.3], "metallic": 1.0, "roughness": 0.35}}]})
+    scene = _metal_sphere(24, [128, 64], [0.9, 0.6, 0.3], 0.35)
     target = render_uncached(scene, spp=256, progress=False)
     rows = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.65])
     assert abs(rows[0]["apparent_roughness"] - 0.35) < ROUGH_TOL, rows
@@ -128,15 +134,9 @@ def test_fit_roughness_on_a_mirror_stays_differentiable():
     roughness derivative: Mitsuba's prb used to raise "not attached to the AD graph" when every fitted
     object was a mirror); r* stays within [ROUGH_MIN, 1]."""
     from compare.fitrough import ROUGH_MIN, fit_roughness
-    from pbrcheck.scene import scene_from_dict
     from reference.render import render_uncached
 
-    scene = scene_from_dict({
-        "camera": {"origin": [0, 0, 4], "fov": 40, "width": 12, "height": 12},
-        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 20.0,
-                        "sun_radiance": [5, 5, 5], "resolution": [64, 32]},
-        "objects": [{"type": "sphere", "radius": 1.0,
-                     "material": {"base_color": [0.9, 0.9, 0.9], "metallic": 1.0, "roughness": 0.0}}]})
+    scene = _metal_sphere(12, [64, 32], [0.9, 0.9, 0.9], 0.0)
     target = render_uncached(scene, spp=64, progress=False)
     rows = fit_roughness(scene, target.rgb, target.channels["object"], iterations=5)
     assert ROUGH_MIN <= rows[0]["apparent_roughness"] <= 1.0 and np.isfinite(rows[0]["loss"]), rows
