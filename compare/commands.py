@@ -165,7 +165,8 @@ def _cmd_fit_roughness(args) -> int:
     from .fitrough import run_fit_roughness, table_markdown
 
     res = run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
-                            size=args.size or None, iterations=args.iterations, spp=args.spp)
+                            size=args.size or None, iterations=args.iterations, spp=args.spp,
+                            scan=not args.no_scan)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, dump_json(res) + "\n")
@@ -267,5 +268,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
     s.add_argument("--iterations", type=int, default=40, help="Adam steps (default 40)")
     s.add_argument("--spp", type=int, default=16, help="samples per pixel per step (default 16)")
+    s.add_argument("--no-scan", action="store_true",
+                   help="start Adam at each object's own roughness, without the starting scan (and no range)")
     s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
     s.set_defaults(func=_cmd_fit_roughness)

@@ -13,7 +13,7 @@ in :func:`mi.traverse`; the BSDF makes them opaque, so new values reuse the comp
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -74,23 +74,54 @@ def render_image(mscene, params, *, spp: int = 16, seed: int = 0) -> np.ndarray:
     return np.array(mi.render(mscene, params, spp=spp, seed=seed))
 
 
+def mse_loss(img, target):
+    """Mean squared error over pixels and channels (Dr.Jit tensors)."""
+    _, dr = _mi()
+    return dr.mean(dr.square(img - target), axis=None)
+
+
 def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, iterations: int = 20,
-                  lr: float = 0.05, spp: int = 8, clamp: tuple[float, float] = (0.0, 1.0)) -> list[float]:
-    """Fit ``keys`` so the render matches ``target`` (L2) with ``mi.ad.Adam``; returns the losses."""
+                  lr: float = 0.05, spp: int = 8, clamp: tuple[float, float] | dict = (0.0, 1.0),
+                  loss_fn: Callable | None = None, lr_final: float | None = None,
+                  average_last: int = 0) -> list[float]:
+    """Fit ``keys`` so the render matches ``target`` with ``mi.ad.Adam``; returns the losses.
+
+    ``clamp`` is one ``(lo, hi)`` for every key or a ``{key: (lo, hi)}``. ``loss_fn(img, target)``
+    (Dr.Jit tensors -> scalar) defaults to :func:`mse_loss`. Each step renders
+    with its own seed (Mitsuba decorrelates the primal and the gradient pass within a step, so the
+    gradient of a loss of a noisy image is unbiased). Stochastic gradients make the last iterate wander
+    around the optimum by about ``lr`` per step; two standard remedies, both optional:
+
+    * ``lr_final``: the learning rate decays geometrically from ``lr`` to ``lr_final`` over the run
+      (step ``i`` uses ``lr (lr_final / lr)^(i / (iterations - 1))``);
+    * ``average_last``: the result is the mean of the last ``average_last`` iterates (Polyak-Ruppert
+      averaging: the iterates' noise averages out, their common drift does not).
+    """
     mi, dr = _mi()
+    loss_fn = loss_fn or mse_loss
+    bounds = clamp if isinstance(clamp, dict) else {k: clamp for k in keys}
     tgt = mi.TensorXf(np.asarray(target, dtype=np.float32))
     opt = mi.ad.Adam(lr=lr)
     for k in keys:
         opt[k] = params[k]
     params.update(opt)
     losses = []
+    history: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for it in range(iterations):
+        if lr_final is not None and iterations > 1:
+            opt.set_learning_rate(lr * (lr_final / lr) ** (it / (iterations - 1)))
         img = mi.render(mscene, params, spp=spp, seed=it)
-        loss = dr.mean(dr.square(img - tgt), axis=None)
+        loss = loss_fn(img, tgt)
         dr.backward(loss)
         opt.step()
         for k in keys:
-            opt[k] = dr.clip(opt[k], *clamp)
+            opt[k] = dr.clip(opt[k], *bounds[k])
+            history[k].append(np.array(opt[k]))
         params.update(opt)
         losses.append(float(np.array(loss).ravel()[0]))
+    n = min(int(average_last), iterations)
+    if n > 1:
+        for k in keys:
+            params[k] = type(params[k])(np.mean(history[k][-n:], axis=0))
+        params.update()
     return losses

@@ -98,6 +98,8 @@ def test_fit_roughness_section_rows_per_roughness(sections):
     d = json.loads((out / "fit_roughness.json").read_text())
     for o in d["default"]["objects"]:
         assert 0.0 <= o["apparent_roughness"] <= 1.0 and np.isfinite(o["loss"])
+        lo, hi = o["range"]  # Adam stays inside the scan's range
+        assert lo <= o["apparent_roughness"] <= hi
 
 
 def test_report_template_renders_research_sections(sections, tmp_path):
