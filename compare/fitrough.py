@@ -9,26 +9,32 @@ roughness the reference needs to look like the preset. ``r* > r``: the preset lo
 the material it was given; ``r* < r``: sharper. The per-object loss is the final render's loss over
 the object's pixels (object AOV of the real-time image).
 
-The loss is the comparator's relative MSE (:mod:`compare.metrics`), normalized by the *target*::
+The loss is the MSE of ``log(1 + x)``-tone-mapped images, linearized at the *target*::
 
-    L = mean over pixels and channels of (I - T)^2 / (T^2 + REL_EPS)
+    L = mean over pixels and channels of (I - T)^2 / (1 + T)^2      (~ mean (log(1+I) - log(1+T))^2)
 
-``T`` is the real-time image (deterministic, so the weights are fixed and ``L`` is a weighted L2:
-its gradient from a noisy render is unbiased). It is what fit-lod minimizes, and it is the loss that
-makes the fit work under small bright lights: with plain L2 a sun's highlight (a pixel or two at the
-fit's size) holds nearly all of the loss, and its pixel-sampling noise swamps the roughness gradient.
-Measured on one metal sphere (24 px, 8-degree sun of radiance 60, target = reference at r = 0.2,
-24 gradients of 16 spp each): at r = 0.1 the L2 gradient has mean -0.25 and standard deviation 2.9,
-and 58 % of single gradients point the wrong way (Adam walked to r* = 0.05); the relative-MSE
-gradient has mean -0.060, deviation 0.067, 12 % wrong. The learning rate decays from ``LR`` to
-``LR_FINAL`` and r* is the mean of the last ``AVERAGE_LAST`` iterates (:func:`reference.diff.fit_materials`).
+``T`` is the real-time image (deterministic), so the weights are fixed and ``L`` is a weighted L2:
+its gradient from a noisy render is unbiased (the log of a noisy render would not be). Why not the
+alternatives, measured on one metal sphere (24 px, 8-degree sun of radiance 60, target = the
+reference at r = 0.2, 24 gradients of 16 spp each at r = 0.1 and 48 at r = 0.15):
 
-Start: the relative MSE is not convex in roughness far from its minimum (same sphere, target r = 0.1:
-the loss rises to r = 0.4 and falls again to r = 0.7, where a fit started at 0.4 went), so before
-Adam each object's loss is scanned over ``SCAN_ROUGHNESS`` and its own roughness (primal renders,
-all objects at one grid value per render, each object's loss over its own pixels: roughness does not
-couple objects at this depth) and the fit starts at the best of them. The fit then refines within a
-grid step, where the loss was convex in every case measured.
+* plain L2: the sun's highlight (a pixel or two) holds nearly all of the loss and its pixel-sampling
+  noise swamps the gradient: mean -0.25, deviation 2.9, 58 % of single gradients point the wrong way
+  at r = 0.1 (Adam walked to r* = 0.05). Tone-mapped: 31 % wrong at 0.1, 23 % at 0.15.
+* the comparator's relmse, ``(I - T)^2 / (T^2 + REL_EPS)``: 12 % wrong, and the best self-consistency
+  (metal sphere at 48 px, targets r = 0.03 ... 0.8: |r* - r| <= 0.020 against 0.045 for the
+  tone-mapped loss; dielectrics 0.058 for both), but it weights near-black pixels 100 x, where the real-time image differs from the
+  reference for reasons roughness cannot fix (no inter-object occlusion of the environment): on the
+  spheres scene's default preset it gave r = 0.2 -> r* = 0.11, 0.63, 0.70, 0.25 on the four metallic
+  rows; the tone-mapped loss gives 0.06, 0.21, 0.28, 0.22 and r = 0.4 -> 0.44 ... 0.52.
+
+Start: the loss is not convex in roughness far from its minimum (same sphere, target r = 0.1: it
+rises to r = 0.4 and falls again to r = 0.6), so each object's loss is first scanned over
+``SCAN_ROUGHNESS`` and its own roughness (:func:`scan_start`: two independent primal renders per
+value, all objects at one value per render, each object's loss over its own pixels: roughness does
+not couple objects at this depth). Adam starts at the best value and stays in the scan's range
+(:func:`bracket`); the learning rate decays from ``LR`` to ``LR_FINAL`` and r* is the mean of the
+last ``AVERAGE_LAST`` iterates (:func:`reference.diff.fit_materials`).
 """
 
 from __future__ import annotations
@@ -39,8 +45,6 @@ import numpy as np
 
 from pbrcheck.brdf import DELTA_LOBE_ALPHA
 from pbrcheck.scene import Scene
-
-from .metrics import REL_EPS
 
 #: Lowest roughness the fit may reach. Below sqrt(DELTA_LOBE_ALPHA) = 0.01 the reference BSDF is a
 #: Dirac mirror lobe (reference/bsdf.py) whose value does not depend on roughness: no derivative, and
@@ -63,39 +67,44 @@ SCAN_SPP_FACTOR = 4
 SCAN_Z = 1.96
 
 
-def relmse_loss(img, target):
-    """The fit's loss: mean (I - T)^2 / (T^2 + REL_EPS), T the (fixed) target (Dr.Jit tensors)."""
+def _weight(t):
+    """Per-pixel weight of the fit's loss: the derivative of log(1 + x) at the target, squared."""
+    return 1.0 / ((1.0 + t) * (1.0 + t))
+
+
+def fit_loss(img, target):
+    """The fit's loss: mean (I - T)^2 / (1 + T)^2, T the (fixed) target (Dr.Jit tensors)."""
     from reference.render import _mi
 
     _, dr = _mi()
-    return dr.mean(dr.square(img - target) / (dr.square(target) + REL_EPS), axis=None)
+    return dr.mean(dr.square(img - target) * _weight(target), axis=None)
 
 
-def relmse_np(img: np.ndarray, target: np.ndarray) -> float:
-    """numpy twin of :func:`relmse_loss` (for per-object losses over masked pixels)."""
-    return float(np.mean((img - target) ** 2 / (target * target + REL_EPS)))
+def fit_loss_np(img: np.ndarray, target: np.ndarray) -> float:
+    """numpy twin of :func:`fit_loss` (for per-object losses over masked pixels)."""
+    return float(np.mean((img - target) ** 2 * _weight(target)))
 
 
 def _object_losses(img: np.ndarray, target: np.ndarray, masks: list[np.ndarray]) -> list[float | None]:
-    return [relmse_np(img[m], target[m]) if m.any() else None for m in masks]
+    return [fit_loss_np(img[m], target[m]) if m.any() else None for m in masks]
 
 
-def unbiased_relmse(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> tuple[float, float]:
-    """(estimate, standard error) of the relative MSE of the *expected* render against ``target``,
+def unbiased_fit_loss(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+    """(estimate, standard error) of the fit's loss of the *expected* render against ``target``,
     from two independent renders ``a`` and ``b`` (pixels of one object, (N, 3)).
 
     ``E[(a - T)(b - T)] = (E[I] - T)^2`` when ``a`` and ``b`` are independent, while the one-render
     ``E[(a - T)^2]`` adds ``Var[I]``, which grows with roughness (the sun's highlight spreads over more
     pixel-sampling noise): measured on a 24-px metal sphere under an 8-degree sun, the 64-spp
-    variance in relmse units is 0.00016 at r = 0.02 and 0.00049 at r = 0.08 while the loss differs by
-    0.0004 between them, so the one-render scan picked r = 0.03 for a target of r = 0.08.
+    variance in relmse units is 0.00016 at r = 0.02 and 0.00049 at r = 0.08 while the relmse differs
+    by 0.0004 between them, so a one-render scan picked r = 0.03 for a target of r = 0.08.
 
     The standard error is that of the Monte Carlo noise (not the spread over pixels): with
     ``a = mu + e_a``, ``b = mu + e_b`` (independent, variance ``s2``), each term ``(a - T)(b - T)`` has
     variance ``2 (mu - T)^2 s2 + s2^2``. With ``d = (a + b) / 2 - T`` (``E[d^2] = (mu - T)^2 + s2 / 2``)
     and ``(a - b)^2 / 2`` (mean ``s2``, independent of ``d`` for Gaussian noise), ``d^2 (a - b)^2``
     has exactly that mean. The terms are independent across pixels (independent pixel samples)."""
-    w = 1.0 / (target * target + REL_EPS)
+    w = _weight(target)
     terms = (a - target) * (b - target) * w
     d = 0.5 * (a + b) - target
     n = terms.size
@@ -130,7 +139,7 @@ def bracket(scan: list[list[float]]) -> tuple[float, list[float]]:
 
 def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.ndarray], own: list[float], *,
                spp: int, grid=SCAN_ROUGHNESS) -> list[dict]:
-    """Per object, the unbiased loss (:func:`unbiased_relmse`) of every value among ``grid`` and the
+    """Per object, the unbiased loss (:func:`unbiased_fit_loss`) of every value among ``grid`` and the
     object's own roughness (two independent primal renders per value; every object set to it at
     once), and its :func:`bracket`. Returns per object ``{"start", "range": [lo, hi],
     "scan": [[r, loss, se], ...]}`` (``range`` None for an object with no pixels)."""
@@ -148,7 +157,7 @@ def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.n
         b = render_image(ms, params, spp=spp, seed=50_001 + 2 * j)
         for i, m in enumerate(masks):
             if m.any():
-                table[i].append([g, *unbiased_relmse(a[m], b[m], target[m])])
+                table[i].append([g, *unbiased_fit_loss(a[m], b[m], target[m])])
     out = []
     for i, rows in enumerate(table):
         if rows:
@@ -192,7 +201,7 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
     bounds = {k: (sc["range"][0], sc["range"][1]) if sc["range"] else (ROUGH_MIN, 1.0)
               for k, sc in zip(keys, scans)} if scans else (ROUGH_MIN, 1.0)
     losses = fit_materials(ms, params, keys, target, iterations=iterations, lr=lr,
-                           spp=spp, clamp=bounds, loss_fn=relmse_loss, lr_final=min(lr, LR_FINAL),
+                           spp=spp, clamp=bounds, loss_fn=fit_loss, lr_final=min(lr, LR_FINAL),
                            average_last=AVERAGE_LAST)
     final = render_image(ms, params, spp=4 * spp, seed=10_000)
     rows = []
@@ -212,8 +221,8 @@ def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | 
                       size: int | None = None, iterations: int = ITERATIONS, lr: float = LR, spp: int = SPP,
                       scan: bool = True) -> dict:
     """The preset's real-time image of ``scene`` (height ``size``) as the target of :func:`fit_roughness`.
-    JSON-ready: per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (relmse over its
-    pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``)."""
+    JSON-ready: per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss`
+    over its pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``)."""
     from realtime.render import render_realtime
 
     if size is not None:
@@ -224,13 +233,13 @@ def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | 
     trace = rows[0].pop("image_losses", []) if rows else []
     return {"scene": scene.name, "preset": preset, "options": dict(options or {}), "iterations": iterations,
             "lr": lr, "lr_final": min(lr, LR_FINAL), "average_last": AVERAGE_LAST, "spp": spp, "scan": scan,
-            "loss": "relmse", "size": [scene.camera.width, scene.camera.height], "objects": rows,
+            "loss": "tone_mse", "size": [scene.camera.width, scene.camera.height], "objects": rows,
             "image_loss_trace": trace}
 
 
 def table_markdown(res: dict) -> str:
     lines = [f"scene {res['scene']}, preset {res['preset']}", "",
-             "| object | roughness r | apparent r* | r* - r | range | loss (relmse) |",
+             "| object | roughness r | apparent r* | r* - r | range | loss (tone-mapped MSE) |",
              "| --- | --- | --- | --- | --- | --- |"]
     for r in res["objects"]:
         loss = "n/a" if r["loss"] is None else f"{r['loss']:.4g}"

@@ -216,16 +216,16 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
     return {"id": "fit-roughness", "title": f"Apparent roughness ({scene.name})",
             "note": (f"pbrcheck fit-roughness {scene.name} --size {st.fitrough_size} --preset P: each object's "
                      f"roughness in the differentiable reference fitted to the preset's image: a scan of "
-                     f"the unbiased relative MSE over roughness picks the start and a range, then Adam "
-                     f"(relmse loss, lr 0.01 -> 0.002, mean of the last 10 of {st.fitrough_iterations} "
-                     f"steps) refines within the range. r* > r: the preset looks rougher than its "
+                     f"the loss (MSE of log(1 + x) tone-mapped images, linearized at the preset's image; "
+                     f"unbiased) over roughness picks the start and a range, then Adam (lr 0.01 -> 0.002, "
+                     f"mean of the last 10 of {st.fitrough_iterations} steps) refines within the range. r* > r: the preset looks rougher than its "
                      f"material; r* < r: sharper. The range (bars; brackets in the table) spans the "
                      f"roughness values this image size and sample count cannot tell apart: wide where "
                      f"roughness only moves a weak specular (dielectrics, low roughness). Against the "
-                     f"reference itself (48 px metal sphere, 8-degree sun) r* is within 0.02 of the truth "
-                     f"for r in [0.03, 0.8] (docs/research.md). File: research/fit_roughness.json."),
+                     f"reference itself (48 px metal sphere, 8-degree sun) r* is within 0.013 of the truth "
+                     f"for r in [0.15, 0.8], 0.045 below (docs/research.md). File: research/fit_roughness.json."),
             "tables": [{"caption": "Mean r* per material roughness [hull of the objects' ranges]", "headers": [
-                "preset", "roughness r", "r* (metals)", "r* (dielectrics)", "final loss (relmse, mean)"],
+                "preset", "roughness r", "r* (metals)", "r* (dielectrics)", "final loss (tone-mapped MSE, mean)"],
                 "rows": rows}],
             "images": [{"title": "Apparent against material roughness", "src": f"research/{plot}"}]}
 
