@@ -24,7 +24,8 @@ reference at r = 0.2, 24 gradients of 16 spp each at r = 0.1 and 48 at r = 0.15)
 * the comparator's relmse, ``(I - T)^2 / (T^2 + REL_EPS)``: 12 % wrong, and the best self-consistency
   (metal sphere at 48 px, targets r = 0.03 ... 0.8: |r* - r| <= 0.020 against 0.045 for the
   tone-mapped loss; dielectrics 0.058 for both), but it weights near-black pixels 100 x, where the real-time image differs from the
-  reference for reasons roughness cannot fix (no inter-object occlusion of the environment): on the
+  reference for reasons roughness cannot fix (prb's shadow rays let neighbours occlude the environment;
+  the real-time image, like the ``local`` reference, has no such visibility): on the
   spheres scene's default preset it gave r = 0.2 -> r* = 0.11, 0.63, 0.70, 0.25 on the four metallic
   rows; the tone-mapped loss gives 0.06, 0.21, 0.28, 0.22 and r = 0.4 -> 0.44 ... 0.52.
 
