@@ -43,6 +43,7 @@ gate: setup
 bench: setup
 	$(VENV)/bin/pbrcheck bench reference
 	$(VENV)/bin/pbrcheck bench realtime
+	$(VENV)/bin/pbrcheck bench fit-roughness
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing

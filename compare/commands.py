@@ -175,6 +175,15 @@ def _cmd_fit_roughness(args) -> int:
     return 0
 
 
+def _cmd_bench_fit_roughness(args) -> int:
+    from .fitrough import SELF_CHECK_ROUGHNESS, self_check
+
+    rough = SELF_CHECK_ROUGHNESS if not args.roughness else [float(x) for x in args.roughness.split(",")]
+    print(json.dumps(self_check(size=args.size, sun_deg=args.sun, sun_radiance=args.sun_radiance,
+                                metallic=args.metallic, roughness=rough, target_spp=args.target_spp), indent=2))
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("compare", help="compare a test EXR against a reference EXR (metrics, error maps)")
@@ -272,3 +281,13 @@ def register(sub, bench_sub) -> None:
                    help="start Adam at each object's own roughness, without the starting scan (and no range)")
     s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
     s.set_defaults(func=_cmd_fit_roughness)
+
+    b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
+                                                   "roughness on one sphere under a sun (JSON)")
+    b.add_argument("--size", type=int, default=48, help="image size (default 48)")
+    b.add_argument("--sun", type=float, default=8.0, help="sun angular diameter in degrees (default 8)")
+    b.add_argument("--sun-radiance", type=float, default=60.0, help="sun radiance (default 60)")
+    b.add_argument("--metallic", type=float, default=1.0, help="the sphere's metallic (default 1)")
+    b.add_argument("--roughness", metavar="r1,r2,...", help="target roughness values (default 0.03 ... 0.8)")
+    b.add_argument("--target-spp", type=int, default=1024, help="samples per pixel of the targets (default 1024)")
+    b.set_defaults(func=_cmd_bench_fit_roughness)

@@ -248,3 +248,41 @@ def table_markdown(res: dict) -> str:
         lines.append(f"| {r['name'] or r['object']} | {r['roughness']:.3f} | {r['apparent_roughness']:.3f} | "
                      f"{r['apparent_roughness'] - r['roughness']:+.3f} | {rng} | {loss} |")
     return "\n".join(lines) + "\n"
+
+
+#: Roughness values of ``pbrcheck bench fit-roughness`` (the figures in docs/research.md).
+SELF_CHECK_ROUGHNESS = (0.03, 0.05, 0.08, 0.1, 0.15, 0.2, 0.3, 0.5, 0.8)
+
+
+def self_check(*, size: int = 48, sun_deg: float = 8.0, sun_radiance: float = 60.0, metallic: float = 1.0,
+               roughness=SELF_CHECK_ROUGHNESS, start: float = 0.5, target_spp: int = 1024) -> dict:
+    """Fit roughness against the reference itself: one sphere (base colour 0.9, 0.6, 0.3) under a sky
+    with a sun, target = the ``local`` reference at each roughness (``target_spp``), the fit started at
+    ``start``. Per roughness: r*, its error, the range and whether it holds the truth; the maximum
+    and rms error and the seconds per fit."""
+    import time
+
+    from pbrcheck.scene import scene_from_dict
+    from reference.render import render_uncached
+
+    rows = []
+    for r in roughness:
+        scene = scene_from_dict({
+            "camera": {"origin": [0, 0, 4], "fov": 40, "width": int(size), "height": int(size)},
+            "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": float(sun_deg),
+                            "sun_radiance": [float(sun_radiance)] * 3, "resolution": [512, 256]},
+            "objects": [{"type": "sphere", "radius": 1.0,
+                         "material": {"base_color": [0.9, 0.6, 0.3], "metallic": float(metallic),
+                                      "roughness": float(r)}}]})
+        target = render_uncached(scene, spp=target_spp, progress=False)
+        t0 = time.perf_counter()
+        (row,) = fit_roughness(scene, target.rgb, target.channels["object"], start=[start])
+        lo, hi = row["range"]
+        rows.append({"roughness": float(r), "apparent_roughness": row["apparent_roughness"],
+                     "error": row["apparent_roughness"] - float(r), "range": [lo, hi],
+                     "truth_in_range": bool(lo <= r <= hi), "seconds": round(time.perf_counter() - t0, 2)})
+    err = np.array([x["error"] for x in rows])
+    return {"size": int(size), "sun_angular_diameter": float(sun_deg), "sun_radiance": float(sun_radiance),
+            "metallic": float(metallic), "start": float(start), "target_spp": int(target_spp), "rows": rows,
+            "max_abs_error": float(np.max(np.abs(err))), "rms_error": float(np.sqrt(np.mean(err ** 2))),
+            "truth_in_range": sum(x["truth_in_range"] for x in rows)}

@@ -263,3 +263,18 @@ def test_fit_roughness_cli_writes_json_and_table(tmp_path, capsys, extra):
         assert lo <= o["apparent_roughness"] <= hi and len(o["scan"]) >= 13
     printed = capsys.readouterr().out
     assert "| ball | 0.400 |" in printed and f"json: {out}" in printed
+
+
+def test_bench_fit_roughness_prints_the_self_check(capsys):
+    """``pbrcheck bench fit-roughness``: JSON with a row per roughness and the summary figures."""
+    from pbrcheck.cli import main
+
+    rc = main(["bench", "fit-roughness", "--size", "12", "--roughness", "0.35", "--target-spp", "64",
+               "--sun", "20", "--sun-radiance", "5"])
+    assert rc == 0
+    d = json.loads(capsys.readouterr().out)
+    (row,) = d["rows"]
+    assert row["roughness"] == 0.35 and row["error"] == pytest.approx(row["apparent_roughness"] - 0.35)
+    lo, hi = row["range"]
+    assert row["truth_in_range"] == (lo <= 0.35 <= hi) and d["truth_in_range"] == int(row["truth_in_range"])
+    assert d["max_abs_error"] == pytest.approx(abs(row["error"])) and d["size"] == 12
