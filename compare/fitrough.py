@@ -254,6 +254,21 @@ def table_markdown(res: dict) -> str:
 SELF_CHECK_ROUGHNESS = (0.03, 0.05, 0.08, 0.1, 0.15, 0.2, 0.3, 0.5, 0.8)
 
 
+def sphere_under_sun(size: int, roughness: float, *, sun_deg: float = 8.0, sun_radiance: float = 60.0,
+                     metallic: float = 1.0, base_color=(0.9, 0.6, 0.3), env_resolution=(512, 256)) -> Scene:
+    """One sphere filling a size x size image under a sky with a sun (the self-check's and the tests'
+    scene)."""
+    from pbrcheck.scene import scene_from_dict
+
+    return scene_from_dict({
+        "camera": {"origin": [0, 0, 4], "fov": 40, "width": int(size), "height": int(size)},
+        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": float(sun_deg),
+                        "sun_radiance": [float(sun_radiance)] * 3, "resolution": [int(x) for x in env_resolution]},
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [float(c) for c in base_color], "metallic": float(metallic),
+                                  "roughness": float(roughness)}}]})
+
+
 def self_check(*, size: int = 48, sun_deg: float = 8.0, sun_radiance: float = 60.0, metallic: float = 1.0,
                roughness=SELF_CHECK_ROUGHNESS, start: float = 0.5, target_spp: int = 1024) -> dict:
     """Fit roughness against the reference itself: one sphere (base colour 0.9, 0.6, 0.3) under a sky
@@ -262,18 +277,11 @@ def self_check(*, size: int = 48, sun_deg: float = 8.0, sun_radiance: float = 60
     and rms error and the seconds per fit."""
     import time
 
-    from pbrcheck.scene import scene_from_dict
     from reference.render import render_uncached
 
     rows = []
     for r in roughness:
-        scene = scene_from_dict({
-            "camera": {"origin": [0, 0, 4], "fov": 40, "width": int(size), "height": int(size)},
-            "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": float(sun_deg),
-                            "sun_radiance": [float(sun_radiance)] * 3, "resolution": [512, 256]},
-            "objects": [{"type": "sphere", "radius": 1.0,
-                         "material": {"base_color": [0.9, 0.6, 0.3], "metallic": float(metallic),
-                                      "roughness": float(r)}}]})
+        scene = sphere_under_sun(size, r, sun_deg=sun_deg, sun_radiance=sun_radiance, metallic=metallic)
         target = render_uncached(scene, spp=target_spp, progress=False)
         t0 = time.perf_counter()
         (row,) = fit_roughness(scene, target.rgb, target.channels["object"], start=[start])

@@ -111,14 +111,10 @@ ROUGH_TOL = 0.04
 def _metal_sphere(size: int, env_resolution, base_color, roughness: float, *, sun_deg: float = 20.0,
                   sun_radiance: float = 5.0, metallic: float = 1.0):
     """One sphere filling a size x size image under a sun (default: a soft 20-degree one)."""
-    from pbrcheck.scene import scene_from_dict
+    from compare.fitrough import sphere_under_sun
 
-    return scene_from_dict({
-        "camera": {"origin": [0, 0, 4], "fov": 40, "width": size, "height": size},
-        "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": sun_deg,
-                        "sun_radiance": [sun_radiance] * 3, "resolution": list(env_resolution)},
-        "objects": [{"type": "sphere", "radius": 1.0,
-                     "material": {"base_color": list(base_color), "metallic": metallic, "roughness": roughness}}]})
+    return sphere_under_sun(size, roughness, sun_deg=sun_deg, sun_radiance=sun_radiance, metallic=metallic,
+                            base_color=base_color, env_resolution=env_resolution)
 
 
 def test_fit_roughness_recovers_known_roughness():
