@@ -25,15 +25,23 @@ check runs (exit 2, nothing written).
 from __future__ import annotations
 
 import math
+import sys
+import time
 import tomllib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from pbrcheck.atomic import write_text_atomic
+from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.exr import RGB, read_exr
+from pbrcheck.fmt import format_value
+from pbrcheck.scene import builtin_scene_names, load_scene
 
-from .metrics import METRICS, format_value
+from . import renderers
+from .maps import write_maps
+from .metrics import METRICS, compare_images, worse
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
 DEFAULT_SPP = 64
@@ -159,30 +167,36 @@ def _resolve(base: Path, p: str) -> Path:
 
 
 def _scene_arg(base: Path, s: str):
-    from pbrcheck.scene import builtin_scene_names, load_scene
-
     if not Path(s).suffix and s in builtin_scene_names():
         return load_scene(s)
     return load_scene(_resolve(base, s))
 
 
 def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progress: bool = True) -> Result:
-    """Evaluate one check; never raises for data problems (they become ``error`` results)."""
-    import time
+    """Evaluate one check; never raises for data problems (they become ``error`` results).
 
-    from pbrcheck.exr import RGB, read_exr
+    Parameters
+    ----------
+    check : Check
+        The check (scene, renderer under test, reference, bounds).
+    base : Path
+        Folder of the budget file; relative paths in the check are resolved against it.
+    maps_dir : Path, optional
+        Where the error maps of a failing check go (``maps_dir/<check name>``).
+    progress : bool, optional
+        Show render progress on stderr.
 
-    from .maps import write_maps
-    from .metrics import compare_images
-
+    Returns
+    -------
+    Result
+        ``pass``, ``fail`` (with the failures and worst objects) or ``error`` (with its message).
+    """
     t0 = time.perf_counter()
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
         if check.reference == "auto":
-            from reference.render import render_reference
-
-            ref = render_reference(scene, spp=check.spp, mode=check.mode, seed=check.seed,
+            ref = renderers.render_reference(scene, spp=check.spp, mode=check.mode, seed=check.seed,
                                    use_cache=True, progress=progress)
             ref_name = f"auto reference ({check.scene}, {check.spp} spp)"
         else:
@@ -192,8 +206,6 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             if scene is not None and ref.meta.get("scene_hash"):
                 # A stored reference of another scene (an edited scene file, a stale EXR) would make
                 # the gate measure a scene mismatch, not the shaders: refuse it.
-                from pbrcheck.scene import scene_hash
-
                 want = scene_hash(scene)
                 if ref.meta["scene_hash"] != want:
                     raise BudgetError(f"{ref_path}: reference was rendered for scene hash "
@@ -204,9 +216,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             test = read_exr(test_path, require=RGB)
             test_name = str(test_path)
         else:
-            from realtime.render import render_realtime
-
-            test = render_realtime(scene, check.preset, check.options or None, progress=progress)
+            test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
             test_name = f"real-time {check.preset}"
         cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
     except PbrcheckError as e:
@@ -221,8 +231,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     for bounds, kind in ((check.max, "max"), (check.min, "min")):
         for metric, bound in bounds.items():
             v = cmp.metrics.get(metric)
-            bad = (v is None) or (v > bound if kind == "max" else v < bound)
-            if bad:
+            if worse(v, bound, upper=(kind == "max")):
                 worst = [{"id": o["id"], "name": o["name"], "value": o["metrics"][metric]}
                          for o in cmp.worst_objects(metric)]
                 within = (cmp.summary["noise"] or {}).get("within_noise", {}).get(metric)
@@ -299,8 +308,31 @@ def write_summary(path: Path, results: list[Result]) -> Path:
 
 def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | None = None,
              maps_dir: str | None = None, progress: bool = True, stream=None) -> int:
-    import sys
+    """Run every check of ``budget``; print one line per check and the totals.
 
+    Parameters
+    ----------
+    budget : str or Path
+        The budget TOML file (:func:`load_budget`).
+    junit, summary : str, optional
+        Write JUnit XML / a Markdown summary there.
+    maps_dir : str, optional
+        Error maps of failing checks go to ``maps_dir/<check>``.
+    progress : bool, optional
+        Show render progress on stderr.
+    stream : file, optional
+        Where the lines go (default stdout).
+
+    Returns
+    -------
+    int
+        0 all pass, 1 a check failed, >= 2 a check could not be evaluated (the largest exit code).
+
+    Raises
+    ------
+    BudgetError
+        The budget file is missing or malformed (nothing is rendered).
+    """
     stream = stream or sys.stdout
     checks, base = load_budget(budget)
     results = []

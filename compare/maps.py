@@ -1,7 +1,15 @@
 """Error maps and display images: false-colour PNGs, tone-mapped PNGs, signed-difference EXRs.
 
 PNGs are written with matplotlib's Agg backend (no display needed). Pixels outside the valid mask
-are drawn in :data:`MASKED_GREY` so that excluded background and silhouettes are obvious.
+are drawn in :data:`MASKED_GREY` so that excluded background and silhouettes are obvious. Display
+images apply a renderer's own display transform where it has one (:func:`display_rgb`); metrics
+never see it.
+
+API
+---
+:func:`write_maps`, :func:`write_rel_png`, :func:`write_flip_png`, :func:`write_diff_exr`,
+:func:`write_tonemapped`, :func:`display_rgb`, :func:`tonemap`, :func:`tonemap_aces`,
+:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`.
 """
 
 from __future__ import annotations
@@ -21,12 +29,27 @@ DISPLAY_EXPOSURE = 1.0
 
 
 def _mpl():
-    import matplotlib
+    """matplotlib with the Agg backend, imported on first use (a heavy import most commands skip)."""
+    import matplotlib  # local: heavy, and the backend must be chosen before pyplot is imported
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     return matplotlib, plt
+
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (no display needed)."""
+    return _mpl()[1]
+
+
+def save_figure(fig, path: Path, dpi: int = 80) -> str:
+    """Lay out ``fig``, write it to ``path`` (PNG), close it; returns the file name."""
+    plt = pyplot()
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path).name
 
 
 def _save_rgb(path: Path, rgb: np.ndarray) -> Path:
@@ -46,15 +69,61 @@ def false_colour(values: np.ndarray, vmax: float, cmap: str, mask: np.ndarray | 
     return rgb
 
 
+def srgb_oetf(y: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) of display-linear values in [0, 1]."""
+    return np.where(y <= 0.0031308, 12.92 * y, 1.055 * np.power(y, 1 / 2.4) - 0.055)
+
+
 def tonemap(rgb: np.ndarray, exposure: float = DISPLAY_EXPOSURE) -> np.ndarray:
     """Display version of linear radiance: ACES filmic fit (Narkowicz 2015) then the sRGB OETF."""
     x = np.clip(rgb.astype(np.float64) * exposure, 0.0, None)
     y = np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
-    return np.where(y <= 0.0031308, 12.92 * y, 1.055 * np.power(y, 1 / 2.4) - 0.055)
+    return srgb_oetf(y)
 
 
-def write_tonemapped(path: Path, rgb: np.ndarray) -> Path:
-    return _save_rgb(Path(path), tonemap(rgb))
+# Article 002's fitted ACES (Hill's RRT+ODT fit, via MJP's BakingLab).
+_ACES_IN = np.array([[0.59719, 0.35458, 0.04823], [0.07600, 0.90834, 0.01566], [0.02840, 0.13383, 0.83777]])
+_ACES_OUT = np.array([[1.60475, -0.53108, -0.07367], [-0.10208, 1.10813, -0.00605], [-0.00327, -0.07276, 1.07602]])
+
+
+def tonemap_aces(rgb: np.ndarray) -> np.ndarray:
+    """Article 002's toneMapACES: input matrix, RRTAndODTFit, output matrix, saturate (display-linear)."""
+    c = rgb @ _ACES_IN.T
+    a = c * (c + 0.0245786) - 0.000090537
+    b = c * (0.983729 * c + 0.4329510) + 0.238081
+    return np.clip((a / b) @ _ACES_OUT.T, 0.0, 1.0)
+
+
+def display_rgb(rgb: np.ndarray, options: dict | None = None) -> np.ndarray:
+    """The sRGB display image of linear radiance ``rgb`` under a renderer's display options.
+
+    A real-time preset's ``exposure`` multiplies the radiance and its ``tonemap`` picks the curve:
+    ``aces`` is article 002's fitted ACES (:func:`tonemap_aces`); ``none`` (and images without
+    options: the reference) use the report's filmic curve (:func:`tonemap`). Display only: every
+    metric is computed on the linear radiance.
+
+    Parameters
+    ----------
+    rgb : numpy.ndarray
+        (H, W, 3) linear radiance.
+    options : dict, optional
+        The renderer's options (``tonemap``, ``exposure``); None for the reference.
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W, 3) sRGB-encoded values in [0, 1].
+    """
+    o = options or {}
+    exposure = float(o.get("exposure", 1.0))
+    if o.get("tonemap") == "aces":
+        return srgb_oetf(tonemap_aces(np.clip(rgb.astype(np.float64) * exposure, 0.0, None)))
+    return tonemap(rgb, DISPLAY_EXPOSURE * exposure)
+
+
+def write_tonemapped(path: Path, rgb: np.ndarray, options: dict | None = None) -> Path:
+    """Write :func:`display_rgb` of ``rgb`` as a PNG."""
+    return _save_rgb(Path(path), display_rgb(rgb, options))
 
 
 def write_rel_png(path: Path, comparison) -> Path:

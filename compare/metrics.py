@@ -159,7 +159,7 @@ def _flip_exposures(ref_rgb: np.ndarray) -> tuple[float, float]:
 def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
     """HDR-FLIP error map (H, W) in [0, 1]. Inputs are validated here because flip-evaluator calls
     ``sys.exit`` on bad input: (H, W, 3), finite; passed as contiguous float32, clipped to >= 0."""
-    import flip_evaluator
+    import flip_evaluator  # local: only the FLIP map needs it (a heavy native module)
 
     if ref_rgb.shape != test_rgb.shape or ref_rgb.ndim != 3 or ref_rgb.shape[2] != 3:
         raise ComparisonError(f"FLIP needs two (H, W, 3) images, got {ref_rgb.shape} and {test_rgb.shape}")
@@ -175,7 +175,7 @@ def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
 
 def ictcp(rgb: np.ndarray) -> np.ndarray:
     """Linear sRGB (1.0 = 100 cd/m2) to ICtCp (BT.2100 PQ) via Rec.2020, negatives clipped."""
-    import colour
+    import colour  # local: colour-science takes ~1 s to import; only Delta E ITP needs it
 
     rgb2020 = colour.RGB_to_RGB(rgb.astype(np.float64), colour.RGB_COLOURSPACES["sRGB"],
                                 colour.RGB_COLOURSPACES["ITU-R BT.2020"])
@@ -185,7 +185,7 @@ def ictcp(rgb: np.ndarray) -> np.ndarray:
 
 def delta_e_itp_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
     """Per-pixel ITU-R BT.2124 Delta E_ITP (colour-science ``delta_E_ITP``)."""
-    import colour
+    import colour  # local: see ictcp
 
     return colour.difference.delta_E_ITP(ictcp(ref_rgb), ictcp(test_rgb)).astype(np.float32)
 
@@ -255,11 +255,27 @@ def psnr_peak(m: PixelMaps, mask: np.ndarray) -> float:
     return _f(np.percentile(m.y_ref[mask], PSNR_PEAK_PERCENTILE)) if mask.any() else 0.0
 
 
-def worse(metric: str, value, bound) -> bool:
-    """True when ``value`` is worse than ``bound`` for this metric (None is always worse)."""
+def worse(value, bound, *, upper: bool) -> bool:
+    """True when ``value`` breaks ``bound``: above it for an upper bound (a gate's ``max``), below it
+    for a lower bound (``min``). An undefined value (None, NaN) always breaks it.
+
+    Parameters
+    ----------
+    value : float or None
+        The measured metric.
+    bound : float
+        The budget.
+    upper : bool
+        True for an upper bound (``max``), False for a lower bound (``min``).
+
+    Returns
+    -------
+    bool
+        Whether the budget is broken.
+    """
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return True
-    return value < bound if metric in HIGHER_IS_BETTER else value > bound
+    return value > bound if upper else value < bound
 
 
 # --- the comparison -----------------------------------------------------------------------------
@@ -364,12 +380,3 @@ def _within(metric: str, value, sim) -> bool:
             return True
         return value >= sim - 10.0 * math.log10(NOISE_EXPLAINS_FACTOR)
     return value <= NOISE_EXPLAINS_FACTOR * sim
-
-
-def format_value(v) -> str:
-    """A metric value for tables and messages: 6 significant digits, ``n/a`` for None, ``inf``."""
-    if v is None:
-        return "n/a"
-    if isinstance(v, float) and math.isinf(v):
-        return "inf"
-    return f"{v:.6g}"

@@ -1,30 +1,40 @@
-"""The ``pbrcheck`` command line.
+"""The ``pbrcheck`` command line: the one module that imports every layer.
 
 Library code raises :class:`~pbrcheck.errors.PbrcheckError`; this module alone maps errors to exit
 codes: 0 success, 1 a check failed (``gate``), 2 bad input (one line on stderr, no traceback,
 nothing written), 3 a backend is unavailable, 130 interrupted.
 
-Subcommands of the renderers and the comparator live with them (``reference/commands.py``,
-``realtime/commands.py``, ``compare/commands.py``), each with ``register(subparsers)``.
+Layers import one way (``tests/test_layers.py`` enforces it): core ``pbrcheck`` <- renderers
+``reference``, ``realtime`` <- comparator ``compare`` <- ``compare.research``, then
+``compare.report`` <- this CLI. Subcommands live with their layer (``reference/commands.py``,
+``realtime/commands.py``, ``compare/commands.py``, ``compare/research/commands.py``,
+``compare/report/commands.py``), each with ``register(subparsers, bench_subparsers)``; as the top of
+the stack this module imports them all.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
 
-from . import __version__
-from .errors import PbrcheckError
+import compare.commands
+import compare.report.commands
+import compare.research.commands
+import realtime.commands
+import reference.commands
 
-# Packages that contribute subcommands, in help order.
-COMMAND_MODULES = ("reference.commands", "realtime.commands", "compare.commands")
+from . import __version__
+from .environment import load_environment, scene_hash
+from .errors import PbrcheckError
+from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
+
+#: Modules that contribute subcommands, in help order.
+COMMAND_MODULES = (reference.commands, realtime.commands, compare.commands, compare.research.commands,
+                   compare.report.commands)
 
 
 def _cmd_scenes(args) -> int:
-    from .scene import builtin_scene_names, load_scene
-
     names = builtin_scene_names()
     width = max(len(n) for n in names)
     for n in names:
@@ -35,9 +45,6 @@ def _cmd_scenes(args) -> int:
 
 
 def _cmd_check_scene(args) -> int:
-    from .environment import load_environment
-    from .scene import dump_toml, load_scene, scene_hash
-
     scene = load_scene(args.scene)
     env = load_environment(scene)  # validates the environment's pixels too
     if args.json:
@@ -51,17 +58,8 @@ def _cmd_check_scene(args) -> int:
     return 0
 
 
-def _cmd_demo(args) -> int:
-    """The main job: grows with the product (see README)."""
-    from . import demo
-
-    return demo.run(args)
-
-
-DEFAULT_SCENE = "spheres"
-
-
 def build_parser() -> argparse.ArgumentParser:
+    """The ``pbrcheck`` argument parser with every package's subcommands."""
     p = argparse.ArgumentParser(
         prog="pbrcheck",
         description="Reference (Mitsuba 3) vs real-time (GLSL split-sum) validation of physically based shading.",
@@ -78,23 +76,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="print the resolved scene as JSON")
     s.set_defaults(func=_cmd_check_scene)
 
-    s = sub.add_parser("demo", help="the main job on the default scene (what `make demo` runs)")
-    s.add_argument("--scene", default=DEFAULT_SCENE)
-    s.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
-    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
-    s.set_defaults(func=_cmd_demo)
-
     bench = sub.add_parser("bench", help="benchmarks that print JSON figures")
     bench_sub = bench.add_subparsers(dest="bench_target", metavar="TARGET")
     bench_sub.required = True
     p.set_defaults(_bench_sub=bench_sub)
 
     for mod in COMMAND_MODULES:
-        importlib.import_module(mod).register(sub, bench_sub)
+        mod.register(sub, bench_sub)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -28,6 +28,7 @@ of the smooth sky gradient.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import EnvironmentMapError
+from .exr import read_exr
 from .scene import Environment, Scene
 
 # Resolution (W, H) at which constant and black environments are rasterized: any size is exact.
@@ -190,12 +192,10 @@ def read_image_file(path: str | Path) -> np.ndarray:
     suffix = p.suffix.lower()
     try:
         if suffix == ".exr":
-            from .exr import read_exr
-
             img = read_exr(p)
             return img.rgb
         if suffix == ".hdr":
-            import mitsuba as mi
+            import mitsuba as mi  # heavy optional import: only .hdr files need Mitsuba's reader
 
             return np.array(mi.Bitmap(str(p)), dtype=np.float32)
     except EnvironmentMapError:
@@ -256,3 +256,13 @@ def load_environment(scene_or_env: Scene | Environment) -> EnvMap:
     else:  # pragma: no cover - the scene loader rejects other types
         raise EnvironmentMapError(None, f"unknown environment type {env.type!r}")
     return EnvMap(validate_pixels(data, src), scale=float(env.scale), rotation=float(env.rotation), source=src)
+
+
+def scene_hash(scene: Scene, environment_hash: str | None = None) -> str:
+    """SHA-256 of what determines the pixels: the resolved scene (less names) and the environment's
+    pixels (``environment_hash``; computed by loading the environment when not given)."""
+    if environment_hash is None:
+        environment_hash = load_environment(scene).content_hash
+    blob = json.dumps({"scene": scene.content_dict(), "environment_pixels": environment_hash},
+                      sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import OpenEXR
 
 from .atomic import temp_beside
 from .errors import ImageIOError
@@ -82,7 +83,6 @@ def _meta_value(v) -> str:
 
 def write_exr(path: str | Path, image: Image) -> Path:
     """Write atomically; metadata values that are not strings are stored as JSON strings."""
-    import OpenEXR
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -110,7 +110,6 @@ def read_exr(path: str | Path, require: tuple[str, ...] = ()) -> Image:
     Interleaved ``RGB``/``RGBA`` images from other tools are split into ``R``, ``G``, ``B`` (``A``).
     Raises :class:`ImageIOError` for a missing or unreadable file or a missing required channel.
     """
-    import OpenEXR
 
     path = Path(path)
     if not path.is_file():

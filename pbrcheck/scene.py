@@ -23,12 +23,18 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError
+from .registry import FRESNELS as _FRESNELS
+from .registry import GEOMETRIES as _GEOMETRIES
+from .registry import NDFS as _NDFS
 
 Vec3 = tuple[float, float, float]
 
-NDFS = ("ggx", "beckmann", "blinn_phong")
-GEOMETRIES = ("smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct")
-FRESNELS = ("schlick", "none")
+#: The ``[brdf]`` values a scene may name (pbrcheck.registry owns the lists).
+NDFS = _NDFS.scene_names
+GEOMETRIES = _GEOMETRIES.scene_names
+FRESNELS = _FRESNELS.scene_names
+#: The scene ``pbrcheck`` commands use when none is named.
+DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
 OBJECT_TYPES = ("sphere", "plane", "sphere_grid")
 
@@ -189,18 +195,6 @@ def _plain(x):
     if isinstance(x, (list, tuple)):
         return [_plain(v) for v in x]
     return x
-
-
-def scene_hash(scene: Scene, environment_hash: str | None = None) -> str:
-    """SHA-256 of what determines the pixels: the resolved scene (less names) and the environment's
-    pixels (``environment_hash``; computed by loading the environment when not given)."""
-    if environment_hash is None:
-        from .environment import load_environment
-
-        environment_hash = load_environment(scene).content_hash
-    blob = json.dumps({"scene": scene.content_dict(), "environment_pixels": environment_hash},
-                      sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(blob.encode()).hexdigest()
 
 
 def plane_frame(normal: Vec3) -> tuple[Vec3, Vec3, Vec3]:

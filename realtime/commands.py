@@ -7,14 +7,18 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
+from pbrcheck.exr import Image, write_exr
+from pbrcheck.scene import load_scene
+
+from . import render as R
+from .gl import renderer_name
+from .presets import PRESETS, parse_sets, parse_value, resolve_options
+from .render import dfg_lut, read_lut, render_realtime
+
 
 def _cmd_realtime(args) -> int:
-    from pbrcheck.exr import write_exr
-    from pbrcheck.scene import load_scene
-
-    from .presets import parse_sets, resolve_options
-    from .render import render_realtime
-
     overrides = parse_sets(args.set)
     resolve_options(args.preset, overrides)  # validate before any GL work
     scene = load_scene(args.scene)
@@ -31,13 +35,6 @@ def _cmd_realtime(args) -> int:
 
 
 def _cmd_lut(args) -> int:
-    import numpy as np
-
-    from pbrcheck.exr import Image, write_exr
-
-    from .presets import parse_value
-    from .render import dfg_lut, read_lut
-
     size = parse_value("lut_size", args.size)
     samples = parse_value("lut_samples", args.samples)
     fmt = parse_value("lut_format", args.format)
@@ -61,12 +58,6 @@ def _cmd_lut(args) -> int:
 def bench(size: int = 512, scene_name: str = "spheres", presets=None) -> dict:
     """Wall time of each precompute pass and of one frame, per preset, after a warm-up render
     (shader compilation and llvmpipe's JIT), with ctx.finish() around each pass."""
-    from pbrcheck.scene import load_scene
-
-    from . import render as R
-    from .gl import renderer_name
-    from .presets import PRESETS
-
     scene = load_scene(scene_name).with_camera(width=size, height=size)
     out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "presets": {}}
     for p in presets or PRESETS:
@@ -91,8 +82,6 @@ def _cmd_bench(args) -> int:
 
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
-    from .presets import PRESETS
-
     s = sub.add_parser("realtime", help="render a scene with the real-time GLSL split-sum renderer")
     s.add_argument("scene", help="built-in scene name or path to a TOML scene file")
     s.add_argument("--preset", default="default", choices=list(PRESETS))

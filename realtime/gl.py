@@ -1,9 +1,17 @@
 """Headless OpenGL: one cached moderngl EGL context, and GLSL source assembly.
 
 Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include "file.glsl"``
-lines (each file once), prepends ``#version 430`` and the ``#define`` lines of the caller, and keeps a
-line map so that a compile error reported by the driver as ``0:LINE(COL)`` is re-reported as
-``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`).
+lines (each file once; the sources of :func:`pbrcheck.registry.glsl_generated` are included by
+name like files), prepends ``#version 430``, the named constants of every registry
+(:func:`pbrcheck.registry.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
+of the caller, and keeps a line map so that a compile error reported by the driver as
+``0:LINE(COL)`` is re-reported as ``file.glsl:line`` of the original source
+(:class:`pbrcheck.errors.ShaderCompileError`).
+
+API
+---
+:func:`get_context`, :func:`renderer_name`, :func:`assemble`, :func:`map_errors`,
+:func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pbrcheck.errors import BackendError, ShaderCompileError
+from pbrcheck.registry import glsl_defines, glsl_generated
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 GLSL_VERSION = "#version 430"
@@ -33,7 +42,7 @@ def get_context():
     if _ctx is not None:
         return _ctx
     try:
-        import moderngl
+        import moderngl  # local: a missing GL stack becomes a BackendError with the install line
     except ImportError as e:  # pragma: no cover - setup problem
         raise BackendError(f"moderngl is not installed ({e}); run `make setup`") from None
     try:
@@ -62,17 +71,24 @@ class Source:
     line_map: list  # line_map[k] = (file, line) of assembled line k+1
 
 
+_GENERATED = glsl_generated()
+
+
 def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple = ()) -> None:
     path = SHADER_DIR / name
     if name in stack:
         raise ShaderCompileError(f"{name}: #include cycle through {' -> '.join(stack + (name,))}")
     if name in seen:
         return
-    if not path.is_file():
+    if name in _GENERATED:
+        text = _GENERATED[name]
+    elif path.is_file():
+        text = path.read_text()
+    else:
         where = f"{stack[-1]}" if stack else "<entry>"
         raise ShaderCompileError(f"{where}: #include of missing shader file {name!r}")
     seen.add(name)
-    for i, line in enumerate(path.read_text().splitlines(), start=1):
+    for i, line in enumerate(text.splitlines(), start=1):
         m = _INCLUDE.match(line)
         if m:
             _expand(m.group(1), seen, out_lines, out_map, stack + (name,))
@@ -87,6 +103,9 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
     """The full source of ``entry`` with includes expanded and ``defines`` prepended."""
     lines = [GLSL_VERSION]
     lmap = [("<generated>", 1)]
+    for k, v in glsl_defines().items():
+        lines.append(f"#define {k} {v}")
+        lmap.append(("<registry>", len(lmap)))
     for k, v in sorted((defines or {}).items()):
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\([A-Za-z_][A-Za-z0-9_]*\))?", k):
             raise ShaderCompileError(f"<defines>: bad macro name {k!r}")

@@ -10,8 +10,22 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.lodmap import LodMapping
+from pbrcheck.registry import (
+    BUILTIN_LOD_MAPPINGS,
+    DFGS,
+    FRESNELS,
+    GEOMETRIES,
+    IRRADIANCE_METHODS,
+    IRRADIANCES,
+    LUT_SAMPLINGS,
+    NDFS,
+    RUNTIME_SAMPLINGS,
+    SHADINGS,
+)
 
 
 class OptionError(PbrcheckError):
@@ -29,19 +43,19 @@ class Option:
     power_of_two: bool = False
 
 
-GEOMETRY_CHOICES = ("scene", "smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct",
-                    "schlick_beckmann")
+#: Choices of the G-term options: the scene's own, or any registered term.
+GEOMETRY_CHOICES = ("scene", *GEOMETRIES.names)
 
 OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("shading", "choice", "composition of the terms: material (README model) | article000 | article001 | article002",
-           ("material", "article000", "article001", "article002")),
+           SHADINGS.names),
     Option("ibl", "choice", "specular image-based lighting: split-sum prefiltered cube | runtime importance sampling",
            ("splitsum", "runtime")),
     Option("cube_size", "int", "face size of the environment cube (texels)", lo=4, hi=4096, power_of_two=True),
     Option("cube_format", "choice", "cube texel format (f16 switches to f32 when radiance > 65504)", ("f16", "f32")),
-    Option("irradiance", "choice", "diffuse irradiance: cube convolution | SH9 (article 002)", ("convolution", "sh9")),
+    Option("irradiance", "choice", "diffuse irradiance: cube convolution | SH9 (article 002)", IRRADIANCES.names),
     Option("irradiance_method", "choice", "convolution: sum over source texels | article 000's polar/azimuth steps",
-           ("texel_sum", "polar_steps")),
+           IRRADIANCE_METHODS.names),
     Option("irradiance_size", "int", "face size of the irradiance cube", lo=1, hi=512),
     Option("irradiance_source_size", "int", "face size of the source level the irradiance passes read", lo=1, hi=512,
            power_of_two=True),
@@ -51,24 +65,24 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("prefilter_nl_weight", "bool", "weight prefilter samples by N.L (article 000)"),
     Option("prefilter_levels", "int", "levels in the prefiltered mip chain (level 0 = cube_size)", lo=1, hi=13),
     Option("lod_mapping", "choice", "roughness -> mip level: linear | quadratic | log2 | fitted:FILE.json (pbrcheck "
-           "fit-lod's fit; bakes the chain of the mapping it was fitted on)", ("linear", "quadratic", "log2")),
+           "fit-lod's fit; bakes the chain of the mapping it was fitted on)", BUILTIN_LOD_MAPPINGS),
     Option("lod_override", "float", "< 0: off; >= 0: every prefiltered lookup at this mip level, whatever the "
            "roughness (pbrcheck fit-lod's LOD scan)", lo=-1.0, hi=16.0),
-    Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", ("lut", "analytic")),
+    Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", DFGS.names),
     Option("lut_size", "int", "DFG LUT size N (N x N)", lo=2, hi=1024),
     Option("lut_samples", "int", "samples per DFG LUT texel", lo=1, hi=1 << 16),
     Option("lut_format", "choice", "DFG LUT format: f16 (RG16F) | f32 (RG32F)", ("f16", "f32")),
     Option("lut_geometry", "choice", "geometry term integrated into the LUT ('scene': the scene's [brdf] geometry)",
            GEOMETRY_CHOICES),
-    Option("lut_sampling", "choice", "LUT sampling: GGX visible normals | NDF half vectors", ("vndf", "ndf")),
+    Option("lut_sampling", "choice", "LUT sampling: GGX visible normals | NDF half vectors", LUT_SAMPLINGS.names),
     Option("runtime_samples", "int", "samples per pixel of runtime importance sampling", lo=1, hi=1 << 14),
     Option("runtime_sampling", "choice", "runtime half-vector distribution (article 001 samples Beckmann for GGX)",
-           ("beckmann", "ggx", "vndf")),
+           RUNTIME_SAMPLINGS.names),
     Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
     Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
-    Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", "ggx", "beckmann", "blinn_phong")),
+    Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names)),
     Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
-    Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", "schlick", "none")),
+    Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names)),
     Option("min_roughness", "float", "roughness clamp (article 001: 0.01)", lo=0.0, hi=1.0),
     Option("reflect_bug", "bool", "article 002's reflect(v, n) with v towards the eye (looks up -r)"),
     Option("shadows", "bool", "point lights are occluded by the scene's objects (off by default: the "
@@ -199,11 +213,7 @@ def parse_value(name: str, raw) -> object:
 
 
 def _fitted_value(raw: str) -> str:
-    """``fitted:PATH``: the file must hold a fitted mapping (compare.lodfit); the path is made absolute."""
-    from pathlib import Path
-
-    from compare.lodfit import LodMapping
-
+    """``fitted:PATH``: the file must hold a fitted mapping (pbrcheck.lodmap); the path is made absolute."""
     path = Path(raw[len("fitted:"):]).expanduser()
     if not raw[len("fitted:"):]:
         raise OptionError("option lod_mapping: fitted: needs a file, as in fitted:out/fit_lod.json")
@@ -212,11 +222,9 @@ def _fitted_value(raw: str) -> str:
 
 
 def fitted_mapping(value: str):
-    """The :class:`compare.lodfit.LodMapping` of a ``fitted:PATH`` option value, else None."""
+    """The :class:`pbrcheck.lodmap.LodMapping` of a ``fitted:PATH`` option value, else None."""
     if not isinstance(value, str) or not value.startswith("fitted:"):
         return None
-    from compare.lodfit import LodMapping
-
     return LodMapping.load(value[len("fitted:"):])
 
 

@@ -9,15 +9,27 @@ Conventions at both ends of every baked artifact
   :meth:`pbrcheck.environment.EnvMap.radiance`); levels 1.. = box-filtered mips (glGenerateMipmap).
 * Irradiance cube / SH9: E(n) / pi (radiance units: Lambert diffuse = albedo x value).
 * Prefiltered cube: ``prefilter_levels`` levels, level L baked at roughness
-  ``roughness_from_lod(L)`` of the ``lod_mapping`` (shaders/ibl.glsl), read at
+  ``roughness_from_lod(L)`` of the ``lod_mapping`` (shaders/lod.glsl), read at
   ``lod_from_roughness`` (its inverse); max level = prefilter_levels - 1. Two hooks for
   ``pbrcheck fit-lod``: ``lod_mapping=fitted:FILE`` bakes the chain of the file's ``chain`` mapping
   and reads it at the fitted function (``LOD_FITTED(r)``, a ``#define`` of
-  :meth:`compare.lodfit.LodMapping.glsl_expr`); ``lod_override >= 0`` reads every object at that
+  :meth:`pbrcheck.lodmap.LodMapping.glsl_expr`); ``lod_override >= 0`` reads every object at that
   level.
 * DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
+
+Compile-time switches are the named constants of :mod:`pbrcheck.registry` (``{"GEOMETRY":
+"GEOMETRY_SMITH_GGX"}``); uniforms are set with :func:`_set`, which raises on a uniform the program
+lacks unless the caller declares it optional (a variant's compiler may drop a uniform its code
+does not read; a misspelt or renamed uniform would otherwise render with 0).
+
+API
+---
+:func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
+:func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
+:func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
+:func:`chain_mapping`, :func:`effective_cube_format`.
 """
 
 from __future__ import annotations
@@ -26,33 +38,60 @@ import json
 import math
 import sys
 import time
+from dataclasses import asdict
 
 import numpy as np
 
 from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment
+from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
-from pbrcheck.scene import NDFS, Plane, Scene, plane_frame
+from pbrcheck.registry import (
+    DFGS,
+    FRESNELS,
+    GEOMETRIES,
+    IRRADIANCE_METHODS,
+    IRRADIANCES,
+    LOD_MAPPINGS,
+    LUT_SAMPLINGS,
+    NDFS,
+    RUNTIME_SAMPLINGS,
+    SHADINGS,
+)
+from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name
 from .presets import fitted_mapping, resolve_options
 
 HALF_MAX = 65504.0
-NDF_INDEX = {n: i for i, n in enumerate(NDFS)}
-GEOMETRY_INDEX = {"smith_ggx_correlated": 0, "smith_ggx": 1, "schlick_ggx_ibl": 2, "schlick_ggx_direct": 3,
-                  "schlick_beckmann": 4}
-SHADING_INDEX = {"material": 0, "article000": 1, "article001": 2, "article002": 3}
-LOD_INDEX = {"linear": 0, "quadratic": 1, "log2": 2}
-#: LOD_MAPPING of the frame pass for a fitted mapping (shaders/ibl.glsl: LOD_FITTED(r) is its expression)
-LOD_FITTED_INDEX = 3
+#: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
+#: them: the split sum's prefiltered cube, max_lod and lod_override (ibl=runtime has none); the
+#: log2 mapping's cube_log2; runtime sampling's env_cube, env_face_size and runtime_samples; the
+#: LUT-based DFG's dfg_lut (dfg=analytic); the irradiance cube (irradiance=sh9); the material
+#: composition's Kd LUT (the article compositions have their own diffuse). Every other uniform is
+#: required: setting one the program lacks is an error (a renamed uniform would render with 0).
+FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "cube_log2", "env_cube",
+                                    "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut"})
 
 
 def chain_mapping(o: dict) -> str:
-    """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``)."""
+    """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``).
+
+    Parameters
+    ----------
+    o : dict
+        Resolved real-time options (:func:`realtime.presets.resolve_options`).
+
+    Returns
+    -------
+    str
+        A built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`.
+    """
     fm = fitted_mapping(o["lod_mapping"])
     return fm.chain if fm is not None else o["lod_mapping"]
-RUNTIME_SAMPLING_INDEX = {"beckmann": 0, "ggx": 1, "vndf": 2}
+
+
 # Samples of the Kd (diffuse Fresnel) LUT: a smooth 1-D integrand, error < 1e-4 at 4096 points.
 KD_LUT_SAMPLES = 4096
 
@@ -61,11 +100,19 @@ _timings: dict = {}   # artifact key -> seconds it took to bake
 _warm: set = set()    # programs already dispatched once (JIT done)
 
 
-def _set(prog, name, value):
+class UniformError(BackendError):
+    """A uniform the program lacks was set without being declared optional (renamed or misspelt)."""
+
+
+def _set(prog, name, value, optional: bool = False):
+    """Set uniform ``name``; a uniform the program lacks raises :class:`UniformError` unless
+    ``optional`` (GLSL compilers drop uniforms a variant does not read: only those are optional)."""
     try:
         prog[name].value = value
     except KeyError:
-        pass
+        if not optional:
+            raise UniformError(f"uniform {name!r} is not in the program (renamed or misspelt?); "
+                               f"declare it optional where a variant does not read it") from None
 
 
 def _timed(ctx, fn):
@@ -87,8 +134,6 @@ def _baked(name: str, key, timings: dict | None, run):
 
 
 def _env_key(scene_env) -> str:
-    from dataclasses import asdict
-
     return json.dumps(asdict(scene_env), sort_keys=True, default=str)
 
 
@@ -163,7 +208,8 @@ def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
     key = ("irr", env.content_hash, o["cube_size"], fmt, o["irradiance_size"], o["irradiance_source_size"], method,
            o["irradiance_step"] if method else None)
     ctx = get_context()
-    prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt), "METHOD": method})
+    prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt),
+                                               **IRRADIANCE_METHODS.select(o["irradiance_method"])})
     size = o["irradiance_size"]
 
     def run():
@@ -172,9 +218,10 @@ def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
         cube.use(1)
         _set(prog, "src_cube", 1)
         _set(prog, "face_size", size)
-        _set(prog, "src_size", o["irradiance_source_size"])
+        # texel_sum reads src_size, polar_steps reads step_size; each variant drops the other.
+        _set(prog, "src_size", o["irradiance_source_size"], optional=o["irradiance_method"] != "texel_sum")
         _set(prog, "src_lod", float(src_lod))
-        _set(prog, "step_size", float(o["irradiance_step"]))
+        _set(prog, "step_size", float(o["irradiance_step"]), optional=o["irradiance_method"] != "polar_steps")
         tex.bind_to_image(0, read=False, write=True, level=0)
         prog.run(groups(size, 8), groups(size, 8), 6)
         return tex
@@ -221,15 +268,16 @@ def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
            o["prefilter_nl_weight"], chain)
     prog = compute_program("prefilter.comp", {
         "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o["prefilter_filtered"]),
-        "NL_WEIGHT": int(o["prefilter_nl_weight"]), "LOD_MAPPING": LOD_INDEX[chain]})
+        "NL_WEIGHT": int(o["prefilter_nl_weight"]), **LOD_MAPPINGS.select(chain)})
 
     def run():
         tex = _cube(size, fmt, levels)
         cube.use(1)
         _set(prog, "src_cube", 1)
-        _set(prog, "src_face_size", float(size))
+        # Filtered importance sampling reads the source size; only the log2 chain reads cube_log2.
+        _set(prog, "src_face_size", float(size), optional=not o["prefilter_filtered"])
         _set(prog, "max_lod", float(levels - 1))
-        _set(prog, "cube_log2", float(math.log2(size)))
+        _set(prog, "cube_log2", float(math.log2(size)), optional=chain != "log2")
         _set(prog, "n_samples", int(o["prefilter_samples"]))
         for L in range(levels):
             s = max(size >> L, 1)
@@ -250,8 +298,8 @@ def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", 
     key = ("lut", size, samples, fmt, geometry, ndf, sampling)
     ctx = get_context()
     prog = compute_program("dfg_lut.comp", {
-        "LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f", "SAMPLING": 0 if sampling == "vndf" else 1,
-        "NDF": NDF_INDEX[ndf], "GEOMETRY": GEOMETRY_INDEX[geometry]})
+        "LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f", **LUT_SAMPLINGS.select(sampling),
+        **NDFS.select(ndf), **GEOMETRIES.select(geometry)})
 
     def run():
         tex = ctx.texture((size, size), 2, dtype="f2" if fmt == "f16" else "f4")
@@ -395,16 +443,15 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         bar.update(1, "kd_lut")
 
         shading = o["shading"]  # its combination with ibl is checked by resolve_options
+        fm = fitted_mapping(o["lod_mapping"])
         defines = {
-            "SHADING": SHADING_INDEX[shading], "NDF": NDF_INDEX[terms["ndf"]],
-            "GEOMETRY": GEOMETRY_INDEX[terms["geometry"]], "FRESNEL": 0 if terms["fresnel"] == "schlick" else 1,
-            "IRRADIANCE": 1 if o["irradiance"] == "sh9" else 0, "DFG": 1 if o["dfg"] == "analytic" else 0,
-            "LOD_MAPPING": LOD_INDEX.get(o["lod_mapping"], LOD_FITTED_INDEX), "SHADOWS": int(o["shadows"]),
-            "RUNTIME_SAMPLING": RUNTIME_SAMPLING_INDEX[o["runtime_sampling"]],
+            **SHADINGS.select(shading), **NDFS.select(terms["ndf"]), **GEOMETRIES.select(terms["geometry"]),
+            **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
+            **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
+            **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
             "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
             "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
         }
-        fm = fitted_mapping(o["lod_mapping"])
         if fm is not None:
             defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
         t0 = time.perf_counter()
@@ -426,11 +473,9 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         for unit, name, tex, kind in ((1, "prefiltered", pre, "cube"), (2, "irradiance_cube", irr, "cube"),
                                       (3, "env_cube", cube, "cube"), (4, "dfg_lut", lut, "2d"), (5, "kd_lut", kd, "2d")):
             (tex if tex is not None else _dummy(kind)).use(unit)
-            _set(prog, name, unit)
-        try:
-            prog["sh"].write(np.asarray(sh, np.float32).tobytes())
-        except KeyError:
-            pass
+            _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
+        if o["irradiance"] == "sh9":
+            prog["sh"].write(np.asarray(sh, np.float32).tobytes())  # KeyError here: the uniform was renamed
         r, u, f = camera_frame(scene.camera)
         tx, ty = tan_half_fov(scene.camera)
         _set(prog, "n_objects", len(scene.objects))
@@ -441,12 +486,13 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         _set(prog, "cam_forward", tuple(float(x) for x in f))
         _set(prog, "image_size", (W, H))
         _set(prog, "ss", int(o["supersample"]))
-        _set(prog, "max_lod", float(o["prefilter_levels"] - 1))
-        _set(prog, "cube_log2", float(math.log2(o["cube_size"])))
-        _set(prog, "env_face_size", float(o["cube_size"]))
-        _set(prog, "runtime_samples", int(o["runtime_samples"]))
+        for name, value in (("max_lod", float(o["prefilter_levels"] - 1)),
+                            ("cube_log2", float(math.log2(o["cube_size"]))),
+                            ("env_face_size", float(o["cube_size"])),
+                            ("runtime_samples", int(o["runtime_samples"])),
+                            ("lod_override", float(o["lod_override"]))):
+            _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
         _set(prog, "min_roughness", float(o["min_roughness"]))
-        _set(prog, "lod_override", float(o["lod_override"]))
 
         def frame():
             prog.run(groups(W, 8), groups(H, 8), 1)
@@ -492,25 +538,3 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
     }, meta)
-
-
-# Article 002's fitted ACES (Hill's RRT+ODT fit, via MJP's BakingLab).
-_ACES_IN = np.array([[0.59719, 0.35458, 0.04823], [0.07600, 0.90834, 0.01566], [0.02840, 0.13383, 0.83777]])
-_ACES_OUT = np.array([[1.60475, -0.53108, -0.07367], [-0.10208, 1.10813, -0.00605], [-0.00327, -0.07276, 1.07602]])
-
-
-def tonemap_aces(rgb: np.ndarray) -> np.ndarray:
-    """Article 002's toneMapACES: input matrix, RRTAndODTFit, output matrix, saturate."""
-    c = rgb @ _ACES_IN.T
-    a = c * (c + 0.0245786) - 0.000090537
-    b = c * (0.983729 * c + 0.4329510) + 0.238081
-    return np.clip((a / b) @ _ACES_OUT.T, 0.0, 1.0)
-
-
-def display_rgb(image: Image) -> np.ndarray:
-    """Display values of a render: exposure, then the preset's tone map (EXR output stays linear)."""
-    o = json.loads(image.meta.get("options", "{}"))
-    rgb = image.rgb * float(o.get("exposure", 1.0))
-    if o.get("tonemap") == "aces":
-        return tonemap_aces(rgb)
-    return np.clip(rgb, 0.0, 1.0)

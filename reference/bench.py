@@ -18,6 +18,9 @@ import time
 
 import numpy as np
 
+from pbrcheck.environment import load_environment
+from pbrcheck.scene import load_scene
+
 from .render import _mi, load_mitsuba_scene, render_uncached
 
 BENCH_RESOLUTION = (360, 300)   # the spheres scene's own resolution
@@ -72,8 +75,6 @@ def _time_bsdf(bsdf, lanes, repeats):
 
 def run_bench(quick: bool = False) -> dict:
     mi, dr = _mi()
-    from pbrcheck.environment import load_environment
-    from pbrcheck.scene import load_scene
 
     W, H = (48, 40) if quick else BENCH_RESOLUTION
     spp = 8 if quick else BENCH_SPP

@@ -2,30 +2,19 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
+from pbrcheck.args import positive_int
+from pbrcheck.exr import write_exr
+from pbrcheck.scene import load_scene
 
-def _positive_int(lo):
-    def parse(s):
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, found {s!r}") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, found {v}")
-        return v
-    return parse
+from .bench import run_bench
+from .render import render_reference
 
 
 def _cmd_reference(args) -> int:
-    from pbrcheck.exr import write_exr
-    from pbrcheck.scene import load_scene
-
-    from .render import render_reference
-
     scene = load_scene(args.scene)
     img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,
                            use_cache=not args.no_cache, progress=True)
@@ -38,8 +27,6 @@ def _cmd_reference(args) -> int:
 
 
 def _cmd_bench(args) -> int:
-    from .bench import run_bench
-
     print(json.dumps(run_bench(quick=args.quick), indent=2))
     sys.stdout.flush()
     return 0
@@ -49,11 +36,11 @@ def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("reference", help="render the Mitsuba 3 reference image of a scene (EXR)")
     s.add_argument("scene", help="built-in scene name or path to a TOML scene file")
-    s.add_argument("--spp", type=_positive_int(2), default=64, help="samples per pixel (>= 2; default 64)")
+    s.add_argument("--spp", type=positive_int(2), default=64, help="samples per pixel (>= 2; default 64)")
     s.add_argument("--mode", choices=("local", "path"), default="local",
                    help="local: first hit, MIS, no visibility (default); path: Mitsuba's path tracer")
-    s.add_argument("--seed", type=_positive_int(0), default=0)
-    s.add_argument("--max-depth", type=_positive_int(1), default=None,
+    s.add_argument("--seed", type=positive_int(0), default=0)
+    s.add_argument("--max-depth", type=positive_int(1), default=None,
                    help="path mode: maximum path depth (default 8)")
     s.add_argument("--out", default=None, help="output EXR (default out/reference_<scene>_<mode>_<spp>spp.exr)")
     s.add_argument("--no-cache", action="store_true", help="render even if a cached reference exists, store nothing")

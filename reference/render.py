@@ -33,10 +33,11 @@ import numpy as np
 import pbrcheck
 from pbrcheck.cache import Cache, cache_key
 from pbrcheck.camera import camera_frame, tan_half_fov
-from pbrcheck.environment import EnvMap, load_environment
+from pbrcheck.environment import EnvMap, load_environment, scene_hash
+from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
-from pbrcheck.scene import Plane, Scene, Sphere, plane_frame, scene_hash
+from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 
 from .variant import ensure_variant
 
@@ -53,6 +54,7 @@ AOV_METHOD = "N, NdotV, object: pixel-centre ray; coverage: fraction of box-filt
 
 def _mi():
     ensure_variant()
+    # Local: the variant must be set before Mitsuba's variant-specific names are used.
     import drjit as dr
     import mitsuba as mi
 
@@ -81,7 +83,7 @@ def environment_emitter_dict(env: EnvMap) -> dict | None:
 def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict | None = None) -> dict:
     """The Mitsuba scene dictionary (no sensor, no integrator: rays are generated here)."""
     mi, _ = _mi()
-    from .bsdf import material_dict
+    from .bsdf import material_dict  # local: reference.bsdf subclasses mi.BSDF, which needs the variant set
 
     env = env if env is not None else load_environment(scene)
     d: dict = {"type": "scene"}
@@ -220,8 +222,6 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     variant = ensure_variant()
     mi, dr = _mi()
     if variant == "scalar_rgb":  # pragma: no cover - needs a machine without LLVM
-        from pbrcheck.errors import BackendError
-
         raise BackendError("the reference renders wavefronts and needs llvm_ad_rgb or cuda_ad_rgb; "
                            "install LLVM (libllvm19) for Dr.Jit")
     env = env if env is not None else load_environment(scene)
@@ -279,7 +279,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     ch.update({f"variance.{c}": var[:, i].reshape(H, W) for i, c in enumerate("RGB")})
     ch.update(_aovs(mi, dr, mscene, scene, shape_index))
     ch["coverage"] = (hits / spp).reshape(H, W)
-    import drjit
+    import drjit  # already imported by _mi(); local like there
     import mitsuba
 
     meta = {

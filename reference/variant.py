@@ -10,6 +10,8 @@ import pbrcheck  # noqa: F401  (DRJIT_LIBLLVM_PATH before drjit loads)
 import drjit as dr
 import mitsuba as mi
 
+from pbrcheck.errors import BackendError
+
 PREFERENCE = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 _chosen: str | None = None
 
@@ -33,15 +35,13 @@ def ensure_variant() -> str:
                 _chosen = v
                 break
         else:  # pragma: no cover
-            from pbrcheck.errors import BackendError
-
             raise BackendError("no usable Mitsuba variant (cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
         if _chosen == "scalar_rgb":
             warnings.warn("pbrcheck reference: no CUDA or LLVM backend; falling back to Mitsuba's "
                           "scalar_rgb variant (about 50x slower)", RuntimeWarning, stacklevel=2)
     if mi.variant() != _chosen:
         mi.set_variant(_chosen)
-    from .bsdf import register
+    from .bsdf import register  # local: reference.bsdf subclasses mi.BSDF, which needs the variant set
 
     register()
     return _chosen

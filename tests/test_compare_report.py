@@ -11,7 +11,6 @@ import json
 import re
 import subprocess
 import sys
-import types
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -110,26 +109,25 @@ def fake_realtime(scene, preset="default", options=None, *, progress=True):
 
 @pytest.fixture
 def fakes(monkeypatch):
-    ref_mod = types.ModuleType("reference.render")
-    ref_mod.render_reference = fake_reference
-    rt_mod = types.ModuleType("realtime.render")
-    rt_mod.render_realtime = fake_realtime
-    pre_mod = types.ModuleType("realtime.presets")
-    pre_mod.PRESETS = {"default": {}, "cheap": {}}
+    import compare.renderers as renderers
 
-    def resolve_options(preset, overrides):
+    presets = {"default": {}, "cheap": {}}
+
+    def resolve_options(preset, overrides=None):
         from pbrcheck.errors import PbrcheckError
 
-        if preset not in pre_mod.PRESETS:
+        if preset not in presets:
             raise PbrcheckError(f"unknown preset {preset!r}")
         for k in overrides or {}:
             if k not in ("prefilter_samples", "lut_size"):
                 raise PbrcheckError(f"unknown option {k!r}")
         return {"prefilter_samples": 64, "lut_size": 32, **(overrides or {})}
 
-    pre_mod.resolve_options = resolve_options
-    for name, mod in (("reference.render", ref_mod), ("realtime.render", rt_mod), ("realtime.presets", pre_mod)):
-        monkeypatch.setitem(sys.modules, name, mod)
+    # The renderer seam: every compare, report and research module renders through it.
+    monkeypatch.setattr(renderers, "render_reference", fake_reference)
+    monkeypatch.setattr(renderers, "render_under_test", fake_realtime)
+    monkeypatch.setattr(renderers, "preset_names", lambda: list(presets))
+    monkeypatch.setattr(renderers, "resolve_options", resolve_options)
     for v in CALLS.values():
         v.clear()
     return CALLS
@@ -209,7 +207,7 @@ def test_sweep_bad_vary_exits_2(fakes, scene_file, tmp_path, capsys, vary, msg):
 
 
 def test_pareto_front():
-    from compare.sweep import pareto_front, split_timings
+    from compare.report.sweep import pareto_front, split_timings
 
     pts = [(1, 5), (2, 3), (3, 4), (4, 1), (2, 3.5), (None, 1)]
     assert pareto_front(pts) == [0, 1, 3]
@@ -283,7 +281,9 @@ def test_gate_renderer_crash_is_an_error_not_a_failure(fakes, scene_file, tmp_pa
     def boom(*a, **k):
         raise RuntimeError("GL context lost")
 
-    monkeypatch.setattr(sys.modules["realtime.render"], "render_realtime", boom)
+    import compare.renderers as renderers
+
+    monkeypatch.setattr(renderers, "render_under_test", boom)
     budget = tmp_path / "budget.toml"
     budget.write_text(f'[[check]]\nname = "x"\nscene = "{scene_file.name}"\nreference = "auto"\nspp = 4\n'
                       '[check.max]\nrelmse = 1\n')

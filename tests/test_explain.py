@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compare.explain import run_explain
+from compare.research.explain import run_explain
 from pbrcheck.scene import load_scene
 
 # Small: spheres at 24 px high, 64 spp, 64^2 cubes, exact counterparts at 1/8 of their sample counts
@@ -20,29 +20,29 @@ def test_explain_measures_every_source():
     # direct-lighting k, N.L-weighted prefilter, linear LOD, its composition.
     res = run_explain(load_scene("spheres"), preset="splitsum_basic", options=OPTS, spp=SPP, size=SIZE,
                       cube_max=64, samples_scale=0.125)
-    names = [r["source"] for r in res["sources"]]
+    names = [r.source for r in res.sources]
     assert names == ["lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "geometry", "ndf_fresnel",
                      "composition", "lod_mapping"]
-    b = res["baseline"]["relmse"]
+    b = res.baseline["relmse"]
     assert np.isfinite(b) and b > 0
-    for r in res["sources"]:
-        assert r["error"] is None, r
-        assert all(np.isfinite(v) for v in r["metrics"].values()), r
-        assert r["contribution"] == b - r["metrics"]["relmse"]
+    for r in res.sources:
+        assert r.error is None, r
+        assert all(np.isfinite(v) for v in r.metrics.values()), r
+        assert r.contribution == b - r.metrics["relmse"]
     # measured, not assumed: the sources that change this preset's pixels change the error
-    changed = [r["source"] for r in res["sources"] if abs(r["contribution"]) > 1e-9]
+    changed = [r.source for r in res.sources if abs(r.contribution) > 1e-9]
     assert {"geometry", "composition", "prefilter_samples"} <= set(changed), changed
     # the best split sum is better than the preset, and dropping the split sum itself better still
-    assert res["all_but_vnr"]["metrics"]["relmse"] <= b, res["all_but_vnr"]
-    assert res["all_exact"]["metrics"]["relmse"] <= res["all_but_vnr"]["metrics"]["relmse"], res["all_exact"]
+    assert res.all_but_vnr.metrics["relmse"] <= b, res.all_but_vnr
+    assert res.all_exact.metrics["relmse"] <= res.all_but_vnr.metrics["relmse"], res.all_exact
     # an article composition has no runtime-sampled specular: v=n=r moves to the material model
-    vnr = next(r for r in res["sources"] if r["source"] == "v=n=r")
-    assert vnr["options"]["shading"] == "material" and vnr["options"]["ibl"] == "runtime"
-    assert res["noise_relmse"] is not None and 0 < res["noise_relmse"] < b
+    vnr = next(r for r in res.sources if r.source == "v=n=r")
+    assert vnr.options["shading"] == "material" and vnr.options["ibl"] == "runtime"
+    assert res.noise_relmse is not None and 0 < res.noise_relmse < b
 
 
 def test_vnr_row_keeps_the_material_composition_and_the_scene_ndf():
-    from compare.explain import sources
+    from compare.research.explain import sources
     from realtime.presets import resolve_options
 
     o = resolve_options("default", {})

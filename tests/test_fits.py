@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from compare.lodfit import BASIS_NAMES, LodFitError, LodMapping
+from pbrcheck.lodmap import BASIS_NAMES, LodFitError, LodMapping
 from pbrcheck.scene import load_scene
 
 # Small but real: the spheres scene (5 x 6 grid, sky with a sun) at 40 px high, 16 spp, 32^2 cubes
@@ -22,7 +22,7 @@ NO_WORSE_RTOL = 1e-6
 
 @pytest.fixture(scope="module")
 def fit(tmp_path_factory):
-    from compare.fitlod import run_fit_lod
+    from compare.research.fit_lod import run_fit_lod
 
     out = tmp_path_factory.mktemp("fitlod") / "fit.json"
     res = run_fit_lod(load_scene("spheres"), options=FIT_OPTS, spp=FIT_SPP, size=FIT_SIZE, out=out)
@@ -48,9 +48,9 @@ def test_fit_lod_json_shape(fit):
 
 def test_fitted_mapping_no_worse_than_best_builtin(fit):
     _, res = fit
-    m = res["mappings"]
-    best = min(m[k]["relmse"] for k in ("linear", "quadratic", "log2"))
-    assert m["fitted"]["relmse"] <= best * (1 + NO_WORSE_RTOL), m
+    m = res.mappings
+    best = min(m[k].relmse for k in ("linear", "quadratic", "log2"))
+    assert m["fitted"].relmse <= best * (1 + NO_WORSE_RTOL), m
 
 
 def test_realtime_uses_fitted_mapping(fit, tmp_path):
@@ -89,7 +89,7 @@ def test_fitted_override_equals_glsl_expression():
 def test_error_objective_recovers_known_mapping():
     """Synthetic error curves (L - truth(r))^2 with the minimum on a known mapping: the
     error-minimizing fit lands on it (within RECOVERY_TOL levels, as tests/test_lodfit.py)."""
-    from compare.lodfit import fit_lod_to_error
+    from compare.research.monotone_fit import fit_lod_to_error
 
     r = np.linspace(0, 1, 16)
     grid = np.arange(0, 8.001, 0.25)
@@ -111,50 +111,50 @@ ROUGH_TOL = 0.04
 def _metal_sphere(size: int, env_resolution, base_color, roughness: float, *, sun_deg: float = 20.0,
                   sun_radiance: float = 5.0, metallic: float = 1.0):
     """One sphere filling a size x size image under a sun (default: a soft 20-degree one)."""
-    from compare.fitrough import sphere_under_sun
+    from compare.research.fit_roughness import sphere_under_sun
 
     return sphere_under_sun(size, roughness, sun_deg=sun_deg, sun_radiance=sun_radiance, metallic=metallic,
                             base_color=base_color, env_resolution=env_resolution)
 
 
 def test_fit_roughness_recovers_known_roughness():
-    from compare.fitrough import fit_roughness
+    from compare.research.fit_roughness import fit_roughness
     from reference.render import render_uncached
 
     scene = _metal_sphere(24, [128, 64], [0.9, 0.6, 0.3], 0.35)
     target = render_uncached(scene, spp=256, progress=False)
-    rows = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.65])
-    assert abs(rows[0]["apparent_roughness"] - 0.35) < ROUGH_TOL, rows
-    lo, hi = rows[0]["range"]
-    assert lo <= 0.35 <= hi and lo <= rows[0]["apparent_roughness"] <= hi, rows
-    assert rows[0]["loss"] is not None and np.isfinite(rows[0]["loss"])
+    rows, _ = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.65])
+    assert abs(rows[0].apparent_roughness - 0.35) < ROUGH_TOL, rows
+    lo, hi = rows[0].range
+    assert lo <= 0.35 <= hi and lo <= rows[0].apparent_roughness <= hi, rows
+    assert rows[0].loss is not None and np.isfinite(rows[0].loss)
 
 
 def test_fit_roughness_recovers_low_roughness_under_a_small_bright_sun():
     """The case that drifted: with plain L2 and no scan, r = 0.15 under an 8-degree sun of radiance 60
     came back as 0.05 (the highlight's pixel noise swamped the gradient below the truth; Adam walked
     towards the less noisy low roughness)."""
-    from compare.fitrough import fit_roughness
+    from compare.research.fit_roughness import fit_roughness
     from reference.render import render_uncached
 
     scene = _metal_sphere(32, [512, 256], [0.9, 0.6, 0.3], 0.15, sun_deg=8.0, sun_radiance=60.0)
     target = render_uncached(scene, spp=1024, progress=False)
-    rows = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.5])
-    assert abs(rows[0]["apparent_roughness"] - 0.15) < ROUGH_TOL, rows
-    lo, hi = rows[0]["range"]
+    rows, _ = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.5])
+    assert abs(rows[0].apparent_roughness - 0.15) < ROUGH_TOL, rows
+    lo, hi = rows[0].range
     assert lo <= 0.15 <= hi, rows
 
 
 def test_fit_roughness_without_scan_refines_from_its_start():
     """``scan=False``: Adam alone, from the given start, within [ROUGH_MIN, 1] and no range."""
-    from compare.fitrough import fit_roughness
+    from compare.research.fit_roughness import fit_roughness
     from reference.render import render_uncached
 
     scene = _metal_sphere(24, [128, 64], [0.9, 0.6, 0.3], 0.35)
     target = render_uncached(scene, spp=256, progress=False)
-    rows = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.45], scan=False)
-    assert abs(rows[0]["apparent_roughness"] - 0.35) < ROUGH_TOL, rows
-    assert rows[0]["start"] == pytest.approx(0.45) and "range" not in rows[0]
+    rows, _ = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.45], scan=False)
+    assert abs(rows[0].apparent_roughness - 0.35) < ROUGH_TOL, rows
+    assert rows[0].start == pytest.approx(0.45) and rows[0].range is None
 
 
 # unbiased_fit_loss: the product of two independent renders' errors estimates the expected render's
@@ -165,7 +165,7 @@ UNBIASED_Z = 4.0
 
 
 def test_unbiased_fit_loss_removes_the_variance_term_and_predicts_its_spread():
-    from compare.fitrough import _weight, unbiased_fit_loss
+    from compare.research.fit_roughness import _weight, unbiased_fit_loss
 
     rng = np.random.default_rng(7)
     target = rng.uniform(0.0, 3.0, (400, 3)).astype(np.float64)
@@ -189,7 +189,7 @@ def test_unbiased_fit_loss_removes_the_variance_term_and_predicts_its_spread():
 
 
 def test_bracket_takes_the_lowest_upper_bound_and_the_first_told_apart_neighbours():
-    from compare.fitrough import bracket
+    from compare.research.fit_roughness import bracket
 
     scan = [[0.0105, 0.0010, 0.0006], [0.03, -0.0002, 0.0030], [0.06, 0.0006, 0.0007], [0.1, 0.0009, 0.0003],
             [0.15, 0.0010, 0.0003], [0.2, 0.00004, 0.0003], [0.27, 0.0009, 0.0002], [0.35, 0.0021, 0.0002]]
@@ -206,13 +206,13 @@ def test_fit_roughness_on_a_mirror_stays_differentiable():
     """A roughness-0 material starts the fit at ROUGH_MIN (the reference's mirror lobe below it has no
     roughness derivative: Mitsuba's prb used to raise "not attached to the AD graph" when every fitted
     object was a mirror); r* stays within [ROUGH_MIN, 1]."""
-    from compare.fitrough import ROUGH_MIN, fit_roughness
+    from compare.research.fit_roughness import ROUGH_MIN, fit_roughness
     from reference.render import render_uncached
 
     scene = _metal_sphere(12, [64, 32], [0.9, 0.9, 0.9], 0.0)
     target = render_uncached(scene, spp=64, progress=False)
-    rows = fit_roughness(scene, target.rgb, target.channels["object"], iterations=5)
-    assert ROUGH_MIN <= rows[0]["apparent_roughness"] <= 1.0 and np.isfinite(rows[0]["loss"]), rows
+    rows, _ = fit_roughness(scene, target.rgb, target.channels["object"], iterations=5)
+    assert ROUGH_MIN <= rows[0].apparent_roughness <= 1.0 and np.isfinite(rows[0].loss), rows
 
 
 SPHERE_TOML = """

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from compare import hardcases
-from compare.hardcases import run_hardcases
+from compare.research import hardcases
+from compare.research.hardcases import run_hardcases
 
 # Tiny renders keep the whole file well under a minute: 16 px, 4 spp, 32^2 cubes.
 SIZE, SPP, CUBE = 16, 4, 32
@@ -26,22 +26,22 @@ def rows():
 def test_every_case_and_preset_is_finite(rows):
     from realtime.presets import PRESETS
 
-    cases = {r["case"] for r in rows}
+    cases = {r.case for r in rows}
     assert cases == {"roughness_0", "roughness_1e-4", "roughness_1", "grazing", "f0_0", "f0_1", "sun",
                      "hotspot", "env_2x1", "scale_1e4", "scale_1e-4"}
     assert len(rows) == len(cases) * (1 + len(PRESETS))
-    bad = [(r["case"], r["preset"], r["nonfinite"], r["error"]) for r in rows if not r["finite"]]
+    bad = [(r.case, r.preset, r.nonfinite, r.error) for r in rows if not r.finite]
     assert not bad, bad
     # every real-time render was compared (finite error figures), none failed to compare
     for r in rows:
-        if r["renderer"] == "realtime":
-            assert r["error"] is None and r["metrics"] is not None, r
-            assert all(np.isfinite(v) for v in r["metrics"].values()), r
+        if r.renderer == "realtime":
+            assert r.error is None and r.metrics is not None, r
+            assert all(np.isfinite(v) for v in r.metrics.values()), r
 
 
 def test_scale_invariance(rows):
-    big = {r["preset"]: r["metrics"]["relmse"] for r in rows if r["case"] == "scale_1e4" and r["metrics"]}
-    small = {r["preset"]: r["metrics"]["relmse"] for r in rows if r["case"] == "scale_1e-4" and r["metrics"]}
+    big = {r.preset: r.metrics["relmse"] for r in rows if r.case == "scale_1e4" and r.metrics}
+    small = {r.preset: r.metrics["relmse"] for r in rows if r.case == "scale_1e-4" and r.metrics}
     assert big.keys() == small.keys() and big
     for p in big:
         assert big[p] == pytest.approx(small[p], rel=SCALE_RTOL), (p, big[p], small[p])

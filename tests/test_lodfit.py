@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from compare.lodfit import LodFitError, LodMapping, fit_lod_mapping
+from compare.research.monotone_fit import fit_lod_mapping
+from pbrcheck.lodmap import LodFitError, LodMapping
 
 # Synthetic optima carry +-0.05 LOD of noise (a dense LOD scan's step); the fit must come back
 # within twice that everywhere on [0, 1].
@@ -61,21 +62,20 @@ def test_glsl_matches_python():
 
 
 def test_builtin_smooth_mappings_are_members_of_the_family():
-    """linear = M r and quadratic = M r (2 - r) (realtime/shaders/ibl.glsl) are exact members, so a
+    """linear = M r and quadratic = M r (2 - r) (realtime/shaders/lod.glsl) are exact members, so a
     fit started from either cannot end worse than it."""
-    from compare.fitlod import _builtin_lod, _exact_coefficients
+    from pbrcheck.lodmap import basis_coefficients, builtin_lod
 
-    o = {"prefilter_levels": 9, "cube_size": 256}
     r = np.linspace(0, 1, 33)
     for name in ("linear", "quadratic"):
-        m = LodMapping(tuple(_exact_coefficients(name, 8.0)), 256, 9)
-        assert np.max(np.abs(m(r) - _builtin_lod(name, r, o))) < 1e-12
+        m = LodMapping(tuple(basis_coefficients(name, 8.0)), 256, 9)
+        assert np.max(np.abs(m(r) - builtin_lod(name, r, 8.0, 8.0))) < 1e-12
 
 
 def test_error_fit_never_worse_than_its_starts():
     """On bumpy measured-like curves (optimum on a noisy quadratic, a bump at an integer level) the
     error objective ends at or below every start it was given, as predicted by the same scan."""
-    from compare.lodfit import fit_lod_to_error, predicted_error
+    from compare.research.monotone_fit import fit_lod_to_error, predicted_error
 
     rng = np.random.default_rng(3)
     r = np.linspace(0, 1, 6)

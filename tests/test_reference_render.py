@@ -188,7 +188,7 @@ def test_meta_and_channels():
     for c in RGB + VARIANCE + AOVS:
         assert img.has(c), c
     m = img.meta
-    from pbrcheck.scene import scene_hash
+    from pbrcheck.environment import scene_hash
 
     assert m["scene_hash"] == scene_hash(scene)
     for k in ("spp", "mode", "seed", "variant", "pbrcheck_version", "mitsuba_version", "drjit_version",

@@ -47,7 +47,7 @@ OPTS = {"cube_size": 32, "prefilter_levels": 6, "prefilter_samples": 128, "irrad
 
 @pytest.fixture(scope="module")
 def sections(tmp_path_factory):
-    from compare.research import ResearchSettings, research_sections
+    from compare.report.research_sections import ResearchSettings, research_sections
 
     d = tmp_path_factory.mktemp("research")
     scene = d / "tinygrid.toml"
@@ -61,10 +61,10 @@ def sections(tmp_path_factory):
 
 def test_three_sections_with_their_files(sections):
     out, secs = sections
-    assert [s["id"] for s in secs] == ["fit-lod", "explain-default", "fit-roughness"]
+    assert [s.id for s in secs] == ["fit-lod", "explain-default", "fit-roughness"]
     for s in secs:
-        assert s["tables"] and all(t["rows"] for t in s["tables"])
-        for im in s["images"]:
+        assert s.tables and all(t.rows for t in s.tables)
+        for im in s.images:
             assert (out.parent / im["src"]).is_file(), im
     for f in ("fit_lod.json", "fit_lod.glsl", "fit_lod.png", "explain_default.json", "explain_default.md",
               "fit_roughness.json", "fit_roughness.png"):
@@ -73,7 +73,7 @@ def test_three_sections_with_their_files(sections):
 
 def test_fit_lod_before_after_is_measured(sections):
     out, secs = sections
-    before, after = secs[0]["tables"][0]["rows"]
+    before, after = secs[0].tables[0].rows
     assert "before" in before[1] and "after" in after[1]
     vals = [float(before[2]), float(after[2])]
     assert all(np.isfinite(vals)) and vals[0] != vals[1]  # two different renders, both compared
@@ -85,7 +85,7 @@ def test_fit_lod_before_after_is_measured(sections):
 
 def test_explain_section_has_every_source_and_the_combinations(sections):
     _, secs = sections
-    names = [r[0] for r in secs[1]["tables"][0]["rows"]]
+    names = [r[0] for r in secs[1].tables[0].rows]
     for src in ("lut", "prefilter_samples", "v=n=r", "irradiance", "cube", "geometry", "ndf_fresnel",
                 "composition", "lod_mapping", "all but v=n=r (the best split sum)", "all exact"):
         assert src in names, names
@@ -93,7 +93,7 @@ def test_explain_section_has_every_source_and_the_combinations(sections):
 
 def test_fit_roughness_section_rows_per_roughness(sections):
     out, secs = sections
-    rows = secs[2]["tables"][0]["rows"]
+    rows = secs[2].tables[0].rows
     assert [r[1] for r in rows] == ["0", "0.333", "0.667", "1"]
     d = json.loads((out / "fit_roughness.json").read_text())
     for o in d["default"]["objects"]:
@@ -106,13 +106,13 @@ def test_report_template_renders_research_sections(sections, tmp_path):
     """The extras template shows each section's tables and images (offline, relative paths)."""
     import jinja2
 
-    from compare.report import TEMPLATE, _fmt
+    from compare.report.build import TEMPLATE, _fmt
 
     _, secs = sections
     html = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(TEMPLATE).render(
         scenes=[], extras=secs, metric_names=[], fmt=_fmt, version="t", generated="now")
     for s in secs:
-        assert f'id="{s["id"]}"' in html
-        for im in s["images"]:
+        assert f'id="{s.id}"' in html
+        for im in s.images:
             assert f'src="{im["src"]}"' in html
-    assert html.count("<table>") == sum(len(s["tables"]) for s in secs)
+    assert html.count("<table>") == sum(len(s.tables) for s in secs)

@@ -10,8 +10,8 @@ import pytest
 
 from pbrcheck.cli import main
 from pbrcheck.errors import SceneError
-from pbrcheck.scene import (builtin_scene_names, dump_toml, load_scene, plane_frame, scene_from_dict,
-                            scene_hash)
+from pbrcheck.environment import scene_hash
+from pbrcheck.scene import builtin_scene_names, dump_toml, load_scene, plane_frame, scene_from_dict
 import tomllib
 
 BUILTINS = ("spheres", "furnace", "grazing", "mirror", "sun", "hotspot")

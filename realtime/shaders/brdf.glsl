@@ -111,39 +111,40 @@ vec3 F_Schlick(float VoH, vec3 F0) { return F_Schlick(VoH, F0, 1.0); }
 // Source: Lambert. Equation: f_d = 1 / pi.
 float Fd_Lambert() { return 1.0 / PI; }
 
-// The scene's terms, chosen at compile time (NDF: 0 ggx, 1 beckmann, 2 blinn_phong; GEOMETRY:
-// 0 smith_ggx_correlated, 1 smith_ggx, 2 schlick_ggx_ibl, 3 schlick_ggx_direct, 4 schlick_beckmann).
+// The scene's terms, chosen at compile time: NDF, GEOMETRY and FRESNEL are constants of
+// pbrcheck.registry (NDF_GGX, GEOMETRY_SMITH_GGX_CORRELATED, FRESNEL_SCHLICK, ...), prepended to
+// every shader by realtime/gl.py.
 #ifndef NDF
-#define NDF 0
+#define NDF NDF_GGX
 #endif
 #ifndef GEOMETRY
-#define GEOMETRY 0
+#define GEOMETRY GEOMETRY_SMITH_GGX_CORRELATED
 #endif
 #ifndef FRESNEL
-#define FRESNEL 0
+#define FRESNEL FRESNEL_SCHLICK
 #endif
 
 float ndf_term(float NoH, float roughness) {
     float a = alpha_from_roughness(roughness);
-#if NDF == 0
+#if NDF == NDF_GGX
     return D_GGX(NoH, a);
-#elif NDF == 1
+#elif NDF == NDF_BECKMANN
     return D_Beckmann(NoH, a);
-#else
+#elif NDF == NDF_BLINN_PHONG
     return D_BlinnPhong(NoH, a);
 #endif
 }
 
 float geometry_term(float NoV, float NoL, float roughness) {
-#if GEOMETRY == 0
+#if GEOMETRY == GEOMETRY_SMITH_GGX_CORRELATED
     return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness));
-#elif GEOMETRY == 1
+#elif GEOMETRY == GEOMETRY_SMITH_GGX
     return G_SmithGGX(NoV, NoL, alpha_from_roughness(roughness));
-#elif GEOMETRY == 2
+#elif GEOMETRY == GEOMETRY_SCHLICK_GGX_IBL
     return G_SchlickGGX(NoV, NoL, k_schlick_ibl(roughness));
-#elif GEOMETRY == 3
+#elif GEOMETRY == GEOMETRY_SCHLICK_GGX_DIRECT
     return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness));
-#else
+#elif GEOMETRY == GEOMETRY_SCHLICK_BECKMANN
     return G_SchlickBeckmann(NoV, NoL, alpha_from_roughness(roughness));
 #endif
 }
@@ -159,7 +160,7 @@ vec3 brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float ro
     float NoH = clamp(dot(n, h), 0.0, 1.0);
     float VoH = clamp(dot(v, h), 0.0, 1.0);
     vec3 F0 = mix(vec3(specular), base_color, metallic);
-#if FRESNEL == 0
+#if FRESNEL == FRESNEL_SCHLICK
     vec3 F = F_Schlick(VoH, F0);
 #else
     vec3 F = vec3(1.0);

@@ -22,13 +22,13 @@ void main() {
         vec2 u = hammersley(i, ns);
         // Cranley-Patterson offset to the cell centre: the i/N coordinate becomes (i + 0.5)/N.
         u.x += 0.5 / float(ns);
-#if SAMPLING == 0
+#if LUT_SAMPLING == LUT_SAMPLING_VNDF
         vec3 h = sample_GGX_VNDF(u.yx, v, alpha);
-#elif NDF == 1
+#elif NDF == NDF_BECKMANN
         vec3 h = sample_Beckmann(u, alpha);
-#elif NDF == 2
+#elif NDF == NDF_BLINN_PHONG
         vec3 h = sample_BlinnPhong(u, alpha);
-#else
+#elif NDF == NDF_GGX
         vec3 h = sample_GGX(u, alpha);
 #endif
         float VoH = dot(v, h);
@@ -36,7 +36,7 @@ void main() {
         float NoL = l.z;
         if (NoL <= 0.0 || VoH <= 0.0) continue;
         float G = geometry_term(NoV, NoL, roughness);
-#if SAMPLING == 0
+#if LUT_SAMPLING == LUT_SAMPLING_VNDF
         float w = G / max(G1_SmithGGX(NoV, alpha), COS_EPS);
 #else
         float w = G * VoH / max(h.z * NoV, COS_EPS);

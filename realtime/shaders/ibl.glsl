@@ -2,41 +2,13 @@
 // analytic EnvBRDFApprox, SH9 irradiance (article 002 form), filtered importance sampling's level.
 #include "brdf.glsl"
 
-// LOD_MAPPING: 0 linear, 1 quadratic, 2 log2, 3 fitted (LOD_FITTED(r) #defined by the caller; the
-// frame pass only). MAX_LOD: last level of the prefiltered chain.
-// CUBE_LOG2: log2 of the prefiltered cube's face size (the log2 mapping counts levels from 1x1).
+// LOD_MAPPING: a constant of pbrcheck.registry.LOD_MAPPINGS (LOD_MAPPING_LINEAR, ...); for
+// LOD_MAPPING_FITTED the caller #defines LOD_FITTED(r) (frame pass only). lod_from_roughness and
+// roughness_from_lod (lod.glsl) dispatch on it.
 #ifndef LOD_MAPPING
-#define LOD_MAPPING 0
+#define LOD_MAPPING LOD_MAPPING_LINEAR
 #endif
-
-// Source: article 000 (mip = roughness x max mip), Filament's perceptualRoughnessToLod (quadratic),
-// UE4's ComputeReflectionCaptureMipFromRoughness (log2, quoted by article 002).
-// Equation: linear lod = r M; quadratic lod = M r (2 - r); log2 lod = (log2(size) + 1) - 1 - (1 - 1.2 log2 r).
-float lod_from_roughness(float r, float max_lod, float cube_log2) {
-#if LOD_MAPPING == 0
-    return clamp(r, 0.0, 1.0) * max_lod;
-#elif LOD_MAPPING == 1
-    float x = clamp(r, 0.0, 1.0);
-    return max_lod * x * (2.0 - x);
-#elif LOD_MAPPING == 3
-    return min(LOD_FITTED(r), max_lod);  // fitted (pbrcheck fit-lod): defined by the caller
-#else
-    float level_from_1x1 = 1.0 - 1.2 * log2(max(r, 1e-6));
-    return clamp(cube_log2 - level_from_1x1, 0.0, max_lod);
-#endif
-}
-
-// The inverse of lod_from_roughness: the roughness each prefiltered level is baked at.
-float roughness_from_lod(float lod, float max_lod, float cube_log2) {
-    if (max_lod <= 0.0) return 0.0;
-#if LOD_MAPPING == 0 || LOD_MAPPING == 3  // 3: never baked with (the chain uses its built-in mapping)
-    return lod / max_lod;
-#elif LOD_MAPPING == 1
-    return 1.0 - sqrt(max(1.0 - lod / max_lod, 0.0));
-#else
-    return clamp(exp2((lod - cube_log2 + 1.0) / 1.2), 0.0, 1.0);
-#endif
-}
+#include "lod.glsl"
 
 // DFG lookup. Convention: texel (row j, column i) holds n.v = (i + 0.5)/N, roughness = (j + 0.5)/N,
 // row 0 smoothest. Bilinear between texel centres (GL coordinates (s, t) = (n.v, roughness) land on

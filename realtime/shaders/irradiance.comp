@@ -16,7 +16,7 @@ void main() {
     if (g.x >= face_size || g.y >= face_size) return;
     vec3 n = cube_dir(g.z, (vec2(g.xy) + 0.5) / float(face_size));
     vec3 acc = vec3(0.0);
-#if METHOD == 0
+#if IRRADIANCE_METHOD == IRRADIANCE_METHOD_TEXEL_SUM
     for (int f = 0; f < 6; ++f)
         for (int y = 0; y < src_size; ++y)
             for (int x = 0; x < src_size; ++x) {

@@ -3,13 +3,13 @@
 // the pixel centre for the AOVs (normal, n.v, object), exactly pbrcheck.camera.primary_rays.
 // Row 0 of the images is the top of the picture (gl_GlobalInvocationID.y = row).
 //
-// SHADING 0 "material": the README material model: split-sum specular prefiltered(r, lod) (F0 A + B),
+// SHADING_MATERIAL:: the README material model: split-sum specular prefiltered(r, lod) (F0 A + B),
 //   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights. With
 //   IBL_RUNTIME the specular is runtime importance sampling of the environment instead (the same
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
-// SHADING 1 "article000": article 000's PBR.frag (listings 1 and 4, with their mistakes).
-// SHADING 2 "article001": runtime importance sampling of the environment (article 001).
-// SHADING 3 "article002": article 002's lerp composition with EnvBRDFApprox.
+// SHADING_ARTICLE000:: article 000's PBR.frag (listings 1 and 4, with their mistakes).
+// SHADING_ARTICLE001:: runtime importance sampling of the environment (article 001).
+// SHADING_ARTICLE002:: article 002's lerp composition with EnvBRDFApprox.
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "env.glsl"
 #include "sampling.glsl"
@@ -100,7 +100,7 @@ vec3 normal_at(int k, vec3 p) {
 }
 
 vec3 irradiance_over_pi(vec3 n) {
-#if IRRADIANCE == 1
+#if IRRADIANCE == IRRADIANCE_SH9
     return sh9_eval(sh, n);
 #else
     return textureLod(irradiance_cube, n, 0.0).rgb;
@@ -108,7 +108,7 @@ vec3 irradiance_over_pi(vec3 n) {
 }
 
 vec2 dfg(float NoV, float roughness) {
-#if DFG == 1
+#if DFG == DFG_ANALYTIC
     return EnvBRDFApprox(NoV, roughness);
 #else
     return dfg_lookup(dfg_lut, NoV, roughness);
@@ -125,8 +125,8 @@ uint hash_u(uint x) {
     return x;
 }
 
-// Runtime importance sampling of the environment (article 001). RUNTIME_SAMPLING: 0 beckmann
-// (the article: Beckmann half vectors for the GGX D), 1 ggx, 2 ggx visible normals.
+// Runtime importance sampling of the environment (article 001). RUNTIME_SAMPLING: _BECKMANN
+// (the article: Beckmann half vectors for the GGX D), _GGX, _VNDF (GGX visible normals).
 vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed) {
     float alpha = alpha_from_roughness(roughness);
     float NoV = max(dot(n, v), 1e-4);
@@ -144,11 +144,11 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
     for (uint i = 0u; i < ns; ++i) {
         // Alchemy-style XOR scrambling of the radical inverse by a per-pixel key.
         vec2 u = vec2(float(i) / float(ns), float(bitfieldReverse(i) ^ rot) * 2.3283064365386963e-10);
-#if RUNTIME_SAMPLING == 0
+#if RUNTIME_SAMPLING == RUNTIME_SAMPLING_BECKMANN
         vec3 ht = sample_Beckmann(u, alpha);
-#elif RUNTIME_SAMPLING == 1
+#elif RUNTIME_SAMPLING == RUNTIME_SAMPLING_GGX
         vec3 ht = sample_GGX(u, alpha);
-#else
+#elif RUNTIME_SAMPLING == RUNTIME_SAMPLING_VNDF
         vec3 ht = sample_GGX_VNDF(u.yx, vt, alpha);
 #endif
         vec3 h = tx * ht.x + ty * ht.y + n * ht.z;
@@ -158,7 +158,7 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
         if (NoL <= 0.0 || VoH <= 0.0) continue;
         float NoH = max(ht.z, 1e-6);
         float G = geometry_term(NoV, NoL, roughness);
-#if FRESNEL == 0
+#if FRESNEL == FRESNEL_SCHLICK
         vec3 F = F_Schlick(VoH, F0);
 #else
         vec3 F = vec3(1.0);
@@ -170,7 +170,7 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
         float lod = 0.0;
 #endif
         vec3 L = textureLod(env_cube, l, lod).rgb;
-#if RUNTIME_SAMPLING == 2
+#if RUNTIME_SAMPLING == RUNTIME_SAMPLING_VNDF
         acc += F * G / max(G1_SmithGGX(NoV, alpha), COS_EPS) * L;
 #else
         // The article's estimator: F G L (v.h) / ((n.h)(n.v)), correct only for pdf = D_GGX (n.h).
@@ -192,9 +192,9 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
     vec3 r = 2.0 * NoVr * n - v;
     vec3 color = vec3(0.0);
 
-#if SHADING == 0
+#if SHADING == SHADING_MATERIAL
     vec3 F0 = mix(vec3(spec_level), base, metallic);
-#if FRESNEL == 0
+#if FRESNEL == FRESNEL_SCHLICK
     vec3 kd = (1.0 - F0) * texture(kd_lut, vec2(NoV, 0.5)).r;
 #else
     vec3 kd = vec3(0.0);
@@ -203,7 +203,7 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
     color += runtime_specular(n, v, roughness, F0, pixel_seed);
 #else
     vec2 AB = dfg(NoV, roughness);
-#if FRESNEL == 0
+#if FRESNEL == FRESNEL_SCHLICK
     vec3 spec_albedo = F0 * AB.x + AB.y;
 #else
     vec3 spec_albedo = vec3(AB.x + AB.y);
@@ -220,7 +220,7 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
         color += brdf_eval(n, v, l, base, metallic, roughness, spec_level) * lights[2 * i + 1].rgb * (NoL / d2);
     }
 
-#elif SHADING == 1
+#elif SHADING == SHADING_ARTICLE000
     // Article 000. Listing 1 (direct): kD = 1 - F (no metallic factor), + 0.001 in the denominator,
     // G with k = (roughness + 1)^2 / 8. Listing 4 (IBL): F = F_Schlick(n.v), kD = (1 - F)(1 - metallic),
     // specular = prefiltered x (F A + B) (F, not F0).
@@ -249,7 +249,7 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
     vec3 indirectSpecular = prefiltered_radiance(r, roughness) * (F * envBRDF.x + envBRDF.y);
     color += kD * indirectDiffuse + indirectSpecular;
 
-#elif SHADING == 2
+#elif SHADING == SHADING_ARTICLE001
     // Article 001: F0 clamped to [0.02, 0.99], roughness >= min_roughness (0.01), runtime-sampled
     // specular, diffuse = irradiance x base / pi (our irradiance cube already holds E / pi).
     vec3 F0 = clamp(mix(vec3(spec_level), base, metallic), 0.02, 0.99);
@@ -264,9 +264,9 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
         vec3 h = normalize(l + v);
         float NoH = max(dot(n, h), 0.0);
         float VoH = max(dot(v, h), 0.0);
-#if FRESNEL == 0
+#if FRESNEL == FRESNEL_SCHLICK
         vec3 F = F_Schlick(VoH, F0);
-#else
+#elif SHADING == SHADING_ARTICLE002
         vec3 F = vec3(1.0);
 #endif
         vec3 fs = ndf_term(NoH, roughness) * geometry_term(NoV, NoL, roughness) * F / (4.0 * NoV * NoL);

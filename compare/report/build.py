@@ -9,13 +9,27 @@ sets ``data-images-ok`` on ``<body>``) are inline.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
-from pbrcheck.atomic import write_text_atomic
+import jinja2
 
-from .metrics import METRICS
+from pbrcheck import __version__
+from pbrcheck.atomic import write_text_atomic
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.progress import Progress
+from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
+
+from .. import renderers
+from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
+from ..metrics import METRICS, compare_images
+from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
+from .research_sections import research_sections
+from .section import Section, Table
+from .sweep import combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, write_table
 
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
@@ -48,18 +62,16 @@ DEFAULT_SWEEP = (
 def default_sweep(preset: str = "default") -> list[dict]:
     """:data:`DEFAULT_SWEEP` less the entries the renderer rejects or that repeat ``preset`` itself."""
     try:
-        from realtime.presets import resolve_options
-
-        base = resolve_options(preset, {})
-    except Exception:  # noqa: BLE001 - no real-time renderer: no sweep
+        base = renderers.resolve_options(preset, {})
+    except PbrcheckError:  # a renderer without these options: no sweep
         return []
     out = []
     for combo in DEFAULT_SWEEP:
         try:
-            opts = resolve_options(preset, combo)
-        except Exception:  # noqa: BLE001 - an option this renderer does not have
+            opts = renderers.resolve_options(preset, combo)
+        except PbrcheckError:  # an option this renderer does not have
             continue
-        if opts != base and opts not in [resolve_options(preset, c) for c in out]:
+        if opts != base and opts not in [renderers.resolve_options(preset, c) for c in out]:
             out.append(combo)
     return out
 
@@ -68,26 +80,12 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
-def _plt():
-    from .maps import _mpl
-
-    return _mpl()[1]
-
-
-def _save(fig, path: Path) -> str:
-    plt = _plt()
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path.name
-
-
 def plot_materials(path: Path, scene, per_preset: dict[str, dict]) -> str | None:
     """Error against roughness (mean over the grid's metallic rows) and against metallic (mean over
     roughness columns), for relmse and flip_mean, one line per preset."""
     if not scene.grids:
         return None
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
     for gi, g in enumerate(scene.grids):
         rows, cols, first = g["rows"], g["columns"], g["first_id"]
@@ -111,7 +109,7 @@ def plot_materials(path: Path, scene, per_preset: dict[str, dict]) -> str | None
             ax.set_ylabel(f"{metric} (mean over the other axis)")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _mean(xs):
@@ -122,7 +120,7 @@ def _mean(xs):
 def plot_ndotv(path: Path, per_preset: dict[str, list]) -> str | None:
     if not any(per_preset.values()):
         return None
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     for preset, bins in per_preset.items():
         xs = [(b["lo"] + b["hi"]) / 2 for b in bins if b["pixels"]]
@@ -133,14 +131,14 @@ def plot_ndotv(path: Path, per_preset: dict[str, list]) -> str | None:
         ax.set_ylabel(metric)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_convergence(path: Path, conv: list[dict], top_spp: int, floor: float | None,
                      preset_mse: dict[str, float]) -> str | None:
     if not conv:
         return None
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     spps = [c["spp"] for c in conv]
     ax.loglog(spps, [max(c["mse"], 1e-30) for c in conv], "-o", label=f"MSE of n spp vs {top_spp} spp")
@@ -156,7 +154,7 @@ def plot_convergence(path: Path, conv: list[dict], top_spp: int, floor: float | 
     ax.set_ylabel("MSE over valid pixels")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 TEMPLATE = r"""<!DOCTYPE html>
@@ -187,7 +185,10 @@ document.body.setAttribute('data-images-ok',bad===0?'yes':'no:'+bad);document.bo
 <h1>pbrcheck accuracy report</h1>
 <p>Generated {{ generated }} by pbrcheck {{ version }}. Metrics are over valid pixels (fully covered
 object pixels in both images) and RGB; definitions in <code>docs/compare.md</code>. A grey value
-(&asymp;) is within what the reference's own Monte Carlo noise could explain.</p>
+(&asymp;) is within what the reference's own Monte Carlo noise could explain. Images are shown through
+each renderer's own display transform where its preset has one (tone map, exposure: analytic_mobile
+uses article 002's ACES fit), otherwise (and for the reference) through a filmic curve; every metric
+is computed on linear radiance, before any display transform.</p>
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
@@ -233,69 +234,119 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 
 
 def _fmt(v) -> str:
-    if v is None:
-        return "n/a"
-    if isinstance(v, float):
-        if math.isinf(v):
-            return "inf"
-        if math.isnan(v):
-            return "n/a"
-        return f"{v:.4g}"
-    return str(v)
+    return format_value(v, TABLE_DIGITS)
 
 
-def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sweep, prog) -> dict:
-    from pbrcheck.scene import load_scene
-    from realtime.render import render_realtime
-    from reference.render import render_reference
+@dataclass(frozen=True)
+class ReportSettings:
+    """What every scene section renders: the renderers under test, the reference spp, the sweep
+    (``vary``: option -> values, every combination; else the default sweep when ``sweep``) and the
+    reference convergence study."""
 
-    from .maps import write_flip_png, write_rel_png, write_tonemapped
-    from .metrics import compare_images
-    from .sweep import (
-        combinations,
-        image_timings,
-        plot_speed_error,
-        sweep_rows,
-        write_table,
-    )
+    presets: list[str]
+    spp: int
+    vary: dict | None = None
+    convergence: bool = True
+    sweep: bool = True
 
+
+@dataclass
+class PresetResult:
+    """One renderer under test on one scene: its metrics, noise flags, timings and image files."""
+
+    preset: str
+    metrics: dict
+    pixels: dict
+    within: dict
+    precompute: float | None
+    frame: float | None
+    rt_png: str
+    flip_png: str
+    rel_png: str
+    mse: float
+
+
+@dataclass
+class SceneSection:
+    """One scene of the report (:data:`TEMPLATE`'s ``scenes``)."""
+
+    id: str
+    name: str
+    description: str
+    spp: object
+    ref_png: str
+    presets: list[PresetResult]
+    plots: list[dict]
+    provenance: list[tuple[str, str]]
+    noise_floor: float | None
+    sweep_rows: list[dict]
+
+
+def _provenance(scene, ref) -> list[tuple[str, str]]:
+    src = scene.source
+    if scene.name in builtin_scene_names() and src == str(builtin_scene_path(scene.name)):
+        src = f"built-in scene {scene.name} (pbrcheck/scenes/{scene.name}.toml)"  # no machine paths
+    out = [("scene source", src)]
+    for k in sorted(ref.meta):  # scene hash, spp, mode, seed, variant, versions, seconds...
+        if k not in PROVENANCE_SKIP:
+            out.append((f"reference {k}", ref.meta[k]))
+    return out
+
+
+def _measure_preset(scene, ref, preset: str, sd: Path, sid: str) -> tuple[PresetResult, object, object]:
+    """Render ``preset``, compare it, write its images; returns its result, the comparison and image."""
+    img = renderers.render_under_test(scene, preset, None, progress=False)
+    cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=f"real-time {preset}")
+    p = _safe(preset)
+    write_tonemapped(sd / f"rt_{p}.png", img.rgb, img.meta_json("options", None) if "options" in img.meta else None)
+    write_flip_png(sd / f"flip_{p}.png", cmp)
+    write_rel_png(sd / f"rel_{p}.png", cmp)
+    pre, frame = image_timings(img)
+    noise = cmp.summary["noise"]
+    res = PresetResult(preset, cmp.metrics, cmp.summary["pixels"],
+                       {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
+                       f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
+                       (cmp.metrics["rmse"] or 0.0) ** 2)
+    return res, cmp, img
+
+
+def _convergence(scene, ref, spp: int, prog) -> list[dict]:
+    """MSE of lower-spp renders (another seed) against the reference, with the variance prediction."""
+    conv = []
+    for s in _convergence_spps(spp):
+        low = renderers.render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
+        c = compare_images(ref, low, noise=False)
+        lv = low.variance
+        exp = None
+        if lv is not None and ref.variance is not None:
+            exp = float(lv[c.valid].mean() + ref.variance[c.valid].mean())
+        conv.append({"spp": s, "mse": (c.metrics["rmse"] or 0.0) ** 2, "relmse": c.metrics["relmse"],
+                     "expected": exp})
+        prog.update(1, f"{scene.name}: convergence {s} spp")
+    return conv
+
+
+def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneSection:
+    """Render the reference and every renderer of ``st`` on one scene, compare, plot, write files."""
     scene = load_scene(scene_arg)
     sid = _safe(scene.name)
     sd = out_dir / sid
     sd.mkdir(parents=True, exist_ok=True)
-    ref = render_reference(scene, spp=spp, use_cache=True, progress=False)
+    ref = renderers.render_reference(scene, spp=st.spp, use_cache=True, progress=False)
     prog.update(1, f"{scene.name}: reference")
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
-    from pbrcheck.scene import builtin_scene_names, builtin_scene_path
-
-    src = scene.source
-    if scene.name in builtin_scene_names() and src == str(builtin_scene_path(scene.name)):
-        src = f"built-in scene {scene.name} (pbrcheck/scenes/{scene.name}.toml)"  # no machine paths
-    provenance = [("scene source", src)]
-    for k in sorted(ref.meta):  # scene hash, spp, mode, seed, variant, versions, seconds...
-        if k not in PROVENANCE_SKIP:
-            provenance.append((f"reference {k}", ref.meta[k]))
+    provenance = _provenance(scene, ref)
     noise_floor = None
-    for preset in presets:
-        img = render_realtime(scene, preset, None, progress=False)
-        cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=f"real-time {preset}")
-        p = _safe(preset)
-        write_tonemapped(sd / f"rt_{p}.png", img.rgb)
-        write_flip_png(sd / f"flip_{p}.png", cmp)
-        write_rel_png(sd / f"rel_{p}.png", cmp)
-        pre, frame = image_timings(img)
-        noise = cmp.summary["noise"]
-        if noise is not None:
-            noise_floor = noise["mean_variance"]
-        results.append({"preset": preset, "metrics": cmp.metrics, "pixels": cmp.summary["pixels"],
-                        "within": {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS},
-                        "precompute": pre, "frame": frame, "rt_png": f"{sid}/rt_{p}.png",
-                        "flip_png": f"{sid}/flip_{p}.png", "rel_png": f"{sid}/rel_{p}.png",
-                        "mse": (cmp.metrics["rmse"] or 0.0) ** 2})
+    for preset in st.presets:
+        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid)
+        if cmp.summary["noise"] is not None:
+            noise_floor = cmp.summary["noise"]["mean_variance"]
+        results.append(res)
         objs[preset] = {o["id"]: o["metrics"] for o in cmp.summary["objects"]}
         bins[preset] = cmp.summary["ndotv"]
-        speed_rows.append({"preset": preset, "options": {}, "precompute_s": pre, "frame_s": frame, **cmp.metrics})
+        speed_rows.append({"preset": preset, "options": {}, "precompute_s": res.precompute, "frame_s": res.frame,
+                           **cmp.metrics})
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
@@ -308,10 +359,10 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
     if n:
         plots.append({"title": "Error against NdotV", "src": f"{sid}/{n}"})
     # Sweep over the cost knobs (from the first preset).
-    combos = combinations(vary) if vary else (default_sweep(presets[0]) if sweep else [])
+    combos = combinations(st.vary) if st.vary else (default_sweep(st.presets[0]) if st.sweep else [])
     sweep_table = []
     if combos:
-        srows = sweep_rows(scene, ref, combos, preset=presets[0], progress=prog)
+        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog)
         write_table(sd, srows, sorted({k for c in combos for k in c}))
         for r in srows:
             label = ",".join(f"{k}={v}" for k, v in r["options"].items())
@@ -321,109 +372,77 @@ def _scene_section(scene_arg, out_dir: Path, presets, spp, vary, convergence, sw
                           f"{scene.name}: speed against error")
     plots.append({"title": "Speed against error (presets" + (" and sweep" if sweep_table else "") + ")",
                   "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
-    conv = []
-    if convergence:
-        for s in _convergence_spps(spp):
-            low = render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
-            c = compare_images(ref, low, noise=False)
-            lv = low.variance
-            exp = None
-            if lv is not None and ref.variance is not None:
-                exp = float(lv[c.valid].mean() + ref.variance[c.valid].mean())
-            conv.append({"spp": s, "mse": (c.metrics["rmse"] or 0.0) ** 2, "relmse": c.metrics["relmse"],
-                         "expected": exp})
-            prog.update(1, f"{scene.name}: convergence {s} spp")
-        cp = plot_convergence(sd / "convergence.png", conv, spp, noise_floor, {r["preset"]: r["mse"] for r in results})
+    conv = _convergence(scene, ref, st.spp, prog) if st.convergence else []
+    if conv:
+        cp = plot_convergence(sd / "convergence.png", conv, st.spp, noise_floor, {r.preset: r.mse for r in results})
         if cp:
             plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
                           "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
-    write_text_atomic(sd / "metrics.json", json.dumps(_jsonable({"scene": scene.name, "presets": dump,
-                                                             "convergence": conv, "sweep": sweep_table}), indent=1))
-    return {"id": sid, "name": scene.name, "description": scene.description, "spp": ref.meta.get("spp", spp),
-            "ref_png": f"{sid}/reference.png", "presets": results, "plots": plots, "provenance": provenance,
-            "noise_floor": noise_floor, "sweep_rows": sweep_table}
+    write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": dump, "convergence": conv,
+                                            "sweep": sweep_table}, indent=1)
+    return SceneSection(sid, scene.name, scene.description, ref.meta.get("spp", st.spp), f"{sid}/reference.png",
+                        results, plots, provenance, noise_floor, sweep_table)
 
 
-def _jsonable(x):
-    from .commands import _jsonable as j
-
-    return j(x)
-
-
-def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> dict:
+def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> Section:
     """The hard-case report section (rendered small: 32 px, 16 spp, 64^2 cubes)."""
-    from .hardcases import TABLE_METRICS, run_hardcases, write_hardcases
-
     settings = {"size": 32, "spp": 16, "cube_size": 64, "presets": presets}
     rows = run_hardcases(size=32, spp=16, cube_size=64, presets=presets, progress=progress)
     write_hardcases(rows, out_dir, settings)
-    bad = sum(not r["finite"] for r in rows)
-    return {"id": "hardcases", "title": "Hard cases",
-            "note": (f"Edge-of-model scenes (pbrcheck hardcases --size 32 --spp 16 --cube-size 64). "
-                     f"{'All outputs finite.' if not bad else f'{bad} output(s) NON-FINITE or failed.'} "
-                     f"Error of each preset against the {settings['spp']}-spp reference."),
-            "tables": [{"caption": "", "headers": ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
-                        "rows": [[r["case"], r["renderer"], r["preset"] or "-", "yes" if r["finite"] else "NO",
-                                  *[_fmt((r["metrics"] or {}).get(k)) for k in TABLE_METRICS], r["error"] or ""]
-                                 for r in rows]}],
-            "images": []}
+    bad = sum(not r.finite for r in rows)
+    return Section("hardcases", "Hard cases",
+                   f"Edge-of-model scenes (pbrcheck hardcases --size 32 --spp 16 --cube-size 64). "
+                   f"{'All outputs finite.' if not bad else f'{bad} output(s) NON-FINITE or failed.'} "
+                   f"Error of each preset against the {settings['spp']}-spp reference.",
+                   [Table("", ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
+                          [[r.case, r.renderer, r.preset or "-", "yes" if r.finite else "NO",
+                            *[_fmt((r.metrics or {}).get(k)) for k in TABLE_METRICS], r.error or ""]
+                           for r in rows])])
 
 
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 research: bool = False, extras: list[dict] | None = None) -> Path:
+                 research: bool = False, extras: list[Section] | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
     its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
     the error decomposition and the apparent-roughness sections for the first scene
-    (:mod:`compare.research`; files under ``out_dir/research``). ``extras``: further sections, each
-    ``{id, title, note, tables: [{caption, headers, rows}], images: [{title, src}]}``."""
-    import jinja2
+    (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
+    :class:`~compare.report.section.Section` s.
 
-    from pbrcheck import __version__
-    from pbrcheck.errors import PbrcheckError
-    from pbrcheck.progress import Progress
-
-    from .sweep import combinations, parse_vary
-
+    Raises
+    ------
+    PbrcheckError
+        No preset, ``spp`` below 2, an unknown scene, preset or swept option: raised before anything
+        is rendered or written."""
     if presets is None:
-        from realtime.presets import PRESETS
-
-        presets = list(PRESETS)
+        presets = renderers.preset_names()
     if not presets:
         raise PbrcheckError("report: no preset to compare")
     if spp < MIN_REFERENCE_SPP:
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {spp}")
     vary_d = parse_vary(vary) if vary else None
     # Validate everything before rendering or writing: scenes, presets, swept options.
-    from pbrcheck.scene import load_scene
-
     for s in scenes:
         load_scene(s)
-    try:
-        from realtime.presets import resolve_options
-    except ImportError:
-        resolve_options = None
-    if resolve_options is not None:
-        for p in presets:
-            resolve_options(p, {})
-        for combo in combinations(vary_d) if vary_d else []:
-            resolve_options(presets[0], combo)
+    for p in presets:
+        renderers.resolve_options(p, {})
+    for combo in combinations(vary_d) if vary_d else []:
+        renderers.resolve_options(presets[0], combo)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     n_conv = len(_convergence_spps(spp)) if convergence else 0
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
     sections = []
+    st = ReportSettings(list(presets), spp, vary_d, convergence, sweep)
     with Progress("report", total=total, enabled=progress) as prog:
         for s in scenes:
-            sections.append(_scene_section(s, out_dir, presets, spp, vary_d, convergence, sweep, prog))
+            sections.append(_scene_section(s, out_dir, st, prog))
     extras = list(extras or [])
     if research:
-        from .research import research_sections
-
         extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=spp, progress=progress)
     if hardcases:
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .environment import load_environment
-from .scene import load_scene, scene_hash
+from pbrcheck.environment import load_environment, scene_hash
+from pbrcheck.scene import load_scene
+
+from .build import build_report
 
 
 def run(args) -> int:
-    from compare.report import build_report
-
+    """Summarize the scene, build the report to ``args.out``; returns 0."""
     scene = load_scene(args.scene)
     env = load_environment(scene)
     print(f"pbrcheck demo: scene {scene.name!r}: {scene.description}")

@@ -16,7 +16,6 @@ when any output is non-finite.
 from __future__ import annotations
 
 import copy
-import math
 import tempfile
 from pathlib import Path
 
@@ -24,7 +23,14 @@ import numpy as np
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.exr import Image, write_exr
+from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.scene import Scene, load_scene, scene_from_dict
+
+from .. import renderers
+from ..metrics import compare_images
+from .results import HardcaseRow
 
 #: Resolution of the hard-case renders (the command's default; the tests use 16).
 DEFAULT_SIZE = 48
@@ -92,8 +98,6 @@ def _builtin(name: str) -> dict:
 
 def case_dicts(tmp_dir: Path) -> dict[str, dict]:
     """Scene tables of every hard case (the 2 x 1 environment is written into ``tmp_dir``)."""
-    from pbrcheck.exr import Image, write_exr
-
     env2x1 = Path(tmp_dir) / "env_2x1.exr"
     write_exr(env2x1, Image.from_rgb(np.array([[[2.0, 1.0, 0.5], [0.1, 0.3, 1.5]]], np.float32)))
     return {
@@ -136,27 +140,49 @@ def _nonfinite(img) -> int:
 
 def small_cube_options(preset: str, cube_size: int) -> dict:
     """Overrides that bake a ``cube_size`` cube for ``preset`` (mip count capped to fit)."""
-    from realtime.presets import PRESETS
-
-    levels = min(PRESETS[preset]["prefilter_levels"], int(cube_size).bit_length())
+    o = renderers.resolve_options(preset, {})
+    levels = min(o["prefilter_levels"], int(cube_size).bit_length())
     return {"cube_size": int(cube_size), "prefilter_levels": levels,
-            "irradiance_source_size": min(PRESETS[preset]["irradiance_source_size"], int(cube_size))}
+            "irradiance_source_size": min(o["irradiance_source_size"], int(cube_size))}
 
 
 def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: list[str] | None = None,
                   cases: list[str] | None = None, cube_size: int | None = None, options: dict | None = None,
-                  progress: bool = False) -> list[dict]:
-    """Render every case with the reference and each preset; one row per render."""
-    from realtime.presets import PRESETS
-    from realtime.render import render_realtime
-    from reference.render import render_reference
+                  progress: bool = False) -> list[HardcaseRow]:
+    """Render every case with the reference and each preset; one row per render.
 
-    from .metrics import compare_images
+    Parameters
+    ----------
+    size : int, optional
+        Image height in pixels.
+    spp : int, optional
+        Reference samples per pixel.
+    presets : list of str, optional
+        Renderers under test (default: every real-time preset).
+    cases : list of str, optional
+        Only these cases (default: all of :func:`case_dicts`).
+    cube_size : int, optional
+        Bake ``cube_size``^2 cubes instead of each preset's own (:func:`small_cube_options`).
+    options : dict, optional
+        Further real-time option overrides for every preset.
+    progress : bool, optional
+        Show render progress.
 
-    presets = list(PRESETS) if presets is None else presets
+    Returns
+    -------
+    list of HardcaseRow
+        The reference row of each case, then one row per preset.
+
+    Raises
+    ------
+    PbrcheckError
+        An unknown preset or case (before any render).
+    """
+    known = renderers.preset_names()
+    presets = known if presets is None else presets
     for p in presets:
-        if p not in PRESETS:
-            raise PbrcheckError(f"hardcases: unknown preset {p!r}; presets are: {', '.join(PRESETS)}")
+        if p not in known:
+            raise PbrcheckError(f"hardcases: unknown preset {p!r}; presets are: {', '.join(known)}")
     rows = []
     with tempfile.TemporaryDirectory(prefix="pbrcheck_hardcases_") as tmp:
         scenes = case_scenes(Path(tmp), size, cases)
@@ -166,60 +192,49 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 raise PbrcheckError(f"hardcases: unknown case(s) {', '.join(missing)}; cases are: "
                                     f"{', '.join(case_dicts(Path(tmp)))}")
         for name, sc in scenes.items():
-            ref = render_reference(sc, spp=spp, mode="local", seed=0, use_cache=False, progress=progress)
+            ref = renderers.render_reference(sc, spp=spp, mode="local", seed=0, use_cache=False, progress=progress)
             nf = _nonfinite(ref)
             ref_ok = nf == 0
-            rows.append({"case": name, "renderer": "reference", "preset": None, "finite": nf == 0,
-                         "nonfinite": nf, "metrics": None, "error": None})
+            rows.append(HardcaseRow(name, "reference", None, finite=nf == 0, nonfinite=nf))
             for p in presets:
                 o = dict(small_cube_options(p, cube_size) if cube_size else {})
                 o.update(options or {})
-                row = {"case": name, "renderer": "realtime", "preset": p, "metrics": None, "error": None}
                 try:
-                    img = render_realtime(sc, p, o, progress=progress)
+                    img = renderers.render_under_test(sc, p, o, progress=progress)
                 except PbrcheckError as e:
-                    row.update(finite=False, nonfinite=None, error=f"{type(e).__name__}: {e}")
-                    rows.append(row)
+                    rows.append(HardcaseRow(name, "realtime", p, finite=False, nonfinite=None,
+                                            error=f"{type(e).__name__}: {e}"))
                     continue
                 nf = _nonfinite(img)
-                row.update(finite=nf == 0, nonfinite=nf)
+                row = HardcaseRow(name, "realtime", p, finite=nf == 0, nonfinite=nf)
                 if nf == 0 and ref_ok:
                     try:
                         c = compare_images(ref, img, scene=sc, noise=False)
-                        row["metrics"] = {k: c.metrics[k] for k in TABLE_METRICS}
+                        row.metrics = {k: c.metrics[k] for k in TABLE_METRICS}
                     except PbrcheckError as e:
-                        row["error"] = f"{type(e).__name__}: {e}"
+                        row.error = f"{type(e).__name__}: {e}"
                 rows.append(row)
     return rows
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "n/a"
-    if isinstance(v, float) and not math.isfinite(v):
-        return str(v)
-    return f"{v:.4g}"
-
-
-def table_markdown(rows: list[dict]) -> str:
+def table_markdown(rows: list[HardcaseRow]) -> str:
+    """The rows as a Markdown table (:data:`TABLE_METRICS`, a note for failures)."""
     head = "| case | renderer | preset | finite | " + " | ".join(TABLE_METRICS) + " | note |"
     lines = [head, "|" + " --- |" * (5 + len(TABLE_METRICS))]
     for r in rows:
-        m = r["metrics"] or {}
-        note = r["error"] or ("" if r["finite"] else f"{r['nonfinite']} non-finite value(s)")
-        lines.append(f"| {r['case']} | {r['renderer']} | {r['preset'] or '-'} | {'yes' if r['finite'] else 'NO'} | "
-                     + " | ".join(_fmt(m.get(k)) for k in TABLE_METRICS) + f" | {note} |")
+        m = r.metrics or {}
+        note = r.error or ("" if r.finite else f"{r.nonfinite} non-finite value(s)")
+        lines.append(f"| {r.case} | {r.renderer} | {r.preset or '-'} | {'yes' if r.finite else 'NO'} | "
+                     + " | ".join(format_value(m.get(k), TABLE_DIGITS) for k in TABLE_METRICS) + f" | {note} |")
     return "\n".join(lines) + "\n"
 
 
-def write_hardcases(rows: list[dict], out_dir: Path, settings: dict) -> dict[str, Path]:
-    from .commands import dump_json
-
+def write_hardcases(rows: list[HardcaseRow], out_dir: Path, settings: dict) -> dict[str, Path]:
+    """Write ``hardcases.json`` (settings, all_finite, rows) and ``hardcases.md`` into ``out_dir``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     js = out_dir / "hardcases.json"
-    write_text_atomic(js, dump_json({"settings": settings, "all_finite": all(r["finite"] for r in rows),
-                                     "rows": rows}) + "\n")
+    write_json_atomic(js, {"settings": settings, "all_finite": all(r.finite for r in rows), "rows": rows})
     md = out_dir / "hardcases.md"
     write_text_atomic(md, table_markdown(rows))
     return {"json": js, "table": md}

@@ -11,10 +11,10 @@ Method
 3. Per roughness (objects grouped by their roughness: on a sphere grid, its columns) the relative MSE
    over that group's valid pixels is a function of L; its minimum on the scan is refined by a parabola
    through the three scan points around it (clamped to the bracket).
-4. The smooth monotone mapping (:mod:`compare.lodfit`'s basis, non-negative coefficients) is fitted
-   by :func:`compare.lodfit.fit_lod_to_error`: it minimizes the scene error the scan predicts (each
+4. The smooth monotone mapping (:mod:`pbrcheck.lodmap`'s basis, non-negative coefficients) is fitted
+   by :func:`compare.research.monotone_fit.fit_lod_to_error`: it minimizes the scene error the scan predicts (each
    roughness's error curve read at the mapping's LOD, weighted by its pixel count), starting from the
-   NNLS fit to the optima (:func:`compare.lodfit.fit_lod_mapping`) and from NNLS fits to each
+   NNLS fit to the optima (:func:`compare.research.monotone_fit.fit_lod_mapping`) and from NNLS fits to each
    built-in mapping's LODs, and from ``linear`` and ``quadratic`` themselves (members of the basis).
    On measured curves (noisy, with bumps at some integer levels) the closest smooth curve to the
    optima can be worse than a built-in mapping; this objective cannot be (up to the scan's
@@ -32,23 +32,31 @@ given roughness values (:func:`probe_scene`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.lodmap import basis_coefficients, builtin_lod
+from pbrcheck.progress import Progress
+from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
 from pbrcheck.scene import Scene, scene_from_dict
+
+from .. import renderers
+from ..metrics import REL_EPS, pixel_classes
+from .monotone_fit import fit_lod_mapping, fit_lod_to_error, predicted_error
+from .results import ChainFit, FitLodResult, LodSample, MappingEval
 
 #: Default roughness samples: 16 values on [0, 1].
 DEFAULT_ROUGHNESS = tuple(float(x) for x in np.linspace(0.0, 1.0, 16))
 #: LOD scan step. The error curve is smooth in L (trilinear filtering between levels); a quarter
 #: level plus the parabola refinement puts the optimum within a few hundredths of a level.
 LOD_STEP = 0.25
-#: Relative-error epsilon, as compare.metrics (1 % of a unit diffuse white).
-from .metrics import REL_EPS  # noqa: E402
-
-BUILTIN = ("linear", "quadratic", "log2")
+#: The chains scanned by default: every built-in mapping of the registry.
+BUILTIN = BUILTIN_LOD_MAPPINGS
 
 
 def probe_scene(scene: Scene, roughness, size: int) -> Scene:
@@ -74,8 +82,6 @@ def probe_scene(scene: Scene, roughness, size: int) -> Scene:
 
 
 def _no_lights(scene: Scene) -> Scene:
-    from dataclasses import replace
-
     return replace(scene, lights=())
 
 
@@ -120,28 +126,15 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> tuple[float, float]:
     return float(x1 + t * h), float(y1 - 0.25 * (y0 - y2) * t)
 
 
-def _exact_coefficients(name: str, M: float) -> list[float] | None:
-    """A built-in mapping as coefficients of :mod:`compare.lodfit`'s basis, when it is a member."""
-    if name == "linear":
-        return [M, 0.0, 0.0, 0.0, 0.0, 0.0]
-    if name == "quadratic":
-        return [0.0, 0.0, 0.0, 0.0, 0.0, M]
-    return None  # log2 (clamped logarithm): only its NNLS approximation is a start
-
-
-def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tuple[list[dict], np.ndarray, dict]:
+def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tuple[list[LodSample], np.ndarray, dict]:
     """Render ``fit_scene`` at every LOD of ``lods`` on the prefiltered chain baked with ``chain``;
     per roughness group the error curve, its refined minimum and the group's pixel count."""
-    from realtime.render import render_realtime
-
-    from .metrics import pixel_classes
-
     curves = {r: [] for r in groups}
     valid = ids = None
     counts = {}
     for L in lods:
-        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": chain, "lod_override": float(L)},
-                              progress=False)
+        img = renderers.render_under_test(fit_scene, preset,
+                                          {**base, "lod_mapping": chain, "lod_override": float(L)})
         if valid is None:
             valid, _, _ = pixel_classes(ref, img)
             ids = np.rint(ref.channels["object"]).astype(np.int64)
@@ -157,34 +150,55 @@ def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tupl
         k = int(np.nanargmin(y))
         lod, err = _parabola_min(lods, y, k)
         spread = float(np.nanmax(y) - np.nanmin(y))
-        samples.append({"roughness": r, "lod": lod, "relmse": err, "relmse_spread": spread,
-                        "pixels": counts[r], "scan": [float(v) for v in y]})
+        samples.append(LodSample(r, lod, err, spread, counts[r], [float(v) for v in y]))
     return samples, valid, counts
 
 
 def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", options: dict | None = None,
                 spp: int = 64, size: int | None = None, out: Path, lod_step: float = LOD_STEP,
-                chains=BUILTIN, progress: bool = False) -> dict:
-    """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``. Returns the JSON.
+                chains=BUILTIN, progress: bool = False) -> FitLodResult:
+    """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``.
 
     ``chains``: the built-in mappings whose prefiltered chains are scanned and fitted on (default all
     three). The mapping is fitted on each; the chain whose fit predicts the lowest scene error wins.
     Scanning every chain is what lets the fit compete with each built-in mapping *on its own chain*
     (reading the quadratic chain at the linear mapping's LOD is not the linear mapping).
+
+    Parameters
+    ----------
+    scene : Scene
+        A scene with a sphere grid (used as is) or any scene whose environment lights the probe.
+    roughness : sequence of float, optional
+        Roughness values of a probe grid (:func:`probe_scene`) in [0, 1].
+    preset, options : str, dict
+        The renderer under test and its overrides (must use the prefiltered map, built-in mapping).
+    spp : int
+        Reference samples per pixel.
+    size : int, optional
+        Image height.
+    out : Path
+        The JSON to write (the GLSL goes next to it).
+    lod_step : float
+        Scan step in levels.
+    chains : sequence of str
+        Built-in mappings whose chains are scanned.
+    progress : bool
+        Show progress.
+
+    Returns
+    -------
+    FitLodResult
+        Samples, per-chain fits and every mapping's measured error.
+
+    Raises
+    ------
+    PbrcheckError
+        A preset without the prefiltered map, a fitted starting mapping, unknown chains, roughness
+        outside [0, 1], or fewer than two roughness groups with valid pixels.
     """
-    from dataclasses import replace
-
-    from pbrcheck.progress import Progress
-    from realtime.presets import resolve_options
-    from realtime.render import render_realtime
-    from reference.render import render_reference
-
-    from .commands import dump_json
-    from .lodfit import fit_lod_mapping, fit_lod_to_error, predicted_error
-
     base = dict(options or {})
     base.pop("lod_override", None)
-    o = resolve_options(preset, base)
+    o = renderers.resolve_options(preset, base)
     if o["ibl"] != "splitsum":
         raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o['ibl']})")
     if str(o["lod_mapping"]).startswith("fitted:"):
@@ -203,8 +217,9 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             width=max(8, int(round(size * scene.camera.width / scene.camera.height))), height=int(size))
     fit_scene = _no_lights(fit_scene)
     groups = _groups(fit_scene)
-    ref = render_reference(fit_scene, spp=spp, mode="local", progress=progress)
+    ref = renderers.render_reference(fit_scene, spp=spp, mode="local", progress=progress)
     M = o["prefilter_levels"] - 1
+    cube_log2 = math.log2(o["cube_size"])
     lods = np.arange(0.0, M + 1e-9, lod_step)
     per_chain = {}
     valid = None
@@ -213,13 +228,13 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             samples, valid, _ = _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog)
             if len(samples) < 2:
                 raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
-            rr = np.array([s["roughness"] for s in samples])
-            table = np.array([s["scan"] for s in samples])
+            rr = np.array([s.roughness for s in samples])
+            table = np.array([s.scan for s in samples])
             table = np.where(np.isfinite(table), table, np.nanmax(table))
-            weights = [s["pixels"] for s in samples]
-            starts = [fit_lod_mapping(rr, _builtin_lod(n, rr, o), cube_size=o["cube_size"],
+            weights = [s.pixels for s in samples]
+            starts = [fit_lod_mapping(rr, builtin_lod(n, rr, M, cube_log2), cube_size=o["cube_size"],
                                       mip_count=o["prefilter_levels"]).coefficients for n in BUILTIN]
-            starts += [c for c in (_exact_coefficients(n, M) for n in BUILTIN) if c is not None]
+            starts += [c for c in (basis_coefficients(n, M) for n in BUILTIN) if c is not None]
             fitted = replace(fit_lod_to_error(rr, lods, table, cube_size=o["cube_size"],
                                               mip_count=o["prefilter_levels"], weights=weights, starts=starts),
                              chain=chain)
@@ -227,64 +242,50 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
                 "samples": samples, "mapping": fitted,
                 "predicted_relmse": predicted_error(fitted(rr), lods, table, weights),
                 # the chain's own built-in mapping read off the scan: the interpolation check
-                "builtin_predicted_relmse": predicted_error(_builtin_lod(chain, rr, o), lods, table, weights)}
+                "builtin_predicted_relmse": predicted_error(builtin_lod(chain, rr, M, cube_log2), lods, table,
+                                                            weights)}
         best_chain = min(per_chain, key=lambda c: per_chain[c]["predicted_relmse"])
         samples = per_chain[best_chain]["samples"]
         fitted = per_chain[best_chain]["mapping"]
-        rr = np.array([s["roughness"] for s in samples])
+        rr = np.array([s.roughness for s in samples])
         out = Path(out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        result = {
-            "scene": scene.name, "fit_scene": fit_scene.name, "preset": preset, "options": base, "spp": spp,
-            "size": [fit_scene.camera.width, fit_scene.camera.height], "lod_step": lod_step,
-            "metric": "relmse over valid pixels (point lights removed)",
-            "chain": best_chain,
-            "samples": samples,
-            "chains": {c: {"predicted_relmse": v["predicted_relmse"],
-                           "builtin_predicted_relmse": v["builtin_predicted_relmse"],
-                           "coefficients": list(v["mapping"].coefficients),
-                           "optimal_lod": [s["lod"] for s in v["samples"]]} for c, v in per_chain.items()},
-            "mappings": {"fitted": {**fitted.to_json(), "relmse": None}},
-        }
-        write_text_atomic(out, dump_json(result) + "\n")  # the fitted mapping must be on disk to render it
+        result = FitLodResult(
+            scene=scene.name, fit_scene=fit_scene.name, preset=preset, options=base, spp=spp,
+            size=[fit_scene.camera.width, fit_scene.camera.height], lod_step=lod_step,
+            metric="relmse over valid pixels (point lights removed)", chain=best_chain, samples=samples,
+            chains={c: ChainFit(v["predicted_relmse"], v["builtin_predicted_relmse"],
+                                list(v["mapping"].coefficients), [s.lod for s in v["samples"]])
+                    for c, v in per_chain.items()},
+            mappings={"fitted": MappingEval(None, mapping=fitted.to_json())})
+        write_json_atomic(out, result)  # the fitted mapping must be on disk to render it
         for name in BUILTIN:
-            img = render_realtime(fit_scene, preset, {**base, "lod_mapping": name}, progress=False)
-            result["mappings"][name] = {"relmse": _scene_relmse(ref, img, valid),
-                                        "lod": [float(v) for v in _builtin_lod(name, rr, o)]}
+            img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": name})
+            result.mappings[name] = MappingEval(_scene_relmse(ref, img, valid),
+                                                [float(v) for v in builtin_lod(name, rr, M, cube_log2)])
             prog.update(1, f"evaluate {name}")
-        img = render_realtime(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"}, progress=False)
+        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"})
         prog.update(1, "evaluate fitted")
-    result["mappings"]["fitted"]["relmse"] = _scene_relmse(ref, img, valid)
-    result["mappings"]["fitted"]["lod"] = [float(v) for v in fitted(rr)]
-    result["per_roughness_optimum_mean_relmse"] = float(np.mean([s["relmse"] for s in samples]))
+    result.mappings["fitted"].relmse = _scene_relmse(ref, img, valid)
+    result.mappings["fitted"].lod = [float(v) for v in fitted(rr)]
+    result.per_roughness_optimum_mean_relmse = float(np.mean([s.relmse for s in samples]))
     glsl = out.with_suffix(".glsl")
     write_text_atomic(glsl, fitted.glsl())
-    result["glsl"] = str(glsl)
-    write_text_atomic(out, dump_json(result) + "\n")
+    result.glsl = str(glsl)
+    write_json_atomic(out, result)
     return result
 
 
-def _builtin_lod(name: str, r: np.ndarray, o: dict) -> np.ndarray:
-    """numpy twin of lod_from_roughness (realtime/shaders/ibl.glsl) for the table."""
-    M = o["prefilter_levels"] - 1
-    x = np.clip(r, 0.0, 1.0)
-    if name == "linear":
-        return x * M
-    if name == "quadratic":
-        return M * x * (2 - x)
-    return np.clip(math.log2(o["cube_size"]) - (1.0 - 1.2 * np.log2(np.maximum(r, 1e-6))), 0.0, M)
-
-
-def table_markdown(result: dict) -> str:
-    lines = [f"fitted on the {result['chain']} chain (the chain whose fit predicts the lowest scene error)", "",
+def table_markdown(result: FitLodResult) -> str:
+    """The chains' predictions, the optima and every mapping's measured error as Markdown tables."""
+    lines = [f"fitted on the {result.chain} chain (the chain whose fit predicts the lowest scene error)", "",
              "| chain | fit's predicted relmse | chain's own mapping, predicted |", "| --- | --- | --- |"]
-    for c, v in result.get("chains", {}).items():
-        lines.append(f"| {c} | {v['predicted_relmse']:.5g} | {v['builtin_predicted_relmse']:.5g} |")
+    for c, v in result.chains.items():
+        lines.append(f"| {c} | {v.predicted_relmse:.5g} | {v.builtin_predicted_relmse:.5g} |")
     lines += ["", "| roughness | optimal LOD | relmse at optimum | fitted LOD |", "| --- | --- | --- | --- |"]
-    fl = result["mappings"]["fitted"]["lod"]
-    for s, f in zip(result["samples"], fl):
-        lines.append(f"| {s['roughness']:.4g} | {s['lod']:.3f} | {s['relmse']:.4g} | {f:.3f} |")
+    fl = result.mappings["fitted"].lod
+    for s, f in zip(result.samples, fl):
+        lines.append(f"| {s.roughness:.4g} | {s.lod:.3f} | {s.relmse:.4g} | {f:.3f} |")
     lines += ["", "| mapping | relmse over the scene |", "| --- | --- |"]
-    for k, v in result["mappings"].items():
-        lines.append(f"| {k} | {v['relmse']:.5g} |")
+    for k, v in result.mappings.items():
+        lines.append(f"| {k} | {v.relmse:.5g} |")
     return "\n".join(lines) + "\n"

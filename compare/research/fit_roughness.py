@@ -41,11 +41,18 @@ last ``AVERAGE_LAST`` iterates (:func:`reference.diff.fit_materials`).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
 from pbrcheck.brdf import DELTA_LOBE_ALPHA
-from pbrcheck.scene import Scene
+from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.scene import Scene, scene_from_dict
+from reference.diff import fit_materials, load_differentiable_scene, param_key, render_image
+from reference.render import _mi, render_uncached
+
+from .. import renderers
+from .results import ApparentRoughness, FitRoughnessResult
 
 #: Lowest roughness the fit may reach. Below sqrt(DELTA_LOBE_ALPHA) = 0.01 the reference BSDF is a
 #: Dirac mirror lobe (reference/bsdf.py) whose value does not depend on roughness: no derivative, and
@@ -75,7 +82,6 @@ def _weight(t):
 
 def fit_loss(img, target):
     """The fit's loss: mean (I - T)^2 / (1 + T)^2, T the (fixed) target (Dr.Jit tensors)."""
-    from reference.render import _mi
 
     _, dr = _mi()
     return dr.mean(dr.square(img - target) * _weight(target), axis=None)
@@ -144,8 +150,6 @@ def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.n
     object's own roughness (two independent primal renders per value; every object set to it at
     once), and its :func:`bracket`. Returns per object ``{"start", "range": [lo, hi],
     "scan": [[r, loss, se], ...]}`` (``range`` None for an object with no pixels)."""
-    from reference.diff import render_image
-    from reference.render import _mi
 
     mi, _ = _mi()
     candidates = sorted({float(g) for g in grid} | set(own))
@@ -170,18 +174,20 @@ def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.n
 
 
 def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, *, iterations: int = ITERATIONS,
-                  lr: float = LR, spp: int = SPP, start=None, scan: bool = True) -> list[dict]:
+                  lr: float = LR, spp: int = SPP, start=None,
+                  scan: bool = True) -> tuple[list[ApparentRoughness], list[float]]:
     """Fit every object's reference roughness to ``target_rgb`` (H, W, 3); one row per object.
 
     Each object starts at ``start[i]`` (default: its own roughness) or, with ``scan``, at the best of
-    that and :data:`SCAN_ROUGHNESS` (:func:`scan_start`)."""
-    from reference.diff import (
-        fit_materials,
-        load_differentiable_scene,
-        param_key,
-        render_image,
-    )
-    from reference.render import _mi
+    that and :data:`SCAN_ROUGHNESS` (:func:`scan_start`).
+
+    Returns
+    -------
+    rows : list of ApparentRoughness
+        One per object, in scene order.
+    trace : list of float
+        The optimizer's whole-image loss per iteration.
+    """
 
     mi, _ = _mi()
     target = np.asarray(target_rgb, np.float32)
@@ -207,46 +213,40 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
     final = render_image(ms, params, spp=4 * spp, seed=10_000)
     rows = []
     for i, (ob, k, loss) in enumerate(zip(scene.objects, keys, _object_losses(final, target, masks))):
-        rows.append({"object": i, "name": ob.name, "roughness": float(ob.material.roughness),
-                     "start": r0[i], "apparent_roughness": float(np.array(params[k]).ravel()[0]), "loss": loss,
-                     "pixels": int(masks[i].sum())})
-        if scans:
-            rows[-1]["range"] = scans[i]["range"]
-            rows[-1]["scan"] = scans[i]["scan"]
-    if rows:
-        rows[0]["image_losses"] = losses  # the optimizer's trace (whole image), first row only
-    return rows
+        rows.append(ApparentRoughness(i, ob.name, float(ob.material.roughness), r0[i],
+                                      float(np.array(params[k]).ravel()[0]), loss, int(masks[i].sum()),
+                                      range=scans[i]["range"] if scans else None,
+                                      scan=scans[i]["scan"] if scans else None))
+    return rows, list(losses)
 
 
 def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | None = None,
                       size: int | None = None, iterations: int = ITERATIONS, lr: float = LR, spp: int = SPP,
-                      scan: bool = True) -> dict:
-    """The preset's real-time image of ``scene`` (height ``size``) as the target of :func:`fit_roughness`.
-    JSON-ready: per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss`
-    over its pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``)."""
-    from realtime.render import render_realtime
-
+                      scan: bool = True) -> FitRoughnessResult:
+    """The preset's real-time image of ``scene`` (height ``size``) as the target of :func:`fit_roughness`:
+    per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss` over its
+    pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``)."""
     if size is not None:
         scene = scene.with_camera(width=max(8, round(size * scene.camera.width / scene.camera.height)),
                                   height=int(size))
-    img = render_realtime(scene, preset, options, progress=False)
-    rows = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp, scan=scan)
-    trace = rows[0].pop("image_losses", []) if rows else []
-    return {"scene": scene.name, "preset": preset, "options": dict(options or {}), "iterations": iterations,
-            "lr": lr, "lr_final": min(lr, LR_FINAL), "average_last": AVERAGE_LAST, "spp": spp, "scan": scan,
-            "loss": "tone_mse", "size": [scene.camera.width, scene.camera.height], "objects": rows,
-            "image_loss_trace": trace}
+    img = renderers.render_under_test(scene, preset, options, progress=False)
+    rows, trace = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp,
+                                scan=scan)
+    return FitRoughnessResult(scene.name, preset, dict(options or {}), iterations, lr, min(lr, LR_FINAL),
+                              AVERAGE_LAST, spp, scan, "tone_mse", [scene.camera.width, scene.camera.height],
+                              rows, trace)
 
 
-def table_markdown(res: dict) -> str:
-    lines = [f"scene {res['scene']}, preset {res['preset']}", "",
+def table_markdown(res: FitRoughnessResult) -> str:
+    """Per object r, r*, their difference, the range and the loss as a Markdown table."""
+    lines = [f"scene {res.scene}, preset {res.preset}", "",
              "| object | roughness r | apparent r* | r* - r | range | loss (tone-mapped MSE) |",
              "| --- | --- | --- | --- | --- | --- |"]
-    for r in res["objects"]:
-        loss = "n/a" if r["loss"] is None else f"{r['loss']:.4g}"
-        rng = f"[{r['range'][0]:.3g}, {r['range'][1]:.3g}]" if r.get("range") else "n/a"
-        lines.append(f"| {r['name'] or r['object']} | {r['roughness']:.3f} | {r['apparent_roughness']:.3f} | "
-                     f"{r['apparent_roughness'] - r['roughness']:+.3f} | {rng} | {loss} |")
+    for r in res.objects:
+        loss = format_value(r.loss, TABLE_DIGITS)
+        rng = f"[{r.range[0]:.3g}, {r.range[1]:.3g}]" if r.range else "n/a"
+        lines.append(f"| {r.name or r.object} | {r.roughness:.3f} | {r.apparent_roughness:.3f} | "
+                     f"{r.apparent_roughness - r.roughness:+.3f} | {rng} | {loss} |")
     return "\n".join(lines) + "\n"
 
 
@@ -258,8 +258,6 @@ def sphere_under_sun(size: int, roughness: float, *, sun_deg: float = 8.0, sun_r
                      metallic: float = 1.0, base_color=(0.9, 0.6, 0.3), env_resolution=(512, 256)) -> Scene:
     """One sphere filling a size x size image under a sky with a sun (the self-check's and the tests'
     scene)."""
-    from pbrcheck.scene import scene_from_dict
-
     return scene_from_dict({
         "camera": {"origin": [0, 0, 4], "fov": 40, "width": int(size), "height": int(size)},
         "environment": {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": float(sun_deg),
@@ -275,19 +273,15 @@ def self_check(*, size: int = 48, sun_deg: float = 8.0, sun_radiance: float = 60
     with a sun, target = the ``local`` reference at each roughness (``target_spp``), the fit started at
     ``start``. Per roughness: r*, its error, the range and whether it holds the truth; the maximum
     and rms error and the seconds per fit."""
-    import time
-
-    from reference.render import render_uncached
-
     rows = []
     for r in roughness:
         scene = sphere_under_sun(size, r, sun_deg=sun_deg, sun_radiance=sun_radiance, metallic=metallic)
         target = render_uncached(scene, spp=target_spp, progress=False)
         t0 = time.perf_counter()
-        (row,) = fit_roughness(scene, target.rgb, target.channels["object"], start=[start])
-        lo, hi = row["range"]
-        rows.append({"roughness": float(r), "apparent_roughness": row["apparent_roughness"],
-                     "error": row["apparent_roughness"] - float(r), "range": [lo, hi],
+        (row,), _ = fit_roughness(scene, target.rgb, target.channels["object"], start=[start])
+        lo, hi = row.range
+        rows.append({"roughness": float(r), "apparent_roughness": row.apparent_roughness,
+                     "error": row.apparent_roughness - float(r), "range": [lo, hi],
                      "truth_in_range": bool(lo <= r <= hi), "seconds": round(time.perf_counter() - t0, 2)})
     err = np.array([x["error"] for x in rows])
     return {"size": int(size), "sun_angular_diameter": float(sun_deg), "sun_radiance": float(sun_radiance),

@@ -8,14 +8,20 @@ seconds), split by :func:`split_timings`.
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import math
 from pathlib import Path
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.progress import Progress
+from pbrcheck.scene import load_scene
 
-from .metrics import METRICS
+from .. import renderers
+from ..maps import pyplot
+from ..metrics import METRICS, compare_images
 
 #: Timing keys (substrings) that belong to the per-frame cost; every other pass is precompute
 #: (prefiltering, irradiance, LUT, shader compile...). An explicit ``frame``/``frame_s`` key wins.
@@ -98,9 +104,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 
 def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -> Path:
     """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked."""
-    from .maps import _mpl
-
-    _, plt = _mpl()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
     for (ci, tkey), (ri, mkey) in itertools.product(enumerate(("precompute_s", "frame_s")),
                                                     enumerate(("relmse", "flip_mean"))):
@@ -140,13 +144,9 @@ def combinations(vary: dict[str, list]) -> list[dict]:
 
 def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None) -> list[dict]:
     """Render and compare each option dict of ``combos`` (over ``preset``); one row each."""
-    from realtime.render import render_realtime
-
-    from .metrics import compare_images
-
     rows = []
     for options in combos:
-        img = render_realtime(scene, preset, options, progress=False)
+        img = renderers.render_under_test(scene, preset, options, progress=False)
         cmp = compare_images(ref, img, scene=scene, noise=False)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
@@ -157,40 +157,39 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
 
 
 def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "sweep") -> dict[str, Path]:
-    from .commands import dump_json
-
+    """Write the sweep rows as ``stem.csv`` and ``stem.json`` in ``out_dir`` (atomically)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
     cols = ["preset", *keys, "precompute_s", "frame_s", *METRICS]
-    with open(csv_path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for r in rows:
-            w.writerow([r["preset"], *(r["options"].get(k, "") for k in keys),
-                        *("" if r.get(c) is None else r[c] for c in cols[1 + len(keys):])])
-    write_text_atomic(json_path, dump_json(rows) + "\n")
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(cols)
+    for r in rows:
+        w.writerow([r["preset"], *(r["options"].get(k, "") for k in keys),
+                    *("" if r.get(c) is None else r[c] for c in cols[1 + len(keys):])])
+    write_text_atomic(csv_path, buf.getvalue())
+    write_json_atomic(json_path, rows)
     return {"csv": csv_path, "json": json_path}
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
               spp: int = 64, progress: bool = True) -> dict[str, Path]:
-    from pbrcheck.progress import Progress
-    from pbrcheck.scene import load_scene
-    from reference.render import render_reference
+    """Render the reference and every combination of ``vary`` over ``preset``; write the table and
+    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
 
+    Raises
+    ------
+    SweepError
+        ``spp`` below 2; ``OptionError`` for an unknown option or value (before any render).
+    """
     if spp < 2:
         raise SweepError(f"--spp must be >= 2 (the reference's variance needs two samples), got {spp}")
     scene = load_scene(scene_arg)
-    try:
-        from realtime.presets import resolve_options
-
-        for combo in combinations(vary):  # every option and value is checked before rendering
-            resolve_options(preset, combo)
-    except ImportError:
-        pass
+    for combo in combinations(vary):  # every option and value is checked before rendering
+        renderers.resolve_options(preset, combo)
     n = math.prod(len(v) for v in vary.values())
     with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
-        ref = render_reference(scene, spp=spp, use_cache=True, progress=False)
+        ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
         rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
     keys = list(vary)

@@ -34,20 +34,27 @@ Sources and their exact counterparts:
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from pbrcheck.atomic import write_text_atomic
 import numpy as np
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
 from pbrcheck.scene import Scene
+
+from .. import renderers
+from ..metrics import REL_EPS, compare_images
+from .results import ExplainCombined, ExplainResult, ExplainRow
 
 #: Reference samples per pixel (command default).
 DEFAULT_SPP = 64
 #: The metric the contributions are computed on (all metrics are kept in the JSON).
 PRIMARY = "relmse"
 KEEP = ("relmse", "rmse", "rel_p95", "flip_mean")
-from .metrics import REL_EPS  # noqa: E402
 
 
 #: Runtime samples per pixel of the exact specular (``v=n=r``): with mip-filtered lookups the
@@ -57,8 +64,6 @@ RUNTIME_SAMPLES = 4096
 
 def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx") -> dict[str, dict]:
     """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests)."""
-    import math
-
     cube = min(cube_max, 4096)
     levels = max(1, min(cube.bit_length(), o["prefilter_levels"] + int(math.log2(cube / o["cube_size"]))))
     irr_src = min(64, o["cube_size"])
@@ -90,25 +95,47 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
 
 def run_explain(scene: Scene, *, preset: str = "default", options: dict | None = None, spp: int = DEFAULT_SPP,
                 size: int | None = None, fitted: str | None = None, cube_max: int = 512,
-                samples_scale: float = 1.0, progress: bool = False) -> dict:
-    from realtime.presets import resolve_options
-    from realtime.render import render_realtime
-    from reference.render import render_reference
+                samples_scale: float = 1.0, progress: bool = False) -> ExplainResult:
+    """Measure each approximation's contribution to ``preset``'s error on ``scene``.
 
-    from .metrics import compare_images
+    Parameters
+    ----------
+    scene : Scene
+        The scene (its point lights stay).
+    preset : str, optional
+        The renderer under test.
+    options : dict, optional
+        Option overrides of the baseline.
+    spp : int, optional
+        Reference samples per pixel.
+    size : int, optional
+        Image height in pixels (width keeps the aspect); None: the scene's own.
+    fitted : str, optional
+        A ``pbrcheck fit-lod`` JSON whose mapping is also tried as the LOD mapping.
+    cube_max : int, optional
+        Face size of the exact environment cube.
+    samples_scale : float, optional
+        Scales the exact counterparts' sample counts (< 1 for tests).
+    progress : bool, optional
+        Show reference render progress.
 
+    Returns
+    -------
+    ExplainResult
+        The baseline, one :class:`ExplainRow` per source, ``all_but_vnr`` and ``all_exact``.
+    """
     base = dict(options or {})
-    o = resolve_options(preset, base)
+    o = renderers.resolve_options(preset, base)
     if size is not None:
         scene = scene.with_camera(width=max(8, int(round(size * scene.camera.width / scene.camera.height))),
                                   height=int(size))
-    ref = render_reference(scene, spp=spp, mode="local", progress=progress)
+    ref = renderers.render_reference(scene, spp=spp, mode="local", progress=progress)
 
     valid = None
 
     def measure(over: dict) -> dict:
         nonlocal valid
-        img = render_realtime(scene, preset, {**base, **over}, progress=False)
+        img = renderers.render_under_test(scene, preset, {**base, **over}, progress=False)
         c = compare_images(ref, img, scene=scene, noise=False)
         if valid is None:
             valid = c.valid  # the baseline's valid pixels, for the noise figure
@@ -127,20 +154,18 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         srcs.pop("lut")
     for name, over in srcs.items():
         if over.get("runtime_sampling") == "none":
-            rows.append({"source": name, "options": over, "metrics": None, "contribution": None,
-                         "error": f"no runtime sampler for the {scene.brdf.ndf} NDF (GGX and Beckmann have one)"})
+            rows.append(ExplainRow(name, over, None, None,
+                                   f"no runtime sampler for the {scene.brdf.ndf} NDF (GGX and Beckmann have one)"))
             continue
         try:
             m = measure(over)
         except PbrcheckError as e:
-            rows.append({"source": name, "options": over, "metrics": None, "contribution": None,
-                         "error": f"{type(e).__name__}: {e}"})
+            rows.append(ExplainRow(name, over, None, None, f"{type(e).__name__}: {e}"))
             continue
-        rows.append({"source": name, "options": over, "metrics": m,
-                     "contribution": baseline[PRIMARY] - m[PRIMARY], "error": None})
+        rows.append(ExplainRow(name, over, m, baseline[PRIMARY] - m[PRIMARY]))
     # LOD mapping: the best measured built-in (or the fitted file).
     if o["ibl"] == "splitsum":
-        cands = {n: {"lod_mapping": n} for n in ("linear", "quadratic", "log2")}
+        cands = {n: {"lod_mapping": n} for n in BUILTIN_LOD_MAPPINGS}
         if fitted:
             cands["fitted"] = {"lod_mapping": f"fitted:{fitted}"}
         best = None
@@ -148,59 +173,60 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
             m = measure(over)
             if best is None or m[PRIMARY] < best[1][PRIMARY]:
                 best = (over, m)
-        rows.append({"source": "lod_mapping", "options": best[0], "metrics": best[1],
-                     "contribution": baseline[PRIMARY] - best[1][PRIMARY], "error": None})
+        rows.append(ExplainRow("lod_mapping", best[0], best[1], baseline[PRIMARY] - best[1][PRIMARY]))
     # Every fix at once, and every fix but v=n=r (the best split sum).
-    fitted_lod = any(r["source"] == "lod_mapping" and str(r["options"]["lod_mapping"]).startswith("fitted:")
+    fitted_lod = any(r.source == "lod_mapping" and str(r.options["lod_mapping"]).startswith("fitted:")
                      for r in rows)
     combined = {}
     for label, skip in (("all_but_vnr", ("v=n=r",)), ("all_exact", ())):
         allo = {}
         for r in rows:
-            if r["source"] in skip or r["metrics"] is None or (fitted_lod and r["source"] == "cube"):
+            if r.source in skip or r.metrics is None or (fitted_lod and r.source == "cube"):
                 continue  # a fitted mapping holds for its own cube size and mip count only
-            allo.update(r["options"])
+            allo.update(r.options)
         if o["ibl"] == "runtime" and label == "all_but_vnr":
             continue  # a runtime-sampling preset has no split sum to keep
         m = measure(allo)
-        combined[label] = {"options": allo, "metrics": m, "contribution": baseline[PRIMARY] - m[PRIMARY]}
-    return {"scene": scene.name, "preset": preset, "options": base, "spp": spp,
-            "size": [scene.camera.width, scene.camera.height], "metric": PRIMARY,
-            "baseline": baseline, "noise_relmse": noise_relmse, "sources": rows, **combined}
+        combined[label] = ExplainCombined(allo, m, baseline[PRIMARY] - m[PRIMARY])
+    return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
+                         baseline, noise_relmse, rows, **combined)
 
 
-def table_markdown(res: dict) -> str:
+#: Labels of the combined rows in the tables.
+COMBINED_LABELS = (("all_but_vnr", "all but v=n=r (the best split sum)"), ("all_exact", "all exact"))
+
+
+def table_markdown(res: ExplainResult) -> str:
+    """The decomposition as a Markdown table, with the reference's noise and what is left."""
     def f(v):
-        return "n/a" if v is None else f"{v:.4g}"
+        return format_value(v, TABLE_DIGITS)
 
-    b = res["baseline"][PRIMARY]
-    lines = [f"scene {res['scene']}, preset {res['preset']}: {PRIMARY} {f(b)} against the {res['spp']}-spp reference",
+    b = res.baseline[PRIMARY]
+    lines = [f"scene {res.scene}, preset {res.preset}: {PRIMARY} {f(b)} against the {res.spp}-spp reference",
              "", f"| source made exact | {PRIMARY} after | contribution | share of {PRIMARY} | flip_mean after |",
              "| --- | --- | --- | --- | --- |"]
-    extra = [{"source": lab, **res[k], "error": None} for k, lab in (
-        ("all_but_vnr", "all but v=n=r (the best split sum)"), ("all_exact", "all exact")) if k in res]
-    for r in res["sources"] + extra:
-        m = r["metrics"] or {}
-        share = None if r["contribution"] is None or b <= 0 else 100 * r["contribution"] / b
-        lines.append(f"| {r['source']} | {f(m.get(PRIMARY))} | {f(r['contribution'])} | "
+    extra = [ExplainRow(lab, c.options, c.metrics, c.contribution) for k, lab in COMBINED_LABELS
+             if (c := getattr(res, k)) is not None]
+    for r in res.sources + extra:
+        m = r.metrics or {}
+        share = None if r.contribution is None or b <= 0 else 100 * r.contribution / b
+        lines.append(f"| {r.source} | {f(m.get(PRIMARY))} | {f(r.contribution)} | "
                      f"{'n/a' if share is None else f'{share:.1f} %'} | {f(m.get('flip_mean'))} |"
-                     + (f" {r['error']}" if r.get("error") else ""))
-    if res.get("noise_relmse") is not None:
-        lines += ["", f"The reference's own noise explains relmse {f(res['noise_relmse'])} "
+                     + (f" {r.error}" if r.error else ""))
+    if res.noise_relmse is not None:
+        lines += ["", f"The reference's own noise explains relmse {f(res.noise_relmse)} "
                       f"(mean variance / (ref^2 + {REL_EPS}) over valid pixels)."]
-        if "all_exact" in res:
-            left = res["all_exact"]["metrics"][PRIMARY] - res["noise_relmse"]
+        if res.all_exact is not None:
+            left = res.all_exact.metrics[PRIMARY] - res.noise_relmse
             lines.append(f"Left after every listed source is exact, above that noise: {f(left)} (sources no "
                          f"option here replaces: the diffuse term's split Kd(n.v) E(n), the runtime "
                          f"estimator's own mip filtering, texel filtering).")
     return "\n".join(lines) + "\n"
 
 
-def write_explain(res: dict, out: Path) -> Path:
-    from .commands import dump_json
-
+def write_explain(res: ExplainResult, out: Path) -> Path:
+    """Write ``out`` (JSON) and the table next to it (``.md``); returns ``out``."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out, dump_json(res) + "\n")
+    write_json_atomic(out, res)
     write_text_atomic(out.with_suffix(".md"), table_markdown(res))
     return out

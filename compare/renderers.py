@@ -1,0 +1,66 @@
+"""The renderers the comparator measures, behind one seam.
+
+Every compare, report and research module renders through these functions (called as
+``renderers.render_reference(...)``, never imported by name), so a test replaces a renderer with
+``monkeypatch.setattr(compare.renderers, "render_under_test", fake)`` in one place.
+
+API
+---
+- :func:`render_reference` -- the Mitsuba reference (:func:`reference.render.render_reference`).
+- :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
+  (:func:`realtime.render.render_realtime`).
+- :func:`preset_names` -- every real-time preset, in the registry's order.
+- :func:`resolve_options` -- a preset's complete, validated options
+  (:func:`realtime.presets.resolve_options`).
+"""
+
+from __future__ import annotations
+
+from pbrcheck.exr import Image
+from pbrcheck.scene import Scene
+from realtime import presets as _presets
+from realtime import render as _realtime
+from reference import render as _reference
+
+
+def render_reference(scene: Scene, **kwargs) -> Image:
+    """The reference image of ``scene``; keyword arguments as :func:`reference.render.render_reference`
+    (``spp``, ``mode``, ``seed``, ``use_cache``, ``progress``)."""
+    return _reference.render_reference(scene, **kwargs)
+
+
+def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False) -> Image:
+    """Render ``scene`` with the renderer under test ``name``.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    name : str
+        A real-time preset (:data:`realtime.presets.PRESETS`).
+    options : dict, optional
+        Option overrides (``--set key=value``), validated by the renderer.
+    progress : bool, optional
+        Show progress on stderr.
+
+    Returns
+    -------
+    Image
+        Linear radiance ``R G B`` and the AOVs, with the renderer's metadata.
+
+    Raises
+    ------
+    PbrcheckError
+        Unknown preset or bad option (``OptionError``), or the renderer failed.
+    """
+    return _realtime.render_realtime(scene, name, options, progress=progress)
+
+
+def preset_names() -> list[str]:
+    """Every real-time preset name."""
+    return list(_presets.PRESETS)
+
+
+def resolve_options(name: str, overrides: dict | None = None) -> dict:
+    """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``)."""
+    return _presets.resolve_options(name, overrides)

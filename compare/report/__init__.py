@@ -1,0 +1,7 @@
+"""The report layer: the static HTML accuracy report (:mod:`compare.report.build`), the
+speed-against-error sweep (:mod:`compare.report.sweep`), the research sections of the report
+(:mod:`compare.report.research_sections`) and the main job (:mod:`compare.report.demo`).
+
+Imports the comparator (:mod:`compare`), the renderers through :mod:`compare.renderers`, and the
+research layer (:mod:`compare.research`), never the CLI.
+"""

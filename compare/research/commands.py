@@ -1,0 +1,142 @@
+"""CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
+``fit-lod``, ``explain``, ``fit-roughness`` and ``bench fit-roughness``. Library errors propagate;
+only :mod:`pbrcheck.cli` maps them to exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.args import split_list
+from pbrcheck.scene import load_scene
+from realtime.presets import parse_sets
+
+from . import explain, fit_lod, fit_roughness, hardcases
+
+
+def _cmd_hardcases(args) -> int:
+    settings = {"size": args.size, "spp": args.spp, "presets": split_list(args.presets),
+                "cases": split_list(args.cases), "cube_size": args.cube_size}
+    rows = hardcases.run_hardcases(size=args.size, spp=args.spp, presets=settings["presets"], cases=settings["cases"],
+                         cube_size=args.cube_size, progress=not args.quiet)
+    paths = hardcases.write_hardcases(rows, Path(args.out), settings)
+    print(hardcases.table_markdown(rows), end="")
+    for k, p in paths.items():
+        print(f"{k}: {p}")
+    bad = [r for r in rows if not r.finite]
+    if bad:
+        print(f"hardcases: {len(bad)} render(s) non-finite or failed: "
+              + ", ".join(f"{r.case}/{r.preset or 'reference'}" for r in bad))
+        return 1
+    return 0
+
+
+def _cmd_fit_lod(args) -> int:
+    scene = load_scene(args.scene)
+    rough = None
+    if args.roughness:
+        try:
+            rough = [float(x) for x in split_list(args.roughness)]
+        except ValueError:
+            raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
+    chains = split_list(args.chains) if args.chains else None
+    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+                      size=args.size, out=Path(args.out), progress=not args.quiet,
+                      **({"chains": chains} if chains else {}))
+    print(fit_lod.table_markdown(res), end="")
+    print(f"json: {args.out}\nglsl: {res.glsl}")
+    return 0
+
+
+def _cmd_explain(args) -> int:
+    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+                      size=args.size or None, fitted=args.fitted, progress=not args.quiet)
+    out = explain.write_explain(res, Path(args.out))
+    print(explain.table_markdown(res), end="")
+    print(f"json: {out}\ntable: {out.with_suffix('.md')}")
+    return 0
+
+
+def _cmd_fit_roughness(args) -> int:
+    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
+                            size=args.size or None, iterations=args.iterations, spp=args.spp,
+                            scan=not args.no_scan)
+    out = write_json_atomic(args.out, res)
+    print(fit_roughness.table_markdown(res), end="")
+    print(f"json: {out}")
+    return 0
+
+
+def _cmd_bench_fit_roughness(args) -> int:
+    rough = fit_roughness.SELF_CHECK_ROUGHNESS if not args.roughness else [float(x) for x in args.roughness.split(",")]
+    print(json.dumps(fit_roughness.self_check(size=args.size, sun_deg=args.sun, sun_radiance=args.sun_radiance,
+                                metallic=args.metallic, roughness=rough, target_spp=args.target_spp), indent=2))
+    return 0
+
+
+def register(sub, bench_sub) -> None:
+    """Add the research subcommands to the ``pbrcheck`` parser."""
+    s = sub.add_parser("hardcases", help="hard-case scenes through the reference and every preset: "
+                                         "NaN/Inf check and error table (exit 1 on a non-finite output)")
+    s.add_argument("--out", default="out/hardcases", metavar="DIR", help="output directory (default out/hardcases)")
+    s.add_argument("--spp", type=int, default=16, help="reference samples per pixel (default 16)")
+    s.add_argument("--size", type=int, default=48, help="image height in pixels (default 48)")
+    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
+    s.add_argument("--cases", metavar="C,...", help="only these cases (default: all)")
+    s.add_argument("--cube-size", type=int, default=None, metavar="N",
+                   help="bake N^2 cubes instead of each preset's own (faster; mip count capped to fit)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_hardcases)
+
+    s = sub.add_parser("fit-lod", help="per-roughness optimal prefiltered LOD, a fitted monotone mapping, "
+                                       "and every mapping's error")
+    s.add_argument("scene", help="built-in scene name or TOML path (a sphere grid is used as is)")
+    s.add_argument("--roughness", metavar="R1,R2,...", help="roughness values (default: 16 in [0, 1]); "
+                   "they are rendered as metal spheres under the scene's environment")
+    s.add_argument("--out", default="out/fit_lod.json", metavar="FILE.json", help="JSON (the GLSL goes next to it)")
+    s.add_argument("--preset", default="default", help="real-time preset (its chain and cube are fitted)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--size", type=int, default=None, help="image height (default: 96 for the probe grid, "
+                   "the scene's own otherwise)")
+    s.add_argument("--chains", metavar="C1,C2,...", help="prefiltered chains to scan and fit on (built-in "
+                   "mappings; default: linear,quadratic,log2; the best-predicting one is kept)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_fit_lod)
+
+    s = sub.add_parser("explain", help="error decomposition: make one approximation exact at a time and "
+                                       "measure the error it contributes")
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--fitted", metavar="FILE.json", help="also try this fitted LOD mapping (pbrcheck fit-lod)")
+    s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_explain)
+
+    s = sub.add_parser("fit-roughness", help="apparent roughness: fit the differentiable reference's roughness "
+                                             "per object to the real-time image")
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--iterations", type=int, default=40, help="Adam steps (default 40)")
+    s.add_argument("--spp", type=int, default=16, help="samples per pixel per step (default 16)")
+    s.add_argument("--no-scan", action="store_true",
+                   help="start Adam at each object's own roughness, without the starting scan (and no range)")
+    s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
+    s.set_defaults(func=_cmd_fit_roughness)
+
+    b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
+                                                   "roughness on one sphere under a sun (JSON)")
+    b.add_argument("--size", type=int, default=48, help="image size (default 48)")
+    b.add_argument("--sun", type=float, default=8.0, help="sun angular diameter in degrees (default 8)")
+    b.add_argument("--sun-radiance", type=float, default=60.0, help="sun radiance (default 60)")
+    b.add_argument("--metallic", type=float, default=1.0, help="the sphere's metallic (default 1)")
+    b.add_argument("--roughness", metavar="r1,r2,...", help="target roughness values (default 0.03 ... 0.8)")
+    b.add_argument("--target-spp", type=int, default=1024, help="samples per pixel of the targets (default 1024)")
+    b.set_defaults(func=_cmd_bench_fit_roughness)

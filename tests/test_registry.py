@@ -1,0 +1,114 @@
+"""The closed lists live in one registry (pbrcheck.registry): the docs' tables, the options'
+choices, the scene model and the shaders agree with it; each LOD mapping's GLSL pair matches its
+numpy twin of the same name on a grid including roughness 0, 1e-6 and 1."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbrcheck import lodmap, registry, scene
+from realtime import presets
+from realtime.gl import SHADER_DIR, assemble
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "realtime.md"
+# float32 against float64 (see test_realtime_glsl.RTOL_F32), plus log2/exp2 of llvmpipe.
+RTOL_F32 = 2e-5
+ATOL_F32 = 2e-5
+
+
+def _doc_row(first_cell: str) -> list[str]:
+    for line in DOC.read_text().splitlines():
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+        if cells and cells[0] == first_cell:
+            return cells
+    raise AssertionError(f"docs/realtime.md has no table row for {first_cell}")
+
+
+@pytest.mark.parametrize("define", list(registry.REGISTRIES))
+def test_docs_registry_table_lists_every_member_in_order(define):
+    cells = _doc_row(f"`{define}`")
+    assert re.findall(r"`([^`]+)`", cells[1]) == list(registry.REGISTRIES[define].names)
+
+
+def test_docs_options_table_names_every_choice():
+    """Each single-option row of the options table lists the option's choices (its registry's)."""
+    for name, opt in presets.OPTIONS.items():
+        if opt.kind != "choice":
+            continue
+        try:
+            cells = _doc_row(f"`{name}`")
+        except AssertionError:
+            continue  # documented in a grouped row (e.g. `ndf`, `geometry`, `fresnel`: 'scene')
+        listed = [c.strip() for c in cells[1].split("(")[0].split("\\|")]
+        choices = [c for c in opt.choices if c != "scene"]
+        assert [c for c in listed if c in choices] == choices, (name, listed, choices)
+
+
+def test_options_and_scene_read_the_registry():
+    assert presets.OPTIONS["shading"].choices == registry.SHADINGS.names
+    assert presets.OPTIONS["lod_mapping"].choices == registry.BUILTIN_LOD_MAPPINGS
+    assert presets.OPTIONS["geometry"].choices == ("scene", *registry.GEOMETRIES.names)
+    assert scene.NDFS == registry.NDFS.scene_names
+    assert scene.GEOMETRIES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRIES
+
+
+def test_shaders_switch_on_named_constants_only():
+    """No ``#if SWITCH == <integer>`` is left in the shaders: every comparison names a constant."""
+    bare = []
+    for p in SHADER_DIR.iterdir():
+        for i, line in enumerate(p.read_text().splitlines(), 1):
+            m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\d+)", line)
+            if m and m.group(2) in registry.REGISTRIES:
+                bare.append(f"{p.name}:{i}: {line.strip()}")
+    assert not bare, bare
+
+
+def test_every_shader_gets_every_constant():
+    src = assemble("render.comp", registry.GEOMETRIES.select("smith_ggx")).text
+    for k, v in registry.glsl_defines().items():
+        assert f"#define {k} {v}\n" in src
+    assert "#define GEOMETRY GEOMETRY_SMITH_GGX\n" in src
+
+
+def test_lod_dispatch_is_generated_for_every_builtin_mapping():
+    text = registry.glsl_generated()["lod_dispatch.glsl"]
+    for name in registry.BUILTIN_LOD_MAPPINGS:
+        assert f"return lod_{name}(r, max_lod, cube_log2);" in text
+        assert f"return roughness_{name}(lod, max_lod, cube_log2);" in text
+        assert hasattr(lodmap, f"lod_{name}") and hasattr(lodmap, f"roughness_{name}")
+
+
+@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+def test_lod_mapping_glsl_matches_numpy_twin(name):
+    from realtime.glsl_harness import run_glsl
+
+    r = np.array([0.0, 1e-6, 1e-3, 0.01, 0.1, 0.25, 0.5, 0.75, 0.99, 1.0, 1.5])
+    for max_lod, cube_log2 in ((6.0, 8.0), (8.0, 9.0), (4.0, 4.0)):
+        want = getattr(lodmap, f"lod_{name}")(r, max_lod, cube_log2)
+        got = run_glsl(f"lod_{name}(x0, x1, x2)", r, max_lod, cube_log2)
+        np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
+        lods = np.linspace(0.0, max_lod, 13)
+        want = getattr(lodmap, f"roughness_{name}")(lods, max_lod, cube_log2)
+        got = run_glsl(f"roughness_{name}(x0, x1, x2)", lods, max_lod, cube_log2)
+        np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
+
+
+@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+def test_dispatch_selects_the_mapping(name):
+    from realtime.glsl_harness import run_glsl
+
+    r = np.array([0.0, 0.3, 1.0])
+    got = run_glsl("lod_from_roughness(x0, x1, x2)", r, 6.0, 8.0, defines=registry.LOD_MAPPINGS.select(name))
+    np.testing.assert_allclose(got, lodmap.builtin_lod(name, r, 6.0, 8.0), rtol=RTOL_F32, atol=ATOL_F32)
+
+
+def test_registry_rejects_unknown_members():
+    with pytest.raises(KeyError):
+        registry.GEOMETRIES.constant("smith_typo")
+    with pytest.raises(lodmap.LodFitError, match="lod_mapping"):
+        lodmap.builtin_lod("fitted", [0.5], 6.0, 8.0)
