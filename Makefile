@@ -14,7 +14,7 @@ SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
 
-.PHONY: setup system-packages test-packages demo test gate bench report clean
+.PHONY: setup system-packages test-packages demo test test-fast gate bench report clean
 
 setup: system-packages $(STAMP)
 
@@ -35,6 +35,10 @@ test-packages:
 
 test: setup test-packages
 	$(PY) -m pytest -q
+
+# The inner loop: every test not marked slow (renders, quadratures, fits).
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow"
 
 # The CI error-budget gate of the shipped shaders (references rendered through the cache).
 gate: setup

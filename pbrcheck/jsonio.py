@@ -68,20 +68,6 @@ def dump_json(obj, indent: int = 2) -> str:
 
 
 def write_json_atomic(path: str | Path, obj, indent: int = 2) -> Path:
-    """Write :func:`dump_json` of ``obj`` and a newline to ``path`` atomically, creating its folder.
-
-    Parameters
-    ----------
-    path : str or Path
-        Destination file.
-    obj : object
-        What to serialize.
-    indent : int, optional
-        Indentation in spaces (default 2).
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
+    """Write :func:`dump_json` ``(obj, indent)`` and a newline to ``path`` atomically, creating its
+    folder; returns ``path`` (a :class:`~pathlib.Path`)."""
     return write_text_atomic(path, dump_json(obj, indent) + "\n")

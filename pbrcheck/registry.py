@@ -154,25 +154,19 @@ RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
     Entry("vndf", "GGX visible normals, Heitz 2018"),
 ])
 
-IRRADIANCES = Registry("IRRADIANCE", [
-    Entry("convolution", "cube convolution of the environment (E(n) / pi per texel)"),
-    Entry("sh9", "9 spherical-harmonic coefficients, Ramamoorthi & Hanrahan 2001 (article 002)"),
-])
+def _switch(define: str, **members: str) -> Registry:
+    """A registry of scene-independent switch values: ``member=source`` keyword pairs, in order."""
+    return Registry(define, [Entry(name, source) for name, source in members.items()])
 
-IRRADIANCE_METHODS = Registry("IRRADIANCE_METHOD", [
-    Entry("texel_sum", "sum over every source texel, weighted by its solid angle"),
-    Entry("polar_steps", "article 000's uniform polar / azimuth steps"),
-])
 
-DFGS = Registry("DFG", [
-    Entry("lut", "baked DFG LUT (split sum's second factor), Karis 2013"),
-    Entry("analytic", "Karis's EnvBRDFApprox fit (mobile, 2014; article 002)"),
-])
-
-LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
-    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)"),
-    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007"),
-])
+IRRADIANCES = _switch("IRRADIANCE", convolution="cube convolution of the environment (E(n) / pi per texel)",
+                      sh9="9 spherical-harmonic coefficients, Ramamoorthi & Hanrahan 2001 (article 002)")
+IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", texel_sum="sum over every source texel, weighted by its solid angle",
+                             polar_steps="article 000's uniform polar / azimuth steps")
+DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013",
+               analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
+LUT_SAMPLINGS = _switch("LUT_SAMPLING", vndf="GGX visible normals, Heitz 2018 (GGX NDF only)",
+                        ndf="half vectors drawn from the NDF, Walter et al. 2007")
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,

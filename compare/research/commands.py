@@ -76,6 +76,16 @@ def _cmd_bench_fit_roughness(args) -> int:
     return 0
 
 
+def _renderer_args(s, *, spp: int, size: int | None, size_help: str) -> None:
+    """The arguments every research command shares: the scene, the renderer under test and its
+    overrides, the reference spp and the image height."""
+    s.add_argument("scene", help="built-in scene name or TOML path")
+    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--spp", type=int, default=spp, help=f"samples per pixel (default {spp})")
+    s.add_argument("--size", type=int, default=size, help=size_help)
+
+
 def register(sub, bench_sub) -> None:
     """Add the research subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("hardcases", help="hard-case scenes through the reference and every preset: "
@@ -92,15 +102,11 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("fit-lod", help="per-roughness optimal prefiltered LOD, a fitted monotone mapping, "
                                        "and every mapping's error")
-    s.add_argument("scene", help="built-in scene name or TOML path (a sphere grid is used as is)")
+    _renderer_args(s, spp=64, size=None, size_help="image height (default: 96 for the probe grid, the scene's "
+                   "own otherwise); a sphere grid in the scene is used as is")
     s.add_argument("--roughness", metavar="R1,R2,...", help="roughness values (default: 16 in [0, 1]); "
                    "they are rendered as metal spheres under the scene's environment")
     s.add_argument("--out", default="out/fit_lod.json", metavar="FILE.json", help="JSON (the GLSL goes next to it)")
-    s.add_argument("--preset", default="default", help="real-time preset (its chain and cube are fitted)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
-    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
-    s.add_argument("--size", type=int, default=None, help="image height (default: 96 for the probe grid, "
-                   "the scene's own otherwise)")
     s.add_argument("--chains", metavar="C1,C2,...", help="prefiltered chains to scan and fit on (built-in "
                    "mappings; default: linear,quadratic,log2; the best-predicting one is kept)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
@@ -108,11 +114,7 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("explain", help="error decomposition: make one approximation exact at a time and "
                                        "measure the error it contributes")
-    s.add_argument("scene", help="built-in scene name or TOML path")
-    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
-    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
-    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    _renderer_args(s, spp=64, size=64, size_help="image height (default 64; 0: the scene's own)")
     s.add_argument("--fitted", metavar="FILE.json", help="also try this fitted LOD mapping (pbrcheck fit-lod)")
     s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
@@ -120,12 +122,8 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("fit-roughness", help="apparent roughness: fit the differentiable reference's roughness "
                                              "per object to the real-time image")
-    s.add_argument("scene", help="built-in scene name or TOML path")
-    s.add_argument("--preset", default="default", help="real-time preset (default: default)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
-    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    _renderer_args(s, spp=16, size=64, size_help="image height (default 64; 0: the scene's own)")
     s.add_argument("--iterations", type=int, default=40, help="Adam steps (default 40)")
-    s.add_argument("--spp", type=int, default=16, help="samples per pixel per step (default 16)")
     s.add_argument("--no-scan", action="store_true",
                    help="start Adam at each object's own roughness, without the starting scan (and no range)")
     s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
