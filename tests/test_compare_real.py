@@ -16,6 +16,9 @@ from pbrcheck.scene import load_scene
 
 from test_compare_report import SCENE, check_offline_html
 
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
+
 # The fastest real-time preset: runtime importance sampling has no prefilter pass.
 FAST_PRESET = "runtime_is20"
 

@@ -244,6 +244,7 @@ relmse = 0.01
 CHROMIUM = Path("/usr/bin/chromium")
 
 
+@pytest.mark.slow
 def test_report_opens_in_headless_chromium(fakes, scene_file, tmp_path, tmp_cache):
     if not CHROMIUM.exists():
         pytest.skip("/usr/bin/chromium is absent (Debian package 'chromium', installed by the set-up for this test)")

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from compare.research.explain import run_explain
 from pbrcheck.scene import load_scene
+
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
 
 # Small: spheres at 24 px high, 64 spp, 64^2 cubes, exact counterparts at 1/8 of their sample counts
 # (still 8 x the preset's prefilter and LUT counts where those matter). 4 x 4 supersampling: with

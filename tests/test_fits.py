@@ -10,6 +10,9 @@ import pytest
 from pbrcheck.lodmap import BASIS_NAMES, LodFitError, LodMapping
 from pbrcheck.scene import load_scene
 
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
+
 # Small but real: the spheres scene (5 x 6 grid, sky with a sun) at 40 px high, 16 spp, 32^2 cubes
 # with 6 mips. The reference is shared by every mapping, so the comparison between mappings is
 # deterministic; the fitted mapping is the smooth monotone fit to the per-roughness optima of this

@@ -10,6 +10,9 @@ import pytest
 from compare.research import hardcases
 from compare.research.hardcases import run_hardcases
 
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
+
 # Tiny renders keep the whole file well under a minute: 16 px, 4 spp, 32^2 cubes.
 SIZE, SPP, CUBE = 16, 4, 32
 # The x 1e4 and x 1e-4 scenes are the same picture (lengths scaled, point intensities by s^2):

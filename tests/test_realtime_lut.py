@@ -33,6 +33,7 @@ def _rows(N):
     return list(range(N))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("geometry", GEOMETRIES)
 def test_default_lut_meets_the_accuracy_goal(geometry):
     o = resolve_options("default")

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import pytest
+
 import numpy as np
 
 import pbrcheck  # noqa: F401
 from pbrcheck.scene import scene_from_dict
 from reference.diff import fit_materials, load_differentiable_scene, param_key, render_image, render_with_gradient
 from reference.render import _mi
+
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
 
 # Central-difference step in roughness: the second-order error (h^2/6 f''') is < 0.1% here.
 FD_STEP = 0.02

@@ -8,6 +8,9 @@ import json
 import numpy as np
 import pytest
 
+# Renders, fits or quadratures of seconds each: `make test-fast` skips them, `make test` runs them.
+pytestmark = pytest.mark.slow
+
 # A 2 x 4 metal/dielectric grid (roughness 0..1 along the columns) under a sky with a sun and one
 # point light: every section has something to measure, at 40 x 24 pixels.
 SCENE = """
