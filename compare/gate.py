@@ -55,6 +55,9 @@ class BudgetError(PbrcheckError):
 
 @dataclass
 class Check:
+    """One budget check: a scene, the renderer under test (``preset`` or a stored ``test`` EXR), the
+    reference (``auto``: rendered at ``spp``, ``mode``, ``seed``; or a stored EXR) and the metric
+    bounds ``max`` / ``min``."""
     name: str
     max: dict[str, float]
     min: dict[str, float]
@@ -70,6 +73,9 @@ class Check:
 
 @dataclass
 class Result:
+    """The outcome of one :class:`Check`: ``pass``, ``fail`` (with each broken bound, its worst
+    objects and whether the reference's noise could explain it) or ``error`` (with the message and
+    the exit code it maps to)."""
     check: Check
     status: str                      # pass | fail | error
     metrics: dict | None = None
@@ -252,6 +258,7 @@ def _safe(name: str) -> str:
 
 
 def failure_lines(r: Result) -> list[str]:
+    """One line per broken bound of ``r`` (metric, value, budget, worst objects, noise note)."""
     out = []
     for f in r.failures:
         op = ">" if f["kind"] == "max" else "<"
@@ -263,6 +270,7 @@ def failure_lines(r: Result) -> list[str]:
 
 
 def write_junit(path: Path, results: list[Result]) -> Path:
+    """Write the results as JUnit XML (one testcase per check; failures and errors as such)."""
     suite = ET.Element("testsuite", name="pbrcheck-gate", tests=str(len(results)),
                        failures=str(sum(r.status == "fail" for r in results)),
                        errors=str(sum(r.status == "error" for r in results)),
@@ -285,6 +293,7 @@ def write_junit(path: Path, results: list[Result]) -> Path:
 
 
 def write_summary(path: Path, results: list[Result]) -> Path:
+    """Write a Markdown table of every check's metrics against its budgets (for CI summaries)."""
     icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR"}
     lines = ["# pbrcheck gate", "", "| check | status | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:

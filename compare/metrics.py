@@ -207,6 +207,9 @@ class PixelMaps:
 
 
 def pixel_maps(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, flip: bool = True, itp: bool = True) -> PixelMaps:
+    """Per-pixel maps of two (H, W, 3) linear images: the signed difference ``t - r``, the relative
+    error ``|t - r| / (r + REL_EPS)``, the reference luminance and (optionally) HDR-FLIP and
+    Delta E ITP."""
     r = ref_rgb.astype(np.float64)
     t = test_rgb.astype(np.float64)
     d = t - r

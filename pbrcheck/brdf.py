@@ -185,6 +185,7 @@ def Fd_Lambert():
 
 
 def fresnel_term(fresnel: str, VoH, F0):
+    """Dispatch on ``[brdf] fresnel``: Schlick, or ``none`` (F = 1)."""
     if fresnel == "schlick":
         return F_Schlick(VoH, F0)
     if fresnel == "none":

@@ -23,16 +23,20 @@ CACHE_ENV = "PBRCHECK_CACHE"
 
 
 def cache_root() -> Path:
+    """The cache folder: ``$PBRCHECK_CACHE`` or ``~/.cache/pbrcheck``."""
     p = os.environ.get(CACHE_ENV)
     return Path(p).expanduser() if p else Path.home() / ".cache" / "pbrcheck"
 
 
 def cache_key(**parts) -> str:
+    """SHA-256 of the keyword arguments as canonical JSON: a content address."""
     blob = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
 class Cache:
+    """A content-addressed store of EXR images under ``root/namespace`` (atomic writes; a corrupt
+    entry is a miss, never an error)."""
     def __init__(self, namespace: str, root: Path | None = None):
         self.root = Path(root) if root is not None else cache_root()
         self.namespace = namespace

@@ -123,6 +123,7 @@ CHAINS = BUILTIN_LOD_MAPPINGS
 
 
 def basis(r: np.ndarray) -> np.ndarray:
+    """The fit's basis functions :data:`BASIS_NAMES` at roughness ``r`` (clamped to [0, 1]): (..., 6)."""
     r = np.clip(np.asarray(r, dtype=np.float64), 0.0, 1.0)
     return np.stack([r, r * r, r ** 3, r ** 4, np.sqrt(r), r * (2.0 - r)], axis=-1)
 
@@ -133,6 +134,8 @@ class LodFitError(PbrcheckError):
 
 @dataclass(frozen=True)
 class LodMapping:
+    """A fitted monotone roughness -> LOD mapping: coefficients of :data:`BASIS_NAMES`, valid for a
+    ``cube_size``^2 cube with ``mip_count`` levels baked with the ``chain`` mapping."""
     coefficients: tuple[float, ...]
     cube_size: int
     mip_count: int

@@ -81,6 +81,7 @@ class Environment:
 
 @dataclass(frozen=True)
 class PointLight:
+    """A point light: position (world units) and radiant intensity (W/sr, RGB)."""
     position: Vec3
     intensity: Vec3  # radiant intensity, W/sr: irradiance at distance d is I cos / d^2
     type: str = "point"
@@ -88,6 +89,7 @@ class PointLight:
 
 @dataclass(frozen=True)
 class BRDFModel:
+    """The scene's ground-truth terms (``[brdf]``): members of :mod:`pbrcheck.registry`."""
     ndf: str = "ggx"
     geometry: str = "smith_ggx_correlated"
     fresnel: str = "schlick"
@@ -114,6 +116,7 @@ class Material:
 
 @dataclass(frozen=True)
 class Sphere:
+    """A sphere object (after sphere grids are expanded); ``id`` is its index in :attr:`Scene.objects`."""
     id: int
     center: Vec3
     radius: float
@@ -138,6 +141,8 @@ class Plane:
 
 @dataclass(frozen=True)
 class Scene:
+    """A resolved scene: camera, environment, point lights, BRDF model and objects (sphere grids
+    expanded; ``grids`` keeps their layout); immutable."""
     name: str
     description: str
     camera: Camera
@@ -488,11 +493,13 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
 
 
 def builtin_scene_names() -> list[str]:
+    """Names of the built-in scenes (``pbrcheck/scenes/*.toml``), sorted."""
     root = resources.files("pbrcheck") / "scenes"
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
 
 def builtin_scene_path(name: str) -> Path:
+    """Path of built-in scene ``name``'s TOML file."""
     return Path(str(resources.files("pbrcheck") / "scenes" / f"{name}.toml"))
 
 

@@ -62,11 +62,13 @@ def get_context():
 
 
 def renderer_name() -> str:
+    """The GL renderer string of the context (``llvmpipe ...`` on Mesa's software rasterizer)."""
     return str(get_context().info.get("GL_RENDERER", "?"))
 
 
 @dataclass
 class Source:
+    """Assembled GLSL source and its line map back to the original files."""
     text: str
     line_map: list  # line_map[k] = (file, line) of assembled line k+1
 
@@ -172,4 +174,5 @@ def compile_source(text_entry: str, extra: str, defines: dict | None = None, nam
 
 
 def groups(n: int, local: int) -> int:
+    """Work groups of ``local`` invocations covering ``n`` items (at least one)."""
     return max(1, (int(n) + local - 1) // local)

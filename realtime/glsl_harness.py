@@ -17,6 +17,9 @@ from .gl import compile_source, get_context, groups
 
 def run_glsl(expr: str, *inputs, components: int = 1, defines: dict | None = None, uniforms: dict | None = None,
              textures: dict | None = None) -> np.ndarray:
+    """Evaluate GLSL expression ``expr`` of the shader library on up to 8 broadcast numpy inputs
+    (``x0`` .. ``x7``); returns float32 ``(...)`` or ``(..., components)``. ``defines`` select
+    variants (registry constants), ``uniforms`` and ``textures`` are bound by name."""
     if len(inputs) > 8:
         raise ValueError("at most 8 inputs")
     arrs = np.broadcast_arrays(*[np.asarray(x, dtype=np.float32) for x in inputs]) if inputs else [np.zeros(1, np.float32)]

@@ -34,6 +34,7 @@ class OptionError(PbrcheckError):
 
 @dataclass(frozen=True)
 class Option:
+    """One real-time option: its kind (int, float, bool, choice), help, choices and bounds."""
     name: str
     kind: str                      # "int", "float", "bool", "choice"
     help: str

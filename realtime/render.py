@@ -138,6 +138,7 @@ def _env_key(scene_env) -> str:
 
 
 def environment_of(scene: Scene) -> EnvMap:
+    """The scene's :class:`~pbrcheck.environment.EnvMap`, loaded once per process."""
     key = ("envmap", _env_key(scene.environment))
     if key not in _cache:
         _cache[key] = load_environment(scene)
@@ -156,6 +157,7 @@ def _bind_env(prog, env_tex, env: EnvMap, unit: int = 0):
 
 
 def env_texture(env: EnvMap):
+    """The environment's equirect float32 texture (nearest; the shaders filter it themselves)."""
     key = ("env_tex", env.content_hash)
     if key not in _cache:
         ctx = get_context()
@@ -187,6 +189,7 @@ def _image_format(fmt: str) -> str:
 
 
 def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
+    """Bake the environment into a ``size``^2 cube (level 0 point-evaluated, box-filtered mips)."""
     key = ("env_cube", env.content_hash, size, fmt)
     prog = compute_program("env_to_cube.comp", {"IMAGE_FORMAT": _image_format(fmt)})
 
@@ -203,6 +206,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
 
 
 def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+    """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
     src_lod = math.log2(o["cube_size"] / o["irradiance_source_size"])
     method = 0 if o["irradiance_method"] == "texel_sum" else 1
     key = ("irr", env.content_hash, o["cube_size"], fmt, o["irradiance_size"], o["irradiance_source_size"], method,
@@ -261,6 +265,8 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
 
 
 def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+    """Bake the prefiltered chain: level L holds GGX-filtered radiance at the roughness of the chain
+    mapping's inverse (``roughness_from_lod``)."""
     levels = o["prefilter_levels"]
     size = o["cube_size"]
     chain = chain_mapping(o)
@@ -322,6 +328,7 @@ def read_lut(tex) -> np.ndarray:
 
 
 def kd_lut(size: int, timings: dict):
+    """Bake the N x 1 Kd (diffuse Fresnel weight) LUT over n.v."""
     key = ("kd", size)
     ctx = get_context()
     prog = compute_program("kd_lut.comp")
@@ -391,6 +398,7 @@ def _object_buffer(scene: Scene) -> np.ndarray:
 
 
 def resolved_terms(scene: Scene, o: dict) -> dict:
+    """The D, G, F and LUT-G terms this render uses: an option's value, or the scene's ``[brdf]`` for ``scene``."""
     ndf = scene.brdf.ndf if o["ndf"] == "scene" else o["ndf"]
     geometry = scene.brdf.geometry if o["geometry"] == "scene" else o["geometry"]
     fresnel = scene.brdf.fresnel if o["fresnel"] == "scene" else o["fresnel"]

@@ -118,6 +118,7 @@ def _mean(xs):
 
 
 def plot_ndotv(path: Path, per_preset: dict[str, list]) -> str | None:
+    """Error against NdotV (binned), one line per preset; the PNG's name, or None without bins."""
     if not any(per_preset.values()):
         return None
     plt = pyplot()
@@ -136,6 +137,8 @@ def plot_ndotv(path: Path, per_preset: dict[str, list]) -> str | None:
 
 def plot_convergence(path: Path, conv: list[dict], top_spp: int, floor: float | None,
                      preset_mse: dict[str, float]) -> str | None:
+    """MSE of lower-spp references against the report's reference (log-log) with the variance
+    prediction, the noise floor and each preset's MSE; the PNG's name, or None without data."""
     if not conv:
         return None
     plt = pyplot()

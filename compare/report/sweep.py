@@ -81,6 +81,7 @@ def split_timings(timings: dict | None) -> tuple[float | None, float | None]:
 
 
 def image_timings(img) -> tuple[float | None, float | None]:
+    """(precompute seconds, frame seconds) of a rendered image's ``timings`` metadata (None where absent)."""
     try:
         timings = img.meta_json("timings", {})
     except (ValueError, TypeError):

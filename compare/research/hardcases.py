@@ -116,6 +116,7 @@ def case_dicts(tmp_dir: Path) -> dict[str, dict]:
 
 
 def case_scenes(tmp_dir: Path, size: int = DEFAULT_SIZE, only: list[str] | None = None) -> dict[str, Scene]:
+    """Every hard case (or those in ``only``) as a :class:`~pbrcheck.scene.Scene` of height ``size``."""
     out = {}
     for name, d in case_dicts(tmp_dir).items():
         if only and name not in only:
