@@ -89,6 +89,17 @@ def image_timings(img) -> tuple[float | None, float | None]:
     return split_timings(timings if isinstance(timings, dict) else {})
 
 
+def timed_on(img) -> dict:
+    """``{"gl_renderer", "timing_clock"}`` of a real-time image's metadata (what its times mean)."""
+    return {"gl_renderer": img.meta.get("gl_renderer", "?"), "timing_clock": img.meta.get("timing_clock", "wall")}
+
+
+def timed_on_label(rows: list[dict]) -> str:
+    """``"on <GL renderer> (<clock>)"`` for the rows' timings ("" when no row says)."""
+    seen = sorted({(r["gl_renderer"], r.get("timing_clock", "wall")) for r in rows if r.get("gl_renderer")})
+    return "; ".join(f"on {g} ({c.replace('_', ' ')})" for g, c in seen)
+
+
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
     """Indices of the points no other point beats in both coordinates (both minimised), by x."""
     idx = [i for i, (x, y) in enumerate(points) if x is not None and y is not None
@@ -104,8 +115,10 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 
 
 def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -> Path:
-    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked."""
+    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked; the time
+    axes name the GL renderer and clock of the rows (:func:`timed_on_label`)."""
     plt = pyplot()
+    on = timed_on_label(rows)  # the speed axis names the GL renderer (and clock) it was timed on
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
     for (ci, tkey), (ri, mkey) in itertools.product(enumerate(("precompute_s", "frame_s")),
                                                     enumerate(("relmse", "flip_mean"))):
@@ -123,7 +136,7 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
             ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "-o", color="tab:red",
                     ms=6, mfc="none", label="Pareto front", zorder=3)
             ax.legend(fontsize=7)
-        ax.set_xlabel(tkey.replace("_s", " time (s)"))
+        ax.set_xlabel(tkey.replace("_s", " time (s)") + (f"\n{on}" if on else ""), fontsize=8 if on else None)
         ax.set_ylabel(mkey)
         if all(pts[i][1] > 0 for i in ok):
             ax.set_yscale("log")
@@ -151,7 +164,7 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
         cmp = compare_images(ref, img, scene=scene, noise=False)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
-                     **cmp.metrics})
+                     **timed_on(img), **cmp.metrics})
         if progress is not None:
             progress.update(1)
     return rows
