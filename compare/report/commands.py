@@ -15,7 +15,8 @@ from .sweep import parse_vary, run_sweep
 
 def _cmd_report(args) -> int:
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
-                       spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
+                       spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                       convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
                        hardcases=args.hardcases, research=args.research)
     print(f"report: {out}")
@@ -41,7 +42,11 @@ def register(sub, bench_sub) -> None:
     s.add_argument("scenes", nargs="*", metavar="SCENE", help="built-in scene names or TOML paths (default: spheres)")
     s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
-    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
+                   "are rendered until the reference's noise floor is 10x below the smallest error reported")
+    s.add_argument("--spp-cap", type=int, default=None, metavar="N",
+                   help="most reference samples per pixel (default 4096); at the cap a verdict is flagged "
+                        "noise-limited")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="sweep these real-time options (repeatable, every combination); default: the main cost "
                         "knobs one at a time")
