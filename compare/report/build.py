@@ -27,7 +27,7 @@ from .. import renderers
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
-from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
+from ..verdict_spp import VerdictSpp, reference_for_verdict
 from .research_sections import research_sections
 from .section import Section, Table
 from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
@@ -254,8 +254,9 @@ class ReportSettings:
     vary: dict | None = None
     convergence: bool = True
     sweep: bool = True
-    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the least.
-    spp_cap: int = DEFAULT_SPP_CAP
+    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the
+    #: least; None: as many as fit in ``DEFAULT_TIME_BUDGET_S`` of rendering per scene.
+    spp_cap: int | None = None
 
 
 @dataclass
@@ -422,7 +423,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
-    ``spp_cap``, default :data:`compare.verdict_spp.DEFAULT_SPP_CAP`) until the reference's noise
+    ``spp_cap``; default: as many as render in :data:`compare.verdict_spp.DEFAULT_TIME_BUDGET_S`
+    seconds per scene at the measured speed) until the reference's noise
     floor is :data:`compare.verdict_spp.NOISE_FLOOR_FACTOR` times below the smallest error of the
     presets against it, else the section says "noise-limited"; the rule's outcome is in the
     provenance table and ``metrics.json`` (``reference_spp``).
@@ -457,8 +459,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
     sections = []
-    st = ReportSettings(list(presets), spp, vary_d, convergence, sweep,
-                        DEFAULT_SPP_CAP if spp_cap is None else int(spp_cap))
+    st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, None if spp_cap is None else int(spp_cap))
     with Progress("report", total=total, enabled=progress) as prog:
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
