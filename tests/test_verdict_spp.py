@@ -116,3 +116,22 @@ def test_gate_budget_noise():
     note = noise_note(r)
     assert note.startswith(" (noise-limited: relmse budget 0.01 is 5x") and "at 16384 spp" in note
     assert noise_note(Result(chk, "pass", budget_noise=[{**rows["relmse"], "trusted": True}])) == ""
+
+
+def test_flip_and_itp_maps_are_memoized_by_content(monkeypatch):
+    from compare import metrics
+
+    calls = []
+    real = metrics._flip_map
+    monkeypatch.setattr(metrics, "_flip_map", lambda r, t: calls.append(1) or real(r, t))
+    a = TRUTH[:8, :8].copy()
+    b = a * 1.1
+    m1 = metrics.flip_map(a, b)
+    m2 = metrics.flip_map(a.copy(), b.copy())          # same content: no second evaluation
+    np.testing.assert_array_equal(m1, m2)
+    m1[0, 0] = -1.0                                     # callers get copies
+    assert metrics.flip_map(a, b)[0, 0] >= 0 and len(calls) == 1
+    metrics.flip_map(a, b * 1.01)                       # other content: evaluated
+    assert len(calls) == 2
+    e1 = metrics.delta_e_itp_map(a, b)
+    np.testing.assert_array_equal(e1, metrics.delta_e_itp_map(a, b))
