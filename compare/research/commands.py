@@ -1,5 +1,5 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
-``fit-lod``, ``explain``, ``fit-roughness`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``explain``, ``fit-roughness``, ``diagnose`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck.cli` maps them to exit codes."""
 
 from __future__ import annotations
@@ -13,7 +13,10 @@ from pbrcheck.args import split_list
 from pbrcheck.scene import load_scene
 from realtime.presets import parse_sets
 
-from . import explain, fit_lod, fit_roughness, hardcases
+from pbrcheck.environment import read_image_file
+from pbrcheck.exr import Image, read_exr
+
+from . import diagnose, explain, fit_lod, fit_roughness, hardcases
 
 
 def _cmd_hardcases(args) -> int:
@@ -66,6 +69,26 @@ def _cmd_fit_roughness(args) -> int:
     out = write_json_atomic(args.out, res)
     print(fit_roughness.table_markdown(res), end="")
     print(f"json: {out}")
+    return 0
+
+
+def _read_image(path: str) -> Image:
+    """An EXR as pbrcheck writes it (AOVs and metadata kept), or any .exr/.hdr as plain RGB."""
+    p = Path(path)
+    if p.suffix.lower() == ".exr":
+        img = read_exr(p)
+        if img.has("R", "G", "B"):
+            return img
+    return Image.from_rgb(read_image_file(p)[..., :3])
+
+
+def _cmd_diagnose(args) -> int:
+    ref, test = _read_image(args.reference), _read_image(args.test)
+    scene = load_scene(args.scene) if args.scene else None
+    res = diagnose.diagnose(ref, test, scene, spp=args.spp, progress=not args.quiet)
+    print(diagnose.table_markdown(res), end="")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, res)}")
     return 0
 
 
@@ -128,6 +151,18 @@ def register(sub, bench_sub) -> None:
                    help="start Adam at each object's own roughness, without the starting scan (and no range)")
     s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
     s.set_defaults(func=_cmd_fit_roughness)
+
+    s = sub.add_parser("diagnose", help="why do two images differ? rank known convention mismatches (flips, "
+                                        "sRGB, exposure, clamp, channel order, alpha; with --scene also the "
+                                        "environment's orientation, roughness, diffuse and light units)")
+    s.add_argument("reference", help="reference image (.exr, ideally pbrcheck's with variance and coverage)")
+    s.add_argument("test", help="image under test (.exr or .hdr, linear radiance)")
+    s.add_argument("--scene", help="the scene both show (enables the scene-space hypotheses)")
+    s.add_argument("--spp", type=int, default=None,
+                   help="spp of the re-rendered references (default: the reference's own)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the result as JSON")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_diagnose)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")
