@@ -4,9 +4,10 @@ Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include
 lines (each file once; the sources of :func:`pbrcheck.registry.glsl_generated` are included by
 name like files), prepends ``#version 430``, the named constants of every registry
 (:func:`pbrcheck.registry.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
-of the caller, and keeps a line map so that a compile error reported by the driver as
-``0:LINE(COL)`` is re-reported as ``file.glsl:line`` of the original source
-(:class:`pbrcheck.errors.ShaderCompileError`).
+of the caller, and keeps a line map so that a compile error reported by the driver is re-reported as
+``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`). Two driver
+formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, column) and NVIDIA's
+``0(LINE) : error C0000: ...`` (source string and line, no column).
 
 API
 ---
@@ -30,7 +31,10 @@ GL_TEXTURE_CUBE_MAP_SEAMLESS = 0x884F
 DEBIAN_PACKAGES = "libegl1 libgl1 libgl1-mesa-dri"
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+# Mesa: "0:3(14): error: ..." (source string : line (column)).
 _ERR_LINE = re.compile(r"(\d+):(\d+)\((\d+)\)")
+# NVIDIA: "0(6) : error C0000: ..." (source string (line)), at the start of a message line.
+_ERR_LINE_NV = re.compile(r"^(\s*)(\d+)\((\d+)\)(?=\s*:)")
 
 _ctx = None
 _programs: dict = {}
@@ -118,17 +122,28 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
 
 
 def map_errors(message: str, src: Source) -> str:
-    """Rewrite every ``0:LINE(COL)`` of a driver message as ``file:line(col)``."""
+    """Rewrite every driver location of ``message`` as ``file:line(col)`` (Mesa's ``0:LINE(COL)``) or
+    ``file:line`` (NVIDIA's ``0(LINE)``); keep only the lines that carry a location (all of the
+    message when none does)."""
+
+    def where(k: int):
+        return src.line_map[k - 1] if 1 <= k <= len(src.line_map) else None
 
     def sub(m):
-        k = int(m.group(2))
-        if 1 <= k <= len(src.line_map):
-            f, l = src.line_map[k - 1]
-            return f"{f}:{l}({m.group(3)})"
-        return m.group(0)
+        loc = where(int(m.group(2)))
+        return f"{loc[0]}:{loc[1]}({m.group(3)})" if loc else m.group(0)
 
-    keep = [l for l in message.splitlines() if _ERR_LINE.search(l)]
-    return "; ".join(_ERR_LINE.sub(sub, l).strip() for l in keep) or message.strip()
+    def sub_nv(m):
+        loc = where(int(m.group(3)))
+        return f"{m.group(1)}{loc[0]}:{loc[1]}" if loc else m.group(0)
+
+    out = []
+    for line in message.splitlines():
+        if _ERR_LINE.search(line):
+            out.append(_ERR_LINE.sub(sub, line).strip())
+        elif _ERR_LINE_NV.search(line):
+            out.append(_ERR_LINE_NV.sub(sub_nv, line).strip())
+    return "; ".join(out) or message.strip()
 
 
 def compute_program(entry: str, defines: dict | None = None):

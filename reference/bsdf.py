@@ -143,6 +143,11 @@ def fresnel_term(fresnel, VoH, F0):
     return F0 + (1.0 - F0) * w
 
 
+def _divide(a, b):
+    """a / b; a seam so that a test can emulate CUDA's inexact division on the CPU."""
+    return a / b
+
+
 def _mean(c):
     return (c.x + c.y + c.z) * (1.0 / 3.0)
 
@@ -213,8 +218,10 @@ class PBRMaterial(mi.BSDF):
         F = fresnel_term(self.fresnel, NoV, F0)
         s = _mean(F)
         d = _mean((1.0 - F) * self.base_color) * (1.0 - self.metallic)
-        tot = s + d
-        return dr.select(tot > 0, s / dr.maximum(tot, 1e-20), 1.0)
+        # Exact at the ends, whatever the division's rounding: on CUDA s / s is an approximate
+        # reciprocal times s (1 - 1e-7), which gave a delta-only metal a diffuse pdf of ~1e-8.
+        ratio = _divide(s, dr.maximum(s + d, 1e-20))
+        return dr.select(d <= 0, 1.0, dr.select(s <= 0, 0.0, dr.clip(ratio, 0.0, 1.0)))
 
     def _spec_pdf(self, wi, wo, h, alpha):
         """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
