@@ -24,7 +24,7 @@ API
 :class:`Entry`, :class:`Registry`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
 :func:`glsl_generated`.
 """
 
@@ -167,10 +167,15 @@ DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
 LUT_SAMPLINGS = _switch("LUT_SAMPLING", vndf="GGX visible normals, Heitz 2018 (GGX NDF only)",
                         ndf="half vectors drawn from the NDF, Walter et al. 2007")
+#: The reference's specular lobe: single scattering, or the multiple-scattering random walk
+#: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
+MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
+                        random_walk="multiple-scattering random walk on the Smith microsurface, "
+                                    "Heitz, Hanika, d'Eon, Dachsbacher 2016")
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
-                                     IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS)}
+                                     IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS)}
 
 
 def glsl_defines() -> dict[str, int]:
