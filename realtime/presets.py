@@ -17,6 +17,7 @@ from pbrcheck.lodmap import LodMapping
 from pbrcheck.registry import (
     BUILTIN_LOD_MAPPINGS,
     DFGS,
+    ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
     IRRADIANCE_METHODS,
@@ -81,6 +82,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            RUNTIME_SAMPLINGS.names),
     Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
     Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
+    Option("energy_compensation", "choice", "multiple-scattering energy compensation of the split-sum specular "
+           "(pbrcheck/energy.py): none | filament | fdez_aguera | kulla_conty", ENERGY_COMPENSATIONS.names),
     Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names)),
     Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
     Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names)),
@@ -121,6 +124,7 @@ DEFAULT = {
     "runtime_sampling": "vndf",
     "runtime_lod": True,
     "runtime_rotate": True,
+    "energy_compensation": "none",
     "ndf": "scene",
     "geometry": "scene",
     "fresnel": "scene",
@@ -161,6 +165,13 @@ PRESETS: dict[str, dict] = {
         runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
     # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
+    # Filament's documented IBL (Filament documentation sec. 5.3 "Image based lights"): irradiance
+    # as 9 SH coefficients, prefiltered levels at lod = M r (2 - r) (perceptualRoughnessToLod), its
+    # DFG LUT (GGX, height-correlated Smith; the multiscatter form mix(dfg.x, dfg.y, F0) = F0 A + B)
+    # and its energy compensation 1 + F0 (1 / dfg.y - 1) of the specular lobe.
+    "filament": _preset(
+        irradiance="sh9", lod_mapping="quadratic", dfg="lut", lut_geometry="smith_ggx_correlated",
+        lut_sampling="vndf", energy_compensation="filament"),
     "analytic_mobile": _preset(
         shading="article002", dfg="analytic", irradiance="sh9", lod_mapping="linear", prefilter_nl_weight=False,
         prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16"),

@@ -49,6 +49,7 @@ from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
 from pbrcheck.registry import (
     DFGS,
+    ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
     IRRADIANCE_METHODS,
@@ -419,6 +420,7 @@ def frame_defines(o: dict, terms: dict) -> dict:
         **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
         **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
         **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
+        **ENERGY_COMPENSATIONS.select(o["energy_compensation"]),
         "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
         "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
     }

@@ -14,6 +14,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "env.glsl"
 #include "sampling.glsl"
 #include "ibl.glsl"
+#include "energy.glsl"
 
 layout(rgba32f, binding = 0) writeonly uniform image2D out_color;   // rgb, coverage
 layout(rgba32f, binding = 1) writeonly uniform image2D out_aov;     // N.xyz, NdotV (centre ray)
@@ -208,7 +209,15 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
 #else
     vec3 spec_albedo = vec3(AB.x + AB.y);
 #endif
-    color += prefiltered_radiance(r, roughness) * spec_albedo;
+#if FRESNEL == FRESNEL_SCHLICK
+    vec3 F0e = F0;
+#else
+    vec3 F0e = vec3(1.0);
+#endif
+    // Multiple-scattering energy compensation (energy.glsl): a scale of the split sum's specular
+    // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
+    color += prefiltered_radiance(r, roughness) * spec_albedo * energy_scale(F0e, AB.x, AB.y);
+    color += irradiance_over_pi(n) * energy_ms(F0e, AB.x, AB.y, roughness);
 #endif
     color += (1.0 - metallic) * base * kd * irradiance_over_pi(n);
     for (int i = 0; i < n_lights; ++i) {
