@@ -2,7 +2,7 @@
 reference, tabulate precompute time, frame time and every metric, and plot the Pareto front.
 
 ``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
-seconds), split by :func:`split_timings`.
+seconds), split by :func:`compare.timings.split_timings`.
 """
 
 from __future__ import annotations
@@ -22,13 +22,7 @@ from pbrcheck.scene import load_scene
 from .. import renderers
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
-
-#: Timing keys (substrings) that belong to the per-frame cost; every other pass is precompute
-#: (prefiltering, irradiance, LUT, shader compile...). An explicit ``frame``/``frame_s`` key wins.
-FRAME_KEYS = ("frame", "draw", "shade", "render")
-#: Timing keys that are totals of other keys and must not be summed again.
-TOTAL_KEYS = ("total",)
-
+from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings  # noqa: F401  (re-exported)
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -62,31 +56,6 @@ def parse_vary(items: list[str]) -> dict[str, list]:
     if not out:
         raise SweepError("--vary: at least one KEY=V1,V2,... is needed")
     return out
-
-
-def split_timings(timings: dict | None) -> tuple[float | None, float | None]:
-    """(precompute seconds, frame seconds) from a pass -> seconds dict (see :data:`FRAME_KEYS`)."""
-    if not timings:
-        return None, None
-    t = {k: float(v) for k, v in timings.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    for k in ("frame", "frame_s", "frame_seconds"):
-        if k in t:
-            frame = t[k]
-            pre = sum(v for kk, v in t.items() if kk != k and not any(x in kk.lower() for x in FRAME_KEYS + TOTAL_KEYS))
-            return pre, frame
-    frame = sum(v for k, v in t.items() if any(x in k.lower() for x in FRAME_KEYS)
-                and not any(x in k.lower() for x in TOTAL_KEYS))
-    pre = sum(v for k, v in t.items() if not any(x in k.lower() for x in FRAME_KEYS + TOTAL_KEYS))
-    return pre, frame
-
-
-def image_timings(img) -> tuple[float | None, float | None]:
-    """(precompute seconds, frame seconds) of a rendered image's ``timings`` metadata (None where absent)."""
-    try:
-        timings = img.meta_json("timings", {})
-    except (ValueError, TypeError):
-        timings = {}
-    return split_timings(timings if isinstance(timings, dict) else {})
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
