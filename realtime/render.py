@@ -62,6 +62,7 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
+from .hooks import load_hook_file
 from .gl import compute_program, get_context, groups, renderer_name
 from .presets import fitted_mapping, resolve_options
 
@@ -426,6 +427,8 @@ def frame_defines(o: dict, terms: dict) -> dict:
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
+    if o["shader"]:
+        defines.update(load_hook_file(o["shader"]).defines)
     return defines
 
 
@@ -481,8 +484,9 @@ def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
 
 
 def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, cached_before: set,
-                fmt: str, warnings: list) -> dict:
-    """The EXR metadata of a real-time render: preset, options, terms, timings and conventions."""
+                fmt: str, warnings: list, hooks=None) -> dict:
+    """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
+    shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
     cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
                                    ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
                     if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
@@ -497,6 +501,8 @@ def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, 
         "cube_format_used": fmt,
         "warnings": json.dumps(warnings),
         "scene": scene.name,
+        "shader": json.dumps({"path": hooks.path, "sha256": hooks.sha256, "hooks": list(hooks.hooks)}
+                             if hooks else None),
         "conventions": json.dumps({
             "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
             "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
@@ -552,8 +558,9 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         bar.update(1, "kd_lut")
 
         defines = frame_defines(o, terms)
+        hooks = load_hook_file(o["shader"]) if o["shader"] else None
         t0 = time.perf_counter()
-        prog = compute_program("render.comp", defines)
+        prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
         timings["compile_frame"] = time.perf_counter() - t0
 
         buffers = _bind_frame(prog, scene, o, env, {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube,
@@ -581,4 +588,4 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         "R": color[..., 0], "G": color[..., 1], "B": color[..., 2],
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
-    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings))
+    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks))

@@ -353,6 +353,8 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
+        if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
+            provenance.append((f"real-time {preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
     plots = []
     m = plot_materials(sd / "materials.png", scene, objs)

@@ -7,6 +7,9 @@ from pathlib import Path
 
 from pbrcheck.args import split_list
 from pbrcheck.scene import DEFAULT_SCENE
+from realtime.presets import SHADER_SEP
+
+from .. import renderers
 
 from . import demo
 from .build import build_report
@@ -14,7 +17,10 @@ from .sweep import parse_vary, run_sweep
 
 
 def _cmd_report(args) -> int:
-    out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
+    presets = split_list(args.presets)
+    if args.shader:  # each hook file as one more renderer: the default preset with the hooks
+        presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
+    out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
                        hardcases=args.hardcases, research=args.research)
@@ -39,7 +45,10 @@ def register(sub, bench_sub) -> None:
     """Add ``report``, ``sweep`` and ``demo`` to the ``pbrcheck`` parser."""
     s = sub.add_parser("report", help="render, compare and write a static HTML accuracy report")
     s.add_argument("scenes", nargs="*", metavar="SCENE", help="built-in scene names or TOML paths (default: spheres)")
-    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
+    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all); PRESET+FILE.glsl adds "
+                   "a shader hook file, ext:NAME an external renderer")
+    s.add_argument("--shader", action="append", metavar="FILE.glsl",
+                   help="also measure the default preset with this shader hook file (repeatable; docs/hooks.md)")
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",

@@ -11,7 +11,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.args import split_list
 from pbrcheck.scene import load_scene
-from realtime.presets import parse_sets
+from realtime.presets import overrides_from_args
 
 from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
@@ -45,7 +45,7 @@ def _cmd_fit_lod(args) -> int:
         except ValueError:
             raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
     chains = split_list(args.chains) if args.chains else None
-    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size, out=Path(args.out), progress=not args.quiet,
                       **({"chains": chains} if chains else {}))
     print(fit_lod.table_markdown(res), end="")
@@ -54,7 +54,7 @@ def _cmd_fit_lod(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size or None, fitted=args.fitted, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
@@ -63,7 +63,7 @@ def _cmd_explain(args) -> int:
 
 
 def _cmd_fit_roughness(args) -> int:
-    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
+    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
                             size=args.size or None, iterations=args.iterations, spp=args.spp,
                             scan=not args.no_scan)
     out = write_json_atomic(args.out, res)
@@ -105,6 +105,7 @@ def _renderer_args(s, *, spp: int, size: int | None, size_help: str) -> None:
     s.add_argument("scene", help="built-in scene name or TOML path")
     s.add_argument("--preset", default="default", help="real-time preset (default: default)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
     s.add_argument("--spp", type=int, default=spp, help=f"samples per pixel (default {spp})")
     s.add_argument("--size", type=int, default=size, help=size_help)
 
