@@ -11,7 +11,8 @@ formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, col
 
 API
 ---
-:func:`get_context`, :func:`renderer_name`, :func:`assemble`, :func:`map_errors`,
+:func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
+:func:`timed`, :func:`assemble`, :func:`map_errors`,
 :func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
 """
 
@@ -68,6 +69,43 @@ def get_context():
 def renderer_name() -> str:
     """The GL renderer string of the context (``llvmpipe ...`` on Mesa's software rasterizer)."""
     return str(get_context().info.get("GL_RENDERER", "?"))
+
+
+#: GL_RENDERER substrings of Mesa's CPU rasterizers, where a GL timer query measures nothing useful
+#: (the work runs on the CPU, partly at glFinish) and the wall clock is used instead.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
+CLOCK_GL_TIMER = "gl_timer_query"
+CLOCK_WALL = "wall"
+
+
+def is_software_renderer(name: str | None = None) -> bool:
+    """Whether the GL renderer (default: this context's) is a CPU rasterizer."""
+    name = (renderer_name() if name is None else name).lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
+
+
+def timing_clock(name: str | None = None) -> str:
+    """The clock :func:`timed` uses on this renderer: GL timer queries (``GL_TIME_ELAPSED``, GPU time
+    of the commands issued inside) on a real GPU, the wall clock around ``glFinish`` on llvmpipe."""
+    return CLOCK_WALL if is_software_renderer(name) else CLOCK_GL_TIMER
+
+
+def timed(ctx, fn, clock: str | None = None):
+    """``(fn(), seconds)``: GPU time of the GL commands ``fn`` issues (a timer query) or the wall time
+    until they finished (``ctx.finish()``), per :func:`timing_clock`."""
+    import time
+
+    clock = clock or timing_clock()
+    if clock == CLOCK_GL_TIMER:
+        q = ctx.query(time=True)
+        with q:
+            out = fn()
+        ctx.finish()
+        return out, q.elapsed * 1e-9  # nanoseconds
+    t0 = time.perf_counter()
+    out = fn()
+    ctx.finish()
+    return out, time.perf_counter() - t0
 
 
 @dataclass

@@ -62,8 +62,8 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
+from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .gl import compute_program, get_context, groups, renderer_name
 from .presets import fitted_mapping, resolve_options
 
 HALF_MAX = 65504.0
@@ -118,10 +118,8 @@ def _set(prog, name, value, optional: bool = False):
 
 
 def _timed(ctx, fn):
-    t0 = time.perf_counter()
-    out = fn()
-    ctx.finish()
-    return out, time.perf_counter() - t0
+    """``(fn(), seconds)`` by :func:`realtime.gl.timed`: GL timer queries on a GPU, wall on llvmpipe."""
+    return timed(ctx, fn)
 
 
 def _baked(name: str, key, timings: dict | None, run):
@@ -493,6 +491,7 @@ def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, 
     return {
         "renderer": "realtime",
         "gl_renderer": renderer_name(),
+        "timing_clock": timing_clock(),
         "preset": preset,
         "options": json.dumps(o, sort_keys=True),
         "terms": json.dumps(terms, sort_keys=True),
@@ -519,7 +518,8 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
 
     Meta: ``preset``, ``options`` (JSON of every option value), ``timings`` (JSON seconds per pass;
     a pass whose artifact came from this process's cache reports its original bake time and is listed
-    in ``cached_passes``), ``warnings``, ``renderer``, ``terms``.
+    in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
+    ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
     """
     o = resolve_options(preset, options)
     ctx = get_context()

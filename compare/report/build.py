@@ -29,7 +29,8 @@ from ..metrics import METRICS, compare_images
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from .research_sections import research_sections
 from .section import Section, Table
-from .sweep import combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, write_table
+from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
+                    write_table)
 
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
@@ -349,7 +350,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         objs[preset] = {o["id"]: o["metrics"] for o in cmp.summary["objects"]}
         bins[preset] = cmp.summary["ndotv"]
         speed_rows.append({"preset": preset, "options": {}, "precompute_s": res.precompute, "frame_s": res.frame,
-                           **cmp.metrics})
+                           **timed_on(img), **cmp.metrics})
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"real-time {preset} options", img.meta.get("options", "")))

@@ -22,7 +22,7 @@ from pbrcheck.scene import load_scene
 from .. import renderers
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
-from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings  # noqa: F401  (re-exported)
+from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -73,8 +73,10 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 
 
 def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -> Path:
-    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked."""
+    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked; the time
+    axes name the GL renderer and clock of the rows (:func:`timed_on_label`)."""
     plt = pyplot()
+    on = timed_on_label(rows)  # the speed axis names the GL renderer (and clock) it was timed on
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
     for (ci, tkey), (ri, mkey) in itertools.product(enumerate(("precompute_s", "frame_s")),
                                                     enumerate(("relmse", "flip_mean"))):
@@ -92,7 +94,7 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
             ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "-o", color="tab:red",
                     ms=6, mfc="none", label="Pareto front", zorder=3)
             ax.legend(fontsize=7)
-        ax.set_xlabel(tkey.replace("_s", " time (s)"))
+        ax.set_xlabel(tkey.replace("_s", " time (s)") + (f"\n{on}" if on else ""), fontsize=8 if on else None)
         ax.set_ylabel(mkey)
         if all(pts[i][1] > 0 for i in ok):
             ax.set_yscale("log")
@@ -120,7 +122,7 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
         cmp = compare_images(ref, img, scene=scene, noise=False)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
-                     **cmp.metrics})
+                     **timed_on(img), **cmp.metrics})
         if progress is not None:
             progress.update(1)
     return rows
