@@ -257,3 +257,14 @@ def test_builtin_threejs_config_and_user_override(tmp_path):
 def test_object_ids_match_the_scene(scene):
     ids = R.object_ids(scene)
     assert ids.shape == (8, 16) and set(np.unique(ids)) == {-1.0, 0.0}
+
+
+def test_committed_clients_budget_is_well_formed():
+    from compare.gate import _scene_arg, load_budget
+
+    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
+    assert {c.preset for c in checks} == {"ext:threejs"} and len(checks) >= 2
+    for c in checks:
+        assert c.max and (base / c.reference).is_file()
+        scene = _scene_arg(base, c.scene)
+        assert scene.camera.width * scene.camera.height <= 200 * 200  # CI size
