@@ -271,6 +271,7 @@ class PresetResult:
     rel_png: str
     mse: float
     timed_on: str = ""
+    space: str = "linear"
 
 
 @dataclass
@@ -313,7 +314,7 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str) -> tuple[Preset
     res = PresetResult(preset, cmp.metrics, cmp.summary["pixels"],
                        {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                        f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
-                       (cmp.metrics["rmse"] or 0.0) ** 2, timed_on(img.meta))
+                       (cmp.metrics["rmse"] or 0.0) ** 2, timed_on(img.meta), cmp.summary["space"])
     return res, cmp, img
 
 
