@@ -12,6 +12,8 @@ API
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
   (:func:`realtime.presets.resolve_options`).
+- :func:`multiscatter_albedo` -- the reference random walk's directional albedo
+  (:func:`reference.multiscatter_measure.directional_albedo`).
 """
 
 from __future__ import annotations
@@ -64,3 +66,11 @@ def preset_names() -> list[str]:
 def resolve_options(name: str, overrides: dict | None = None) -> dict:
     """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``)."""
     return _presets.resolve_options(name, overrides)
+
+
+def multiscatter_albedo(mu, roughness, F0, **kwargs):
+    """(mean, standard error) of the random walk's directional albedo; arguments as
+    :func:`reference.multiscatter_measure.directional_albedo` (``samples``, ``seed``, ``order_max``)."""
+    from reference import multiscatter_measure as _ms  # local: sets Mitsuba's variant on first use
+
+    return _ms.directional_albedo(mu, roughness, F0, **kwargs)

@@ -407,6 +407,16 @@ def resolved_terms(scene: Scene, o: dict) -> dict:
     return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
 
 
+def resolved_energy_compensation(scene: Scene, o: dict) -> str:
+    """The energy compensation this render uses: the option's value, or for ``scene`` the one that
+    matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
+    single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
+    from pbrcheck.energy import SCENE_COMPENSATION
+
+    v = o["energy_compensation"]
+    return SCENE_COMPENSATION[scene.brdf.multiscatter] if v == "scene" else v
+
+
 def render_realtime(scene: Scene, preset: str = "default", options: dict | None = None, *,
                     progress: bool = True) -> Image:
     """Render ``scene`` with ``preset`` and option overrides; returns R, G, B and the AOVs.
@@ -458,7 +468,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
             **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
             **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
             **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
-            **ENERGY_COMPENSATIONS.select(o["energy_compensation"]),
+            **ENERGY_COMPENSATIONS.select(resolved_energy_compensation(scene, o)),
             "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
             "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
         }
