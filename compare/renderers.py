@@ -15,6 +15,8 @@ API
 - :func:`resolve_options` -- a preset's complete, validated options
   (:func:`realtime.presets.resolve_options`); ``{}`` for an external renderer (which takes none),
   after checking that it exists.
+- :func:`multiscatter_albedo` -- the reference random walk's directional albedo
+  (:func:`reference.multiscatter_measure.directional_albedo`).
 """
 
 from __future__ import annotations
@@ -89,3 +91,11 @@ def resolve_options(name: str, overrides: dict | None = None) -> dict:
         _clients_config.get_renderer(name)
         return {}
     return _presets.resolve_options(name, overrides)
+
+
+def multiscatter_albedo(mu, roughness, F0, **kwargs):
+    """(mean, standard error) of the random walk's directional albedo; arguments as
+    :func:`reference.multiscatter_measure.directional_albedo` (``samples``, ``seed``, ``order_max``)."""
+    from reference import multiscatter_measure as _ms  # local: sets Mitsuba's variant on first use
+
+    return _ms.directional_albedo(mu, roughness, F0, **kwargs)

@@ -61,6 +61,13 @@ KC_EAVG = (
 
 COMPENSATIONS = ("none", "filament", "fdez_aguera", "kulla_conty")
 
+#: ``energy_compensation = "scene"`` (the default preset): the compensation matching the scene's
+#: ``[brdf] multiscatter``. For ``random_walk`` the best by measurement (``pbrcheck energy``,
+#: docs/research.md): filament has the lowest mean albedo error over roughness x F0 x n.v (0.0047
+#: against 0.0060 fdez_aguera, 0.0064 kulla_conty, 0.066 none) and the lowest relmse on the spheres
+#: scene against the random_walk reference (0.0042 against 0.0054, 0.0048, 0.020).
+SCENE_COMPENSATION = {"none": "none", "random_walk": "filament"}
+
 
 def F_avg_Schlick(F0):
     """Hemispherical average of Schlick's Fresnel, ``2 int F(mu) mu dmu = F0 + (1 - F0) / 21``

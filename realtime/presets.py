@@ -87,7 +87,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
     Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
     Option("energy_compensation", "choice", "multiple-scattering energy compensation of the split-sum specular "
-           "(pbrcheck/energy.py): none | filament | fdez_aguera | kulla_conty", ENERGY_COMPENSATIONS.names),
+           "(pbrcheck/energy.py): none | filament | fdez_aguera | kulla_conty | scene (none for a single-scattering "
+           "scene, the best measured one for [brdf] multiscatter = random_walk)", ("scene", *ENERGY_COMPENSATIONS.names)),
     Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names)),
     Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
     Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names)),
@@ -130,7 +131,9 @@ DEFAULT = {
     "runtime_sampling": "vndf",
     "runtime_lod": True,
     "runtime_rotate": True,
-    "energy_compensation": "none",
+    # "scene": compensate exactly when the scene's reference has multiple scattering (pbrcheck energy:
+    # filament has the lowest albedo and image error against the random walk; docs/research.md).
+    "energy_compensation": "scene",
     "ndf": "scene",
     "geometry": "scene",
     "fresnel": "scene",

@@ -406,8 +406,19 @@ def resolved_terms(scene: Scene, o: dict) -> dict:
     return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
 
 
+def resolved_energy_compensation(scene: Scene, o: dict) -> str:
+    """The energy compensation this render uses: the option's value, or for ``scene`` the one that
+    matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
+    single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
+    from pbrcheck.energy import SCENE_COMPENSATION
+
+    v = o["energy_compensation"]
+    return SCENE_COMPENSATION[scene.brdf.multiscatter] if v == "scene" else v
+
+
 def frame_defines(o: dict, terms: dict) -> dict:
-    """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms``.
+    """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
+    :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
 
     Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
     a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
@@ -419,7 +430,7 @@ def frame_defines(o: dict, terms: dict) -> dict:
         **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
         **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
         **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
-        **ENERGY_COMPENSATIONS.select(o["energy_compensation"]),
+        **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
         "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
         "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
     }
@@ -523,7 +534,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     """
     o = resolve_options(preset, options)
     ctx = get_context()
-    terms = resolved_terms(scene, o)
+    terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
     warnings = []

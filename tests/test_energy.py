@@ -89,7 +89,25 @@ def test_none_is_single_scattering_and_compensations_add_energy():
 def test_presets_offer_the_compensations():
     from realtime.presets import OPTIONS, PRESETS, resolve_options
 
-    assert OPTIONS["energy_compensation"].choices == registry.ENERGY_COMPENSATIONS.names
+    assert OPTIONS["energy_compensation"].choices == ("scene", *registry.ENERGY_COMPENSATIONS.names)
+    assert set(energy.SCENE_COMPENSATION) == set(registry.MULTISCATTERS.names)
+    assert energy.SCENE_COMPENSATION["none"] == "none"
+    assert PRESETS["default"]["energy_compensation"] == "scene"
     f = resolve_options("filament")
     assert f["energy_compensation"] == "filament" and f["irradiance"] == "sh9" and f["lod_mapping"] == "quadratic"
     assert "energy_compensation" in PRESETS["default"]
+
+
+def test_default_preset_compensates_exactly_for_random_walk_scenes():
+    from dataclasses import replace
+
+    from pbrcheck.scene import load_scene
+    from realtime.presets import resolve_options
+    from realtime.render import resolved_energy_compensation
+
+    s = load_scene("furnace")
+    o = resolve_options("default")
+    assert resolved_energy_compensation(s, o) == "none"
+    s_rw = replace(s, brdf=replace(s.brdf, multiscatter="random_walk"))
+    assert resolved_energy_compensation(s_rw, o) == energy.SCENE_COMPENSATION["random_walk"] == "filament"
+    assert resolved_energy_compensation(s_rw, resolve_options("default", {"energy_compensation": "none"})) == "none"
