@@ -341,3 +341,29 @@ center = [0.0, 0.0, 0.0]
 radius = 1.0
 """)
     return p
+
+
+# --- render lists of sweep and report on a scheduler -----------------------------------------------
+
+def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
+    from compare.corpus.scheduler import SerialExecutor
+    from compare.report.build import build_report
+    from compare.report.sweep import sweep_rows
+
+    scene = scene_from_dict(TINY)
+    ref = fake.reference(scene)
+    combos = [{"cube_size": 64}, {"cube_size": 128}]
+    plain = sweep_rows(scene, ref, combos, preset="default")
+    assert sweep_rows(scene, ref, combos, preset="default", executor=SerialExecutor()) == plain
+    outs = {}
+    for name, sched in (("plain", None), ("serial", "serial")):
+        build_report([str(_scene_file(tmp_path))], presets=["default", "splitsum_basic"], out_dir=tmp_path / name,
+                     spp=4, convergence=False, sweep=False, progress=False, scheduler=sched)
+        outs[name] = json.loads((tmp_path / name / "tiny" / "metrics.json").read_text())
+    for d in outs.values():
+        for p in d["presets"].values():
+            p.pop("timings", None)
+    assert outs["plain"] == outs["serial"]
+    with pytest.raises(SchedulerError):
+        build_report(["spheres"], presets=["default"], out_dir=tmp_path / "bad", scheduler="local:zero")
+    assert not (tmp_path / "bad").exists()

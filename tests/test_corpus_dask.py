@@ -112,3 +112,16 @@ def test_worker_killed_mid_corpus_loses_nothing(cluster, serial_rows, tmp_path):
     assert all(r["relmse"] is not None for r in res.rows if r["status"] == "ok")
     assert len(list((tmp_path / "out" / "rows").glob("*.json"))) == len(rows)
     assert time.perf_counter() - t0 < 300
+
+
+def test_sweep_on_the_cluster_gives_the_serial_rows(cluster):
+    from compare.corpus.scheduler import SerialExecutor
+    from compare import renderers
+    from compare.report.sweep import sweep_rows
+
+    scene = scene_from_dict(SCENE)
+    ref = renderers.render_reference(scene, spp=4, use_cache=False, progress=False)
+    combos = [{"cube_size": 64}, {"cube_size": 64, "prefilter_samples": 64}]
+    strip = lambda rows: [{k: v for k, v in r.items() if not k.endswith("_s")} for r in rows]  # noqa: E731
+    assert strip(sweep_rows(scene, ref, combos, executor=cluster)) == \
+           strip(sweep_rows(scene, ref, combos, executor=SerialExecutor()))

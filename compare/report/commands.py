@@ -9,6 +9,7 @@ from pbrcheck.args import split_list
 from pbrcheck.scene import DEFAULT_SCENE
 
 from . import demo
+from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
 from .sweep import parse_vary, run_sweep
 
@@ -17,7 +18,7 @@ def _cmd_report(args) -> int:
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research)
+                       hardcases=args.hardcases, research=args.research, scheduler=args.scheduler)
     print(f"report: {out}")
     return 0
 
@@ -25,7 +26,7 @@ def _cmd_report(args) -> int:
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
     paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet)
+                      progress=not args.quiet, scheduler=args.scheduler)
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0
@@ -51,6 +52,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.set_defaults(func=_cmd_report)
 
     s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
@@ -61,6 +63,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/sweep", metavar="DIR")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.set_defaults(func=_cmd_sweep)
 
 

@@ -7,6 +7,7 @@ seconds), split by :func:`compare.timings.split_timings`.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import itertools
@@ -20,6 +21,8 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import load_scene
 
 from .. import renderers
+from ..corpus import renderlist
+from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
 from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings  # noqa: F401  (re-exported)
@@ -112,8 +115,15 @@ def combinations(vary: dict[str, list]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
-def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``); one row each."""
+def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
+               executor=None) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``); one row each. With an
+    ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
+    (:func:`compare.corpus.renderlist.sweep_metrics`)."""
+    if executor is not None:
+        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
+        return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
+                 **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False)
@@ -143,9 +153,10 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
-              spp: int = 64, progress: bool = True) -> dict[str, Path]:
+              spp: int = 64, progress: bool = True, scheduler: str | None = None) -> dict[str, Path]:
     """Render the reference and every combination of ``vary`` over ``preset``; write the table and
-    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
+    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``scheduler``
+    (``local:N``, ``tcp://HOST:PORT``): the combinations run there (:mod:`compare.corpus.scheduler`).
 
     Raises
     ------
@@ -158,10 +169,12 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)
     n = math.prod(len(v) for v in vary.values())
-    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
+    spec = parse_scheduler(scheduler) if scheduler else None
+    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p, \
+            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
-        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
+        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p, executor=ex)
     keys = list(vary)
     paths = write_table(Path(out_dir), rows, keys)
     paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
