@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -308,6 +309,15 @@ def test_report_section_and_page(tmp_path, fake):
     assert "Corpus study" in html and "plots/worst.png" in html and "corrupt.hdr" in html
     for img in ("plots/distribution.png", "plots/vs_environment.png", "plots/worst.png"):
         assert (out / img).is_file()
+    # The same section inside `pbrcheck report`, its images linked relative to the report.
+    rep = tmp_path / "report"
+    args = ["report", str(_scene_file(tmp_path)), "--presets", "default", "--spp", "4", "--no-convergence",
+            "--no-sweep", "--quiet", "--out", str(rep)]
+    assert main(args + ["--corpus", str(tmp_path / "nowhere")]) == 2 and not rep.exists()
+    assert main(args + ["--corpus", str(out)]) == 0
+    html = (rep / "index.html").read_text()
+    srcs = re.findall(r'src="([^"]*plots/[^"]+)"', html)
+    assert len(srcs) == 3 and all((rep / s).resolve().is_file() for s in srcs)
 
 
 def test_cli_corpus_serial_and_bad_input(tmp_path, fake, capsys):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
@@ -11,11 +12,16 @@ from pbrcheck.scene import DEFAULT_SCENE
 from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
+from .corpus_section import corpus_section
 from .sweep import parse_vary, run_sweep
 
 
 def _cmd_report(args) -> int:
+    # Sections of finished corpora (read before anything is written); images linked relative to OUT.
+    extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
+              for d in args.corpus or []]
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
+                       extras=extras,
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
                        hardcases=args.hardcases, research=args.research, scheduler=args.scheduler)
@@ -53,6 +59,8 @@ def register(sub, bench_sub) -> None:
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
+    s.add_argument("--corpus", action="append", metavar="DIR", help="add the section of a finished corpus "
+                   "(the --out folder of pbrcheck corpus; repeatable)")
     s.set_defaults(func=_cmd_report)
 
     s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
