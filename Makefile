@@ -58,6 +58,7 @@ bench: setup
 	$(VENV)/bin/pbrcheck bench realtime
 	$(VENV)/bin/pbrcheck bench fit-roughness
 	$(VENV)/bin/pbrcheck bench multiscatter
+	$(VENV)/bin/pbrcheck bench corpus
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing

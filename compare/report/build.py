@@ -8,6 +8,7 @@ sets ``data-images-ok`` on ``<body>``) are inline.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import math
 from dataclasses import dataclass
@@ -24,6 +25,8 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
 from .. import renderers
+from ..corpus import renderlist
+from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
@@ -256,6 +259,7 @@ class ReportSettings:
     vary: dict | None = None
     convergence: bool = True
     sweep: bool = True
+    executor: object = None  # --scheduler: renders of presets and sweep run as its tasks
 
 
 @dataclass
@@ -303,9 +307,10 @@ def _provenance(scene, ref) -> list[tuple[str, str]]:
     return out
 
 
-def _measure_preset(scene, ref, preset: str, sd: Path, sid: str) -> tuple[PresetResult, object, object]:
-    """Render ``preset``, compare it, write its images; returns its result, the comparison and image."""
-    img = renderers.render_under_test(scene, preset, None, progress=False)
+def _measure_preset(scene, ref, preset: str, sd: Path, sid: str, img=None) -> tuple[PresetResult, object, object]:
+    """Render ``preset`` (unless its image ``img`` is given), compare it, write its images; returns its
+    result, the comparison and image."""
+    img = img if img is not None else renderers.render_under_test(scene, preset, None, progress=False)
     cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=f"real-time {preset}")
     p = _safe(preset)
     write_tonemapped(sd / f"rt_{p}.png", img.rgb, img.meta_json("options", None) if "options" in img.meta else None)
@@ -348,8 +353,9 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
     provenance = _provenance(scene, ref)
     noise_floor = None
-    for preset in st.presets:
-        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid)
+    pre = renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets]) if st.executor else None
+    for i, preset in enumerate(st.presets):
+        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, pre[i] if pre else None)
         if cmp.summary["noise"] is not None:
             noise_floor = cmp.summary["noise"]["mean_variance"]
         results.append(res)
@@ -374,7 +380,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     combos = combinations(st.vary) if st.vary else (default_sweep(st.presets[0]) if st.sweep else [])
     sweep_table = []
     if combos:
-        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog)
+        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog, executor=st.executor)
         write_table(sd, srows, sorted({k for c in combos for k in c}))
         for r in srows:
             label = ",".join(f"{k}={v}" for k, v in r["options"].items())
@@ -415,7 +421,8 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 research: bool = False, extras: list[Section] | None = None, furnace: bool = True) -> Path:
+                 research: bool = False, extras: list[Section] | None = None, furnace: bool = True,
+                 scheduler: str | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
@@ -424,7 +431,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
     :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
     renderer and scene) and, with ``furnace``, the white furnace per renderer
-    (:mod:`compare.report.summary`).
+    (:mod:`compare.report.summary`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
+    and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
 
     Raises
     ------
@@ -445,14 +453,16 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         renderers.resolve_options(p, {})
     for combo in combinations(vary_d) if vary_d else []:
         renderers.resolve_options(presets[0], combo)
+    spec = parse_scheduler(scheduler) if scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     n_conv = len(_convergence_spps(spp)) if convergence else 0
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     sections = []
-    st = ReportSettings(list(presets), spp, vary_d, convergence, sweep)
-    with Progress("report", total=total, enabled=progress) as prog:
+    with Progress("report", total=total, enabled=progress) as prog, \
+            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
+        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, ex)
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
         top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
@@ -12,7 +13,9 @@ from realtime.presets import SHADER_SEP
 from .. import renderers
 
 from . import demo
+from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
+from .corpus_section import corpus_section
 from .sweep import parse_vary, run_sweep
 
 
@@ -20,10 +23,15 @@ def _cmd_report(args) -> int:
     presets = split_list(args.presets)
     if args.shader:  # each hook file as one more renderer: the default preset with the hooks
         presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
+    # Sections of finished corpora (read before anything is written); images linked relative to OUT.
+    extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
+              for d in args.corpus or []]
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
+                       extras=extras,
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace)
+                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
+                       scheduler=args.scheduler)
     print(f"report: {out}")
     return 0
 
@@ -31,7 +39,7 @@ def _cmd_report(args) -> int:
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
     paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet, also=split_list(args.also))
+                      progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0
@@ -61,6 +69,9 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
+    s.add_argument("--corpus", action="append", metavar="DIR", help="add the section of a finished corpus "
+                   "(the --out folder of pbrcheck corpus; repeatable)")
     s.set_defaults(func=_cmd_report)
 
     s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
@@ -73,6 +84,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/sweep", metavar="DIR")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.set_defaults(func=_cmd_sweep)
 
 

@@ -7,6 +7,7 @@ seconds), split by :func:`compare.timings.split_timings`.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import itertools
@@ -20,6 +21,8 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import load_scene
 
 from .. import renderers
+from ..corpus import renderlist
+from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
 from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
@@ -114,8 +117,15 @@ def combinations(vary: dict[str, list]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
-def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``); one row each."""
+def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
+               executor=None) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``); one row each. With an
+    ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
+    (:func:`compare.corpus.renderlist.sweep_metrics`)."""
+    if executor is not None:
+        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
+        return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
+                 **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False)
@@ -145,10 +155,13 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
-              spp: int = 64, progress: bool = True, also: list[str] | None = None) -> dict[str, Path]:
+              spp: int = 64, progress: bool = True, also: list[str] | None = None,
+              scheduler: str | None = None) -> dict[str, Path]:
     """Render the reference and every combination of ``vary`` over ``preset``; write the table and
     the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``also``:
     further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the same plot.
+    ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the combinations run there
+    (:mod:`compare.corpus.scheduler`).
 
     Raises
     ------
@@ -164,12 +177,14 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     for other in also:
         renderers.resolve_options(other, {})
     n = math.prod(len(v) for v in vary.values()) + len(also)
-    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
+    spec = parse_scheduler(scheduler) if scheduler else None
+    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p, \
+            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
-        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
+        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p, executor=ex)
         for other in also:
-            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p)
+            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
     keys = list(vary)
     paths = write_table(Path(out_dir), rows, keys)
     paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
