@@ -125,7 +125,7 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
     if executor is not None:
         res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
         return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
-                 **r["metrics"]} for o, r in zip(combos, res)]
+                 **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False)
