@@ -294,6 +294,10 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
     assert "ext:pfm" in summary and "unstated" in summary
+    # The report runs diagnose on every external renderer's image and shows its verdict line.
+    assert "Convention check (<code>pbrcheck diagnose</code>): no convention mismatch found" in html \
+        or "Convention check (<code>pbrcheck diagnose</code>): likely cause:" in html
+    assert (tmp_path / "r" / "tiny" / "diagnose_ext_pfm.json").is_file()
 
 
 def test_png_srgb_is_compared_in_display_space(fake, scene):

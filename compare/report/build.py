@@ -29,6 +29,7 @@ from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
+from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from .research_sections import research_sections
 from .section import Section, Table
@@ -37,6 +38,10 @@ from .summary import timed_on as timed_on_text
 from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
                     write_table)
 
+#: Most samples per pixel of diagnose's scene-space re-renders for an external renderer (10 re-renders
+#: per renderer and scene; the hypotheses' errors are orders of magnitude above 64-spp noise, and
+#: diagnose subtracts the re-renders' own variance).
+DIAGNOSE_SPP = 64
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
 CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
@@ -224,6 +229,7 @@ is computed on linear radiance, before any display transform.</p>
 <figure><img class="img" src="{{ r.flip_png }}" alt="FLIP map"><figcaption>HDR-FLIP (0..1, magma)</figcaption></figure>
 <figure><img class="img" src="{{ r.rel_png }}" alt="relative error"><figcaption>|t-r|/(r+0.01), max RGB (0..1, inferno)</figcaption></figure>
 </div>
+{% if r.diagnosis %}<p>Convention check (<code>pbrcheck diagnose</code>): {{ r.diagnosis }}{% if r.diagnosis_json %} (<a href="{{ r.diagnosis_json }}">every hypothesis</a>){% endif %}.</p>{% endif %}
 {% endfor %}
 <h3>Metrics per preset</h3>
 <table><tr><th class="l">preset</th>{% for m in metric_names %}<th>{{ m }}</th>{% endfor %}<th>precompute (s)</th><th>frame (s)</th><th>valid / edge / bg px</th></tr>
@@ -278,6 +284,8 @@ class PresetResult:
     mse: float
     timed_on: str = ""
     space: str = "linear"
+    diagnosis: str = ""       # external renderers: pbrcheck diagnose's verdict line
+    diagnosis_json: str = ""  # ... and its table (JSON, relative to the report)
 
 
 @dataclass
@@ -322,7 +330,19 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str, img=None) -> tu
                        {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                        f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
                        (cmp.metrics["rmse"] or 0.0) ** 2, timed_on_text(img.meta), cmp.summary["space"])
+    if renderers.is_external(preset):
+        res.diagnosis, res.diagnosis_json = _diagnose(scene, ref, img, sd, sid, p, res.space)
     return res, cmp, img
+
+
+def _diagnose(scene, ref, img, sd: Path, sid: str, p: str, space: str) -> tuple[str, str]:
+    """Run :func:`compare.research.diagnose.diagnose` on an external renderer's image (scene-space
+    hypotheses re-rendered at :data:`DIAGNOSE_SPP` at most); returns its line and its JSON's path."""
+    if space != "linear":
+        return "not run: the renderer's output is display-referred (png-srgb)", ""
+    d = diagnose(ref, img, scene, spp=min(int(ref.meta.get("spp", DIAGNOSE_SPP)), DIAGNOSE_SPP))
+    write_json_atomic(sd / f"diagnose_{p}.json", d)
+    return d.line, f"{sid}/diagnose_{p}.json"
 
 
 def _convergence(scene, ref, spp: int, prog) -> list[dict]:
