@@ -62,7 +62,6 @@ def bench_multiscatter(*, lanes: int = 1 << 20, roughness: float = 0.5, mu: floa
     """Samples per second of ``pbr_material.sample`` with ``random_walk`` against single scattering
     (the same material, metal, F0 = 0.9), in one run: the best of ``repeats`` timed launches after
     a warm-up (kernel compilation excluded)."""
-    import time
 
     variant = ensure_variant()
     rng = np.random.default_rng(0)

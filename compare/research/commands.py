@@ -103,7 +103,7 @@ def _cmd_energy(args) -> int:
     scenes = split_list(args.scenes) if args.scenes else list(energy.DEFAULT_SCENES)
     out = Path(args.out)
     res = energy.run_energy(samples=args.samples, seed=args.seed, images=not args.no_images, scenes=scenes,
-                            preset=args.preset, options=parse_sets(args.set), spp=args.spp, size=args.size or None,
+                            preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size or None,
                             out_dir=out, progress=not args.quiet)
     paths = energy.write_energy(res, out)
     print(energy.table_markdown(res), end="")
@@ -186,6 +186,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--no-images", action="store_true", help="the albedo grid only")
     s.add_argument("--preset", default="default", help="real-time preset of the images (default: default)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
     s.add_argument("--spp", type=int, default=128, help="reference samples per pixel (default 128)")
     s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
     s.add_argument("--out", default="out/energy", metavar="DIR", help="output directory (default out/energy)")
