@@ -55,7 +55,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--no-cache", action="store_true", help="render even if a cached reference exists, store nothing")
     s.set_defaults(func=_cmd_reference)
 
-    b = bench_sub.add_parser("reference", help="integrator efficiency and BSDF speed (JSON)")
+    b = bench_sub.add_parser("reference", help="reference throughput against Mitsuba's path, integrator efficiency, BSDF speed, seconds to the 10x noise floor (JSON, with goals)")
     b.add_argument("--quick", action="store_true", help="smaller sizes (for tests)")
     b.set_defaults(func=_cmd_bench)
 

@@ -31,6 +31,7 @@ from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_ton
 from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
+from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
 from .research_sections import research_sections
 from .section import Section, Table
 from .summary import furnace_section, summary_section
@@ -237,6 +238,7 @@ is computed on linear radiance, before any display transform.</p>
 <td>{{ fmt(r.precompute) }}</td><td>{{ fmt(r.frame) }}</td><td>{{ r.pixels.valid }} / {{ r.pixels.edge }} / {{ r.pixels.background }}</td></tr>{% endfor %}
 </table>
 {% if s.noise_floor is not none %}<p>Reference noise floor (mean variance over valid pixels): {{ fmt(s.noise_floor) }}.</p>{% endif %}
+{% if s.verdict %}<p>Reference spp for a trusted verdict (noise floor &ge; {{ s.verdict.factor }}x below the smallest error): {{ s.verdict.provenance() }}{% if s.verdict.noise_limited %} <strong>noise-limited</strong>{% endif %}.</p>{% endif %}
 {% for p in s.plots %}<h3>{{ p.title }}</h3><img class="plot" src="{{ p.src }}" alt="{{ p.title }}">{% if p.get("note") %}<p>{{ p.note }}</p>{% endif %}
 {% endfor %}
 {% if s.sweep_rows %}<h3>Sweep table</h3><table><tr><th class="l">options</th><th>precompute (s)</th><th>frame (s)</th><th>relmse</th><th>flip_mean</th></tr>
@@ -266,6 +268,8 @@ class ReportSettings:
     convergence: bool = True
     sweep: bool = True
     executor: object = None  # --scheduler: renders of presets and sweep run as its tasks
+    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the least.
+    spp_cap: int = DEFAULT_SPP_CAP
 
 
 @dataclass
@@ -302,6 +306,7 @@ class SceneSection:
     provenance: list[tuple[str, str]]
     noise_floor: float | None
     sweep_rows: list[dict]
+    verdict: VerdictSpp | None = None
 
 
 def _provenance(scene, ref) -> list[tuple[str, str]]:
@@ -367,15 +372,21 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     sid = _safe(scene.name)
     sd = out_dir / sid
     sd.mkdir(parents=True, exist_ok=True)
-    ref = renderers.render_reference(scene, spp=st.spp, use_cache=True, progress=False)
-    prog.update(1, f"{scene.name}: reference")
+    # The renderers under test first: the reference's spp is chosen so that its noise floor sits
+    # NOISE_FLOOR_FACTOR below the smallest of their errors (compare.verdict_spp), at most spp_cap.
+    if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
+        images = dict(zip(st.presets, renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets])))
+    else:
+        images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
+    ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
+    prog.update(1, f"{scene.name}: reference ({verdict.spp} spp)")
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
     provenance = _provenance(scene, ref)
+    provenance.append(("reference spp rule", verdict.provenance()))
     noise_floor = None
-    pre = renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets]) if st.executor else None
-    for i, preset in enumerate(st.presets):
-        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, pre[i] if pre else None)
+    for preset in st.presets:
+        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, images[preset])
         if cmp.summary["noise"] is not None:
             noise_floor = cmp.summary["noise"]["mean_variance"]
         results.append(res)
@@ -410,16 +421,16 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
                           f"{scene.name}: speed against error")
     plots.append({"title": "Speed against error (presets" + (" and sweep" if sweep_table else "") + ")",
                   "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
-    conv = _convergence(scene, ref, st.spp, prog) if st.convergence else []
+    conv = _convergence(scene, ref, verdict.spp, prog) if st.convergence else []
     if conv:
-        cp = plot_convergence(sd / "convergence.png", conv, st.spp, noise_floor, {r.preset: r.mse for r in results})
+        cp = plot_convergence(sd / "convergence.png", conv, verdict.spp, noise_floor, {r.preset: r.mse for r in results})
         if cp:
             plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
                           "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
     write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": dump, "convergence": conv,
-                                            "sweep": sweep_table}, indent=1)
+                                            "sweep": sweep_table, "reference_spp": verdict.to_dict()}, indent=1)
     return SceneSection(sid, scene.name, scene.description, ref.meta.get("spp", st.spp), f"{sid}/reference.png",
-                        results, plots, provenance, noise_floor, sweep_table)
+                        results, plots, provenance, noise_floor, sweep_table, verdict)
 
 
 def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> Section:
@@ -440,11 +451,17 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
 
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
+                 spp_cap: int | None = None,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
                  research: bool = False, extras: list[Section] | None = None, furnace: bool = True,
                  scheduler: str | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
+    ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
+    ``spp_cap``, default :data:`compare.verdict_spp.DEFAULT_SPP_CAP`) until the reference's noise
+    floor is :data:`compare.verdict_spp.NOISE_FLOOR_FACTOR` times below the smallest error of the
+    presets against it, else the section says "noise-limited"; the rule's outcome is in the
+    provenance table and ``metrics.json`` (``reference_spp``).
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
     its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
     the error decomposition and the apparent-roughness sections for the first scene
@@ -476,19 +493,22 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     spec = parse_scheduler(scheduler) if scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_conv = len(_convergence_spps(spp)) if convergence else 0
+    n_conv = len(_convergence_spps(spp)) if convergence else 0  # at the least spp (progress only)
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     sections = []
     with Progress("report", total=total, enabled=progress) as prog, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
-        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, ex)
+        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
+                            spp_cap=DEFAULT_SPP_CAP if spp_cap is None else int(spp_cap))
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
         top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
     extras = list(extras or [])
     if research:
-        extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=spp, progress=progress)
+        # at the first scene's trusted-verdict spp (the reference its sections compare against)
+        extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=sections[0].verdict.spp,
+                                    progress=progress)
     if hardcases:
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)

@@ -28,7 +28,8 @@ def _cmd_report(args) -> int:
               for d in args.corpus or []]
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
                        extras=extras,
-                       spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
+                       spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                       convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
                        hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
                        scheduler=args.scheduler)
@@ -58,7 +59,11 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--shader", action="append", metavar="FILE.glsl",
                    help="also measure the default preset with this shader hook file (repeatable; docs/hooks.md)")
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
-    s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
+    s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
+                   "are rendered until the reference's noise floor is 10x below the smallest error reported")
+    s.add_argument("--spp-cap", type=int, default=None, metavar="N",
+                   help="most reference samples per pixel (default 4096); at the cap a verdict is flagged "
+                        "noise-limited")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="sweep these real-time options (repeatable, every combination); default: the main cost "
                         "knobs one at a time")
