@@ -330,3 +330,15 @@ def test_ext_names_a_renderer_in_explain_and_sweep(fake, scene, tmp_path, monkey
         run_sweep(str(tmp_path / "tiny.toml"), {"cube_size": [64]}, preset="ext:exr", out_dir=tmp_path / "x",
                   spp=4, progress=False)
     assert not (tmp_path / "x").exists()
+
+
+def test_threejs_client_without_a_browser_fails_in_one_line(scene, monkeypatch, tmp_cache):
+    """The real three.js client, with Chromium missing: exit 1, the runner's one line in the error."""
+    import shutil
+    threejs = Path(__file__).resolve().parents[1] / "clients" / "threejs"
+    if shutil.which("node") is None or not (threejs / "node_modules" / "three").is_dir():
+        pytest.skip("node or clients/threejs/node_modules absent (make setup)")
+    monkeypatch.setenv("PBRCHECK_CHROMIUM", "/nonexistent/chromium")
+    with pytest.raises(R.RendererError, match=r"ext:threejs: exited with status 1; stderr: .*cannot start Chromium "
+                                              r"\(/nonexistent/chromium\)"):
+        renderers.render_under_test(scene, "ext:threejs")
