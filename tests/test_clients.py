@@ -247,6 +247,7 @@ def test_builtin_threejs_config_and_user_override(tmp_path):
     cfg = C.get_renderer("ext:threejs")
     assert cfg.builtin and cfg.output == "pfm" and cfg.lockfile_path().name == "package-lock.json"
     assert cfg.lockfile_hash() not in (None, "missing")
+    assert cfg.inputs_hash() is not None and cfg.cache_dict()["inputs"] == cfg.inputs_hash()
     argv = C.expand(cfg, cfg.command, scenario="/s/scenario.json", out="/o/x.pfm", dir="/s", width=1, height=1)
     assert argv[0] == "node" and Path(argv[1]).is_file() and argv[2:4] == ["/s/scenario.json", "/o/x.pfm"]
     p = tmp_path / "renderers.toml"
