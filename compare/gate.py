@@ -5,7 +5,7 @@ Budget format (TOML; see docs/compare.md)::
     [[check]]
     name = "spheres-default"         # required, unique
     scene = "spheres"                # built-in name or TOML path (relative to the budget file)
-    preset = "default"               # real-time preset (default "default")
+    preset = "default"               # real-time preset or ext:NAME (docs/renderers.md)
     options = { }                    # optional real-time option overrides
     # shader = "hooks/ue4.glsl"      # optional shader hook file (relative to the budget file)
     reference = "refs/spheres.exr"   # stored EXR (relative to the budget file) or "auto"

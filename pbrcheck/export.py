@@ -71,9 +71,9 @@ ENVIRONMENT_ORIENTATION = (
     "equirectangular, +Y up, row 0 at the top: pixel (row k, column c) of an H x W image holds the "
     "radiance arriving from direction d = (cos a cos e, sin e, sin a cos e) with "
     "a = 2 pi ((c + 0.5)/W - 0.5), e = pi (0.5 - (k + 0.5)/H); this is three.js's equirectUv "
-    "(u = atan2(d.z, d.x)/2pi + 0.5, v = asin(d.y)/pi + 0.5) read with flipY off, and Babylon.js's / "
-    "Filament's lat-long images with u turned by +90 degrees (see docs/renderers.md); the scene's "
-    "scale and rotation are baked in")
+    "(u = atan2(d.z, d.x)/2pi + 0.5, v = asin(d.y)/pi + 0.5) read with flipY off; Mitsuba's envmap "
+    "u is this u - 0.25 (docs/renderers.md maps other conventions); the scene's scale and rotation "
+    "are baked in")
 
 
 class ExportError(PbrcheckError):

@@ -247,6 +247,7 @@ def test_builtin_threejs_config_and_user_override(tmp_path):
     cfg = C.get_renderer("ext:threejs")
     assert cfg.builtin and cfg.output == "pfm" and cfg.lockfile_path().name == "package-lock.json"
     assert cfg.lockfile_hash() not in (None, "missing")
+    assert cfg.inputs_hash() is not None and cfg.cache_dict()["inputs"] == cfg.inputs_hash()
     argv = C.expand(cfg, cfg.command, scenario="/s/scenario.json", out="/o/x.pfm", dir="/s", width=1, height=1)
     assert argv[0] == "node" and Path(argv[1]).is_file() and argv[2:4] == ["/s/scenario.json", "/o/x.pfm"]
     p = tmp_path / "renderers.toml"
@@ -334,3 +335,15 @@ def test_ext_names_a_renderer_in_explain_and_sweep(fake, scene, tmp_path, monkey
         run_sweep(str(tmp_path / "tiny.toml"), {"cube_size": [64]}, preset="ext:exr", out_dir=tmp_path / "x",
                   spp=4, progress=False)
     assert not (tmp_path / "x").exists()
+
+
+def test_threejs_client_without_a_browser_fails_in_one_line(scene, monkeypatch, tmp_cache):
+    """The real three.js client, with Chromium missing: exit 1, the runner's one line in the error."""
+    import shutil
+    threejs = Path(__file__).resolve().parents[1] / "clients" / "threejs"
+    if shutil.which("node") is None or not (threejs / "node_modules" / "three").is_dir():
+        pytest.skip("node or clients/threejs/node_modules absent (make setup)")
+    monkeypatch.setenv("PBRCHECK_CHROMIUM", "/nonexistent/chromium")
+    with pytest.raises(R.RendererError, match=r"ext:threejs: exited with status 1; stderr: .*cannot start Chromium "
+                                              r"\(/nonexistent/chromium\)"):
+        renderers.render_under_test(scene, "ext:threejs")

@@ -10,7 +10,7 @@ API
   reference and every renderer: the mean radiance of each sphere (white metal, F0 = 1, roughness 0
   to 1, in a unit white environment). An energy-conserving single-scattering model (the reference)
   loses energy as roughness grows; a renderer that stays at 1.0 adds multiple-scattering energy
-  compensation (three.js does, as do Filament and most engines since Kulla & Conty 2017): a model
+  compensation (three.js does, as do Filament and many engines since Kulla & Conty 2017): a model
   difference, measured here, not a shading bug.
 - :func:`timed_on` -- the words for what a renderer's time was measured on.
 
