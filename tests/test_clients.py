@@ -257,3 +257,40 @@ def test_builtin_threejs_config_and_user_override(tmp_path):
 def test_object_ids_match_the_scene(scene):
     ids = R.object_ids(scene)
     assert ids.shape == (8, 16) and set(np.unique(ids)) == {-1.0, 0.0}
+
+
+def test_committed_clients_budget_is_well_formed():
+    from compare.gate import _scene_arg, load_budget
+
+    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
+    assert {c.preset for c in checks} == {"ext:threejs"} and len(checks) >= 2
+    for c in checks:
+        assert c.max and (base / c.reference).is_file()
+        scene = _scene_arg(base, c.scene)
+        assert scene.camera.width * scene.camera.height <= 200 * 200  # CI size
+
+
+def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_difference(fake, tmp_path, monkeypatch):
+    """An external renderer that keeps a white furnace at 1.0 where the (here: faked) single-scattering
+    reference loses energy is named a model difference in the report, and appears in the summary."""
+    from compare.report.build import build_report
+    from tests.test_compare_report import fake_reference
+
+    (fake / "fake.py").write_text(FAKE.replace("img = np.full((H, W, 3), 0.5, np.float32)",
+                                               "img = np.full((H, W, 3), 1.0, np.float32)"))
+
+    def lossy_reference(scene, **kw):
+        img = fake_reference(scene, **kw)
+        ids = np.rint(img.channels["object"])
+        for c in "RGB":   # roughness k/4 keeps 1 - 0.15 k of the energy
+            img.channels[c] = np.where(ids >= 0, 1.0 - 0.15 * ids, 1.0).astype(np.float32)
+        return img
+
+    monkeypatch.setattr(renderers, "render_reference", lossy_reference)
+    (tmp_path / "tiny.toml").write_text(__import__("pbrcheck.scene", fromlist=["dump_toml"]).dump_toml(SCENE))
+    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm"], out_dir=tmp_path / "r", spp=4,
+                         convergence=False, sweep=False, progress=False)
+    html = index.read_text()
+    assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
+    summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
+    assert "ext:pfm" in summary and "unstated" in summary

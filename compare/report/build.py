@@ -29,6 +29,7 @@ from ..metrics import METRICS, compare_images
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from .research_sections import research_sections
 from .section import Section, Table
+from .summary import furnace_section, summary_section, timed_on
 from .sweep import combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, write_table
 
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
@@ -192,6 +193,17 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 each renderer's own display transform where its preset has one (tone map, exposure: analytic_mobile
 uses article 002's ACES fit), otherwise (and for the reference) through a filmic curve; every metric
 is computed on linear radiance, before any display transform.</p>
+{% macro section(x) %}
+<h2 id="{{ x.id }}">{{ x.title }}</h2>
+<p>{{ x.note }}</p>
+{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
+<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
+{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% endfor %}
+{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
+{% endfor %}
+{% endmacro %}
+{% for x in top %}{{ section(x) }}{% endfor %}
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
@@ -222,16 +234,7 @@ is computed on linear radiance, before any display transform.</p>
 <h3>Provenance</h3>
 <table>{% for k, v in s.provenance %}<tr><th class="l">{{ k }}</th><td class="l"><code>{{ v }}</code></td></tr>{% endfor %}</table>
 {% endfor %}
-{% for x in extras %}
-<h2 id="{{ x.id }}">{{ x.title }}</h2>
-<p>{{ x.note }}</p>
-{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
-<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
-{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
-{% endfor %}
-{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
-{% endfor %}
-{% endfor %}
+{% for x in extras %}{{ section(x) }}{% endfor %}
 </body></html>
 """
 
@@ -267,6 +270,7 @@ class PresetResult:
     flip_png: str
     rel_png: str
     mse: float
+    timed_on: str = ""
 
 
 @dataclass
@@ -309,7 +313,7 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str) -> tuple[Preset
     res = PresetResult(preset, cmp.metrics, cmp.summary["pixels"],
                        {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                        f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
-                       (cmp.metrics["rmse"] or 0.0) ** 2)
+                       (cmp.metrics["rmse"] or 0.0) ** 2, timed_on(img.meta))
     return res, cmp, img
 
 
@@ -406,14 +410,16 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 research: bool = False, extras: list[Section] | None = None) -> Path:
+                 research: bool = False, extras: list[Section] | None = None, furnace: bool = True) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
     its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
     the error decomposition and the apparent-roughness sections for the first scene
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
-    :class:`~compare.report.section.Section` s.
+    :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
+    renderer and scene) and, with ``furnace``, the white furnace per renderer
+    (:mod:`compare.report.summary`).
 
     Raises
     ------
@@ -438,12 +444,13 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     n_conv = len(_convergence_spps(spp)) if convergence else 0
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
-    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
+    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     sections = []
     st = ReportSettings(list(presets), spp, vary_d, convergence, sweep)
     with Progress("report", total=total, enabled=progress) as prog:
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
+        top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
     extras = list(extras or [])
     if research:
         extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=spp, progress=progress)
@@ -451,7 +458,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=sections, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
     write_text_atomic(index, page)

@@ -17,7 +17,7 @@ def _cmd_report(args) -> int:
     out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
                        spp=args.spp, vary=args.vary or None, convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research)
+                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace)
     print(f"report: {out}")
     return 0
 
@@ -25,7 +25,7 @@ def _cmd_report(args) -> int:
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
     paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet)
+                      progress=not args.quiet, also=split_list(args.also))
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0
@@ -47,6 +47,7 @@ def register(sub, bench_sub) -> None:
                         "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
+    s.add_argument("--no-furnace", action="store_true", help="skip the white furnace per renderer")
     s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
@@ -58,6 +59,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2",
                    help="real-time option and its values (repeatable; every combination is rendered)")
     s.add_argument("--preset", default="default", help="preset the variations start from")
+    s.add_argument("--with", dest="also", metavar="P,...",
+                   help="further renderers measured as they are on the same plot (presets or ext:NAME)")
     s.add_argument("--out", default="out/sweep", metavar="DIR")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--quiet", action="store_true", help="no progress output")

@@ -143,9 +143,10 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
-              spp: int = 64, progress: bool = True) -> dict[str, Path]:
+              spp: int = 64, progress: bool = True, also: list[str] | None = None) -> dict[str, Path]:
     """Render the reference and every combination of ``vary`` over ``preset``; write the table and
-    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
+    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``also``:
+    further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the same plot.
 
     Raises
     ------
@@ -157,14 +158,20 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     scene = load_scene(scene_arg)
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)
-    n = math.prod(len(v) for v in vary.values())
+    also = list(also or [])
+    for other in also:
+        renderers.resolve_options(other, {})
+    n = math.prod(len(v) for v in vary.values()) + len(also)
     with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
         ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
         rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
+        for other in also:
+            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p)
     keys = list(vary)
     paths = write_table(Path(out_dir), rows, keys)
     paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
-                                     lambda r: ",".join(f"{k}={r['options'][k]}" for k in keys),
+                                     lambda r: (",".join(f"{k}={r['options'][k]}" for k in keys)
+                                                if r["preset"] == preset else r["preset"]),
                                      f"{scene.name}: speed against error ({preset} + variations)")
     return paths
