@@ -164,15 +164,17 @@ PRESETS: dict[str, dict] = {
         irradiance_step=0.025, prefilter_samples=1024, prefilter_filtered=False, prefilter_nl_weight=True,
         prefilter_levels=5, lod_mapping="linear", dfg="lut", lut_size=128, lut_samples=1024, lut_format="f16",
         lut_geometry="schlick_ggx_direct", lut_sampling="ndf", ndf="ggx", geometry="schlick_ggx_direct",
-        fresnel="schlick"),
+        fresnel="schlick", energy_compensation="none"),
     # Article 001: runtime importance sampling, Beckmann half vectors for the GGX D, mip-filtered
     # lookups, XOR-rotated Hammersley points, F0 clamped to [0.02, 0.99], roughness >= 0.01.
     "runtime_is20": _preset(
         shading="article001", ibl="runtime", runtime_samples=20, runtime_sampling="beckmann", runtime_lod=True,
-        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick",
+        energy_compensation="none"),
     "runtime_is256": _preset(
         shading="article001", ibl="runtime", runtime_samples=256, runtime_sampling="beckmann", runtime_lod=True,
-        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick",
+        energy_compensation="none"),
     # Filament's documented IBL (Filament documentation sec. 5.3 "Image based lights"): irradiance
     # as 9 SH coefficients, prefiltered levels at lod = M r (2 - r) (perceptualRoughnessToLod), its
     # DFG LUT (GGX, height-correlated Smith; the multiscatter form mix(dfg.x, dfg.y, F0) = F0 A + B)
@@ -184,7 +186,7 @@ PRESETS: dict[str, dict] = {
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
     "analytic_mobile": _preset(
         shading="article002", dfg="analytic", irradiance="sh9", lod_mapping="linear", prefilter_nl_weight=False,
-        prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16"),
+        prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16", energy_compensation="none"),
 }
 
 
@@ -307,4 +309,9 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
     if d["irradiance_source_size"] > d["cube_size"]:
         raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
                           f"found {d['irradiance_source_size']}")
+    # Energy compensation (energy.glsl) scales the split sum of the material composition: it needs
+    # the DFG terms, which runtime sampling and the article compositions do not have.
+    if d["energy_compensation"] not in ("none", "scene") and (d["shading"] != "material" or d["ibl"] != "splitsum"):
+        raise OptionError(f"option energy_compensation: {d['energy_compensation']} needs shading=material and "
+                          f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
     return d

@@ -413,7 +413,11 @@ def resolved_energy_compensation(scene: Scene, o: dict) -> str:
     from pbrcheck.energy import SCENE_COMPENSATION
 
     v = o["energy_compensation"]
-    return SCENE_COMPENSATION[scene.brdf.multiscatter] if v == "scene" else v
+    if v != "scene":
+        return v
+    if o["shading"] != "material" or o["ibl"] != "splitsum":
+        return "none"  # only the material composition's split sum has the DFG terms it scales
+    return SCENE_COMPENSATION[scene.brdf.multiscatter]
 
 
 def frame_defines(o: dict, terms: dict) -> dict:

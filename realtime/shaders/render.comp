@@ -236,7 +236,15 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
         vec3 l = ld * inversesqrt(d2);
         float NoL = dot(n, l);
         if (NoL <= 0.0 || occluded(p, l, sqrt(d2))) continue;
-        color += brdf_eval(n, v, l, base, metallic, roughness, spec_level) * lights[2 * i + 1].rgb * (NoL / d2);
+        vec3 f = brdf_eval(n, v, l, base, metallic, roughness, spec_level);
+#if ENERGY_COMPENSATION != ENERGY_COMPENSATION_NONE && !IBL_RUNTIME
+        // Multiple scattering for the point light (energy.glsl): brdf_eval with metallic 1 and base
+        // F0 is the specular lobe alone.
+        vec2 ABl = dfg(clamp(NoL, 1e-4, 1.0), roughness);
+        f += energy_direct(brdf_eval(n, v, l, F0, 1.0, roughness, spec_level), F0e, AB.x, AB.y, ABl.x + ABl.y,
+                           roughness);
+#endif
+        color += f * lights[2 * i + 1].rgb * (NoL / d2);
     }
 
 #elif SHADING == SHADING_ARTICLE000
