@@ -12,6 +12,8 @@ API
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
   (:func:`realtime.presets.resolve_options`).
+- :func:`trim_caches` -- bound the renderers' per-process caches to a few environments (corpus
+  workers, :func:`realtime.render.trim_environment_caches`).
 """
 
 from __future__ import annotations
@@ -64,3 +66,9 @@ def preset_names() -> list[str]:
 def resolve_options(name: str, overrides: dict | None = None) -> dict:
     """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``)."""
     return _presets.resolve_options(name, overrides)
+
+
+def trim_caches(keep_environments: int) -> None:
+    """Free the renderers' per-process bakes of all but the ``keep_environments`` most recent
+    environments (a process that renders many environments calls it between renders)."""
+    _realtime.trim_environment_caches(keep_environments)

@@ -125,3 +125,25 @@ def test_sweep_on_the_cluster_gives_the_serial_rows(cluster):
     strip = lambda rows: [{k: v for k, v in r.items() if not k.endswith("_s")} for r in rows]  # noqa: E731
     assert strip(sweep_rows(scene, ref, combos, executor=cluster)) == \
            strip(sweep_rows(scene, ref, combos, executor=SerialExecutor()))
+
+
+def test_trimmed_caches_bound_memory_and_keep_the_pixels(tmp_path):
+    import numpy as np
+
+    from compare import renderers
+    from dataclasses import replace
+    from pbrcheck.scene import Environment
+    from realtime import render as R
+
+    corpus = make_corpus(tmp_path / "c", 3, bad=False)
+    scene = scene_from_dict(SCENE)
+    scenes = [replace(scene, environment=Environment(type="file", path=str(p))) for p in sorted(corpus.glob("*.exr"))]
+    first = renderers.render_under_test(scenes[0], "default", SMALL)
+    for s in scenes[1:]:
+        renderers.render_under_test(s, "default", SMALL)
+    envs = lambda: {k[1] for k in R._cache if isinstance(k, tuple) and k[0] in R.ENVIRONMENT_CACHE_KINDS}  # noqa: E731
+    assert len(envs()) >= 3
+    renderers.trim_caches(1)
+    assert len(envs()) == 1
+    again = renderers.render_under_test(scenes[0], "default", SMALL)  # re-baked after being freed
+    assert np.array_equal(again.rgb, first.rgb)
