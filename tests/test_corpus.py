@@ -184,6 +184,7 @@ def test_serial_corpus_rows_error_rows_and_outputs(tmp_path, fake):
     res = run_corpus(d, settings("default", "splitsum_basic"), out, progress=False)
     rows = {(r["environment"], r["renderer"]): r for r in res.rows}
     assert len(res.rows) == 6 * 2
+    assert all(not isinstance(v, np.generic) for r in res.rows for v in r.values())  # plain values
     for i in range(3):
         for p in ("default", "splitsum_basic"):
             r = rows[(f"env{i}.exr", p)]
