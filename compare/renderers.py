@@ -17,6 +17,8 @@ API
   after checking that it exists.
 - :func:`multiscatter_albedo` -- the reference random walk's directional albedo
   (:func:`reference.multiscatter_measure.directional_albedo`).
+- :func:`trim_caches` -- bound the renderers' per-process caches to a few environments (corpus
+  workers, :func:`realtime.render.trim_environment_caches`).
 """
 
 from __future__ import annotations
@@ -99,3 +101,9 @@ def multiscatter_albedo(mu, roughness, F0, **kwargs):
     from reference import multiscatter_measure as _ms  # local: sets Mitsuba's variant on first use
 
     return _ms.directional_albedo(mu, roughness, F0, **kwargs)
+
+
+def trim_caches(keep_environments: int) -> None:
+    """Free the renderers' per-process bakes of all but the ``keep_environments`` most recent
+    environments (a process that renders many environments calls it between renders)."""
+    _realtime.trim_environment_caches(keep_environments)

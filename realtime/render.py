@@ -604,3 +604,37 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
     }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks))
+
+
+#: Cache kinds whose key's second element is an environment's content hash.
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irr", "sh9", "pre")
+
+
+def trim_environment_caches(keep: int) -> int:
+    """Free what this process baked for all but the ``keep`` most recently first-seen environments
+    (their textures, cubes, SH coefficients and loaded maps); returns how many were freed.
+
+    Every environment's bakes stay in this process's cache for the next render (about 30 MiB per
+    1k x 512 map with the default preset), so a process that renders a long corpus calls this
+    between renders (:func:`compare.renderers.trim_caches`) to keep its memory bounded. GL objects
+    are released explicitly (moderngl does not free them when they are dropped)."""
+    order: list[str] = []
+    for k in _cache:
+        if isinstance(k, tuple) and k[0] in ENVIRONMENT_CACHE_KINDS and k[1] not in order:
+            order.append(k[1])
+    drop = set(order[:max(len(order) - keep, 0)])
+    if not drop:
+        return 0
+    for k in list(_cache):
+        if not isinstance(k, tuple):
+            continue
+        env_bake = k[0] in ENVIRONMENT_CACHE_KINDS and k[1] in drop
+        env_map = k[0] == "envmap" and getattr(_cache[k], "content_hash", None) in drop
+        if env_bake or env_map:
+            v = _cache.pop(k)
+            _timings.pop(k, None)
+            for obj in (v if isinstance(v, tuple) else (v,)):
+                release = getattr(obj, "release", None)
+                if callable(release):
+                    release()
+    return len(drop)

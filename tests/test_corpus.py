@@ -184,6 +184,7 @@ def test_serial_corpus_rows_error_rows_and_outputs(tmp_path, fake):
     res = run_corpus(d, settings("default", "splitsum_basic"), out, progress=False)
     rows = {(r["environment"], r["renderer"]): r for r in res.rows}
     assert len(res.rows) == 6 * 2
+    assert all(not isinstance(v, np.generic) for r in res.rows for v in r.values())  # plain values
     for i in range(3):
         for p in ("default", "splitsum_basic"):
             r = rows[(f"env{i}.exr", p)]
@@ -377,3 +378,15 @@ def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
     with pytest.raises(SchedulerError):
         build_report(["spheres"], presets=["default"], out_dir=tmp_path / "bad", scheduler="local:zero")
     assert not (tmp_path / "bad").exists()
+
+
+def test_identical_files_share_their_renders(tmp_path, fake):
+    import shutil
+
+    d = make_corpus(tmp_path / "c", 2, bad=False)
+    shutil.copy(d / "env0.exr", d / "env0_copy.exr")
+    res = run_corpus(d, settings("default"), tmp_path / "out", progress=False, outputs=False)
+    assert [r["environment"] for r in res.rows] == ["env0.exr", "env0_copy.exr", "env1.exr"]
+    assert len(fake.calls) == 2 * 2  # a reference and a render per distinct file
+    a, b = res.rows[0], res.rows[1]
+    assert a["relmse"] == b["relmse"] and a["key"] != b["key"]

@@ -125,3 +125,62 @@ def test_sweep_on_the_cluster_gives_the_serial_rows(cluster):
     strip = lambda rows: [{k: v for k, v in r.items() if not k.endswith("_s")} for r in rows]  # noqa: E731
     assert strip(sweep_rows(scene, ref, combos, executor=cluster)) == \
            strip(sweep_rows(scene, ref, combos, executor=SerialExecutor()))
+
+
+def test_trimmed_caches_bound_memory_and_keep_the_pixels(tmp_path):
+    import numpy as np
+
+    from compare import renderers
+    from dataclasses import replace
+    from pbrcheck.scene import Environment
+    from realtime import render as R
+
+    corpus = make_corpus(tmp_path / "c", 3, bad=False)
+    scene = scene_from_dict(SCENE)
+    scenes = [replace(scene, environment=Environment(type="file", path=str(p))) for p in sorted(corpus.glob("*.exr"))]
+    first = renderers.render_under_test(scenes[0], "default", SMALL)
+    for s in scenes[1:]:
+        renderers.render_under_test(s, "default", SMALL)
+    envs = lambda: {k[1] for k in R._cache if isinstance(k, tuple) and k[0] in R.ENVIRONMENT_CACHE_KINDS}  # noqa: E731
+    assert len(envs()) >= 3
+    renderers.trim_caches(1)
+    assert len(envs()) == 1
+    again = renderers.render_under_test(scenes[0], "default", SMALL)  # re-baked after being freed
+    assert np.array_equal(again.rgb, first.rgb)
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_tcp_scheduler_with_multithreaded_workers(serial_rows, tmp_path):
+    """docs/corpus.md's set-up: `dask scheduler` and `dask worker` processes (two threads each, so
+    the one-render-thread-per-process rule is exercised), the client on tcp://."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    corpus, rows = serial_rows
+    port = _free_port()
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    env = {**os.environ, "PBRCHECK_CACHE": str(tmp_path / "worker-cache")}
+    procs = [subprocess.Popen(dask + ["--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", f"tcp://127.0.0.1:{port}",
+                                       "--nworkers", "1", "--nthreads", "2", "--no-dashboard"], env=env,
+                                      cwd=Path(__file__).resolve().parents[1],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        with open_executor(parse_scheduler(f"tcp://127.0.0.1:{port}")) as ex:
+            ex.client.wait_for_workers(1, timeout=120)
+            res = run_corpus(corpus, settings(), tmp_path / "out", executor=ex, progress=False, outputs=False)
+        assert strip_times(res.rows) == strip_times(rows)
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=60)
