@@ -63,8 +63,8 @@ HOOKS: tuple[Hook, ...] = (
     Hook("hook_lod", "float", "float roughness, float max_lod, float cube_log2",
          "the roughness -> prefiltered mip level mapping (max_lod = last level, cube_log2 = log2 face size)"),
     Hook("hook_energy_compensation", "vec3", "vec3 F0, float A, float B, float roughness",
-         "the multiple-scattering energy compensation: a factor on the split sum's specular (the "
-         "preset's compensation, scale or added lobe, is then off)"),
+         "the multiple-scattering energy compensation: a factor on the split sum's specular and on the "
+         "point lights' specular lobe (the preset's compensation, scale or added lobe, is then off)"),
     Hook("hook_D", "float", "float NoH, float roughness",
          "the normal distribution D (point lights and runtime sampling)"),
     Hook("hook_G", "float", "float NoV, float NoL, float roughness",

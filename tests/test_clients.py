@@ -236,7 +236,7 @@ def test_malformed_renderers_file_names_file_and_field(tmp_path, body, msg):
 
 
 def test_unknown_renderer_lists_the_known_ones(tmp_path):
-    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:threejs"):
+    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:sample-viewer, ext:threejs"):
         renderers.resolve_options("ext:nope")
     assert renderers.resolve_options("ext:threejs") == {}
     with pytest.raises(Exception, match="takes no options"):

@@ -103,6 +103,8 @@ def test_ibl_hooks_replace_what_they_document(two, tmp_path):
                               "{ return vec3(0.0); }\n", "nospec.glsl")
     metal, diel = _object_means(render_realtime(two, f"default+{no_spec}", progress=False))
     assert metal == 0.0 and 0.0 < diel < base_diel  # the metal had only specular; the dielectric keeps its diffuse
+    # With a preset that compensates energy, the whole specular IBL is still the hook's.
+    assert _object_means(render_realtime(two, f"filament+{no_spec}", progress=False))[0] == 0.0
     no_diff = write(tmp_path, "vec3 hook_diffuse_ibl(vec3 n) { return vec3(0.0); }\n", "nodiff.glsl")
     metal, diel = _object_means(render_realtime(two, f"default+{no_diff}", progress=False))
     assert metal == pytest.approx(base_metal, rel=1e-6) and diel < base_diel

@@ -237,9 +237,13 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
         float NoL = dot(n, l);
         if (NoL <= 0.0 || occluded(p, l, sqrt(d2))) continue;
         vec3 f = brdf_eval(n, v, l, base, metallic, roughness, spec_level);
-#if ENERGY_COMPENSATION != ENERGY_COMPENSATION_NONE && !IBL_RUNTIME
+#if defined(HOOK_ENERGY_COMPENSATION) && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
+        // The user's compensation factor scales the point light's specular lobe as it does the IBL's.
+        f += (hook_energy_compensation(F0e, AB.x, AB.y, roughness) - 1.0)
+             * brdf_eval(n, v, l, F0, 1.0, roughness, spec_level);
+#elif ENERGY_COMPENSATION != ENERGY_COMPENSATION_NONE && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
         // Multiple scattering for the point light (energy.glsl): brdf_eval with metallic 1 and base
-        // F0 is the specular lobe alone.
+        // F0 is the specular lobe alone. (AB exists with the built-in split sum only.)
         vec2 ABl = dfg(clamp(NoL, 1e-4, 1.0), roughness);
         f += energy_direct(brdf_eval(n, v, l, F0, 1.0, roughness, spec_level), F0e, AB.x, AB.y, ABl.x + ABl.y,
                            roughness);
