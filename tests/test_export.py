@@ -17,8 +17,7 @@ from pbrcheck.cli import main
 from pbrcheck.environment import load_environment
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.export import (ENV_MAX_WIDTH, SILHOUETTE_TOLERANCE_PX, equirect_image, export_scene, export_width,
-                             ior_from_f0,
-                             pixels_per_unit, sphere_segments, uv_sphere)
+                             ior_from_f0, pixels_per_unit, sphere_segments, uv_sphere)
 from pbrcheck.hdrimage import read_hdr, read_pfm, write_hdr, write_pfm
 from pbrcheck.scene import load_scene, scene_from_dict
 
