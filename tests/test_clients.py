@@ -236,7 +236,7 @@ def test_malformed_renderers_file_names_file_and_field(tmp_path, body, msg):
 
 
 def test_unknown_renderer_lists_the_known_ones(tmp_path):
-    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:threejs"):
+    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:sample-viewer, ext:threejs"):
         renderers.resolve_options("ext:nope")
     assert renderers.resolve_options("ext:threejs") == {}
     with pytest.raises(Exception, match="takes no options"):
@@ -295,6 +295,10 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
     assert "ext:pfm" in summary and "unstated" in summary
+    # The report runs diagnose on every external renderer's image and shows its verdict line.
+    assert "Convention check (<code>pbrcheck diagnose</code>): no convention mismatch found" in html \
+        or "Convention check (<code>pbrcheck diagnose</code>): likely cause:" in html
+    assert (tmp_path / "r" / "tiny" / "diagnose_ext_pfm.json").is_file()
 
 
 def test_png_srgb_is_compared_in_display_space(fake, scene):
