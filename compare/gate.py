@@ -225,7 +225,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             test_name = str(test_path)
         else:
             test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
-            test_name = f"real-time {check.preset}"
+            test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
         if check.reference == "auto":
             ref, res.verdict = reference_for_verdict(scene, [test], spp=check.spp, cap=check.spp_cap,
                                                      mode=check.mode, seed=check.seed, use_cache=True,
