@@ -57,6 +57,9 @@ bench: setup
 	$(VENV)/bin/pbrcheck bench reference
 	$(VENV)/bin/pbrcheck bench realtime
 	$(VENV)/bin/pbrcheck bench fit-roughness
+	$(VENV)/bin/pbrcheck bench multiscatter
+	$(VENV)/bin/pbrcheck bench corpus
+	$(VENV)/bin/pbrcheck bench client --renderer threejs
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing

@@ -1,8 +1,13 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``export``, ``render`` and
-``renderers``. Library errors propagate; only pbrcheck.cli maps them to exit codes."""
+"""CLI subcommands of this package (registered by pbrcheck.cli): ``export``, ``render``,
+``renderers`` and ``bench client``. Library errors propagate; only pbrcheck.cli maps them to exit
+codes."""
 
 from __future__ import annotations
 
+import json
+import statistics
+import tempfile
+import time
 from pathlib import Path
 
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
@@ -43,6 +48,29 @@ def _cmd_renderers(args) -> int:
     return 0
 
 
+def bench(renderer: str = "threejs", scene_name: str = "spheres", runs: int = 2) -> dict:
+    """Wall time of the export and of ``runs`` uncached runs of an external renderer (JSON figures)."""
+    scene = load_scene(scene_name)
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-") as tmp:
+        t0 = time.perf_counter()
+        export_scene(scene, Path(tmp))
+        export_s = time.perf_counter() - t0
+    seconds, meta = [], {}
+    for _ in range(runs):
+        img = render_external(scene, renderer, use_cache=False, progress=False)
+        seconds.append(float(img.meta["seconds"]))
+        meta = img.meta
+    return {"renderer": meta.get("renderer"), "version": meta.get("version"), "scene": scene_name,
+            "size": [scene.camera.width, scene.camera.height], "export_s": round(export_s, 3),
+            "run_s": [round(x, 3) for x in seconds], "run_median_s": round(statistics.median(seconds), 3),
+            "renderer_report": meta.get("renderer_stdout"), "timed_on": meta.get("timed_on")}
+
+
+def _cmd_bench(args) -> int:
+    print(json.dumps(bench(args.renderer, args.scene, args.runs), indent=2))
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("export", help="export a scene for any renderer: glTF 2.0, environment, scenario.json")
@@ -64,3 +92,9 @@ def register(sub, bench_sub) -> None:
     s = sub.add_parser("renderers", help="list the external renderers (built-in clients and renderers.toml)")
     s.add_argument("--renderers", dest="renderers_file", default=None, metavar="FILE", help="renderers file")
     s.set_defaults(func=_cmd_renderers)
+
+    b = bench_sub.add_parser("client", help="JSON: export time and uncached run times of an external renderer")
+    b.add_argument("--renderer", default="threejs")
+    b.add_argument("--scene", default="spheres")
+    b.add_argument("--runs", type=int, default=2)
+    b.set_defaults(func=_cmd_bench)

@@ -20,6 +20,7 @@ Format::
     timeout = 600             # seconds (default 600); the process group is killed after it
     version_command = ["my-engine", "--version"]   # optional: its first stdout line is recorded
     lockfile = "package-lock.json"                 # optional: its hash enters the cache key
+    inputs = ["adapter.py"]   # optional: further files whose content enters the cache key
     description = "one line"  # optional
     timed_on = "what the time was measured on"     # optional, shown in the report
 
@@ -52,7 +53,7 @@ ENV_VAR = "PBRCHECK_RENDERERS"
 PREFIX = "ext:"
 DEFAULT_TIMEOUT_S = 600.0
 PLACEHOLDERS = ("scenario", "out", "dir", "width", "height", "clients", "config_dir")
-KEYS = {"command", "output", "timeout", "version_command", "lockfile", "description", "timed_on"}
+KEYS = {"command", "output", "timeout", "version_command", "lockfile", "inputs", "description", "timed_on"}
 NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
 
 _user_file: Path | None = None
@@ -73,6 +74,7 @@ class RendererConfig:
     timeout: float = DEFAULT_TIMEOUT_S
     version_command: tuple[str, ...] | None = None
     lockfile: str | None = None
+    inputs: tuple[str, ...] = ()
     description: str = ""
     timed_on: str = ""
     builtin: bool = False
@@ -97,10 +99,26 @@ class RendererConfig:
         except OSError:
             return "missing"
 
+    def inputs_hash(self) -> str | None:
+        """SHA-256 over the ``inputs`` files (name and content; ``missing`` for an absent one), or
+        None without any."""
+        if not self.inputs:
+            return None
+        h = hashlib.sha256()
+        for arg in self.inputs:
+            p = Path(expand_one(arg, self._base_values(), self.source, f"renderer.{self.name}.inputs"))
+            p = p if p.is_absolute() else self.config_dir / p
+            try:
+                data = p.read_bytes()
+            except OSError:
+                data = b"missing"
+            h.update(arg.encode() + b"\0" + hashlib.sha256(data).digest())
+        return h.hexdigest()
+
     def cache_dict(self) -> dict:
         """What about the renderer determines its pixels (part of the cache key)."""
         return {"name": self.name, "command": list(self.command), "output": self.output,
-                "lockfile": self.lockfile_hash()}
+                "lockfile": self.lockfile_hash(), "inputs": self.inputs_hash()}
 
     def _base_values(self) -> dict[str, str]:
         return {"clients": str(CLIENTS_DIR), "config_dir": str(self.config_dir)}
@@ -175,9 +193,12 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
         for k in ("lockfile", "description", "timed_on"):
             if k in t and not isinstance(t[k], str):
                 raise RendererConfigError(f"{file}: {w}.{k}: expected a string, found {t[k]!r}")
+        inputs = t.get("inputs", [])
+        if not isinstance(inputs, list) or not all(isinstance(a, str) and a for a in inputs):
+            raise RendererConfigError(f"{file}: {w}.inputs: expected an array of file paths, found {inputs!r}")
         out[name] = RendererConfig(name=name, command=command, source=file, config_dir=config_dir,
                                    output=output, timeout=float(timeout), version_command=vc,
-                                   lockfile=t.get("lockfile"), description=t.get("description", ""),
+                                   lockfile=t.get("lockfile"), inputs=tuple(inputs), description=t.get("description", ""),
                                    timed_on=t.get("timed_on", ""), builtin=builtin)
     return out
 

@@ -15,6 +15,10 @@ API
 - :func:`resolve_options` -- a preset's complete, validated options
   (:func:`realtime.presets.resolve_options`); ``{}`` for an external renderer (which takes none),
   after checking that it exists.
+- :func:`multiscatter_albedo` -- the reference random walk's directional albedo
+  (:func:`reference.multiscatter_measure.directional_albedo`).
+- :func:`trim_caches` -- bound the renderers' per-process caches to a few environments (corpus
+  workers, :func:`realtime.render.trim_environment_caches`).
 """
 
 from __future__ import annotations
@@ -89,3 +93,17 @@ def resolve_options(name: str, overrides: dict | None = None) -> dict:
         _clients_config.get_renderer(name)
         return {}
     return _presets.resolve_options(name, overrides)
+
+
+def multiscatter_albedo(mu, roughness, F0, **kwargs):
+    """(mean, standard error) of the random walk's directional albedo; arguments as
+    :func:`reference.multiscatter_measure.directional_albedo` (``samples``, ``seed``, ``order_max``)."""
+    from reference import multiscatter_measure as _ms  # local: sets Mitsuba's variant on first use
+
+    return _ms.directional_albedo(mu, roughness, F0, **kwargs)
+
+
+def trim_caches(keep_environments: int) -> None:
+    """Free the renderers' per-process bakes of all but the ``keep_environments`` most recent
+    environments (a process that renders many environments calls it between renders)."""
+    _realtime.trim_environment_caches(keep_environments)

@@ -28,6 +28,11 @@ Heitz et al. 2016 (``[brdf] multiscatter = "random_walk"`` in the reference).
   irradiance (``int (1 - E(mu_i)) L cos dw_i ~ (1 - E_avg) E(n)``), so the multiply scattered
   radiance is ``F_ms (1 - E(mu_o)) E(n) / pi``: :func:`ms_kulla_conty`.
 
+Point lights (:func:`energy_direct`): Filament scales its direct specular lobe by the same factor;
+Kulla-Conty add their lobe ``f_ms`` (:func:`f_ms_kulla_conty`, ``E(mu_i)`` from the DFG terms at
+n.l); Fdez-Agüera's paper covers image-based lighting only (nothing added). The compensation needs
+the split sum's DFG terms: ``shading = material`` and ``ibl = splitsum`` only.
+
 Tables (Kulla-Conty): ``E(mu)`` is the DFG LUT's ``A + B`` (its axes: column i at
 ``n.v = (i + 0.5) / N``, row j at ``roughness = (j + 0.5) / N``); ``E_avg(roughness)`` is
 :data:`KC_EAVG`, ``KC_EAVG_SIZE`` values at ``roughness = j / (KC_EAVG_SIZE - 1)``, linear in
@@ -38,7 +43,7 @@ Gauss-Legendre nodes in ``mu``. The same numbers are in ``energy.glsl`` (tested 
 API
 ---
 :func:`F_avg_Schlick`, :func:`energy_filament`, :func:`ms_fdez_aguera`, :func:`ms_kulla_conty`,
-:func:`kc_eavg`, :func:`energy_scale`, :func:`energy_ms`, :func:`specular_albedo_compensated`,
+:func:`f_ms_kulla_conty`, :func:`kc_eavg`, :func:`energy_scale`, :func:`energy_ms`, :func:`energy_direct`, :func:`specular_albedo_compensated`,
 :func:`bake_kc_eavg`, :data:`KC_EAVG`, :data:`KC_EAVG_SIZE`.
 """
 
@@ -60,6 +65,14 @@ KC_EAVG = (
 )
 
 COMPENSATIONS = ("none", "filament", "fdez_aguera", "kulla_conty")
+
+#: ``energy_compensation = "scene"`` (the default preset): the compensation matching the scene's
+#: ``[brdf] multiscatter``. For ``random_walk`` the best by measurement (``pbrcheck energy``,
+#: docs/research.md): filament has the lowest mean albedo error over roughness x F0 x n.v (0.0047
+#: against 0.0060 fdez_aguera, 0.0064 kulla_conty, 0.066 none) and the lowest FLIP on the spheres
+#: scene against the random_walk reference (flip_mean 0.054 against 0.076, 0.057, 0.135; relmse
+#: 0.0039 against 0.0054, 0.0038 (kulla_conty, within the 128-spp reference's noise), 0.020).
+SCENE_COMPENSATION = {"none": "none", "random_walk": "filament"}
 
 
 def F_avg_Schlick(F0):
@@ -97,6 +110,26 @@ def ms_kulla_conty(F0, Ess, Eavg):
     Favg = F_avg_Schlick(F0)
     Fms = Favg * Favg * Eavg / (1.0 - Favg * (1.0 - Eavg))
     return Fms * (1.0 - Ess)
+
+
+def f_ms_kulla_conty(F0, Ev, El, Eavg):
+    """Kulla-Conty 2017's multiple-scattering lobe for direct light (a BRDF value, no cosine):
+    ``F_ms (1 - E(mu_o)) (1 - E(mu_i)) / (pi (1 - E_avg))``."""
+    F0 = np.asarray(F0, dtype=np.float64)
+    Eavg = np.asarray(Eavg, dtype=np.float64)
+    Favg = F_avg_Schlick(F0)
+    Fms = Favg * Favg * Eavg / (1.0 - Favg * (1.0 - Eavg))
+    return Fms * (1.0 - np.asarray(Ev)) * (1.0 - np.asarray(El)) / (np.pi * np.maximum(1.0 - Eavg, 1e-6))
+
+
+def energy_direct(f_spec, F0, A, B, El, roughness, compensation: str):
+    """What the compensation adds to the single-scattering BRDF for a point light: Filament's
+    ``(scale - 1) f_spec``, Kulla-Conty's lobe, 0 for ``fdez_aguera`` (IBL only) and ``none``."""
+    if compensation == "filament":
+        return (energy_filament(F0, np.asarray(A) + np.asarray(B)) - 1.0) * np.asarray(f_spec)
+    if compensation == "kulla_conty":
+        return f_ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), El, kc_eavg(roughness))
+    return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A), np.shape(f_spec)))
 
 
 def kc_eavg(roughness):

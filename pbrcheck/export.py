@@ -31,14 +31,13 @@ References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
-from .atomic import temp_beside
+from .atomic import write_bytes_atomic
 from .camera import camera_frame, tan_half_fov
 from .environment import EnvMap, load_environment, scene_hash
 from .errors import PbrcheckError
@@ -72,9 +71,9 @@ ENVIRONMENT_ORIENTATION = (
     "equirectangular, +Y up, row 0 at the top: pixel (row k, column c) of an H x W image holds the "
     "radiance arriving from direction d = (cos a cos e, sin e, sin a cos e) with "
     "a = 2 pi ((c + 0.5)/W - 0.5), e = pi (0.5 - (k + 0.5)/H); this is three.js's equirectUv "
-    "(u = atan2(d.z, d.x)/2pi + 0.5, v = asin(d.y)/pi + 0.5) read with flipY off, and Babylon.js's / "
-    "Filament's lat-long images with u turned by +90 degrees (see docs/renderers.md); the scene's "
-    "scale and rotation are baked in")
+    "(u = atan2(d.z, d.x)/2pi + 0.5, v = asin(d.y)/pi + 0.5) read with flipY off; Mitsuba's envmap "
+    "u is this u - 0.25 (docs/renderers.md maps other conventions); the scene's scale and rotation "
+    "are baked in")
 
 
 class ExportError(PbrcheckError):
@@ -448,15 +447,6 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
 # Export
 # ------------------------------------------------------------------------------------------------
 
-def _write_bytes_atomic(path: Path, data: bytes) -> None:
-    tmp = temp_beside(path)
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None) -> Export:
@@ -491,8 +481,8 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {name: out / name for name in FILES}
-    _write_bytes_atomic(files["scene.bin"], blob)
-    _write_bytes_atomic(files["scene.gltf"], (dump_json(doc) + "\n").encode())
+    write_bytes_atomic(files["scene.bin"], blob)
+    write_bytes_atomic(files["scene.gltf"], (dump_json(doc) + "\n").encode())
     write_exr(files["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
     write_hdr(files["environment.hdr"], eq)
     write_json_atomic(files["scenario.json"], sc)

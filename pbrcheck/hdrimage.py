@@ -11,7 +11,7 @@ API
 
 Every array is (H, W, 3) float32 with row 0 at the **top** (PFM stores rows bottom-up; the reader
 and the writer flip). Problems raise :class:`~pbrcheck.errors.ImageIOError` naming the file.
-Writes are atomic (:func:`pbrcheck.atomic.temp_beside` + ``os.replace``).
+Writes are atomic (:func:`pbrcheck.atomic.write_bytes_atomic`).
 
 References: Greg Ward, "Real Pixels", Graphics Gems II (1991) for RGBE; the Radiance file format
 (``radiance-online.org``, "Radiance File Formats", section "Picture File Format"); Paul Debevec's
@@ -20,12 +20,11 @@ PFM description (``www.pauldebevec.com/Research/HDR/PFM``).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from .atomic import temp_beside
+from .atomic import write_bytes_atomic
 from .errors import ImageIOError
 from .exr import read_exr
 
@@ -35,17 +34,6 @@ RGBE_RLE_MAX_WIDTH = 0x7FFF
 RGBE_LITERAL_CHUNK = 128
 
 
-def _write_bytes_atomic(path: Path, data: bytes) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_beside(path)
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def rgbe_encode(rgb: np.ndarray) -> np.ndarray:
@@ -95,7 +83,7 @@ def write_hdr(path: str | Path, rgb: np.ndarray) -> Path:
             parts.append(b"".join(line))
     else:
         parts.append(px.tobytes())
-    return _write_bytes_atomic(path, b"".join(parts))
+    return write_bytes_atomic(path, b"".join(parts))
 
 
 def read_hdr(path: str | Path) -> np.ndarray:
@@ -122,7 +110,7 @@ def write_pfm(path: str | Path, rgb: np.ndarray) -> Path:
         raise ImageIOError(str(path), f"expected an (H, W, 3) image, got shape {rgb.shape}")
     H, W = rgb.shape[:2]
     head = f"PF\n{W} {H}\n-1.0\n".encode("ascii")
-    return _write_bytes_atomic(path, head + np.ascontiguousarray(rgb[::-1]).tobytes())
+    return write_bytes_atomic(path, head + np.ascontiguousarray(rgb[::-1]).tobytes())
 
 
 def read_pfm(path: str | Path) -> np.ndarray:

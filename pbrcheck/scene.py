@@ -13,7 +13,6 @@ renderers); ``-1`` is the background.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import tomllib

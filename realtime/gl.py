@@ -11,7 +11,8 @@ formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, col
 
 API
 ---
-:func:`get_context`, :func:`renderer_name`, :func:`assemble`, :func:`map_errors`,
+:func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
+:func:`timed`, :func:`assemble`, :func:`map_errors`,
 :func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
 """
 
@@ -70,6 +71,43 @@ def renderer_name() -> str:
     return str(get_context().info.get("GL_RENDERER", "?"))
 
 
+#: GL_RENDERER substrings of Mesa's CPU rasterizers, where a GL timer query measures nothing useful
+#: (the work runs on the CPU, partly at glFinish) and the wall clock is used instead.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
+CLOCK_GL_TIMER = "gl_timer_query"
+CLOCK_WALL = "wall"
+
+
+def is_software_renderer(name: str | None = None) -> bool:
+    """Whether the GL renderer (default: this context's) is a CPU rasterizer."""
+    name = (renderer_name() if name is None else name).lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
+
+
+def timing_clock(name: str | None = None) -> str:
+    """The clock :func:`timed` uses on this renderer: GL timer queries (``GL_TIME_ELAPSED``, GPU time
+    of the commands issued inside) on a real GPU, the wall clock around ``glFinish`` on llvmpipe."""
+    return CLOCK_WALL if is_software_renderer(name) else CLOCK_GL_TIMER
+
+
+def timed(ctx, fn, clock: str | None = None):
+    """``(fn(), seconds)``: GPU time of the GL commands ``fn`` issues (a timer query) or the wall time
+    until they finished (``ctx.finish()``), per :func:`timing_clock`."""
+    import time
+
+    clock = clock or timing_clock()
+    if clock == CLOCK_GL_TIMER:
+        q = ctx.query(time=True)
+        with q:
+            out = fn()
+        ctx.finish()
+        return out, q.elapsed * 1e-9  # nanoseconds
+    t0 = time.perf_counter()
+    out = fn()
+    ctx.finish()
+    return out, time.perf_counter() - t0
+
+
 @dataclass
 class Source:
     """Assembled GLSL source and its line map back to the original files."""
@@ -105,8 +143,10 @@ def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple =
             out_map.append((name, i))
 
 
-def assemble(entry: str, defines: dict | None = None) -> Source:
-    """The full source of ``entry`` with includes expanded and ``defines`` prepended."""
+def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None) -> Source:
+    """The full source of ``entry`` with includes expanded and ``defines`` prepended; ``user`` =
+    ``(file name, text)`` of a shader hook file is appended after the entry (its lines map back to
+    that file, so compile errors name ``FILE.glsl:line``; it may not ``#include``)."""
     lines = [GLSL_VERSION]
     lmap = [("<generated>", 1)]
     for k, v in glsl_defines().items():
@@ -118,6 +158,13 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
         lines.append(f"#define {k} {v}")
         lmap.append(("<defines>", len(lmap)))
     _expand(entry, set(), lines, lmap)
+    if user is not None:
+        uname, utext = user
+        for i, line in enumerate(utext.splitlines(), start=1):
+            if _INCLUDE.match(line):
+                raise ShaderCompileError(f"{uname}:{i}: #include is not available in a hook file")
+            lines.append(line)
+            lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
 
 
@@ -146,14 +193,15 @@ def map_errors(message: str, src: Source) -> str:
     return "; ".join(out) or message.strip()
 
 
-def compute_program(entry: str, defines: dict | None = None):
-    """Compiled (cached) compute shader of ``entry`` with ``defines``."""
-    key = (entry, tuple(sorted((defines or {}).items())))
+def compute_program(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None):
+    """Compiled (cached) compute shader of ``entry`` with ``defines`` (and a hook file ``user`` =
+    ``(file name, text)``, see :func:`assemble`)."""
+    key = (entry, tuple(sorted((defines or {}).items())), user)
     prog = _programs.get(key)
     if prog is not None:
         return prog
     ctx = get_context()
-    src = assemble(entry, defines)
+    src = assemble(entry, defines, user)
     try:
         prog = ctx.compute_shader(src.text)
     except Exception as e:

@@ -62,7 +62,8 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
-from .gl import compute_program, get_context, groups, renderer_name
+from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
+from .hooks import load_hook_file
 from .presets import fitted_mapping, resolve_options
 
 HALF_MAX = 65504.0
@@ -117,10 +118,8 @@ def _set(prog, name, value, optional: bool = False):
 
 
 def _timed(ctx, fn):
-    t0 = time.perf_counter()
-    out = fn()
-    ctx.finish()
-    return out, time.perf_counter() - t0
+    """``(fn(), seconds)`` by :func:`realtime.gl.timed`: GL timer queries on a GPU, wall on llvmpipe."""
+    return timed(ctx, fn)
 
 
 def _baked(name: str, key, timings: dict | None, run):
@@ -407,8 +406,23 @@ def resolved_terms(scene: Scene, o: dict) -> dict:
     return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
 
 
+def resolved_energy_compensation(scene: Scene, o: dict) -> str:
+    """The energy compensation this render uses: the option's value, or for ``scene`` the one that
+    matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
+    single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
+    from pbrcheck.energy import SCENE_COMPENSATION
+
+    v = o["energy_compensation"]
+    if v != "scene":
+        return v
+    if o["shading"] != "material" or o["ibl"] != "splitsum":
+        return "none"  # only the material composition's split sum has the DFG terms it scales
+    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+
+
 def frame_defines(o: dict, terms: dict) -> dict:
-    """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms``.
+    """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
+    :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
 
     Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
     a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
@@ -420,12 +434,14 @@ def frame_defines(o: dict, terms: dict) -> dict:
         **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
         **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
         **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
-        **ENERGY_COMPENSATIONS.select(o["energy_compensation"]),
+        **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
         "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
         "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
+    if o["shader"]:
+        defines.update(load_hook_file(o["shader"]).defines)
     return defines
 
 
@@ -481,14 +497,16 @@ def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
 
 
 def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, cached_before: set,
-                fmt: str, warnings: list) -> dict:
-    """The EXR metadata of a real-time render: preset, options, terms, timings and conventions."""
+                fmt: str, warnings: list, hooks=None) -> dict:
+    """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
+    shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
     cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
                                    ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
                     if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
     return {
         "renderer": "realtime",
         "gl_renderer": renderer_name(),
+        "timing_clock": timing_clock(),
         "preset": preset,
         "options": json.dumps(o, sort_keys=True),
         "terms": json.dumps(terms, sort_keys=True),
@@ -497,6 +515,8 @@ def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, 
         "cube_format_used": fmt,
         "warnings": json.dumps(warnings),
         "scene": scene.name,
+        "shader": json.dumps({"path": hooks.path, "sha256": hooks.sha256, "hooks": list(hooks.hooks)}
+                             if hooks else None),
         "conventions": json.dumps({
             "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
             "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
@@ -513,11 +533,12 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
 
     Meta: ``preset``, ``options`` (JSON of every option value), ``timings`` (JSON seconds per pass;
     a pass whose artifact came from this process's cache reports its original bake time and is listed
-    in ``cached_passes``), ``warnings``, ``renderer``, ``terms``.
+    in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
+    ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
     """
     o = resolve_options(preset, options)
     ctx = get_context()
-    terms = resolved_terms(scene, o)
+    terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
     warnings = []
@@ -552,8 +573,9 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         bar.update(1, "kd_lut")
 
         defines = frame_defines(o, terms)
+        hooks = load_hook_file(o["shader"]) if o["shader"] else None
         t0 = time.perf_counter()
-        prog = compute_program("render.comp", defines)
+        prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
         timings["compile_frame"] = time.perf_counter() - t0
 
         buffers = _bind_frame(prog, scene, o, env, {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube,
@@ -581,4 +603,38 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         "R": color[..., 0], "G": color[..., 1], "B": color[..., 2],
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
-    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings))
+    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks))
+
+
+#: Cache kinds whose key's second element is an environment's content hash.
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irr", "sh9", "pre")
+
+
+def trim_environment_caches(keep: int) -> int:
+    """Free what this process baked for all but the ``keep`` most recently first-seen environments
+    (their textures, cubes, SH coefficients and loaded maps); returns how many were freed.
+
+    Every environment's bakes stay in this process's cache for the next render (about 30 MiB per
+    1k x 512 map with the default preset), so a process that renders a long corpus calls this
+    between renders (:func:`compare.renderers.trim_caches`) to keep its memory bounded. GL objects
+    are released explicitly (moderngl does not free them when they are dropped)."""
+    order: list[str] = []
+    for k in _cache:
+        if isinstance(k, tuple) and k[0] in ENVIRONMENT_CACHE_KINDS and k[1] not in order:
+            order.append(k[1])
+    drop = set(order[:max(len(order) - keep, 0)])
+    if not drop:
+        return 0
+    for k in list(_cache):
+        if not isinstance(k, tuple):
+            continue
+        env_bake = k[0] in ENVIRONMENT_CACHE_KINDS and k[1] in drop
+        env_map = k[0] == "envmap" and getattr(_cache[k], "content_hash", None) in drop
+        if env_bake or env_map:
+            v = _cache.pop(k)
+            _timings.pop(k, None)
+            for obj in (v if isinstance(v, tuple) else (v,)):
+                release = getattr(obj, "release", None)
+                if callable(release):
+                    release()
+    return len(drop)

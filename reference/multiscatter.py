@@ -368,3 +368,4 @@ def sample_hook(bsdf, ctx, si, sample1, sample2, active):
     weight = dr.select(choose_spec, w_walk / dr.maximum(p_spec, 1e-20), w_diff)
     active &= bs.pdf > 0
     return bs, dr.select(active, weight, 0.0)
+

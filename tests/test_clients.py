@@ -247,6 +247,7 @@ def test_builtin_threejs_config_and_user_override(tmp_path):
     cfg = C.get_renderer("ext:threejs")
     assert cfg.builtin and cfg.output == "pfm" and cfg.lockfile_path().name == "package-lock.json"
     assert cfg.lockfile_hash() not in (None, "missing")
+    assert cfg.inputs_hash() is not None and cfg.cache_dict()["inputs"] == cfg.inputs_hash()
     argv = C.expand(cfg, cfg.command, scenario="/s/scenario.json", out="/o/x.pfm", dir="/s", width=1, height=1)
     assert argv[0] == "node" and Path(argv[1]).is_file() and argv[2:4] == ["/s/scenario.json", "/o/x.pfm"]
     p = tmp_path / "renderers.toml"
@@ -294,3 +295,55 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
     assert "ext:pfm" in summary and "unstated" in summary
+    # The report runs diagnose on every external renderer's image and shows its verdict line.
+    assert "Convention check (<code>pbrcheck diagnose</code>): no convention mismatch found" in html \
+        or "Convention check (<code>pbrcheck diagnose</code>): likely cause:" in html
+    assert (tmp_path / "r" / "tiny" / "diagnose_ext_pfm.json").is_file()
+
+
+def test_png_srgb_is_compared_in_display_space(fake, scene):
+    from compare.metrics import compare_images
+    from pbrcheck.exr import Image
+
+    test = renderers.render_under_test(scene, "ext:png")           # code values 127/255 (0.5 * 255 floored)
+    lin = (127 / 255 + 0.055) / 1.055
+    lin = lin ** 2.4                                                 # the linear radiance sRGB 127 encodes
+    ref = Image.from_rgb(np.full((8, 16, 3), lin, np.float32), variance_R=np.zeros((8, 16), np.float32))
+    c = compare_images(ref, test)
+    assert c.summary["space"] == "display-referred" and c.summary["noise"] is None
+    assert c.metrics["mean_abs"] < 1e-3                             # same display values
+    hot = Image.from_rgb(np.full((8, 16, 3), 5.0, np.float32))      # clamped to 1 before the transfer
+    assert compare_images(hot, test).metrics["mean_abs"] == pytest.approx(1 - 127 / 255, abs=0.02)
+    assert compare_images(ref, renderers.render_under_test(scene, "ext:pfm")).summary["space"] == "linear"
+
+
+def test_ext_names_a_renderer_in_explain_and_sweep(fake, scene, tmp_path, monkeypatch):
+    from compare.report.sweep import run_sweep
+    from compare.research.explain import run_explain
+    from pbrcheck.scene import dump_toml
+    from tests.test_compare_report import fake_reference
+
+    monkeypatch.setattr(renderers, "render_reference", fake_reference)
+    res = run_explain(scene, preset="ext:pfm", spp=4)
+    assert res.preset == "ext:pfm" and res.sources == [] and res.baseline["relmse"] > 0
+    (tmp_path / "tiny.toml").write_text(dump_toml(SCENE))
+    paths = run_sweep(str(tmp_path / "tiny.toml"), {}, preset="ext:exr", out_dir=tmp_path / "sw", spp=4,
+                      progress=False, also=["ext:pfm"])
+    rows = json.loads(paths["json"].read_text())
+    assert [r["preset"] for r in rows] == ["ext:exr", "ext:pfm"] and paths["plot"].is_file()
+    with pytest.raises(Exception, match="takes no options"):
+        run_sweep(str(tmp_path / "tiny.toml"), {"cube_size": [64]}, preset="ext:exr", out_dir=tmp_path / "x",
+                  spp=4, progress=False)
+    assert not (tmp_path / "x").exists()
+
+
+def test_threejs_client_without_a_browser_fails_in_one_line(scene, monkeypatch, tmp_cache):
+    """The real three.js client, with Chromium missing: exit 1, the runner's one line in the error."""
+    import shutil
+    threejs = Path(__file__).resolve().parents[1] / "clients" / "threejs"
+    if shutil.which("node") is None or not (threejs / "node_modules" / "three").is_dir():
+        pytest.skip("node or clients/threejs/node_modules absent (make setup)")
+    monkeypatch.setenv("PBRCHECK_CHROMIUM", "/nonexistent/chromium")
+    with pytest.raises(R.RendererError, match=r"ext:threejs: exited with status 1; stderr: .*cannot start Chromium "
+                                              r"\(/nonexistent/chromium\)"):
+        renderers.render_under_test(scene, "ext:threejs")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -183,6 +184,7 @@ def test_serial_corpus_rows_error_rows_and_outputs(tmp_path, fake):
     res = run_corpus(d, settings("default", "splitsum_basic"), out, progress=False)
     rows = {(r["environment"], r["renderer"]): r for r in res.rows}
     assert len(res.rows) == 6 * 2
+    assert all(not isinstance(v, np.generic) for r in res.rows for v in r.values())  # plain values
     for i in range(3):
         for p in ("default", "splitsum_basic"):
             r = rows[(f"env{i}.exr", p)]
@@ -308,6 +310,15 @@ def test_report_section_and_page(tmp_path, fake):
     assert "Corpus study" in html and "plots/worst.png" in html and "corrupt.hdr" in html
     for img in ("plots/distribution.png", "plots/vs_environment.png", "plots/worst.png"):
         assert (out / img).is_file()
+    # The same section inside `pbrcheck report`, its images linked relative to the report.
+    rep = tmp_path / "report"
+    args = ["report", str(_scene_file(tmp_path)), "--presets", "default", "--spp", "4", "--no-convergence",
+            "--no-sweep", "--no-furnace", "--quiet", "--out", str(rep)]
+    assert main(args + ["--corpus", str(tmp_path / "nowhere")]) == 2 and not rep.exists()
+    assert main(args + ["--corpus", str(out)]) == 0
+    html = (rep / "index.html").read_text()
+    srcs = re.findall(r'src="([^"]*plots/[^"]+)"', html)
+    assert len(srcs) == 3 and all((rep / s).resolve().is_file() for s in srcs)
 
 
 def test_cli_corpus_serial_and_bad_input(tmp_path, fake, capsys):
@@ -341,3 +352,41 @@ center = [0.0, 0.0, 0.0]
 radius = 1.0
 """)
     return p
+
+
+# --- render lists of sweep and report on a scheduler -----------------------------------------------
+
+def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
+    from compare.corpus.scheduler import SerialExecutor
+    from compare.report.build import build_report
+    from compare.report.sweep import sweep_rows
+
+    scene = scene_from_dict(TINY)
+    ref = fake.reference(scene)
+    combos = [{"cube_size": 64}, {"cube_size": 128}]
+    plain = sweep_rows(scene, ref, combos, preset="default")
+    assert sweep_rows(scene, ref, combos, preset="default", executor=SerialExecutor()) == plain
+    outs = {}
+    for name, sched in (("plain", None), ("serial", "serial")):
+        build_report([str(_scene_file(tmp_path))], presets=["default", "splitsum_basic"], out_dir=tmp_path / name,
+                     spp=4, convergence=False, sweep=False, furnace=False, progress=False, scheduler=sched)
+        outs[name] = json.loads((tmp_path / name / "tiny" / "metrics.json").read_text())
+    for d in outs.values():
+        for p in d["presets"].values():
+            p.pop("timings", None)
+    assert outs["plain"] == outs["serial"]
+    with pytest.raises(SchedulerError):
+        build_report(["spheres"], presets=["default"], out_dir=tmp_path / "bad", scheduler="local:zero")
+    assert not (tmp_path / "bad").exists()
+
+
+def test_identical_files_share_their_renders(tmp_path, fake):
+    import shutil
+
+    d = make_corpus(tmp_path / "c", 2, bad=False)
+    shutil.copy(d / "env0.exr", d / "env0_copy.exr")
+    res = run_corpus(d, settings("default"), tmp_path / "out", progress=False, outputs=False)
+    assert [r["environment"] for r in res.rows] == ["env0.exr", "env0_copy.exr", "env1.exr"]
+    assert len(fake.calls) == 2 * 2  # a reference and a render per distinct file
+    a, b = res.rows[0], res.rows[1]
+    assert a["relmse"] == b["relmse"] and a["key"] != b["key"]

@@ -12,6 +12,7 @@ from realtime.glsl_harness import run_glsl
 # float32 GLSL against float64 numpy.
 RTOL_F32 = 2e-5
 ATOL_F32 = 2e-6
+FMS_ATOL_F32 = 2e-5
 # The committed E_avg table against a fresh bake (the bake's quadrature is deterministic).
 EAVG_ATOL = 1e-6
 
@@ -42,6 +43,11 @@ def test_twins_same_grid():
     _close(run_glsl("ms_fdez_aguera(vec3(x0), x1, x2).x", F0, A, B), energy.ms_fdez_aguera(F0, A, B))
     Eavg = energy.kc_eavg(r)
     _close(run_glsl("ms_kulla_conty(vec3(x0), x1, x2).x", F0, E, Eavg), energy.ms_kulla_conty(F0, E, Eavg))
+    El = E.reshape(-1, NOV.size)[:, ::-1].ravel()  # E at another n.v, same roughness
+    # f_ms divides two float32 cancellations (1 - E)(1 - El) / (1 - Eavg) near roughness 0: absolute
+    # tolerance FMS_ATOL_F32 there (the values are ~1e-4).
+    np.testing.assert_allclose(run_glsl("f_ms_kulla_conty(vec3(x0), x1, x2, x3).x", F0, E, El, Eavg),
+                               energy.f_ms_kulla_conty(F0, E, El, Eavg), rtol=RTOL_F32, atol=FMS_ATOL_F32)
     rr = np.linspace(0.0, 1.0, 101)
     _close(run_glsl("kc_eavg(x0)", rr), energy.kc_eavg(rr))
 
@@ -53,6 +59,11 @@ def test_dispatch_twins(name):
     _close(run_glsl("energy_scale(vec3(x0), x1, x2).x", F0, A, B, defines=d), energy.energy_scale(F0, A, B, name))
     _close(run_glsl("energy_ms(vec3(x0), x1, x2, x3).x", F0, A, B, r, defines=d),
            energy.energy_ms(F0, A, B, r, name))
+    fs = np.linspace(0.0, 3.0, F0.size)
+    El = (A + B).reshape(-1, NOV.size)[:, ::-1].ravel()
+    np.testing.assert_allclose(
+        run_glsl("energy_direct(vec3(x4), vec3(x0), x1, x2, x5, x3).x", F0, A, B, r, fs, El, defines=d),
+        energy.energy_direct(fs, F0, A, B, El, r, name), rtol=RTOL_F32, atol=FMS_ATOL_F32)
 
 
 def test_glsl_table_is_the_numpy_table():
@@ -89,7 +100,36 @@ def test_none_is_single_scattering_and_compensations_add_energy():
 def test_presets_offer_the_compensations():
     from realtime.presets import OPTIONS, PRESETS, resolve_options
 
-    assert OPTIONS["energy_compensation"].choices == registry.ENERGY_COMPENSATIONS.names
+    assert OPTIONS["energy_compensation"].choices == ("scene", *registry.ENERGY_COMPENSATIONS.names)
+    assert set(energy.SCENE_COMPENSATION) == set(registry.MULTISCATTERS.names)
+    assert energy.SCENE_COMPENSATION["none"] == "none"
+    assert PRESETS["default"]["energy_compensation"] == "scene"
     f = resolve_options("filament")
     assert f["energy_compensation"] == "filament" and f["irradiance"] == "sh9" and f["lod_mapping"] == "quadratic"
     assert "energy_compensation" in PRESETS["default"]
+
+
+def test_default_preset_compensates_exactly_for_random_walk_scenes():
+    from dataclasses import replace
+
+    from pbrcheck.scene import load_scene
+    from realtime.presets import resolve_options
+    from realtime.render import resolved_energy_compensation
+
+    s = load_scene("furnace")
+    o = resolve_options("default")
+    assert resolved_energy_compensation(s, o) == "none"
+    s_rw = replace(s, brdf=replace(s.brdf, multiscatter="random_walk"))
+    assert resolved_energy_compensation(s_rw, o) == energy.SCENE_COMPENSATION["random_walk"] == "filament"
+    assert resolved_energy_compensation(s_rw, resolve_options("default", {"energy_compensation": "none"})) == "none"
+
+
+def test_compensation_needs_the_material_split_sum():
+    from realtime.presets import OptionError, resolve_options
+
+    with pytest.raises(OptionError, match="energy_compensation"):
+        resolve_options("default", {"energy_compensation": "filament", "ibl": "runtime"})
+    with pytest.raises(OptionError, match="energy_compensation"):
+        resolve_options("splitsum_basic", {"energy_compensation": "kulla_conty"})
+    for p in ("splitsum_basic", "runtime_is20", "runtime_is256", "analytic_mobile"):
+        assert resolve_options(p)["energy_compensation"] == "none"

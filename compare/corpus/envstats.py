@@ -86,7 +86,7 @@ def environment_stats(env) -> dict:
     before = float(cum_w[k - 1]) if k > 0 else 0.0
     part = (target - before) / w[order[k]] if w[order[k]] > 0 else 0.0
     top_e = float(e[order[:k]].sum()) + part * float(e[order[k]])
-    top1 = top_e / total if total > 0 else float("nan")
+    top1 = float(top_e / total) if total > 0 else float("nan")
     if ymax > 0:
         dark = max(float(np.percentile(flat, DARK_PERCENTILE)), DYNAMIC_RANGE_FLOOR * ymax)
         dyn = math.log10(ymax / dark)

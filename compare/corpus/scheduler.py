@@ -38,7 +38,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable
 
 from pbrcheck.errors import PbrcheckError
@@ -46,6 +46,9 @@ from pbrcheck.errors import PbrcheckError
 #: Retries of a task that raised an unexpected exception (Dask's ``retries``; a lost worker is
 #: handled by the scheduler's own ``allowed-failures``).
 DEFAULT_RETRIES = 2
+#: The ``--scheduler`` help text every command shares.
+SCHEDULER_HELP = ("where tasks run: serial (this process), local:N (a Dask LocalCluster of N worker "
+                  "processes; local alone: one per CPU core) or tcp://HOST:PORT (a running dask scheduler)")
 #: Seconds to wait for the workers of a LocalCluster or a remote scheduler to come up.
 CONNECT_TIMEOUT_S = 120
 

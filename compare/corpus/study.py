@@ -41,6 +41,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from pbrcheck import __version__
 from pbrcheck.cache import cache_key
 from pbrcheck.errors import PbrcheckError
@@ -241,7 +243,9 @@ def make_row(slot: RowSlot, value) -> dict:
     row.update({f"{m}_noise": v for m, v in value["noise"].items()})
     row["pixels_valid"] = value["pixels"].get("valid")
     row.update(value["timings"])
-    return row
+    # Plain Python values: a numpy scalar prints with the process's numpy print options in the CSV
+    # (a library in the client had set the 12-digit legacy mode), a float always in full.
+    return {k: v.item() if isinstance(v, np.generic) else v for k, v in row.items()}
 
 
 def _read_row(path: Path, key: str) -> dict | None:

@@ -34,6 +34,11 @@ from ..timings import image_timings
 from .envstats import environment_stats, thumbnail
 from .scheduler import Failed, failure_of
 
+#: Environments whose bakes a process keeps between renders (:func:`compare.renderers.trim_caches`):
+#: a worker sees each environment for a few consecutive tasks (one per renderer); keeping every
+#: one would grow a worker by ~30 MiB per 1k environment over a long corpus.
+KEEP_ENVIRONMENTS = 4
+
 _render_pool: ThreadPoolExecutor | None = None
 _render_pool_lock = threading.Lock()
 
@@ -71,13 +76,18 @@ def reference_task(env: dict | Failed, scene: Scene, spp: int, seed: int, mode: 
         return failure_of("reference", e)
 
 
+def _render_bounded(scene: Scene, name: str, options: dict | None):
+    renderers.trim_caches(KEEP_ENVIRONMENTS)
+    return renderers.render_under_test(scene, name, options, progress=False)
+
+
 def render_task(env: dict | Failed, scene: Scene, name: str, options: dict | None):
     """The image of renderer ``name`` with ``options``; ``meta["render_seconds"]`` is its wall time."""
     if isinstance(env, Failed):
         return env
     try:
         t0 = time.perf_counter()
-        img = on_render_thread(renderers.render_under_test, scene, name, options, progress=False)
+        img = on_render_thread(_render_bounded, scene, name, options)
         img.meta["render_seconds"] = f"{time.perf_counter() - t0:.6f}"
         return img
     except PbrcheckError as e:

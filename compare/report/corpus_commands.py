@@ -14,12 +14,9 @@ from realtime.presets import parse_sets
 
 from .. import renderers
 from ..corpus.bench import run_bench
-from ..corpus.scheduler import parse_scheduler
+from ..corpus.scheduler import SCHEDULER_HELP, parse_scheduler
 from ..corpus.study import CorpusSettings, RendererSpec, run_corpus
 from .corpus_section import write_corpus_page
-
-SCHEDULER_HELP = ("where tasks run: serial (this process), local:N (a Dask LocalCluster of N worker "
-                  "processes; local alone: one per CPU core) or tcp://HOST:PORT (a running dask scheduler)")
 
 
 def _cmd_corpus(args) -> int:

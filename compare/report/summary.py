@@ -10,7 +10,7 @@ API
   reference and every renderer: the mean radiance of each sphere (white metal, F0 = 1, roughness 0
   to 1, in a unit white environment). An energy-conserving single-scattering model (the reference)
   loses energy as roughness grows; a renderer that stays at 1.0 adds multiple-scattering energy
-  compensation (three.js does, as do Filament and most engines since Kulla & Conty 2017): a model
+  compensation (three.js does, as do Filament and many engines since Kulla & Conty 2017): a model
   difference, measured here, not a shading bug.
 - :func:`timed_on` -- the words for what a renderer's time was measured on.
 
@@ -64,7 +64,8 @@ def summary_section(scene_sections) -> Section:
         for r in s.presets:
             flags = [m for m in SUMMARY_METRICS if r.within.get(m)]
             total = None if r.frame is None else r.frame + (r.precompute or 0.0)
-            rows.append([s.name, r.preset, *[_fmt(r.metrics.get(m)) for m in SUMMARY_METRICS],
+            label = r.preset if r.space == "linear" else f"{r.preset} ({r.space}: clamp + sRGB, 8-bit)"
+            rows.append([s.name, label, *[_fmt(r.metrics.get(m)) for m in SUMMARY_METRICS],
                          ", ".join(flags) if flags else "none", _fmt(total), r.timed_on or "unstated"])
     note = ("Every renderer under test against the reference, on every scene: real-time presets and external "
             "renderers (ext:NAME, docs/renderers.md). Metrics over valid pixels, linear radiance "

@@ -1,5 +1,5 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
-``fit-lod``, ``explain``, ``fit-roughness``, ``diagnose`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck.cli` maps them to exit codes."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.args import split_list
 from pbrcheck.scene import load_scene
-from realtime.presets import parse_sets
+from realtime.presets import overrides_from_args
 
 from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
-from . import diagnose, explain, fit_lod, fit_roughness, hardcases
+from . import diagnose, energy, explain, fit_lod, fit_roughness, hardcases
 
 
 def _cmd_hardcases(args) -> int:
@@ -45,7 +45,7 @@ def _cmd_fit_lod(args) -> int:
         except ValueError:
             raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
     chains = split_list(args.chains) if args.chains else None
-    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size, out=Path(args.out), progress=not args.quiet,
                       **({"chains": chains} if chains else {}))
     print(fit_lod.table_markdown(res), end="")
@@ -54,7 +54,7 @@ def _cmd_fit_lod(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size or None, fitted=args.fitted, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
@@ -63,7 +63,7 @@ def _cmd_explain(args) -> int:
 
 
 def _cmd_fit_roughness(args) -> int:
-    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
+    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
                             size=args.size or None, iterations=args.iterations, spp=args.spp,
                             scan=not args.no_scan)
     out = write_json_atomic(args.out, res)
@@ -99,12 +99,26 @@ def _cmd_bench_fit_roughness(args) -> int:
     return 0
 
 
+def _cmd_energy(args) -> int:
+    scenes = split_list(args.scenes) if args.scenes else list(energy.DEFAULT_SCENES)
+    out = Path(args.out)
+    res = energy.run_energy(samples=args.samples, seed=args.seed, images=not args.no_images, scenes=scenes,
+                            preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size or None,
+                            out_dir=out, progress=not args.quiet)
+    paths = energy.write_energy(res, out)
+    print(energy.table_markdown(res), end="")
+    for k, p in paths.items():
+        print(f"{k}: {p}")
+    return 0
+
+
 def _renderer_args(s, *, spp: int, size: int | None, size_help: str) -> None:
     """The arguments every research command shares: the scene, the renderer under test and its
     overrides, the reference spp and the image height."""
     s.add_argument("scene", help="built-in scene name or TOML path")
     s.add_argument("--preset", default="default", help="real-time preset (default: default)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
     s.add_argument("--spp", type=int, default=spp, help=f"samples per pixel (default {spp})")
     s.add_argument("--size", type=int, default=size, help=size_help)
 
@@ -163,6 +177,21 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--json", metavar="FILE.json", help="also write the result as JSON")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_diagnose)
+
+    s = sub.add_parser("energy", help="multiple-scattering energy compensations against the reference's random "
+                                      "walk: directional albedo over roughness x F0 x n.v, furnace and spheres images")
+    s.add_argument("--samples", type=int, default=energy.DEFAULT_SAMPLES, help="walks per grid point (default 65536)")
+    s.add_argument("--seed", type=int, default=0, help="the walks' hash seed (default 0)")
+    s.add_argument("--scenes", metavar="S,...", help="scenes of the image comparison (default furnace,spheres)")
+    s.add_argument("--no-images", action="store_true", help="the albedo grid only")
+    s.add_argument("--preset", default="default", help="real-time preset of the images (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
+    s.add_argument("--spp", type=int, default=128, help="reference samples per pixel (default 128)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--out", default="out/energy", metavar="DIR", help="output directory (default out/energy)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_energy)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")

@@ -33,6 +33,10 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
   1/pi; partial metals are left alone (their F0 depends on the base colour).
 - ``light_units_4pi``, ``light_units_over_4pi``: point-light intensity off by 4 pi (power in W
   read as W/sr or the reverse): every light's intensity scaled. Only for scenes with point lights.
+- ``multiple_scattering``: not a convention but a model difference engines commonly have: the
+  renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
+  ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
+  Named "a model difference" in the verdict. Only for GGX with the height-correlated Smith term.
 
 Decision
 --------
@@ -93,7 +97,9 @@ IMAGE_HYPOTHESES = ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linea
                     "hdr_clamp", "swap_rb", "premultiplied_alpha")
 SCENE_HYPOTHESES = ("env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha",
                     "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi", "light_units_4pi",
-                    "light_units_over_4pi")
+                    "light_units_over_4pi", "multiple_scattering")
+#: Hypotheses that are a difference of physical model, not of convention (named so in the verdict).
+MODEL_HYPOTHESES = ("multiple_scattering",)
 
 DESCRIPTIONS = {
     "flip_vertical": "image rows reversed (row 0 at the bottom)",
@@ -114,6 +120,7 @@ DESCRIPTIONS = {
     "diffuse_over_pi": "diffuse divided by pi",
     "light_units_4pi": "point-light intensity multiplied by 4 pi",
     "light_units_over_4pi": "point-light intensity divided by 4 pi",
+    "multiple_scattering": "the renderer keeps the energy of multiple scattering (energy compensation)",
 }
 
 
@@ -245,6 +252,8 @@ def hypothesis_scene(name: str, scene: Scene, directory: Path) -> Scene:
         k = LINEAR_FACTORS[name]
         return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
                                            for li in scene.lights))
+    if name == "multiple_scattering":
+        return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk"))
     raise DiagnoseError(f"diagnose: unknown scene hypothesis {name!r} (known: {', '.join(SCENE_HYPOTHESES)})")
 
 
@@ -358,6 +367,12 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
                         row(name, "scene", None, None, skipped="the scene has no point lights")
                     elif name.startswith("diffuse_") and not any(o.material.metallic == 0 for o in scene.objects):
                         row(name, "scene", None, None, skipped="the scene has no dielectric object")
+                    elif name == "multiple_scattering" and scene.brdf.multiscatter != "none":
+                        row(name, "scene", None, None, skipped="the reference already scatters multiply")
+                    elif name == "multiple_scattering" and (scene.brdf.ndf, scene.brdf.geometry) != (
+                            "ggx", "smith_ggx_correlated"):
+                        row(name, "scene", None, None, skipped="the random walk needs ndf = ggx and "
+                                                               "geometry = smith_ggx_correlated")
                     else:
                         img, v2 = render(hypothesis_scene(name, scene, Path(tmp)))
                         row(name, "scene", img, t, LINEAR_FACTORS.get(name) and {"factor": LINEAR_FACTORS[name]},
@@ -379,7 +394,8 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
             line += " (the difference is within the reference's noise)"
     else:
         fit = "".join(f", {k} {format_value(v)}" for k, v in likely.fitted.items())
-        line = (f"likely cause: {likely.hypothesis} ({likely.description}{fit}): undoing it removes "
+        kind = ("a model difference, not a convention: " if likely.hypothesis in MODEL_HYPOTHESES else "")
+        line = (f"likely cause: {kind}{likely.hypothesis} ({likely.description}{fit}): undoing it removes "
                 f"{100 * likely.reduction:.0f} % of the error"
                 + (", what is left is within the reference's noise" if likely.within_noise else ""))
     return Diagnosis("relmse", before, noise, rows, likely.hypothesis if likely else None, line)

@@ -51,6 +51,27 @@ float kc_eavg(float roughness) {
     return mix(KC_EAVG[i], KC_EAVG[i + 1], x - float(i));
 }
 
+// Source: Kulla & Conty 2017 slide 18. Equation: the multiple-scattering lobe for direct light,
+// f_ms = F_ms (1 - E(mu_o)) (1 - E(mu_i)) / (pi (1 - Eavg)) (a BRDF value, without the cosine).
+vec3 f_ms_kulla_conty(vec3 F0, float Ev, float El, float Eavg) {
+    vec3 Favg = F_avg_Schlick(F0);
+    vec3 Fms = Favg * Favg * Eavg / (1.0 - Favg * (1.0 - Eavg));
+    return Fms * (1.0 - Ev) * (1.0 - El) / (PI * max(1.0 - Eavg, 1e-6));
+}
+
+// Point lights: what the compensation adds to the single-scattering BRDF f (without the cosine).
+// filament: Filament scales its direct specular lobe f_spec too (energyCompensation): (scale - 1) f_spec;
+// kulla_conty: its lobe f_ms_kulla_conty (El = A + B at n.l); fdez_aguera: 0 (the paper is IBL only).
+vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness) {
+#if ENERGY_COMPENSATION == ENERGY_COMPENSATION_FILAMENT
+    return (energy_filament(F0, A + B) - 1.0) * f_spec;
+#elif ENERGY_COMPENSATION == ENERGY_COMPENSATION_KULLA_CONTY
+    return f_ms_kulla_conty(F0, A + B, El, kc_eavg(roughness));
+#else
+    return vec3(0.0);
+#endif
+}
+
 // The split sum's specular factor: Filament's scale, or 1.
 vec3 energy_scale(vec3 F0, float A, float B) {
 #if ENERGY_COMPENSATION == ENERGY_COMPENSATION_FILAMENT
