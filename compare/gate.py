@@ -230,7 +230,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             test_name = str(test_path)
         else:
             test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
-            test_name = f"real-time {check.preset}"
+            test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
         cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
     except PbrcheckError as e:
         res.error, res.exit_code = str(e), max(e.exit_code, 2)
