@@ -118,6 +118,7 @@ GEOMETRIES = Registry("GEOMETRY", [
     Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013"),
     Entry("schlick_beckmann", "Schlick's Beckmann approximation (article 000's listing), real time only",
           scene=False),
+    Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80"),
 ])
 
 FRESNELS = Registry("FRESNEL", [
@@ -181,7 +182,7 @@ MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microface
                                     "Heitz, Hanika, d'Eon, Dachsbacher 2016")
 #: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
 #: height-correlated Smith term of that NDF [Heitz16 sec. 5; Heitz 2014 eq. 99].
-MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated"}
+MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckmann_correlated"}
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
