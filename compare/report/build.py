@@ -32,6 +32,7 @@ from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import VerdictSpp, reference_for_verdict
+from .references import references_sections
 from .research_sections import research_sections
 from .section import Section, Table
 from .summary import furnace_section, summary_section
@@ -470,7 +471,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
     :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
     renderer and scene) and, with ``furnace``, the white furnace per renderer
-    (:mod:`compare.report.summary`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
+    (:mod:`compare.report.summary`), then every external renderer against both the single-scattering
+    and the random-walk reference (:mod:`compare.report.references`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
     and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
 
     Raises
@@ -498,6 +500,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     n_conv = len(_convergence_spps(spp)) if convergence else 0  # at the least spp (progress only)
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
+    total += len(scenes) * sum(renderers.is_external(p) for p in presets)  # both references per ext:NAME
     sections = []
     with Progress("report", total=total, enabled=progress) as prog, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
@@ -506,6 +509,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
         top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
+        top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
     extras = list(extras or [])
     if research:
         # at the first scene's trusted-verdict spp (the reference its sections compare against)
