@@ -190,10 +190,10 @@ def test_unreachable_scheduler_or_no_worker_is_a_scheduler_error():
     import subprocess
     import sys
 
-    from compare.corpus.scheduler import SchedulerError
+    from compare.corpus.scheduler import SchedulerUnavailable
 
     port = _free_port()
-    with pytest.raises(SchedulerError, match="cannot connect"):
+    with pytest.raises(SchedulerUnavailable, match="cannot connect"):
         with open_executor(f"tcp://127.0.0.1:{port}", timeout=2):
             pass
     sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
@@ -210,7 +210,7 @@ def test_unreachable_scheduler_or_no_worker_is_a_scheduler_error():
             except OSError:
                 assert time.monotonic() < deadline, "dask scheduler did not start"
                 time.sleep(0.5)
-        with pytest.raises(SchedulerError, match="no worker joined"):
+        with pytest.raises(SchedulerUnavailable, match="no worker joined"):
             with open_executor(f"tcp://127.0.0.1:{port}", timeout=5):
                 pass
     finally:

@@ -9,6 +9,8 @@ run and a Dask run give the same results.
 API
 ---
 - :class:`Dep`, :class:`Task`, :class:`Failed` -- the graph and the value of a failed task.
+- :class:`SchedulerError` (bad spec, exit 2), :class:`SchedulerUnavailable` (no scheduler or no
+  worker, exit 3).
 - :func:`parse_scheduler` -- ``"serial"``, ``"local"``, ``"local:N"`` or ``"tcp://HOST:PORT"`` to a
   :class:`SchedulerSpec` (raises :class:`SchedulerError`).
 - :func:`open_executor` -- a context manager yielding the executor of a spec (starts and stops a
@@ -54,7 +56,13 @@ CONNECT_TIMEOUT_S = 120
 
 
 class SchedulerError(PbrcheckError):
-    """A malformed ``--scheduler`` value, or a scheduler that cannot be reached."""
+    """A malformed ``--scheduler`` value (exit code 2)."""
+
+
+class SchedulerUnavailable(SchedulerError):
+    """A scheduler that cannot be reached or has no worker: the backend is unavailable (exit code 3)."""
+
+    exit_code = 3
 
 
 @dataclass(frozen=True)
@@ -234,8 +242,10 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     Raises
     ------
     SchedulerError
-        A malformed spec, or a scheduler that cannot be reached, or gets no worker, within ``timeout``
-        seconds (default :data:`CONNECT_TIMEOUT_S`).
+        A malformed spec.
+    SchedulerUnavailable
+        A scheduler that cannot be reached, or gets no worker, within ``timeout`` seconds (default
+        :data:`CONNECT_TIMEOUT_S`).
     """
     if not isinstance(spec, SchedulerSpec):
         spec = parse_scheduler(spec)
@@ -253,11 +263,11 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     try:
         client = Client(spec.address, timeout=timeout)
     except (OSError, TimeoutError) as e:
-        raise SchedulerError(f"--scheduler {spec.address}: cannot connect ({e})") from None
+        raise SchedulerUnavailable(f"--scheduler {spec.address}: cannot connect ({e})") from None
     with client:
         try:  # tasks would wait forever on a scheduler without workers
             client.wait_for_workers(1, timeout=timeout)
         except (OSError, TimeoutError):
-            raise SchedulerError(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
+            raise SchedulerUnavailable(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
                                  f"(start some with `dask worker {spec.address} --nthreads 1`)") from None
         yield DaskExecutor(client, retries)
