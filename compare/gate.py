@@ -5,8 +5,9 @@ Budget format (TOML; see docs/compare.md)::
     [[check]]
     name = "spheres-default"         # required, unique
     scene = "spheres"                # built-in name or TOML path (relative to the budget file)
-    preset = "default"               # real-time preset (default "default")
+    preset = "default"               # real-time preset or ext:NAME (docs/renderers.md)
     options = { }                    # optional real-time option overrides
+    # shader = "hooks/ue4.glsl"      # optional shader hook file (relative to the budget file)
     reference = "refs/spheres.exr"   # stored EXR (relative to the budget file) or "auto"
     spp = 64                         # with reference = "auto": samples per pixel (default 64)
     # test = "engine_out.exr"        # instead of preset: gate an image from any engine (scene
@@ -43,7 +44,7 @@ from . import renderers
 from .maps import write_maps
 from .metrics import METRICS, compare_images, worse
 
-CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "test", "max", "min", "mode", "seed"}
+CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "test", "max", "min", "mode", "seed"}
 DEFAULT_SPP = 64
 #: The reference renderer needs two samples per pixel for its variance channels.
 MIN_REFERENCE_SPP = 2
@@ -138,7 +139,7 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
         names.add(name)
-        for k in ("scene", "preset", "reference", "test", "mode"):
+        for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
                 raise _err(path, f"{w}.{k}", "a string", t[k])
         if "reference" not in t:
@@ -148,8 +149,8 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, w, "scene (rendered with preset) or test (an image path)", "neither")
         if t["reference"] == "auto" and not has_scene:
             raise _err(path, f"{w}.reference", '"auto" only together with scene', "auto")
-        if has_test and ("preset" in t or "options" in t):
-            raise _err(path, w, "preset/options only with scene, not with test", "test")
+        if has_test and ("preset" in t or "options" in t or "shader" in t):
+            raise _err(path, w, "preset/options/shader only with scene, not with test", "test")
         if "options" in t and not isinstance(t["options"], dict):
             raise _err(path, f"{w}.options", "a table of real-time options", t["options"])
         for k in ("spp", "seed"):
@@ -160,8 +161,14 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         mn = _bounds(path, f"{w}.min", t.get("min", {}))
         if not mx and not mn:
             raise _err(path, f"{w}.max", "at least one metric budget in [check.max] or [check.min]", "nothing")
+        options = dict(t.get("options", {}))
+        if "shader" in t:  # a hook file, relative to this budget file
+            shader = _resolve(path.parent, t["shader"])
+            if not shader.is_file():
+                raise _err(path, f"{w}.shader", "an existing shader hook file", t["shader"])
+            options["shader"] = str(shader)
         out.append(Check(name=name, max=mx, min=mn, reference=t["reference"], scene=t.get("scene"),
-                         preset=t.get("preset", "default"), options=dict(t.get("options", {})),
+                         preset=t.get("preset", "default"), options=options,
                          test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
                          seed=t.get("seed", 0)))
     return out, path.parent

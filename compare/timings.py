@@ -42,3 +42,14 @@ def image_timings(img) -> tuple[float | None, float | None]:
     except (ValueError, TypeError):
         timings = {}
     return split_timings(timings if isinstance(timings, dict) else {})
+
+
+def timed_on(img) -> dict:
+    """``{"gl_renderer", "timing_clock"}`` of a real-time image's metadata (what its times mean)."""
+    return {"gl_renderer": img.meta.get("gl_renderer", "?"), "timing_clock": img.meta.get("timing_clock", "wall")}
+
+
+def timed_on_label(rows: list[dict]) -> str:
+    """``"on <GL renderer> (<clock>)"`` for the rows' timings ("" when no row says)."""
+    seen = sorted({(r["gl_renderer"], r.get("timing_clock", "wall")) for r in rows if r.get("gl_renderer")})
+    return "; ".join(f"on {g} ({c.replace('_', ' ')})" for g, c in seen)

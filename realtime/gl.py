@@ -4,13 +4,15 @@ Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include
 lines (each file once; the sources of :func:`pbrcheck.registry.glsl_generated` are included by
 name like files), prepends ``#version 430``, the named constants of every registry
 (:func:`pbrcheck.registry.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
-of the caller, and keeps a line map so that a compile error reported by the driver as
-``0:LINE(COL)`` is re-reported as ``file.glsl:line`` of the original source
-(:class:`pbrcheck.errors.ShaderCompileError`).
+of the caller, and keeps a line map so that a compile error reported by the driver is re-reported as
+``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`). Two driver
+formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, column) and NVIDIA's
+``0(LINE) : error C0000: ...`` (source string and line, no column).
 
 API
 ---
-:func:`get_context`, :func:`renderer_name`, :func:`assemble`, :func:`map_errors`,
+:func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
+:func:`timed`, :func:`assemble`, :func:`map_errors`,
 :func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
 """
 
@@ -30,7 +32,10 @@ GL_TEXTURE_CUBE_MAP_SEAMLESS = 0x884F
 DEBIAN_PACKAGES = "libegl1 libgl1 libgl1-mesa-dri"
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+# Mesa: "0:3(14): error: ..." (source string : line (column)).
 _ERR_LINE = re.compile(r"(\d+):(\d+)\((\d+)\)")
+# NVIDIA: "0(6) : error C0000: ..." (source string (line)), at the start of a message line.
+_ERR_LINE_NV = re.compile(r"^(\s*)(\d+)\((\d+)\)(?=\s*:)")
 
 _ctx = None
 _programs: dict = {}
@@ -64,6 +69,43 @@ def get_context():
 def renderer_name() -> str:
     """The GL renderer string of the context (``llvmpipe ...`` on Mesa's software rasterizer)."""
     return str(get_context().info.get("GL_RENDERER", "?"))
+
+
+#: GL_RENDERER substrings of Mesa's CPU rasterizers, where a GL timer query measures nothing useful
+#: (the work runs on the CPU, partly at glFinish) and the wall clock is used instead.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
+CLOCK_GL_TIMER = "gl_timer_query"
+CLOCK_WALL = "wall"
+
+
+def is_software_renderer(name: str | None = None) -> bool:
+    """Whether the GL renderer (default: this context's) is a CPU rasterizer."""
+    name = (renderer_name() if name is None else name).lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
+
+
+def timing_clock(name: str | None = None) -> str:
+    """The clock :func:`timed` uses on this renderer: GL timer queries (``GL_TIME_ELAPSED``, GPU time
+    of the commands issued inside) on a real GPU, the wall clock around ``glFinish`` on llvmpipe."""
+    return CLOCK_WALL if is_software_renderer(name) else CLOCK_GL_TIMER
+
+
+def timed(ctx, fn, clock: str | None = None):
+    """``(fn(), seconds)``: GPU time of the GL commands ``fn`` issues (a timer query) or the wall time
+    until they finished (``ctx.finish()``), per :func:`timing_clock`."""
+    import time
+
+    clock = clock or timing_clock()
+    if clock == CLOCK_GL_TIMER:
+        q = ctx.query(time=True)
+        with q:
+            out = fn()
+        ctx.finish()
+        return out, q.elapsed * 1e-9  # nanoseconds
+    t0 = time.perf_counter()
+    out = fn()
+    ctx.finish()
+    return out, time.perf_counter() - t0
 
 
 @dataclass
@@ -101,8 +143,10 @@ def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple =
             out_map.append((name, i))
 
 
-def assemble(entry: str, defines: dict | None = None) -> Source:
-    """The full source of ``entry`` with includes expanded and ``defines`` prepended."""
+def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None) -> Source:
+    """The full source of ``entry`` with includes expanded and ``defines`` prepended; ``user`` =
+    ``(file name, text)`` of a shader hook file is appended after the entry (its lines map back to
+    that file, so compile errors name ``FILE.glsl:line``; it may not ``#include``)."""
     lines = [GLSL_VERSION]
     lmap = [("<generated>", 1)]
     for k, v in glsl_defines().items():
@@ -114,31 +158,50 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
         lines.append(f"#define {k} {v}")
         lmap.append(("<defines>", len(lmap)))
     _expand(entry, set(), lines, lmap)
+    if user is not None:
+        uname, utext = user
+        for i, line in enumerate(utext.splitlines(), start=1):
+            if _INCLUDE.match(line):
+                raise ShaderCompileError(f"{uname}:{i}: #include is not available in a hook file")
+            lines.append(line)
+            lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
 
 
 def map_errors(message: str, src: Source) -> str:
-    """Rewrite every ``0:LINE(COL)`` of a driver message as ``file:line(col)``."""
+    """Rewrite every driver location of ``message`` as ``file:line(col)`` (Mesa's ``0:LINE(COL)``) or
+    ``file:line`` (NVIDIA's ``0(LINE)``); keep only the lines that carry a location (all of the
+    message when none does)."""
+
+    def where(k: int):
+        return src.line_map[k - 1] if 1 <= k <= len(src.line_map) else None
 
     def sub(m):
-        k = int(m.group(2))
-        if 1 <= k <= len(src.line_map):
-            f, l = src.line_map[k - 1]
-            return f"{f}:{l}({m.group(3)})"
-        return m.group(0)
+        loc = where(int(m.group(2)))
+        return f"{loc[0]}:{loc[1]}({m.group(3)})" if loc else m.group(0)
 
-    keep = [l for l in message.splitlines() if _ERR_LINE.search(l)]
-    return "; ".join(_ERR_LINE.sub(sub, l).strip() for l in keep) or message.strip()
+    def sub_nv(m):
+        loc = where(int(m.group(3)))
+        return f"{m.group(1)}{loc[0]}:{loc[1]}" if loc else m.group(0)
+
+    out = []
+    for line in message.splitlines():
+        if _ERR_LINE.search(line):
+            out.append(_ERR_LINE.sub(sub, line).strip())
+        elif _ERR_LINE_NV.search(line):
+            out.append(_ERR_LINE_NV.sub(sub_nv, line).strip())
+    return "; ".join(out) or message.strip()
 
 
-def compute_program(entry: str, defines: dict | None = None):
-    """Compiled (cached) compute shader of ``entry`` with ``defines``."""
-    key = (entry, tuple(sorted((defines or {}).items())))
+def compute_program(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None):
+    """Compiled (cached) compute shader of ``entry`` with ``defines`` (and a hook file ``user`` =
+    ``(file name, text)``, see :func:`assemble`)."""
+    key = (entry, tuple(sorted((defines or {}).items())), user)
     prog = _programs.get(key)
     if prog is not None:
         return prog
     ctx = get_context()
-    src = assemble(entry, defines)
+    src = assemble(entry, defines, user)
     try:
         prog = ctx.compute_shader(src.text)
     except Exception as e:

@@ -1,18 +1,32 @@
-"""``pbrcheck bench reference``: integrator efficiency and BSDF speed, as one JSON object.
+"""``pbrcheck bench reference``: the reference's throughput, efficiency and time to a trusted verdict,
+measured side by side in one run on the chosen variant, as one JSON object with each figure's goal.
 
-* ``integrator_efficiency``: on the ``spheres`` scene (reduced resolution, see ``resolution``),
-  ``(mean pixel variance x seconds)`` of Mitsuba's ``path`` integrator (max depth 2, same BSDF)
-  divided by that of ``local``, at the scene's resolution and the same spp; median wall seconds of
-  alternating runs after a compile run (the CPU-seconds ratio is reported too: the machine is shared).
-  Goal >= 2.
-* ``bsdf_speed_ratio``: seconds per sample of Mitsuba's C++ ``roughconductor`` (ggx, material none,
-  alpha = roughness^2) divided by that of ``pbr_material`` in the peer configuration (geometry
-  smith_ggx, fresnel none, white metal), timing ``sample`` + ``eval_pdf`` of a wavefront of random
-  incident directions (the median of several repeats). Goal >= 0.9.
+On the ``spheres`` scene at its own 360 x 300 (``--quick``: reduced), ``BENCH_SPP`` spp, every render
+warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` alternating runs:
+
+* ``local_msamples_per_s``: the reference (``local``, through ``mi.render`` with the
+  ``pbrcheck_reference`` integrator, per-pixel moments included), camera samples per second / 1e6.
+* ``mitsuba_path_msamples_per_s``: ``mi.render`` with Mitsuba's own ``path`` integrator (max depth 2,
+  film only) and the project's ``pbr_material``. ``local_vs_mitsuba_path`` = the ratio of the two;
+  goal >= 1.0 (the reference is no slower than Mitsuba's integrator with the same BSDF).
+* ``integrator_efficiency``: ``(mean pixel variance x seconds)`` of the ``path`` mode (max depth 2)
+  over that of ``local``, same spp (the CPU-seconds ratio too: the machine may be shared); goal >= 2.
+* ``bsdf_speed_ratio``: seconds per ``sample + eval_pdf`` lane of Mitsuba's C++ ``roughconductor``
+  (ggx, material none, alpha = roughness^2) over ``pbr_material`` (smith_ggx, fresnel none, white
+  metal, same roughness) on ``BSDF_LANES`` random incident directions, median of repeats after a
+  compile run; goal >= 0.9. Split into ``bsdf_trace_seconds`` (building the Dr.Jit graph: Python for
+  ``pbr_material``, C++ for ``roughconductor``, once per call) and ``bsdf_kernel_seconds`` (compile
+  cache lookup, launch, run): ``bsdf_kernel_ratio`` is the ratio without tracing, which is what a
+  render pays (the integrator traces the BSDF once per pass, not once per sample).
+* ``seconds_to_10x_noise_floor``: seconds for the ``local`` reference of ``spheres`` to bring its
+  noise floor (mean pixel variance) to a tenth of the default preset's error there
+  (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
+  ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
 """
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 
@@ -21,7 +35,7 @@ import numpy as np
 from pbrcheck.environment import load_environment
 from pbrcheck.scene import load_scene
 
-from .render import _mi, load_mitsuba_scene, render_uncached
+from .render import _mi, load_mitsuba_scene, render_uncached, scene_dict
 
 BENCH_RESOLUTION = (360, 300)   # the spheres scene's own resolution
 BENCH_SPP = 64
@@ -29,27 +43,60 @@ RENDER_REPEATS = 3
 BSDF_LANES = 1 << 21
 BSDF_REPEATS = 7
 PEER_ROUGHNESS = 0.5
+PATH_DEPTH = 2
+#: The reference's noise floor must sit this far below the smallest error reported.
+NOISE_FLOOR_FACTOR = 10.0
+#: MSE of the ``default`` real-time preset against a converged ``local`` reference on ``spheres``
+#: (360 x 300), the variance of the reference subtracted: measured with ``pbrcheck compare`` of
+#: ``pbrcheck realtime spheres`` against ``pbrcheck reference spheres --spp 4096`` (2026-11-23).
+SPHERES_DEFAULT_MSE = 3.3e-4
+
+GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9}
+
+
+def _timed_render(fn):
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t, time.process_time() - c
 
 
 def _time_renders(scene, spp, mscene, env, repeats):
-    """Median wall and CPU seconds and mean pixel variance of ``local`` and ``path`` (depth 2), timed
-    alternately (so that load from other processes hits both alike) after one compile run each."""
-    runs = {"local": [], "path": []}
+    """Median wall and CPU seconds (and mean pixel variance) of ``local``, ``path`` (depth 2) and
+    Mitsuba's own ``path`` through ``mi.render``, timed alternately (so that load from other
+    processes hits all alike) after one compile run each."""
+    mi, dr = _mi()
+    from .integrator import sensor_dict
+
+    d = scene_dict(scene, env)
+    d["sensor"] = sensor_dict(scene.camera, spp)
+    d["integrator"] = {"type": "path", "max_depth": PATH_DEPTH}
+    native = mi.load_dict(d)
+
+    def mitsuba_path(seed):
+        img = mi.render(native, spp=spp, seed=seed)
+        dr.eval(img)
+        dr.sync_thread()
+        return None
+
+    runs = {"local": [], "path": [], "mitsuba_path": []}
     for k in range(repeats + 1):
-        for mode in ("local", "path"):
-            t, c = time.perf_counter(), time.process_time()
-            img = render_uncached(scene, spp=spp, mode=mode, max_depth=2, mscene=mscene, env=env,
-                                  progress=False, seed=k)
-            if k:
-                runs[mode].append((time.perf_counter() - t, time.process_time() - c, float(np.mean(img.variance))))
-    out = {}
-    for mode, r in runs.items():
-        out[mode] = (statistics.median(x[0] for x in r), statistics.median(x[1] for x in r),
-                     float(np.mean([x[2] for x in r])))
-    return out
+        for mode in runs:
+            if mode == "mitsuba_path":
+                _, t, c = _timed_render(lambda: mitsuba_path(k))
+                var = float("nan")
+            else:
+                img, t, c = _timed_render(lambda: render_uncached(
+                    scene, spp=spp, mode=mode, max_depth=PATH_DEPTH, mscene=mscene, env=env,
+                    progress=False, seed=k))
+                var = float(np.mean(img.variance))
+            if k:  # the first run compiles
+                runs[mode].append((t, c, var))
+    return {mode: (statistics.median(x[0] for x in r), statistics.median(x[1] for x in r),
+                   float(np.mean([x[2] for x in r]))) for mode, r in runs.items()}
 
 
 def _time_bsdf(bsdf, lanes, repeats):
+    """(seconds per lane in total, tracing seconds per call, kernel seconds per call): medians."""
     mi, dr = _mi()
     rng = np.random.default_rng(0)
     wi = rng.normal(size=(lanes, 3)).astype(np.float32)
@@ -60,20 +107,26 @@ def _time_bsdf(bsdf, lanes, repeats):
     u1 = mi.Float(rng.random(lanes, dtype=np.float32))
     u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
     dr.eval(si, u1, u2)
+    dr.sync_thread()
     ctx = mi.BSDFContext()
-    times = []
+    total, trace, kernel = [], [], []
     for k in range(repeats + 1):
-        t = time.perf_counter()
+        t0 = time.perf_counter()
         bs, w = bsdf.sample(ctx, si, u1, u2)
         f, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+        t1 = time.perf_counter()
         dr.eval(w, f, pdf)
         dr.sync_thread()
+        t2 = time.perf_counter()
         if k:  # the first run compiles
-            times.append(time.perf_counter() - t)
-    return statistics.median(times) / lanes
+            total.append(t2 - t0)
+            trace.append(t1 - t0)
+            kernel.append(t2 - t1)
+    return statistics.median(total) / lanes, statistics.median(trace), statistics.median(kernel)
 
 
 def run_bench(quick: bool = False) -> dict:
+    """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
 
     W, H = (48, 40) if quick else BENCH_RESOLUTION
@@ -84,6 +137,8 @@ def run_bench(quick: bool = False) -> dict:
     rep = 1 if quick else RENDER_REPEATS
     r = _time_renders(scene, spp, mscene, env, rep)
     (t_local, c_local, v_local), (t_path, c_path, v_path) = r["local"], r["path"]
+    t_native, c_native, _ = r["mitsuba_path"]
+    samples = W * H * spp
 
     lanes = (1 << 16) if quick else BSDF_LANES
     alpha = PEER_ROUGHNESS ** 2
@@ -91,14 +146,29 @@ def run_bench(quick: bool = False) -> dict:
     py = mi.load_dict({"type": "pbr_material", "base_color": [1.0, 1.0, 1.0], "metallic": 1.0,
                        "roughness": PEER_ROUGHNESS, "ndf": "ggx", "geometry": "smith_ggx", "fresnel": "none"})
     repeats = 3 if quick else BSDF_REPEATS
-    s_cpp = _time_bsdf(cpp, lanes, repeats)
-    s_py = _time_bsdf(py, lanes, repeats)
-    return {
+    s_cpp, tr_cpp, k_cpp = _time_bsdf(cpp, lanes, repeats)
+    s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
+
+    # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance x spp.
+    sigma2 = v_local * spp
+    spp_floor = max(2, math.ceil(NOISE_FLOOR_FACTOR * sigma2 / SPHERES_DEFAULT_MSE))
+    seconds_floor = spp_floor * t_local / spp * (BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]) / (W * H)
+    figures = {
+        "local_msamples_per_s": samples / t_local / 1e6,
+        "mitsuba_path_msamples_per_s": samples / t_native / 1e6,
+        "local_vs_mitsuba_path": t_native / t_local,
         "integrator_efficiency": (v_path * t_path) / (v_local * t_local),
-        "integrator_efficiency_goal": 2.0,
         "integrator_efficiency_cpu_seconds": (v_path * c_path) / (v_local * c_local),
         "bsdf_speed_ratio": s_cpp / s_py,
-        "bsdf_speed_ratio_goal": 0.9,
+        "bsdf_kernel_ratio": k_cpp / k_py,
+        "seconds_to_10x_noise_floor": seconds_floor,
+        "spp_to_10x_noise_floor": spp_floor,
+    }
+    goals = {f"{k}_goal": v for k, v in GOALS.items()}
+    met = {k: figures[k] >= v for k, v in GOALS.items()}
+    return {
+        **figures, **goals, "goals_met": met,
+        "variant": mi.variant(),
         "scene": "spheres",
         "resolution": [W, H],
         "resolution_note": "the scene's own resolution" if not quick else "quick: reduced",
@@ -106,17 +176,26 @@ def run_bench(quick: bool = False) -> dict:
         "local_seconds": t_local,
         "local_cpu_seconds": c_local,
         "local_mean_pixel_variance": v_local,
-        "path_max_depth": 2,
+        "path_max_depth": PATH_DEPTH,
         "path_seconds": t_path,
         "path_cpu_seconds": c_path,
         "path_mean_pixel_variance": v_path,
+        "mitsuba_path_seconds": t_native,
+        "mitsuba_path_cpu_seconds": c_native,
+        "mitsuba_path_note": "mi.render + Mitsuba's path (max depth 2, film only) + pbr_material, same sensor",
         "render_repeats": rep,
-        "render_timed": "median wall (and CPU) seconds of alternating local/path renders after a compile run",
+        "render_timed": "median wall (and CPU) seconds of alternating local / path / Mitsuba path renders "
+                        "after a compile run each",
         "bsdf_lanes": lanes,
         "bsdf_repeats": repeats,
         "bsdf_timed": "sample + eval_pdf per lane, median of repeats after a compile run",
         "roughconductor_seconds_per_sample": s_cpp,
         "pbr_material_seconds_per_sample": s_py,
+        "bsdf_trace_seconds": {"roughconductor": tr_cpp, "pbr_material": tr_py},
+        "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
         "peer_roughness": PEER_ROUGHNESS,
-        "variant": mi.variant(),
+        "noise_floor_factor": NOISE_FLOOR_FACTOR,
+        "noise_floor_target_mse": SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR,
+        "noise_floor_note": "spp = 10 x per-sample variance / the default preset's MSE on spheres; seconds "
+                            "extrapolated from the measured local throughput to 360 x 300",
     }

@@ -35,6 +35,10 @@ sampled as the mirror direction with discrete probability ``P_spec`` and weight
 v.h = n.v); ``eval``/``pdf`` then return the diffuse lobe only (a delta cannot be evaluated). The
 choice is made from the roughness in the scene (and re-made in ``parameters_changed``).
 
+Multiple scattering: ``multiscatter = "random_walk"`` (props ``multiscatter``, ``multiscatter_seed``)
+routes the non-delta specular lobe through :mod:`reference.multiscatter` (two hooks: ``_eval_pdf``
+adds the walk's orders >= 2 and its approximate pdf, ``sample`` samples the walk).
+
 Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``) are exposed
 by ``traverse``; ``parameters_changed`` makes them opaque (``dr.make_opaque``) so a new value does not
 rebuild the kernel.
@@ -46,7 +50,9 @@ import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
-from pbrcheck.scene import FRESNELS, GEOMETRIES, NDFS
+from pbrcheck.scene import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS
+
+from . import multiscatter
 
 import drjit as dr
 import mitsuba as mi
@@ -143,6 +149,11 @@ def fresnel_term(fresnel, VoH, F0):
     return F0 + (1.0 - F0) * w
 
 
+def _divide(a, b):
+    """a / b; a seam so that a test can emulate CUDA's inexact division on the CPU."""
+    return a / b
+
+
 def _mean(c):
     return (c.x + c.y + c.z) * (1.0 / 3.0)
 
@@ -169,6 +180,12 @@ class PBRMaterial(mi.BSDF):
         self.fresnel = str(get("fresnel", "schlick"))
         if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
             raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
+        # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
+        self.multiscatter = str(get("multiscatter", "none"))
+        self.ms_seed = int(get("multiscatter_seed", 0))
+        if self.multiscatter not in MULTISCATTERS:
+            raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
+        multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
         self._update()
 
     # ---- parameters ------------------------------------------------------------------------
@@ -213,8 +230,10 @@ class PBRMaterial(mi.BSDF):
         F = fresnel_term(self.fresnel, NoV, F0)
         s = _mean(F)
         d = _mean((1.0 - F) * self.base_color) * (1.0 - self.metallic)
-        tot = s + d
-        return dr.select(tot > 0, s / dr.maximum(tot, 1e-20), 1.0)
+        # Exact at the ends, whatever the division's rounding: on CUDA s / s is an approximate
+        # reciprocal times s (1 - 1e-7), which gave a delta-only metal a diffuse pdf of ~1e-8.
+        ratio = _divide(s, dr.maximum(s + d, 1e-20))
+        return dr.select(d <= 0, 1.0, dr.select(s <= 0, 0.0, dr.clip(ratio, 0.0, 1.0)))
 
     def _spec_pdf(self, wi, wo, h, alpha):
         """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
@@ -279,7 +298,11 @@ class PBRMaterial(mi.BSDF):
             D = NDF[self.ndf](h, alpha)
             G = geometry_term(self.geometry, NoV, NoL, self.roughness, alpha)
             value += F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
-            pdf += p_spec * self._spec_pdf(wi, wo, h, alpha)
+            spec_pdf = self._spec_pdf(wi, wo, h, alpha)
+            if self.multiscatter != "none":  # hook: the walk's orders >= 2, approximate pdf
+                ms, spec_pdf = multiscatter.eval_pdf_hook(self, si, wo, spec_pdf, alpha, F0, valid)
+                value += ms
+            pdf += p_spec * spec_pdf
         return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
 
     # ---- the BSDF interface -------------------------------------------------------------------
@@ -293,6 +316,8 @@ class PBRMaterial(mi.BSDF):
         return self._eval_pdf(si, wo, active)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
+        if self.multiscatter != "none" and not self.delta:  # hook: the random walk's sampling
+            return multiscatter.sample_hook(self, ctx, si, sample1, sample2, active)
         wi = si.wi
         NoV = mi.Frame3f.cos_theta(wi)
         active = mi.Bool(active) & (NoV > 0)
@@ -353,4 +378,5 @@ def material_dict(material, brdf) -> dict:
     """Mitsuba dict of a :class:`pbrcheck.scene.Material` under a :class:`pbrcheck.scene.BRDFModel`."""
     return {"type": PLUGIN_NAME, "base_color": list(material.base_color), "metallic": material.metallic,
             "roughness": material.roughness, "specular": material.specular,
-            "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel}
+            "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
+            "multiscatter": brdf.multiscatter}

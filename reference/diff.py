@@ -1,14 +1,22 @@
 """Differentiable reference rendering with respect to material parameters.
 
 The scene is loaded with a Mitsuba ``perspective`` sensor configured as :mod:`pbrcheck.camera`
-(horizontal fov: ``fov_axis = "x"``; ``look_at(origin, target, up)``; box filter), and rendered with
-``mi.render(scene, params, ...)`` and Mitsuba's ``prb`` integrator (path replay backpropagation;
-``max_depth = 2`` is the direct-lighting counterpart of the ``local`` estimator, with visibility).
-Material parameters of object ``i`` are ``object{i}.bsdf.{base_color,metallic,roughness,specular}``
-in :func:`mi.traverse`; the BSDF makes them opaque, so new values reuse the compiled kernels.
+(:func:`reference.integrator.sensor_dict`: horizontal fov, ``look_at(origin, target, up)``, box
+filter), and rendered with ``mi.render(scene, params, ...)`` and the reference's own ``local``
+estimator as a differentiable integrator (``pbrcheck_reference``, an ``RBIntegrator``; detached
+sampling, no visibility, so no reparameterization: :mod:`reference.integrator`). It is the estimator
+of the ``local`` reference, so a fit and the reference it is checked against have the same
+integral, and like the real-time image it has no visibility between objects (Mitsuba's ``prb``, used
+before, traced shadow rays). ``integrator="prb"`` keeps Mitsuba's ``prb`` (``max_depth``, default 2)
+for comparison. Material parameters of object ``i`` are
+``object{i}.bsdf.{base_color,metallic,roughness,specular}`` in :func:`mi.traverse`; the BSDF makes
+them opaque, so new values reuse the compiled kernels.
 
 * :func:`render_with_gradient`: an image, a scalar loss and its gradient for chosen parameters.
 * :func:`fit_materials`: fit parameters to a target image with ``mi.ad.Adam``.
+
+API: :func:`sensor_dict`, :func:`load_differentiable_scene`, :func:`param_key`,
+:func:`render_with_gradient`, :func:`render_image`, :func:`mse_loss`, :func:`fit_materials`.
 """
 
 from __future__ import annotations
@@ -23,26 +31,30 @@ from pbrcheck.scene import Scene
 from .render import _mi, scene_dict
 
 DEFAULT_DIFF_DEPTH = 2
+DIFF_INTEGRATORS = ("local", "prb")
 
 
 def sensor_dict(scene: Scene, spp: int = 16) -> dict:
-    mi, _ = _mi()
-    cam = scene.camera
-    return {
-        "type": "perspective", "fov_axis": "x", "fov": float(cam.fov),
-        "to_world": mi.ScalarTransform4f().look_at(origin=list(cam.origin), target=list(cam.target), up=list(cam.up)),
-        "sampler": {"type": "independent", "sample_count": int(spp)},
-        "film": {"type": "hdrfilm", "width": int(cam.width), "height": int(cam.height),
-                 "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-    }
+    """The Mitsuba sensor of ``scene``'s camera (:func:`reference.integrator.sensor_dict`)."""
+    _mi()
+    from .integrator import sensor_dict as _sensor_dict  # local: needs the variant set
+
+    return _sensor_dict(scene.camera, spp)
 
 
-def load_differentiable_scene(scene: Scene, *, spp: int = 16, max_depth: int = DEFAULT_DIFF_DEPTH):
-    """(mitsuba scene with sensor and ``prb`` integrator, SceneParameters)."""
+def load_differentiable_scene(scene: Scene, *, spp: int = 16, max_depth: int = DEFAULT_DIFF_DEPTH,
+                              integrator: str = "local"):
+    """(mitsuba scene with sensor and integrator, SceneParameters). ``integrator``: ``local`` (the
+    reference's estimator, ``pbrcheck_reference``) or ``prb`` (Mitsuba's, ``max_depth``)."""
     mi, _ = _mi()
+    from .integrator import INTEGRATOR_NAME
+
+    if integrator not in DIFF_INTEGRATORS:
+        raise ValueError(f"integrator must be one of {DIFF_INTEGRATORS}, not {integrator!r}")
     d = scene_dict(scene, load_environment(scene))
     d["sensor"] = sensor_dict(scene, spp)
-    d["integrator"] = {"type": "prb", "max_depth": int(max_depth)}
+    d["integrator"] = ({"type": INTEGRATOR_NAME, "mode": "local"} if integrator == "local"
+                       else {"type": "prb", "max_depth": int(max_depth)})
     ms = mi.load_dict(d)
     return ms, mi.traverse(ms)
 

@@ -1,19 +1,22 @@
-"""The reference renderer: Mitsuba 3 with the project's BSDF, two integrators, AOVs and variance.
+"""The reference renderer: Mitsuba 3 with the project's BSDF, two estimators, AOVs and variance.
 
-Integrators
------------
+Every render goes through ``mi.render`` with the integrator ``pbrcheck_reference``
+(:mod:`reference.integrator`; ``moments = True``) and a Mitsuba ``perspective`` sensor that
+reproduces :mod:`pbrcheck.camera` (:func:`reference.integrator.sensor_dict`).
+
+Integrators (``mode``)
+----------------------
 * ``local`` (default): the first hit only. Per camera sample it takes one environment sample
   (Mitsuba's envmap importance sampling) and one BSDF sample, combined with multiple importance
   sampling (power heuristic; a delta lobe takes weight 1), with **no visibility tests**, plus every
   point light without a shadow ray (``f cos * I / d^2``, exact, no noise). Camera rays that miss see
   the environment. This is the integral real-time image-based lighting approximates.
 * ``path``: Mitsuba's ``path`` integrator (``max_depth``, shadows and interreflections) with the same
-  BSDF and emitters, called per ray from the same camera rays.
+  BSDF and emitters, called from the same integrator on the same camera rays.
 
-Camera: rays are generated here with :mod:`pbrcheck.camera`'s conventions (horizontal fov, row 0 at
-the top, ``x_ndc = 2 (j + sx) / W - 1``, ``y_ndc = 1 - 2 (i + sy) / H``) with ``(sx, sy)`` uniform in
-the pixel: a box pixel filter. Mitsuba's sensor is not used, so the pixel centres are by construction
-those of :func:`pbrcheck.camera.primary_rays`.
+Camera: horizontal fov, row 0 at the top, ``x_ndc = 2 (j + sx) / W - 1``, ``y_ndc = 1 - 2 (i + sy) /
+H`` with ``(sx, sy)`` uniform in the pixel: a box pixel filter; the sensor's rays are those of
+:func:`pbrcheck.camera.primary_rays` (tested).
 
 Variance: per-pixel moments. Each pixel's ``spp`` samples give the unbiased sample variance ``s^2``;
 the variance of the pixel estimate (the mean) is ``s^2 / spp`` (``variance.R/G/B``).
@@ -21,18 +24,20 @@ the variance of the pixel estimate (the mean) is ``s^2 / spp`` (``variance.R/G/B
 AOVs (``N.X/Y/Z``, ``NdotV``, ``object``) come from the ray through the pixel centre (what a
 rasterizer sees at that pixel), ``coverage`` is the fraction of the box-filter samples that hit
 geometry.
+
+API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
+:func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
+:data:`REFERENCE_CODE_VERSION`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import time
 
 import numpy as np
 
 import pbrcheck
 from pbrcheck.cache import Cache, cache_key
-from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment, scene_hash
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
@@ -42,12 +47,9 @@ from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
-REFERENCE_CODE_VERSION = "1"
+REFERENCE_CODE_VERSION = "2"  # 2: rendered by mi.render with pbrcheck_reference
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
-# Lanes (rays) per wavefront: bounds memory (~290 MB peak for the path integrator at 2^21) and
-# amortizes the per-pass Python tracing of the BSDF calls.
-MAX_LANES = 1 << 21
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
 AOV_METHOD = "N, NdotV, object: pixel-centre ray; coverage: fraction of box-filter samples hitting geometry"
 
@@ -118,84 +120,24 @@ def load_mitsuba_scene(scene: Scene, env: EnvMap | None = None, **kw):
 
 
 # ------------------------------------------------------------------------------------------------
-# Rays and integrators
+# Rendering
 # ------------------------------------------------------------------------------------------------
 
-def camera_rays(scene: Scene, pixel, offset):
-    """World rays through pixel indices ``pixel`` (row-major, row 0 at the top) at sub-pixel
-    ``offset`` (Point2f in [0, 1)^2): :func:`pbrcheck.camera.primary_rays` in Dr.Jit."""
-    mi, dr = _mi()
-    cam = scene.camera
-    r, u, f = camera_frame(cam)
-    tx, ty = tan_half_fov(cam)
-    W, H = cam.width, cam.height
-    i = mi.Float(pixel // W)
-    j = mi.Float(pixel % W)
-    x = 2.0 * (j + offset.x) / W - 1.0
-    y = 1.0 - 2.0 * (i + offset.y) / H
-    d = mi.Vector3f(*[float(v) for v in f]) + (x * tx) * mi.Vector3f(*[float(v) for v in r]) \
-        + (y * ty) * mi.Vector3f(*[float(v) for v in u])
-    return mi.Ray3f(mi.Point3f(*[float(v) for v in cam.origin]), dr.normalize(d))
+def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True):
+    """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``."""
+    mi, _ = _mi()
+    from .integrator import INTEGRATOR_NAME  # local: subclasses mi.ad, which needs the variant set
+
+    depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
+    return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments})
 
 
-# Environment and BSDF samples per camera sample in the local estimator (MIS, power heuristic).
-ENV_SAMPLES = 1
-BSDF_SAMPLES = 1
+def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
+    from .integrator import pixel_centre_rays
 
-
-def _power(a, b):
-    return a * a / (a * a + b * b)
-
-
-def shade_local(mscene, sampler, ray, lights=()):
-    """The ``local`` estimator for a wavefront of rays: (radiance Color3f, hit Bool)."""
-    mi, dr = _mi()
-    si = mscene.ray_intersect(ray)
-    hit = si.is_valid()
-    env = mscene.environment()
-    L = mi.Color3f(0.0)
-    if env is not None:
-        L += env.eval(si, ~hit)  # misses: si.wi = -ray.d
-    ctx = mi.BSDFContext()
-    bsdf = si.bsdf(ray)
-    if env is not None:
-        for _ in range(ENV_SAMPLES):
-            # Environment sample, MIS against the BSDF's density (balance over the sample counts).
-            ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
-            f, bpdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), hit & (ds.pdf > 0))
-            w = _power(ENV_SAMPLES * ds.pdf, BSDF_SAMPLES * bpdf) / ENV_SAMPLES
-            L += dr.select(hit & (ds.pdf > 0), f * em_w * w, 0.0)
-        for _ in range(BSDF_SAMPLES):
-            # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
-            bs, bw = bsdf.sample(ctx, si, sampler.next_1d(hit), sampler.next_2d(hit), hit)
-            wo = si.to_world(bs.wo)
-            delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-            si_e = dr.zeros(mi.SurfaceInteraction3f)
-            si_e.wi = -wo
-            Le = env.eval(si_e, hit)
-            ds2 = dr.zeros(mi.DirectionSample3f)
-            ds2.d = wo
-            epdf = env.pdf_direction(si, ds2, hit & ~delta)
-            w = dr.select(delta, 1.0, _power(BSDF_SAMPLES * bs.pdf, ENV_SAMPLES * epdf)) / BSDF_SAMPLES
-            L += dr.select(hit & (bs.pdf > 0), bw * Le * w, 0.0)
-    for pos, inten in lights:
-        dv = mi.Point3f(*pos) - si.p
-        d2 = dr.squared_norm(dv)
-        l = dv * dr.rsqrt(d2)
-        f = bsdf.eval(ctx, si, si.to_local(l), hit)
-        L += dr.select(hit, f * mi.Color3f(*inten) / d2, 0.0)
-    return L, hit
-
-
-def _seed(seed: int, index: int) -> int:
-    h = hashlib.sha256(f"pbrcheck-reference:{seed}:{index}".encode()).digest()
-    return int.from_bytes(h[:4], "little")
-
-
-def _aovs(mi, dr, mscene, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
     W, H = scene.camera.width, scene.camera.height
-    pixel = dr.arange(mi.UInt32, W * H)
-    ray = camera_rays(scene, pixel, mi.Point2f(0.5, 0.5))
+    ray, _ = pixel_centre_rays(sensor)
+    ray = mi.Ray3f(ray)
     si = mscene.ray_intersect(ray)
     hit = si.is_valid()
     n = dr.select(hit, si.sh_frame.n, 0.0)
@@ -228,57 +170,22 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     if mscene is None:
         mscene = load_mitsuba_scene(scene, env)
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
-    integrator = mi.load_dict({"type": "path", "max_depth": depth}) if mode == "path" else None
-    lights = [(tuple(map(float, l.position)), tuple(map(float, l.intensity))) for l in scene.lights]
+    from .integrator import MOMENT_CHANNELS, pass_sizes, sensor_dict  # local: needs the variant set
+
+    integrator = load_integrator(mode, depth)
+    sensor = mi.load_dict(sensor_dict(scene.camera, spp))
     W, H = scene.camera.width, scene.camera.height
-    npix = W * H
-    per_pass = max(1, min(spp, MAX_LANES // max(npix, 1)))
-    s1 = np.zeros((npix, 3))
-    s2 = np.zeros((npix, 3))
-    hits = np.zeros(npix)
-    sampler = mi.load_dict({"type": "independent"})
-    done = 0
-    k = 0
-    shift = None
     with Progress(f"reference {scene.name} ({mode}, {spp} spp)", total=spp, unit="spp",
                   enabled=progress) as prog:
-        while done < spp:
-            n = min(per_pass, spp - done)
-            lanes = npix * n
-            sampler.seed(_seed(seed, k), lanes)
-            idx = dr.arange(mi.UInt32, lanes)
-            pixel = idx // n
-            ray = camera_rays(scene, pixel, sampler.next_2d())
-            if mode == "local":
-                L, hit = shade_local(mscene, sampler, ray, lights)
-            else:
-                hit = mscene.ray_test(ray)
-                L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(ray), None, True)
-            # Per-pixel sums over this pass's n consecutive lanes (float32 within a pass, float64
-            # across), shifted by a per-pixel value K (the first pass's first sample) so that the
-            # variance s2 - s1^2/spp does not cancel catastrophically in float32.
-            Lc = mi.Color3f(L)
-            if shift is None:
-                shift = dr.gather(mi.Color3f, Lc, dr.arange(mi.UInt32, npix) * n)
-                dr.eval(shift)
-            Ld = Lc - dr.gather(mi.Color3f, shift, pixel)
-            p1 = dr.block_sum(Ld, n)
-            p2 = dr.block_sum(Ld * Ld, n)
-            ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), n)
-            dr.eval(p1, p2, ph)
-            s1 += np.array(p1, dtype=np.float64).T
-            s2 += np.array(p2, dtype=np.float64).T
-            hits += np.array(ph, dtype=np.float64)
-            done += n
-            k += 1
-            prog.update(n)
-    mean = s1 / spp + np.array(shift, dtype=np.float64).T
-    var = np.maximum(s2 - s1 * s1 / spp, 0.0) / (spp - 1) / spp
+        integrator.progress = prog.update
+        try:
+            out = np.array(mi.render(mscene, sensor=sensor, integrator=integrator, spp=spp, seed=seed),
+                           dtype=np.float64)
+        finally:
+            integrator.progress = None
+    ch = {c: out[..., i] for i, c in enumerate(MOMENT_CHANNELS)}
     shape_index = {shape_id(i): i for i in range(len(scene.objects))}
-    ch = {c: mean[:, i].reshape(H, W) for i, c in enumerate("RGB")}
-    ch.update({f"variance.{c}": var[:, i].reshape(H, W) for i, c in enumerate("RGB")})
-    ch.update(_aovs(mi, dr, mscene, scene, shape_index))
-    ch["coverage"] = (hits / spp).reshape(H, W)
+    ch.update(_aovs(mi, dr, mscene, sensor, scene, shape_index))
     import drjit  # already imported by _mi(); local like there
     import mitsuba
 
@@ -296,6 +203,8 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "variance_method": VARIANCE_METHOD,
         "aov_method": AOV_METHOD,
         "pixel_filter": "box",
+        "integrator": f"mi.render + pbrcheck_reference (mode {mode})",
+        "passes": str(len(pass_sizes(spp, W * H))),
         "resolution": f"{W}x{H}",
         "seconds": f"{time.perf_counter() - t0:.3f}",
     }

@@ -27,7 +27,8 @@ def _works(variant: str) -> bool:
 
 
 def ensure_variant() -> str:
-    """Set (once per process) and return the variant the reference renders with; registers the BSDF."""
+    """Set (once per process) and return the variant the reference renders with; registers the BSDF
+    and the integrator."""
     global _chosen
     if _chosen is None:
         for v in PREFERENCE:
@@ -42,6 +43,8 @@ def ensure_variant() -> str:
     if mi.variant() != _chosen:
         mi.set_variant(_chosen)
     from .bsdf import register  # local: reference.bsdf subclasses mi.BSDF, which needs the variant set
+    from .integrator import register as register_integrator
 
     register()
+    register_integrator()
     return _chosen

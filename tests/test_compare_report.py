@@ -179,10 +179,21 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
     assert {p for p, _ in fakes["realtime"]} == {"default", "cheap"}
     swept = [o for _, o in fakes["realtime"] if o]
     assert {"prefilter_samples": 256} in swept and {"lut_size": 16} in swept
-    # convergence: 16 spp reference plus 2, 4, 8 spp (the reference needs >= 2 spp)
-    assert sorted(set(fakes["reference"])) == [2, 4, 8, 16]
     data = json.loads((out / "tiny" / "metrics.json").read_text())
+    # the reference's spp: from 16 up (powers of two) until its noise floor is 10x below the
+    # smallest error (or the cap); the convergence study renders fractions of the chosen spp
+    rule = data["reference_spp"]
+    chosen = rule["spp"]
+    assert fakes["reference"][0] == 16 and chosen > 16 and chosen & (chosen - 1) == 0
+    assert rule["ratio"] >= 10 and not rule["noise_limited"], rule
+    conv = sorted(c["spp"] for c in data["convergence"])
+    assert conv and conv[-1] < chosen and set(conv) <= set(fakes["reference"])
+    assert f"{chosen} spp: noise floor" in html
     assert data["presets"]["cheap"]["metrics"]["relmse"] > data["presets"]["default"]["metrics"]["relmse"]
+    # the page opens with the summary (one row per renderer and scene), then the furnace per renderer
+    assert html.index('id="summary"') < html.index('id="furnace-per-renderer"') < html.index('id="tiny"')
+    summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
+    assert summary.count("<tr>") == 1 + 2 and "delta_e_itp_mean" in summary and "timed on" in summary
 
 
 def test_sweep_writes_table_and_pareto_plot(fakes, scene_file, tmp_path, capsys):

@@ -316,7 +316,7 @@ def test_report_section_and_page(tmp_path, fake):
     # The same section inside `pbrcheck report`, its images linked relative to the report.
     rep = tmp_path / "report"
     args = ["report", str(_scene_file(tmp_path)), "--presets", "default", "--spp", "4", "--no-convergence",
-            "--no-sweep", "--quiet", "--out", str(rep)]
+            "--no-sweep", "--no-furnace", "--quiet", "--out", str(rep)]
     assert main(args + ["--corpus", str(tmp_path / "nowhere")]) == 2 and not rep.exists()
     assert main(args + ["--corpus", str(out)]) == 0
     html = (rep / "index.html").read_text()
@@ -372,7 +372,7 @@ def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
     outs = {}
     for name, sched in (("plain", None), ("serial", "serial")):
         build_report([str(_scene_file(tmp_path))], presets=["default", "splitsum_basic"], out_dir=tmp_path / name,
-                     spp=4, convergence=False, sweep=False, progress=False, scheduler=sched)
+                     spp=4, convergence=False, sweep=False, furnace=False, progress=False, scheduler=sched)
         outs[name] = json.loads((tmp_path / name / "tiny" / "metrics.json").read_text())
     for d in outs.values():
         for p in d["presets"].values():

@@ -41,15 +41,21 @@ SKY = {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 
 
 
 def test_camera_rays_match_pbrcheck_camera():
+    """The Mitsuba sensor the reference renders with reproduces pbrcheck.camera's rays."""
     mi, dr = _mi()
+    from reference.integrator import NEAR_CLIP, pixel_centre_rays, sensor_dict
+
     scene = load_scene("spheres").with_camera(width=37, height=23, origin=(1.0, 2.0, 9.0), up=(0.1, 1.0, 0.0))
+    sensor = mi.load_dict(sensor_dict(scene.camera))
     for off in ((0.5, 0.5), (0.0, 0.0), (0.9, 0.25)):
         o, d = primary_rays(scene.camera, off)
-        pix = dr.arange(mi.UInt32, 37 * 23)
-        ray = rr.camera_rays(scene, pix, mi.Point2f(*off))
+        ray, _ = pixel_centre_rays(sensor, off)
         got = np.array(ray.d).T.reshape(23, 37, 3)
         np.testing.assert_allclose(got, d, atol=2e-6)
-        np.testing.assert_allclose(np.array(ray.o)[:, 0], o, atol=1e-6)
+        # rays start on the near plane, on the line through the camera origin
+        start = np.array(ray.o).T.reshape(23, 37, 3)
+        np.testing.assert_allclose(np.cross(start - o, d), 0.0, atol=1e-6)
+        assert np.all(np.linalg.norm(start - o, axis=-1) <= 2 * NEAR_CLIP)
 
 
 def _subpixel_ndotv(scene, k=4):

@@ -20,7 +20,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene
 
 from ..metrics import compare_images
-from ..timings import image_timings
+from ..timings import image_timings, timed_on
 from . import tasks as T
 from .scheduler import Dep, Failed, Task
 
@@ -77,11 +77,11 @@ def _sweep_row(ref, img, scene):
     except PbrcheckError as e:
         return Failed("compare", str(e))
     pre, frame = image_timings(img)
-    return {"metrics": dict(cmp.metrics), "precompute_s": pre, "frame_s": frame}
+    return {"metrics": dict(cmp.metrics), "precompute_s": pre, "frame_s": frame, "timed_on": timed_on(img)}
 
 
 def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None]], progress=None) -> list[dict]:
-    """Per (renderer, options) of ``jobs``: ``{"metrics", "precompute_s", "frame_s"}`` of its render
+    """Per (renderer, options) of ``jobs``: ``{"metrics", "precompute_s", "frame_s", "timed_on"}`` of its render
     against ``ref`` (no noise simulation, as the sweep), computed by ``executor``.
 
     Raises

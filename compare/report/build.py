@@ -29,11 +29,20 @@ from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
+from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
+from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
 from .research_sections import research_sections
 from .section import Section, Table
-from .sweep import combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, write_table
+from .summary import furnace_section, summary_section
+from .summary import timed_on as timed_on_text
+from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
+                    write_table)
 
+#: Most samples per pixel of diagnose's scene-space re-renders for an external renderer (10 re-renders
+#: per renderer and scene; the hypotheses' errors are orders of magnitude above 64-spp noise, and
+#: diagnose subtracts the re-renders' own variance).
+DIAGNOSE_SPP = 64
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
 CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
@@ -195,6 +204,17 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 each renderer's own display transform where its preset has one (tone map, exposure: analytic_mobile
 uses article 002's ACES fit), otherwise (and for the reference) through a filmic curve; every metric
 is computed on linear radiance, before any display transform.</p>
+{% macro section(x) %}
+<h2 id="{{ x.id }}">{{ x.title }}</h2>
+<p>{{ x.note }}</p>
+{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
+<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
+{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% endfor %}
+{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
+{% endfor %}
+{% endmacro %}
+{% for x in top %}{{ section(x) }}{% endfor %}
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
@@ -210,6 +230,7 @@ is computed on linear radiance, before any display transform.</p>
 <figure><img class="img" src="{{ r.flip_png }}" alt="FLIP map"><figcaption>HDR-FLIP (0..1, magma)</figcaption></figure>
 <figure><img class="img" src="{{ r.rel_png }}" alt="relative error"><figcaption>|t-r|/(r+0.01), max RGB (0..1, inferno)</figcaption></figure>
 </div>
+{% if r.diagnosis %}<p>Convention check (<code>pbrcheck diagnose</code>): {{ r.diagnosis }}{% if r.diagnosis_json %} (<a href="{{ r.diagnosis_json }}">every hypothesis</a>){% endif %}.</p>{% endif %}
 {% endfor %}
 <h3>Metrics per preset</h3>
 <table><tr><th class="l">preset</th>{% for m in metric_names %}<th>{{ m }}</th>{% endfor %}<th>precompute (s)</th><th>frame (s)</th><th>valid / edge / bg px</th></tr>
@@ -217,6 +238,7 @@ is computed on linear radiance, before any display transform.</p>
 <td>{{ fmt(r.precompute) }}</td><td>{{ fmt(r.frame) }}</td><td>{{ r.pixels.valid }} / {{ r.pixels.edge }} / {{ r.pixels.background }}</td></tr>{% endfor %}
 </table>
 {% if s.noise_floor is not none %}<p>Reference noise floor (mean variance over valid pixels): {{ fmt(s.noise_floor) }}.</p>{% endif %}
+{% if s.verdict %}<p>Reference spp for a trusted verdict (noise floor &ge; {{ s.verdict.factor }}x below the smallest error): {{ s.verdict.provenance() }}{% if s.verdict.noise_limited %} <strong>noise-limited</strong>{% endif %}.</p>{% endif %}
 {% for p in s.plots %}<h3>{{ p.title }}</h3><img class="plot" src="{{ p.src }}" alt="{{ p.title }}">{% if p.get("note") %}<p>{{ p.note }}</p>{% endif %}
 {% endfor %}
 {% if s.sweep_rows %}<h3>Sweep table</h3><table><tr><th class="l">options</th><th>precompute (s)</th><th>frame (s)</th><th>relmse</th><th>flip_mean</th></tr>
@@ -225,16 +247,7 @@ is computed on linear radiance, before any display transform.</p>
 <h3>Provenance</h3>
 <table>{% for k, v in s.provenance %}<tr><th class="l">{{ k }}</th><td class="l"><code>{{ v }}</code></td></tr>{% endfor %}</table>
 {% endfor %}
-{% for x in extras %}
-<h2 id="{{ x.id }}">{{ x.title }}</h2>
-<p>{{ x.note }}</p>
-{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
-<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
-{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
-{% endfor %}
-{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
-{% endfor %}
-{% endfor %}
+{% for x in extras %}{{ section(x) }}{% endfor %}
 </body></html>
 """
 
@@ -255,6 +268,8 @@ class ReportSettings:
     convergence: bool = True
     sweep: bool = True
     executor: object = None  # --scheduler: renders of presets and sweep run as its tasks
+    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the least.
+    spp_cap: int = DEFAULT_SPP_CAP
 
 
 @dataclass
@@ -271,6 +286,10 @@ class PresetResult:
     flip_png: str
     rel_png: str
     mse: float
+    timed_on: str = ""
+    space: str = "linear"
+    diagnosis: str = ""       # external renderers: pbrcheck diagnose's verdict line
+    diagnosis_json: str = ""  # ... and its table (JSON, relative to the report)
 
 
 @dataclass
@@ -287,6 +306,7 @@ class SceneSection:
     provenance: list[tuple[str, str]]
     noise_floor: float | None
     sweep_rows: list[dict]
+    verdict: VerdictSpp | None = None
 
 
 def _provenance(scene, ref) -> list[tuple[str, str]]:
@@ -314,8 +334,20 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str, img=None) -> tu
     res = PresetResult(preset, cmp.metrics, cmp.summary["pixels"],
                        {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                        f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
-                       (cmp.metrics["rmse"] or 0.0) ** 2)
+                       (cmp.metrics["rmse"] or 0.0) ** 2, timed_on_text(img.meta), cmp.summary["space"])
+    if renderers.is_external(preset):
+        res.diagnosis, res.diagnosis_json = _diagnose(scene, ref, img, sd, sid, p, res.space)
     return res, cmp, img
+
+
+def _diagnose(scene, ref, img, sd: Path, sid: str, p: str, space: str) -> tuple[str, str]:
+    """Run :func:`compare.research.diagnose.diagnose` on an external renderer's image (scene-space
+    hypotheses re-rendered at :data:`DIAGNOSE_SPP` at most); returns its line and its JSON's path."""
+    if space != "linear":
+        return "not run: the renderer's output is display-referred (png-srgb)", ""
+    d = diagnose(ref, img, scene, spp=min(int(ref.meta.get("spp", DIAGNOSE_SPP)), DIAGNOSE_SPP))
+    write_json_atomic(sd / f"diagnose_{p}.json", d)
+    return d.line, f"{sid}/diagnose_{p}.json"
 
 
 def _convergence(scene, ref, spp: int, prog) -> list[dict]:
@@ -340,25 +372,33 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     sid = _safe(scene.name)
     sd = out_dir / sid
     sd.mkdir(parents=True, exist_ok=True)
-    ref = renderers.render_reference(scene, spp=st.spp, use_cache=True, progress=False)
-    prog.update(1, f"{scene.name}: reference")
+    # The renderers under test first: the reference's spp is chosen so that its noise floor sits
+    # NOISE_FLOOR_FACTOR below the smallest of their errors (compare.verdict_spp), at most spp_cap.
+    if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
+        images = dict(zip(st.presets, renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets])))
+    else:
+        images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
+    ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
+    prog.update(1, f"{scene.name}: reference ({verdict.spp} spp)")
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
     provenance = _provenance(scene, ref)
+    provenance.append(("reference spp rule", verdict.provenance()))
     noise_floor = None
-    pre = renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets]) if st.executor else None
-    for i, preset in enumerate(st.presets):
-        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, pre[i] if pre else None)
+    for preset in st.presets:
+        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, images[preset])
         if cmp.summary["noise"] is not None:
             noise_floor = cmp.summary["noise"]["mean_variance"]
         results.append(res)
         objs[preset] = {o["id"]: o["metrics"] for o in cmp.summary["objects"]}
         bins[preset] = cmp.summary["ndotv"]
         speed_rows.append({"preset": preset, "options": {}, "precompute_s": res.precompute, "frame_s": res.frame,
-                           **cmp.metrics})
+                           **timed_on(img), **cmp.metrics})
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
+        if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
+            provenance.append((f"real-time {preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
     plots = []
     m = plot_materials(sd / "materials.png", scene, objs)
@@ -381,16 +421,16 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
                           f"{scene.name}: speed against error")
     plots.append({"title": "Speed against error (presets" + (" and sweep" if sweep_table else "") + ")",
                   "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
-    conv = _convergence(scene, ref, st.spp, prog) if st.convergence else []
+    conv = _convergence(scene, ref, verdict.spp, prog) if st.convergence else []
     if conv:
-        cp = plot_convergence(sd / "convergence.png", conv, st.spp, noise_floor, {r.preset: r.mse for r in results})
+        cp = plot_convergence(sd / "convergence.png", conv, verdict.spp, noise_floor, {r.preset: r.mse for r in results})
         if cp:
             plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
                           "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
     write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": dump, "convergence": conv,
-                                            "sweep": sweep_table}, indent=1)
+                                            "sweep": sweep_table, "reference_spp": verdict.to_dict()}, indent=1)
     return SceneSection(sid, scene.name, scene.description, ref.meta.get("spp", st.spp), f"{sid}/reference.png",
-                        results, plots, provenance, noise_floor, sweep_table)
+                        results, plots, provenance, noise_floor, sweep_table, verdict)
 
 
 def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> Section:
@@ -411,16 +451,25 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
 
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
+                 spp_cap: int | None = None,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 research: bool = False, extras: list[Section] | None = None, scheduler: str | None = None) -> Path:
+                 research: bool = False, extras: list[Section] | None = None, furnace: bool = True,
+                 scheduler: str | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
+    ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
+    ``spp_cap``, default :data:`compare.verdict_spp.DEFAULT_SPP_CAP`) until the reference's noise
+    floor is :data:`compare.verdict_spp.NOISE_FLOOR_FACTOR` times below the smallest error of the
+    presets against it, else the section says "noise-limited"; the rule's outcome is in the
+    provenance table and ``metrics.json`` (``reference_spp``).
     ``hardcases``: add the hard-case section (:mod:`compare.hardcases`, 32 px, 16 spp, 64^2 cubes;
     its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
     the error decomposition and the apparent-roughness sections for the first scene
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
-    :class:`~compare.report.section.Section` s. ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the
-    presets' and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
+    :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
+    renderer and scene) and, with ``furnace``, the white furnace per renderer
+    (:mod:`compare.report.summary`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
+    and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
 
     Raises
     ------
@@ -444,23 +493,27 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     spec = parse_scheduler(scheduler) if scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_conv = len(_convergence_spps(spp)) if convergence else 0
+    n_conv = len(_convergence_spps(spp)) if convergence else 0  # at the least spp (progress only)
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
-    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
+    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     sections = []
     with Progress("report", total=total, enabled=progress) as prog, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
-        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, ex)
+        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
+                            spp_cap=DEFAULT_SPP_CAP if spp_cap is None else int(spp_cap))
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
+        top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
     extras = list(extras or [])
     if research:
-        extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=spp, progress=progress)
+        # at the first scene's trusted-verdict spp (the reference its sections compare against)
+        extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=sections[0].verdict.spp,
+                                    progress=progress)
     if hardcases:
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=sections, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
     write_text_atomic(index, page)

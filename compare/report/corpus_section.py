@@ -92,6 +92,6 @@ def write_corpus_page(result_or_dir) -> Path:
     section = corpus_section(result_or_dir)
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=[], extras=[section], metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=[], top=[], extras=[section], metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     return write_text_atomic(out_dir / "index.html", page)

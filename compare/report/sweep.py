@@ -25,7 +25,7 @@ from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
-from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings  # noqa: F401  (re-exported)
+from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -76,8 +76,10 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 
 
 def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -> Path:
-    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked."""
+    """2 x 2 scatter: (precompute, frame time) x (relmse, flip_mean), Pareto fronts marked; the time
+    axes name the GL renderer and clock of the rows (:func:`timed_on_label`)."""
     plt = pyplot()
+    on = timed_on_label(rows)  # the speed axis names the GL renderer (and clock) it was timed on
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
     for (ci, tkey), (ri, mkey) in itertools.product(enumerate(("precompute_s", "frame_s")),
                                                     enumerate(("relmse", "flip_mean"))):
@@ -95,7 +97,7 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
             ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "-o", color="tab:red",
                     ms=6, mfc="none", label="Pareto front", zorder=3)
             ax.legend(fontsize=7)
-        ax.set_xlabel(tkey.replace("_s", " time (s)"))
+        ax.set_xlabel(tkey.replace("_s", " time (s)") + (f"\n{on}" if on else ""), fontsize=8 if on else None)
         ax.set_ylabel(mkey)
         if all(pts[i][1] > 0 for i in ok):
             ax.set_yscale("log")
@@ -123,14 +125,14 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
     if executor is not None:
         res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
         return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
-                 **r["metrics"]} for o, r in zip(combos, res)]
+                 **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False)
         cmp = compare_images(ref, img, scene=scene, noise=False)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
-                     **cmp.metrics})
+                     **timed_on(img), **cmp.metrics})
         if progress is not None:
             progress.update(1)
     return rows
@@ -153,10 +155,13 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
-              spp: int = 64, progress: bool = True, scheduler: str | None = None) -> dict[str, Path]:
+              spp: int = 64, progress: bool = True, also: list[str] | None = None,
+              scheduler: str | None = None) -> dict[str, Path]:
     """Render the reference and every combination of ``vary`` over ``preset``; write the table and
-    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``scheduler``
-    (``local:N``, ``tcp://HOST:PORT``): the combinations run there (:mod:`compare.corpus.scheduler`).
+    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``also``:
+    further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the same plot.
+    ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the combinations run there
+    (:mod:`compare.corpus.scheduler`).
 
     Raises
     ------
@@ -168,16 +173,22 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     scene = load_scene(scene_arg)
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)
-    n = math.prod(len(v) for v in vary.values())
+    also = list(also or [])
+    for other in also:
+        renderers.resolve_options(other, {})
+    n = math.prod(len(v) for v in vary.values()) + len(also)
     spec = parse_scheduler(scheduler) if scheduler else None
     with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
         rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p, executor=ex)
+        for other in also:
+            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
     keys = list(vary)
     paths = write_table(Path(out_dir), rows, keys)
     paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
-                                     lambda r: ",".join(f"{k}={r['options'][k]}" for k in keys),
+                                     lambda r: (",".join(f"{k}={r['options'][k]}" for k in keys)
+                                                if r["preset"] == preset else r["preset"]),
                                      f"{scene.name}: speed against error ({preset} + variations)")
     return paths

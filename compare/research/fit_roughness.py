@@ -2,9 +2,10 @@
 reference.
 
 The real-time image of the scene is the target. Every object's roughness in the reference
-(:mod:`reference.diff`: Mitsuba ``prb``, ``max_depth`` 2) is optimized jointly with Dr.Jit AD and
-``mi.ad.Adam`` (objects do not interact at this depth except by occluding the environment, so the
-joint fit is a per-object fit). Each object starts at its own roughness; the result ``r*`` is the
+(:mod:`reference.diff`: the ``local`` estimator as the differentiable integrator
+``pbrcheck_reference``; until REFERENCE_CODE_VERSION 2 Mitsuba's ``prb``, ``max_depth`` 2) is
+optimized jointly with Dr.Jit AD and ``mi.ad.Adam`` (the estimator has no visibility, so objects do
+not interact and the joint fit is a per-object fit). Each object starts at its own roughness; the result ``r*`` is the
 roughness the reference needs to look like the preset. ``r* > r``: the preset looks blurrier than
 the material it was given; ``r* < r``: sharper. The per-object loss is the final render's loss over
 the object's pixels (object AOV of the real-time image).

@@ -2,6 +2,7 @@
 // tests/test_realtime_glsl.py runs both on the same grids. Cosines are clamped by the caller to
 // [0, 1]; alpha is the GGX width roughness^2.
 #include "common.glsl"
+#include "hooks.glsl"
 
 // Source: [Karis13] p. 3. Equation: alpha = roughness^2, clamped to MIN_ALPHA.
 float alpha_from_roughness(float roughness) {
@@ -125,6 +126,9 @@ float Fd_Lambert() { return 1.0 / PI; }
 #endif
 
 float ndf_term(float NoH, float roughness) {
+#ifdef HOOK_D
+    return hook_D(NoH, roughness);
+#endif
     float a = alpha_from_roughness(roughness);
 #if NDF == NDF_GGX
     return D_GGX(NoH, a);
@@ -136,6 +140,9 @@ float ndf_term(float NoH, float roughness) {
 }
 
 float geometry_term(float NoV, float NoL, float roughness) {
+#ifdef HOOK_G
+    return hook_G(NoV, NoL, roughness);
+#endif
 #if GEOMETRY == GEOMETRY_SMITH_GGX_CORRELATED
     return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness));
 #elif GEOMETRY == GEOMETRY_SMITH_GGX
@@ -146,6 +153,17 @@ float geometry_term(float NoV, float NoL, float roughness) {
     return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness));
 #elif GEOMETRY == GEOMETRY_SCHLICK_BECKMANN
     return G_SchlickBeckmann(NoV, NoL, alpha_from_roughness(roughness));
+#endif
+}
+
+// Dispatch on FRESNEL (numpy twin: pbrcheck.brdf.fresnel_term): Schlick, or none (F = 1).
+vec3 fresnel_term(float VoH, vec3 F0) {
+#ifdef HOOK_F
+    return hook_F(VoH, F0);
+#elif FRESNEL == FRESNEL_SCHLICK
+    return F_Schlick(VoH, F0);
+#else
+    return vec3(1.0);
 #endif
 }
 
@@ -160,11 +178,7 @@ vec3 brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float ro
     float NoH = clamp(dot(n, h), 0.0, 1.0);
     float VoH = clamp(dot(v, h), 0.0, 1.0);
     vec3 F0 = mix(vec3(specular), base_color, metallic);
-#if FRESNEL == FRESNEL_SCHLICK
-    vec3 F = F_Schlick(VoH, F0);
-#else
-    vec3 F = vec3(1.0);
-#endif
+    vec3 F = fresnel_term(VoH, F0);
     float D = ndf_term(NoH, roughness);
     float G = geometry_term(NoV, NoL, roughness);
     vec3 spec = D * G * F / (4.0 * max(NoV, COS_EPS) * max(NoL, COS_EPS));

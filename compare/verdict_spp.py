@@ -1,0 +1,122 @@
+"""Time to a trusted verdict: choose the reference's spp so that its noise cannot move a verdict.
+
+A reported error is trusted when the reference's noise floor (``mean_variance``, the mean variance
+of its pixel estimates; :func:`compare.metrics.noise_floor`) is at least :data:`NOISE_FLOOR_FACTOR`
+times below the smallest error reported against it, the squared error corrected for that floor
+(``mse_corrected = MSE - mean_variance``, an unbiased estimate of the error against the converged
+image). The floor falls as 1 / spp, so from a render at ``spp`` the spp needed is
+
+    spp_needed = spp x NOISE_FLOOR_FACTOR x mean_variance / min(mse_corrected)
+
+rounded up to a power of two (the cache then reuses the renders of other runs) and capped at
+``cap``; at the cap the verdict is flagged **noise-limited**. Renders go through the seam
+``compare.renderers.render_reference`` (cached by spp), so a re-run costs nothing.
+
+API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
+:func:`noise_and_error`, :func:`reference_for_verdict`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from pbrcheck.exr import Image
+
+from . import renderers
+from .metrics import compare_images
+
+#: The reference's noise floor must sit this far below the smallest error reported against it.
+NOISE_FLOOR_FACTOR = 10.0
+#: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of
+#: the spheres scene (360 x 300) is about 2 min on 2 CPU cores and a second on an H100.
+DEFAULT_SPP_CAP = 4096
+#: Errors below this (squared radiance) count as "no error": a preset equal to the reference within
+#: float32 rounding would otherwise ask for infinite spp.
+MIN_TRUSTED_MSE = 1e-9
+#: Refinement steps at most (each re-renders at the spp the last one asked for).
+MAX_STEPS = 3
+
+
+@dataclass
+class VerdictSpp:
+    """How the reference spp was chosen (JSON via :meth:`to_dict`, one line via :meth:`provenance`)."""
+    spp: int
+    noise_floor: float | None
+    smallest_error: float | None
+    ratio: float | None
+    noise_limited: bool
+    cap: int
+    factor: float = NOISE_FLOOR_FACTOR
+    steps: list = field(default_factory=list)  # [[spp, noise floor, smallest error], ...]
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def provenance(self) -> str:
+        if self.noise_floor is None:
+            return f"{self.spp} spp (no variance channels: noise floor unknown)"
+        r = "inf" if self.ratio is None or math.isinf(self.ratio) else f"{self.ratio:.3g}"
+        s = (f"{self.spp} spp: noise floor {self.noise_floor:.3g} = smallest error "
+             f"{self.smallest_error:.3g} / {r} (goal >= {self.factor:g})")
+        return s + (f"; NOISE-LIMITED at the cap of {self.cap} spp" if self.noise_limited else "")
+
+
+def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR_FACTOR) -> float:
+    """Samples per pixel at which ``floor`` (measured at ``spp``) is ``error / factor``."""
+    if floor <= 0:
+        return float(spp)
+    if error <= MIN_TRUSTED_MSE:
+        return math.inf
+    return spp * factor * floor / error
+
+
+def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float | None, float | None]:
+    """(noise floor of ``ref``, smallest corrected MSE of ``tests`` against it) by the comparator's own
+    masks and noise estimate (:func:`compare.metrics.compare_images`)."""
+    floor, err = None, None
+    for t in tests:
+        n = compare_images(ref, t, scene=scene, noise=True).summary["noise"]
+        if n is None:
+            return None, None
+        floor = n["mean_variance"] if floor is None else max(floor, n["mean_variance"])
+        e = max(float(n["mse_corrected"]), 0.0)
+        err = e if err is None else min(err, e)
+    return floor, err
+
+
+def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int = DEFAULT_SPP_CAP,
+                          factor: float = NOISE_FLOOR_FACTOR, **kwargs) -> tuple[Image, VerdictSpp]:
+    """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``) whose
+    noise floor is ``factor`` times below the smallest error of ``tests`` against it.
+
+    ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
+    Returns the reference and a :class:`VerdictSpp` (``noise_limited`` when the cap stopped it).
+    """
+    cap = max(int(cap), int(spp))
+    kwargs.setdefault("use_cache", True)
+    kwargs.setdefault("progress", False)
+    cur = int(spp)
+    steps = []
+    while True:
+        ref = renderers.render_reference(scene, spp=cur, **kwargs)
+        floor, err = noise_and_error(ref, tests, scene=scene) if tests else (None, None)
+        steps.append([cur, floor, err])
+        if floor is None or err is None:
+            return ref, VerdictSpp(cur, floor, err, None, False, cap, factor, steps)
+        ratio = err / floor if floor > 0 else math.inf
+        need = spp_needed(cur, floor, err, factor)
+        if need <= cur:
+            return ref, VerdictSpp(cur, floor, err, ratio, False, cap, factor, steps)
+        if cur >= cap or len(steps) >= MAX_STEPS:
+            return ref, VerdictSpp(cur, floor, err, ratio, True, cap, factor, steps)
+        # 10 % headroom: the floor and the error are themselves estimates.
+        nxt = 1 << max(0, math.ceil(math.log2(min(need * 1.1, float(cap)))))
+        cur = int(min(max(nxt, cur * 2), cap))
+
+
+def noise_floor_of(ref: Image) -> float | None:
+    """Mean variance of ``ref``'s pixel estimates over all pixels (None without variance channels)."""
+    return None if ref.variance is None else float(np.mean(np.clip(ref.variance, 0.0, None)))

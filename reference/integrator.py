@@ -1,0 +1,292 @@
+"""The reference's estimators as one Mitsuba integrator, ``pbrcheck_reference``, rendered by ``mi.render``.
+
+``{"type": "pbrcheck_reference", "mode": "local" | "path", "max_depth": D, "moments": bool}``; a
+subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, params, ...)`` differentiates it.
+
+* ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
+  sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
+  lobe takes weight 1), **no visibility tests**; every delta-position emitter (point light) is added
+  exactly through its deterministic ``sample_direction`` (``f cos I / d^2``), without a shadow ray.
+  Camera rays that miss see the environment. This is the integral real-time IBL approximates.
+* ``mode = "path"``: Mitsuba's ``path`` integrator (``max_depth``) with the same BSDF and emitters,
+  its ``sample`` called on the same camera rays (primal only).
+
+Output of ``render``:
+
+* ``moments = False`` (the default, and what AD needs): Mitsuba's film, ``(H, W, 3)`` mean radiance,
+  exactly :meth:`ADIntegrator.render`.
+* ``moments = True`` (the reference renderer): ``(H, W, 7)`` = mean ``R, G, B``, the variance of each
+  pixel mean ``variance.R/G/B`` (per-pixel moments: unbiased sample variance of the spp samples over
+  spp) and ``coverage`` (the fraction of samples whose camera ray hit geometry). The spp samples of a
+  pixel are consecutive lanes (:meth:`sample_rays` orders lanes pixel-major), so the per-pixel sums
+  are ``dr.block_sum`` over blocks of spp lanes: float32 within a pass, float64 across passes, of
+  ``L - K`` with ``K`` the pixel's first sample, so that ``s2 - s1^2 / n`` does not cancel
+  catastrophically in float32 (a constant pixel has variance exactly 0). Passes only where memory
+  requires them: at most :func:`max_lanes` lanes (camera samples) per pass, by backend.
+
+Differentiation (``local`` only): detached sampling. Directions, pdfs and MIS weights are computed
+without gradients; each contribution carries the gradient of its BSDF value at the detached
+direction over the detached pdf (``replace_grad``), which is an unbiased estimator of the gradient of
+the same integral (the MIS weights sum to 1 at the current parameters); no reparameterization is
+needed because nothing is visible through a discontinuity (there is no visibility). A delta-lobe
+sample (mirror limit) carries the gradient of ``F G`` over the detached lobe probability. In
+``Backward`` mode it back-propagates ``δL * L``; in ``Forward`` mode it returns ``dL``.
+
+Camera: the scenes' sensor is Mitsuba's ``perspective`` (:func:`sensor_dict`): ``fov_axis = "x"``,
+``look_at(origin, target, up)``, box reconstruction filter; its rays through pixel ``(i, j)`` at
+offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 at the top.
+
+API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
+:func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :data:`MOMENT_CHANNELS`.
+References: Veach 1997 ch. 9 (MIS, power heuristic); Vicini et al. 2021, "Path Replay
+Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+
+import drjit as dr
+import mitsuba as mi
+
+# Needs a variant set (reference.variant.ensure_variant imports this module after setting it).
+from mitsuba.python.ad.integrators.common import RBIntegrator
+
+INTEGRATOR_NAME = "pbrcheck_reference"
+MODES = ("local", "path")
+MOMENT_CHANNELS = ("R", "G", "B", "variance.R", "variance.G", "variance.B", "coverage")
+# Camera samples per pass (each a wavefront lane), by Dr.Jit backend. CUDA: 2^26 lanes were the
+# fastest measured on an H100 (the issue's table: 2^21 -> 44, 2^24 -> 237, 2^26 -> 435 M samples/s,
+# per-pass tracing and launch dominate small passes) and fit its memory (~30 B per lane live).
+# LLVM: throughput is flat beyond ~2^20 lanes on a CPU, 2^23 keeps the peak near 1 GB.
+MAX_LANES = {"cuda": 1 << 26, "llvm": 1 << 23}
+# Mitsuba's perspective sensor starts rays at the near plane; pbrcheck's camera has none.
+NEAR_CLIP = 1e-4
+FAR_CLIP = 1e7
+
+
+def max_lanes() -> int:
+    """Lanes per pass for the current variant's backend."""
+    return MAX_LANES["cuda" if mi.variant().startswith("cuda") else "llvm"]
+
+
+def pass_sizes(spp: int, npix: int, lanes: int | None = None) -> list[int]:
+    """Samples per pixel of each pass: as few passes as ``lanes`` allows, of near-equal sizes (at most
+    two distinct sizes, so at most two kernels), summing to ``spp``; also under Mitsuba's 2^32."""
+    lanes = min(int(lanes or max_lanes()), (1 << 32) - 1)
+    per = max(1, min(spp, lanes // max(npix, 1)))
+    k = -(-spp // per)
+    base, extra = divmod(spp, k)
+    return [base + (1 if i < extra else 0) for i in range(k)]
+
+
+def pass_seed(seed: int, index: int) -> int:
+    """The sampler seed of pass ``index`` of a render with ``seed``: ``seed`` itself for the first
+    (so a one-pass moments render draws the samples of the film render, ``moments = False``), then
+    independent streams."""
+    if index == 0:
+        return int(seed) & 0xFFFFFFFF
+    h = hashlib.sha256(f"pbrcheck-reference:{int(seed)}:{int(index)}".encode()).digest()
+    return int.from_bytes(h[:4], "little")
+
+
+def sensor_dict(camera, spp: int = 16) -> dict:
+    """Mitsuba ``perspective`` sensor reproducing :mod:`pbrcheck.camera` (horizontal fov, look_at,
+    box filter, pixel centres at ``(j + 0.5) / W``, row 0 at the top)."""
+    return {
+        "type": "perspective", "fov_axis": "x", "fov": float(camera.fov),
+        "near_clip": NEAR_CLIP, "far_clip": FAR_CLIP,
+        "to_world": mi.ScalarTransform4f().look_at(origin=[float(v) for v in camera.origin],
+                                                   target=[float(v) for v in camera.target],
+                                                   up=[float(v) for v in camera.up]),
+        "sampler": {"type": "independent", "sample_count": int(spp)},
+        "film": {"type": "hdrfilm", "width": int(camera.width), "height": int(camera.height),
+                 "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+    }
+
+
+def pixel_centre_rays(sensor, offset=(0.5, 0.5)):
+    """(ray, pixel index) of one ray per pixel at sub-pixel ``offset``, row-major, row 0 at the top."""
+    size = sensor.film().crop_size()
+    W, H = int(size[0]), int(size[1])
+    idx = dr.arange(mi.UInt32, W * H)
+    y = idx // W
+    x = idx - y * W
+    pos = mi.Point2f((mi.Float(x) + offset[0]) / W, (mi.Float(y) + offset[1]) / H)
+    ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5))
+    return ray, idx
+
+
+def _power(a, b):
+    """Power heuristic weight of a sample with density a against b (Veach 1997 eq. 9.13)."""
+    a2, b2 = a * a, b * b
+    return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
+
+
+class ReferenceIntegrator(RBIntegrator):
+    """The ``local`` and ``path`` estimators with per-pixel moments (see the module docstring)."""
+
+    def __init__(self, props):
+        super().__init__(props)
+        self.mode = str(props.get("mode", "local"))
+        if self.mode not in MODES:
+            raise ValueError(f"{INTEGRATOR_NAME}: mode must be one of {MODES}, not {self.mode!r}")
+        self.moments = bool(props.get("moments", False))
+        self.path = None
+        if self.mode == "path":
+            self.path = mi.load_dict({"type": "path", "max_depth": int(props.get("max_depth", 8))})
+        # Called as progress(samples_per_pixel_done) after each pass of a moments render.
+        self.progress = None
+
+    def to_string(self):
+        return f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}]"
+
+    # ---- estimators ------------------------------------------------------------------------------
+    def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
+        """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
+        to the AD graph (detached sampling, module docstring)."""
+        ray = mi.Ray3f(ray)
+        si = scene.ray_intersect(ray, active)
+        hit = active & si.is_valid()
+        env = scene.environment()
+        L = mi.Color3f(0.0)
+        if env is not None:
+            L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
+        ctx = mi.BSDFContext()
+        bsdf = si.bsdf(ray)
+        if env is not None:
+            # Environment sample, MIS against the BSDF's density.
+            ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+            ok = hit & (ds.pdf > 0)
+            wo = si.to_local(ds.d)
+            with dr.resume_grad(when=grad):
+                f, bpdf = bsdf.eval_pdf(ctx, si, wo, ok)
+                w = _power(ds.pdf, dr.detach(bpdf))
+                L += dr.select(ok, f * em_w * w, 0.0)
+            # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
+            u1, u2 = sampler.next_1d(hit), sampler.next_2d(hit)
+            bs, bw = bsdf.sample(ctx, si, u1, u2, hit)
+            wo_w = si.to_world(bs.wo)
+            delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            si_e = dr.zeros(mi.SurfaceInteraction3f)
+            si_e.wi = -wo_w
+            Le = env.eval(si_e, hit)
+            ds2 = dr.zeros(mi.DirectionSample3f)
+            ds2.d = wo_w
+            epdf = env.pdf_direction(si, ds2, hit & ~delta)
+            w = dr.select(delta, 1.0, _power(bs.pdf, epdf))
+            ok = hit & (bs.pdf > 0)
+            if grad:
+                with dr.resume_grad():
+                    f_b = bsdf.eval(ctx, si, bs.wo, ok & ~delta)
+                    bs_g, bw_g = bsdf.sample(ctx, si, u1, u2, ok & delta)  # mirror: wo fixed
+                    pdf0 = dr.detach(bs.pdf)
+                    inv = dr.select(pdf0 > 0, dr.rcp(pdf0), 0.0)
+                    g = dr.select(delta, bw_g * bs_g.pdf, f_b) * inv
+                    bw = dr.replace_grad(bw, g)
+                    L += dr.select(ok, bw * Le * w, 0.0)
+            else:
+                L += dr.select(ok, bw * Le * w, 0.0)
+        for emitter in scene.emitters():
+            if not mi.has_flag(emitter.flags(), mi.EmitterFlags.DeltaPosition):
+                continue
+            # A point light: deterministic direction, weight I / d^2, no shadow ray.
+            ds, Li = emitter.sample_direction(si, mi.Point2f(0.5), hit)
+            with dr.resume_grad(when=grad):
+                f = bsdf.eval(ctx, si, si.to_local(ds.d), hit)
+                L += dr.select(hit & (ds.pdf > 0), f * Li, 0.0)
+        return L, hit
+
+    def radiance(self, scene, sampler, ray, active):
+        """(L, hit) of this integrator's mode (primal)."""
+        if self.mode == "local":
+            return self.local_radiance(scene, sampler, ray, active)
+        hit = scene.ray_test(mi.Ray3f(ray), active)
+        L, _, _ = self.path.sample(scene, sampler, ray, None, active)
+        return mi.Color3f(L), hit
+
+    def sample(self, mode, scene, sampler, ray, depth=None, δL=None, δaovs=None, state_in=None,
+               active=True, **kwargs):
+        active = mi.Bool(active)
+        if mode == dr.ADMode.Primal:
+            L, hit = self.radiance(scene, sampler, ray, active)
+            return L, hit, [], None
+        if self.mode != "local":
+            raise NotImplementedError(f"{INTEGRATOR_NAME}: derivatives need mode='local'")
+        L, hit = self.local_radiance(scene, sampler, ray, active, grad=True)
+        with dr.resume_grad():
+            attached = dr.grad_enabled(L)  # False when no parameter of the BSDFs is differentiated
+            if mode == dr.ADMode.Backward:
+                if attached:
+                    dr.backward_from(δL * L)
+                return mi.Color3f(0.0), hit, [], None
+            return (dr.forward_to(L) if attached else mi.Color3f(0.0)), hit, [], None
+
+    # ---- rendering -------------------------------------------------------------------------------
+    def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
+        if not self.moments:
+            return super().render(scene, sensor, seed, spp, develop, evaluate)
+        if isinstance(sensor, int):
+            sensor = scene.sensors()[sensor]
+        seed = int(seed[0] if isinstance(seed, (tuple, list)) else seed)
+        spp = int(spp) or int(sensor.sampler().sample_count())
+        if spp < 2:
+            raise ValueError("spp must be >= 2 (the variance channels need two samples per pixel)")
+        size = sensor.film().crop_size()
+        W, H = int(size[0]), int(size[1])
+        npix = W * H
+        F64 = dr.float64_array_t(mi.Float)
+        with dr.suspend_grad():
+            s1 = [dr.zeros(F64, npix) for _ in range(3)]
+            s2 = [dr.zeros(F64, npix) for _ in range(3)]
+            hits = dr.zeros(F64, npix)
+            shift = None
+            done = 0
+            for k, n in enumerate(pass_sizes(spp, npix)):
+                sampler = sensor.sampler().clone()
+                sampler.set_sample_count(n)
+                sampler.set_samples_per_wavefront(n)
+                sampler.seed(pass_seed(seed, k), npix * n)
+                ray, weight, _ = self.sample_rays(scene, sensor, sampler)
+                L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
+                L = mi.Color3f(L * weight)
+                pixel = dr.arange(mi.UInt32, npix * n) // n
+                if shift is None:
+                    # K = each pixel's first sample (so a constant pixel has s1 = s2 = 0 exactly).
+                    shift = dr.gather(mi.Color3f, L, dr.arange(mi.UInt32, npix) * n)
+                    dr.eval(shift)
+                d = L - dr.gather(mi.Color3f, shift, pixel)
+                p1 = dr.block_sum(d, n)
+                p2 = dr.block_sum(d * d, n)
+                ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), n)
+                for c in range(3):
+                    s1[c] += F64(p1[c])
+                    s2[c] += F64(p2[c])
+                hits += F64(ph)
+                dr.eval(s1, s2, hits)
+                done += n
+                if self.progress is not None:
+                    self.progress(n)
+            out = dr.zeros(mi.Float, npix * len(MOMENT_CHANNELS))
+            base = dr.arange(mi.UInt32, npix) * len(MOMENT_CHANNELS)
+            for c in range(3):
+                mean = s1[c] / spp + F64(shift[c])
+                var = dr.maximum(s2[c] - s1[c] * s1[c] / spp, 0.0) / ((spp - 1) * spp)
+                dr.scatter(out, mi.Float(mean), base + c)
+                dr.scatter(out, mi.Float(var), base + 3 + c)
+            dr.scatter(out, mi.Float(hits / spp), base + 6)
+            return mi.TensorXf(out, (H, W, len(MOMENT_CHANNELS)))
+
+
+_REGISTERED: set[str] = set()
+
+
+def register() -> None:
+    """Register ``pbrcheck_reference`` for the current Mitsuba variant (idempotent)."""
+    v = mi.variant()
+    if v not in _REGISTERED:
+        mi.register_integrator(INTEGRATOR_NAME, lambda props: ReferenceIntegrator(props))
+        _REGISTERED.add(v)
+

@@ -1,0 +1,136 @@
+"""``pbrcheck_reference`` through ``mi.render``: same pixels as the version-1 renderer within noise,
+passes only where memory requires them, and derivatives through ``mi.render``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pbrcheck  # noqa: F401
+from pbrcheck.scene import scene_from_dict
+from reference.variant import ensure_variant
+
+ensure_variant()
+from reference import integrator as ri  # noqa: E402  (needs the variant set)
+from reference import render as rr  # noqa: E402
+from reference.render import _mi, render_uncached  # noqa: E402
+
+from legacy_reference import legacy_render  # noqa: E402
+
+# Two independent estimates agree per pixel within Z standard deviations (5 sigma: < 1e-3 false
+# alarms over the ~1000 pixel-channels of these scenes).
+Z = 5.0
+SKY = {"type": "sky", "sun_direction": [0.3, 0.8, 0.5], "sun_angular_diameter": 20.0,
+       "sun_radiance": [4, 4, 3.5], "resolution": [128, 64]}
+LIGHT = {"type": "point", "position": [2.0, 2.0, 3.0], "intensity": [3.0, 3.0, 3.0]}
+
+
+def _scene(roughness=0.4, metallic=0.5, size=24):
+    return scene_from_dict({
+        "camera": {"origin": [0, 0.5, 4], "fov": 40, "width": size, "height": size - 4},
+        "environment": SKY, "lights": [LIGHT],
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.5, 0.3], "metallic": metallic, "roughness": roughness}},
+                    {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": [6, 6],
+                     "material": {"base_color": [0.5, 0.5, 0.5], "roughness": 0.7}}]})
+
+
+def _z_agree(a_mean, a_var, b_mean, b_var, atol=1e-5):
+    d = np.abs(a_mean - b_mean)
+    sd = np.sqrt(a_var + b_var)
+    assert np.all(d <= Z * sd + atol), float((d - Z * sd).max())
+
+
+@pytest.mark.parametrize("mode,rough", [("local", 0.4), ("local", 0.0), ("path", 0.4)])
+def test_same_pixels_as_the_version_1_renderer(mode, rough):
+    scene = _scene(roughness=rough)
+    new = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=1, progress=False)
+    m, v, c = legacy_render(scene, spp=64, mode=mode, max_depth=3, seed=2)
+    _z_agree(new.rgb, new.variance, m, v)
+    # the variance estimates agree too (pooled over the image: a few percent at 64 spp)
+    ratio = new.variance.mean() / v.mean()
+    assert 0.85 < ratio < 1.15, ratio
+    assert abs(new.channels["coverage"].mean() - c.mean()) < 0.02
+    assert new.meta["reference_code_version"] == rr.REFERENCE_CODE_VERSION != "1"
+    assert new.meta["integrator"].startswith("mi.render")
+
+
+def test_pass_sizes():
+    assert ri.pass_sizes(64, 100, lanes=6400) == [64]
+    assert ri.pass_sizes(64, 100, lanes=3200) == [32, 32]
+    assert ri.pass_sizes(10, 100, lanes=400) == [4, 3, 3]
+    assert ri.pass_sizes(5, 10_000, lanes=10) == [1] * 5  # at least one sample per pass
+    for spp, npix, lanes in ((1000, 7, 300), (3, 1, 1 << 40), (1024, 108_000, 1 << 26)):
+        p = ri.pass_sizes(spp, npix, lanes=lanes)
+        assert sum(p) == spp and max(p) - min(p) <= 1 and max(p) * npix <= max(lanes, npix)
+    assert ri.pass_sizes(1 << 20, 1 << 16, lanes=1 << 40)[0] * (1 << 16) < 1 << 32  # Mitsuba's limit
+    assert ri.max_lanes() in ri.MAX_LANES.values()
+
+
+def test_passes_only_where_memory_requires_them(monkeypatch):
+    scene = _scene(size=16)
+    one = render_uncached(scene, spp=24, seed=3, progress=False)
+    assert one.meta["passes"] == "1"
+    monkeypatch.setitem(ri.MAX_LANES, "llvm", 16 * 12 * 7)
+    monkeypatch.setitem(ri.MAX_LANES, "cuda", 16 * 12 * 7)
+    done = []
+    real = ri.ReferenceIntegrator.render
+
+    def spy(self, *a, **k):
+        self.progress = (lambda n, p=self.progress: (done.append(n), p and p(n)))
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(ri.ReferenceIntegrator, "render", spy)
+    many = render_uncached(scene, spp=24, seed=4, progress=False)
+    assert many.meta["passes"] == "4" and done == [6, 6, 6, 6]
+    _z_agree(one.rgb, one.variance, many.rgb, many.variance)
+    ratio = many.variance.mean() / one.variance.mean()
+    assert 0.8 < ratio < 1.25, ratio
+    np.testing.assert_array_equal(one.channels["NdotV"], many.channels["NdotV"])
+
+
+def test_film_render_equals_moments_mean():
+    """moments = False (what AD uses) is Mitsuba's film: the same estimator and samples."""
+    mi, dr = _mi()
+    scene = _scene(size=16)
+    ms = rr.load_mitsuba_scene(scene)
+    sensor = mi.load_dict(ri.sensor_dict(scene.camera, 16))
+    a = np.array(mi.render(ms, sensor=sensor, integrator=rr.load_integrator("local", moments=False),
+                           spp=16, seed=5))
+    b = np.array(mi.render(ms, sensor=sensor, integrator=rr.load_integrator("local"), spp=16, seed=5))
+    assert a.shape == (12, 16, 3) and b.shape == (12, 16, len(ri.MOMENT_CHANNELS))
+    np.testing.assert_allclose(a, b[..., :3], rtol=1e-4, atol=1e-5)
+
+
+def test_gradient_through_mi_render_matches_finite_differences():
+    """d mean(image) / d roughness and d / d base_color of the local integrator under mi.render."""
+    mi, dr = _mi()
+    scene = _scene(size=16, roughness=0.4)
+    d = rr.scene_dict(scene)
+    d["sensor"] = ri.sensor_dict(scene.camera, 64)
+    d["integrator"] = {"type": ri.INTEGRATOR_NAME, "mode": "local"}
+    ms = mi.load_dict(d)
+    params = mi.traverse(ms)
+    spp = 256
+
+    def mean_img(seed):
+        return float(np.mean(np.array(mi.render(ms, params, spp=spp, seed=seed))))
+
+    for key, h in (("object0.bsdf.roughness", 0.02), ("object0.bsdf.metallic", 0.05)):
+        x0 = float(params[key][0])
+        dr.enable_grad(params[key])
+        params.update()
+        img = mi.render(ms, params, spp=spp, seed=7)
+        dr.backward(dr.mean(img, axis=None))
+        g = float(np.array(dr.grad(params[key]))[0])
+        dr.disable_grad(params[key])
+        vals = []
+        for s in (+1, -1):
+            params[key] = mi.Float(x0 + s * h)
+            params.update()
+            vals.append(mean_img(11))  # common random numbers: the same samples both sides
+        params[key] = mi.Float(x0)
+        params.update()
+        fd = (vals[0] - vals[1]) / (2 * h)
+        assert abs(g - fd) <= 0.1 * abs(fd) + 2e-3, (key, g, fd)
+        assert abs(fd) > 1e-3, (key, fd)  # not vacuous
