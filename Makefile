@@ -14,12 +14,17 @@ SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
 
-.PHONY: setup system-packages test-packages demo test test-fast gate bench report clean
+.PHONY: setup system-packages client-packages test-packages demo test test-fast gate bench report clean
 
-setup: system-packages $(STAMP)
+setup: system-packages client-packages $(STAMP)
 
 system-packages:
 	@bash tools/ensure-system-packages.sh --python $(PYTHON) $(SYSTEM_PACKAGES)
+
+# The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in
+# clients/threejs; without root it prints the commands and goes on (their tests skip).
+client-packages:
+	@bash tools/ensure-clients.sh
 
 $(STAMP): pyproject.toml
 	@$(PY) -m pip --version >/dev/null 2>&1 || { rm -rf $(VENV); $(PYTHON) -m venv $(VENV); }
@@ -40,14 +45,21 @@ test: setup test-packages
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# The CI error-budget gate of the shipped shaders (references rendered through the cache).
+# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer).
 gate: setup
-	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md
+	@rc=0; \
+	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md || rc=$$?; \
+	$(VENV)/bin/pbrcheck gate compare/budgets/clients.toml --junit out/ci/gate-clients-junit.xml \
+		--summary out/ci/gate-clients-summary.md || { r=$$?; [ $$r -gt $$rc ] && rc=$$r; }; \
+	exit $$rc
 
 bench: setup
 	$(VENV)/bin/pbrcheck bench reference
 	$(VENV)/bin/pbrcheck bench realtime
 	$(VENV)/bin/pbrcheck bench fit-roughness
+	$(VENV)/bin/pbrcheck bench multiscatter
+	$(VENV)/bin/pbrcheck bench corpus
+	$(VENV)/bin/pbrcheck bench client --renderer threejs
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing

@@ -5,8 +5,9 @@ Budget format (TOML; see docs/compare.md)::
     [[check]]
     name = "spheres-default"         # required, unique
     scene = "spheres"                # built-in name or TOML path (relative to the budget file)
-    preset = "default"               # real-time preset (default "default")
+    preset = "default"               # real-time preset or ext:NAME (docs/renderers.md)
     options = { }                    # optional real-time option overrides
+    # shader = "hooks/ue4.glsl"      # optional shader hook file (relative to the budget file)
     reference = "refs/spheres.exr"   # stored EXR (relative to the budget file) or "auto"
     spp = 64                         # with reference = "auto": samples per pixel (default 64)
     # test = "engine_out.exr"        # instead of preset: gate an image from any engine (scene
@@ -50,8 +51,8 @@ from .maps import write_maps
 from .metrics import METRICS, compare_images, worse
 from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
 
-CHECK_KEYS = {"name", "scene", "preset", "options", "reference", "spp", "spp_cap", "test", "max", "min", "mode",
-              "seed"}
+CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
+              "mode", "seed"}
 DEFAULT_SPP = 64
 #: The reference renderer needs two samples per pixel for its variance channels.
 MIN_REFERENCE_SPP = 2
@@ -149,7 +150,7 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
         names.add(name)
-        for k in ("scene", "preset", "reference", "test", "mode"):
+        for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
                 raise _err(path, f"{w}.{k}", "a string", t[k])
         if "reference" not in t:
@@ -159,8 +160,8 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, w, "scene (rendered with preset) or test (an image path)", "neither")
         if t["reference"] == "auto" and not has_scene:
             raise _err(path, f"{w}.reference", '"auto" only together with scene', "auto")
-        if has_test and ("preset" in t or "options" in t):
-            raise _err(path, w, "preset/options only with scene, not with test", "test")
+        if has_test and ("preset" in t or "options" in t or "shader" in t):
+            raise _err(path, w, "preset/options/shader only with scene, not with test", "test")
         if "options" in t and not isinstance(t["options"], dict):
             raise _err(path, f"{w}.options", "a table of real-time options", t["options"])
         for k in ("spp", "seed", "spp_cap"):
@@ -171,8 +172,14 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         mn = _bounds(path, f"{w}.min", t.get("min", {}))
         if not mx and not mn:
             raise _err(path, f"{w}.max", "at least one metric budget in [check.max] or [check.min]", "nothing")
+        options = dict(t.get("options", {}))
+        if "shader" in t:  # a hook file, relative to this budget file
+            shader = _resolve(path.parent, t["shader"])
+            if not shader.is_file():
+                raise _err(path, f"{w}.shader", "an existing shader hook file", t["shader"])
+            options["shader"] = str(shader)
         out.append(Check(name=name, max=mx, min=mn, reference=t["reference"], scene=t.get("scene"),
-                         preset=t.get("preset", "default"), options=dict(t.get("options", {})),
+                         preset=t.get("preset", "default"), options=options,
                          test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
                          seed=t.get("seed", 0), spp_cap=t.get("spp_cap", DEFAULT_SPP_CAP)))
     return out, path.parent
@@ -218,7 +225,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             test_name = str(test_path)
         else:
             test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
-            test_name = f"real-time {check.preset}"
+            test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
         if check.reference == "auto":
             ref, res.verdict = reference_for_verdict(scene, [test], spp=check.spp, cap=check.spp_cap,
                                                      mode=check.mode, seed=check.seed, use_cache=True,

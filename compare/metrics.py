@@ -22,6 +22,11 @@ the *valid* pixels (see :func:`pixel_classes`) and over the three RGB channels, 
   negatives clipped to 0, encoded as ICtCp (SMPTE ST 2084 / PQ) and compared
   (``720 sqrt(dI^2 + (dT/2)^2 + dP^2)``); mean and 95th percentile.
 
+Display-referred images (an external renderer that can only give 8-bit sRGB, ``output =
+"png-srgb"``, metadata ``display_referred = "1"``): both images are compared in display space, the
+reference clamped to [0, 1] and sRGB-encoded as the engine did, without the noise floor;
+``summary["space"]`` is ``display-referred`` (else ``linear``).
+
 Noise floor (when the reference has ``variance.R/G/B``, the variance of its pixel estimate):
 ``mean_variance`` = mean of the variance channels over valid pixels; ``mse_corrected`` =
 mean (t - r)^2 - mean_variance (an unbiased estimate of the squared error against the converged
@@ -42,6 +47,8 @@ import numpy as np
 
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import RGB, VARIANCE, Image
+
+from .maps import srgb_oetf
 
 # --- tolerances and constants (each with its reason) -------------------------------------------
 
@@ -346,9 +353,34 @@ def _object_info(scene, oid: int) -> tuple[str | None, dict | None]:
                     "roughness": mat.roughness, "specular": mat.specular}
 
 
+def is_display_referred(img: Image) -> bool:
+    """Whether ``img`` holds display values (an external renderer's ``png-srgb`` output,
+    metadata ``display_referred = "1"``) rather than linear radiance."""
+    return img.meta.get("display_referred") == "1"
+
+
+def display_referred(img: Image) -> Image:
+    """``img`` in display space: linear radiance clamped to [0, 1], then the sRGB transfer (what an
+    8-bit engine does); an image already display-referred is returned as it is. Variance channels
+    are dropped (they describe linear radiance)."""
+    if is_display_referred(img):
+        return img
+    rgb = srgb_oetf(np.clip(img.rgb.astype(np.float64), 0.0, 1.0)).astype(np.float32)
+    extra = {k: v for k, v in img.channels.items() if k not in RGB and k not in VARIANCE}
+    return Image.from_rgb(rgb, {**img.meta, "display_referred": "1"}, **extra)
+
+
 def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
                    ref_name: str = "reference", test_name: str = "test") -> Comparison:
-    """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be."""
+    """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be.
+
+    When either image is display-referred (an 8-bit ``png-srgb`` engine), both are compared in
+    display space (:func:`display_referred`: the same clamp and sRGB transfer applied to the other),
+    without the noise floor, and ``summary["space"]`` says ``display-referred`` (else ``linear``).
+    """
+    space = "linear"
+    if is_display_referred(ref) or is_display_referred(test):
+        ref, test, noise, space = display_referred(ref), display_referred(test), False, "display-referred"
     validate_pair(ref, test, ref_name, test_name)
     valid, edge, background = pixel_classes(ref, test)
     if not valid.any():
@@ -357,6 +389,7 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     m = pixel_maps(ref.rgb, test.rgb)
     peak = psnr_peak(m, valid)
     summary: dict = {
+        "space": space,
         "size": [ref.shape[1], ref.shape[0]],
         "pixels": {"valid": int(valid.sum()), "edge": int(edge.sum()), "background": int(background.sum())},
         "psnr_peak": peak,

@@ -8,14 +8,24 @@ API
 ---
 - :func:`render_reference` -- the Mitsuba reference (:func:`reference.render.render_reference`).
 - :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
-  (:func:`realtime.render.render_realtime`).
+  (:func:`realtime.render.render_realtime`) or ``ext:NAME``, an external renderer of
+  ``renderers.toml`` (:func:`clients.run.render_external`).
+- :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
-  (:func:`realtime.presets.resolve_options`).
+  (:func:`realtime.presets.resolve_options`); ``{}`` for an external renderer (which takes none),
+  after checking that it exists.
+- :func:`multiscatter_albedo` -- the reference random walk's directional albedo
+  (:func:`reference.multiscatter_measure.directional_albedo`).
+- :func:`trim_caches` -- bound the renderers' per-process caches to a few environments (corpus
+  workers, :func:`realtime.render.trim_environment_caches`).
 """
 
 from __future__ import annotations
 
+from clients import config as _clients_config
+from clients import run as _clients
+from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image
 from pbrcheck.scene import Scene
 from realtime import presets as _presets
@@ -37,7 +47,7 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     scene : Scene
         The scene.
     name : str
-        A real-time preset (:data:`realtime.presets.PRESETS`).
+        A real-time preset (:data:`realtime.presets.PRESETS`) or ``ext:NAME``.
     options : dict, optional
         Option overrides (``--set key=value``), validated by the renderer.
     progress : bool, optional
@@ -51,9 +61,23 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     Raises
     ------
     PbrcheckError
-        Unknown preset or bad option (``OptionError``), or the renderer failed.
+        Unknown preset or bad option (``OptionError``), or the renderer failed (``RendererError``).
     """
+    if is_external(name):
+        _no_options(name, options)
+        return _clients.render_external(scene, name, progress=progress)
     return _realtime.render_realtime(scene, name, options, progress=progress)
+
+
+def is_external(name: str) -> bool:
+    """Whether ``name`` names an external renderer (``ext:NAME``)."""
+    return name.startswith(_clients_config.PREFIX)
+
+
+def _no_options(name: str, options: dict | None) -> None:
+    if options:
+        raise PbrcheckError(f"{name}: an external renderer takes no options (got {', '.join(sorted(options))}); "
+                            "set them in its renderers.toml command")
 
 
 def preset_names() -> list[str]:
@@ -62,5 +86,24 @@ def preset_names() -> list[str]:
 
 
 def resolve_options(name: str, overrides: dict | None = None) -> dict:
-    """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``)."""
+    """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``);
+    ``{}`` for an external renderer that exists (raises ``RendererConfigError`` otherwise)."""
+    if is_external(name):
+        _no_options(name, overrides)
+        _clients_config.get_renderer(name)
+        return {}
     return _presets.resolve_options(name, overrides)
+
+
+def multiscatter_albedo(mu, roughness, F0, **kwargs):
+    """(mean, standard error) of the random walk's directional albedo; arguments as
+    :func:`reference.multiscatter_measure.directional_albedo` (``samples``, ``seed``, ``order_max``)."""
+    from reference import multiscatter_measure as _ms  # local: sets Mitsuba's variant on first use
+
+    return _ms.directional_albedo(mu, roughness, F0, **kwargs)
+
+
+def trim_caches(keep_environments: int) -> None:
+    """Free the renderers' per-process bakes of all but the ``keep_environments`` most recent
+    environments (a process that renders many environments calls it between renders)."""
+    _realtime.trim_environment_caches(keep_environments)

@@ -7,7 +7,7 @@ nothing written), 3 a backend is unavailable, 130 interrupted.
 Layers import one way (``tests/test_layers.py`` enforces it): core ``pbrcheck`` <- renderers
 ``reference``, ``realtime`` <- comparator ``compare`` <- ``compare.research``, then
 ``compare.report`` <- this CLI. Subcommands live with their layer (``reference/commands.py``,
-``realtime/commands.py``, ``compare/commands.py``, ``compare/research/commands.py``,
+``realtime/commands.py``, ``clients/commands.py``, ``compare/commands.py``, ``compare/research/commands.py``,
 ``compare/report/commands.py``), each with ``register(subparsers, bench_subparsers)``; as the top of
 the stack this module imports them all.
 """
@@ -18,7 +18,10 @@ import argparse
 import json
 import sys
 
+import clients.commands
+import clients.config
 import compare.commands
+import compare.report.corpus_commands
 import compare.report.commands
 import compare.research.commands
 import realtime.commands
@@ -30,8 +33,8 @@ from .errors import PbrcheckError
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
-COMMAND_MODULES = (reference.commands, realtime.commands, compare.commands, compare.research.commands,
-                   compare.report.commands)
+COMMAND_MODULES = (reference.commands, realtime.commands, clients.commands, compare.commands, compare.research.commands,
+                   compare.report.commands, compare.report.corpus_commands)
 
 
 def _cmd_scenes(args) -> int:
@@ -65,6 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Reference (Mitsuba 3) vs real-time (GLSL split-sum) validation of physically based shading.",
     )
     p.add_argument("--version", action="version", version=f"pbrcheck {__version__}")
+    p.add_argument("--renderers", default=None, metavar="FILE",
+                   help="renderers.toml naming the external renderers ext:NAME (default ./renderers.toml when present)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -90,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "renderers", None):
+        clients.config.set_renderers_file(args.renderers)
     try:
         return int(args.func(args) or 0)
     except PbrcheckError as e:

@@ -24,7 +24,7 @@ API
 :class:`Entry`, :class:`Registry`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
 :func:`glsl_generated`.
 """
 
@@ -118,6 +118,7 @@ GEOMETRIES = Registry("GEOMETRY", [
     Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013"),
     Entry("schlick_beckmann", "Schlick's Beckmann approximation (article 000's listing), real time only",
           scene=False),
+    Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80"),
 ])
 
 FRESNELS = Registry("FRESNEL", [
@@ -167,10 +168,26 @@ DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
 LUT_SAMPLINGS = _switch("LUT_SAMPLING", vndf="GGX visible normals, Heitz 2018 (GGX NDF only)",
                         ndf="half vectors drawn from the NDF, Walter et al. 2007")
+#: Multiple-scattering energy compensation of the real-time specular lobe (pbrcheck/energy.py,
+#: realtime/shaders/energy.glsl).
+ENERGY_COMPENSATIONS = _switch(
+    "ENERGY_COMPENSATION", none="single scattering only",
+    filament="Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
+    fdez_aguera="Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
+    kulla_conty="Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table")
+#: The reference's specular lobe: single scattering, or the multiple-scattering random walk
+#: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
+MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
+                        random_walk="multiple-scattering random walk on the Smith microsurface, "
+                                    "Heitz, Hanika, d'Eon, Dachsbacher 2016")
+#: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
+#: height-correlated Smith term of that NDF [Heitz16 sec. 5; Heitz 2014 eq. 99].
+MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckmann_correlated"}
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
-                                     IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS)}
+                                     IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS,
+                                     ENERGY_COMPENSATIONS)}
 
 
 def glsl_defines() -> dict[str, int]:

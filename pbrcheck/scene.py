@@ -13,7 +13,6 @@ renderers); ``-1`` is the background.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import tomllib
@@ -25,6 +24,8 @@ from typing import Any
 from .errors import SceneError
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
+from .registry import MULTISCATTER_GEOMETRY
+from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
 
 Vec3 = tuple[float, float, float]
@@ -33,6 +34,7 @@ Vec3 = tuple[float, float, float]
 NDFS = _NDFS.scene_names
 GEOMETRIES = _GEOMETRIES.scene_names
 FRESNELS = _FRESNELS.scene_names
+MULTISCATTERS = _MULTISCATTERS.scene_names
 #: The scene ``pbrcheck`` commands use when none is named.
 DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
@@ -93,6 +95,9 @@ class BRDFModel:
     ndf: str = "ggx"
     geometry: str = "smith_ggx_correlated"
     fresnel: str = "schlick"
+    # "none" | "random_walk" (reference only: reference/multiscatter.py; needs ndf = "ggx" with
+    # geometry = "smith_ggx_correlated" or ndf = "beckmann" with "smith_beckmann_correlated").
+    multiscatter: str = "none"
 
 
 @dataclass(frozen=True)
@@ -174,6 +179,8 @@ class Scene:
         for k in ("name", "description"):
             d.pop(k)
         d["environment"].pop("path", None)
+        if d["brdf"].get("multiscatter") == "none":
+            d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
         for o in d["objects"]:
             o.pop("name", None)
         return d
@@ -384,12 +391,23 @@ def _lights(ctx, lst) -> tuple[PointLight, ...]:
 
 
 def _brdf(ctx, t) -> BRDFModel:
-    _check_keys(ctx, t, {"ndf", "geometry", "fresnel"}, "brdf")
-    return BRDFModel(
+    _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter"}, "brdf")
+    model = BRDFModel(
         ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDFS),
         geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRIES),
         fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNELS),
+        multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTERS),
     )
+    if model.multiscatter != "none":
+        # The random walk's first bounce is the NDF's height-correlated Smith term.
+        need = MULTISCATTER_GEOMETRY.get(model.ndf)
+        if need is None:
+            raise ctx.err("brdf.ndf", f'one of {", ".join(MULTISCATTER_GEOMETRY)} with multiscatter = '
+                          f'"{model.multiscatter}"', model.ndf)
+        if model.geometry != need:
+            raise ctx.err("brdf.geometry", f'"{need}" with ndf = "{model.ndf}" and multiscatter = '
+                          f'"{model.multiscatter}"', model.geometry)
+    return model
 
 
 def _material(ctx, t, where, *, grid=False) -> Material:

@@ -14,12 +14,12 @@ from pbrcheck.scene import load_scene
 
 from . import render as R
 from .gl import renderer_name
-from .presets import PRESETS, parse_sets, parse_value, resolve_options
+from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
 
 
 def _cmd_realtime(args) -> int:
-    overrides = parse_sets(args.set)
+    overrides = overrides_from_args(args.set, args.shader)
     resolve_options(args.preset, overrides)  # validate before any GL work
     scene = load_scene(args.scene)
     img = render_realtime(scene, args.preset, overrides, progress=True)
@@ -87,6 +87,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--preset", default="default", choices=list(PRESETS))
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override one option (repeatable); see docs/realtime.md")
+    s.add_argument("--shader", metavar="FILE.glsl",
+                   help="shader hook file: its hook_* functions replace built-in pieces (docs/hooks.md)")
     s.add_argument("--out", default=None, help="output EXR (default out/realtime/SCENE_PRESET.exr)")
     s.set_defaults(func=_cmd_realtime)
 

@@ -143,8 +143,10 @@ def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple =
             out_map.append((name, i))
 
 
-def assemble(entry: str, defines: dict | None = None) -> Source:
-    """The full source of ``entry`` with includes expanded and ``defines`` prepended."""
+def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None) -> Source:
+    """The full source of ``entry`` with includes expanded and ``defines`` prepended; ``user`` =
+    ``(file name, text)`` of a shader hook file is appended after the entry (its lines map back to
+    that file, so compile errors name ``FILE.glsl:line``; it may not ``#include``)."""
     lines = [GLSL_VERSION]
     lmap = [("<generated>", 1)]
     for k, v in glsl_defines().items():
@@ -156,6 +158,13 @@ def assemble(entry: str, defines: dict | None = None) -> Source:
         lines.append(f"#define {k} {v}")
         lmap.append(("<defines>", len(lmap)))
     _expand(entry, set(), lines, lmap)
+    if user is not None:
+        uname, utext = user
+        for i, line in enumerate(utext.splitlines(), start=1):
+            if _INCLUDE.match(line):
+                raise ShaderCompileError(f"{uname}:{i}: #include is not available in a hook file")
+            lines.append(line)
+            lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
 
 
@@ -184,14 +193,15 @@ def map_errors(message: str, src: Source) -> str:
     return "; ".join(out) or message.strip()
 
 
-def compute_program(entry: str, defines: dict | None = None):
-    """Compiled (cached) compute shader of ``entry`` with ``defines``."""
-    key = (entry, tuple(sorted((defines or {}).items())))
+def compute_program(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None):
+    """Compiled (cached) compute shader of ``entry`` with ``defines`` (and a hook file ``user`` =
+    ``(file name, text)``, see :func:`assemble`)."""
+    key = (entry, tuple(sorted((defines or {}).items())), user)
     prog = _programs.get(key)
     if prog is not None:
         return prog
     ctx = get_context()
-    src = assemble(entry, defines)
+    src = assemble(entry, defines, user)
     try:
         prog = ctx.compute_shader(src.text)
     except Exception as e:

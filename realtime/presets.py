@@ -17,6 +17,7 @@ from pbrcheck.lodmap import LodMapping
 from pbrcheck.registry import (
     BUILTIN_LOD_MAPPINGS,
     DFGS,
+    ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
     IRRADIANCE_METHODS,
@@ -26,6 +27,10 @@ from pbrcheck.registry import (
     RUNTIME_SAMPLINGS,
     SHADINGS,
 )
+
+
+#: Separates a preset from a shader hook file in a renderer name: ``default+hooks/ue4.glsl``.
+SHADER_SEP = "+"
 
 
 class OptionError(PbrcheckError):
@@ -81,6 +86,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            RUNTIME_SAMPLINGS.names),
     Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
     Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
+    Option("energy_compensation", "choice", "multiple-scattering energy compensation of the split-sum specular "
+           "(pbrcheck/energy.py): none | filament | fdez_aguera | kulla_conty | scene (none for a single-scattering "
+           "scene, the best measured one for [brdf] multiscatter = random_walk)", ("scene", *ENERGY_COMPENSATIONS.names)),
     Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names)),
     Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
     Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names)),
@@ -93,6 +101,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces")),
     Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
+    Option("shader", "file", "shader hook file (docs/hooks.md): its hook_* functions replace built-in pieces of "
+           "the frame pass ('': none; needs shading = material)"),
 ]}
 
 DEFAULT = {
@@ -121,6 +131,9 @@ DEFAULT = {
     "runtime_sampling": "vndf",
     "runtime_lod": True,
     "runtime_rotate": True,
+    # "scene": compensate exactly when the scene's reference has multiple scattering (pbrcheck energy:
+    # filament has the lowest albedo and image error against the random walk; docs/research.md).
+    "energy_compensation": "scene",
     "ndf": "scene",
     "geometry": "scene",
     "fresnel": "scene",
@@ -130,6 +143,7 @@ DEFAULT = {
     "supersample": 4,
     "tonemap": "none",
     "exposure": 1.0,
+    "shader": "",
 }
 
 
@@ -150,20 +164,29 @@ PRESETS: dict[str, dict] = {
         irradiance_step=0.025, prefilter_samples=1024, prefilter_filtered=False, prefilter_nl_weight=True,
         prefilter_levels=5, lod_mapping="linear", dfg="lut", lut_size=128, lut_samples=1024, lut_format="f16",
         lut_geometry="schlick_ggx_direct", lut_sampling="ndf", ndf="ggx", geometry="schlick_ggx_direct",
-        fresnel="schlick"),
+        fresnel="schlick", energy_compensation="none"),
     # Article 001: runtime importance sampling, Beckmann half vectors for the GGX D, mip-filtered
     # lookups, XOR-rotated Hammersley points, F0 clamped to [0.02, 0.99], roughness >= 0.01.
     "runtime_is20": _preset(
         shading="article001", ibl="runtime", runtime_samples=20, runtime_sampling="beckmann", runtime_lod=True,
-        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick",
+        energy_compensation="none"),
     "runtime_is256": _preset(
         shading="article001", ibl="runtime", runtime_samples=256, runtime_sampling="beckmann", runtime_lod=True,
-        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick"),
+        runtime_rotate=True, min_roughness=0.01, ndf="ggx", geometry="smith_ggx", fresnel="schlick",
+        energy_compensation="none"),
+    # Filament's documented IBL (Filament documentation sec. 5.3 "Image based lights"): irradiance
+    # as 9 SH coefficients, prefiltered levels at lod = M r (2 - r) (perceptualRoughnessToLod), its
+    # DFG LUT (GGX, height-correlated Smith; the multiscatter form mix(dfg.x, dfg.y, F0) = F0 A + B)
+    # and its energy compensation 1 + F0 (1 / dfg.y - 1) of the specular lobe.
+    "filament": _preset(
+        irradiance="sh9", lod_mapping="quadratic", dfg="lut", lut_geometry="smith_ggx_correlated",
+        lut_sampling="vndf", energy_compensation="filament"),
     # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
     "analytic_mobile": _preset(
         shading="article002", dfg="analytic", irradiance="sh9", lod_mapping="linear", prefilter_nl_weight=False,
-        prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16"),
+        prefilter_filtered=True, reflect_bug=True, tonemap="aces", cube_format="f16", energy_compensation="none"),
 }
 
 
@@ -198,6 +221,11 @@ def parse_value(name: str, raw) -> object:
                 raise ValueError
         elif name == "lod_mapping" and isinstance(raw, str) and raw.startswith("fitted:"):
             return _fitted_value(raw)
+        elif opt.kind == "file":
+            v = str(raw)
+            if v and not Path(v).is_file():
+                raise OptionError(f"option {name}: no such file {v!r}")
+            return v
         else:
             v = str(raw)
             if v not in opt.choices:
@@ -240,8 +268,22 @@ def parse_sets(items) -> dict:
     return out
 
 
+def overrides_from_args(sets, shader: str | None = None) -> dict:
+    """Option overrides of a command line: ``--set KEY=VALUE`` items and ``--shader FILE.glsl``."""
+    out = parse_sets(sets)
+    if shader:
+        out["shader"] = shader
+    return out
+
+
 def resolve_options(preset: str = "default", overrides: dict | None = None) -> dict:
-    """The complete option dict of ``preset`` with ``overrides`` applied and validated."""
+    """The complete option dict of ``preset`` with ``overrides`` applied and validated.
+
+    ``preset`` may carry a shader hook file as ``PRESET+FILE.glsl`` (the ``shader`` option), so a hook
+    file can be named wherever a preset is."""
+    if SHADER_SEP in preset:
+        preset, shader = preset.split(SHADER_SEP, 1)
+        overrides = {**(overrides or {}), "shader": shader}
     if preset not in PRESETS:
         raise OptionError(f"unknown preset {preset!r}; presets are: {', '.join(PRESETS)}")
     d = copy.deepcopy(PRESETS[preset])
@@ -261,7 +303,15 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
     if d["ibl"] not in ibl_of.get(d["shading"], ("splitsum", "runtime")):
         raise OptionError(f"option ibl: shading={d['shading']} has no ibl={d['ibl']} "
                           f"(it needs ibl={ibl_of[d['shading']][0]})")
+    if d["shader"] and d["shading"] != "material":
+        raise OptionError(f"option shader: hooks replace pieces of shading=material; this preset has "
+                          f"shading={d['shading']}")
     if d["irradiance_source_size"] > d["cube_size"]:
         raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
                           f"found {d['irradiance_source_size']}")
+    # Energy compensation (energy.glsl) scales the split sum of the material composition: it needs
+    # the DFG terms, which runtime sampling and the article compositions do not have.
+    if d["energy_compensation"] not in ("none", "scene") and (d["shading"] != "material" or d["ibl"] != "splitsum"):
+        raise OptionError(f"option energy_compensation: {d['energy_compensation']} needs shading=material and "
+                          f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
     return d

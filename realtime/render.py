@@ -49,6 +49,7 @@ from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
 from pbrcheck.registry import (
     DFGS,
+    ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
     IRRADIANCE_METHODS,
@@ -62,6 +63,7 @@ from pbrcheck.registry import (
 from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
+from .hooks import load_hook_file
 from .presets import fitted_mapping, resolve_options
 
 HALF_MAX = 65504.0
@@ -404,6 +406,127 @@ def resolved_terms(scene: Scene, o: dict) -> dict:
     return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
 
 
+def resolved_energy_compensation(scene: Scene, o: dict) -> str:
+    """The energy compensation this render uses: the option's value, or for ``scene`` the one that
+    matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
+    single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
+    from pbrcheck.energy import SCENE_COMPENSATION
+
+    v = o["energy_compensation"]
+    if v != "scene":
+        return v
+    if o["shading"] != "material" or o["ibl"] != "splitsum":
+        return "none"  # only the material composition's split sum has the DFG terms it scales
+    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+
+
+def frame_defines(o: dict, terms: dict) -> dict:
+    """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
+    :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
+
+    Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
+    a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
+    """
+    shading = o["shading"]  # its combination with ibl is checked by resolve_options
+    fm = fitted_mapping(o["lod_mapping"])
+    defines = {
+        **SHADINGS.select(shading), **NDFS.select(terms["ndf"]), **GEOMETRIES.select(terms["geometry"]),
+        **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
+        **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
+        **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
+        **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
+        "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
+        "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
+    }
+    if fm is not None:
+        defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
+    if o["shader"]:
+        defines.update(load_hook_file(o["shader"]).defines)
+    return defines
+
+
+#: Texture unit of each sampler of the frame pass (unit 0 is the equirect environment).
+FRAME_TEXTURE_UNITS = (("prefiltered", 1, "cube"), ("irradiance_cube", 2, "cube"), ("env_cube", 3, "cube"),
+                       ("dfg_lut", 4, "2d"), ("kd_lut", 5, "2d"))
+
+
+def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
+    """Bind the frame pass's inputs and outputs and set its uniforms.
+
+    Returns the GL objects to release after the frame: the object and light buffers, then the colour,
+    AOV and object-index output images.
+    """
+    ctx = get_context()
+    W, H = scene.camera.width, scene.camera.height
+    objs = ctx.buffer(_object_buffer(scene).tobytes())
+    lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
+    lbuf = ctx.buffer(lights.tobytes())
+    objs.bind_to_storage_buffer(0)
+    lbuf.bind_to_storage_buffer(1)
+    out_color = ctx.texture((W, H), 4, dtype="f4")
+    out_aov = ctx.texture((W, H), 4, dtype="f4")
+    out_obj = ctx.texture((W, H), 1, dtype="f4")
+    out_color.bind_to_image(0, read=False, write=True, level=0)
+    out_aov.bind_to_image(1, read=False, write=True, level=0)
+    out_obj.bind_to_image(2, read=False, write=True, level=0)
+    _bind_env(prog, env_texture(env), env, 0)
+    for name, unit, kind in FRAME_TEXTURE_UNITS:
+        tex = textures[name]
+        (tex if tex is not None else _dummy(kind)).use(unit)
+        _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
+    if o["irradiance"] == "sh9":
+        prog["sh"].write(np.asarray(sh, np.float32).tobytes())  # KeyError here: the uniform was renamed
+    r, u, f = camera_frame(scene.camera)
+    tx, ty = tan_half_fov(scene.camera)
+    _set(prog, "n_objects", len(scene.objects))
+    _set(prog, "n_lights", len(scene.lights))
+    _set(prog, "cam_origin", tuple(float(x) for x in scene.camera.origin))
+    _set(prog, "cam_right", tuple(float(x) for x in r * tx))
+    _set(prog, "cam_up", tuple(float(x) for x in u * ty))
+    _set(prog, "cam_forward", tuple(float(x) for x in f))
+    _set(prog, "image_size", (W, H))
+    _set(prog, "ss", int(o["supersample"]))
+    for name, value in (("max_lod", float(o["prefilter_levels"] - 1)),
+                        ("cube_log2", float(math.log2(o["cube_size"]))),
+                        ("env_face_size", float(o["cube_size"])),
+                        ("runtime_samples", int(o["runtime_samples"])),
+                        ("lod_override", float(o["lod_override"]))):
+        _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
+    _set(prog, "min_roughness", float(o["min_roughness"]))
+    return objs, lbuf, out_color, out_aov, out_obj
+
+
+def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, cached_before: set,
+                fmt: str, warnings: list, hooks=None) -> dict:
+    """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
+    shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
+    cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
+                                   ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
+                    if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
+    return {
+        "renderer": "realtime",
+        "gl_renderer": renderer_name(),
+        "timing_clock": timing_clock(),
+        "preset": preset,
+        "options": json.dumps(o, sort_keys=True),
+        "terms": json.dumps(terms, sort_keys=True),
+        "timings": json.dumps(timings, sort_keys=True),
+        "cached_passes": json.dumps(cached),
+        "cube_format_used": fmt,
+        "warnings": json.dumps(warnings),
+        "scene": scene.name,
+        "shader": json.dumps({"path": hooks.path, "sha256": hooks.sha256, "hooks": list(hooks.hooks)}
+                             if hooks else None),
+        "conventions": json.dumps({
+            "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
+            "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
+            "prefilter_levels": o["prefilter_levels"],
+            "irradiance": "E(n)/pi",
+            "aovs": "N, NdotV, object at the pixel centre ray; coverage over the s x s samples",
+        }),
+    }
+
+
 def render_realtime(scene: Scene, preset: str = "default", options: dict | None = None, *,
                     progress: bool = True) -> Image:
     """Render ``scene`` with ``preset`` and option overrides; returns R, G, B and the AOVs.
@@ -415,7 +538,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     """
     o = resolve_options(preset, options)
     ctx = get_context()
-    terms = resolved_terms(scene, o)
+    terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
     warnings = []
@@ -449,57 +572,15 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         kd = kd_lut(o["lut_size"], timings)
         bar.update(1, "kd_lut")
 
-        shading = o["shading"]  # its combination with ibl is checked by resolve_options
-        fm = fitted_mapping(o["lod_mapping"])
-        defines = {
-            **SHADINGS.select(shading), **NDFS.select(terms["ndf"]), **GEOMETRIES.select(terms["geometry"]),
-            **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
-            **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
-            **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
-            "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
-            "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
-        }
-        if fm is not None:
-            defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
+        defines = frame_defines(o, terms)
+        hooks = load_hook_file(o["shader"]) if o["shader"] else None
         t0 = time.perf_counter()
-        prog = compute_program("render.comp", defines)
+        prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
         timings["compile_frame"] = time.perf_counter() - t0
 
-        objs = ctx.buffer(_object_buffer(scene).tobytes())
-        lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
-        lbuf = ctx.buffer(lights.tobytes())
-        objs.bind_to_storage_buffer(0)
-        lbuf.bind_to_storage_buffer(1)
-        out_color = ctx.texture((W, H), 4, dtype="f4")
-        out_aov = ctx.texture((W, H), 4, dtype="f4")
-        out_obj = ctx.texture((W, H), 1, dtype="f4")
-        out_color.bind_to_image(0, read=False, write=True, level=0)
-        out_aov.bind_to_image(1, read=False, write=True, level=0)
-        out_obj.bind_to_image(2, read=False, write=True, level=0)
-        _bind_env(prog, env_texture(env), env, 0)
-        for unit, name, tex, kind in ((1, "prefiltered", pre, "cube"), (2, "irradiance_cube", irr, "cube"),
-                                      (3, "env_cube", cube, "cube"), (4, "dfg_lut", lut, "2d"), (5, "kd_lut", kd, "2d")):
-            (tex if tex is not None else _dummy(kind)).use(unit)
-            _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
-        if o["irradiance"] == "sh9":
-            prog["sh"].write(np.asarray(sh, np.float32).tobytes())  # KeyError here: the uniform was renamed
-        r, u, f = camera_frame(scene.camera)
-        tx, ty = tan_half_fov(scene.camera)
-        _set(prog, "n_objects", len(scene.objects))
-        _set(prog, "n_lights", len(scene.lights))
-        _set(prog, "cam_origin", tuple(float(x) for x in scene.camera.origin))
-        _set(prog, "cam_right", tuple(float(x) for x in r * tx))
-        _set(prog, "cam_up", tuple(float(x) for x in u * ty))
-        _set(prog, "cam_forward", tuple(float(x) for x in f))
-        _set(prog, "image_size", (W, H))
-        _set(prog, "ss", int(o["supersample"]))
-        for name, value in (("max_lod", float(o["prefilter_levels"] - 1)),
-                            ("cube_log2", float(math.log2(o["cube_size"]))),
-                            ("env_face_size", float(o["cube_size"])),
-                            ("runtime_samples", int(o["runtime_samples"])),
-                            ("lod_override", float(o["lod_override"]))):
-            _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
-        _set(prog, "min_roughness", float(o["min_roughness"]))
+        buffers = _bind_frame(prog, scene, o, env, {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube,
+                                                     "dfg_lut": lut, "kd_lut": kd}, sh)
+        out_color, out_aov, out_obj = buffers[2:]
 
         def frame():
             prog.run(groups(W, 8), groups(H, 8), 1)
@@ -515,34 +596,45 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         color = np.frombuffer(out_color.read(), np.float32).reshape(H, W, 4).copy()
         aov = np.frombuffer(out_aov.read(), np.float32).reshape(H, W, 4).copy()
         obj = np.frombuffer(out_obj.read(), np.float32).reshape(H, W).copy()
-        for t in (objs, lbuf, out_color, out_aov, out_obj):
+        for t in buffers:
             t.release()
 
-    cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
-                                   ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
-                    if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
-    meta = {
-        "renderer": "realtime",
-        "gl_renderer": renderer_name(),
-        "timing_clock": timing_clock(),
-        "preset": preset,
-        "options": json.dumps(o, sort_keys=True),
-        "terms": json.dumps(terms, sort_keys=True),
-        "timings": json.dumps(timings, sort_keys=True),
-        "cached_passes": json.dumps(cached),
-        "cube_format_used": fmt,
-        "warnings": json.dumps(warnings),
-        "scene": scene.name,
-        "conventions": json.dumps({
-            "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
-            "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
-            "prefilter_levels": o["prefilter_levels"],
-            "irradiance": "E(n)/pi",
-            "aovs": "N, NdotV, object at the pixel centre ray; coverage over the s x s samples",
-        }),
-    }
     return Image({
         "R": color[..., 0], "G": color[..., 1], "B": color[..., 2],
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
-    }, meta)
+    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks))
+
+
+#: Cache kinds whose key's second element is an environment's content hash.
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irr", "sh9", "pre")
+
+
+def trim_environment_caches(keep: int) -> int:
+    """Free what this process baked for all but the ``keep`` most recently first-seen environments
+    (their textures, cubes, SH coefficients and loaded maps); returns how many were freed.
+
+    Every environment's bakes stay in this process's cache for the next render (about 30 MiB per
+    1k x 512 map with the default preset), so a process that renders a long corpus calls this
+    between renders (:func:`compare.renderers.trim_caches`) to keep its memory bounded. GL objects
+    are released explicitly (moderngl does not free them when they are dropped)."""
+    order: list[str] = []
+    for k in _cache:
+        if isinstance(k, tuple) and k[0] in ENVIRONMENT_CACHE_KINDS and k[1] not in order:
+            order.append(k[1])
+    drop = set(order[:max(len(order) - keep, 0)])
+    if not drop:
+        return 0
+    for k in list(_cache):
+        if not isinstance(k, tuple):
+            continue
+        env_bake = k[0] in ENVIRONMENT_CACHE_KINDS and k[1] in drop
+        env_map = k[0] == "envmap" and getattr(_cache[k], "content_hash", None) in drop
+        if env_bake or env_map:
+            v = _cache.pop(k)
+            _timings.pop(k, None)
+            for obj in (v if isinstance(v, tuple) else (v,)):
+                release = getattr(obj, "release", None)
+                if callable(release):
+                    release()
+    return len(drop)

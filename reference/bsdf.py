@@ -7,7 +7,8 @@ cited there)::
     f(l, v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
 
 with ``D`` one of D_GGX [Walter07 eq. 33], D_Beckmann [Walter07 eq. 25], D_BlinnPhong [Walter07
-eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithGGX
+eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithBeckmannCorrelated [Heitz14 eq. 99 with
+eq. 80], G_SmithGGX
 [Heitz14 eq. 98 with eq. 43/72], G_SchlickGGX with k = alpha/2 (ibl) or (roughness+1)^2/8 (direct)
 [Karis13 eq. 4]; ``F`` F_Schlick [Schlick94 eq. 15] or ``none`` (F = 1, so the diffuse (1 - F)
 term vanishes). All computations are in the local shading frame (n = +Z), where the NDFs are written
@@ -35,6 +36,10 @@ sampled as the mirror direction with discrete probability ``P_spec`` and weight
 v.h = n.v); ``eval``/``pdf`` then return the diffuse lobe only (a delta cannot be evaluated). The
 choice is made from the roughness in the scene (and re-made in ``parameters_changed``).
 
+Multiple scattering: ``multiscatter = "random_walk"`` (props ``multiscatter``, ``multiscatter_seed``)
+routes the non-delta specular lobe through :mod:`reference.multiscatter` (two hooks: ``_eval_pdf``
+adds the walk's orders >= 2 and its approximate pdf, ``sample`` samples the walk).
+
 Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``) are exposed
 by ``traverse``; ``parameters_changed`` makes them opaque (``dr.make_opaque``) so a new value does not
 rebuild the kernel.
@@ -46,7 +51,9 @@ import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
-from pbrcheck.scene import FRESNELS, GEOMETRIES, NDFS
+from pbrcheck.scene import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS
+
+from . import multiscatter
 
 import drjit as dr
 import mitsuba as mi
@@ -119,9 +126,23 @@ def G1_SchlickGGX(c, k):
     return c / dr.maximum(c * (1.0 - k) + k, COS_EPS)
 
 
+def Lambda_Beckmann(c, alpha):
+    """Smith Lambda of Beckmann for the cosine ``c`` in [0, 1] ([Heitz14] eq. 80; the stable form
+    of :func:`reference.multiscatter.lambda_beckmann_a`, which the random walk uses too)."""
+    s = dr.sqrt(dr.maximum(1.0 - c * c, 0.0))
+    return multiscatter.lambda_beckmann_a(dr.maximum(c, COS_EPS) / dr.maximum(alpha * s, 1e-30))
+
+
+def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
+    g = 1.0 / (1.0 + Lambda_Beckmann(NoV, alpha) + Lambda_Beckmann(NoL, alpha))
+    return dr.select((NoV > 0) & (NoL > 0), g, 0.0)
+
+
 def geometry_term(geometry, NoV, NoL, roughness, alpha):
     NoV = dr.clip(NoV, 0.0, 1.0)
     NoL = dr.clip(NoL, 0.0, 1.0)
+    if geometry == "smith_beckmann_correlated":
+        return G_SmithBeckmannCorrelated(NoV, NoL, alpha)
     if geometry == "smith_ggx_correlated":
         return G_SmithGGXCorrelated(NoV, NoL, alpha)
     if geometry == "smith_ggx":
@@ -174,6 +195,12 @@ class PBRMaterial(mi.BSDF):
         self.fresnel = str(get("fresnel", "schlick"))
         if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
             raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
+        # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
+        self.multiscatter = str(get("multiscatter", "none"))
+        self.ms_seed = int(get("multiscatter_seed", 0))
+        if self.multiscatter not in MULTISCATTERS:
+            raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
+        multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
         self._update()
 
     # ---- parameters ------------------------------------------------------------------------
@@ -286,7 +313,11 @@ class PBRMaterial(mi.BSDF):
             D = NDF[self.ndf](h, alpha)
             G = geometry_term(self.geometry, NoV, NoL, self.roughness, alpha)
             value += F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
-            pdf += p_spec * self._spec_pdf(wi, wo, h, alpha)
+            spec_pdf = self._spec_pdf(wi, wo, h, alpha)
+            if self.multiscatter != "none":  # hook: the walk's orders >= 2, approximate pdf
+                ms, spec_pdf = multiscatter.eval_pdf_hook(self, si, wo, spec_pdf, alpha, F0, valid)
+                value += ms
+            pdf += p_spec * spec_pdf
         return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
 
     # ---- the BSDF interface -------------------------------------------------------------------
@@ -300,6 +331,8 @@ class PBRMaterial(mi.BSDF):
         return self._eval_pdf(si, wo, active)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
+        if self.multiscatter != "none" and not self.delta:  # hook: the random walk's sampling
+            return multiscatter.sample_hook(self, ctx, si, sample1, sample2, active)
         wi = si.wi
         NoV = mi.Frame3f.cos_theta(wi)
         active = mi.Bool(active) & (NoV > 0)
@@ -360,4 +393,5 @@ def material_dict(material, brdf) -> dict:
     """Mitsuba dict of a :class:`pbrcheck.scene.Material` under a :class:`pbrcheck.scene.BRDFModel`."""
     return {"type": PLUGIN_NAME, "base_color": list(material.base_color), "metallic": material.metallic,
             "roughness": material.roughness, "specular": material.specular,
-            "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel}
+            "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
+            "multiscatter": brdf.multiscatter}

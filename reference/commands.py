@@ -1,4 +1,5 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``reference`` and ``bench reference``."""
+"""CLI subcommands of this package (registered by pbrcheck.cli): ``reference``, ``bench reference``
+and ``bench multiscatter``."""
 
 from __future__ import annotations
 
@@ -32,6 +33,14 @@ def _cmd_bench(args) -> int:
     return 0
 
 
+def _cmd_bench_multiscatter(args) -> int:
+    from .multiscatter_measure import bench_multiscatter
+
+    print(json.dumps(bench_multiscatter(lanes=args.lanes, roughness=args.roughness, mu=args.nov), indent=2))
+    sys.stdout.flush()
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add this package's subcommands to the ``pbrcheck`` parser."""
     s = sub.add_parser("reference", help="render the Mitsuba 3 reference image of a scene (EXR)")
@@ -49,3 +58,10 @@ def register(sub, bench_sub) -> None:
     b = bench_sub.add_parser("reference", help="reference throughput against Mitsuba's path, integrator efficiency, BSDF speed, seconds to the 10x noise floor (JSON, with goals)")
     b.add_argument("--quick", action="store_true", help="smaller sizes (for tests)")
     b.set_defaults(func=_cmd_bench)
+
+    b = bench_sub.add_parser("multiscatter", help="BSDF samples per second: random_walk against single "
+                                                  "scattering, in one run (JSON)")
+    b.add_argument("--lanes", type=positive_int(1), default=1 << 20, help="samples per launch (default 2^20)")
+    b.add_argument("--roughness", type=float, default=0.5, help="roughness (default 0.5)")
+    b.add_argument("--nov", type=float, default=0.5, help="n.v of the incident direction (default 0.5)")
+    b.set_defaults(func=_cmd_bench_multiscatter)

@@ -69,3 +69,17 @@ def test_tonemap_aces_known_values():
     y = tonemap_aces(x)[:, 0]
     assert y[0] == pytest.approx(0.0, abs=1e-3) and y[-1] == pytest.approx(1.0, abs=0.02)
     assert np.all(np.diff(y) >= -1e-12)
+
+
+def test_every_python_package_is_in_the_distribution():
+    """pyproject lists its packages explicitly: a new sub-package missing there imports fine from an
+    editable checkout but is absent from a wheel (compare.research and compare.report once were)."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(root).parts)
+             for top in ("pbrcheck", "reference", "realtime", "compare", "clients")
+             for p in (root / top).rglob("__init__.py") if "node_modules" not in p.parts}
+    assert found - listed == set(), f"packages missing from pyproject.toml: {sorted(found - listed)}"

@@ -190,6 +190,10 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
     assert conv and conv[-1] < chosen and set(conv) <= set(fakes["reference"])
     assert f"{chosen} spp: noise floor" in html
     assert data["presets"]["cheap"]["metrics"]["relmse"] > data["presets"]["default"]["metrics"]["relmse"]
+    # the page opens with the summary (one row per renderer and scene), then the furnace per renderer
+    assert html.index('id="summary"') < html.index('id="furnace-per-renderer"') < html.index('id="tiny"')
+    summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
+    assert summary.count("<tr>") == 1 + 2 and "delta_e_itp_mean" in summary and "timed on" in summary
 
 
 def test_sweep_writes_table_and_pareto_plot(fakes, scene_file, tmp_path, capsys):

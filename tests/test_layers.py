@@ -1,6 +1,6 @@
 """The layer rule, read from the source: every module's imports (ast), module-level and local.
 
-Layers, lowest first: core ``pbrcheck`` (0) <- renderers ``reference``, ``realtime`` (1) <- the
+Layers, lowest first: core ``pbrcheck`` (0) <- renderers ``reference``, ``realtime``, ``clients`` (1) <- the
 comparator ``compare`` (2) <- ``compare.research`` (3) <- ``compare.report`` (4) <- the CLI
 (``pbrcheck.cli``, the one module allowed to import upward). A module may import its own layer and
 the layers below it; the two renderers never import each other. Any import cycle between modules
@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("pbrcheck", "reference", "realtime", "compare")
+PACKAGES = ("pbrcheck", "reference", "realtime", "clients", "compare")
 #: The only module that may import every layer.
 ENTRY = "pbrcheck.cli"
 
@@ -32,6 +32,8 @@ def layer(module: str) -> tuple[int, str]:
         return 1, "reference"
     if module.startswith("realtime"):
         return 1, "realtime"
+    if module.startswith("clients"):
+        return 1, "clients"
     return 0, "core"
 
 

@@ -56,7 +56,8 @@ def sections(tmp_path_factory):
     scene = d / "tinygrid.toml"
     scene.write_text(SCENE)
     st = ResearchSettings(fitlod_size=24, fitlod_spp=16, explain_size=24, explain_spp=16, fitrough_size=16,
-                          fitrough_iterations=5, options=OPTS, samples_scale=1 / 16, cube_max=32)
+                          fitrough_iterations=5, options=OPTS, samples_scale=1 / 16, cube_max=32,
+                          energy_samples=1024, energy_spp=8, energy_size=12, energy_scenes=("furnace",))
     out = d / "research"
     secs = research_sections(str(scene), out, ["default"], report_spp=16, st=st)
     return out, secs
@@ -64,13 +65,13 @@ def sections(tmp_path_factory):
 
 def test_three_sections_with_their_files(sections):
     out, secs = sections
-    assert [s.id for s in secs] == ["fit-lod", "explain-default", "fit-roughness"]
+    assert [s.id for s in secs] == ["fit-lod", "explain-default", "fit-roughness", "energy"]
     for s in secs:
         assert s.tables and all(t.rows for t in s.tables)
         for im in s.images:
             assert (out.parent / im["src"]).is_file(), im
     for f in ("fit_lod.json", "fit_lod.glsl", "fit_lod.png", "explain_default.json", "explain_default.md",
-              "fit_roughness.json", "fit_roughness.png"):
+              "fit_roughness.json", "fit_roughness.png", "energy.json", "energy.md", "energy.png"):
         assert (out / f).is_file(), f
 
 

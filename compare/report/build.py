@@ -8,6 +8,7 @@ sets ``data-images-ok`` on ``<body>``) are inline.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import math
 from dataclasses import dataclass
@@ -24,15 +25,25 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
 from .. import renderers
+from ..corpus import renderlist
+from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
+from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import VerdictSpp, reference_for_verdict
+from .references import references_sections
 from .research_sections import research_sections
 from .section import Section, Table
+from .summary import furnace_section, summary_section
+from .summary import timed_on as timed_on_text
 from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
                     write_table)
 
+#: Most samples per pixel of diagnose's scene-space re-renders for an external renderer (10 re-renders
+#: per renderer and scene; the hypotheses' errors are orders of magnitude above 64-spp noise, and
+#: diagnose subtracts the re-renders' own variance).
+DIAGNOSE_SPP = 64
 #: Reference spp fractions for the convergence study (error of a lower-spp render with another
 #: seed against the full reference).
 CONVERGENCE_FRACTIONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2)
@@ -194,6 +205,17 @@ object pixels in both images) and RGB; definitions in <code>docs/compare.md</cod
 each renderer's own display transform where its preset has one (tone map, exposure: analytic_mobile
 uses article 002's ACES fit), otherwise (and for the reference) through a filmic curve; every metric
 is computed on linear radiance, before any display transform.</p>
+{% macro section(x) %}
+<h2 id="{{ x.id }}">{{ x.title }}</h2>
+<p>{{ x.note }}</p>
+{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
+<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
+{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+{% endfor %}
+{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
+{% endfor %}
+{% endmacro %}
+{% for x in top %}{{ section(x) }}{% endfor %}
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
@@ -209,6 +231,7 @@ is computed on linear radiance, before any display transform.</p>
 <figure><img class="img" src="{{ r.flip_png }}" alt="FLIP map"><figcaption>HDR-FLIP (0..1, magma)</figcaption></figure>
 <figure><img class="img" src="{{ r.rel_png }}" alt="relative error"><figcaption>|t-r|/(r+0.01), max RGB (0..1, inferno)</figcaption></figure>
 </div>
+{% if r.diagnosis %}<p>Convention check (<code>pbrcheck diagnose</code>): {{ r.diagnosis }}{% if r.diagnosis_json %} (<a href="{{ r.diagnosis_json }}">every hypothesis</a>){% endif %}.</p>{% endif %}
 {% endfor %}
 <h3>Metrics per preset</h3>
 <table><tr><th class="l">preset</th>{% for m in metric_names %}<th>{{ m }}</th>{% endfor %}<th>precompute (s)</th><th>frame (s)</th><th>valid / edge / bg px</th></tr>
@@ -225,16 +248,7 @@ is computed on linear radiance, before any display transform.</p>
 <h3>Provenance</h3>
 <table>{% for k, v in s.provenance %}<tr><th class="l">{{ k }}</th><td class="l"><code>{{ v }}</code></td></tr>{% endfor %}</table>
 {% endfor %}
-{% for x in extras %}
-<h2 id="{{ x.id }}">{{ x.title }}</h2>
-<p>{{ x.note }}</p>
-{% for t in x.tables %}{% if t.caption %}<h3>{{ t.caption }}</h3>{% endif %}
-<table><tr>{% for h in t.headers %}<th class="l">{{ h }}</th>{% endfor %}</tr>
-{% for row in t.rows %}<tr>{% for c in row %}<td class="l">{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
-{% endfor %}
-{% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
-{% endfor %}
-{% endfor %}
+{% for x in extras %}{{ section(x) }}{% endfor %}
 </body></html>
 """
 
@@ -254,6 +268,7 @@ class ReportSettings:
     vary: dict | None = None
     convergence: bool = True
     sweep: bool = True
+    executor: object = None  # --scheduler: renders of presets and sweep run as its tasks
     #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the
     #: least; None: as many as fit in ``DEFAULT_TIME_BUDGET_S`` of rendering per scene.
     spp_cap: int | None = None
@@ -273,6 +288,10 @@ class PresetResult:
     flip_png: str
     rel_png: str
     mse: float
+    timed_on: str = ""
+    space: str = "linear"
+    diagnosis: str = ""       # external renderers: pbrcheck diagnose's verdict line
+    diagnosis_json: str = ""  # ... and its table (JSON, relative to the report)
 
 
 @dataclass
@@ -317,8 +336,20 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str, img=None) -> tu
     res = PresetResult(preset, cmp.metrics, cmp.summary["pixels"],
                        {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                        f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
-                       (cmp.metrics["rmse"] or 0.0) ** 2)
+                       (cmp.metrics["rmse"] or 0.0) ** 2, timed_on_text(img.meta), cmp.summary["space"])
+    if renderers.is_external(preset):
+        res.diagnosis, res.diagnosis_json = _diagnose(scene, ref, img, sd, sid, p, res.space)
     return res, cmp, img
+
+
+def _diagnose(scene, ref, img, sd: Path, sid: str, p: str, space: str) -> tuple[str, str]:
+    """Run :func:`compare.research.diagnose.diagnose` on an external renderer's image (scene-space
+    hypotheses re-rendered at :data:`DIAGNOSE_SPP` at most); returns its line and its JSON's path."""
+    if space != "linear":
+        return "not run: the renderer's output is display-referred (png-srgb)", ""
+    d = diagnose(ref, img, scene, spp=min(int(ref.meta.get("spp", DIAGNOSE_SPP)), DIAGNOSE_SPP))
+    write_json_atomic(sd / f"diagnose_{p}.json", d)
+    return d.line, f"{sid}/diagnose_{p}.json"
 
 
 def _convergence(scene, ref, spp: int, prog) -> list[dict]:
@@ -345,7 +376,10 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     sd.mkdir(parents=True, exist_ok=True)
     # The renderers under test first: the reference's spp is chosen so that its noise floor sits
     # NOISE_FLOOR_FACTOR below the smallest of their errors (compare.verdict_spp), at most spp_cap.
-    images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
+    if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
+        images = dict(zip(st.presets, renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets])))
+    else:
+        images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
     ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
     prog.update(1, f"{scene.name}: reference ({verdict.spp} spp)")
     write_tonemapped(sd / "reference.png", ref.rgb)
@@ -365,6 +399,8 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
+        if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
+            provenance.append((f"real-time {preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
     plots = []
     m = plot_materials(sd / "materials.png", scene, objs)
@@ -377,7 +413,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     combos = combinations(st.vary) if st.vary else (default_sweep(st.presets[0]) if st.sweep else [])
     sweep_table = []
     if combos:
-        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog)
+        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog, executor=st.executor)
         write_table(sd, srows, sorted({k for c in combos for k in c}))
         for r in srows:
             label = ",".join(f"{k}={v}" for k, v in r["options"].items())
@@ -419,7 +455,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
                  spp: int = 64, vary: list[str] | None = None, convergence: bool = True,
                  spp_cap: int | None = None,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
-                 research: bool = False, extras: list[Section] | None = None) -> Path:
+                 research: bool = False, extras: list[Section] | None = None, furnace: bool = True,
+                 scheduler: str | None = None) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
@@ -432,7 +469,11 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     its JSON and table go to ``out_dir/hardcases``). ``research``: add the LOD fit (before / after),
     the error decomposition and the apparent-roughness sections for the first scene
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
-    :class:`~compare.report.section.Section` s.
+    :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
+    renderer and scene) and, with ``furnace``, the white furnace per renderer
+    (:mod:`compare.report.summary`), then every external renderer against both the single-scattering
+    and the random-walk reference (:mod:`compare.report.references`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
+    and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
 
     Raises
     ------
@@ -453,16 +494,22 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         renderers.resolve_options(p, {})
     for combo in combinations(vary_d) if vary_d else []:
         renderers.resolve_options(presets[0], combo)
+    spec = parse_scheduler(scheduler) if scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     n_conv = len(_convergence_spps(spp)) if convergence else 0  # at the least spp (progress only)
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
-    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep)
+    total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
+    total += len(scenes) * sum(renderers.is_external(p) for p in presets)  # both references per ext:NAME
     sections = []
-    st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, None if spp_cap is None else int(spp_cap))
-    with Progress("report", total=total, enabled=progress) as prog:
+    with Progress("report", total=total, enabled=progress) as prog, \
+            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
+        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
+                            spp_cap=None if spp_cap is None else int(spp_cap))
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
+        top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
+        top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
     extras = list(extras or [])
     if research:
         # at the first scene's trusted-verdict spp (the reference its sections compare against)
@@ -472,7 +519,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=sections, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
     write_text_atomic(index, page)

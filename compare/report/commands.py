@@ -3,22 +3,36 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
 from pbrcheck.scene import DEFAULT_SCENE
+from realtime.presets import SHADER_SEP
+
+from .. import renderers
 
 from . import demo
+from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
+from .corpus_section import corpus_section
 from .sweep import parse_vary, run_sweep
 
 
 def _cmd_report(args) -> int:
-    out = build_report(args.scenes or [DEFAULT_SCENE], presets=split_list(args.presets), out_dir=Path(args.out),
+    presets = split_list(args.presets)
+    if args.shader:  # each hook file as one more renderer: the default preset with the hooks
+        presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
+    # Sections of finished corpora (read before anything is written); images linked relative to OUT.
+    extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
+              for d in args.corpus or []]
+    out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
+                       extras=extras,
                        spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
                        convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research)
+                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
+                       scheduler=args.scheduler)
     print(f"report: {out}")
     return 0
 
@@ -26,7 +40,7 @@ def _cmd_report(args) -> int:
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
     paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet)
+                      progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0
@@ -40,7 +54,10 @@ def register(sub, bench_sub) -> None:
     """Add ``report``, ``sweep`` and ``demo`` to the ``pbrcheck`` parser."""
     s = sub.add_parser("report", help="render, compare and write a static HTML accuracy report")
     s.add_argument("scenes", nargs="*", metavar="SCENE", help="built-in scene names or TOML paths (default: spheres)")
-    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
+    s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all); PRESET+FILE.glsl adds "
+                   "a shader hook file, ext:NAME an external renderer")
+    s.add_argument("--shader", action="append", metavar="FILE.glsl",
+                   help="also measure the default preset with this shader hook file (repeatable; docs/hooks.md)")
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
     s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
                    "are rendered until the reference's noise floor is 10x below the smallest error reported")
@@ -52,10 +69,14 @@ def register(sub, bench_sub) -> None:
                         "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
+    s.add_argument("--no-furnace", action="store_true", help="skip the white furnace per renderer")
     s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
+    s.add_argument("--corpus", action="append", metavar="DIR", help="add the section of a finished corpus "
+                   "(the --out folder of pbrcheck corpus; repeatable)")
     s.set_defaults(func=_cmd_report)
 
     s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
@@ -63,9 +84,12 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2",
                    help="real-time option and its values (repeatable; every combination is rendered)")
     s.add_argument("--preset", default="default", help="preset the variations start from")
+    s.add_argument("--with", dest="also", metavar="P,...",
+                   help="further renderers measured as they are on the same plot (presets or ext:NAME)")
     s.add_argument("--out", default="out/sweep", metavar="DIR")
     s.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default 64)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.set_defaults(func=_cmd_sweep)
 
 

@@ -1,4 +1,5 @@
-"""The report's research sections: LOD fit (before / after), error decomposition, apparent roughness.
+"""The report's research sections: LOD fit (before / after), error decomposition, apparent roughness,
+multiple-scattering energy compensations (``energy``).
 
 Each section runs the command of the same name (:mod:`compare.research.fit_lod`,
 :mod:`compare.research.explain`, :mod:`compare.research.fit_roughness`) on one scene at a reduced
@@ -24,6 +25,7 @@ from pbrcheck.scene import load_scene
 from .. import renderers
 from ..maps import pyplot, save_figure
 from ..metrics import compare_images
+from ..research import energy as _energy
 from ..research.explain import COMBINED_LABELS, PRIMARY, run_explain, write_explain
 from ..research.fit_lod import run_fit_lod
 from ..research.fit_roughness import run_fit_roughness
@@ -49,6 +51,11 @@ class ResearchSettings:
     #: explain's exact counterparts at this fraction of their sample counts (1 in the report)
     samples_scale: float = 1.0
     cube_max: int = 512
+    #: energy: walks per albedo grid point, the images' reference spp, height and scenes.
+    energy_samples: int = 1 << 16
+    energy_spp: int = 128
+    energy_size: int = 64
+    energy_scenes: tuple = ("furnace", "spheres")
 
 
 def _fmt(v) -> str:
@@ -231,14 +238,59 @@ def _r_star(objs: list[ApparentRoughness]) -> str:
     return txt
 
 
+def energy_section(out_dir: Path, *, preset: str = "default", st: ResearchSettings = ResearchSettings(),
+                   progress: bool = False) -> Section:
+    """``pbrcheck energy``: every energy compensation against the reference's random walk (albedo
+    grid, furnace and spheres images against both references)."""
+    res = _energy.run_energy(samples=st.energy_samples, scenes=st.energy_scenes, preset=preset,
+                             options=dict(st.options), spp=st.energy_spp, size=st.energy_size, out_dir=out_dir,
+                             progress=progress)
+    paths = _energy.write_energy(res, out_dir)
+    t_sum = Table(f"Directional albedo (specular, grey F0) against the random walk: {len(res.roughness)} roughness "
+                  f"x {len(res.f0)} F0 x {len(res.nov)} n.v, {res.samples} walks each",
+                  ["compensation", "max abs error", "mean abs error", "mean signed error", "worst (r, F0, n.v)"],
+                  [[x.compensation, _fmt(x.max_abs), _fmt(x.mean_abs), _fmt(x.mean_signed),
+                    f"{x.worst['roughness']:.3g}, {x.worst['f0']:.3g}, {x.worst['nov']:.3g}: {_fmt(x.worst['error'])}"]
+                   for x in res.summaries])
+    t_rough = Table("Max |albedo error| per roughness (over F0 and n.v)",
+                    ["roughness", *[x.compensation for x in res.summaries]],
+                    [[f"{r:.3g}", *[_fmt(x.max_abs_per_roughness[i]) for x in res.summaries]]
+                     for i, r in enumerate(res.roughness)])
+    metrics = _energy.IMAGE_METRICS
+    t_img = Table(f"Images ({preset}, {st.energy_spp}-spp references, height {st.energy_size}): against the "
+                  f"random_walk reference | against the single-scattering reference",
+                  ["scene", "render", *[f"{m} (walk)" for m in metrics], *[f"{m} (single)" for m in metrics]],
+                  [[r.scene, r.compensation, *[_fmt(r.vs_random_walk.get(m)) if r.vs_random_walk else "-" for m in metrics],
+                    *[_fmt(r.vs_single.get(m)) if r.vs_single else "-" for m in metrics]] for r in res.images])
+    tables = [t_sum, t_rough, t_img]
+    fr = [r for r in res.images if r.sphere_means]
+    if fr:
+        tables.append(Table("Furnace: mean radiance of each sphere (white metal in a white environment: 1 is exact)",
+                            ["render", *[f"sphere {k}" for k in range(len(fr[0].sphere_means))]],
+                            [[r.compensation, *[_fmt(v) for v in r.sphere_means]] for r in fr]))
+    images = [{"title": "Albedo against the random walk", "src": f"research/{paths['plot'].name}"}]
+    images += [{"title": f"{r.scene}: {r.compensation}", "src": f"research/{r.png}"} for r in res.images if r.png]
+    return Section("energy", "Multiple scattering: energy compensations against the random walk",
+                   (f"pbrcheck energy --samples {st.energy_samples} --spp {st.energy_spp} --size {st.energy_size}: "
+                    f"the truth is the reference's multiple-scattering random walk (Heitz et al. 2016, "
+                    f"[brdf] multiscatter = random_walk). Albedo: each compensation's formula (pbrcheck/energy.py) "
+                    f"on the exact DFG terms, against the walk's mean throughput. Images: the real-time preset "
+                    f"with each energy_compensation against both references; an engine's 'error' against the "
+                    f"single-scattering reference is partly the reference's missing physics. Lowest mean "
+                    f"albedo error: {res.best()}. Files: research/energy.json, energy.md, energy.png."),
+                   tables, images)
+
+
 def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: int,
                       st: ResearchSettings = ResearchSettings(), progress: bool = False) -> list[Section]:
-    """The three research sections for ``scene_name`` (files under ``out_dir``)."""
+    """The research sections for ``scene_name`` (files under ``out_dir``); ``energy`` is scene-independent."""
     out_dir.mkdir(parents=True, exist_ok=True)
     secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, st=st, progress=progress)]
     secs.append(explain_section(scene_name, out_dir, st=st, progress=progress))
     secs.append(fit_roughness_section(scene_name, out_dir, presets, st=st, progress=progress))
+    secs.append(energy_section(out_dir, st=st, progress=progress))
     return secs
 
 
-__all__ = ["ResearchSettings", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section"]
+__all__ = ["ResearchSettings", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section",
+           "energy_section"]

@@ -2,11 +2,12 @@
 reference, tabulate precompute time, frame time and every metric, and plot the Pareto front.
 
 ``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
-seconds), split by :func:`split_timings`.
+seconds), split by :func:`compare.timings.split_timings`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import itertools
@@ -20,15 +21,11 @@ from pbrcheck.progress import Progress
 from pbrcheck.scene import load_scene
 
 from .. import renderers
+from ..corpus import renderlist
+from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
-
-#: Timing keys (substrings) that belong to the per-frame cost; every other pass is precompute
-#: (prefiltering, irradiance, LUT, shader compile...). An explicit ``frame``/``frame_s`` key wins.
-FRAME_KEYS = ("frame", "draw", "shade", "render")
-#: Timing keys that are totals of other keys and must not be summed again.
-TOTAL_KEYS = ("total",)
-
+from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -62,42 +59,6 @@ def parse_vary(items: list[str]) -> dict[str, list]:
     if not out:
         raise SweepError("--vary: at least one KEY=V1,V2,... is needed")
     return out
-
-
-def split_timings(timings: dict | None) -> tuple[float | None, float | None]:
-    """(precompute seconds, frame seconds) from a pass -> seconds dict (see :data:`FRAME_KEYS`)."""
-    if not timings:
-        return None, None
-    t = {k: float(v) for k, v in timings.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    for k in ("frame", "frame_s", "frame_seconds"):
-        if k in t:
-            frame = t[k]
-            pre = sum(v for kk, v in t.items() if kk != k and not any(x in kk.lower() for x in FRAME_KEYS + TOTAL_KEYS))
-            return pre, frame
-    frame = sum(v for k, v in t.items() if any(x in k.lower() for x in FRAME_KEYS)
-                and not any(x in k.lower() for x in TOTAL_KEYS))
-    pre = sum(v for k, v in t.items() if not any(x in k.lower() for x in FRAME_KEYS + TOTAL_KEYS))
-    return pre, frame
-
-
-def image_timings(img) -> tuple[float | None, float | None]:
-    """(precompute seconds, frame seconds) of a rendered image's ``timings`` metadata (None where absent)."""
-    try:
-        timings = img.meta_json("timings", {})
-    except (ValueError, TypeError):
-        timings = {}
-    return split_timings(timings if isinstance(timings, dict) else {})
-
-
-def timed_on(img) -> dict:
-    """``{"gl_renderer", "timing_clock"}`` of a real-time image's metadata (what its times mean)."""
-    return {"gl_renderer": img.meta.get("gl_renderer", "?"), "timing_clock": img.meta.get("timing_clock", "wall")}
-
-
-def timed_on_label(rows: list[dict]) -> str:
-    """``"on <GL renderer> (<clock>)"`` for the rows' timings ("" when no row says)."""
-    seen = sorted({(r["gl_renderer"], r.get("timing_clock", "wall")) for r in rows if r.get("gl_renderer")})
-    return "; ".join(f"on {g} ({c.replace('_', ' ')})" for g, c in seen)
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
@@ -156,8 +117,15 @@ def combinations(vary: dict[str, list]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
-def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``); one row each."""
+def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
+               executor=None) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``); one row each. With an
+    ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
+    (:func:`compare.corpus.renderlist.sweep_metrics`)."""
+    if executor is not None:
+        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
+        return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
+                 **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False)
@@ -187,9 +155,13 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 
 def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
-              spp: int = 64, progress: bool = True) -> dict[str, Path]:
+              spp: int = 64, progress: bool = True, also: list[str] | None = None,
+              scheduler: str | None = None) -> dict[str, Path]:
     """Render the reference and every combination of ``vary`` over ``preset``; write the table and
-    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
+    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``also``:
+    further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the same plot.
+    ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the combinations run there
+    (:mod:`compare.corpus.scheduler`).
 
     Raises
     ------
@@ -201,14 +173,22 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     scene = load_scene(scene_arg)
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)
-    n = math.prod(len(v) for v in vary.values())
-    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p:
+    also = list(also or [])
+    for other in also:
+        renderers.resolve_options(other, {})
+    n = math.prod(len(v) for v in vary.values()) + len(also)
+    spec = parse_scheduler(scheduler) if scheduler else None
+    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p, \
+            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
         p.update(1, "reference")
-        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p)
+        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p, executor=ex)
+        for other in also:
+            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
     keys = list(vary)
     paths = write_table(Path(out_dir), rows, keys)
     paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
-                                     lambda r: ",".join(f"{k}={r['options'][k]}" for k in keys),
+                                     lambda r: (",".join(f"{k}={r['options'][k]}" for k in keys)
+                                                if r["preset"] == preset else r["preset"]),
                                      f"{scene.name}: speed against error ({preset} + variations)")
     return paths

@@ -1,5 +1,5 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
-``fit-lod``, ``explain``, ``fit-roughness`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck.cli` maps them to exit codes."""
 
 from __future__ import annotations
@@ -11,9 +11,12 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.args import split_list
 from pbrcheck.scene import load_scene
-from realtime.presets import parse_sets
+from realtime.presets import overrides_from_args
 
-from . import explain, fit_lod, fit_roughness, hardcases
+from pbrcheck.environment import read_image_file
+from pbrcheck.exr import Image, read_exr
+
+from . import diagnose, energy, explain, fit_lod, fit_roughness, hardcases
 
 
 def _cmd_hardcases(args) -> int:
@@ -42,7 +45,7 @@ def _cmd_fit_lod(args) -> int:
         except ValueError:
             raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
     chains = split_list(args.chains) if args.chains else None
-    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size, out=Path(args.out), progress=not args.quiet,
                       **({"chains": chains} if chains else {}))
     print(fit_lod.table_markdown(res), end="")
@@ -51,7 +54,7 @@ def _cmd_fit_lod(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set), spp=args.spp,
+    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
                       size=args.size or None, fitted=args.fitted, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
@@ -60,12 +63,32 @@ def _cmd_explain(args) -> int:
 
 
 def _cmd_fit_roughness(args) -> int:
-    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=parse_sets(args.set),
+    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
                             size=args.size or None, iterations=args.iterations, spp=args.spp,
                             scan=not args.no_scan)
     out = write_json_atomic(args.out, res)
     print(fit_roughness.table_markdown(res), end="")
     print(f"json: {out}")
+    return 0
+
+
+def _read_image(path: str) -> Image:
+    """An EXR as pbrcheck writes it (AOVs and metadata kept), or any .exr/.hdr as plain RGB."""
+    p = Path(path)
+    if p.suffix.lower() == ".exr":
+        img = read_exr(p)
+        if img.has("R", "G", "B"):
+            return img
+    return Image.from_rgb(read_image_file(p)[..., :3])
+
+
+def _cmd_diagnose(args) -> int:
+    ref, test = _read_image(args.reference), _read_image(args.test)
+    scene = load_scene(args.scene) if args.scene else None
+    res = diagnose.diagnose(ref, test, scene, spp=args.spp, progress=not args.quiet)
+    print(diagnose.table_markdown(res), end="")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, res)}")
     return 0
 
 
@@ -76,12 +99,26 @@ def _cmd_bench_fit_roughness(args) -> int:
     return 0
 
 
+def _cmd_energy(args) -> int:
+    scenes = split_list(args.scenes) if args.scenes else list(energy.DEFAULT_SCENES)
+    out = Path(args.out)
+    res = energy.run_energy(samples=args.samples, seed=args.seed, images=not args.no_images, scenes=scenes,
+                            preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size or None,
+                            out_dir=out, progress=not args.quiet)
+    paths = energy.write_energy(res, out)
+    print(energy.table_markdown(res), end="")
+    for k, p in paths.items():
+        print(f"{k}: {p}")
+    return 0
+
+
 def _renderer_args(s, *, spp: int, size: int | None, size_help: str) -> None:
     """The arguments every research command shares: the scene, the renderer under test and its
     overrides, the reference spp and the image height."""
     s.add_argument("scene", help="built-in scene name or TOML path")
     s.add_argument("--preset", default="default", help="real-time preset (default: default)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
     s.add_argument("--spp", type=int, default=spp, help=f"samples per pixel (default {spp})")
     s.add_argument("--size", type=int, default=size, help=size_help)
 
@@ -128,6 +165,33 @@ def register(sub, bench_sub) -> None:
                    help="start Adam at each object's own roughness, without the starting scan (and no range)")
     s.add_argument("--out", default="out/fit_roughness.json", metavar="FILE.json")
     s.set_defaults(func=_cmd_fit_roughness)
+
+    s = sub.add_parser("diagnose", help="why do two images differ? rank known convention mismatches (flips, "
+                                        "sRGB, exposure, clamp, channel order, alpha; with --scene also the "
+                                        "environment's orientation, roughness, diffuse and light units)")
+    s.add_argument("reference", help="reference image (.exr, ideally pbrcheck's with variance and coverage)")
+    s.add_argument("test", help="image under test (.exr or .hdr, linear radiance)")
+    s.add_argument("--scene", help="the scene both show (enables the scene-space hypotheses)")
+    s.add_argument("--spp", type=int, default=None,
+                   help="spp of the re-rendered references (default: the reference's own)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the result as JSON")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_diagnose)
+
+    s = sub.add_parser("energy", help="multiple-scattering energy compensations against the reference's random "
+                                      "walk: directional albedo over roughness x F0 x n.v, furnace and spheres images")
+    s.add_argument("--samples", type=int, default=energy.DEFAULT_SAMPLES, help="walks per grid point (default 65536)")
+    s.add_argument("--seed", type=int, default=0, help="the walks' hash seed (default 0)")
+    s.add_argument("--scenes", metavar="S,...", help="scenes of the image comparison (default furnace,spheres)")
+    s.add_argument("--no-images", action="store_true", help="the albedo grid only")
+    s.add_argument("--preset", default="default", help="real-time preset of the images (default: default)")
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help="real-time option override (repeatable)")
+    s.add_argument("--shader", metavar="FILE.glsl", help="shader hook file for the real-time renderer (docs/hooks.md)")
+    s.add_argument("--spp", type=int, default=128, help="reference samples per pixel (default 128)")
+    s.add_argument("--size", type=int, default=64, help="image height (default 64; 0: the scene's own)")
+    s.add_argument("--out", default="out/energy", metavar="DIR", help="output directory (default out/energy)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_energy)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")

@@ -147,6 +147,11 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         r64 = ref.rgb.astype(np.float64)
         noise_relmse = float((np.clip(ref.variance, 0, None) / (r64 * r64 + REL_EPS))[valid].mean())
     rows = []
+    if renderers.is_external(preset):
+        # An external renderer (ext:NAME) has no options to swap for exact counterparts: its
+        # error against the reference is the whole result (the baseline).
+        return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
+                             baseline, noise_relmse, rows)
     srcs = sources(o, cube_max=cube_max, samples_scale=samples_scale, scene_ndf=scene.brdf.ndf)
     if o["ibl"] == "runtime":
         # Already runtime sampling: its exact counterpart is the same estimator at many samples in

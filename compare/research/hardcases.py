@@ -140,7 +140,10 @@ def _nonfinite(img) -> int:
 
 
 def small_cube_options(preset: str, cube_size: int) -> dict:
-    """Overrides that bake a ``cube_size`` cube for ``preset`` (mip count capped to fit)."""
+    """Overrides that bake a ``cube_size`` cube for ``preset`` (mip count capped to fit); none for an
+    external renderer (``ext:NAME`` takes no options)."""
+    if renderers.is_external(preset):
+        return {}
     o = renderers.resolve_options(preset, {})
     levels = min(o["prefilter_levels"], int(cube_size).bit_length())
     return {"cube_size": int(cube_size), "prefilter_levels": levels,

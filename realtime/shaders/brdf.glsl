@@ -2,6 +2,7 @@
 // tests/test_realtime_glsl.py runs both on the same grids. Cosines are clamped by the caller to
 // [0, 1]; alpha is the GGX width roughness^2.
 #include "common.glsl"
+#include "hooks.glsl"
 
 // Source: [Karis13] p. 3. Equation: alpha = roughness^2, clamped to MIN_ALPHA.
 float alpha_from_roughness(float roughness) {
@@ -75,6 +76,33 @@ float G_SmithGGXCorrelated(float NoV, float NoL, float alpha) {
     return 2.0 * v * l / max(den, COS_EPS);
 }
 
+// Source: Numerical Recipes in C (2nd ed.) sec. 6.2, erfcc (fractional error < 1.2e-7) without its
+// exp(-z^2) factor. Equation: erfcx(z) = exp(z^2) erfc(z) = t exp(P(t)), t = 1 / (1 + z / 2), z >= 0.
+float erfcx_nr(float z) {
+    float t = 1.0 / (1.0 + 0.5 * max(z, 0.0));
+    float p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
+        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
+        -0.82215223 + t * 0.17087277))))))));
+    return t * exp(p);
+}
+
+// Source: [Heitz14] eq. 80. Equation: Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)),
+// a = c / (alpha sqrt(1 - c^2)); computed as exp(-a^2) (1 / (a sqrt(pi)) - erfcx(a)) / 2 (no
+// cancellation of erf(a) - 1; GLSL has no erf).
+float Lambda_Beckmann(float NoX, float alpha) {
+    float c = clamp(NoX, COS_EPS, 1.0);
+    float s = sqrt(max(1.0 - c * c, 0.0));
+    float a = clamp(c / max(max(alpha, MIN_ALPHA) * s, 1e-30), 1e-20, 1e15);
+    return max(0.5 * exp(-a * a) * (0.5641895835 / a - erfcx_nr(a)), 0.0);
+}
+
+// Source: [Heitz14] eq. 99 with eq. 80 (height-correlated Smith, Beckmann).
+// Equation: G = 1 / (1 + Lambda(v) + Lambda(l)); 0 at n.v = 0 or n.l = 0.
+float G_SmithBeckmannCorrelated(float NoV, float NoL, float alpha) {
+    float g = 1.0 / (1.0 + Lambda_Beckmann(NoV, alpha) + Lambda_Beckmann(NoL, alpha));
+    return (NoV > 0.0 && NoL > 0.0) ? g : 0.0;
+}
+
 // Source: [Schlick94] eq. 19 with [Karis13]'s k. Equation: G1 = c / (c (1 - k) + k).
 float G1_SchlickGGX(float NoX, float k) {
     float c = clamp(NoX, 0.0, 1.0);
@@ -125,6 +153,9 @@ float Fd_Lambert() { return 1.0 / PI; }
 #endif
 
 float ndf_term(float NoH, float roughness) {
+#ifdef HOOK_D
+    return hook_D(NoH, roughness);
+#endif
     float a = alpha_from_roughness(roughness);
 #if NDF == NDF_GGX
     return D_GGX(NoH, a);
@@ -136,6 +167,9 @@ float ndf_term(float NoH, float roughness) {
 }
 
 float geometry_term(float NoV, float NoL, float roughness) {
+#ifdef HOOK_G
+    return hook_G(NoV, NoL, roughness);
+#endif
 #if GEOMETRY == GEOMETRY_SMITH_GGX_CORRELATED
     return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness));
 #elif GEOMETRY == GEOMETRY_SMITH_GGX
@@ -146,6 +180,19 @@ float geometry_term(float NoV, float NoL, float roughness) {
     return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness));
 #elif GEOMETRY == GEOMETRY_SCHLICK_BECKMANN
     return G_SchlickBeckmann(NoV, NoL, alpha_from_roughness(roughness));
+#elif GEOMETRY == GEOMETRY_SMITH_BECKMANN_CORRELATED
+    return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness));
+#endif
+}
+
+// Dispatch on FRESNEL (numpy twin: pbrcheck.brdf.fresnel_term): Schlick, or none (F = 1).
+vec3 fresnel_term(float VoH, vec3 F0) {
+#ifdef HOOK_F
+    return hook_F(VoH, F0);
+#elif FRESNEL == FRESNEL_SCHLICK
+    return F_Schlick(VoH, F0);
+#else
+    return vec3(1.0);
 #endif
 }
 
@@ -160,11 +207,7 @@ vec3 brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float ro
     float NoH = clamp(dot(n, h), 0.0, 1.0);
     float VoH = clamp(dot(v, h), 0.0, 1.0);
     vec3 F0 = mix(vec3(specular), base_color, metallic);
-#if FRESNEL == FRESNEL_SCHLICK
-    vec3 F = F_Schlick(VoH, F0);
-#else
-    vec3 F = vec3(1.0);
-#endif
+    vec3 F = fresnel_term(VoH, F0);
     float D = ndf_term(NoH, roughness);
     float G = geometry_term(NoV, NoL, roughness);
     vec3 spec = D * G * F / (4.0 * max(NoV, COS_EPS) * max(NoL, COS_EPS));

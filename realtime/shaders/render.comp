@@ -14,6 +14,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "env.glsl"
 #include "sampling.glsl"
 #include "ibl.glsl"
+#include "energy.glsl"
 
 layout(rgba32f, binding = 0) writeonly uniform image2D out_color;   // rgb, coverage
 layout(rgba32f, binding = 1) writeonly uniform image2D out_aov;     // N.xyz, NdotV (centre ray)
@@ -100,7 +101,9 @@ vec3 normal_at(int k, vec3 p) {
 }
 
 vec3 irradiance_over_pi(vec3 n) {
-#if IRRADIANCE == IRRADIANCE_SH9
+#ifdef HOOK_DIFFUSE_IBL
+    return hook_diffuse_ibl(n);
+#elif IRRADIANCE == IRRADIANCE_SH9
     return sh9_eval(sh, n);
 #else
     return textureLod(irradiance_cube, n, 0.0).rgb;
@@ -108,7 +111,9 @@ vec3 irradiance_over_pi(vec3 n) {
 }
 
 vec2 dfg(float NoV, float roughness) {
-#if DFG == DFG_ANALYTIC
+#ifdef HOOK_DFG
+    return hook_dfg(NoV, roughness);
+#elif DFG == DFG_ANALYTIC
     return EnvBRDFApprox(NoV, roughness);
 #else
     return dfg_lookup(dfg_lut, NoV, roughness);
@@ -116,7 +121,11 @@ vec2 dfg(float NoV, float roughness) {
 }
 
 vec3 prefiltered_radiance(vec3 r, float roughness) {
+#ifdef HOOK_LOD
+    float lod = lod_override >= 0.0 ? min(lod_override, max_lod) : hook_lod(roughness, max_lod, cube_log2);
+#else
     float lod = lod_override >= 0.0 ? min(lod_override, max_lod) : lod_from_roughness(roughness, max_lod, cube_log2);
+#endif
     return textureLod(prefiltered, r, lod).rgb;
 }
 
@@ -158,11 +167,7 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
         if (NoL <= 0.0 || VoH <= 0.0) continue;
         float NoH = max(ht.z, 1e-6);
         float G = geometry_term(NoV, NoL, roughness);
-#if FRESNEL == FRESNEL_SCHLICK
-        vec3 F = F_Schlick(VoH, F0);
-#else
-        vec3 F = vec3(1.0);
-#endif
+        vec3 F = fresnel_term(VoH, F0);
 #if RUNTIME_LOD
         float pdf = ndf_term(NoH, roughness) * NoH / (4.0 * VoH);
         float lod = filtered_is_lod(pdf, float(ns), env_face_size);
@@ -199,7 +204,9 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
 #else
     vec3 kd = vec3(0.0);
 #endif
-#if IBL_RUNTIME
+#ifdef HOOK_SPECULAR_IBL
+    color += hook_specular_ibl(n, v, roughness, F0);
+#elif IBL_RUNTIME
     color += runtime_specular(n, v, roughness, F0, pixel_seed);
 #else
     vec2 AB = dfg(NoV, roughness);
@@ -208,7 +215,19 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
 #else
     vec3 spec_albedo = vec3(AB.x + AB.y);
 #endif
-    color += prefiltered_radiance(r, roughness) * spec_albedo;
+#if FRESNEL == FRESNEL_SCHLICK
+    vec3 F0e = F0;
+#else
+    vec3 F0e = vec3(1.0);
+#endif
+    // Multiple-scattering energy compensation (energy.glsl): a scale of the split sum's specular
+    // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
+#ifdef HOOK_ENERGY_COMPENSATION
+    color += prefiltered_radiance(r, roughness) * spec_albedo * hook_energy_compensation(F0e, AB.x, AB.y, roughness);
+#else
+    color += prefiltered_radiance(r, roughness) * spec_albedo * energy_scale(F0e, AB.x, AB.y);
+    color += irradiance_over_pi(n) * energy_ms(F0e, AB.x, AB.y, roughness);
+#endif
 #endif
     color += (1.0 - metallic) * base * kd * irradiance_over_pi(n);
     for (int i = 0; i < n_lights; ++i) {
@@ -217,7 +236,19 @@ vec3 shade(int k, vec3 p, vec3 n, vec3 v, uint pixel_seed) {
         vec3 l = ld * inversesqrt(d2);
         float NoL = dot(n, l);
         if (NoL <= 0.0 || occluded(p, l, sqrt(d2))) continue;
-        color += brdf_eval(n, v, l, base, metallic, roughness, spec_level) * lights[2 * i + 1].rgb * (NoL / d2);
+        vec3 f = brdf_eval(n, v, l, base, metallic, roughness, spec_level);
+#if defined(HOOK_ENERGY_COMPENSATION) && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
+        // The user's compensation factor scales the point light's specular lobe as it does the IBL's.
+        f += (hook_energy_compensation(F0e, AB.x, AB.y, roughness) - 1.0)
+             * brdf_eval(n, v, l, F0, 1.0, roughness, spec_level);
+#elif ENERGY_COMPENSATION != ENERGY_COMPENSATION_NONE && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
+        // Multiple scattering for the point light (energy.glsl): brdf_eval with metallic 1 and base
+        // F0 is the specular lobe alone. (AB exists with the built-in split sum only.)
+        vec2 ABl = dfg(clamp(NoL, 1e-4, 1.0), roughness);
+        f += energy_direct(brdf_eval(n, v, l, F0, 1.0, roughness, spec_level), F0e, AB.x, AB.y, ABl.x + ABl.y,
+                           roughness);
+#endif
+        color += f * lights[2 * i + 1].rgb * (NoL / d2);
     }
 
 #elif SHADING == SHADING_ARTICLE000

@@ -1,0 +1,270 @@
+"""Run an external renderer on a pbrcheck scene and bring its image back (docs/renderers.md).
+
+API
+---
+- :func:`render_external` -- export the scene to a temporary folder, run the renderer's command,
+  validate its output against the contract, return a pbrcheck :class:`~pbrcheck.exr.Image`
+  (linear ``R G B`` plus an ``object`` AOV, metadata renderer / version / command / seconds);
+  cached by scene hash + renderer config + the client's lockfile hash.
+- :func:`run_process` -- one command in its own process group, killed with its children after
+  the timeout; stdout and the stderr tail come back.
+- :func:`read_output` -- a renderer's output file, validated (exists, readable, size, finite).
+- :func:`object_ids` -- the ``object`` AOV of a scene at pixel centres (numpy ray casting).
+- :class:`RendererError` -- every failure, one line naming the renderer (exit 2; the gate's
+  ``error``).
+
+Failure modes (each a :class:`RendererError`, nothing written outside the temporary folder): the
+executable is missing; it exits non-zero (the last lines of its stderr are shown); it runs past
+``timeout`` (its whole process group is killed); it writes no file; the file is unreadable, of the
+wrong size, or holds NaN/Inf.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pbrcheck import __version__
+from pbrcheck.cache import Cache, cache_key
+from pbrcheck.camera import primary_rays
+from pbrcheck.environment import load_environment, scene_hash
+from pbrcheck.errors import ImageIOError, PbrcheckError
+from pbrcheck.export import EXPORT_FORMAT_VERSION, OUTPUT_SUFFIX, export_scene
+from pbrcheck.exr import Image
+from pbrcheck.hdrimage import read_float_image, read_png_srgb
+from pbrcheck.progress import Progress
+from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
+
+from .config import RendererConfig, expand, get_renderer
+
+#: Lines of a failing renderer's stderr shown in the one-line error.
+STDERR_TAIL_LINES = 3
+#: Characters of that tail at most.
+STDERR_TAIL_CHARS = 400
+#: Seconds a version command may take.
+VERSION_TIMEOUT_S = 30.0
+#: Seconds to wait for a killed process group's pipes to close.
+KILL_GRACE_S = 5.0
+CACHE_NAMESPACE = "clients"
+
+_versions: dict[tuple, str] = {}
+
+
+class RendererError(PbrcheckError):
+    """An external renderer failed (names the renderer and what went wrong)."""
+
+
+@dataclass
+class ProcessResult:
+    """What :func:`run_process` saw: exit status, stdout, stderr and wall seconds."""
+    returncode: int
+    stdout: str
+    stderr: str
+    seconds: float
+
+
+def stderr_tail(text: str) -> str:
+    """The last :data:`STDERR_TAIL_LINES` non-empty lines of ``text`` joined by `` | ``."""
+    lines = [l.strip() for l in text.splitlines() if l.strip()]
+    tail = " | ".join(lines[-STDERR_TAIL_LINES:])
+    return tail[-STDERR_TAIL_CHARS:] if tail else "(no stderr)"
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)   # the session leader's pid is the group id
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def run_process(argv: list[str], *, cwd: Path, timeout: float, label: str) -> ProcessResult:
+    """Run ``argv`` in ``cwd`` in a new session (process group); kill the group on timeout.
+
+    Raises
+    ------
+    RendererError
+        The executable is missing or not executable, or the command ran past ``timeout``.
+    """
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, start_new_session=True)
+    except FileNotFoundError:
+        raise RendererError(f"{label}: executable not found: {argv[0]!r} (is it installed and on PATH?)") from None
+    except PermissionError:
+        raise RendererError(f"{label}: cannot execute {argv[0]!r} (permission denied)") from None
+    except OSError as e:
+        raise RendererError(f"{label}: cannot start {argv[0]!r}: {e.strerror or e}") from None
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill_group(proc)
+        try:
+            out, err = proc.communicate(timeout=KILL_GRACE_S)
+        except subprocess.TimeoutExpired:   # a grandchild kept the pipes open in another group
+            proc.kill()
+            out, err = b"", b""
+        raise RendererError(f"{label}: timed out after {timeout:g} s (killed with its children); "
+                            f"stderr: {stderr_tail(err.decode('utf-8', 'replace'))}") from None
+    except BaseException:
+        _kill_group(proc)
+        proc.wait()
+        raise
+    finally:
+        if proc.poll() is None:
+            _kill_group(proc)
+    _kill_group(proc)  # whatever the renderer left running in its group
+    return ProcessResult(proc.returncode, out.decode("utf-8", "replace"), err.decode("utf-8", "replace"),
+                         time.perf_counter() - t0)
+
+
+def read_output(path: Path, fmt: str, width: int, height: int, label: str) -> np.ndarray:
+    """The renderer's output ``path`` in format ``fmt`` as (H, W, 3) float32, row 0 at the top
+    (``png-srgb``: display values in [0, 1]).
+
+    Raises
+    ------
+    RendererError
+        No file, unreadable, wrong size, or NaN/Inf.
+    """
+    if not path.is_file():
+        raise RendererError(f"{label}: wrote no output file (expected {path.name}, format {fmt})")
+    try:
+        rgb = read_png_srgb(path) if fmt == "png-srgb" else read_float_image(path)
+    except ImageIOError as e:
+        raise RendererError(f"{label}: unreadable output ({e.problem})") from None
+    if rgb.shape[:2] != (height, width):
+        raise RendererError(f"{label}: output is {rgb.shape[1]}x{rgb.shape[0]}, expected {width}x{height}")
+    bad = ~np.isfinite(rgb)
+    if bad.any():
+        n = int(bad.any(axis=-1).sum())
+        raise RendererError(f"{label}: output has {n} pixel(s) with NaN/Inf")
+    return np.ascontiguousarray(rgb, dtype=np.float32)
+
+
+def renderer_version(cfg: RendererConfig) -> str:
+    """The first stdout line of the renderer's ``version_command`` ("unknown" without one or when
+    it fails: a version is recorded, never required)."""
+    if not cfg.version_command:
+        return "unknown"
+    key = (cfg.name, cfg.version_command, cfg.lockfile_hash())
+    if key not in _versions:
+        argv = expand(cfg, cfg.version_command)
+        try:
+            r = run_process(argv, cwd=cfg.config_dir, timeout=VERSION_TIMEOUT_S, label=cfg.label)
+            line = r.stdout.strip().splitlines()[0] if r.returncode == 0 and r.stdout.strip() else ""
+            _versions[key] = line or f"unknown (version command exited {r.returncode}: {stderr_tail(r.stderr)})"
+        except RendererError as e:
+            _versions[key] = f"unknown ({e})"
+    return _versions[key]
+
+
+def object_ids(scene: Scene) -> np.ndarray:
+    """(H, W) float32 object index seen through each pixel centre (-1: background), by ray casting
+    the scene's spheres and rectangles in float64 (the ``object`` AOV of external images)."""
+    o, d = primary_rays(scene.camera)
+    best = np.full(d.shape[:2], np.inf)
+    ids = np.full(d.shape[:2], -1.0, np.float32)
+    for obj in scene.objects:
+        if isinstance(obj, Sphere):
+            oc = o - np.asarray(obj.center, float)
+            b = d @ oc
+            c = oc @ oc - obj.radius ** 2
+            disc = b * b - c
+            sq = np.sqrt(np.maximum(disc, 0.0))
+            t = np.where(-b - sq > 0, -b - sq, -b + sq)
+            t = np.where((disc >= 0) & (t > 0), t, np.inf)
+        elif isinstance(obj, Plane):
+            tg, bt, n = (np.asarray(v, float) for v in plane_frame(obj.normal))
+            denom = d @ n
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = ((np.asarray(obj.center, float) - o) @ n) / denom
+            p = o + d * t[..., None] - np.asarray(obj.center, float)
+            inside = (np.abs(p @ tg) <= obj.size[0] / 2) & (np.abs(p @ bt) <= obj.size[1] / 2)
+            t = np.where((np.abs(denom) > 1e-12) & (t > 0) & inside, t, np.inf)
+        else:  # pragma: no cover - the loader expands grids
+            continue
+        closer = t < best
+        best = np.where(closer, t, best)
+        ids[closer] = obj.id
+    return ids
+
+
+def cache_key_for(scene: Scene, cfg: RendererConfig, env_hash: str) -> str:
+    """The cache key of one external render: scene hash, renderer config (with the lockfile's
+    hash) and the export format."""
+    return cache_key(kind="external", scene=scene_hash(scene, env_hash), renderer=cfg.cache_dict(),
+                     export_format=EXPORT_FORMAT_VERSION)
+
+
+def render_external(scene: Scene, name: str, *, renderers_file: str | Path | None = None,
+                    use_cache: bool = True, progress: bool = False) -> Image:
+    """Render ``scene`` with the external renderer ``name`` (``threejs`` or ``ext:threejs``).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    name : str
+        A renderer of :func:`clients.config.load_renderers`.
+    renderers_file : str or Path, optional
+        The user renderers file (default: :func:`clients.config.default_renderers_file`).
+    use_cache : bool, optional
+        Read and write the render cache (default True).
+    progress : bool, optional
+        Show progress on stderr.
+
+    Returns
+    -------
+    Image
+        ``R G B`` (linear radiance; display values for ``png-srgb``) and ``object``; metadata
+        ``renderer``, ``version``, ``command``, ``seconds``, ``output``, ``display_referred``,
+        ``timings`` (``{"frame": seconds}``), ``timed_on``, ``scene_hash``.
+
+    Raises
+    ------
+    RendererError, RendererConfigError, EnvironmentMapError
+    """
+    cfg = get_renderer(name, renderers_file)
+    label = cfg.label
+    env = load_environment(scene)
+    key = cache_key_for(scene, cfg, env.content_hash)
+    cache = Cache(CACHE_NAMESPACE)
+    if use_cache:
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
+    cam = scene.camera
+    version = renderer_version(cfg)
+    with Progress(f"{label} {scene.name}", total=3, enabled=progress) as prog, \
+            tempfile.TemporaryDirectory(prefix="pbrcheck-ext-") as tmp:
+        folder = Path(tmp) / "scene"
+        exp = export_scene(scene, folder, output=cfg.output, env=env)
+        prog.update(1, "exported")
+        out = Path(tmp) / f"output{OUTPUT_SUFFIX[cfg.output]}"
+        argv = expand(cfg, cfg.command, scenario=exp.files["scenario.json"], out=out, dir=folder,
+                      width=cam.width, height=cam.height)
+        r = run_process(argv, cwd=cfg.config_dir, timeout=cfg.timeout, label=label)
+        prog.update(1, "rendered")
+        if r.returncode != 0:
+            raise RendererError(f"{label}: exited with status {r.returncode}; stderr: {stderr_tail(r.stderr)}")
+        rgb = read_output(out, cfg.output, cam.width, cam.height, label)
+        prog.update(1, "validated")
+    meta = {"renderer": label, "kind": "external", "version": version, "command": json.dumps(list(cfg.command)),
+            "seconds": f"{r.seconds:.3f}", "output": cfg.output,
+            "display_referred": "1" if cfg.output == "png-srgb" else "0",
+            "timings": json.dumps({"frame": round(r.seconds, 4)}), "timed_on": cfg.timed_on or "unstated",
+            "scene_hash": scene_hash(scene, env.content_hash), "pbrcheck_version": __version__,
+            "renderer_stdout": r.stdout.strip().splitlines()[-1][:500] if r.stdout.strip() else ""}
+    img = Image.from_rgb(rgb, meta, object=object_ids(scene))
+    if use_cache:
+        cache.put(key, img)
+    return img

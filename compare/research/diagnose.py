@@ -1,0 +1,424 @@
+"""Why do two images differ? Known convention mismatches, each undone in turn and ranked.
+
+An external renderer that disagrees with the reference by 30 % has either an approximation error
+or a *convention* mismatch: a flipped image, sRGB data read as linear, an environment rotated by a
+quarter turn, roughness used as alpha, ... Each hypothesis below is a transform that undoes one such
+mismatch; :func:`diagnose` applies each, measures the error that remains and ranks them by how much
+of the error each one removes, against the reference's own noise.
+
+Hypotheses
+----------
+Image space (the test image is transformed; no render):
+
+- ``flip_vertical``, ``flip_horizontal``: rows or columns reversed (row 0 at the bottom, GL style).
+- ``srgb_as_linear``: the test holds sRGB-encoded values read as linear; undone by the sRGB EOTF.
+- ``linear_as_srgb``: linear values decoded as sRGB once more; undone by the sRGB OETF.
+- ``exposure``: a global factor ``k``, fitted in closed form to minimise the relative MSE:
+  ``k = sum(w t r) / sum(w t^2)`` with ``w = 1 / (r^2 + eps)``.
+- ``hdr_clamp``: the test clamps radiance at a level ``c``, fitted as the test's maximum; the
+  reference is clamped at ``c`` (a clamp cannot be undone, so the reference is brought to it).
+- ``swap_rb``: red and blue channels exchanged (BGR readback).
+- ``premultiplied_alpha``: the test's colour is premultiplied by coverage (transparent background):
+  the reference is multiplied by its coverage AOV.
+
+Scene space (``scene`` given: the reference is re-rendered under the hypothesis, through the cache,
+at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
+
+- ``env_rotate_90``, ``env_rotate_180``, ``env_rotate_270``: the environment rotated about +Y.
+- ``env_mirror_u``: the environment mirrored in u (``x -> -x`` in Mitsuba's mapping).
+- ``roughness_as_alpha``: the test uses roughness as alpha (GGX alpha = r, not r^2), i.e. the
+  reference with roughness ``sqrt(r)``; ``roughness_squared_twice``: alpha = r^4, roughness ``r^2``.
+- ``diffuse_times_pi``, ``diffuse_over_pi``: the Lambert term off by pi: the base colour of every
+  dielectric (``metallic = 0``, whose F0 is ``specular`` whatever the base colour) scaled by pi or
+  1/pi; partial metals are left alone (their F0 depends on the base colour).
+- ``light_units_4pi``, ``light_units_over_4pi``: point-light intensity off by 4 pi (power in W
+  read as W/sr or the reverse): every light's intensity scaled. Only for scenes with point lights.
+- ``multiple_scattering``: not a convention but a model difference engines commonly have: the
+  renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
+  ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
+  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term.
+
+Decision
+--------
+The error is the relative MSE (:mod:`compare.metrics`) over every pixel, covered or not (the
+background is part of the contract, and flips and alpha show at silhouettes), less the expected
+contribution of the reference's (or the re-render's) own variance, so that a noisy re-render does
+not count against its hypothesis. The noise
+error is the same measure on a simulated pair ``(r, r + sqrt(2 var) z)`` (the reference's variance
+channels; 0 without them). A hypothesis is the *likely cause* when it leaves at most
+:data:`LIKELY_REMAINING` of the error and the error before it was not already within
+:data:`~compare.metrics.NOISE_EXPLAINS_FACTOR` of the noise; the best-ranked such hypothesis is
+named, otherwise "no convention mismatch found".
+
+API
+---
+- :data:`IMAGE_HYPOTHESES`, :data:`SCENE_HYPOTHESES` -- the hypothesis names, in table order.
+- :func:`diagnose` -- rank the hypotheses for a (reference, test) pair; returns :class:`Diagnosis`.
+- :func:`apply_image_hypothesis` -- the transform of one image-space hypothesis (also used by the
+  tests to plant a mismatch).
+- :func:`hypothesis_scene` -- the scene of one scene-space hypothesis that is a scene edit.
+- :func:`table_markdown` -- the table and the verdict line.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from pbrcheck.environment import load_environment, texel_directions
+from pbrcheck.errors import PbrcheckError
+from pbrcheck.exr import Image, write_exr
+from pbrcheck.fmt import format_value
+from pbrcheck.progress import Progress
+from pbrcheck.registry import MULTISCATTER_GEOMETRY
+from pbrcheck.scene import Environment, Scene
+
+from .. import renderers
+from ..maps import srgb_oetf
+from ..metrics import NOISE_EXPLAINS_FACTOR, NOISE_SEED, REL_EPS, validate_pair
+
+#: A hypothesis "explains" the difference when undoing it leaves at most this fraction of the error
+#: (the error at least halves). Generous enough that a correct image's residual approximation error
+#: is never explained by a fitted exposure (measured: the default preset's exposure fit removes ~5 %).
+LIKELY_REMAINING = 0.5
+#: The fitted exposure must differ from 1 by more than this to be reported as a mismatch (a 2 %
+#: global factor is an approximation's bias, not a convention).
+EXPOSURE_MIN_DEVIATION = 0.02
+#: Spp of the scene-space re-renders when the reference image does not say its own.
+DEFAULT_HYPOTHESIS_SPP = 64
+#: Cap on the re-renders' spp when taken from the reference (a 1024-spp reference would make each of
+#: the ~8 re-renders as slow as itself; 256 spp keeps their noise well under a mismatch's error).
+MAX_HYPOTHESIS_SPP = 256
+
+IMAGE_HYPOTHESES = ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linear_as_srgb", "exposure",
+                    "hdr_clamp", "swap_rb", "premultiplied_alpha")
+SCENE_HYPOTHESES = ("env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha",
+                    "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi", "light_units_4pi",
+                    "light_units_over_4pi", "multiple_scattering")
+#: Hypotheses that are a difference of physical model, not of convention (named so in the verdict).
+MODEL_HYPOTHESES = ("multiple_scattering",)
+
+DESCRIPTIONS = {
+    "flip_vertical": "image rows reversed (row 0 at the bottom)",
+    "flip_horizontal": "image columns reversed",
+    "srgb_as_linear": "sRGB-encoded values read as linear",
+    "linear_as_srgb": "linear values decoded as sRGB",
+    "exposure": "a global exposure factor",
+    "hdr_clamp": "radiance clamped at a level",
+    "swap_rb": "red and blue channels swapped",
+    "premultiplied_alpha": "colour premultiplied by coverage (transparent background)",
+    "env_rotate_90": "environment rotated 90 degrees about +Y",
+    "env_rotate_180": "environment rotated 180 degrees about +Y",
+    "env_rotate_270": "environment rotated 270 degrees about +Y",
+    "env_mirror_u": "environment mirrored in u",
+    "roughness_as_alpha": "roughness used as alpha (not squared)",
+    "roughness_squared_twice": "roughness squared twice (alpha = r^4)",
+    "diffuse_times_pi": "diffuse multiplied by pi",
+    "diffuse_over_pi": "diffuse divided by pi",
+    "light_units_4pi": "point-light intensity multiplied by 4 pi",
+    "light_units_over_4pi": "point-light intensity divided by 4 pi",
+    "multiple_scattering": "the renderer keeps the energy of multiple scattering (energy compensation)",
+}
+
+
+#: The factor of each scaling scene hypothesis (diffuse lobe or point lights).
+LINEAR_FACTORS = {"diffuse_times_pi": math.pi, "diffuse_over_pi": 1 / math.pi,
+                  "light_units_4pi": 4 * math.pi, "light_units_over_4pi": 1 / (4 * math.pi)}
+
+
+class DiagnoseError(PbrcheckError):
+    """Inputs ``diagnose`` cannot work with (sizes, a scene that does not match the images)."""
+
+
+@dataclass
+class HypothesisRow:
+    """One hypothesis: the error after undoing it, the fraction removed, and whether what is left
+    is within the reference's noise. ``fitted`` holds a fitted parameter (exposure factor, clamp
+    level); ``skipped`` says why a hypothesis was not tested."""
+
+    hypothesis: str
+    kind: str
+    description: str
+    error_after: float | None
+    reduction: float | None
+    within_noise: bool
+    fitted: dict = field(default_factory=dict)
+    skipped: str | None = None
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`: the error before, the noise error, the ranked rows and the verdict."""
+
+    metric: str
+    error_before: float
+    noise_error: float
+    rows: list[HypothesisRow]
+    likely: str | None
+    line: str
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+# --- transforms -----------------------------------------------------------------------------------
+
+
+def srgb_eotf(v: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`compare.maps.srgb_oetf` (IEC 61966-2-1 decode), extended above 1 by the
+    same power law; negatives clip to 0."""
+    v = np.clip(v, 0.0, None)
+    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
+
+
+def _fit_exposure(r: np.ndarray, t: np.ndarray) -> float:
+    w = 1.0 / (r.astype(np.float64) ** 2 + REL_EPS)
+    den = float((w * t * t).sum())
+    return float((w * t * r).sum()) / den if den > 0 else 1.0
+
+
+def apply_image_hypothesis(name: str, r: np.ndarray, t: np.ndarray, coverage: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Undo image-space mismatch ``name``: returns ``(reference', test', fitted)``.
+
+    ``r``, ``t``: ``(H, W, 3)`` linear RGB; ``coverage``: the reference's coverage AOV (needed by
+    ``premultiplied_alpha``). Raises :class:`DiagnoseError` for an unknown name.
+    """
+    if name == "flip_vertical":
+        return r, t[::-1], {}
+    if name == "flip_horizontal":
+        return r, t[:, ::-1], {}
+    if name == "srgb_as_linear":
+        return r, srgb_eotf(t), {}
+    if name == "linear_as_srgb":
+        return r, srgb_oetf(np.clip(t, 0.0, None)), {}
+    if name == "exposure":
+        k = _fit_exposure(r, t)
+        return r, t * k, {"factor": k}
+    if name == "hdr_clamp":
+        c = float(np.max(t))
+        return np.minimum(r, c), t, {"level": c}
+    if name == "swap_rb":
+        return r, t[..., ::-1], {}
+    if name == "premultiplied_alpha":
+        cov = np.ones(r.shape[:2], np.float32) if coverage is None else coverage
+        return r * cov[..., None], t, {}
+    raise DiagnoseError(f"diagnose: unknown image hypothesis {name!r} (known: {', '.join(IMAGE_HYPOTHESES)})")
+
+
+def _mirrored_environment(scene: Scene, directory: Path) -> Environment:
+    """The scene's environment mirrored in u, as a file environment (scale and rotation baked in)."""
+    env = load_environment(scene)
+    h, w = env.height, env.width
+    # The new map has no rotation, so its texel directions are world directions; each texel takes
+    # the old radiance function (rotation and scale included) at the direction mirrored in x.
+    d = texel_directions(w, h).reshape(-1, 3).copy()
+    d[:, 0] = -d[:, 0]
+    data = env.radiance(d).reshape(h, w, 3) / env.scale if env.scale > 0 else np.zeros((h, w, 3), np.float32)
+    path = directory / "mirrored.exr"
+    write_exr(path, Image.from_rgb(np.asarray(data, np.float32)))
+    return Environment(type="file", path=str(path), scale=float(env.scale), rotation=0.0)
+
+
+def _map_materials(scene: Scene, fn) -> Scene:
+    return replace(scene, objects=tuple(replace(o, material=fn(o.material)) for o in scene.objects))
+
+
+def hypothesis_scene(name: str, scene: Scene, directory: Path) -> Scene:
+    """The scene whose reference is the image a renderer with mismatch ``name`` would make.
+
+    ``directory`` receives any file the hypothesis needs (the mirrored environment).
+    """
+    if name.startswith("env_rotate_"):
+        deg = float(name.rsplit("_", 1)[1])
+        return replace(scene, environment=replace(scene.environment,
+                                                  rotation=(scene.environment.rotation + deg) % 360.0))
+    if name == "env_mirror_u":
+        return replace(scene, environment=_mirrored_environment(scene, directory))
+    if name == "roughness_as_alpha":
+        return _map_materials(scene, lambda m: replace(m, roughness=math.sqrt(m.roughness)))
+    if name == "roughness_squared_twice":
+        return _map_materials(scene, lambda m: replace(m, roughness=m.roughness ** 2))
+    if name.startswith("diffuse_"):
+        # A dielectric's F0 is ``specular`` whatever its base colour, so scaling the base colour scales
+        # exactly its Lambert lobe (values above 1 are fine for the estimator: nothing clamps them).
+        k = LINEAR_FACTORS[name]
+        return _map_materials(scene, lambda m: replace(m, base_color=tuple(k * c for c in m.base_color))
+                              if m.metallic == 0 else m)
+    if name.startswith("light_units"):
+        k = LINEAR_FACTORS[name]
+        return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
+                                           for li in scene.lights))
+    if name == "multiple_scattering":
+        return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk"))
+    raise DiagnoseError(f"diagnose: unknown scene hypothesis {name!r} (known: {', '.join(SCENE_HYPOTHESES)})")
+
+
+# --- the measure ----------------------------------------------------------------------------------
+
+
+def _relmse(r: np.ndarray, t: np.ndarray) -> float:
+    r = r.astype(np.float64)
+    return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
+
+
+def _error(r: np.ndarray, t: np.ndarray, var: np.ndarray | None) -> float:
+    """Noise-corrected relative MSE of ``t`` against the estimate ``r`` whose per-pixel variance is
+    ``var``: ``E[(t - r)^2] = (t - mu)^2 + var`` for a noise-free ``t``, so subtracting
+    ``mean(var / (r^2 + eps))`` leaves the error against the converged image (clipped at 0). Without it
+    a re-render's own noise would count against the hypothesis it tests."""
+    e = _relmse(r, t)
+    if var is not None:
+        e -= float((np.clip(var, 0.0, None) / (r.astype(np.float64) ** 2 + REL_EPS)).mean())
+    return max(e, 0.0)
+
+
+def _noise_error(ref: Image) -> float:
+    """Relative MSE of a simulated pair ``(r, r + sqrt(2 var) z)``: what the reference's noise alone
+    shows (0 without variance channels)."""
+    var = ref.variance
+    if var is None:
+        return 0.0
+    r = ref.rgb.astype(np.float64)
+    z = np.random.default_rng(NOISE_SEED).standard_normal(r.shape)
+    return _relmse(r, r + np.sqrt(2.0 * np.clip(var, 0.0, None)) * z)
+
+
+def _within(err: float, noise: float) -> bool:
+    return err <= NOISE_EXPLAINS_FACTOR * noise
+
+
+# --- diagnose -------------------------------------------------------------------------------------
+
+
+def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | None = None,
+             seed: int | None = None, progress: bool = False) -> Diagnosis:
+    """Rank the known convention mismatches by how much undoing each reduces the error.
+
+    Parameters
+    ----------
+    ref, test : Image
+        The reference (ideally with ``variance.*`` and ``coverage``) and the image under test, same
+        size, linear radiance.
+    scene : Scene, optional
+        The scene both show; enables the scene-space hypotheses (re-rendered references). Its camera
+        size must match the images.
+    spp, seed : int, optional
+        Samples per pixel and seed of the re-rendered references (default: the reference's own
+        ``spp`` capped at :data:`MAX_HYPOTHESIS_SPP` and ``seed``; else :data:`DEFAULT_HYPOTHESIS_SPP`, 0).
+    progress : bool
+        Progress on stderr.
+
+    Returns
+    -------
+    Diagnosis
+        Rows sorted by the error left (skipped ones last) and the verdict line.
+
+    Raises
+    ------
+    ComparisonError
+        The images cannot be compared (size, channels, NaN).
+    DiagnoseError
+        The scene's size differs from the images'.
+    """
+    validate_pair(ref, test)
+    r, t = ref.rgb.astype(np.float64), test.rgb.astype(np.float64)
+    var = ref.variance
+    before = _error(r, t, var)
+    noise = _noise_error(ref)
+    cov = ref.channels.get("coverage")
+    rows: list[HypothesisRow] = []
+
+    def row(name, kind, r2, t2, fitted=None, skipped=None, var2=var):
+        if skipped is not None:
+            rows.append(HypothesisRow(name, kind, DESCRIPTIONS[name], None, None, False, fitted or {}, skipped))
+            return
+        err = _error(r2, t2, var2)
+        red = 1.0 - err / before if before > 0 else 0.0
+        rows.append(HypothesisRow(name, kind, DESCRIPTIONS[name], err, red, _within(err, noise), fitted or {}))
+
+    scene_names = SCENE_HYPOTHESES if scene is not None else ()
+    with Progress("diagnose", total=len(IMAGE_HYPOTHESES) + len(scene_names), enabled=progress) as bar:
+        for name in IMAGE_HYPOTHESES:
+            if name == "premultiplied_alpha" and cov is None:
+                row(name, "image", None, None, skipped="the reference has no coverage AOV")
+            else:
+                r2, t2, fitted = apply_image_hypothesis(name, r, t, cov)
+                row(name, "image", r2, t2, fitted)
+            bar.update(1, name)
+        if scene is not None:
+            if (scene.camera.height, scene.camera.width) != ref.shape:
+                raise DiagnoseError(f"diagnose: scene {scene.name!r} is {scene.camera.width}x{scene.camera.height}, "
+                                    f"the images are {ref.shape[1]}x{ref.shape[0]}")
+            spp = spp or min(int(ref.meta.get("spp", DEFAULT_HYPOTHESIS_SPP)), MAX_HYPOTHESIS_SPP)
+            seed = int(ref.meta.get("seed", 0)) if seed is None else seed
+            mode = ref.meta.get("mode", "local")
+
+            def render(s: Scene) -> tuple[np.ndarray, np.ndarray | None]:
+                img = renderers.render_reference(s, spp=spp, mode=mode, seed=seed)
+                return img.rgb.astype(np.float64), img.variance
+
+            with tempfile.TemporaryDirectory(prefix="pbrcheck-diagnose-") as tmp:
+                for name in SCENE_HYPOTHESES:
+                    if name.startswith("light_units") and not scene.lights:
+                        row(name, "scene", None, None, skipped="the scene has no point lights")
+                    elif name.startswith("diffuse_") and not any(o.material.metallic == 0 for o in scene.objects):
+                        row(name, "scene", None, None, skipped="the scene has no dielectric object")
+                    elif name == "multiple_scattering" and scene.brdf.multiscatter != "none":
+                        row(name, "scene", None, None, skipped="the reference already scatters multiply")
+                    elif name == "multiple_scattering" and MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != \
+                            scene.brdf.geometry:
+                        row(name, "scene", None, None, skipped="the random walk needs ndf = ggx with geometry = "
+                            "smith_ggx_correlated or beckmann with smith_beckmann_correlated")
+                    else:
+                        img, v2 = render(hypothesis_scene(name, scene, Path(tmp)))
+                        row(name, "scene", img, t, LINEAR_FACTORS.get(name) and {"factor": LINEAR_FACTORS[name]},
+                            var2=v2)
+                    bar.update(1, name)
+
+    tested = sorted((x for x in rows if x.skipped is None), key=lambda x: x.error_after)
+    rows = tested + [x for x in rows if x.skipped is not None]
+    likely = None
+    if not _within(before, noise):
+        for x in tested:
+            if x.error_after <= LIKELY_REMAINING * before and not (
+                    x.hypothesis == "exposure" and abs(x.fitted["factor"] - 1.0) <= EXPOSURE_MIN_DEVIATION):
+                likely = x
+                break
+    if likely is None:
+        line = "no convention mismatch found"
+        if _within(before, noise):
+            line += " (the difference is within the reference's noise)"
+    else:
+        fit = "".join(f", {k} {format_value(v)}" for k, v in likely.fitted.items())
+        kind = ("a model difference, not a convention: " if likely.hypothesis in MODEL_HYPOTHESES else "")
+        line = (f"likely cause: {kind}{likely.hypothesis} ({likely.description}{fit}): undoing it removes "
+                f"{100 * likely.reduction:.0f} % of the error"
+                + (", what is left is within the reference's noise" if likely.within_noise else ""))
+    return Diagnosis("relmse", before, noise, rows, likely.hypothesis if likely else None, line)
+
+
+def table_markdown(d: Diagnosis) -> str:
+    """The ranked table (hypothesis, error after, reduction, within noise) and the verdict line."""
+    out = [f"error before: relmse {format_value(d.error_before)} (reference noise {format_value(d.noise_error)})", "",
+           "| hypothesis | kind | error after | reduction | within noise | fitted |",
+           "|---|---|---|---|---|---|"]
+    for x in d.rows:
+        if x.skipped is not None:
+            out.append(f"| {x.hypothesis} | {x.kind} | skipped: {x.skipped} | | | |")
+            continue
+        fit = ", ".join(f"{k} {format_value(v)}" for k, v in x.fitted.items())
+        # A hypothesis that makes things worse by more than 2x reads better as a factor.
+        red = f"{100 * x.reduction:+.1f} %" if x.reduction >= -1.0 else f"worse x{1.0 - x.reduction:.3g}"
+        out.append(f"| {x.hypothesis} | {x.kind} | {format_value(x.error_after)} | {red} | "
+                   f"{'yes' if x.within_noise else 'no'} | {fit} |")
+    out += ["", d.line, ""]
+    return "\n".join(out)
+
+
+__all__ = ["IMAGE_HYPOTHESES", "SCENE_HYPOTHESES", "LIKELY_REMAINING", "Diagnosis", "HypothesisRow", "DiagnoseError",
+           "diagnose", "apply_image_hypothesis", "hypothesis_scene", "table_markdown", "srgb_eotf"]

@@ -1,0 +1,496 @@
+"""Export a pbrcheck scene for any renderer: glTF 2.0, the environment, and a scenario with the
+output contract (``pbrcheck export SCENE --out DIR``; docs/renderers.md).
+
+API
+---
+- :func:`export_scene` -- write ``scene.gltf``, ``scene.bin``, ``environment.exr``,
+  ``environment.hdr`` and ``scenario.json`` into a folder; returns an :class:`Export`.
+- :func:`gltf_document` -- the glTF JSON and its binary buffer (no file written).
+- :func:`sphere_segments` -- the tessellation rule: segments around a sphere for a silhouette error
+  below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.
+- :func:`uv_sphere` -- the unit sphere mesh (positions = analytic normals, triangle indices).
+- :func:`ior_from_f0` -- ``KHR_materials_ior``'s ior for a dielectric F0.
+- :func:`equirect_image` -- the environment resampled into the exported orientation
+  (:data:`ENVIRONMENT_ORIENTATION`).
+- :func:`scenario` -- the ``scenario.json`` content (and the model-viewer render-fidelity scenario).
+- :data:`OUTPUT_FORMATS` -- what a renderer may write (``exr``, ``hdr``, ``pfm``, ``png-srgb``).
+
+Conventions (docs/renderers.md has the table): world axes are glTF's (+Y up, right-handed, metres
+= scene units); object ``k`` (index after sphere grids are expanded, the ``object`` AOV) is the
+node named ``object_<k>_<name>`` with ``extras.pbrcheck_object = k``; roughness is perceptual
+(glTF's ``roughnessFactor``, alpha = roughness^2, as both); point lights are
+``KHR_lights_punctual`` with 1 cd taken as 1 W/sr (radiometric intensity, RGB split into a
+colour with max 1 times a scalar); planes are one-sided quads (front = the scene's normal;
+``doubleSided`` false; the reference's BSDFs are black from behind).
+
+References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9 (materials);
+``KHR_lights_punctual`` and ``KHR_materials_ior`` extension specifications; three.js ``equirectUv``
+(``src/renderers/shaders/ShaderChunk/common.glsl.js``) for the environment orientation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .atomic import write_bytes_atomic
+from .camera import camera_frame, tan_half_fov
+from .environment import EnvMap, load_environment, scene_hash
+from .errors import PbrcheckError
+from .exr import Image, write_exr
+from .hdrimage import write_hdr
+from .jsonio import dump_json, write_json_atomic
+from .scene import Plane, Scene, Sphere, plane_frame
+
+#: Largest distance, in pixels, between a tessellated sphere's silhouette and the true one.
+SILHOUETTE_TOLERANCE_PX = 0.25
+#: Fewest and most segments around a sphere (the rings are half as many).
+MIN_SPHERE_SEGMENTS = 16
+MAX_SPHERE_SEGMENTS = 1024
+#: glTF's dielectric F0 without KHR_materials_ior (ior 1.5): ((1.5 - 1) / (1.5 + 1))^2.
+GLTF_DEFAULT_F0 = 0.04
+#: |specular - 0.04| below which no KHR_materials_ior is written.
+F0_MATCH_TOLERANCE = 1e-9
+#: The exported environment's width is twice the source's (bilinear resampling keeps its detail),
+#: clamped to this range; the height is half the width.
+ENV_MIN_WIDTH = 64
+ENV_MAX_WIDTH = 4096
+#: The formats a renderer's output may take (``output`` in renderers.toml, ``output.format`` here).
+OUTPUT_FORMATS = ("exr", "hdr", "pfm", "png-srgb")
+OUTPUT_SUFFIX = {"exr": ".exr", "hdr": ".hdr", "pfm": ".pfm", "png-srgb": ".png"}
+#: Bumped whenever the exported files change for the same scene (part of the client cache key).
+EXPORT_FORMAT_VERSION = 1
+#: The files :func:`export_scene` writes.
+FILES = ("scene.gltf", "scene.bin", "environment.exr", "environment.hdr", "scenario.json")
+
+ENVIRONMENT_ORIENTATION = (
+    "equirectangular, +Y up, row 0 at the top: pixel (row k, column c) of an H x W image holds the "
+    "radiance arriving from direction d = (cos a cos e, sin e, sin a cos e) with "
+    "a = 2 pi ((c + 0.5)/W - 0.5), e = pi (0.5 - (k + 0.5)/H); this is three.js's equirectUv "
+    "(u = atan2(d.z, d.x)/2pi + 0.5, v = asin(d.y)/pi + 0.5) read with flipY off; Mitsuba's envmap "
+    "u is this u - 0.25 (docs/renderers.md maps other conventions); the scene's scale and rotation "
+    "are baked in")
+
+
+class ExportError(PbrcheckError):
+    """The scene cannot be exported (names the scene file and the field)."""
+
+
+@dataclass
+class Export:
+    """What :func:`export_scene` wrote: the folder, the files, the scenario and the tessellation."""
+    out_dir: Path
+    files: dict[str, Path]
+    scenario: dict
+    segments: dict[int, int] = field(default_factory=dict)   # object id -> segments around
+    triangles: int = 0
+
+
+# ------------------------------------------------------------------------------------------------
+# Geometry
+# ------------------------------------------------------------------------------------------------
+
+def pixels_per_unit(scene: Scene, center, radius: float) -> float:
+    """An upper bound of the screen magnification (pixels per scene unit) on a sphere's surface.
+
+    A pinhole camera maps a length l at depth z, at angle t off axis, to at most
+    ``l f / z (1 + tan^2 t)`` pixels, ``f = (W/2) / tan(fov_x/2)``; the nearest point of the sphere
+    has ``z >= |c - o| - r`` and the image corner has the largest ``tan^2 t = tan_x^2 + tan_y^2``.
+    """
+    cam = scene.camera
+    tx, ty = tan_half_fov(cam)
+    f = (cam.width / 2) / tx
+    dist = float(np.linalg.norm(np.asarray(center, float) - np.asarray(cam.origin, float)))
+    near = max(dist - radius, 1e-3 * radius)
+    return f / near * (1.0 + tx * tx + ty * ty)
+
+
+def sphere_segments(scene: Scene, sphere: Sphere) -> int:
+    """Segments around the sphere so that its silhouette deviates less than
+    :data:`SILHOUETTE_TOLERANCE_PX` pixels at the scene's resolution.
+
+    A UV sphere of ``n`` segments and ``n/2`` rings has cells of ``2 pi / n`` by ``2 pi / n``
+    radians (at most); each flat triangle lies inside the sphere by at most the sagitta of its
+    circumscribed cap, ``r (1 - cos(rho))`` with ``rho <= sqrt(2) pi / n`` (half the cell's
+    diagonal). With ``s`` pixels per unit (:func:`pixels_per_unit`):
+    ``s r (1 - cos(sqrt(2) pi / n)) <= 0.25`` gives ``n >= sqrt(2) pi / acos(1 - 0.25 / (s r))``,
+    rounded up to a multiple of 4 and clamped to [:data:`MIN_SPHERE_SEGMENTS`,
+    :data:`MAX_SPHERE_SEGMENTS`].
+    """
+    r_px = pixels_per_unit(scene, sphere.center, sphere.radius) * sphere.radius
+    x = 1.0 - SILHOUETTE_TOLERANCE_PX / r_px
+    n = MIN_SPHERE_SEGMENTS if x <= 0 else math.sqrt(2.0) * math.pi / math.acos(x)
+    n = int(math.ceil(n / 4.0) * 4)
+    return int(min(max(n, MIN_SPHERE_SEGMENTS), MAX_SPHERE_SEGMENTS))
+
+
+def uv_sphere(segments: int) -> tuple[np.ndarray, np.ndarray]:
+    """The unit UV sphere of ``segments`` around and ``segments/2`` rings: (positions (V, 3) float32,
+    which are also the analytic normals, and indices (T, 3) uint32, counter-clockwise seen from
+    outside). Pole rows are single vertices."""
+    rings = segments // 2
+    theta = np.pi * np.arange(1, rings) / rings                  # interior rings
+    phi = 2 * np.pi * np.arange(segments) / segments
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    ring = np.stack([st * np.sin(phi), ct * np.ones_like(phi), st * np.cos(phi)], axis=-1).reshape(-1, 3)
+    pos = np.concatenate([[[0.0, 1.0, 0.0]], ring, [[0.0, -1.0, 0.0]]]).astype(np.float64)
+    pos /= np.linalg.norm(pos, axis=1, keepdims=True)
+    top, bottom = 0, len(pos) - 1
+
+    def vid(i, j):  # interior ring i (0 = nearest +Y), segment j
+        return 1 + i * segments + (j % segments)
+
+    tris = []
+    for j in range(segments):
+        tris.append((top, vid(0, j), vid(0, j + 1)))
+        tris.append((bottom, vid(rings - 2, j + 1), vid(rings - 2, j)))
+    for i in range(rings - 2):
+        for j in range(segments):
+            a, b, c, d = vid(i, j), vid(i, j + 1), vid(i + 1, j), vid(i + 1, j + 1)
+            tris.append((a, c, b))
+            tris.append((b, c, d))
+    return pos.astype(np.float32), np.asarray(tris, dtype=np.uint32)
+
+
+def plane_quad(plane: Plane) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(positions (4, 3), normals (4, 3), indices (2, 3)) of a plane: counter-clockwise seen from
+    the side its normal points to (the front face)."""
+    t, b, n = (np.asarray(v, float) for v in plane_frame(plane.normal))
+    c = np.asarray(plane.center, float)
+    hx, hy = plane.size[0] / 2, plane.size[1] / 2
+    pos = np.array([c - hx * t - hy * b, c + hx * t - hy * b, c + hx * t + hy * b, c - hx * t + hy * b])
+    nrm = np.repeat(n[None], 4, axis=0)
+    idx = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    if np.dot(np.cross(pos[1] - pos[0], pos[2] - pos[0]), n) < 0:   # t x b = n, but be sure
+        idx = idx[:, ::-1].copy()
+    return pos.astype(np.float32), nrm.astype(np.float32), idx
+
+
+# ------------------------------------------------------------------------------------------------
+# Materials, lights, camera
+# ------------------------------------------------------------------------------------------------
+
+def ior_from_f0(f0: float) -> float:
+    """``KHR_materials_ior``: F0 = ((ior - 1) / (ior + 1))^2, so ior = (1 + sqrt(F0)) / (1 - sqrt(F0)).
+
+    F0 = 0 gives ior 1; F0 = 1 has no finite ior: the extension's special value 0 gives
+    ((0 - 1)/(0 + 1))^2 = 1.
+    """
+    s = math.sqrt(max(0.0, min(1.0, f0)))
+    if s >= 1.0:
+        return 0.0
+    return (1.0 + s) / (1.0 - s)
+
+
+def _material(obj) -> dict:
+    m = obj.material
+    d = {"name": f"material_{obj.id}",
+         "pbrMetallicRoughness": {"baseColorFactor": [float(c) for c in m.base_color] + [1.0],
+                                  "metallicFactor": float(m.metallic),
+                                  "roughnessFactor": float(m.roughness)},
+         "doubleSided": False}
+    if abs(m.specular - GLTF_DEFAULT_F0) > F0_MATCH_TOLERANCE:
+        d["extensions"] = {"KHR_materials_ior": {"ior": ior_from_f0(m.specular)}}
+    return d
+
+
+def _light(light) -> dict:
+    i = [float(x) for x in light.intensity]
+    peak = max(i)
+    color = [x / peak for x in i] if peak > 0 else [1.0, 1.0, 1.0]
+    return {"type": "point", "color": color, "intensity": peak}
+
+
+def _quaternion(m: np.ndarray) -> list[float]:
+    """Unit quaternion [x, y, z, w] of a rotation matrix (Shepperd's method)."""
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4, (m[1, 0] - m[0, 1]) / s]
+    n = math.sqrt(sum(x * x for x in q))
+    return [float(x / n) for x in q]
+
+
+def camera_yfov(scene: Scene) -> float:
+    """glTF's vertical field of view (radians) from the scene's horizontal ``fov`` and aspect:
+    ``yfov = 2 atan(tan(fov_x / 2) H / W)``."""
+    _, ty = tan_half_fov(scene.camera)
+    return 2.0 * math.atan(ty)
+
+
+def _znear(scene: Scene) -> float:
+    o = np.asarray(scene.camera.origin, float)
+    gaps = []
+    for obj in scene.objects:
+        if isinstance(obj, Sphere):
+            gaps.append(np.linalg.norm(np.asarray(obj.center) - o) - obj.radius)
+    near = 0.5 * min([g for g in gaps if g > 0], default=0.1)
+    return float(max(min(near, 0.1), 1e-4))
+
+
+# ------------------------------------------------------------------------------------------------
+# glTF
+# ------------------------------------------------------------------------------------------------
+
+class _Buffer:
+    """The one binary buffer: 4-byte aligned buffer views and their accessors."""
+
+    def __init__(self):
+        self.data = bytearray()
+        self.views: list[dict] = []
+        self.accessors: list[dict] = []
+
+    def add(self, array: np.ndarray, *, target: int, component: int, type_: str, minmax: bool = False) -> int:
+        while len(self.data) % 4:
+            self.data.append(0)
+        raw = np.ascontiguousarray(array).tobytes()
+        self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": len(raw), "target": target})
+        self.data += raw
+        acc = {"bufferView": len(self.views) - 1, "componentType": component,
+               "count": int(array.shape[0]) if type_ != "SCALAR" else int(array.size), "type": type_}
+        if minmax:
+            acc["min"] = [float(x) for x in array.min(axis=0)]
+            acc["max"] = [float(x) for x in array.max(axis=0)]
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def vertices(self, pos: np.ndarray, nrm: np.ndarray) -> tuple[int, int]:
+        return (self.add(pos.astype(np.float32), target=34962, component=5126, type_="VEC3", minmax=True),
+                self.add(nrm.astype(np.float32), target=34962, component=5126, type_="VEC3"))
+
+    def indices(self, idx: np.ndarray, n_vertices: int) -> int:
+        flat = idx.reshape(-1)
+        if n_vertices < 65536:
+            return self.add(flat.astype(np.uint16), target=34963, component=5123, type_="SCALAR")
+        return self.add(flat.astype(np.uint32), target=34963, component=5125, type_="SCALAR")
+
+
+def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
+    """The glTF 2.0 JSON of ``scene`` and its binary buffer.
+
+    Returns
+    -------
+    (dict, bytes, dict, int)
+        The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``), segments around each
+        sphere (object id -> n) and the number of triangles.
+    """
+    buf = _Buffer()
+    meshes, nodes, materials = [], [], []
+    sphere_geo: dict[int, tuple[int, int, int]] = {}
+    segments: dict[int, int] = {}
+    triangles = 0
+    for obj in scene.objects:
+        materials.append(_material(obj))
+        node = {"name": f"object_{obj.id}_{obj.name}", "mesh": len(meshes), "extras": {"pbrcheck_object": obj.id}}
+        if isinstance(obj, Sphere):
+            n = sphere_segments(scene, obj)
+            segments[obj.id] = n
+            if n not in sphere_geo:
+                pos, idx = uv_sphere(n)
+                p, nr = buf.vertices(pos, pos)
+                sphere_geo[n] = (p, nr, buf.indices(idx, len(pos)), len(idx))
+            p, nr, ix, ntri = sphere_geo[n]
+            node["translation"] = [float(c) for c in obj.center]
+            node["scale"] = [float(obj.radius)] * 3
+        elif isinstance(obj, Plane):
+            pos, nrm, idx = plane_quad(obj)
+            p, nr = buf.vertices(pos, nrm)
+            ix, ntri = buf.indices(idx, 4), 2
+        else:  # pragma: no cover - the loader expands grids
+            raise ExportError(f"{scene.source}: objects[{obj.id}]: cannot export type {type(obj).__name__}")
+        triangles += ntri
+        meshes.append({"name": f"mesh_{obj.id}", "primitives": [
+            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": obj.id, "mode": 4}]})
+        nodes.append(node)
+
+    cam = scene.camera
+    r, u, f = camera_frame(cam)
+    rot = np.stack([r, u, -f], axis=1)           # camera looks down its local -Z, +Y up
+    nodes.append({"name": "camera", "camera": 0, "translation": [float(c) for c in cam.origin],
+                  "rotation": _quaternion(rot)})
+    cameras = [{"name": "camera", "type": "perspective",
+                "perspective": {"yfov": camera_yfov(scene), "aspectRatio": cam.width / cam.height,
+                                "znear": _znear(scene)}}]
+    used = set()
+    if any("extensions" in m for m in materials):
+        used.add("KHR_materials_ior")
+    ext = {}
+    if scene.lights:
+        used.add("KHR_lights_punctual")
+        ext["KHR_lights_punctual"] = {"lights": [_light(l) | {"name": f"light_{k}"} for k, l in enumerate(scene.lights)]}
+        for k, light in enumerate(scene.lights):
+            nodes.append({"name": f"light_{k}", "translation": [float(c) for c in light.position],
+                          "extensions": {"KHR_lights_punctual": {"light": k}}})
+    while len(buf.data) % 4:
+        buf.data.append(0)
+    doc = {
+        "asset": {"version": "2.0", "generator": f"pbrcheck {__version__} export"},
+        "scene": 0,
+        "scenes": [{"name": scene.name, "nodes": list(range(len(nodes)))}],
+        "nodes": nodes, "meshes": meshes, "materials": materials, "cameras": cameras,
+        "accessors": buf.accessors, "bufferViews": buf.views,
+        "buffers": [{"uri": bin_name, "byteLength": len(buf.data)}],
+    }
+    if used:
+        doc["extensionsUsed"] = sorted(used)
+    if ext:
+        doc["extensions"] = ext
+    return doc, bytes(buf.data), segments, triangles
+
+
+# ------------------------------------------------------------------------------------------------
+# Environment
+# ------------------------------------------------------------------------------------------------
+
+def export_directions(width: int, height: int) -> np.ndarray:
+    """(H, W, 3) world directions of the exported environment's pixel centres
+    (:data:`ENVIRONMENT_ORIENTATION`)."""
+    a = 2 * np.pi * ((np.arange(width) + 0.5) / width - 0.5)
+    e = np.pi * (0.5 - (np.arange(height) + 0.5) / height)
+    aa, ee = np.meshgrid(a, e)
+    return np.stack([np.cos(aa) * np.cos(ee), np.sin(ee), np.sin(aa) * np.cos(ee)], axis=-1)
+
+
+def export_width(source_width: int) -> int:
+    """The exported environment's width: twice the source's, clamped to [:data:`ENV_MIN_WIDTH`,
+    :data:`ENV_MAX_WIDTH`] (the height is half of it)."""
+    return int(min(max(2 * source_width, ENV_MIN_WIDTH), ENV_MAX_WIDTH))
+
+
+def equirect_image(env: EnvMap, width: int | None = None) -> np.ndarray:
+    """The environment (scale and rotation included) resampled at the exported orientation's pixel
+    centres, (H, W, 3) float32 with ``W = 2 H``; ``width`` defaults to twice the source's, clamped
+    to [:data:`ENV_MIN_WIDTH`, :data:`ENV_MAX_WIDTH`]."""
+    if width is None:
+        width = export_width(env.width)
+    height = max(width // 2, 1)
+    return env.radiance(export_directions(width, height)).astype(np.float32)
+
+
+# ------------------------------------------------------------------------------------------------
+# Scenario
+# ------------------------------------------------------------------------------------------------
+
+def model_viewer_scenario(scene: Scene) -> dict | None:
+    """The scene as a scenario of the Khronos/model-viewer render-fidelity tools, or None when the
+    camera does not fit its fields (an orbit needs up = +Y).
+
+    Orbit: ``theta`` is the azimuth about +Y from +Z, ``phi`` the polar angle from +Y (degrees),
+    ``radius`` the distance to ``target``; ``verticalFoV`` in degrees."""
+    cam = scene.camera
+    up = np.asarray(cam.up, float) / np.linalg.norm(cam.up)
+    if np.linalg.norm(up - np.array([0.0, 1.0, 0.0])) > 1e-6:
+        return None
+    d = np.asarray(cam.origin, float) - np.asarray(cam.target, float)
+    radius = float(np.linalg.norm(d))
+    phi = math.degrees(math.acos(max(-1.0, min(1.0, d[1] / radius))))
+    theta = math.degrees(math.atan2(d[0], d[2]))
+    return {"name": f"pbrcheck-{scene.name}", "model": "scene.gltf", "lighting": "environment.hdr",
+            "dimensions": {"width": cam.width, "height": cam.height},
+            "target": {"x": float(cam.target[0]), "y": float(cam.target[1]), "z": float(cam.target[2])},
+            "orbit": {"theta": round(theta, 6), "phi": round(phi, 6), "radius": round(radius, 6)},
+            "verticalFoV": round(math.degrees(camera_yfov(scene)), 6), "renderSkybox": True}
+
+
+def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: str = "exr",
+             segments: dict[int, int] | None = None, triangles: int = 0) -> dict:
+    """The ``scenario.json`` content: what a renderer needs besides the glTF, and the contract its
+    output must meet."""
+    if output not in OUTPUT_FORMATS:
+        raise ExportError(f"output: expected one of {', '.join(OUTPUT_FORMATS)}, found {output!r}")
+    cam = scene.camera
+    r, u, f = camera_frame(cam)
+    d = {
+        "pbrcheck": __version__, "export_format": EXPORT_FORMAT_VERSION,
+        "scene": scene.name, "scene_hash": scene_hash(scene, env.content_hash),
+        "size": {"width": cam.width, "height": cam.height},
+        "gltf": "scene.gltf",
+        "camera": {"origin": list(cam.origin), "target": list(cam.target), "up": list(cam.up),
+                   "right": r.tolist(), "true_up": u.tolist(), "forward": f.tolist(),
+                   "fov_x_deg": cam.fov, "yfov_rad": camera_yfov(scene), "aspect": cam.width / cam.height,
+                   "gltf_node": "camera",
+                   "pixel_centres": "pixel (row i, column j) looks through x_ndc = 2 (j + 0.5)/W - 1, "
+                                    "y_ndc = 1 - 2 (i + 0.5)/H; row 0 at the top"},
+        "environment": {"exr": "environment.exr", "hdr": "environment.hdr",
+                        "width": env_shape[1], "height": env_shape[0],
+                        "orientation": ENVIRONMENT_ORIENTATION, "as_background": True},
+        "lights": [{"type": "point", "position": list(l.position), "intensity_w_per_sr": list(l.intensity),
+                    "gltf_node": f"light_{k}"} for k, l in enumerate(scene.lights)],
+        "units": "point light intensity: 1 cd is taken as 1 W/sr (radiometric); radiance in W/(sr m^2), "
+                 "linear Rec.709 primaries",
+        "objects": [{"id": o.id, "name": o.name, "type": o.type, "gltf_node": f"object_{o.id}_{o.name}",
+                     **({"segments": segments[o.id]} if segments and o.id in segments else {})}
+                    for o in scene.objects],
+        "tessellation": {"silhouette_tolerance_px": SILHOUETTE_TOLERANCE_PX, "triangles": triangles,
+                         "rule": "UV sphere, n segments and n/2 rings, n >= sqrt(2) pi / acos(1 - 0.25 / "
+                                 "(s r)) with s the largest pixels per unit on the sphere"},
+        "output": {"format": output, "suffix": OUTPUT_SUFFIX[output], "width": cam.width, "height": cam.height,
+                   "contract": "linear radiance (no tone mapping, no exposure), float, row 0 at the top, "
+                               "background = the environment seen through each pixel"
+                               if output != "png-srgb" else
+                               "8-bit sRGB: clamp to [0, 1] then the sRGB transfer; compared in display space"},
+    }
+    mv = model_viewer_scenario(scene)
+    if mv is not None:
+        d["model_viewer"] = mv
+    return d
+
+
+# ------------------------------------------------------------------------------------------------
+# Export
+# ------------------------------------------------------------------------------------------------
+
+
+
+def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None) -> Export:
+    """Write the scene's files (:data:`FILES`) into ``out_dir`` (created).
+
+    Everything is computed before the first write (a bad scene or environment writes nothing);
+    each file is written atomically.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    out_dir : str or Path
+        The folder.
+    output : str, optional
+        The output format the renderer will write (:data:`OUTPUT_FORMATS`), stated in the scenario.
+    env : EnvMap, optional
+        The loaded environment (loaded from the scene when not given).
+
+    Returns
+    -------
+    Export
+
+    Raises
+    ------
+    ExportError, EnvironmentMapError, ImageIOError
+    """
+    env = env if env is not None else load_environment(scene)
+    doc, blob, segments, triangles = gltf_document(scene)
+    eq = equirect_image(env)
+    sc = scenario(scene, env, eq.shape[:2], output=output, segments=segments, triangles=triangles)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {name: out / name for name in FILES}
+    write_bytes_atomic(files["scene.bin"], blob)
+    write_bytes_atomic(files["scene.gltf"], (dump_json(doc) + "\n").encode())
+    write_exr(files["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
+    write_hdr(files["environment.hdr"], eq)
+    write_json_atomic(files["scenario.json"], sc)
+    return Export(out, files, sc, segments, triangles)
+

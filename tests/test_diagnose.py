@@ -1,0 +1,181 @@
+"""`pbrcheck diagnose`: every planted convention mismatch is named, a correct image is not.
+
+The reference is the committed CI reference of the spheres scene (1024 spp). Image-space mismatches
+are planted by transforming the real-time default preset's image; scene-space mismatches by
+rendering the reference of the broken scene (another seed, so its noise is independent) or, for the
+linear ones (diffuse and light units off by a factor), by the same decomposition on that render.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from compare import renderers
+from compare.research import diagnose as dg
+from pbrcheck import cli
+from pbrcheck.environment import load_environment
+from pbrcheck.exr import Image, read_exr, write_exr
+from pbrcheck.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "compare" / "budgets" / "spheres_ci.toml"
+REF = ROOT / "compare" / "budgets" / "refs" / "spheres_ci.exr"
+#: Spp of the planted scene-space images and of diagnose's re-renders (fast; the mismatches' errors
+#: are orders of magnitude above this noise).
+SPP = 32
+#: Seed and spp of the planted scene-space images.
+PLANT_SEED = 7
+PLANT_SPP = 512
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return load_scene(SCENE)
+
+
+@pytest.fixture(scope="module")
+def ref():
+    return read_exr(REF)
+
+
+@pytest.fixture(scope="module")
+def correct(scene):
+    return renderers.render_under_test(scene, "default")
+
+
+def _with_rgb(img: Image, rgb: np.ndarray) -> Image:
+    return Image.from_rgb(np.ascontiguousarray(rgb, np.float32))
+
+
+def test_a_correct_image_has_no_convention_mismatch(ref, correct):
+    d = dg.diagnose(ref, correct)
+    assert d.likely is None
+    assert d.line.startswith("no convention mismatch found")
+    # The exposure fit exists but removes little of an approximation's error.
+    exposure = next(r for r in d.rows if r.hypothesis == "exposure")
+    assert abs(exposure.fitted["factor"] - 1.0) < dg.EXPOSURE_MIN_DEVIATION
+
+
+def test_an_image_within_noise_says_so(ref):
+    d = dg.diagnose(ref, ref)
+    assert d.likely is None and "within the reference's noise" in d.line
+
+
+@pytest.mark.parametrize("name", [h for h in dg.IMAGE_HYPOTHESES if h not in ("exposure", "hdr_clamp",
+                                                                             "premultiplied_alpha")])
+def test_planted_image_mismatch_is_named(name, ref, correct):
+    t = correct.rgb
+    planted = {"flip_vertical": t[::-1], "flip_horizontal": t[:, ::-1], "swap_rb": t[..., ::-1],
+               "srgb_as_linear": dg.srgb_oetf(np.clip(t, 0, None)), "linear_as_srgb": dg.srgb_eotf(t)}[name]
+    d = dg.diagnose(ref, _with_rgb(correct, planted))
+    assert d.likely == name, dg.table_markdown(d)
+
+
+def test_planted_exposure_is_named_with_its_factor(ref, correct):
+    d = dg.diagnose(ref, _with_rgb(correct, correct.rgb * 0.5))
+    assert d.likely == "exposure"
+    assert d.rows[0].fitted["factor"] == pytest.approx(2.0, rel=0.02)
+
+
+def test_planted_clamp_is_named_with_its_level(ref, correct):
+    d = dg.diagnose(ref, _with_rgb(correct, np.minimum(correct.rgb, 0.2)))
+    assert d.likely == "hdr_clamp", dg.table_markdown(d)
+    assert d.rows[0].fitted["level"] == pytest.approx(0.2)
+
+
+def test_planted_premultiplied_alpha_is_named(ref, correct):
+    cov = correct.channels["coverage"]
+    d = dg.diagnose(ref, _with_rgb(correct, correct.rgb * cov[..., None]))
+    assert d.likely == "premultiplied_alpha", dg.table_markdown(d)
+
+
+def test_premultiplied_alpha_is_skipped_without_coverage(ref, correct):
+    plain = Image.from_rgb(ref.rgb)  # no coverage AOV
+    d = dg.diagnose(plain, correct)
+    row = next(r for r in d.rows if r.hypothesis == "premultiplied_alpha")
+    assert row.skipped and row.error_after is None
+
+
+def _broken_scene(name: str, scene, tmp: Path):
+    """The scene a renderer with mismatch ``name`` effectively renders, built here independently of
+    diagnose's own hypothesis scenes (so a wrong hypothesis edit cannot pass by agreeing with itself)."""
+    env = scene.environment
+    mats = lambda fn: replace(scene, objects=tuple(replace(o, material=fn(o.material))  # noqa: E731
+                                                  for o in scene.objects))
+    if name.startswith("env_rotate_"):
+        return replace(scene, environment=replace(env, rotation=env.rotation + int(name[11:])))
+    if name == "env_mirror_u":
+        # Texel column c sits at phi = 2 pi (c + 0.5) / W; x -> -x is phi -> 2 pi - phi: column W-1-c.
+        em = load_environment(scene)
+        path = tmp / "mirror.exr"
+        write_exr(path, Image.from_rgb(np.ascontiguousarray(em.data[:, ::-1])))
+        return replace(scene, environment=replace(env, type="file", path=str(path)))
+    if name == "roughness_as_alpha":   # alpha = r, i.e. perceptual roughness sqrt(r)
+        return mats(lambda m: replace(m, roughness=m.roughness ** 0.5))
+    if name == "roughness_squared_twice":
+        return mats(lambda m: replace(m, roughness=m.roughness ** 2))
+    if name in ("diffuse_times_pi", "diffuse_over_pi"):
+        k = math.pi if name == "diffuse_times_pi" else 1 / math.pi
+        return replace(scene, objects=tuple(
+            replace(o, material=replace(o.material, base_color=tuple(k * c for c in o.material.base_color)))
+            if o.material.metallic == 0 else o for o in scene.objects))
+    if name in ("light_units_4pi", "light_units_over_4pi"):
+        k = 4 * math.pi if name == "light_units_4pi" else 1 / (4 * math.pi)
+        return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
+                                           for li in scene.lights))
+    if name == "multiple_scattering":  # an engine that keeps multiply scattered energy
+        return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk"))
+    raise KeyError(name)
+
+
+def _planted_scene_image(name: str, scene, tmp: Path) -> np.ndarray:
+    """Another seed than diagnose's re-renders (seed 0), so the right hypothesis's noise is independent
+    of the planted image's and diagnose's noise correction has to absorb it; many samples, so the
+    planted image is nearly noise-free like an engine's."""
+    return renderers.render_reference(_broken_scene(name, scene, tmp), spp=PLANT_SPP, seed=PLANT_SEED).rgb
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", dg.SCENE_HYPOTHESES)
+def test_planted_scene_mismatch_is_named(name, scene, ref, tmp_path):
+    test = _with_rgb(ref, _planted_scene_image(name, scene, tmp_path))
+    d = dg.diagnose(ref, test, scene, spp=SPP)
+    assert d.likely == name, dg.table_markdown(d)
+    assert ("a model difference" in d.line) == (name in dg.MODEL_HYPOTHESES)
+
+
+def test_mirrored_environment_is_the_mirror(scene, tmp_path):
+    s2 = dg.hypothesis_scene("env_mirror_u", scene, tmp_path)
+    a, b = load_environment(scene), load_environment(s2)
+    d = np.random.default_rng(3).standard_normal((256, 3))
+    m = d * np.array([-1.0, 1.0, 1.0])
+    # Bilinear lookups at mirrored positions agree up to the texel grid's own asymmetry.
+    assert np.allclose(b.radiance(d), a.radiance(m), rtol=0.05, atol=0.02)
+
+
+def test_diagnose_rejects_a_scene_of_another_size(ref, correct):
+    other = load_scene("furnace")
+    with pytest.raises(dg.DiagnoseError, match="the images are 120x100"):
+        dg.diagnose(ref, correct, other)
+
+
+def test_cli_names_the_cause_writes_json_and_rejects_bad_input(tmp_path, ref, correct, capsys):
+    test = tmp_path / "test.exr"
+    write_exr(test, _with_rgb(correct, correct.rgb[::-1]))
+    out = tmp_path / "d.json"
+    assert cli.main(["diagnose", str(REF), str(test), "--json", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "likely cause: flip_vertical" in text
+    assert json.loads(out.read_text())["likely"] == "flip_vertical"
+    small = tmp_path / "small.exr"
+    write_exr(small, Image.from_rgb(np.ones((4, 4, 3), np.float32)))
+    bad = tmp_path / "bad.json"
+    assert cli.main(["diagnose", str(REF), str(small), "--json", str(bad), "--quiet"]) == 2
+    assert "size mismatch" in capsys.readouterr().err
+    assert not bad.exists()

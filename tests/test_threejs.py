@@ -1,0 +1,125 @@
+"""The three.js client, for real: headless Chromium (WebGL2 on SwiftShader) renders exported
+scenes with three.js r187. Skipped where node, Chromium or ``clients/threejs/node_modules`` are
+absent (``make setup`` installs them).
+
+- the white furnace: three.js's multiple-scattering compensation keeps a white metal at ~1.0 at
+  every roughness, while the single-scattering reference loses energy as roughness grows (a model
+  difference, measured here);
+- the orientation probe: coloured markers in the environment (rotated 30 degrees) land in the
+  same pixels in three.js and the reference, in the background and in a mirror sphere's
+  reflection (the image-based lighting's orientation);
+- a point light on a diffuse sphere: 1 cd = 1 W/sr (the radiometric convention) within the
+  models' difference.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import compare.renderers as renderers
+from pbrcheck.environment import texel_directions
+from pbrcheck.exr import Image, read_exr, write_exr
+from pbrcheck.scene import load_scene, scene_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+THREEJS = ROOT / "clients" / "threejs"
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True)
+def needs_threejs(tmp_cache):
+    if shutil.which("node") is None:
+        pytest.skip("node is absent (make setup installs Debian's nodejs)")
+    if not (THREEJS / "node_modules" / "three").is_dir():
+        pytest.skip(f"three is not installed: run npm ci in {THREEJS}")
+    if not any(shutil.which(c) for c in ("chromium", "chromium-browser")):
+        pytest.skip("Chromium is absent (make setup installs Debian's chromium)")
+
+
+def test_white_furnace_threejs_keeps_energy_reference_loses_it():
+    scene = load_scene(str(ROOT / "compare" / "budgets" / "furnace_ci.toml"))
+    img = renderers.render_under_test(scene, "ext:threejs")
+    ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "furnace_ci.exr")
+    assert img.meta["version"].startswith("three 0.187.0")
+    ids = img.channels["object"]
+    three, mitsuba = [], []
+    for k in range(5):                                   # roughness 0, 0.25, 0.5, 0.75, 1
+        m = (ids == k) & (ref.channels["coverage"] >= 0.999)
+        three.append(float(img.rgb[m].mean()))
+        mitsuba.append(float(ref.rgb[m].mean()))
+    assert np.allclose(three, 1.0, atol=0.03), three    # multiple scattering compensated
+    assert mitsuba[0] == pytest.approx(1.0, abs=0.01)   # a mirror keeps everything in both
+    assert mitsuba[4] < 0.9 and three[4] - mitsuba[4] > 0.1, (three, mitsuba)
+    assert all(a >= b - 0.01 for a, b in zip(mitsuba, mitsuba[1:]))   # the loss grows with roughness
+
+
+MARKERS = {  # world direction (before the 30-degree rotation) -> colour
+    (-0.45, 0.25, -1.0): (8.0, 0.0, 0.0),
+    (0.45, 0.25, -1.0): (0.0, 8.0, 0.0),
+    (0.0, -0.35, -1.0): (0.0, 0.0, 8.0),
+    (0.6, 0.5, 1.0): (8.0, 8.0, 0.0),       # behind the camera: seen only in the mirror sphere
+    (-0.6, -0.2, 1.0): (0.0, 8.0, 8.0),
+}
+MARKER_COS = np.cos(np.radians(7.0))
+
+
+def probe_env(path: Path) -> None:
+    d = texel_directions(256, 129)
+    img = np.full(d.shape, 0.05, np.float32)
+    for m, c in MARKERS.items():
+        v = np.array(m) / np.linalg.norm(m)
+        img[d @ v > MARKER_COS] = c
+    write_exr(path, Image.from_rgb(img))
+
+
+def centroids(rgb: np.ndarray) -> dict:
+    out = {}
+    for c in {tuple(v) for v in MARKERS.values()}:
+        want = np.array(c) > 0
+        mask = np.all((rgb > 1.0) == want, axis=-1)
+        ys, xs = np.nonzero(mask)
+        out[c] = (ys.mean(), xs.mean(), len(ys)) if len(ys) else None
+    return out
+
+
+def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
+    probe_env(tmp_path / "probe.exr")
+    scene = scene_from_dict({
+        "name": "probe", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 80.0, "width": 160, "height": 100},
+        "environment": {"type": "file", "path": "probe.exr", "rotation": 30.0},
+        "objects": [{"type": "sphere", "center": [0.0, 0.0, -4.0], "radius": 0.9,
+                     "material": {"base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.0}}],
+    }, file=str(tmp_path / "probe.toml"), base_dir=tmp_path)
+    three = renderers.render_under_test(scene, "ext:threejs")
+    ref = renderers.render_reference(scene, spp=16, use_cache=False)
+    a, b = centroids(three.rgb), centroids(ref.rgb)
+    seen = 0
+    for c in a:
+        assert (a[c] is None) == (b[c] is None), (c, a[c], b[c])
+        if a[c] is None:
+            continue
+        seen += 1
+        assert abs(a[c][0] - b[c][0]) < 1.5 and abs(a[c][1] - b[c][1]) < 1.5, (c, a[c], b[c])
+        assert a[c][2] == pytest.approx(b[c][2], rel=0.35)
+    assert seen == len(MARKERS)
+
+
+def test_point_light_one_candela_is_one_watt_per_steradian():
+    scene = scene_from_dict({
+        "name": "lamp", "camera": {"origin": [0, 0, 5.0], "fov": 30.0, "width": 64, "height": 64},
+        "environment": {"type": "none"},
+        "lights": [{"type": "point", "position": [0.0, 0.0, 5.0], "intensity": [10.0, 10.0, 10.0]}],
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
+    })
+    three = renderers.render_under_test(scene, "ext:threejs")
+    ref = renderers.render_reference(scene, spp=16, use_cache=False)
+    c = (slice(28, 36), slice(28, 36))                # facing the light: n.l = 1, distance 4
+    expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
+    assert float(ref.rgb[c].mean()) == pytest.approx(expect, rel=0.1)
+    assert float(three.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
