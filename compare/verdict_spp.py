@@ -66,6 +66,8 @@ class VerdictSpp:
     def provenance(self) -> str:
         if self.noise_floor is None:
             return f"{self.spp} spp (no variance channels: noise floor unknown)"
+        if self.smallest_error is None:
+            return f"{self.spp} spp: noise floor {self.noise_floor:.3g}; no error above it (every renderer within the noise)"
         r = "inf" if self.ratio is None or math.isinf(self.ratio) else f"{self.ratio:.3g}"
         s = (f"{self.spp} spp: noise floor {self.noise_floor:.3g} = smallest error "
              f"{self.smallest_error:.3g} / {r} (goal >= {self.factor:g})")
@@ -83,14 +85,19 @@ def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR
 
 def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float | None, float | None]:
     """(noise floor of ``ref``, smallest corrected MSE of ``tests`` against it) by the comparator's own
-    masks and noise estimate (:func:`compare.metrics.compare_images`)."""
+    masks and noise estimate (:func:`compare.metrics.compare_images`). Errors not above the noise
+    (corrected MSE <= :data:`MIN_TRUSTED_MSE`) are left out; None when no error is."""
     floor, err = None, None
     for t in tests:
         n = compare_images(ref, t, scene=scene, noise=True).summary["noise"]
         if n is None:
             return None, None
         floor = n["mean_variance"] if floor is None else max(floor, n["mean_variance"])
-        e = max(float(n["mse_corrected"]), 0.0)
+        e = float(n["mse_corrected"])
+        if e <= MIN_TRUSTED_MSE:
+            # No error above the noise (an exact preset, e.g. the default on the furnace): more spp
+            # can only bound it, never put the floor 10x below it; it does not set the spp.
+            continue
         err = e if err is None else min(err, e)
     return floor, err
 
@@ -105,7 +112,9 @@ def verdict_of(ref: Image, noise: dict | None, factor: float = NOISE_FLOOR_FACTO
         spp = 0
     if noise is None:
         return VerdictSpp(spp, None, None, None, False, spp, factor, [])
-    floor, err = float(noise["mean_variance"]), max(float(noise["mse_corrected"]), 0.0)
+    floor, err = float(noise["mean_variance"]), float(noise["mse_corrected"])
+    if err <= MIN_TRUSTED_MSE:  # no error above the noise: see noise_and_error
+        return VerdictSpp(spp, floor, None, None, False, spp, factor, [[spp, floor, None, None]])
     ratio = err / floor if floor > 0 else math.inf
     need = spp_needed(spp, floor, err, factor) if spp else math.nan
     return VerdictSpp(spp, floor, err, ratio, bool(ratio < factor), spp, factor, [[spp, floor, err, need]])

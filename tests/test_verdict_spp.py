@@ -135,3 +135,15 @@ def test_flip_and_itp_maps_are_memoized_by_content(monkeypatch):
     assert len(calls) == 2
     e1 = metrics.delta_e_itp_map(a, b)
     np.testing.assert_array_equal(e1, metrics.delta_e_itp_map(a, b))
+
+
+def test_errors_within_the_noise_do_not_set_the_spp():
+    """An exact renderer (corrected MSE <= 0) cannot ever be 10x above the floor: it is left out, the
+    smallest *resolved* error sets the spp; with none at all the first render stands."""
+    exact = Image.from_rgb(TRUTH.copy(), {}, **_aovs())
+    ref, v = vs.reference_for_verdict(None, [exact, _test_image(0.05)], spp=64, cap=4096)
+    assert calls == [64] and not v.noise_limited and v.smallest_error == pytest.approx(0.05, rel=0.2)
+    calls.clear()
+    ref, v = vs.reference_for_verdict(None, [exact], spp=64, cap=4096)
+    assert calls == [64] and v.smallest_error is None and not v.noise_limited
+    assert "no error above it" in v.provenance()
