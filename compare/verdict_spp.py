@@ -30,7 +30,7 @@ import numpy as np
 from pbrcheck.exr import Image
 
 from . import renderers
-from .metrics import compare_images
+from .metrics import is_display_referred, pixel_classes, validate_pair
 
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
@@ -85,15 +85,25 @@ def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR
 
 def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float | None, float | None]:
     """(noise floor of ``ref``, smallest corrected MSE of ``tests`` against it) by the comparator's own
-    masks and noise estimate (:func:`compare.metrics.compare_images`). Errors not above the noise
+    masks and noise estimate (those of :func:`compare.metrics.noise_floor`, computed without the
+    comparator's costly maps; display-referred images are left out). Errors not above the noise
     (corrected MSE <= :data:`MIN_TRUSTED_MSE`) are left out; None when no error is."""
     floor, err = None, None
+    if ref.variance is None or is_display_referred(ref):
+        return None, None
+    var = np.clip(ref.variance.astype(np.float64), 0.0, None)
     for t in tests:
-        n = compare_images(ref, t, scene=scene, noise=True).summary["noise"]
-        if n is None:
-            return None, None
-        floor = n["mean_variance"] if floor is None else max(floor, n["mean_variance"])
-        e = float(n["mse_corrected"])
+        if is_display_referred(t):  # an 8-bit engine: compared in display space, no noise floor
+            continue
+        validate_pair(ref, t)
+        valid = pixel_classes(ref, t)[0]
+        if not valid.any():
+            continue
+        # compare.metrics.noise_floor's mean_variance and mse_corrected, without the maps (FLIP)
+        f = float(var[valid].mean())
+        d = t.rgb.astype(np.float64) - ref.rgb.astype(np.float64)
+        e = float((d[valid] ** 2).mean()) - f
+        floor = f if floor is None else max(floor, f)
         if e <= MIN_TRUSTED_MSE:
             # No error above the noise (an exact preset, e.g. the default on the furnace): more spp
             # can only bound it, never put the floor 10x below it; it does not set the spp.

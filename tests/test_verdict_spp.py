@@ -147,3 +147,14 @@ def test_errors_within_the_noise_do_not_set_the_spp():
     ref, v = vs.reference_for_verdict(None, [exact], spp=64, cap=4096)
     assert calls == [64] and v.smallest_error is None and not v.noise_limited
     assert "no error above it" in v.provenance()
+
+
+def test_noise_and_error_equal_the_comparators_noise_floor():
+    from compare.metrics import compare_images
+
+    ref = fake_reference(None, spp=64)
+    t = _test_image(2e-3)
+    n = compare_images(ref, t).summary["noise"]
+    floor, err = vs.noise_and_error(ref, [t])
+    assert floor == pytest.approx(n["mean_variance"], rel=1e-6)
+    assert err == pytest.approx(n["mse_corrected"], rel=1e-5)
