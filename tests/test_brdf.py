@@ -86,7 +86,13 @@ def test_reciprocity(r, vx, vy, lx, ly, ndf, geometry):
 @pytest.mark.parametrize("geometry", GEOMETRIES)
 def test_white_furnace_albedo_at_most_one(ndf, geometry):
     """White furnace of the specular lobe (metal, F0 = 1): directional albedo <= 1 everywhere, and
-    of the whole dielectric BRDF (white base colour) near normal incidence."""
+    of the whole dielectric BRDF (white base colour) near normal incidence. Beckmann's masking
+    (smith_beckmann_correlated) only with Beckmann's D: its Lambda is far smaller than GGX's for
+    grazing directions, so with GGX's long-tailed D (1.0035 at roughness 0.02, n.v = 0.001) or
+    Blinn-Phong's (uniform at roughness 1: 1.76 at n.v = 0.001) the mismatched pair reflects more
+    than it receives (a property of the combination, which a scene may still name)."""
+    if geometry == "smith_beckmann_correlated" and ndf != "beckmann":
+        pytest.skip("Beckmann's masking with another NDF is not energy-bounded at grazing angles")
     for r in [0.0, 0.02, 0.3, 0.7, 1.0]:
         for nv in [1.0, 0.7, 0.3, 0.05, 1e-3]:
             assert specular_albedo(nv, r, 1.0, ndf=ndf, geometry=geometry) <= 1.0 + ENERGY_TOL
