@@ -252,6 +252,11 @@ class ReferenceIntegrator(RBIntegrator):
                 ray, weight, _ = self.sample_rays(scene, sensor, sampler)
                 L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
                 L = mi.Color3f(L * weight)
+                hit = mi.Bool(hit)
+                # One kernel for the estimator's outputs: a gather from an unevaluated L would
+                # evaluate each channel in a kernel of its own, each re-running the whole
+                # estimator (measured: 3 x 1.4 s + 0.2 s for the hits, against 1.5 s at once).
+                dr.eval(L, hit)
                 pixel = dr.arange(mi.UInt32, npix * n) // n
                 if shift is None:
                     # K = each pixel's first sample (so a constant pixel has s1 = s2 = 0 exactly).
