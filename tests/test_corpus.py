@@ -153,6 +153,9 @@ def test_parse_scheduler():
     for bad in ("local:0", "local:x", "slurm", "tcp://"):
         with pytest.raises(SchedulerError, match="--scheduler"):
             parse_scheduler(bad)
+    from compare.corpus.scheduler import SchedulerUnavailable
+
+    assert SchedulerError.exit_code == 2 and SchedulerUnavailable.exit_code == 3  # bad input / backend
 
 
 # --- discovery -------------------------------------------------------------------------------------

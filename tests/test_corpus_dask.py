@@ -184,3 +184,35 @@ def test_tcp_scheduler_with_multithreaded_workers(serial_rows, tmp_path):
             p.terminate()
         for p in procs:
             p.wait(timeout=60)
+
+
+def test_unreachable_scheduler_or_no_worker_is_a_scheduler_error():
+    import subprocess
+    import sys
+
+    from compare.corpus.scheduler import SchedulerUnavailable
+
+    port = _free_port()
+    with pytest.raises(SchedulerUnavailable, match="cannot connect"):
+        with open_executor(f"tcp://127.0.0.1:{port}", timeout=2):
+            pass
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                              "--port", str(port), "--no-dashboard"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        import socket
+
+        deadline = time.monotonic() + 120
+        while True:  # wait until the scheduler listens, so the client's short timeout is for workers
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline, "dask scheduler did not start"
+                time.sleep(0.5)
+        with pytest.raises(SchedulerUnavailable, match="no worker joined"):
+            with open_executor(f"tcp://127.0.0.1:{port}", timeout=5):
+                pass
+    finally:
+        sched.terminate()
+        sched.wait(timeout=60)

@@ -9,6 +9,8 @@ run and a Dask run give the same results.
 API
 ---
 - :class:`Dep`, :class:`Task`, :class:`Failed` -- the graph and the value of a failed task.
+- :class:`SchedulerError` (bad spec, exit 2), :class:`SchedulerUnavailable` (no scheduler or no
+  worker, exit 3).
 - :func:`parse_scheduler` -- ``"serial"``, ``"local"``, ``"local:N"`` or ``"tcp://HOST:PORT"`` to a
   :class:`SchedulerSpec` (raises :class:`SchedulerError`).
 - :func:`open_executor` -- a context manager yielding the executor of a spec (starts and stops a
@@ -49,12 +51,18 @@ DEFAULT_RETRIES = 2
 #: The ``--scheduler`` help text every command shares.
 SCHEDULER_HELP = ("where tasks run: serial (this process), local:N (a Dask LocalCluster of N worker "
                   "processes; local alone: one per CPU core) or tcp://HOST:PORT (a running dask scheduler)")
-#: Seconds to wait for the workers of a LocalCluster or a remote scheduler to come up.
+#: Seconds to wait for a remote scheduler to answer and for its first worker to join.
 CONNECT_TIMEOUT_S = 120
 
 
 class SchedulerError(PbrcheckError):
-    """A malformed ``--scheduler`` value, or a scheduler that cannot be reached."""
+    """A malformed ``--scheduler`` value (exit code 2)."""
+
+
+class SchedulerUnavailable(SchedulerError):
+    """A scheduler that cannot be reached or has no worker: the backend is unavailable (exit code 3)."""
+
+    exit_code = 3
 
 
 @dataclass(frozen=True)
@@ -226,14 +234,18 @@ class DaskExecutor:
 
 
 @contextlib.contextmanager
-def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RETRIES):
+def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RETRIES,
+                  timeout: float = CONNECT_TIMEOUT_S):
     """The executor of ``spec``: serial in this process, a LocalCluster of ``spec.workers`` processes
     (one thread each) started for the duration, or a client of the scheduler at ``spec.address``.
 
     Raises
     ------
     SchedulerError
-        A malformed spec, or a scheduler that cannot be reached within :data:`CONNECT_TIMEOUT_S`.
+        A malformed spec.
+    SchedulerUnavailable
+        A scheduler that cannot be reached, or gets no worker, within ``timeout`` seconds (default
+        :data:`CONNECT_TIMEOUT_S`).
     """
     if not isinstance(spec, SchedulerSpec):
         spec = parse_scheduler(spec)
@@ -245,12 +257,17 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     if spec.kind == "local":
         with LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
                           dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
-                Client(cluster, timeout=CONNECT_TIMEOUT_S) as client:
+                Client(cluster, timeout=timeout) as client:
             yield DaskExecutor(client, retries)
         return
     try:
-        client = Client(spec.address, timeout=CONNECT_TIMEOUT_S)
+        client = Client(spec.address, timeout=timeout)
     except (OSError, TimeoutError) as e:
-        raise SchedulerError(f"--scheduler {spec.address}: cannot connect ({e})") from None
+        raise SchedulerUnavailable(f"--scheduler {spec.address}: cannot connect ({e})") from None
     with client:
+        try:  # tasks would wait forever on a scheduler without workers
+            client.wait_for_workers(1, timeout=timeout)
+        except (OSError, TimeoutError):
+            raise SchedulerUnavailable(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
+                                 f"(start some with `dask worker {spec.address} --nthreads 1`)") from None
         yield DaskExecutor(client, retries)

@@ -35,6 +35,7 @@ API
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 from dataclasses import dataclass, field, replace
@@ -304,6 +305,8 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
     ------
     CorpusError, OptionError, SchedulerError
         Bad corpus, settings or scheduler: raised before anything is written.
+    SchedulerUnavailable
+        The scheduler cannot be reached or has no worker: also before anything is written.
     """
     settings.validate()
     entries = discover(source)
@@ -319,43 +322,43 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
             if row is not None:
                 done[s.row_key] = row
     tasks, _ = plan(entries, settings, set(done))
-    rows_dir.mkdir(parents=True, exist_ok=True)
-    computed = 0
+    with contextlib.ExitStack() as stack:
+        # The executor first: a scheduler that cannot be reached stops the corpus before any write.
+        if tasks and executor is None:
+            executor = stack.enter_context(open_executor(spec))
+        rows_dir.mkdir(parents=True, exist_ok=True)
+        computed = 0
 
-    def write(row):
-        nonlocal computed
-        write_json_atomic(rows_dir / f"{row['key']}.json", row)
-        done[row["key"]] = row
-        computed += 1
-        if on_row is not None:
-            on_row(row)
+        def write(row):
+            nonlocal computed
+            write_json_atomic(rows_dir / f"{row['key']}.json", row)
+            done[row["key"]] = row
+            computed += 1
+            if on_row is not None:
+                on_row(row)
 
-    for s in slots:  # unreadable entries: error rows without any task
-        if s.entry.problem and s.row_key not in done:
-            write(make_row(s, Failed("environment", s.entry.problem)))
-    waiting: dict[str, list[RowSlot]] = {}
-    for s in slots:
-        if s.row_key not in done:
-            waiting.setdefault(s.compare_key, []).append(s)
+        for s in slots:  # unreadable entries: error rows without any task
+            if s.entry.problem and s.row_key not in done:
+                write(make_row(s, Failed("environment", s.entry.problem)))
+        waiting: dict[str, list[RowSlot]] = {}
+        for s in slots:
+            if s.row_key not in done:
+                waiting.setdefault(s.compare_key, []).append(s)
 
-    def on_result(task: Task, value):
-        if task.stage == "environment":
-            if not isinstance(value, Failed):
-                write_thumbnail(thumbs_dir, task.key, value["thumb"])
-            return
-        for s in waiting.pop(task.key, []):
-            write(make_row(s, value))
+        def on_result(task: Task, value):
+            if task.stage == "environment":
+                if not isinstance(value, Failed):
+                    write_thumbnail(thumbs_dir, task.key, value["thumb"])
+                return
+            for s in waiting.pop(task.key, []):
+                write(make_row(s, value))
 
-    if tasks:
-        with Progress(f"corpus {settings.scene.name}", total=len(tasks), unit="tasks", enabled=progress) as prog:
-            if executor is not None:
+        if tasks:
+            with Progress(f"corpus {settings.scene.name}", total=len(tasks), unit="tasks", enabled=progress) as prog:
                 executor.run(tasks, on_result, prog)
-            else:
-                with open_executor(spec) as ex:
-                    ex.run(tasks, on_result, prog)
-    for slots_left in waiting.values():  # a result that never came back (should not happen)
-        for s in slots_left:
-            write(make_row(s, Failed("task", "no result came back from the scheduler")))
+        for slots_left in waiting.values():  # a result that never came back (should not happen)
+            for s in slots_left:
+                write(make_row(s, Failed("task", "no result came back from the scheduler")))
     rows = [done[s.row_key] for s in slots]
     env_keys = {s.entry.name: _keys(settings, s.entry, s.renderer)[0] for s in slots}
     summary = summarize(rows, settings, env_keys)
