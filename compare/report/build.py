@@ -215,7 +215,7 @@ is computed on linear radiance, before any display transform.</p>
 {% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
 {% endfor %}
 {% endmacro %}
-{% for x in top %}{{ section(x) }}{% endfor %}
+{% for x in top|default([]) %}{{ section(x) }}{% endfor %}
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
