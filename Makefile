@@ -45,7 +45,7 @@ test: setup test-packages
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# The CI error-budget gate of the shipped shaders, then of the external clients (three.js).
+# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer).
 gate: setup
 	@rc=0; \
 	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md || rc=$$?; \

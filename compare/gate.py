@@ -18,7 +18,13 @@ Budget format (TOML; see docs/compare.md)::
     psnr = 30
 
 Outcome per check: ``pass``, ``fail`` (a metric outside its budget) or ``error`` (missing or
-unreadable image, size mismatch, NaN, bad scene...). Exit status: 2 if any check errored (never
+unreadable image, size mismatch, NaN, bad scene...). Trusted verdicts: a budget is trusted when it
+sits :data:`BUDGET_NOISE_FACTOR` (10) times above the reference's noise in its own metric (the
+metric of a simulated noise-only pair, :func:`compare.metrics.noise_floor`); an ``auto`` reference
+is rendered from ``spp`` up (powers of two, at most ``spp_cap``, default 4096) until its noise floor
+is also 10x below the check's error (:mod:`compare.verdict_spp`). Where a budget is not trusted the
+check's line says ``noise-limited`` with the spp that would be (it still passes or fails on its
+budgets); the reference's spp and these figures are in the JUnit output and the summary. Exit status: 2 if any check errored (never
 pass on missing data), else 1 if any failed, else 0. A malformed budget is an error before any
 check runs (exit 2, nothing written).
 """
@@ -43,8 +49,10 @@ from pbrcheck.scene import builtin_scene_names, load_scene
 from . import renderers
 from .maps import write_maps
 from .metrics import METRICS, compare_images, worse
+from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
 
-CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "test", "max", "min", "mode", "seed"}
+CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
+              "mode", "seed"}
 DEFAULT_SPP = 64
 #: The reference renderer needs two samples per pixel for its variance channels.
 MIN_REFERENCE_SPP = 2
@@ -70,6 +78,7 @@ class Check:
     spp: int = DEFAULT_SPP
     mode: str = "local"
     seed: int = 0
+    spp_cap: int = DEFAULT_SPP_CAP
 
 
 @dataclass
@@ -85,6 +94,8 @@ class Result:
     exit_code: int = 0
     seconds: float = 0.0
     maps: dict = field(default_factory=dict)
+    verdict: VerdictSpp | None = None  # the reference's spp and noise floor against the error
+    budget_noise: list = field(default_factory=list)  # per budget: the reference's noise in its metric
 
 
 def _err(file, where, expected, found=None) -> BudgetError:
@@ -153,8 +164,8 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, w, "preset/options/shader only with scene, not with test", "test")
         if "options" in t and not isinstance(t["options"], dict):
             raise _err(path, f"{w}.options", "a table of real-time options", t["options"])
-        for k in ("spp", "seed"):
-            lo = MIN_REFERENCE_SPP if k == "spp" else 0
+        for k in ("spp", "seed", "spp_cap"):
+            lo = MIN_REFERENCE_SPP if k in ("spp", "spp_cap") else 0
             if k in t and (isinstance(t[k], bool) or not isinstance(t[k], int) or t[k] < lo):
                 raise _err(path, f"{w}.{k}", f"an integer >= {lo}", t[k])
         mx = _bounds(path, f"{w}.max", t.get("max", {}))
@@ -170,7 +181,7 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         out.append(Check(name=name, max=mx, min=mn, reference=t["reference"], scene=t.get("scene"),
                          preset=t.get("preset", "default"), options=options,
                          test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
-                         seed=t.get("seed", 0)))
+                         seed=t.get("seed", 0), spp_cap=t.get("spp_cap", DEFAULT_SPP_CAP)))
     return out, path.parent
 
 
@@ -208,10 +219,18 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
+        if check.test is not None:
+            test_path = _resolve(base, check.test)
+            test = read_exr(test_path, require=RGB)
+            test_name = str(test_path)
+        else:
+            test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
+            test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
         if check.reference == "auto":
-            ref = renderers.render_reference(scene, spp=check.spp, mode=check.mode, seed=check.seed,
-                                   use_cache=True, progress=progress)
-            ref_name = f"auto reference ({check.scene}, {check.spp} spp)"
+            ref, res.verdict = reference_for_verdict(scene, [test], spp=check.spp, cap=check.spp_cap,
+                                                     mode=check.mode, seed=check.seed, use_cache=True,
+                                                     progress=progress)
+            ref_name = f"auto reference ({check.scene}, {res.verdict.spp} spp)"
         else:
             ref_path = _resolve(base, check.reference)
             ref = read_exr(ref_path, require=RGB)
@@ -224,14 +243,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
                     raise BudgetError(f"{ref_path}: reference was rendered for scene hash "
                                       f"{ref.meta['scene_hash'][:16]}, but {check.scene} hashes to {want[:16]}; "
                                       f"re-render it (pbrcheck reference ... --out {check.reference})")
-        if check.test is not None:
-            test_path = _resolve(base, check.test)
-            test = read_exr(test_path, require=RGB)
-            test_name = str(test_path)
-        else:
-            test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
-            test_name = f"real-time {check.preset}"
         cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
+        if res.verdict is None:
+            res.verdict = verdict_of(ref, cmp.summary["noise"])
+        res.budget_noise = budget_noise(check, cmp.summary["noise"], res.verdict.spp)
     except PbrcheckError as e:
         res.error, res.exit_code = str(e), max(e.exit_code, 2)
         res.seconds = time.perf_counter() - t0
@@ -264,6 +279,47 @@ def _safe(name: str) -> str:
 
 
 
+#: A budget is trusted when it is at least this many times the reference's noise in its metric.
+BUDGET_NOISE_FACTOR = 10.0
+#: Metrics that scale with the variance (1 / spp); the others with its square root (1 / sqrt(spp)).
+VARIANCE_LIKE = {"relmse"}
+
+
+def budget_noise(check: Check, noise: dict | None, spp: int) -> list[dict]:
+    """Per ``max`` budget: the reference's noise in that metric, budget / noise and the spp at which
+    it would be :data:`BUDGET_NOISE_FACTOR` (``spp_needed``; the noise scales as 1/spp for
+    :data:`VARIANCE_LIKE` metrics, else 1/sqrt(spp)).
+
+    The noise is the metric of :func:`compare.metrics.noise_floor`'s simulated pair ``(r, r + sqrt(2
+    var) z)`` (two independent renders) scaled to one noisy image against a noise-free one (the
+    real-time image): halved for variance-like metrics, divided by sqrt(2) for the others."""
+    out = []
+    sim = (noise or {}).get("simulated") or {}
+    for metric, budget in check.max.items():
+        n = sim.get(metric)
+        if n is None or not (n > 0) or not math.isfinite(n):
+            continue
+        power = 1.0 if metric in VARIANCE_LIKE else 2.0
+        n = n / 2.0 ** (1.0 / power)
+        ratio = budget / n
+        need = spp * (BUDGET_NOISE_FACTOR / ratio) ** power if spp and ratio > 0 else math.inf
+        out.append({"metric": metric, "budget": budget, "noise": n, "ratio": ratio,
+                    "trusted": bool(ratio >= BUDGET_NOISE_FACTOR), "spp_needed": need})
+    return out
+
+
+def noise_note(r: Result) -> str:
+    """`` (noise-limited: ...)`` when a budget of ``r`` is not 10x above the reference's noise in its
+    metric (or an ``auto`` reference stopped at its cap)."""
+    bad = [b for b in r.budget_noise if not b["trusted"]]
+    parts = [f"{b['metric']} budget {format_value(b['budget'])} is {b['ratio']:.3g}x the reference's noise "
+             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x at {math.ceil(b['spp_needed'])} spp)"
+             for b in bad]
+    if r.check.reference == "auto" and r.verdict is not None and r.verdict.noise_limited:
+        parts.append(r.verdict.provenance())
+    return f" (noise-limited: {'; '.join(parts)})" if parts else ""
+
+
 def failure_lines(r: Result) -> list[str]:
     """One line per broken bound of ``r`` (metric, value, budget, worst objects, noise note)."""
     out = []
@@ -272,7 +328,7 @@ def failure_lines(r: Result) -> list[str]:
         worst = ", ".join(f"{o['name'] or '#' + str(o['id'])}={format_value(o['value'])}" for o in f["worst_objects"])
         note = " (within the reference's noise)" if f.get("within_noise") else ""
         out.append(f"FAIL {r.check.name}: {f['metric']} = {format_value(f['value'])} {op} budget {format_value(f['budget'])}"
-                   f"{note}" + (f"; worst objects: {worst}" if worst else ""))
+                   f"{note}" + (f"; worst objects: {worst}" if worst else "") + noise_note(r))
     return out
 
 
@@ -290,7 +346,11 @@ def write_junit(path: Path, results: list[Result]) -> Path:
         elif r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
         if r.metrics:
-            ET.SubElement(tc, "system-out").text = "\n".join(f"{k} = {format_value(v)}" for k, v in r.metrics.items())
+            lines = [f"{k} = {format_value(v)}" for k, v in r.metrics.items()]
+            if r.verdict is not None:
+                lines.append(f"reference: {r.verdict.provenance()}")
+            lines += [f"budget {b['metric']}: {b['ratio']:.3g}x the reference's noise" for b in r.budget_noise]
+            ET.SubElement(tc, "system-out").text = "\n".join(lines)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     root = ET.Element("testsuites")
@@ -313,6 +373,11 @@ def write_summary(path: Path, results: list[Result]) -> Path:
             st = "FAIL" if m in failed else "pass"
             lines.append(f"| {r.check.name} | {st} | {m} | {format_value(r.metrics.get(m))} | "
                          f"{'<=' if op == '>' else '>='} {format_value(b)} |")
+    refs = [f"- {r.check.name}: {r.verdict.provenance()}; budgets / noise: "
+            + ", ".join(f"{b['metric']} {b['ratio']:.3g}x" for b in r.budget_noise) + noise_note(r)
+            for r in results if r.verdict is not None]
+    if refs:
+        lines += ["", "## References (noise floor against the error and the budgets; goal >= 10x)", ""] + refs
     fails = [l for r in results for l in failure_lines(r)]
     if fails:
         lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]
@@ -356,7 +421,7 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
         results.append(r)
         if r.status == "pass":
-            print(f"pass {c.name}", file=stream)
+            print(f"pass {c.name}{noise_note(r)}", file=stream)
         elif r.status == "fail":
             for line in failure_lines(r):
                 print(line, file=stream)

@@ -163,17 +163,48 @@ def _flip_exposures(ref_rgb: np.ndarray) -> tuple[float, float]:
     return start, stop
 
 
+#: Per-pixel maps kept per process by the content of their inputs (FLIP and Delta E ITP are the
+#: comparator's costly parts, ~1 s per 360 x 300 pair on a CPU; a report compares many pairs twice:
+#: the reference-spp rule and the final comparison, a preset and its research section).
+MAP_MEMO_SIZE = 48
+_map_memo: dict = {}
+
+
+def _memo(kind: str, a: np.ndarray, b: np.ndarray, fn):
+    """``fn()`` memoized by ``kind`` and the bytes of ``a`` and ``b`` (a copy is returned)."""
+    import hashlib
+
+    h = hashlib.sha1(kind.encode())
+    for x in (a, b):
+        x = np.ascontiguousarray(x)
+        h.update(f"{x.dtype}{x.shape}".encode())
+        h.update(x.tobytes())
+    key = h.hexdigest()
+    hit = _map_memo.pop(key, None)
+    if hit is None:
+        hit = fn()
+        if len(_map_memo) >= MAP_MEMO_SIZE:
+            _map_memo.pop(next(iter(_map_memo)))
+    _map_memo[key] = hit  # most recently used last
+    return hit.copy()
+
+
 def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
     """HDR-FLIP error map (H, W) in [0, 1]. Inputs are validated here because flip-evaluator calls
-    ``sys.exit`` on bad input: (H, W, 3), finite; passed as contiguous float32, clipped to >= 0."""
-    import flip_evaluator  # local: only the FLIP map needs it (a heavy native module)
-
+    ``sys.exit`` on bad input: (H, W, 3), finite; passed as contiguous float32, clipped to >= 0.
+    Memoized by content (:data:`MAP_MEMO_SIZE`)."""
     if ref_rgb.shape != test_rgb.shape or ref_rgb.ndim != 3 or ref_rgb.shape[2] != 3:
         raise ComparisonError(f"FLIP needs two (H, W, 3) images, got {ref_rgb.shape} and {test_rgb.shape}")
     if not (np.all(np.isfinite(ref_rgb)) and np.all(np.isfinite(test_rgb))):
         raise ComparisonError("FLIP input has NaN/Inf")
     r = np.ascontiguousarray(np.clip(ref_rgb, 0.0, None), dtype=np.float32)
     t = np.ascontiguousarray(np.clip(test_rgb, 0.0, None), dtype=np.float32)
+    return _memo("flip", r, t, lambda: _flip_map(r, t))
+
+
+def _flip_map(r: np.ndarray, t: np.ndarray) -> np.ndarray:
+    import flip_evaluator  # local: only the FLIP map needs it (a heavy native module)
+
     start, stop = _flip_exposures(r)
     err, _, _ = flip_evaluator.evaluate(r, t, "HDR", applyMagma=False, computeMeanError=False,
                                         parameters={"startExposure": start, "stopExposure": stop})
@@ -191,10 +222,11 @@ def ictcp(rgb: np.ndarray) -> np.ndarray:
 
 
 def delta_e_itp_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
-    """Per-pixel ITU-R BT.2124 Delta E_ITP (colour-science ``delta_E_ITP``)."""
+    """Per-pixel ITU-R BT.2124 Delta E_ITP (colour-science ``delta_E_ITP``); memoized by content."""
     import colour  # local: see ictcp
 
-    return colour.difference.delta_E_ITP(ictcp(ref_rgb), ictcp(test_rgb)).astype(np.float32)
+    return _memo("itp", ref_rgb, test_rgb,
+                 lambda: colour.difference.delta_E_ITP(ictcp(ref_rgb), ictcp(test_rgb)).astype(np.float32))
 
 
 @dataclass

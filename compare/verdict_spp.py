@@ -9,11 +9,15 @@ image). The floor falls as 1 / spp, so from a render at ``spp`` the spp needed i
     spp_needed = spp x NOISE_FLOOR_FACTOR x mean_variance / min(mse_corrected)
 
 rounded up to a power of two (the cache then reuses the renders of other runs) and capped at
-``cap``; at the cap the verdict is flagged **noise-limited**. Renders go through the seam
+``cap``; at the cap the verdict is flagged **noise-limited**. Without a ``cap`` it follows from a time
+budget: the largest power of two whose render, at the seconds per spp of the first render (its
+``seconds`` metadata), fits in ``time_budget_s`` (at most :data:`HARD_SPP_CAP`). So a GPU, ~50x
+faster, reaches the floor where a CPU stops at the cap (spheres at 360 x 300 needs ~10^4 spp: the
+default preset's corrected MSE is 1.8e-4, the local estimator's per-sample variance 0.17). Renders go through the seam
 ``compare.renderers.render_reference`` (cached by spp), so a re-run costs nothing.
 
 API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
-:func:`noise_and_error`, :func:`reference_for_verdict`.
+:func:`noise_and_error`, :func:`reference_for_verdict`, :func:`verdict_of`, :func:`cap_for_time`.
 """
 
 from __future__ import annotations
@@ -33,6 +37,10 @@ NOISE_FLOOR_FACTOR = 10.0
 #: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of
 #: the spheres scene (360 x 300) is about 2 min on 2 CPU cores and a second on an H100.
 DEFAULT_SPP_CAP = 4096
+#: Largest spp a time budget may allow (2^16: 7 G samples on spheres; a few seconds on an H100).
+HARD_SPP_CAP = 1 << 16
+#: Default time budget of one scene's reference in the report (seconds of rendering).
+DEFAULT_TIME_BUDGET_S = 30.0
 #: Errors below this (squared radiance) count as "no error": a preset equal to the reference within
 #: float32 rounding would otherwise ask for infinite spp.
 MIN_TRUSTED_MSE = 1e-9
@@ -87,21 +95,54 @@ def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float |
     return floor, err
 
 
-def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int = DEFAULT_SPP_CAP,
-                          factor: float = NOISE_FLOOR_FACTOR, **kwargs) -> tuple[Image, VerdictSpp]:
-    """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``) whose
-    noise floor is ``factor`` times below the smallest error of ``tests`` against it.
+def verdict_of(ref: Image, noise: dict | None, factor: float = NOISE_FLOOR_FACTOR) -> VerdictSpp:
+    """The verdict rule applied to a fixed reference (a stored EXR): ``noise`` is one comparison's
+    ``summary["noise"]`` (:func:`compare.metrics.noise_floor`); ``noise_limited`` when its floor is
+    not ``factor`` times below the corrected MSE, with ``steps`` = ``[[spp, floor, error, spp_needed]]``."""
+    try:
+        spp = int(ref.meta.get("spp", 0))
+    except ValueError:
+        spp = 0
+    if noise is None:
+        return VerdictSpp(spp, None, None, None, False, spp, factor, [])
+    floor, err = float(noise["mean_variance"]), max(float(noise["mse_corrected"]), 0.0)
+    ratio = err / floor if floor > 0 else math.inf
+    need = spp_needed(spp, floor, err, factor) if spp else math.nan
+    return VerdictSpp(spp, floor, err, ratio, bool(ratio < factor), spp, factor, [[spp, floor, err, need]])
+
+
+def cap_for_time(ref: Image, spp: int, time_budget_s: float) -> int:
+    """The largest power-of-two spp (>= ``spp``, <= :data:`HARD_SPP_CAP`) whose render fits in
+    ``time_budget_s`` at the seconds per spp of ``ref`` (rendered at ``spp``)."""
+    try:
+        per = float(ref.meta.get("seconds", "nan")) / spp
+    except ValueError:
+        per = math.nan
+    if not (per > 0) or not math.isfinite(per):
+        return max(int(spp), DEFAULT_SPP_CAP)
+    n = 1 << max(0, int(math.floor(math.log2(max(time_budget_s / per, 1.0)))))
+    return int(min(max(n, spp), max(HARD_SPP_CAP, spp)))
+
+
+def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | None = DEFAULT_SPP_CAP,
+                          factor: float = NOISE_FLOOR_FACTOR, time_budget_s: float = DEFAULT_TIME_BUDGET_S,
+                          **kwargs) -> tuple[Image, VerdictSpp]:
+    """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``; None:
+    :func:`cap_for_time` of ``time_budget_s``) whose noise floor is ``factor`` times below the
+    smallest error of ``tests`` against it.
 
     ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
     Returns the reference and a :class:`VerdictSpp` (``noise_limited`` when the cap stopped it).
     """
-    cap = max(int(cap), int(spp))
     kwargs.setdefault("use_cache", True)
     kwargs.setdefault("progress", False)
     cur = int(spp)
     steps = []
     while True:
         ref = renderers.render_reference(scene, spp=cur, **kwargs)
+        if cap is None:
+            cap = cap_for_time(ref, cur, time_budget_s)
+        cap = max(int(cap), int(spp))
         floor, err = noise_and_error(ref, tests, scene=scene) if tests else (None, None)
         steps.append([cur, floor, err])
         if floor is None or err is None:

@@ -22,6 +22,8 @@ References
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # Smallest alpha the term functions evaluate with. alpha = 0 is a delta distribution that no
@@ -125,6 +127,43 @@ def G_SmithGGXCorrelated(NoV, NoL, alpha):
     return 2.0 * v * l / np.maximum(den, COS_EPS)
 
 
+_erfc = np.vectorize(math.erfc, otypes=[np.float64])
+
+
+def erfcx_nr(z):
+    """``exp(z^2) erfc(z)`` for ``z >= 0`` by Numerical Recipes' erfcc Chebyshev fit (Press et al.,
+    "Numerical Recipes in C", 2nd ed., sec. 6.2; fractional error < 1.2e-7) without its
+    ``exp(-z^2)`` factor: the GLSL twin's erfc (GLSL has none); checked against ``math.erfc``."""
+    z = np.maximum(np.asarray(z, dtype=np.float64), 0.0)
+    t = 1.0 / (1.0 + 0.5 * z)
+    p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
+        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
+            -0.82215223 + t * 0.17087277))))))))
+    return t * np.exp(p)
+
+
+def Lambda_Beckmann(NoX, alpha):
+    """Smith Lambda of Beckmann, [Heitz14] eq. 80 ([Walter07] eq. 27 before its rational fit):
+    ``Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi))`` with ``a = c / (alpha sqrt(1 - c^2))``;
+    written ``(exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2`` (exact erfc, float64). 0 at c = 1."""
+    c = np.clip(np.asarray(NoX, dtype=np.float64), COS_EPS, 1.0)
+    al = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        a = np.minimum(c / (al * np.sqrt(np.maximum(1.0 - c * c, 0.0))), 1e15)
+        lam = 0.5 * (np.exp(-a * a) / (a * np.sqrt(PI)) - _erfc(a))
+    return np.maximum(lam, 0.0)
+
+
+def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
+    """Height-correlated Smith for Beckmann, [Heitz14] eq. 99 with eq. 80:
+    ``G = 1 / (1 + Lambda(v) + Lambda(l))``; 0 at n.v = 0 or n.l = 0. The first bounce of the
+    Beckmann random walk (reference/multiscatter.py)."""
+    v = np.clip(np.asarray(NoV, dtype=np.float64), 0.0, 1.0)
+    l = np.clip(np.asarray(NoL, dtype=np.float64), 0.0, 1.0)
+    g = 1.0 / (1.0 + Lambda_Beckmann(v, alpha) + Lambda_Beckmann(l, alpha))
+    return np.where((v > 0) & (l > 0), g, 0.0)
+
+
 def G1_SchlickGGX(NoX, k):
     """Schlick's approximation of Smith G1, [Schlick94] eq. 19 with [Karis13]'s k:
     ``G1 = c / (c (1 - k) + k)``."""
@@ -159,6 +198,8 @@ def geometry_term(geometry: str, NoV, NoL, roughness):
         return G_SchlickGGX(NoV, NoL, k_schlick_ibl(roughness))
     if geometry == "schlick_ggx_direct":
         return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness))
+    if geometry == "smith_beckmann_correlated":
+        return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness))
     raise ValueError(f"unknown geometry term {geometry!r}")
 
 

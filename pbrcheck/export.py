@@ -364,12 +364,18 @@ def export_directions(width: int, height: int) -> np.ndarray:
     return np.stack([np.cos(aa) * np.cos(ee), np.sin(ee), np.sin(aa) * np.cos(ee)], axis=-1)
 
 
+def export_width(source_width: int) -> int:
+    """The exported environment's width: twice the source's, clamped to [:data:`ENV_MIN_WIDTH`,
+    :data:`ENV_MAX_WIDTH`] (the height is half of it)."""
+    return int(min(max(2 * source_width, ENV_MIN_WIDTH), ENV_MAX_WIDTH))
+
+
 def equirect_image(env: EnvMap, width: int | None = None) -> np.ndarray:
     """The environment (scale and rotation included) resampled at the exported orientation's pixel
     centres, (H, W, 3) float32 with ``W = 2 H``; ``width`` defaults to twice the source's, clamped
     to [:data:`ENV_MIN_WIDTH`, :data:`ENV_MAX_WIDTH`]."""
     if width is None:
-        width = int(min(max(2 * env.width, ENV_MIN_WIDTH), ENV_MAX_WIDTH))
+        width = export_width(env.width)
     height = max(width // 2, 1)
     return env.radiance(export_directions(width, height)).astype(np.float32)
 

@@ -24,7 +24,7 @@ API
 :class:`Entry`, :class:`Registry`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
 :func:`glsl_generated`.
 """
 
@@ -118,6 +118,7 @@ GEOMETRIES = Registry("GEOMETRY", [
     Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013"),
     Entry("schlick_beckmann", "Schlick's Beckmann approximation (article 000's listing), real time only",
           scene=False),
+    Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80"),
 ])
 
 FRESNELS = Registry("FRESNEL", [
@@ -179,6 +180,9 @@ ENERGY_COMPENSATIONS = _switch(
 MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
                         random_walk="multiple-scattering random walk on the Smith microsurface, "
                                     "Heitz, Hanika, d'Eon, Dachsbacher 2016")
+#: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
+#: height-correlated Smith term of that NDF [Heitz16 sec. 5; Heitz 2014 eq. 99].
+MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckmann_correlated"}
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,

@@ -24,6 +24,7 @@ from typing import Any
 from .errors import SceneError
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
+from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
 
@@ -94,8 +95,8 @@ class BRDFModel:
     ndf: str = "ggx"
     geometry: str = "smith_ggx_correlated"
     fresnel: str = "schlick"
-    # "none" | "random_walk" (reference only: reference/multiscatter.py; needs ndf = "ggx" and
-    # geometry = "smith_ggx_correlated").
+    # "none" | "random_walk" (reference only: reference/multiscatter.py; needs ndf = "ggx" with
+    # geometry = "smith_ggx_correlated" or ndf = "beckmann" with "smith_beckmann_correlated").
     multiscatter: str = "none"
 
 
@@ -398,12 +399,14 @@ def _brdf(ctx, t) -> BRDFModel:
         multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTERS),
     )
     if model.multiscatter != "none":
-        # The random walk's first bounce is the height-correlated Smith GGX term.
-        if model.geometry != "smith_ggx_correlated":
-            raise ctx.err("brdf.geometry", f'"smith_ggx_correlated" with multiscatter = "{model.multiscatter}"',
-                          model.geometry)
-        if model.ndf != "ggx":
-            raise ctx.err("brdf.ndf", f'"ggx" with multiscatter = "{model.multiscatter}"', model.ndf)
+        # The random walk's first bounce is the NDF's height-correlated Smith term.
+        need = MULTISCATTER_GEOMETRY.get(model.ndf)
+        if need is None:
+            raise ctx.err("brdf.ndf", f'one of {", ".join(MULTISCATTER_GEOMETRY)} with multiscatter = '
+                          f'"{model.multiscatter}"', model.ndf)
+        if model.geometry != need:
+            raise ctx.err("brdf.geometry", f'"{need}" with ndf = "{model.ndf}" and multiscatter = '
+                          f'"{model.multiscatter}"', model.geometry)
     return model
 
 

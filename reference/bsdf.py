@@ -7,7 +7,8 @@ cited there)::
     f(l, v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
 
 with ``D`` one of D_GGX [Walter07 eq. 33], D_Beckmann [Walter07 eq. 25], D_BlinnPhong [Walter07
-eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithGGX
+eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithBeckmannCorrelated [Heitz14 eq. 99 with
+eq. 80], G_SmithGGX
 [Heitz14 eq. 98 with eq. 43/72], G_SchlickGGX with k = alpha/2 (ibl) or (roughness+1)^2/8 (direct)
 [Karis13 eq. 4]; ``F`` F_Schlick [Schlick94 eq. 15] or ``none`` (F = 1, so the diffuse (1 - F)
 term vanishes). All computations are in the local shading frame (n = +Z), where the NDFs are written
@@ -125,9 +126,23 @@ def G1_SchlickGGX(c, k):
     return c / dr.maximum(c * (1.0 - k) + k, COS_EPS)
 
 
+def Lambda_Beckmann(c, alpha):
+    """Smith Lambda of Beckmann for the cosine ``c`` in [0, 1] ([Heitz14] eq. 80; the stable form
+    of :func:`reference.multiscatter.lambda_beckmann_a`, which the random walk uses too)."""
+    s = dr.sqrt(dr.maximum(1.0 - c * c, 0.0))
+    return multiscatter.lambda_beckmann_a(dr.maximum(c, COS_EPS) / dr.maximum(alpha * s, 1e-30))
+
+
+def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
+    g = 1.0 / (1.0 + Lambda_Beckmann(NoV, alpha) + Lambda_Beckmann(NoL, alpha))
+    return dr.select((NoV > 0) & (NoL > 0), g, 0.0)
+
+
 def geometry_term(geometry, NoV, NoL, roughness, alpha):
     NoV = dr.clip(NoV, 0.0, 1.0)
     NoL = dr.clip(NoL, 0.0, 1.0)
+    if geometry == "smith_beckmann_correlated":
+        return G_SmithBeckmannCorrelated(NoV, NoL, alpha)
     if geometry == "smith_ggx_correlated":
         return G_SmithGGXCorrelated(NoV, NoL, alpha)
     if geometry == "smith_ggx":

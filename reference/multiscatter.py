@@ -1,4 +1,4 @@
-"""Multiple-scattering GGX microfacet reflection: the random walk of Heitz et al. 2016, in Dr.Jit.
+"""Multiple-scattering GGX and Beckmann microfacet reflection: the random walk of Heitz et al. 2016.
 
 ``[brdf] multiscatter = "random_walk"`` replaces the material's specular lobe (single scattering,
 ``D G2 F / (4 n.l n.v)`` with the height-correlated Smith G2) by the full multiple-scattering
@@ -9,12 +9,25 @@ through two hooks (:func:`eval_pdf_hook`, :func:`sample_hook`); all the maths is
 
 The walk [Heitz16, sec. 4 and 5, algorithms 1-3]
 ------------------------------------------------
+NDFs: GGX and Beckmann, each with its own height-correlated Smith term as the first bounce
+(:data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`: ``smith_ggx_correlated``,
+``smith_beckmann_correlated``). The walk only needs the NDF's ``Lambda`` (both signs of ``w.z``),
+``D`` and a sampler of visible normals for any direction; everything else is shared.
+
 Heights: any height distribution gives the same BSDF [Heitz16 sec. 4.2]; we take the uniform one on
 [-1, 1] and track ``L = log C1(h)`` (``C1`` its CDF, ``L`` in (-inf, 0], 0 above the surface) so
 that deep walks do not underflow. ``Lambda`` is Smith's GGX Lambda extended to downward directions
 by ``Lambda(-w) = -1 - Lambda(w)`` [Heitz16 eq. 12]::
 
     Lambda(w) = (-1 + sign(w.z) sqrt(1 + alpha^2 tan^2 theta)) / 2
+
+Beckmann's [Heitz14 eq. 80, Walter07 eq. 27] with ``a = 1 / (alpha tan theta)`` (signed with w.z)::
+
+    Lambda(a) = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi))
+              = exp(-a^2) (1 / (a sqrt(pi)) - erfcx(a)) / 2      (a > 0; erfcx(a) = exp(a^2) erfc(a))
+
+which satisfies ``Lambda(-a) = -1 - Lambda(a)`` as written; the second form (with the scaled
+complementary error function of :func:`erfcx_pos`) avoids ``erf(a) - 1`` cancelling for large ``a``.
 
 Next height along a ray of direction ``w`` from log-height ``L`` [Heitz16 eq. 17-18, alg. 2] with
 ``U`` uniform in (0, 1]: the probability of leaving (``w.z > 0``) is the height-dependent masking
@@ -27,6 +40,23 @@ distribution of normals visible from ``-w`` [Heitz16 eq. 16; sampled with Heitz 
 which also holds for directions below the horizon: the visible region of the hemisphere of normals
 is then the half-disk minus a half-ellipse, still a column-wise linear image of the disk], and the
 path throughput is multiplied by the Fresnel of that bounce ``F(w_in . m)``.
+
+Beckmann's visible normals (:func:`sample_vndf_beckmann`; Heitz and d'Eon 2014, "Importance Sampling
+Microfacet-Based BSDFs using the Distribution of Visible Normals", sec. 4 and appendix): stretch
+``v`` by alpha to the alpha = 1 configuration, rotate it into the xz-plane at angle ``theta``, draw
+the slopes ``(x, y)``: ``y`` is independent of ``v`` (a Gaussian, ``y = erfinv(2 u - 1)``) and ``x``
+has the density ``(cos theta - x sin theta) exp(-x^2) / sqrt(pi)`` on ``x < cot theta`` (the normal
+``(-x, -y, 1)`` must face ``v``), whose unnormalised CDF is::
+
+    F(x) = (cos theta (1 + erf x) + sin theta exp(-x^2) / sqrt(pi)) / 2,   F(cot theta) = A(v),
+
+valid for both signs of ``cos theta`` (directions below the horizon: ``cot theta < 0``). ``x``
+solves ``F(x) = u F(cot theta)`` by :data:`VNDF_BISECTION_STEPS` bisection steps on ``log F`` (for
+``x < 0`` written ``-x^2 + log(cos theta erfcx(-x) + sin theta / sqrt(pi))``, free of underflow);
+``cot theta`` is clamped to [:data:`VNDF_COT_MIN`, :data:`VNDF_COT_MAX`] (outside it the dropped
+mass is below 1e-17 for the upper end; the lower end only concerns rays within 7 degrees of straight
+up that still hit the microsurface, a vanishing fraction of walks). Rotate the slopes back, unstretch
+by alpha, ``m = normalize(-x, -y, 1)``.
 
 * ``sample``: the walk itself; the exit direction and the throughput (product of Fresnels) are an
   exact sample of ``f cos / pdf`` [Heitz16 alg. 3 with Fresnel, sec. 5.2].
@@ -74,8 +104,10 @@ dropped (at alpha = 1, F0 = 1 and n.v = 0.05 it is below 1e-4 of the albedo: mea
 
 API
 ---
-:func:`lambda_ggx`, :func:`sample_vndf`, :func:`walk_sample`, :func:`walk_eval`, :func:`query_key`,
-:func:`approx_spec_pdf`, :func:`eval_pdf_hook`, :func:`sample_hook`, :func:`check_model`.
+:func:`lambda_ggx`, :func:`lambda_beckmann`, :func:`lambda_ndf`, :func:`D_ndf`, :func:`sample_vndf`
+(GGX), :func:`sample_vndf_beckmann`, :func:`sample_vndf_ndf`, :func:`erfcx_pos`, :func:`walk_sample`,
+:func:`walk_eval`, :func:`query_key`, :func:`approx_spec_pdf`, :func:`eval_pdf_hook`,
+:func:`sample_hook`, :func:`check_model`.
 
 References
 ----------
@@ -84,6 +116,11 @@ References
 [Heitz14]  E. Heitz, "Understanding the Masking-Shadowing Function in Microfacet-Based BRDFs",
            JCGT 3(2), 2014.
 [Heitz18]  E. Heitz, "Sampling the GGX Distribution of Visible Normals", JCGT 7(4), 2018.
+[HdE14]    E. Heitz, E. d'Eon, "Importance Sampling Microfacet-Based BSDFs using the Distribution of
+           Visible Normals", EGSR 2014 (Computer Graphics Forum 33(4)).
+[Walter07] B. Walter et al., "Microfacet Models for Refraction through Rough Surfaces", EGSR 2007.
+[NR92]     W. Press et al., "Numerical Recipes in C", 2nd ed., sec. 6.2, erfcc (Chebyshev fit,
+           fractional error below 1.2e-7 everywhere).
 [Wellons18] C. Wellons, "Prospecting for Hash Functions", 2018 (lowbias32 constants).
 """
 
@@ -93,6 +130,7 @@ import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
+from pbrcheck.registry import MULTISCATTER_GEOMETRY
 
 import drjit as dr
 import mitsuba as mi
@@ -103,9 +141,17 @@ MAX_SCATTERING_ORDER = 256
 GRAZING_Z = 1e-4
 #: Weight of the cosine lobe in the approximate pdf: m = MS_PDF_WEIGHT alpha (MIS weights only).
 MS_PDF_WEIGHT = 0.25
-#: The models the walk is defined for (the walk's first bounce is the height-correlated Smith term).
-WALK_NDF = "ggx"
-WALK_GEOMETRY = "smith_ggx_correlated"
+#: The models the walk is defined for: NDF -> its height-correlated Smith term (the first bounce).
+WALK_GEOMETRY = MULTISCATTER_GEOMETRY
+#: Bisection steps of the Beckmann visible-slope inversion (bracket <= 14 wide: 14 / 2^30 is below
+#: float32's resolution there).
+VNDF_BISECTION_STEPS = 30
+#: Clamp of cot(theta) in the Beckmann visible-slope sampler (module docstring).
+VNDF_COT_MIN = -8.0
+VNDF_COT_MAX = 6.0
+#: Width of the Beckmann slope bracket below min(cot theta, 0): exp(-36) of the mass lies beyond.
+VNDF_SLOPE_SPAN = 6.0
+INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
 
 INV_PI = 1.0 / math.pi
 _U24 = 1.0 / float(1 << 24)
@@ -113,15 +159,17 @@ _U24 = 1.0 / float(1 << 24)
 
 def check_model(ndf: str, geometry: str, multiscatter: str, *, file: str | None = None) -> None:
     """Raise :class:`pbrcheck.errors.SceneError` naming the field unless ``random_walk`` is used
-    with ``ndf = "ggx"`` and ``geometry = "smith_ggx_correlated"`` (``none`` accepts anything)."""
+    with an NDF of :data:`WALK_GEOMETRY` and its height-correlated Smith term (``none`` accepts
+    anything)."""
     if multiscatter == "none":
         return
-    if geometry != WALK_GEOMETRY:
-        raise SceneError(file, "brdf.geometry", f'"{WALK_GEOMETRY}" with multiscatter = "{multiscatter}" '
+    need = WALK_GEOMETRY.get(ndf)
+    if need is None:
+        raise SceneError(file, "brdf.ndf", f'one of {", ".join(WALK_GEOMETRY)} with multiscatter = "{multiscatter}" '
+                         "(the walk is implemented for these NDFs)", ndf)
+    if geometry != need:
+        raise SceneError(file, "brdf.geometry", f'"{need}" with ndf = "{ndf}" and multiscatter = "{multiscatter}" '
                          "(the walk's first bounce is the height-correlated Smith term)", geometry)
-    if ndf != WALK_NDF:
-        raise SceneError(file, "brdf.ndf", f'"{WALK_NDF}" with multiscatter = "{multiscatter}" '
-                         "(the walk is implemented for GGX)", ndf)
 
 
 # ---- random numbers --------------------------------------------------------------------------
@@ -182,6 +230,88 @@ def D_GGX(m, alpha):
     return dr.select(m.z > 0, INV_PI / (a2 * t * t), 0.0)
 
 
+def erfcx_pos(z):
+    """``exp(z^2) erfc(z)`` for ``z >= 0`` [NR92 erfcc without its exp(-z^2) factor]: fractional
+    error below 1.2e-7; finite for every z (1 / (z sqrt(pi)) asymptotically)."""
+    t = 1.0 / (1.0 + 0.5 * z)
+    p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
+        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
+            -0.82215223 + t * 0.17087277))))))))
+    return t * dr.exp(p)
+
+
+def lambda_beckmann_a(a):
+    """Beckmann's Smith Lambda of the signed ``a = cot(theta) / alpha`` (module docstring):
+    ``exp(-a^2) (1/(a sqrt(pi)) - erfcx(a)) / 2`` for ``a > 0``, ``-1 - Lambda(-a)`` below."""
+    b = dr.clip(dr.abs(a), 1e-20, 1e15)
+    up = dr.maximum(0.5 * dr.exp(-b * b) * (INV_SQRT_PI / b - erfcx_pos(b)), 0.0)
+    return dr.select(a >= 0, up, -1.0 - up)
+
+
+def lambda_beckmann(w, alpha):
+    """Signed Smith Lambda of Beckmann for any direction ``w`` (unit, local frame) [Heitz14 eq. 80
+    extended by Heitz16 eq. 12]; 0 straight up, -1 straight down, huge (+-) near the horizon."""
+    s = dr.sqrt(dr.maximum(w.x * w.x + w.y * w.y, 0.0))
+    return lambda_beckmann_a(w.z / dr.maximum(alpha * s, 1e-30))
+
+
+def D_Beckmann(m, alpha):
+    """Beckmann NDF on the local normal ``m`` [Walter07 eq. 25]:
+    ``exp(-tan^2 / alpha^2) / (pi alpha^2 cos^4)``."""
+    a2 = alpha * alpha
+    z2 = dr.maximum(m.z * m.z, 1e-30)
+    t2 = (m.x * m.x + m.y * m.y) / z2
+    return dr.select(m.z > 0, dr.exp(-t2 / a2) * INV_PI / (a2 * z2 * z2), 0.0)
+
+
+def lambda_ndf(w, alpha, ndf):
+    """The signed Lambda of ``ndf`` (``ggx`` or ``beckmann``)."""
+    return lambda_beckmann(w, alpha) if ndf == "beckmann" else lambda_ggx(w, alpha)
+
+
+def D_ndf(m, alpha, ndf):
+    """The NDF ``ndf`` (``ggx`` or ``beckmann``) on the local normal ``m``."""
+    return D_Beckmann(m, alpha) if ndf == "beckmann" else D_GGX(m, alpha)
+
+
+def _log_slope_cdf(x, c, s):
+    """``log(2 F(x))`` of the Beckmann visible-slope CDF (module docstring) at ``x``."""
+    neg = -x * x + dr.log(dr.maximum(c * erfcx_pos(dr.maximum(-x, 0.0)) + s * INV_SQRT_PI, 1e-30))
+    pos = dr.log(dr.maximum(c * (1.0 + dr.erf(x)) + s * dr.exp(-x * x) * INV_SQRT_PI, 1e-30))
+    return dr.select(x < 0, neg, pos)
+
+
+def sample_vndf_beckmann(v, u1, u2, alpha):
+    """A Beckmann normal visible from direction ``v`` (any sign of ``v.z``) [HdE14]; see the
+    module docstring for the slope inversion."""
+    vs = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
+    sin_t = dr.sqrt(dr.maximum(vs.x * vs.x + vs.y * vs.y, 0.0))
+    cos_t = vs.z
+    ok = sin_t > 1e-7
+    inv = 1.0 / dr.maximum(sin_t, 1e-7)
+    cphi = dr.select(ok, vs.x * inv, 1.0)
+    sphi = dr.select(ok, vs.y * inv, 0.0)
+    cot = dr.select(ok, cos_t * inv, VNDF_COT_MAX)
+    hi = dr.clip(cot, VNDF_COT_MIN, VNDF_COT_MAX)
+    lo = dr.minimum(hi, 0.0) - VNDF_SLOPE_SPAN
+    target = dr.log(u1) + _log_slope_cdf(hi, cos_t, sin_t)
+    for _ in range(VNDF_BISECTION_STEPS):  # unrolled: the bracket halves each step
+        mid = 0.5 * (lo + hi)
+        below = _log_slope_cdf(mid, cos_t, sin_t) < target
+        lo = dr.select(below, mid, lo)
+        hi = dr.select(below, hi, mid)
+    x = 0.5 * (lo + hi)
+    y = dr.erfinv(2.0 * u2 - 1.0)
+    sx = cphi * x - sphi * y
+    sy = sphi * x + cphi * y
+    return dr.normalize(mi.Vector3f(-alpha * sx, -alpha * sy, 1.0))
+
+
+def sample_vndf_ndf(v, u1, u2, alpha, ndf):
+    """A normal of ``ndf`` (``ggx`` or ``beckmann``) visible from ``v`` (any sign of ``v.z``)."""
+    return sample_vndf_beckmann(v, u1, u2, alpha) if ndf == "beckmann" else sample_vndf(v, u1, u2, alpha)
+
+
 def sample_vndf(v, u1, u2, alpha):
     """A GGX normal visible from direction ``v`` (any sign of ``v.z``) [Heitz18 listing 1]."""
     vh = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
@@ -208,35 +338,35 @@ def _fresnel(c, F0, fresnel):
     return F0 + (1.0 - F0) * w
 
 
-def _next_height(w, L, u, alpha):
+def _next_height(w, L, u, alpha, ndf="ggx"):
     """(escaped, L') for a ray of direction ``w`` from log-height ``L`` [Heitz16 alg. 2]."""
-    lam = lambda_ggx(w, alpha)
+    lam = lambda_ndf(w, alpha, ndf)
     horizontal = dr.abs(w.z) < GRAZING_Z
     # Up: leave with probability G1(w, L) = exp(Lambda L) (L = 0 above the surface: always).
     g1 = dr.exp(dr.minimum(lam * L, 0.0))
     escaped = (w.z > 0) & ~horizontal & (u < g1)
-    Ln = dr.select(horizontal, L, L - dr.log(u) / lam)
+    Ln = dr.select(horizontal | (lam == 0), L, L - dr.log(u) / lam)
     return escaped, dr.minimum(Ln, 0.0)
 
 
-def _phase_shadowed(wi, wo, L, alpha):
+def _phase_shadowed(wi, wo, L, alpha, ndf="ggx"):
     """Next-event estimate without Fresnel: ``p(wi -> wo) G1(wo, L)`` with
     ``p = D(h) / (4 A(wi))``, ``A(wi) = wi.z (1 + Lambda(wi))`` (>= 0 for both signs of wi.z)."""
     h = dr.normalize(wi + wo)
-    area = wi.z * (1.0 + lambda_ggx(wi, alpha))
-    p = D_GGX(h, alpha) / dr.maximum(4.0 * area, 1e-20)
-    lam_o = lambda_ggx(wo, alpha)
+    area = wi.z * (1.0 + lambda_ndf(wi, alpha, ndf))
+    p = D_ndf(h, alpha, ndf) / dr.maximum(4.0 * area, 1e-20)
+    lam_o = lambda_ndf(wo, alpha, ndf)
     shadow = dr.exp(dr.minimum(lam_o * L, 0.0))
     ok = (dr.dot(wi, h) > 0) & (wo.z > 0) & (area > 0)
     return dr.select(ok, p * shadow, 0.0), h
 
 
-def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", active=True):
+def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True):
     """Sample the walk from ``wi`` (upper hemisphere, local frame).
 
     Returns ``(wo, weight, order)``: the exit direction, the throughput (product of the bounces'
     Fresnel; 0 for walks cut at ``MAX_SCATTERING_ORDER``) and the number of bounces (UInt32).
-    ``alpha`` Float, ``F0`` Color3f, ``key`` UInt32 from :func:`query_key`.
+    ``alpha`` Float, ``F0`` Color3f, ``key`` UInt32 from :func:`query_key`, ``ndf`` ggx or beckmann.
     """
     alpha = _unfolded(dr.detach(mi.Float(alpha)), key)
     F0 = _unfolded(dr.detach(mi.Color3f(F0)), key)
@@ -254,12 +384,12 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", active=True):
 
     def body(wr, L, energy, order, k, running, escaped_any):
         u1, u2, u3, k = _uniforms(k)
-        escaped, L = _next_height(wr, L, u1, alpha)
+        escaped, L = _next_height(wr, L, u1, alpha, ndf)
         escaped_any = escaped_any | escaped
         running = running & ~escaped
         order = dr.select(running, order + 1, order)
         v = -wr
-        m = sample_vndf(v, u2, u3, alpha)
+        m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
         c = dr.dot(v, m)
         wn = 2.0 * c * m - v
         energy = dr.select(running, energy * _fresnel(c, F0, fresnel), energy)
@@ -274,7 +404,7 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", active=True):
 
 
 def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_order=MAX_SCATTERING_ORDER,
-              active=True):
+              ndf="ggx", active=True):
     """Stochastic estimate of ``f(wi, wo) cos(wo)`` from the scattering orders in
     [``min_order``, ``max_order``] [Heitz16 alg. 4 with Fresnel]: unbiased for every query; Color3f."""
     alpha = _unfolded(dr.detach(mi.Float(alpha)), key)
@@ -294,15 +424,15 @@ def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_ord
 
     def body(wr, L, energy, total, order, k, running):
         u1, u2, u3, k = _uniforms(k)
-        escaped, L = _next_height(wr, L, u1, alpha)
+        escaped, L = _next_height(wr, L, u1, alpha, ndf)
         running = running & ~escaped
         order = dr.select(running, order + 1, order)
         v = -wr
-        ps, h = _phase_shadowed(v, wo, L, alpha)
+        ps, h = _phase_shadowed(v, wo, L, alpha, ndf)
         contrib = energy * _fresnel(dr.dot(v, h), F0, fresnel) * ps
         use = running & (order >= min_order) & dr.isfinite(ps)
         total = dr.select(use, total + contrib, total)
-        m = sample_vndf(v, u2, u3, alpha)
+        m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
         c = dr.dot(v, m)
         energy = dr.select(running, energy * _fresnel(c, F0, fresnel), energy)
         wr = dr.select(running, 2.0 * c * m - v, wr)
@@ -326,7 +456,7 @@ def approx_spec_pdf(pdf_ss, NoL, alpha):
 def eval_pdf_hook(bsdf, si, wo, spec_pdf, alpha, F0, valid):
     """(orders >= 2 of ``f cos``, approximate specular pdf) for :meth:`PBRMaterial._eval_pdf`."""
     key = query_key(bsdf.ms_seed, si.wi.x, si.wi.y, si.wi.z, wo.x, wo.y, wo.z)
-    ms = walk_eval(si.wi, wo, alpha, F0, key, fresnel=bsdf.fresnel, min_order=2, active=valid)
+    ms = walk_eval(si.wi, wo, alpha, F0, key, fresnel=bsdf.fresnel, min_order=2, ndf=bsdf.ndf, active=valid)
     return ms, approx_spec_pdf(spec_pdf, mi.Frame3f.cos_theta(wo), alpha)
 
 
@@ -342,7 +472,8 @@ def sample_hook(bsdf, ctx, si, sample1, sample2, active):
     choose_spec = sample1 < p_spec
 
     key = query_key(bsdf.ms_seed, wi.x, wi.y, wi.z, sample1, sample2.x, sample2.y)
-    wo_walk, w_walk, _ = walk_sample(wi, alpha, F0, key, fresnel=bsdf.fresnel, active=active & choose_spec)
+    wo_walk, w_walk, _ = walk_sample(wi, alpha, F0, key, fresnel=bsdf.fresnel, ndf=bsdf.ndf,
+                                     active=active & choose_spec)
     wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
 
     bs = dr.zeros(mi.BSDFSample3f)

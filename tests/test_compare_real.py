@@ -95,11 +95,14 @@ def test_report_and_sweep_with_real_renderers(renderers, scene_file, tmp_path):
     _realtime(rt_mod, load_scene(scene_file), FAST_PRESET)
     out = tmp_path / "report"
     assert main(["report", str(scene_file), "--presets", FAST_PRESET, "--out", str(out), "--spp", "8",
-                 "--vary", "runtime_samples=4,16", "--quiet"]) == 0
+                 "--spp-cap", "8", "--vary", "runtime_samples=4,16", "--quiet"]) == 0
     check_offline_html(out / "index.html")
     data = json.loads((out / "tiny" / "metrics.json").read_text())
     assert data["presets"][FAST_PRESET]["timings"]["frame"] > 0
     assert [c["spp"] for c in data["convergence"]] == [2, 4]
+    rule = data["reference_spp"]  # the cap holds the reference at 8 spp; the rule's figures are real
+    assert rule["spp"] == 8 and rule["cap"] == 8 and rule["noise_floor"] > 0
+    assert rule["noise_limited"] == (rule["ratio"] < 10)
     assert len(data["sweep"]) == 2 and all(r["frame_s"] is not None for r in data["sweep"])
 
 

@@ -16,8 +16,8 @@ import pytest
 from pbrcheck.cli import main
 from pbrcheck.environment import load_environment
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.export import (ENV_MAX_WIDTH, SILHOUETTE_TOLERANCE_PX, equirect_image, export_scene, ior_from_f0,
-                             pixels_per_unit, sphere_segments, uv_sphere)
+from pbrcheck.export import (ENV_MAX_WIDTH, SILHOUETTE_TOLERANCE_PX, equirect_image, export_scene, export_width,
+                             ior_from_f0, pixels_per_unit, sphere_segments, uv_sphere)
 from pbrcheck.hdrimage import read_hdr, read_pfm, write_hdr, write_pfm
 from pbrcheck.scene import load_scene, scene_from_dict
 
@@ -164,7 +164,7 @@ def test_environment_files_agree_and_scenario(exported):
     assert mv["dimensions"] == {"width": 64, "height": 48} and mv["renderSkybox"] is True
     assert mv["orbit"]["radius"] == pytest.approx(math.sqrt(37)) and mv["orbit"]["theta"] == pytest.approx(0.0)
     assert mv["orbit"]["phi"] == pytest.approx(math.degrees(math.acos(1 / math.sqrt(37))))
-    assert equirect_image(load_environment(load_scene("sun")), None).shape[1] == min(2 * 1024, ENV_MAX_WIDTH)
+    assert [export_width(w) for w in (16, 64, 1024, 4096)] == [64, 128, 2048, ENV_MAX_WIDTH]
 
 
 def test_rgbe_and_pfm_round_trips(tmp_path):

@@ -84,12 +84,25 @@ def test_g1_twins(name):
     close(run_glsl(f"{name}(x0, x1)", c, alpha)[ok], getattr(brdf, name)(c, alpha)[ok], rtol=1e-4)
 
 
-@pytest.mark.parametrize("name", ["G_SmithGGX", "G_SmithGGXCorrelated", "G_SchlickBeckmann"])
+@pytest.mark.parametrize("name", ["G_SmithGGX", "G_SmithGGXCorrelated", "G_SchlickBeckmann",
+                                  "G_SmithBeckmannCorrelated"])
 def test_g2_twins(name):
     v, l = grid2(COS, COS)
     for r in ROUGH:
         a = float(np.float32(brdf.alpha_from_roughness(r)))
         close(run_glsl(f"{name}(x0, x1, x2)", v, l, a), getattr(brdf, name)(v, l, a))
+
+
+def test_lambda_beckmann_twins():
+    """Beckmann's Lambda (GLSL: erfcx by Numerical Recipes' fit; numpy: exact erfc): relative 1e-4
+    where Lambda is not negligible, absolute 1e-6 where it vanishes (near-normal directions)."""
+    c, r = grid2(COS, ROUGH)
+    alpha = f32(brdf.alpha_from_roughness(r))
+    ok = c > 0  # Lambda at c = 0 is 1/COS_EPS-sized
+    close(run_glsl("Lambda_Beckmann(x0, x1)", c, alpha)[ok], brdf.Lambda_Beckmann(c, alpha)[ok], rtol=1e-4,
+          atol=1e-6)
+    z = f32(np.concatenate([np.linspace(0.0, 8.0, 33), [20.0, 1e3, 1e6]]))
+    close(run_glsl("erfcx_nr(x0)", z), brdf.erfcx_nr(z), rtol=1e-5)
 
 
 @pytest.mark.parametrize("kname", ["k_schlick_ibl", "k_schlick_direct"])

@@ -76,3 +76,62 @@ def test_stops_at_the_cap_and_says_noise_limited():
     assert "NOISE-LIMITED at the cap of 512 spp" in v.provenance()
     d = v.to_dict()
     assert d["noise_limited"] is True and d["spp"] == 512 and d["factor"] == vs.NOISE_FLOOR_FACTOR
+
+
+def test_cap_from_a_time_budget():
+    def timed(seconds, spp=64):
+        return Image.from_rgb(TRUTH, {"spp": str(spp), "seconds": str(seconds)}, **_aovs())
+
+    assert vs.cap_for_time(timed(1.0), 64, 30.0) == 1024           # 30 s at 1/64 s per spp: 1920 -> 1024
+    assert vs.cap_for_time(timed(0.001), 64, 30.0) == vs.HARD_SPP_CAP  # a fast GPU: the hard cap
+    assert vs.cap_for_time(timed(100.0), 64, 30.0) == 64            # never below the least spp
+    assert vs.cap_for_time(Image.from_rgb(TRUTH, {}, **_aovs()), 64, 30.0) == vs.DEFAULT_SPP_CAP
+
+
+def test_report_default_cap_follows_the_time_budget(monkeypatch):
+    def slow_reference(scene, *, spp, **kw):
+        img = fake_reference(scene, spp=spp, **kw)
+        img.meta["seconds"] = str(spp / 64.0)  # 1 s per 64 spp
+        return img
+
+    monkeypatch.setattr(renderers, "render_reference", slow_reference)
+    ref, v = vs.reference_for_verdict(None, [_test_image(1e-5)], spp=64, cap=None, time_budget_s=10.0)
+    assert v.cap == 512 and v.spp == 512 and v.noise_limited
+
+
+def test_gate_budget_noise():
+    from compare.gate import BUDGET_NOISE_FACTOR, Check, Result, budget_noise, noise_note
+
+    chk = Check(name="c", max={"relmse": 0.01, "flip_mean": 0.05, "psnr_like": 1.0}, min={}, reference="r.exr")
+    noise = {"simulated": {"relmse": 0.004, "flip_mean": 0.02 * math.sqrt(2)}}
+    rows = {b["metric"]: b for b in budget_noise(chk, noise, 1024)}
+    assert set(rows) == {"relmse", "flip_mean"}  # a metric without a simulated noise is skipped
+    # relmse: one noisy image has half the simulated pair's value (variance-like)
+    assert rows["relmse"]["noise"] == pytest.approx(0.002) and rows["relmse"]["ratio"] == pytest.approx(5)
+    assert rows["relmse"]["spp_needed"] == pytest.approx(2048) and not rows["relmse"]["trusted"]
+    # flip: 1/sqrt(2) of the pair's value, and it falls as 1/sqrt(spp)
+    assert rows["flip_mean"]["noise"] == pytest.approx(0.02) and rows["flip_mean"]["ratio"] == pytest.approx(2.5)
+    assert rows["flip_mean"]["spp_needed"] == pytest.approx(1024 * (BUDGET_NOISE_FACTOR / 2.5) ** 2)
+    r = Result(chk, "pass", budget_noise=list(rows.values()))
+    note = noise_note(r)
+    assert note.startswith(" (noise-limited: relmse budget 0.01 is 5x") and "at 16384 spp" in note
+    assert noise_note(Result(chk, "pass", budget_noise=[{**rows["relmse"], "trusted": True}])) == ""
+
+
+def test_flip_and_itp_maps_are_memoized_by_content(monkeypatch):
+    from compare import metrics
+
+    calls = []
+    real = metrics._flip_map
+    monkeypatch.setattr(metrics, "_flip_map", lambda r, t: calls.append(1) or real(r, t))
+    a = TRUTH[:8, :8].copy()
+    b = a * 1.1
+    m1 = metrics.flip_map(a, b)
+    m2 = metrics.flip_map(a.copy(), b.copy())          # same content: no second evaluation
+    np.testing.assert_array_equal(m1, m2)
+    m1[0, 0] = -1.0                                     # callers get copies
+    assert metrics.flip_map(a, b)[0, 0] >= 0 and len(calls) == 1
+    metrics.flip_map(a, b * 1.01)                       # other content: evaluated
+    assert len(calls) == 2
+    e1 = metrics.delta_e_itp_map(a, b)
+    np.testing.assert_array_equal(e1, metrics.delta_e_itp_map(a, b))

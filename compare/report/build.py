@@ -31,7 +31,8 @@ from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_ton
 from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
-from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
+from ..verdict_spp import VerdictSpp, reference_for_verdict
+from .references import references_sections
 from .research_sections import research_sections
 from .section import Section, Table
 from .summary import furnace_section, summary_section
@@ -268,8 +269,9 @@ class ReportSettings:
     convergence: bool = True
     sweep: bool = True
     executor: object = None  # --scheduler: renders of presets and sweep run as its tasks
-    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the least.
-    spp_cap: int = DEFAULT_SPP_CAP
+    #: Largest reference spp the trusted-verdict rule may choose (compare.verdict_spp); ``spp`` is the
+    #: least; None: as many as fit in ``DEFAULT_TIME_BUDGET_S`` of rendering per scene.
+    spp_cap: int | None = None
 
 
 @dataclass
@@ -458,7 +460,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
-    ``spp_cap``, default :data:`compare.verdict_spp.DEFAULT_SPP_CAP`) until the reference's noise
+    ``spp_cap``; default: as many as render in :data:`compare.verdict_spp.DEFAULT_TIME_BUDGET_S`
+    seconds per scene at the measured speed) until the reference's noise
     floor is :data:`compare.verdict_spp.NOISE_FLOOR_FACTOR` times below the smallest error of the
     presets against it, else the section says "noise-limited"; the rule's outcome is in the
     provenance table and ``metrics.json`` (``reference_spp``).
@@ -468,7 +471,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
     :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
     renderer and scene) and, with ``furnace``, the white furnace per renderer
-    (:mod:`compare.report.summary`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
+    (:mod:`compare.report.summary`), then every external renderer against both the single-scattering
+    and the random-walk reference (:mod:`compare.report.references`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
     and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
 
     Raises
@@ -496,14 +500,16 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     n_conv = len(_convergence_spps(spp)) if convergence else 0  # at the least spp (progress only)
     n_sweep = len(combinations(vary_d)) if vary_d else (len(default_sweep(presets[0])) if sweep else 0)
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
+    total += len(scenes) * sum(renderers.is_external(p) for p in presets)  # both references per ext:NAME
     sections = []
     with Progress("report", total=total, enabled=progress) as prog, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
-                            spp_cap=DEFAULT_SPP_CAP if spp_cap is None else int(spp_cap))
+                            spp_cap=None if spp_cap is None else int(spp_cap))
         for s in scenes:
             sections.append(_scene_section(s, out_dir, st, prog))
         top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
+        top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
     extras = list(extras or [])
     if research:
         # at the first scene's trusted-verdict spp (the reference its sections compare against)

@@ -62,8 +62,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
                    "are rendered until the reference's noise floor is 10x below the smallest error reported")
     s.add_argument("--spp-cap", type=int, default=None, metavar="N",
-                   help="most reference samples per pixel (default 4096); at the cap a verdict is flagged "
-                        "noise-limited")
+                   help="most reference samples per pixel (default: as many as render in 30 s per scene); "
+                        "at the cap a verdict is flagged noise-limited")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="sweep these real-time options (repeatable, every combination); default: the main cost "
                         "knobs one at a time")

@@ -36,7 +36,7 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
 - ``multiple_scattering``: not a convention but a model difference engines commonly have: the
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
-  Named "a model difference" in the verdict. Only for GGX with the height-correlated Smith term.
+  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term.
 
 Decision
 --------
@@ -74,6 +74,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.progress import Progress
+from pbrcheck.registry import MULTISCATTER_GEOMETRY
 from pbrcheck.scene import Environment, Scene
 
 from .. import renderers
@@ -369,10 +370,10 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
                         row(name, "scene", None, None, skipped="the scene has no dielectric object")
                     elif name == "multiple_scattering" and scene.brdf.multiscatter != "none":
                         row(name, "scene", None, None, skipped="the reference already scatters multiply")
-                    elif name == "multiple_scattering" and (scene.brdf.ndf, scene.brdf.geometry) != (
-                            "ggx", "smith_ggx_correlated"):
-                        row(name, "scene", None, None, skipped="the random walk needs ndf = ggx and "
-                                                               "geometry = smith_ggx_correlated")
+                    elif name == "multiple_scattering" and MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != \
+                            scene.brdf.geometry:
+                        row(name, "scene", None, None, skipped="the random walk needs ndf = ggx with geometry = "
+                            "smith_ggx_correlated or beckmann with smith_beckmann_correlated")
                     else:
                         img, v2 = render(hypothesis_scene(name, scene, Path(tmp)))
                         row(name, "scene", img, t, LINEAR_FACTORS.get(name) and {"factor": LINEAR_FACTORS[name]},

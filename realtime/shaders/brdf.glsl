@@ -76,6 +76,33 @@ float G_SmithGGXCorrelated(float NoV, float NoL, float alpha) {
     return 2.0 * v * l / max(den, COS_EPS);
 }
 
+// Source: Numerical Recipes in C (2nd ed.) sec. 6.2, erfcc (fractional error < 1.2e-7) without its
+// exp(-z^2) factor. Equation: erfcx(z) = exp(z^2) erfc(z) = t exp(P(t)), t = 1 / (1 + z / 2), z >= 0.
+float erfcx_nr(float z) {
+    float t = 1.0 / (1.0 + 0.5 * max(z, 0.0));
+    float p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
+        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
+        -0.82215223 + t * 0.17087277))))))));
+    return t * exp(p);
+}
+
+// Source: [Heitz14] eq. 80. Equation: Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)),
+// a = c / (alpha sqrt(1 - c^2)); computed as exp(-a^2) (1 / (a sqrt(pi)) - erfcx(a)) / 2 (no
+// cancellation of erf(a) - 1; GLSL has no erf).
+float Lambda_Beckmann(float NoX, float alpha) {
+    float c = clamp(NoX, COS_EPS, 1.0);
+    float s = sqrt(max(1.0 - c * c, 0.0));
+    float a = clamp(c / max(max(alpha, MIN_ALPHA) * s, 1e-30), 1e-20, 1e15);
+    return max(0.5 * exp(-a * a) * (0.5641895835 / a - erfcx_nr(a)), 0.0);
+}
+
+// Source: [Heitz14] eq. 99 with eq. 80 (height-correlated Smith, Beckmann).
+// Equation: G = 1 / (1 + Lambda(v) + Lambda(l)); 0 at n.v = 0 or n.l = 0.
+float G_SmithBeckmannCorrelated(float NoV, float NoL, float alpha) {
+    float g = 1.0 / (1.0 + Lambda_Beckmann(NoV, alpha) + Lambda_Beckmann(NoL, alpha));
+    return (NoV > 0.0 && NoL > 0.0) ? g : 0.0;
+}
+
 // Source: [Schlick94] eq. 19 with [Karis13]'s k. Equation: G1 = c / (c (1 - k) + k).
 float G1_SchlickGGX(float NoX, float k) {
     float c = clamp(NoX, 0.0, 1.0);
@@ -153,6 +180,8 @@ float geometry_term(float NoV, float NoL, float roughness) {
     return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness));
 #elif GEOMETRY == GEOMETRY_SCHLICK_BECKMANN
     return G_SchlickBeckmann(NoV, NoL, alpha_from_roughness(roughness));
+#elif GEOMETRY == GEOMETRY_SMITH_BECKMANN_CORRELATED
+    return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness));
 #endif
 }
 

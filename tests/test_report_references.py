@@ -1,0 +1,111 @@
+"""The report's "both references" section (compare/report/references.py): every external renderer
+against the single-scattering and the random-walk reference. A fake engine (tests/test_clients.py)
+plays the renderer and a fake reference plays Mitsuba (fast); one real three.js run is marked slow."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import compare.renderers as renderers
+from compare.report.references import (RANDOM_WALK_MAX_SPP, measure_references, random_walk_scene,
+                                       references_sections, single_scattering_scene)
+from pbrcheck.scene import dump_toml, scene_from_dict
+from tests.test_clients import FAKE, SCENE, fake  # noqa: F401  (the fake engine fixture)
+from tests.test_compare_report import fake_reference
+
+SPP_SEEN: list = []
+
+
+def two_references(scene, **kw):
+    """Single scattering loses energy (0.6 on the sphere), the walk keeps it (1.0): the fake engine,
+    which renders 1.0 everywhere (a compensating engine), differs from the first only."""
+    SPP_SEEN.append((scene.brdf.multiscatter, kw.get("spp")))
+    img = fake_reference(scene, **kw)
+    ids = np.rint(img.channels["object"])
+    val = 1.0 if scene.brdf.multiscatter == "random_walk" else 0.6
+    for c in "RGB":
+        img.channels[c] = np.where(ids >= 0, val, 1.0).astype(np.float32)
+    return img
+
+
+@pytest.fixture
+def compensating(fake, monkeypatch):  # noqa: F811
+    (fake / "fake.py").write_text(FAKE.replace("img = np.full((H, W, 3), 0.5, np.float32)",
+                                               "img = np.full((H, W, 3), 1.0, np.float32)"))
+    monkeypatch.setattr(renderers, "render_reference", two_references)
+    SPP_SEEN.clear()
+    return fake
+
+
+def test_random_walk_scene_needs_the_correlated_geometry():
+    s = scene_from_dict(SCENE)
+    rw, why = random_walk_scene(s)
+    assert rw.brdf.multiscatter == "random_walk" and why == ""
+    assert single_scattering_scene(rw).brdf.multiscatter == "none" and single_scattering_scene(s) is s
+    none, why = random_walk_scene(replace(s, brdf=replace(s.brdf, geometry="smith_ggx")))
+    assert none is None and "smith_ggx_correlated" in why
+    none, why = random_walk_scene(replace(s, brdf=replace(s.brdf, ndf="blinn_phong")))
+    assert none is None and "blinn_phong" in why
+
+
+def test_a_compensating_engine_is_right_against_the_walk(compensating):
+    s = scene_from_dict(SCENE)
+    [p] = measure_references(s, ["ext:pfm"], 512)
+    assert p.vs_single["relmse"] > 0.1                     # 1.0 against 0.6
+    assert p.vs_random_walk["relmse"] < 1e-3 and p.share > 0.99
+    assert p.spp_single == 512 and p.spp_random_walk == RANDOM_WALK_MAX_SPP
+    assert ("none", 512) in SPP_SEEN and ("random_walk", RANDOM_WALK_MAX_SPP) in SPP_SEEN
+    d = p.to_dict()
+    assert d["share_of_error_from_reference"] == p.share and d["vs_random_walk"]["relmse"] == p.vs_random_walk["relmse"]
+
+
+def test_a_scene_without_a_walk_says_why(compensating):
+    s = scene_from_dict({**SCENE, "brdf": {"ndf": "blinn_phong", "geometry": "smith_ggx"}})
+    [p] = measure_references(s, ["ext:pfm"], 8)
+    assert p.vs_random_walk is None and p.share is None and "blinn_phong" in p.note
+    assert all(m == "none" for m, _ in SPP_SEEN)
+
+
+def test_no_external_renderer_no_section(tmp_path):
+    assert references_sections([], [], ["default", "filament"], tmp_path) == []
+
+
+def test_report_shows_both_references_for_every_external_renderer(compensating, tmp_path):
+    from compare.report.build import build_report
+
+    (tmp_path / "tiny.toml").write_text(dump_toml(SCENE))
+    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm", "ext:exr"], out_dir=tmp_path / "r",
+                         spp=4, convergence=False, sweep=False, furnace=False, progress=False)
+    html = index.read_text()
+    sec = html[html.index('id="references"'):]
+    assert "External renderers against both references" in sec
+    assert "ext:pfm" in sec and "ext:exr" in sec and "relmse vs random walk" in sec and "100 %" in sec
+    rows = json.loads((tmp_path / "r" / "tiny" / "references.json").read_text())
+    assert [r["renderer"] for r in rows] == ["ext:pfm", "ext:exr"]
+    assert all(r["share_of_error_from_reference"] > 0.99 for r in rows)
+
+
+def _threejs_ready() -> bool:
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    return bool(shutil.which("node")) and (root / "clients/threejs/node_modules/three").is_dir() and bool(
+        shutil.which("chromium") or shutil.which("chromium-browser"))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _threejs_ready(), reason="three.js client not installed (node, npm ci, chromium)")
+def test_threejs_furnace_is_explained_by_the_random_walk(tmp_cache):
+    """three.js r187 in a small white furnace: its error against the single-scattering reference is
+    the reference's missing multiple scattering (most of it goes away against the walk)."""
+    from pbrcheck.scene import load_scene
+
+    s = load_scene("furnace").with_camera(width=96, height=24)
+    [p] = measure_references(s, ["ext:threejs"], 32)
+    assert p.vs_single["relmse"] > 0.05
+    assert p.share > 0.9, p.to_dict()

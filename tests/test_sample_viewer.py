@@ -1,0 +1,195 @@
+"""The Khronos glTF Sample Viewer client (``ext:sample-viewer``), for real: headless Chromium
+(WebGL2 on SwiftShader) renders exported scenes with ``@khronosgroup/gltf-viewer`` 1.1.0. The
+render tests skip where node, Chromium or ``clients/gltf-sample-viewer/node_modules`` are absent
+(``make setup`` installs them); on a machine set up by ``make setup`` they run.
+
+- the white furnace: the Sample Viewer's multiple-scattering term keeps a white metal at 1.0 at
+  every roughness, while the single-scattering reference loses energy as roughness grows;
+- the orientation probe: coloured markers of radiance 8 in the environment (rotated 30 degrees)
+  land in the same pixels as in the reference in a mirror sphere's reflection (environmentRotation
+  0 is the exported orientation), and where its skybox projection puts them in the background;
+  they keep their radiance (linear float output: no tone map, no clamp at 1, no gamma);
+- a point light on a diffuse sphere: 1 cd = 1 W/sr;
+- without a browser: the built-in configuration, the runner's usage errors, and the engine
+  constants the ``--ibl`` profiles replace (each present exactly once in the pinned package).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import compare.renderers as renderers
+from clients import config as C
+from pbrcheck.camera import primary_rays
+from pbrcheck.environment import load_environment
+from pbrcheck.exr import read_exr
+from pbrcheck.scene import load_scene, scene_from_dict
+from tests.test_threejs import MARKERS, centroids, probe_env
+
+ROOT = Path(__file__).resolve().parents[1]
+CLIENT = ROOT / "clients" / "gltf-sample-viewer"
+MODULE = CLIENT / "node_modules" / "@khronosgroup" / "gltf-viewer" / "dist" / "gltf-viewer.module.js"
+RUNNER = CLIENT / "render.mjs"
+#: The version the lockfile pins (and the version line must report).
+PINNED = "1.1.0"
+
+
+def _skip_without(node: bool = True, package: bool = True, chromium: bool = True) -> None:
+    if node and shutil.which("node") is None:
+        pytest.skip("node is absent (make setup installs Debian's nodejs)")
+    if package and not MODULE.is_file():
+        pytest.skip(f"@khronosgroup/gltf-viewer is not installed: run npm ci in {CLIENT}")
+    if chromium and not any(shutil.which(c) for c in ("chromium", "chromium-browser")):
+        pytest.skip("Chromium is absent (make setup installs Debian's chromium)")
+
+
+@pytest.fixture
+def sample_viewer(tmp_cache):
+    _skip_without()
+
+
+# ------------------------------------------------------------------------------------------------
+# Without a browser
+# ------------------------------------------------------------------------------------------------
+
+def test_builtin_config_is_registered_and_pinned():
+    cfg = C.get_renderer("ext:sample-viewer")
+    assert cfg.builtin and cfg.output == "pfm" and cfg.lockfile_path() == CLIENT / "package-lock.json"
+    assert cfg.lockfile_hash() not in (None, "missing")
+    argv = C.expand(cfg, cfg.command, scenario="/s/scenario.json", out="/o/x.pfm", dir="/s", width=1, height=1)
+    assert argv[0] == "node" and Path(argv[1]) == RUNNER and argv[2:4] == ["/s/scenario.json", "/o/x.pfm"]
+    assert argv[argv.index("--ibl") + 1] == "fast"
+    lock = json.loads((CLIENT / "package-lock.json").read_text())
+    assert lock["packages"]["node_modules/@khronosgroup/gltf-viewer"]["version"] == PINNED
+    assert json.loads((CLIENT / "package.json").read_text())["dependencies"]["@khronosgroup/gltf-viewer"] == PINNED
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["only-one.json"], "usage"),
+    (["a.json", "b.pfm", "--ibl", "medium"], "usage"),
+    (["a.json", "b.pfm", "--ss", "0"], "usage"),
+])
+def test_runner_usage_errors_are_one_line_exit_1(args, msg):
+    _skip_without(package=False, chromium=False)
+    r = subprocess.run(["node", str(RUNNER), *args], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and r.stdout == ""
+    assert r.stderr.startswith("gltf-sample-viewer client: ") and msg in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_ibl_profile_constants_are_found_once_in_the_pinned_engine():
+    """Each constant the runner replaces is in the installed module exactly once with the package's
+    value (the runner refuses to run otherwise: a new version must be looked at again)."""
+    _skip_without(node=False, chromium=False)
+    full = re.search(r"full: \{([^}]*)\}", RUNNER.read_text()).group(1)
+    consts = dict((k, v) for k, v in re.findall(r"(\w+): (\d+)", full))
+    assert set(consts) == {"textureSize", "ggxSampleCount", "lambertianSampleCount", "sheenSamplCount", "lutResolution"}
+    text = MODULE.read_text()
+    for k, v in consts.items():
+        assert text.count(f"this.{k} = {v};") == 1, k
+
+
+def test_version_line_names_the_pinned_package():
+    _skip_without(chromium=False)
+    r = subprocess.run(["node", str(RUNNER), "--version"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith(f"@khronosgroup/gltf-viewer {PINNED}; ")
+
+
+# ------------------------------------------------------------------------------------------------
+# Real renders (headless Chromium)
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_white_furnace_sample_viewer_keeps_energy_reference_loses_it(sample_viewer):
+    scene = load_scene(str(ROOT / "compare" / "budgets" / "furnace_ci.toml"))
+    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "furnace_ci.exr")
+    assert img.meta["version"].startswith(f"@khronosgroup/gltf-viewer {PINNED}")
+    stdout = json.loads(img.meta["renderer_stdout"])
+    assert stdout["ibl"]["profile"] == "fast" and stdout["ibl_format"] == "FLOAT"
+    ids = img.channels["object"]
+    viewer, mitsuba = [], []
+    for k in range(5):                                   # roughness 0, 0.25, 0.5, 0.75, 1
+        m = (ids == k) & (ref.channels["coverage"] >= 0.999)
+        viewer.append(float(img.rgb[m].mean()))
+        mitsuba.append(float(ref.rgb[m].mean()))
+    assert np.allclose(viewer, 1.0, atol=0.01), viewer  # multiple scattering compensated
+    assert mitsuba[0] == pytest.approx(1.0, abs=0.01)
+    assert mitsuba[4] < 0.9 and viewer[4] - mitsuba[4] > 0.1, (viewer, mitsuba)
+
+
+#: The Sample Viewer's skybox vertex shader replaces its view-projection matrix's last column by
+#: (0, 0, 0, 0.1): gl_Position.w = -z_view + 0.1 for the unit cube around the camera. Where the
+#: camera looks down a cube axis (z_view = -1 on that face) the background is the environment seen
+#: with tan(fov / 2) this much larger (a 2-degree shift at 35 degrees off-axis in this probe); the
+#: metrics exclude background pixels, so only the picture shows it (docs/renderers.md).
+SKYBOX_TAN_SCALE = 1.1
+
+
+def _centroids_in(rgb: np.ndarray, mask: np.ndarray, min_pixels: int = 4) -> dict:
+    out = centroids(np.where(mask[..., None], rgb, 0.0))
+    return {c: v for c, v in out.items() if v is not None and v[2] >= min_pixels}
+
+
+@pytest.mark.slow
+def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radiance(sample_viewer, tmp_path):
+    probe_env(tmp_path / "probe.exr")
+    scene = scene_from_dict({
+        "name": "probe", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 80.0, "width": 160, "height": 100},
+        "environment": {"type": "file", "path": "probe.exr", "rotation": 30.0},
+        "objects": [{"type": "sphere", "center": [0.0, 0.0, -4.0], "radius": 0.9,
+                     "material": {"base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.0}}],
+    }, file=str(tmp_path / "probe.toml"), base_dir=tmp_path)
+    viewer = renderers.render_under_test(scene, "ext:sample-viewer")
+    ref = renderers.render_reference(scene, spp=16, use_cache=False)
+    ids = viewer.channels["object"]
+
+    # In the mirror sphere (the image-based lighting): every marker the reference shows, in the
+    # same pixels (the yellow and cyan ones are behind the camera).
+    a, b = _centroids_in(viewer.rgb, ids >= 0), _centroids_in(ref.rgb, ids >= 0)
+    assert set(a) == set(b) and len(b) >= 4, (a, b)
+    for c in b:
+        assert abs(a[c][0] - b[c][0]) < 1.5 and abs(a[c][1] - b[c][1]) < 1.5, (c, a[c], b[c])
+
+    # In the background: the environment through the skybox's projection (SKYBOX_TAN_SCALE).
+    cam = scene.camera
+    wide = dataclasses.replace(cam, fov=2 * np.degrees(np.arctan(SKYBOX_TAN_SCALE * np.tan(np.radians(cam.fov) / 2))))
+    expect = load_environment(scene).radiance(primary_rays(wide)[1])
+    plain = load_environment(scene).radiance(primary_rays(cam)[1])
+    bg = ids < 0
+    a, e, p = (_centroids_in(x, bg, 50) for x in (viewer.rgb, expect, plain))
+    assert set(a) == set(e) and len(e) >= 2, (a, e)
+    for c in e:
+        assert abs(a[c][0] - e[c][0]) < 1.0 and abs(a[c][1] - e[c][1]) < 1.0, (c, a[c], e[c])
+    assert max(abs(p[c][1] - a[c][1]) for c in e) > 3.0   # the skybox projection is really there
+
+    # Linear float output: the blue marker's core in the background is radiance 8 (an 8-bit,
+    # tone-mapped or gamma-encoded canvas could not hold it), and the dim 0.05 stays 0.05.
+    blue = (viewer.rgb[..., 2] > 1.0) & (viewer.rgb[..., 0] < 0.5) & (viewer.rgb[..., 1] < 0.5) & bg
+    assert blue.sum() > 100 and np.median(viewer.rgb[blue, 2]) == pytest.approx(8.0, rel=0.05)
+    dim = np.all(viewer.rgb < 0.2, axis=-1) & bg
+    assert np.median(viewer.rgb[dim]) == pytest.approx(0.05, rel=0.05)
+
+
+@pytest.mark.slow
+def test_point_light_one_candela_is_one_watt_per_steradian(sample_viewer):
+    scene = scene_from_dict({
+        "name": "lamp", "camera": {"origin": [0, 0, 5.0], "fov": 30.0, "width": 64, "height": 64},
+        "environment": {"type": "none"},
+        "lights": [{"type": "point", "position": [0.0, 0.0, 5.0], "intensity": [10.0, 10.0, 10.0]}],
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
+    })
+    viewer = renderers.render_under_test(scene, "ext:sample-viewer")
+    ref = renderers.render_reference(scene, spp=16, use_cache=False)
+    c = (slice(28, 36), slice(28, 36))                # facing the light: n.l = 1, distance 4
+    expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
+    assert float(ref.rgb[c].mean()) == pytest.approx(expect, rel=0.1)
+    assert float(viewer.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
