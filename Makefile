@@ -63,8 +63,10 @@ bench: setup
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
 REPORT_SCENES := spheres furnace grazing
+# The external engines measured beside the presets (the built-in clients, fast IBL profile).
+REPORT_CLIENTS := ext:threejs,ext:sample-viewer
 report: setup
-	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --hardcases --research --out reports
+	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --with $(REPORT_CLIENTS) --hardcases --research --out reports
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from pbrcheck.registry import MULTISCATTER_GEOMETRY
+
 from .variant import ensure_variant
 
 ensure_variant()
@@ -67,9 +69,14 @@ def bench_multiscatter(*, lanes: int = 1 << 20, roughness: float = 0.5, mu: floa
     rng = np.random.default_rng(0)
     u = rng.random((3, lanes)).astype(np.float32)
     out = {"variant": variant, "lanes": lanes, "roughness": roughness, "n.v": mu, "repeats": repeats}
-    for name in ("none", "random_walk"):
+    # The Beckmann walk (same material, ndf beckmann + its correlated term): its visible-normal
+    # sampler inverts a CDF by bisection (reference/multiscatter.py), the dearest part of a bounce.
+    models = {"none": ("none", "ggx"), "random_walk": ("random_walk", "ggx"),
+              "random_walk_beckmann": ("random_walk", "beckmann")}
+    for name, (ms_name, ndf) in models.items():
         b = mi.load_dict({"type": "pbr_material", "base_color": [0.9, 0.9, 0.9], "metallic": 1.0,
-                          "roughness": roughness, "multiscatter": name})
+                          "roughness": roughness, "multiscatter": ms_name, "ndf": ndf,
+                          "geometry": MULTISCATTER_GEOMETRY[ndf]})
         si = dr.zeros(mi.SurfaceInteraction3f, lanes)
         si.wi = mi.Vector3f(float(math.sqrt(1 - mu * mu)), 0.0, float(mu))
         best = float("inf")
@@ -86,4 +93,5 @@ def bench_multiscatter(*, lanes: int = 1 << 20, roughness: float = 0.5, mu: floa
         mean = float(np.mean(np.array(w.x)))
         out[name] = {"samples_per_s": lanes / best, "seconds": best, "mean_weight": mean}
     out["slowdown"] = out["none"]["samples_per_s"] / out["random_walk"]["samples_per_s"]
+    out["slowdown_beckmann"] = out["none"]["samples_per_s"] / out["random_walk_beckmann"]["samples_per_s"]
     return out

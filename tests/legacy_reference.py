@@ -12,6 +12,7 @@ import numpy as np
 from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import load_environment
 from reference.render import _mi, load_mitsuba_scene
+from pbrcheck.scene import Scene
 
 MAX_LANES = 1 << 21
 DEFAULT_MAX_DEPTH = 8

@@ -82,17 +82,34 @@ def test_reciprocity(r, vx, vy, lx, ly, ndf, geometry):
     np.testing.assert_allclose(brdf_eval(n, v, l, **kw), brdf_eval(n, l, v, **kw), rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.parametrize("ndf", NDFS)
-@pytest.mark.parametrize("geometry", GEOMETRIES)
+#: Beckmann's masking paired with another NDF is not energy-bounded (see below): not a furnace case.
+MISMATCHED = {("ggx", "smith_beckmann_correlated"), ("blinn_phong", "smith_beckmann_correlated")}
+
+
+@pytest.mark.parametrize("ndf, geometry", [(n, g) for g in GEOMETRIES for n in NDFS if (n, g) not in MISMATCHED])
 def test_white_furnace_albedo_at_most_one(ndf, geometry):
     """White furnace of the specular lobe (metal, F0 = 1): directional albedo <= 1 everywhere, and
-    of the whole dielectric BRDF (white base colour) near normal incidence."""
+    of the whole dielectric BRDF (white base colour) near normal incidence. Beckmann's masking
+    (smith_beckmann_correlated) only with Beckmann's D: its Lambda is far smaller than GGX's for
+    grazing directions, so with GGX's long-tailed D (1.0035 at roughness 0.02, n.v = 0.001) or
+    Blinn-Phong's (uniform at roughness 1: 1.76 at n.v = 0.001) the mismatched pair reflects more
+    than it receives (a property of the combination, which a scene may still name; pinned by
+    :func:`test_beckmann_masking_with_another_ndf_gains_energy`)."""
     for r in [0.0, 0.02, 0.3, 0.7, 1.0]:
         for nv in [1.0, 0.7, 0.3, 0.05, 1e-3]:
             assert specular_albedo(nv, r, 1.0, ndf=ndf, geometry=geometry) <= 1.0 + ENERGY_TOL
         for nv in [1.0, 0.9]:
             e = specular_albedo(nv, r, 0.04, ndf=ndf, geometry=geometry) + diffuse_albedo(nv, r, 0.04)
             assert e <= 1.0 + ENERGY_TOL
+
+
+@pytest.mark.parametrize("ndf", sorted(n for n, _ in MISMATCHED))
+def test_beckmann_masking_with_another_ndf_gains_energy(ndf):
+    """The mismatched pairs excluded above do exceed 1 at grazing angles (so excluding them is a
+    statement about the model, measured here, not a hidden failure)."""
+    worst = max(specular_albedo(1e-3, r, 1.0, ndf=ndf, geometry="smith_beckmann_correlated")
+                for r in (0.02, 0.3, 0.7, 1.0))
+    assert worst > 1.0 + ENERGY_TOL
 
 
 def test_dielectric_model_gains_energy_at_grazing_angles():

@@ -25,9 +25,14 @@ from pbrcheck.scene import scene_from_dict
 
 FAKE = textwrap.dedent('''
     import json, os, subprocess, sys, time
-    import numpy as np
     mode, scenario, out = sys.argv[1], sys.argv[2], sys.argv[3]
     here = os.path.dirname(os.path.abspath(__file__))
+    if mode == "sleep":   # before the slow imports: the child must exist when the timeout strikes
+        child = subprocess.Popen(["sleep", "60"])
+        open(os.path.join(here, "child.pid.tmp"), "w").write(str(child.pid))
+        os.replace(os.path.join(here, "child.pid.tmp"), os.path.join(here, "child.pid"))
+        time.sleep(60)
+    import numpy as np
     with open(os.path.join(here, "runs.txt"), "a") as f:
         f.write(mode + "\\n")
     sc = json.load(open(scenario))
@@ -48,10 +53,6 @@ FAKE = textwrap.dedent('''
         P.fromarray((img * 255).astype(np.uint8)).save(out)
     elif mode == "nonzero":
         print("line one", file=sys.stderr); print("engine exploded: boom", file=sys.stderr); sys.exit(3)
-    elif mode == "sleep":
-        child = subprocess.Popen(["sleep", "60"])
-        open(os.path.join(here, "child.pid"), "w").write(str(child.pid))
-        time.sleep(60)
     elif mode == "nofile":
         pass
     elif mode == "wrongsize":
@@ -86,7 +87,7 @@ def fake(tmp_path, monkeypatch, tmp_cache):
     lines = []
     for m, fmt in modes.items():
         lines += [f"[renderer.{m}]", f'command = [{json.dumps(sys.executable)}, "fake.py", "{m}", "{{scenario}}", "{{out}}"]',
-                  f'output = "{fmt}"', "timeout = " + ("1.5" if m == "sleep" else "60"),
+                  f'output = "{fmt}"', "timeout = " + ("3" if m == "sleep" else "60"),
                   f'version_command = [{json.dumps(sys.executable)}, "-c", "print(\'fake 1.2\')"]',
                   'lockfile = "fake.py"', ""]
     lines += ["[renderer.missing]", 'command = ["/nonexistent/engine-xyz", "{out}"]']
@@ -161,7 +162,7 @@ def _alive(pid: int) -> bool:
 
 def test_timeout_kills_the_renderer_and_its_children(fake, scene):
     t0 = time.perf_counter()
-    with pytest.raises(R.RendererError, match=r"timed out after 1.5 s \(killed with its children\)"):
+    with pytest.raises(R.RendererError, match=r"timed out after 3 s \(killed with its children\)"):
         renderers.render_under_test(scene, "ext:sleep")
     assert time.perf_counter() - t0 < 20
     pid = int((fake / "child.pid").read_text())

@@ -301,3 +301,24 @@ def test_gate_renderer_crash_is_an_error_not_a_failure(fakes, scene_file, tmp_pa
                       '[check.max]\nrelmse = 1\n')
     assert main(["gate", str(budget), "--quiet"]) == 2
     assert "GL context lost" in capsys.readouterr().out
+
+
+def test_report_cli_with_and_shader_add_renderers_after_the_presets(monkeypatch, tmp_path):
+    """`--with R,...` and `--shader FILE` append renderers to the presets (all of them by default)."""
+    import compare.report.commands as rc
+    from pbrcheck.cli import main
+
+    seen = {}
+
+    def fake_build(scenes, *, presets, out_dir, **kw):
+        seen["presets"] = presets
+        return out_dir / "index.html"
+
+    monkeypatch.setattr(rc, "build_report", fake_build)
+    hook = tmp_path / "h.glsl"
+    hook.write_text("vec3 hook_diffuse_ibl(vec3 n) { return vec3(0.0); }\n")
+    assert main(["report", "--presets", "default", "--with", "ext:threejs,ext:sample-viewer",
+                 "--shader", str(hook), "--out", str(tmp_path / "r")]) == 0
+    assert seen["presets"] == ["default", "ext:threejs", "ext:sample-viewer", f"default+{hook}"]
+    assert main(["report", "--with", "ext:threejs", "--out", str(tmp_path / "r")]) == 0
+    assert seen["presets"][-1] == "ext:threejs" and "filament" in seen["presets"]

@@ -195,6 +195,7 @@ def test_serial_corpus_rows_error_rows_and_outputs(tmp_path, fake):
             assert r["relmse"] > 0 and r["env_width"] == 16 and r["env_top1_energy"] > 0.1
             assert r["precompute_s"] == pytest.approx(0.2) and r["frame_s"] == pytest.approx(0.01)
             assert r["reference_s"] == pytest.approx(0.5)
+            assert r["timing_clock"] == "wall" and r["gl_renderer"] == "?"  # what the times mean
     # Bad entries are error rows naming the file, for every renderer, and nothing rendered them.
     for name, what in (("corrupt.hdr", "unreadable"), ("nan.exr", "NaN"), ("negative.exr", "negative")):
         for p in ("default", "splitsum_basic"):
@@ -393,3 +394,16 @@ def test_identical_files_share_their_renders(tmp_path, fake):
     assert len(fake.calls) == 2 * 2  # a reference and a render per distinct file
     a, b = res.rows[0], res.rows[1]
     assert a["relmse"] == b["relmse"] and a["key"] != b["key"]
+
+
+def test_external_renderers_are_checked_before_any_work(tmp_path, tmp_cache):
+    """``ext:NAME`` goes through the seam: an unknown one stops the corpus before anything is written,
+    and ``--set`` (real-time options) is not passed to an external renderer."""
+    d = make_corpus(tmp_path / "c", 1, bad=False)
+    out = tmp_path / "out"
+    with pytest.raises(PbrcheckError, match="nope"):
+        run_corpus(d, settings("default", "ext:nope"), out, progress=False)
+    assert main(["corpus", str(d), "--presets", "default,ext:nope", "--set", "cube_size=64",
+                 "--scheduler", "serial", "--out", str(out)]) == 2
+    assert not out.exists()
+    assert compare.renderers.resolve_options("ext:threejs", {}) == {}  # a built-in client: no options

@@ -202,10 +202,21 @@ def _validator():
     return node
 
 
-@pytest.mark.parametrize("name", ["mixed", "spheres"])
+EXTREMES = {  # KHR_materials_ior at its ends: specular 1 (ior 0, the special value) and 0 (ior 1)
+    "name": "extremes", "camera": {"width": 32, "height": 16}, "environment": {"type": "constant"},
+    "objects": [{"type": "sphere", "center": [-1.5, 0, 0], "material": {"specular": 1.0}},
+                {"type": "sphere", "center": [1.5, 0, 0], "material": {"specular": 0.0, "roughness": 0.0}}],
+}
+
+
+@pytest.mark.parametrize("name", ["mixed", "spheres", "extremes"])
 def test_khronos_gltf_validator_no_errors_or_warnings(exported, tmp_path, name):
     node = _validator()
-    folder = exported[1].out_dir if name == "mixed" else export_scene(load_scene(name), tmp_path).out_dir
+    if name == "mixed":
+        folder = exported[1].out_dir
+    else:
+        scene = scene_from_dict(EXTREMES) if name == "extremes" else load_scene(name)
+        folder = export_scene(scene, tmp_path).out_dir
     r = subprocess.run([node, str(THREEJS / "validate.mjs"), str(folder / "scene.gltf")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

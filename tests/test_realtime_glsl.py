@@ -160,7 +160,7 @@ def test_sampling_twins():
             g = run_glsl(f"{name}(vec2(x0, x1), x2)", u[:, 0], u[:, 1], a, components=3)
             close(g, getattr(sampling, name)(u, a), rtol=1e-4, atol=SQRT_ULP_DIR)
         v = f32(np.array([0.6, 0.0, 0.8]))
-        g = run_glsl(f"sample_GGX_VNDF(vec2(x0, x1), vec3(0.6, 0.0, 0.8), x2)", u[:, 0], u[:, 1], a, components=3)
+        g = run_glsl("sample_GGX_VNDF(vec2(x0, x1), vec3(0.6, 0.0, 0.8), x2)", u[:, 0], u[:, 1], a, components=3)
         close(g, sampling.sample_GGX_VNDF(u, v, a), rtol=1e-4, atol=SQRT_ULP_DIR)
     close(run_glsl("sample_cosine(vec2(x0, x1))", u[:, 0], u[:, 1], components=3), sampling.sample_cosine(u),
           rtol=1e-4, atol=2e-5)

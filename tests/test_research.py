@@ -114,7 +114,7 @@ def test_report_template_renders_research_sections(sections, tmp_path):
 
     _, secs = sections
     html = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(TEMPLATE).render(
-        scenes=[], extras=secs, metric_names=[], fmt=_fmt, version="t", generated="now")
+        scenes=[], top=[], extras=secs, metric_names=[], fmt=_fmt, version="t", generated="now")
     for s in secs:
         assert f'id="{s.id}"' in html
         for im in s.images:

@@ -10,6 +10,8 @@ render tests skip where node, Chromium or ``clients/gltf-sample-viewer/node_modu
   0 is the exported orientation), and where its skybox projection puts them in the background;
   they keep their radiance (linear float output: no tone map, no clamp at 1, no gamma);
 - a point light on a diffuse sphere: 1 cd = 1 W/sr;
+- ``diagnose`` on its spheres_ci image names multiple scattering (a model difference), and every
+  convention hypothesis makes the error worse;
 - without a browser: the built-in configuration, the runner's usage errors, and the engine
   constants the ``--ibl`` profiles replace (each present exactly once in the pinned package).
 """
@@ -193,3 +195,22 @@ def test_point_light_one_candela_is_one_watt_per_steradian(sample_viewer):
     expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
     assert float(ref.rgb[c].mean()) == pytest.approx(expect, rel=0.1)
     assert float(viewer.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
+
+
+@pytest.mark.slow
+def test_diagnose_names_a_model_difference_not_a_convention(sample_viewer):
+    """``pbrcheck diagnose`` on the Sample Viewer's spheres_ci image: every convention hypothesis
+    (flips, sRGB, R/B, environment turns, roughness, diffuse and light units) makes the error worse
+    or leaves it; undoing multiple scattering removes most of it (docs/renderers.md)."""
+    from compare.research import diagnose as dg
+
+    scene = load_scene(str(ROOT / "compare" / "budgets" / "spheres_ci.toml"))
+    ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "spheres_ci.exr")
+    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    d = dg.diagnose(ref, img, scene, spp=32)
+    assert d.likely == "multiple_scattering" and "a model difference" in d.line, dg.table_markdown(d)
+    rows = {r.hypothesis: r for r in d.rows if r.skipped is None}
+    assert rows["multiple_scattering"].reduction > 0.4, dg.table_markdown(d)
+    for name in ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linear_as_srgb", "swap_rb",
+                 "env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha"):
+        assert rows[name].reduction < 0.0, (name, dg.table_markdown(d))

@@ -2,7 +2,7 @@
 //
 //   import { runPage, chromiumPath, chromiumVersion, packageVersion } from '../browser/headless.mjs';
 //
-// runPage serves a client's page and its files on a loopback HTTP server, starts Debian's headless
+// runPage serves a client's page and its files (and this folder under /browser/) on a loopback HTTP server, starts Debian's headless
 // Chromium with WebGL2 on SwiftShader (--use-angle=swiftshader --enable-unsafe-swiftshader), waits
 // for the page to POST the linear float pixels, writes them as a little-endian colour PFM and stops
 // the browser and the server. The page protocol:
@@ -17,6 +17,10 @@ import { createServer } from 'node:http';
 import { mkdtempSync, readFileSync, rmSync, writeFileSync, renameSync, existsSync, statSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+/** This folder, served under /browser/ (page-common.js: the pages' shared half). */
+const BROWSER_DIR = path.dirname(fileURLToPath(import.meta.url));
 
 const TYPES = {
   '.html': 'text/html', '.js': 'text/javascript', '.mjs': 'text/javascript', '.json': 'application/json',
@@ -72,7 +76,7 @@ export function fail(label, msg) {
  */
 export function runPage(o) {
   const bad = (msg) => fail(o.label, msg);
-  const roots = o.roots.map(([prefix, dir]) => [prefix, path.resolve(dir)]);
+  const roots = [...o.roots, ['/browser/', BROWSER_DIR]].map(([prefix, dir]) => [prefix, path.resolve(dir)]);
   function resolveUrl(urlPath) {
     const p = decodeURIComponent(urlPath.split('?')[0]);
     if (Object.hasOwn(o.files, p)) return o.files[p];

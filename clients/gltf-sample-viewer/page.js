@@ -20,18 +20,9 @@
 // of 90 degrees would turn the environment); blurEnvironmentMap off (the background is the
 // environment itself, from the level-0 cube map); iblIntensity 1; punctual lights on.
 import { GltfView, GltfState } from '/viewer/gltf-viewer.module.js';
+import { boxFilter, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
-const params = new URLSearchParams(location.search);
-const ss = Math.max(1, parseInt(params.get('ss') || '2', 10));
-
-for (const k of ['error', 'warn']) {
-  const f = console[k];
-  console[k] = (...a) => { post('/log', `${k}: ${a.map(String).join(' ')}`); f(...a); };
-}
-
-async function post(path, body, headers = {}) {
-  await fetch(path, { method: 'POST', body, headers });
-}
+const ss = supersampling();
 
 // The Sample Viewer asks for a Draco decoder and a KTX2 transcoder at start-up (both WASM
 // libraries, Draco from a CDN); the exported scenes hold no Draco meshes and no KTX2 textures, so
@@ -119,32 +110,13 @@ async function main() {
   const err = gl.getError();
   if (err !== gl.NO_ERROR) throw new Error(`WebGL error 0x${err.toString(16)} after the frame`);
 
-  const out = new Float32Array(W * H * 3);
-  const inv = 1 / (ss * ss);
-  for (let y = 0; y < H; y++) {
-    for (let x = 0; x < W; x++) {
-      let r = 0, g = 0, b = 0;
-      for (let j = 0; j < ss; j++) {
-        const row = (y * ss + j) * SW;
-        for (let i = 0; i < ss; i++) {
-          const k = (row + x * ss + i) * 4;
-          r += px[k]; g += px[k + 1]; b += px[k + 2];
-        }
-      }
-      const o = (y * W + x) * 3;
-      out[o] = r * inv; out[o + 1] = g * inv; out[o + 2] = b * inv;
-    }
-  }
-  const dbg = gl.getExtension('WEBGL_debug_renderer_info');
-  const glRenderer = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+  const out = boxFilter(px, W, H, ss);
   const iblFloat = gl.getExtension('OES_texture_float_linear') ? 'FLOAT' : 'HALF_FLOAT';
   await post('/result', out, {
-    'X-Width': String(W), 'X-Height': String(H), 'X-GL-Renderer': String(glRenderer).replace(/[^\x20-\x7e]/g, '?'),
+    'X-Width': String(W), 'X-Height': String(H), 'X-GL-Renderer': glRendererName(gl),
     'X-IBL-Format': iblFloat, 'X-Page-Seconds': String((performance.now() - t0) / 1000),
     'X-GPU-Seconds': String((performance.now() - tRead) / 1000),
   });
 }
 
-main().catch((e) => post('/error', String((e && e.stack) || e)));
-window.addEventListener('error', (e) => post('/error', String(e.message)));
-window.addEventListener('unhandledrejection', (e) => post('/error', String(e.reason)));
+runMain(main);

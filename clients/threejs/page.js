@@ -12,19 +12,9 @@
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { EXRLoader } from 'three/addons/loaders/EXRLoader.js';
+import { boxFilter, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
-const params = new URLSearchParams(location.search);
-const ss = Math.max(1, parseInt(params.get('ss') || '2', 10));
-
-// Page warnings and errors go to the runner's stderr (the tail pbrcheck shows on failure).
-for (const k of ['error', 'warn']) {
-  const f = console[k];
-  console[k] = (...a) => { post('/log', `${k}: ${a.map(String).join(' ')}`); f(...a); };
-}
-
-async function post(path, body, headers = {}) {
-  await fetch(path, { method: 'POST', body, headers });
-}
+const ss = supersampling();
 
 async function main() {
   const t0 = performance.now();
@@ -67,32 +57,12 @@ async function main() {
   renderer.readRenderTargetPixels(rt, 0, 0, SW, SH, px);
   renderer.setRenderTarget(null);
 
-  const out = new Float32Array(W * H * 3);
-  const inv = 1 / (ss * ss);
-  for (let y = 0; y < H; y++) {
-    for (let x = 0; x < W; x++) {
-      let r = 0, g = 0, b = 0;
-      for (let j = 0; j < ss; j++) {
-        const row = (y * ss + j) * SW;
-        for (let i = 0; i < ss; i++) {
-          const k = (row + x * ss + i) * 4;
-          r += px[k]; g += px[k + 1]; b += px[k + 2];
-        }
-      }
-      const o = (y * W + x) * 3;
-      out[o] = r * inv; out[o + 1] = g * inv; out[o + 2] = b * inv;
-    }
-  }
-  const gl = renderer.getContext();
-  const dbg = gl.getExtension('WEBGL_debug_renderer_info');
-  const glRenderer = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+  const out = boxFilter(px, W, H, ss);
   await post('/result', out, {
     'X-Width': String(W), 'X-Height': String(H), 'X-Supersample': String(ss),
-    'X-Three-Revision': THREE.REVISION, 'X-GL-Renderer': String(glRenderer).replace(/[^\x20-\x7e]/g, '?'),
+    'X-Three-Revision': THREE.REVISION, 'X-GL-Renderer': glRendererName(renderer.getContext()),
     'X-Page-Seconds': String((performance.now() - t0) / 1000),
   });
 }
 
-main().catch((e) => post('/error', String((e && e.stack) || e)));
-window.addEventListener('error', (e) => post('/error', String(e.message)));
-window.addEventListener('unhandledrejection', (e) => post('/error', String(e.reason)));
+runMain(main);

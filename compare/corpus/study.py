@@ -64,12 +64,11 @@ SUFFIXES = (".exr", ".hdr")
 REFERENCE_MODE = "local"
 #: Minimum reference spp (the variance channels need two samples).
 MIN_SPP = 2
-#: Prefix of renderer names that the renderer seam resolves itself (external renderers).
-EXTERNAL_PREFIX = "ext:"
 
 TIMING_COLUMNS = ("reference_s", "render_s", "precompute_s", "frame_s", "compare_s")
 ROW_COLUMNS = ("environment", "renderer", "status", "stage", "error", *STAT_COLUMNS, *METRICS,
-               *(f"{m}_noise" for m in METRICS), "pixels_valid", *TIMING_COLUMNS, "path", "key")
+               *(f"{m}_noise" for m in METRICS), "pixels_valid", *TIMING_COLUMNS, "gl_renderer", "timing_clock",
+               "path", "key")
 
 
 class CorpusError(PbrcheckError):
@@ -172,9 +171,8 @@ class CorpusSettings:
         names = [r.name for r in self.renderers]
         if len(set(names)) != len(names):
             raise CorpusError(f"corpus: a renderer is named twice in {', '.join(names)}")
-        for r in self.renderers:
-            if not r.name.startswith(EXTERNAL_PREFIX):  # external renderers are checked by the seam
-                renderers.resolve_options(r.name, r.options)
+        for r in self.renderers:  # a preset's options, or that an external renderer exists
+            renderers.resolve_options(r.name, r.options)
 
     def to_json(self) -> dict:
         return {"scene": self.scene.name, "scene_source": self.scene.source, "spp": self.spp, "seed": self.seed,
@@ -244,6 +242,7 @@ def make_row(slot: RowSlot, value) -> dict:
     row.update({f"{m}_noise": v for m, v in value["noise"].items()})
     row["pixels_valid"] = value["pixels"].get("valid")
     row.update(value["timings"])
+    row.update(value.get("timed_on", {}))
     # Plain Python values: a numpy scalar prints with the process's numpy print options in the CSV
     # (a library in the client had set the 12-digit legacy mode), a float always in full.
     return {k: v.item() if isinstance(v, np.generic) else v for k, v in row.items()}

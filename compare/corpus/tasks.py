@@ -30,7 +30,7 @@ from pbrcheck.scene import Scene
 
 from .. import renderers
 from ..metrics import METRICS, compare_images
-from ..timings import image_timings
+from ..timings import image_timings, timed_on
 from .envstats import environment_stats, thumbnail
 from .scheduler import Failed, failure_of
 
@@ -104,7 +104,8 @@ def _seconds(meta: dict, key: str) -> float | None:
 def compare_task(env: dict | Failed, ref, img, scene: Scene) -> dict | Failed:
     """Compare ``img`` with ``ref``: ``metrics`` (name -> value), ``noise`` (name -> within the
     reference's noise), ``pixels`` (valid / edge / background counts), ``stats`` (the environment's)
-    and ``timings`` (``reference_s``, ``render_s``, ``precompute_s``, ``frame_s``, ``compare_s``)."""
+    ``timings`` (``reference_s``, ``render_s``, ``precompute_s``, ``frame_s``, ``compare_s``) and
+    ``timed_on`` (:func:`compare.timings.timed_on`: the GL renderer and clock of the render's times)."""
     for x in (env, ref, img):
         if isinstance(x, Failed):
             return x
@@ -120,4 +121,5 @@ def compare_task(env: dict | Failed, ref, img, scene: Scene) -> dict | Failed:
             "noise": {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS},
             "pixels": dict(cmp.summary["pixels"]), "stats": env["stats"],
             "timings": {"reference_s": _seconds(ref.meta, "seconds"), "render_s": _seconds(img.meta, "render_seconds"),
-                        "precompute_s": pre, "frame_s": frame, "compare_s": compare_s}}
+                        "precompute_s": pre, "frame_s": frame, "compare_s": compare_s},
+            "timed_on": timed_on(img)}

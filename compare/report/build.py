@@ -165,7 +165,7 @@ def plot_convergence(path: Path, conv: list[dict], top_spp: int, floor: float | 
         ax.axhline(floor, color="tab:green", lw=1, label=f"noise floor of the {top_spp}-spp reference")
     for i, (p, mse) in enumerate(preset_mse.items()):
         if mse is not None and mse > 0:
-            ax.axhline(mse, color=f"C{(i + 3) % 10}", ls=":", lw=1, label=f"real-time {p}")
+            ax.axhline(mse, color=f"C{(i + 3) % 10}", ls=":", lw=1, label=p)
     ax.set_xlabel("reference samples per pixel")
     ax.set_ylabel("MSE over valid pixels")
     ax.grid(alpha=0.3, which="both")
@@ -215,19 +215,19 @@ is computed on linear radiance, before any display transform.</p>
 {% for im in x.images %}<h3>{{ im.title }}</h3><img class="plot" src="{{ im.src }}" alt="{{ im.title }}">
 {% endfor %}
 {% endmacro %}
-{% for x in top %}{{ section(x) }}{% endfor %}
+{% for x in top|default([]) %}{{ section(x) }}{% endfor %}
 {% for s in scenes %}
 <h2 id="{{ s.id }}">Scene {{ s.name }}</h2>
 <p>{{ s.description }}</p>
 {% for r in s.presets %}
 <h3>{{ s.name }} / preset {{ r.preset }}</h3>
 <div class="row">
-<figure><div class="cmp" style="--pos:50%"><img src="{{ r.rt_png }}" alt="real-time {{ r.preset }}"><img class="top" src="{{ s.ref_png }}" alt="reference">
-<input type="range" min="0" max="100" value="50" aria-label="reference / real-time split"
+<figure><div class="cmp" style="--pos:50%"><img src="{{ r.rt_png }}" alt="{{ r.preset }}"><img class="top" src="{{ s.ref_png }}" alt="reference">
+<input type="range" min="0" max="100" value="50" aria-label="reference / renderer under test split"
  oninput="this.parentNode.style.setProperty('--pos',this.value+'%')"></div>
-<figcaption>slider: reference (left) / real time (right)</figcaption></figure>
+<figcaption>slider: reference (left) / renderer under test (right)</figcaption></figure>
 <figure><img class="img" src="{{ s.ref_png }}" alt="reference"><figcaption>reference ({{ s.spp }} spp)</figcaption></figure>
-<figure><img class="img" src="{{ r.rt_png }}" alt="real-time"><figcaption>real time ({{ r.preset }})</figcaption></figure>
+<figure><img class="img" src="{{ r.rt_png }}" alt="{{ r.preset }}"><figcaption>under test: {{ r.preset }}</figcaption></figure>
 <figure><img class="img" src="{{ r.flip_png }}" alt="FLIP map"><figcaption>HDR-FLIP (0..1, magma)</figcaption></figure>
 <figure><img class="img" src="{{ r.rel_png }}" alt="relative error"><figcaption>|t-r|/(r+0.01), max RGB (0..1, inferno)</figcaption></figure>
 </div>
@@ -326,7 +326,7 @@ def _measure_preset(scene, ref, preset: str, sd: Path, sid: str, img=None) -> tu
     """Render ``preset`` (unless its image ``img`` is given), compare it, write its images; returns its
     result, the comparison and image."""
     img = img if img is not None else renderers.render_under_test(scene, preset, None, progress=False)
-    cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=f"real-time {preset}")
+    cmp = compare_images(ref, img, scene=scene, ref_name="reference", test_name=preset if renderers.is_external(preset) else f"real-time {preset}")
     p = _safe(preset)
     write_tonemapped(sd / f"rt_{p}.png", img.rgb, img.meta_json("options", None) if "options" in img.meta else None)
     write_flip_png(sd / f"flip_{p}.png", cmp)
@@ -398,9 +398,9 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
                            **timed_on(img), **cmp.metrics})
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
-        provenance.append((f"real-time {preset} options", img.meta.get("options", "")))
+        provenance.append((f"{preset} options", img.meta.get("options", "")))
         if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
-            provenance.append((f"real-time {preset} shader hooks", img.meta["shader"]))
+            provenance.append((f"{preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
     plots = []
     m = plot_materials(sd / "materials.png", scene, objs)
@@ -428,7 +428,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         cp = plot_convergence(sd / "convergence.png", conv, verdict.spp, noise_floor, {r.preset: r.mse for r in results})
         if cp:
             plots.append({"title": "Reference convergence", "src": f"{sid}/{cp}",
-                          "note": "If the reference is converged, the real-time MSE lines lie far above its noise floor."})
+                          "note": "If the reference is converged, the renderers' MSE lines lie far above its noise floor."})
     write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": dump, "convergence": conv,
                                             "sweep": sweep_table, "reference_spp": verdict.to_dict()}, indent=1)
     return SceneSection(sid, scene.name, scene.description, ref.meta.get("spp", st.spp), f"{sid}/reference.png",

@@ -21,6 +21,8 @@ from .sweep import parse_vary, run_sweep
 
 def _cmd_report(args) -> int:
     presets = split_list(args.presets)
+    if args.also:  # further renderers (ext:NAME, PRESET+FILE.glsl) after the presets
+        presets = (presets or renderers.preset_names()) + split_list(args.also)
     if args.shader:  # each hook file as one more renderer: the default preset with the hooks
         presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
@@ -58,6 +60,8 @@ def register(sub, bench_sub) -> None:
                    "a shader hook file, ext:NAME an external renderer")
     s.add_argument("--shader", action="append", metavar="FILE.glsl",
                    help="also measure the default preset with this shader hook file (repeatable; docs/hooks.md)")
+    s.add_argument("--with", dest="also", metavar="R,...",
+                   help="further renderers measured after the presets, e.g. ext:threejs,ext:sample-viewer")
     s.add_argument("--out", default="out/report", metavar="DIR", help="output directory (default out/report)")
     s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
                    "are rendered until the reference's noise floor is 10x below the smallest error reported")

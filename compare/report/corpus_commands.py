@@ -23,7 +23,9 @@ def _cmd_corpus(args) -> int:
     scene = load_scene(args.scene)
     names = split_list(args.presets) or renderers.preset_names()
     options = parse_sets(args.set)
-    settings = CorpusSettings(scene, tuple(RendererSpec(n, dict(options)) for n in names), spp=args.spp,
+    # --set is for the real-time presets; external renderers take their options from renderers.toml.
+    settings = CorpusSettings(scene, tuple(RendererSpec(n, {} if renderers.is_external(n) else dict(options))
+                                           for n in names), spp=args.spp,
                               seed=args.seed, rank_metric=args.rank_metric)
     spec = parse_scheduler(args.scheduler, default="local")
     res = run_corpus(args.corpus, settings, Path(args.out), scheduler=spec, resume=args.resume,
