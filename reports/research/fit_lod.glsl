@@ -3,7 +3,7 @@
 // b = (r, r^2, r^3, r^4, sqrt(r), r (2 - r)), c_k >= 0 (monotone, lod(0) = 0).
 float roughnessToLodFitted(float r) {
     r = clamp(r, 0.0, 1.0);
-    float lod = r * (0.0132206274 + r * (3.18203212 + r * (0.0270512879 + r * 0.0275286001))) + 0.739429532 * sqrt(r)
-              + 2.10044848 * r * (2.0 - r);
+    float lod = r * (0.451357843 + r * (3.21168827 + r * (5.64475377e-05 + r * 4.46341186e-05))) + 5.16955549e-05 * sqrt(r)
+              + 2.43056281 * r * (2.0 - r);
     return clamp(lod, 0.0, 6.0);
 }
