@@ -82,3 +82,14 @@ def test_unknown_case_is_an_error():
     with pytest.raises(PbrcheckError, match="unknown case"):
         run_hardcases(size=8, spp=1, cases=["nope"], presets=[])
     assert hardcases.SCALES == (1e4, 1e-4)
+
+
+def test_renderers_are_validated_through_the_seam_before_any_render():
+    """Presets, PRESET+FILE.glsl and ext:NAME are all checked up front (the report once failed late on
+    an external renderer after writing its scene sections)."""
+    from pbrcheck.errors import PbrcheckError
+
+    with pytest.raises(PbrcheckError, match="hardcases: unknown preset 'nope'"):
+        run_hardcases(size=8, spp=1, presets=["nope"])
+    with pytest.raises(PbrcheckError, match="hardcases: unknown external renderer 'ext:nope'"):
+        run_hardcases(size=8, spp=1, presets=["ext:nope"])

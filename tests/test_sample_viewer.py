@@ -182,19 +182,9 @@ def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radia
 
 @pytest.mark.slow
 def test_point_light_one_candela_is_one_watt_per_steradian(sample_viewer):
-    scene = scene_from_dict({
-        "name": "lamp", "camera": {"origin": [0, 0, 5.0], "fov": 30.0, "width": 64, "height": 64},
-        "environment": {"type": "none"},
-        "lights": [{"type": "point", "position": [0.0, 0.0, 5.0], "intensity": [10.0, 10.0, 10.0]}],
-        "objects": [{"type": "sphere", "radius": 1.0,
-                     "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
-    })
-    viewer = renderers.render_under_test(scene, "ext:sample-viewer")
-    ref = renderers.render_reference(scene, spp=16, use_cache=False)
-    c = (slice(28, 36), slice(28, 36))                # facing the light: n.l = 1, distance 4
-    expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
-    assert float(ref.rgb[c].mean()) == pytest.approx(expect, rel=0.1)
-    assert float(viewer.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
+    from tests.test_threejs import assert_one_candela_is_one_watt_per_steradian
+
+    assert_one_candela_is_one_watt_per_steradian("ext:sample-viewer")
 
 
 @pytest.mark.slow

@@ -109,7 +109,9 @@ def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
     assert seen == len(MARKERS)
 
 
-def test_point_light_one_candela_is_one_watt_per_steradian():
+def assert_one_candela_is_one_watt_per_steradian(renderer: str) -> None:
+    """A Lambertian sphere facing a 10 cd point light at 4 m: the engine ``renderer`` gives the
+    reference's radiance (1 cd taken as 1 W/sr, docs/renderers.md) within 10 %."""
     scene = scene_from_dict({
         "name": "lamp", "camera": {"origin": [0, 0, 5.0], "fov": 30.0, "width": 64, "height": 64},
         "environment": {"type": "none"},
@@ -117,9 +119,13 @@ def test_point_light_one_candela_is_one_watt_per_steradian():
         "objects": [{"type": "sphere", "radius": 1.0,
                      "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
     })
-    three = renderers.render_under_test(scene, "ext:threejs")
+    engine = renderers.render_under_test(scene, renderer)
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     c = (slice(28, 36), slice(28, 36))                # facing the light: n.l = 1, distance 4
     expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
     assert float(ref.rgb[c].mean()) == pytest.approx(expect, rel=0.1)
-    assert float(three.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
+    assert float(engine.rgb[c].mean()) == pytest.approx(float(ref.rgb[c].mean()), rel=0.1)
+
+
+def test_point_light_one_candela_is_one_watt_per_steradian():
+    assert_one_candela_is_one_watt_per_steradian("ext:threejs")

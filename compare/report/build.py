@@ -516,7 +516,10 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=sections[0].verdict.spp,
                                     progress=progress)
     if hardcases:
-        extras.append(hardcases_section(out_dir / "hardcases", presets, progress))
+        # The shipped shaders' robustness: real-time presets only (an external engine's hard cases
+        # cost a browser start each; `pbrcheck hardcases --presets ext:NAME` runs them on their own).
+        extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not renderers.is_external(p)],
+                                        progress))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
         scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,

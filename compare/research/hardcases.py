@@ -182,11 +182,12 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
     PbrcheckError
         An unknown preset or case (before any render).
     """
-    known = renderers.preset_names()
-    presets = known if presets is None else presets
-    for p in presets:
-        if p not in known:
-            raise PbrcheckError(f"hardcases: unknown preset {p!r}; presets are: {', '.join(known)}")
+    presets = renderers.preset_names() if presets is None else presets
+    for p in presets:  # presets, PRESET+FILE.glsl and ext:NAME, through the seam (raises for unknown ones)
+        try:
+            renderers.resolve_options(p, {})
+        except PbrcheckError as e:
+            raise PbrcheckError(f"hardcases: {e}") from None
     rows = []
     with tempfile.TemporaryDirectory(prefix="pbrcheck_hardcases_") as tmp:
         scenes = case_scenes(Path(tmp), size, cases)
