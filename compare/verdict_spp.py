@@ -44,6 +44,9 @@ DEFAULT_TIME_BUDGET_S = 30.0
 #: Errors below this (squared radiance) count as "no error": a preset equal to the reference within
 #: float32 rounding would otherwise ask for infinite spp.
 MIN_TRUSTED_MSE = 1e-9
+#: An error sets the spp only when its corrected MSE exceeds this many standard errors of the MSE
+#: estimate (else it is 0 within the noise: a one-sided 3-sigma test, 0.1 % false alarms).
+ERROR_Z = 3.0
 #: Refinement steps at most (each re-renders at the spp the last one asked for).
 MAX_STEPS = 3
 
@@ -86,8 +89,9 @@ def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR
 def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float | None, float | None]:
     """(noise floor of ``ref``, smallest corrected MSE of ``tests`` against it) by the comparator's own
     masks and noise estimate (those of :func:`compare.metrics.noise_floor`, computed without the
-    comparator's costly maps; display-referred images are left out). Errors not above the noise
-    (corrected MSE <= :data:`MIN_TRUSTED_MSE`) are left out; None when no error is."""
+    comparator's costly maps; display-referred images are left out). Errors not resolved above the
+    noise (corrected MSE <= :data:`ERROR_Z` standard errors of the MSE estimate) are left out; None
+    when no error is."""
     floor, err = None, None
     if ref.variance is None or is_display_referred(ref):
         return None, None
@@ -101,12 +105,14 @@ def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float |
             continue
         # compare.metrics.noise_floor's mean_variance and mse_corrected, without the maps (FLIP)
         f = float(var[valid].mean())
-        d = t.rgb.astype(np.float64) - ref.rgb.astype(np.float64)
-        e = float((d[valid] ** 2).mean()) - f
+        d2 = ((t.rgb.astype(np.float64) - ref.rgb.astype(np.float64))[valid] ** 2).ravel()
+        e = float(d2.mean()) - f
+        se = float(d2.std() / math.sqrt(max(d2.size, 1)))  # standard error of the MSE estimate
         floor = f if floor is None else max(floor, f)
-        if e <= MIN_TRUSTED_MSE:
-            # No error above the noise (an exact preset, e.g. the default on the furnace): more spp
-            # can only bound it, never put the floor 10x below it; it does not set the spp.
+        if e <= max(MIN_TRUSTED_MSE, ERROR_Z * se):
+            # No error resolved above the noise (an exact preset, e.g. the default on the furnace,
+            # whose corrected MSE is 0 +- se): more spp can only bound it, never put the floor 10x
+            # below it; it does not set the spp (measured: a chance +1e-7 sent the furnace to the cap).
             continue
         err = e if err is None else min(err, e)
     return floor, err

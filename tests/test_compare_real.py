@@ -102,7 +102,7 @@ def test_report_and_sweep_with_real_renderers(renderers, scene_file, tmp_path):
     assert [c["spp"] for c in data["convergence"]] == [2, 4]
     rule = data["reference_spp"]  # the cap holds the reference at 8 spp; the rule's figures are real
     assert rule["spp"] == 8 and rule["cap"] == 8 and rule["noise_floor"] > 0
-    assert rule["noise_limited"] == (rule["ratio"] < 10)
+    assert rule["noise_limited"] == (rule["ratio"] is not None and rule["ratio"] < 10)
     assert len(data["sweep"]) == 2 and all(r["frame_s"] is not None for r in data["sweep"])
 
 

@@ -184,8 +184,11 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
     # smallest error (or the cap); the convergence study renders fractions of the chosen spp
     rule = data["reference_spp"]
     chosen = rule["spp"]
-    assert fakes["reference"][0] == 16 and chosen > 16 and chosen & (chosen - 1) == 0
-    assert rule["ratio"] >= 10 and not rule["noise_limited"], rule
+    assert fakes["reference"][0] == 16 and chosen >= 16 and chosen & (chosen - 1) == 0
+    if rule["smallest_error"] is not None:  # an error resolved above the noise sets the spp
+        assert rule["ratio"] >= 10 or rule["noise_limited"], rule
+    else:  # every preset within the noise: the least spp stands
+        assert chosen == 16
     conv = sorted(c["spp"] for c in data["convergence"])
     assert conv and conv[-1] < chosen and set(conv) <= set(fakes["reference"])
     assert f"{chosen} spp: noise floor" in html

@@ -71,7 +71,7 @@ def test_enough_already_renders_once():
 
 
 def test_stops_at_the_cap_and_says_noise_limited():
-    ref, v = vs.reference_for_verdict(None, [_test_image(1e-5)], spp=64, cap=512)
+    ref, v = vs.reference_for_verdict(None, [_test_image(3e-4)], spp=64, cap=512)
     assert v.noise_limited and v.spp == 512 and calls[-1] == 512
     assert "NOISE-LIMITED at the cap of 512 spp" in v.provenance()
     d = v.to_dict()
@@ -95,7 +95,7 @@ def test_report_default_cap_follows_the_time_budget(monkeypatch):
         return img
 
     monkeypatch.setattr(renderers, "render_reference", slow_reference)
-    ref, v = vs.reference_for_verdict(None, [_test_image(1e-5)], spp=64, cap=None, time_budget_s=10.0)
+    ref, v = vs.reference_for_verdict(None, [_test_image(3e-4)], spp=64, cap=None, time_budget_s=10.0)
     assert v.cap == 512 and v.spp == 512 and v.noise_limited
 
 
@@ -158,3 +158,12 @@ def test_noise_and_error_equal_the_comparators_noise_floor():
     floor, err = vs.noise_and_error(ref, [t])
     assert floor == pytest.approx(n["mean_variance"], rel=1e-6)
     assert err == pytest.approx(n["mse_corrected"], rel=1e-5)
+
+
+def test_an_error_within_its_standard_error_does_not_set_the_spp():
+    """A chance positive corrected MSE of an exact renderer (noise of the MSE estimate) is not an error."""
+    ref = fake_reference(None, spp=64)
+    for seed in range(20):  # exact images: corrected MSE 0 +- se; never "resolved" at 3 se
+        rng = np.random.default_rng(seed)
+        t = Image.from_rgb((TRUTH + 1e-6 * rng.standard_normal(TRUTH.shape)).astype(np.float32), {}, **_aovs())
+        assert vs.noise_and_error(ref, [t])[1] is None
