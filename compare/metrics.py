@@ -40,6 +40,7 @@ value (for ``psnr``, higher is better: no lower than the simulated value less
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -172,8 +173,6 @@ _map_memo: dict = {}
 
 def _memo(kind: str, a: np.ndarray, b: np.ndarray, fn):
     """``fn()`` memoized by ``kind`` and the bytes of ``a`` and ``b`` (a copy is returned)."""
-    import hashlib
-
     h = hashlib.sha1(kind.encode())
     for x in (a, b):
         x = np.ascontiguousarray(x)

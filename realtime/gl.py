@@ -19,6 +19,7 @@ API
 from __future__ import annotations
 
 import re
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,8 +94,6 @@ def timing_clock(name: str | None = None) -> str:
 def timed(ctx, fn, clock: str | None = None):
     """``(fn(), seconds)``: GPU time of the GL commands ``fn`` issues (a timer query) or the wall time
     until they finished (``ctx.finish()``), per :func:`timing_clock`."""
-    import time
-
     clock = clock or timing_clock()
     if clock == CLOCK_GL_TIMER:
         q = ctx.query(time=True)

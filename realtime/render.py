@@ -46,6 +46,7 @@ from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
+from pbrcheck.energy import SCENE_COMPENSATION
 from pbrcheck.progress import Progress
 from pbrcheck.registry import (
     DFGS,
@@ -410,8 +411,6 @@ def resolved_energy_compensation(scene: Scene, o: dict) -> str:
     """The energy compensation this render uses: the option's value, or for ``scene`` the one that
     matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
     single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
-    from pbrcheck.energy import SCENE_COMPENSATION
-
     v = o["energy_compensation"]
     if v != "scene":
         return v

@@ -69,7 +69,7 @@ def _time_renders(scene, spp, mscene, env, repeats):
     Mitsuba's own ``path`` through ``mi.render``, timed alternately (so that load from other
     processes hits all alike) after one compile run each."""
     mi, dr = _mi()
-    from .integrator import sensor_dict
+    from .integrator import sensor_dict  # local: importing it loads Mitsuba (variant set first)
 
     d = scene_dict(scene, env)
     d["sensor"] = sensor_dict(scene.camera, spp)

@@ -34,7 +34,7 @@ def _cmd_bench(args) -> int:
 
 
 def _cmd_bench_multiscatter(args) -> int:
-    from .multiscatter_measure import bench_multiscatter
+    from .multiscatter_measure import bench_multiscatter  # local: loads Mitsuba; only this bench needs it
 
     print(json.dumps(bench_multiscatter(lanes=args.lanes, roughness=args.roughness, mu=args.nov), indent=2))
     sys.stdout.flush()

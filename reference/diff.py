@@ -47,7 +47,7 @@ def load_differentiable_scene(scene: Scene, *, spp: int = 16, max_depth: int = D
     """(mitsuba scene with sensor and integrator, SceneParameters). ``integrator``: ``local`` (the
     reference's estimator, ``pbrcheck_reference``) or ``prb`` (Mitsuba's, ``max_depth``)."""
     mi, _ = _mi()
-    from .integrator import INTEGRATOR_NAME
+    from .integrator import INTEGRATOR_NAME  # local: importing it loads Mitsuba (variant set first)
 
     if integrator not in DIFF_INTEGRATORS:
         raise ValueError(f"integrator must be one of {DIFF_INTEGRATORS}, not {integrator!r}")

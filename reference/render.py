@@ -133,7 +133,7 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
-    from .integrator import pixel_centre_rays
+    from .integrator import pixel_centre_rays  # local: importing it loads Mitsuba (variant set first)
 
     W, H = scene.camera.width, scene.camera.height
     ray, _ = pixel_centre_rays(sensor)
