@@ -33,8 +33,8 @@ from clients import config as C
 from pbrcheck.camera import primary_rays
 from pbrcheck.environment import load_environment
 from pbrcheck.exr import read_exr
-from pbrcheck.scene import load_scene, scene_from_dict
-from tests.test_threejs import MARKERS, centroids, probe_env
+from pbrcheck.scene import load_scene
+from tests.test_threejs import centroids, probe_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT = ROOT / "clients" / "gltf-sample-viewer"
@@ -142,13 +142,7 @@ def _centroids_in(rgb: np.ndarray, mask: np.ndarray, min_pixels: int = 4) -> dic
 
 @pytest.mark.slow
 def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radiance(sample_viewer, tmp_path):
-    probe_env(tmp_path / "probe.exr")
-    scene = scene_from_dict({
-        "name": "probe", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 80.0, "width": 160, "height": 100},
-        "environment": {"type": "file", "path": "probe.exr", "rotation": 30.0},
-        "objects": [{"type": "sphere", "center": [0.0, 0.0, -4.0], "radius": 0.9,
-                     "material": {"base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.0}}],
-    }, file=str(tmp_path / "probe.toml"), base_dir=tmp_path)
+    scene = probe_scene(tmp_path)
     viewer = renderers.render_under_test(scene, "ext:sample-viewer")
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     ids = viewer.channels["object"]

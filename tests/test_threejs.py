@@ -87,7 +87,9 @@ def centroids(rgb: np.ndarray) -> dict:
     return out
 
 
-def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
+def probe_scene(tmp_path):
+    """The orientation probe: the marker environment (rotated 30 degrees about +Y) seen directly and in
+    a mirror sphere, from the origin looking down -Z."""
     probe_env(tmp_path / "probe.exr")
     scene = scene_from_dict({
         "name": "probe", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 80.0, "width": 160, "height": 100},
@@ -95,6 +97,11 @@ def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
         "objects": [{"type": "sphere", "center": [0.0, 0.0, -4.0], "radius": 0.9,
                      "material": {"base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.0}}],
     }, file=str(tmp_path / "probe.toml"), base_dir=tmp_path)
+    return scene
+
+
+def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
+    scene = probe_scene(tmp_path)
     three = renderers.render_under_test(scene, "ext:threejs")
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     a, b = centroids(three.rgb), centroids(ref.rgb)
