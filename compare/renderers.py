@@ -10,6 +10,8 @@ API
 - :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
   (:func:`realtime.render.render_realtime`) or ``ext:NAME``, an external renderer of
   ``renderers.toml`` (:func:`clients.run.render_external`).
+- :func:`realtime_cache` -- a context in which :func:`render_under_test` serves real-time renders
+  from the content-addressed cache (:mod:`realtime.cache`; the report and the gate).
 - :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
@@ -23,11 +25,14 @@ API
 
 from __future__ import annotations
 
+import contextlib
+
 from clients import config as _clients_config
 from clients import run as _clients
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image
 from pbrcheck.scene import Scene
+from realtime import cache as _realtime_cache
 from realtime import presets as _presets
 from realtime import render as _realtime
 from reference import render as _reference
@@ -66,7 +71,28 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     if is_external(name):
         _no_options(name, options)
         return _clients.render_external(scene, name, progress=progress)
+    if _CACHE_REALTIME[0]:
+        return _realtime_cache.render_cached(scene, name, options, progress=progress)
     return _realtime.render_realtime(scene, name, options, progress=progress)
+
+
+#: Whether :func:`render_under_test` serves real-time renders from the cache (see :func:`realtime_cache`).
+_CACHE_REALTIME = [False]
+
+
+@contextlib.contextmanager
+def realtime_cache(enabled: bool = True):
+    """Within the ``with`` block, :func:`render_under_test` renders real-time presets through
+    :func:`realtime.cache.render_cached` (keyed by scene, options, shader and code content and the GL
+    renderer; ``meta["cache"]`` says ``hit`` or ``miss``). Outside it every call renders, so the
+    renderer's own tests and benchmarks always measure a render. External renderers have their own
+    cache (:mod:`clients.run`)."""
+    old = _CACHE_REALTIME[0]
+    _CACHE_REALTIME[0] = bool(enabled)
+    try:
+        yield
+    finally:
+        _CACHE_REALTIME[0] = old
 
 
 def is_external(name: str) -> bool:

@@ -30,7 +30,7 @@ import numpy as np
 from pbrcheck.exr import Image
 
 from . import renderers
-from .metrics import is_display_referred, pixel_classes, validate_pair
+from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
 
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
@@ -49,6 +49,8 @@ MIN_TRUSTED_MSE = 1e-9
 ERROR_Z = 3.0
 #: Refinement steps at most (each re-renders at the spp the last one asked for).
 MAX_STEPS = 3
+#: The error measures the rule can put the noise floor below (:func:`noise_and_error`).
+VERDICT_METRICS = ("mse", "relmse")
 
 
 @dataclass
@@ -62,6 +64,7 @@ class VerdictSpp:
     cap: int
     factor: float = NOISE_FLOOR_FACTOR
     steps: list = field(default_factory=list)  # [[spp, noise floor, smallest error], ...]
+    metric: str = "mse"  # the error measure of floor and error (noise_and_error)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -73,7 +76,8 @@ class VerdictSpp:
             return f"{self.spp} spp: noise floor {self.noise_floor:.3g}; no error above it (every renderer within the noise)"
         r = "inf" if self.ratio is None or math.isinf(self.ratio) else f"{self.ratio:.3g}"
         s = (f"{self.spp} spp: noise floor {self.noise_floor:.3g} = smallest error "
-             f"{self.smallest_error:.3g} / {r} (goal >= {self.factor:g})")
+             f"{self.smallest_error:.3g} / {r} (goal >= {self.factor:g}"
+             + (f"; {self.metric}" if self.metric != "mse" else "") + ")")
         return s + (f"; NOISE-LIMITED at the cap of {self.cap} spp" if self.noise_limited else "")
 
 
@@ -86,16 +90,27 @@ def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR
     return spp * factor * floor / error
 
 
-def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float | None, float | None]:
-    """(noise floor of ``ref``, smallest corrected MSE of ``tests`` against it) by the comparator's own
-    masks and noise estimate (those of :func:`compare.metrics.noise_floor`, computed without the
+def noise_and_error(ref: Image, tests: list[Image], scene=None,
+                    metric: str = "mse") -> tuple[float | None, float | None]:
+    """(noise floor of ``ref``, smallest corrected error of ``tests`` against it) by the comparator's
+    own masks and noise estimate (those of :func:`compare.metrics.noise_floor`, computed without the
     comparator's costly maps; display-referred images are left out). Errors not resolved above the
-    noise (corrected MSE <= :data:`ERROR_Z` standard errors of the MSE estimate) are left out; None
-    when no error is."""
+    noise (corrected error <= :data:`ERROR_Z` standard errors of its estimate) are left out; None
+    when no error is.
+
+    ``metric``: ``"mse"`` (squared radiance: the report and the gate) or ``"relmse"`` (each pixel's
+    squared error and variance over ``r^2 + REL_EPS``, the comparator's relmse: what explain, fit-lod
+    and hardcases report). The relative form weights dark pixels as the reported metric does, so a
+    sun's highlight, whose pixel noise dominates the absolute MSE and its standard error, does not
+    hide an error the relative metric reports."""
+    if metric not in VERDICT_METRICS:
+        raise ValueError(f"verdict metric must be one of {VERDICT_METRICS}, not {metric!r}")
     floor, err = None, None
     if ref.variance is None or is_display_referred(ref):
         return None, None
     var = np.clip(ref.variance.astype(np.float64), 0.0, None)
+    r64 = ref.rgb.astype(np.float64)
+    weight = 1.0 / (r64 * r64 + REL_EPS) if metric == "relmse" else None
     for t in tests:
         if is_display_referred(t):  # an 8-bit engine: compared in display space, no noise floor
             continue
@@ -104,8 +119,10 @@ def noise_and_error(ref: Image, tests: list[Image], scene=None) -> tuple[float |
         if not valid.any():
             continue
         # compare.metrics.noise_floor's mean_variance and mse_corrected, without the maps (FLIP)
-        f = float(var[valid].mean())
-        d2 = ((t.rgb.astype(np.float64) - ref.rgb.astype(np.float64))[valid] ** 2).ravel()
+        v = var[valid] if weight is None else (var * weight)[valid]
+        f = float(v.mean())
+        d2 = (t.rgb.astype(np.float64) - r64) ** 2
+        d2 = (d2[valid] if weight is None else (d2 * weight)[valid]).ravel()
         e = float(d2.mean()) - f
         se = float(d2.std() / math.sqrt(max(d2.size, 1)))  # standard error of the MSE estimate
         floor = f if floor is None else max(floor, f)
@@ -151,11 +168,12 @@ def cap_for_time(ref: Image, spp: int, time_budget_s: float) -> int:
 
 def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | None = DEFAULT_SPP_CAP,
                           factor: float = NOISE_FLOOR_FACTOR, time_budget_s: float = DEFAULT_TIME_BUDGET_S,
-                          **kwargs) -> tuple[Image, VerdictSpp]:
+                          metric: str = "mse", **kwargs) -> tuple[Image, VerdictSpp]:
     """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``; None:
     :func:`cap_for_time` of ``time_budget_s``) whose noise floor is ``factor`` times below the
     smallest error of ``tests`` against it.
 
+    ``metric``: the error the floor is compared with (:func:`noise_and_error`: ``"mse"`` or ``"relmse"``).
     ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
     Returns the reference and a :class:`VerdictSpp` (``noise_limited`` when the cap stopped it).
     """
@@ -168,16 +186,17 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
         if cap is None:
             cap = cap_for_time(ref, cur, time_budget_s)
         cap = max(int(cap), int(spp))
-        floor, err = noise_and_error(ref, tests, scene=scene) if tests else (None, None)
+        floor, err = noise_and_error(ref, tests, scene=scene, metric=metric) if tests else (None, None)
         steps.append([cur, floor, err])
-        if floor is None or err is None:
-            return ref, VerdictSpp(cur, floor, err, None, False, cap, factor, steps)
+        if floor is None or err is None or not (math.isfinite(floor) and math.isfinite(err)):
+            # nothing to set the spp by (a non-finite image is the hard cases' finding, not noise)
+            return ref, VerdictSpp(cur, floor, err, None, False, cap, factor, steps, metric)
         ratio = err / floor if floor > 0 else math.inf
         need = spp_needed(cur, floor, err, factor)
         if need <= cur:
-            return ref, VerdictSpp(cur, floor, err, ratio, False, cap, factor, steps)
+            return ref, VerdictSpp(cur, floor, err, ratio, False, cap, factor, steps, metric)
         if cur >= cap or len(steps) >= MAX_STEPS:
-            return ref, VerdictSpp(cur, floor, err, ratio, True, cap, factor, steps)
+            return ref, VerdictSpp(cur, floor, err, ratio, True, cap, factor, steps, metric)
         # 10 % headroom: the floor and the error are themselves estimates.
         nxt = 1 << max(0, math.ceil(math.log2(min(need * 1.1, float(cap)))))
         cur = int(min(max(nxt, cur * 2), cap))

@@ -43,6 +43,11 @@ def test_explain_measures_every_source():
     vnr = next(r for r in res.sources if r.source == "v=n=r")
     assert vnr.options["shading"] == "material" and vnr.options["ibl"] == "runtime"
     assert res.noise_relmse is not None and 0 < res.noise_relmse < b
+    # The reference's spp follows the verdict rule from --spp up (noise floor 10x below the
+    # baseline's error, else flagged at the cap), and the result says how it was chosen.
+    rule = res.reference_spp
+    assert rule["spp"] == res.spp >= SPP and rule["steps"][0][0] == SPP
+    assert rule["noise_limited"] or rule["smallest_error"] is None or rule["ratio"] >= rule["factor"], rule
 
 
 def test_vnr_row_keeps_the_material_composition_and_the_scene_ndf():

@@ -44,6 +44,10 @@ def test_fit_lod_json_shape(fit):
     assert f["cube_size"] == 32 and f["mip_count"] == 6 and f["chain"] == d["chain"] in ("linear", "quadratic", "log2")
     assert len(f["coefficients"]) == len(BASIS_NAMES)
     assert out.with_suffix(".glsl").read_text().startswith("// Fitted roughness -> LOD mapping")
+    # the reference spp: from --spp up by the verdict rule, recorded with the fit
+    rule = d["reference_spp"]
+    assert rule["spp"] == d["spp"] >= FIT_SPP and rule["steps"][0][0] == FIT_SPP
+    assert rule["noise_limited"] or rule["smallest_error"] is None or rule["ratio"] >= rule["factor"], rule
     # the per-roughness optima rise with roughness overall (rough lobes want blurrier levels)
     lods = [s["lod"] for s in d["samples"]]
     assert lods[-1] > lods[0] + 2.0, lods
@@ -158,6 +162,27 @@ def test_fit_roughness_without_scan_refines_from_its_start():
     rows, _ = fit_roughness(scene, target.rgb, target.channels["object"], start=[0.45], scan=False)
     assert abs(rows[0].apparent_roughness - 0.35) < ROUGH_TOL, rows
     assert rows[0].start == pytest.approx(0.45) and rows[0].range is None
+
+
+def test_fits_of_one_scene_share_the_scan_and_give_the_unshared_result(monkeypatch):
+    """``scan_cache``: the scan's renders depend on the scene, not the target, so a second target on
+    the same scene reuses them (rendered once) and gets exactly the fit it gets alone."""
+    import compare.research.fit_roughness as fr
+    from reference.render import render_uncached
+
+    scene = _metal_sphere(16, [128, 64], [0.9, 0.6, 0.3], 0.35)
+    t1 = render_uncached(scene, spp=64, progress=False)
+    t2 = render_uncached(_metal_sphere(16, [128, 64], [0.9, 0.6, 0.3], 0.6), spp=64, progress=False)
+    alone, _ = fr.fit_roughness(scene, t2.rgb, t2.channels["object"], iterations=3)
+    calls = []
+    real = fr.scan_renders
+    monkeypatch.setattr(fr, "scan_renders", lambda *a, **k: calls.append(1) or real(*a, **k))
+    shared: dict = {}
+    fr.fit_roughness(scene, t1.rgb, t1.channels["object"], iterations=3, scan_cache=shared)
+    rows, _ = fr.fit_roughness(scene, t2.rgb, t2.channels["object"], iterations=3, scan_cache=shared)
+    assert len(calls) == 1 and len(shared) == 1
+    assert rows[0].scan == alone[0].scan and rows[0].range == alone[0].range
+    assert rows[0].apparent_roughness == pytest.approx(alone[0].apparent_roughness, abs=1e-6)
 
 
 # unbiased_fit_loss: the product of two independent renders' errors estimates the expected render's

@@ -35,6 +35,14 @@ def test_every_case_and_preset_is_finite(rows):
     assert len(rows) == len(cases) * (1 + len(PRESETS))
     bad = [(r.case, r.preset, r.nonfinite, r.error) for r in rows if not r.finite]
     assert not bad, bad
+    # each case's reference spp follows the verdict rule from SPP up to the cap, and says so
+    for r in rows:
+        if r.renderer == "reference":
+            v = r.reference_spp
+            assert v["steps"][0][0] == SPP and SPP <= v["spp"] <= v["cap"], (r.case, v)
+            assert v["noise_limited"] or v["smallest_error"] is None or v["ratio"] >= v["factor"], (r.case, v)
+        else:
+            assert r.reference_spp is None
     # every real-time render was compared (finite error figures), none failed to compare
     for r in rows:
         if r.renderer == "realtime":

@@ -167,3 +167,39 @@ def test_an_error_within_its_standard_error_does_not_set_the_spp():
         rng = np.random.default_rng(seed)
         t = Image.from_rgb((TRUTH + 1e-6 * rng.standard_normal(TRUTH.shape)).astype(np.float32), {}, **_aovs())
         assert vs.noise_and_error(ref, [t])[1] is None
+
+
+def test_the_relative_metric_weights_pixels_as_relmse_does():
+    """metric="relmse": floor and error are relmse's (each pixel over r^2 + REL_EPS), so an error in
+    dark pixels, lost in the absolute MSE beside a bright pixel's noise, sets the spp."""
+    from compare.metrics import REL_EPS, compare_images
+
+    img = _test_image(4e-3)
+    ref = fake_reference(None, spp=64)
+    f, e = vs.noise_and_error(ref, [img], metric="relmse")
+    c = compare_images(ref, img, noise=False)
+    w = 1.0 / (ref.rgb.astype(np.float64) ** 2 + REL_EPS)
+    assert f == pytest.approx(float((ref.variance * w).mean()), rel=1e-9)
+    assert e == pytest.approx(c.metrics["relmse"] - f, rel=1e-6)
+    # A bright, noisy pixel column and a dark region with a small error.
+    truth = np.full((H, W, 3), 0.02, np.float32)
+    truth[:, :2] = 50.0
+
+    def ref_at(scene, *, spp, seed=0, **kw):
+        rng = np.random.default_rng(7 + spp)
+        var = np.where(truth > 1, 400.0, 1e-4) / spp
+        calls.append(spp)
+        rgb = truth + np.sqrt(var) * rng.standard_normal(truth.shape)
+        return Image.from_rgb(rgb.astype(np.float32), {"spp": str(spp)},
+                              **{f"variance.{c}": var[..., i] for i, c in enumerate("RGB")}, **_aovs())
+
+    renderers.render_reference = ref_at  # restored by the autouse fixture's monkeypatch
+    dark_err = Image.from_rgb(np.where(truth > 1, truth, truth * 1.1).astype(np.float32), {}, **_aovs())
+    _, v_abs = vs.reference_for_verdict(None, [dark_err], spp=16, cap=1 << 14)
+    _, v_rel = vs.reference_for_verdict(None, [dark_err], spp=16, cap=1 << 14, metric="relmse")
+    assert v_abs.smallest_error is None  # absolute: the bright pixels' noise hides the dark error
+    assert v_rel.metric == "relmse" and v_rel.smallest_error is not None
+    assert v_rel.noise_limited or v_rel.ratio >= vs.NOISE_FLOOR_FACTOR, v_rel
+    assert "relmse" in v_rel.provenance()
+    with pytest.raises(ValueError, match="verdict metric"):
+        vs.noise_and_error(ref, [img], metric="flip")

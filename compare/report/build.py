@@ -30,6 +30,7 @@ from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
+from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import VerdictSpp, reference_for_verdict
 from .references import references_sections
@@ -444,11 +445,22 @@ def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress:
     return Section("hardcases", "Hard cases",
                    f"Edge-of-model scenes (pbrcheck hardcases --size 32 --spp 16 --cube-size 64). "
                    f"{'All outputs finite.' if not bad else f'{bad} output(s) NON-FINITE or failed.'} "
-                   f"Error of each preset against the {settings['spp']}-spp reference.",
+                   f"Error of each preset against the case's reference: {settings['spp']} spp or more, up to "
+                   f"{HARDCASE_SPP_CAP}, until its noise floor is 10x below the presets' smallest error "
+                   f"(per case: {_hardcase_spps(rows)}).",
                    [Table("", ["case", "renderer", "preset", "finite", *TABLE_METRICS, "note"],
                           [[r.case, r.renderer, r.preset or "-", "yes" if r.finite else "NO",
                             *[_fmt((r.metrics or {}).get(k)) for k in TABLE_METRICS], r.error or ""]
                            for r in rows])])
+
+
+def _hardcase_spps(rows) -> str:
+    out = []
+    for r in rows:
+        if r.preset is None and r.reference_spp:
+            v = VerdictSpp(**r.reference_spp)
+            out.append(f"{r.case} {v.spp}" + (" noise-limited" if v.noise_limited else ""))
+    return ", ".join(out) or "n/a"
 
 
 def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir: Path,
@@ -456,7 +468,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
                  spp_cap: int | None = None,
                  sweep: bool = True, progress: bool = True, hardcases: bool = False,
                  research: bool = False, extras: list[Section] | None = None, furnace: bool = True,
-                 scheduler: str | None = None) -> Path:
+                 scheduler: str | None = None, cache: bool = True) -> Path:
     """Render, compare and write ``out_dir/index.html``; returns its path.
 
     ``spp`` is the least reference spp of a scene; more are rendered (powers of two, at most
@@ -473,7 +485,9 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     renderer and scene) and, with ``furnace``, the white furnace per renderer
     (:mod:`compare.report.summary`), then every external renderer against both the single-scattering
     and the random-walk reference (:mod:`compare.report.references`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
-    and the sweep's renders run there (:mod:`compare.corpus.renderlist`).
+    and the sweep's renders run there (:mod:`compare.corpus.renderlist`). ``cache``: real-time renders
+    come from the content-addressed cache where their scene, options, shader and code are unchanged
+    (:func:`compare.renderers.realtime_cache`; their timings are those measured when rendered).
 
     Raises
     ------
@@ -502,7 +516,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     total += len(scenes) * sum(renderers.is_external(p) for p in presets)  # both references per ext:NAME
     sections = []
-    with Progress("report", total=total, enabled=progress) as prog, \
+    with Progress("report", total=total, enabled=progress) as prog, renderers.realtime_cache(cache), \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
                             spp_cap=None if spp_cap is None else int(spp_cap))
@@ -511,6 +525,20 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
         top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
     extras = list(extras or [])
+    with renderers.realtime_cache(cache):
+        extras += _research_and_hardcases(scenes, out_dir, presets, sections, research, hardcases, progress)
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
+    page = env.from_string(TEMPLATE).render(
+        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
+    index = out_dir / "index.html"
+    write_text_atomic(index, page)
+    return index
+
+
+def _research_and_hardcases(scenes, out_dir: Path, presets, sections, research: bool, hardcases: bool,
+                            progress: bool) -> list[Section]:
+    extras = []
     if research:
         # at the first scene's trusted-verdict spp (the reference its sections compare against)
         extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=sections[0].verdict.spp,
@@ -520,13 +548,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
         # cost a browser start each; `pbrcheck hardcases --presets ext:NAME` runs them on their own).
         extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not renderers.is_external(p)],
                                         progress))
-    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
-    page = env.from_string(TEMPLATE).render(
-        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
-        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
-    index = out_dir / "index.html"
-    write_text_atomic(index, page)
-    return index
+    return extras
 
 
 __all__ = ["build_report", "default_sweep"]

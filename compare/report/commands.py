@@ -34,7 +34,7 @@ def _cmd_report(args) -> int:
                        convergence=not args.no_convergence,
                        sweep=not args.no_sweep, progress=not args.quiet,
                        hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
-                       scheduler=args.scheduler)
+                       scheduler=args.scheduler, cache=not args.no_cache)
     print(f"report: {out}")
     return 0
 
@@ -78,6 +78,9 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--no-cache", action="store_true",
+                   help="render every real-time image (default: reuse a cached render whose scene, options, "
+                        "shader and code are unchanged; its timings are those measured when it was rendered)")
     s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.add_argument("--corpus", action="append", metavar="DIR", help="add the section of a finished corpus "
                    "(the --out folder of pbrcheck corpus; repeatable)")

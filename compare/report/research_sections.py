@@ -30,6 +30,7 @@ from ..research.explain import COMBINED_LABELS, PRIMARY, run_explain, write_expl
 from ..research.fit_lod import run_fit_lod
 from ..research.fit_roughness import run_fit_roughness
 from ..research.results import ApparentRoughness
+from ..verdict_spp import VerdictSpp
 from .section import Section, Table
 
 @dataclass(frozen=True)
@@ -62,6 +63,11 @@ def _fmt(v) -> str:
     return format_value(v, TABLE_DIGITS)
 
 
+def _rule(d: dict | None) -> str:
+    """One line of how a research command's reference spp was chosen (compare.verdict_spp)."""
+    return VerdictSpp(**d).provenance() if d else "n/a"
+
+
 def _pct(part, whole) -> str:
     if part is None or whole is None or not whole:
         return "n/a"
@@ -87,7 +93,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     m = res.mappings
     keys = ("relmse", "rmse", "flip_mean", "rel_p95")
     t_maps = Table(f"Every mapping on the fit scene ({res.size[0]} x {res.size[1]}, point lights "
-                   f"removed, {st.fitlod_spp}-spp reference)",
+                   f"removed, {res.spp}-spp reference; spp rule: {_rule(res.reference_spp)})",
                    ["mapping", "chain", "relmse (render)", "vs the preset's own"],
                    [[k, res.chain if k == "fitted" else k, _fmt(v.relmse),
                      _pct(v.relmse - m[own].relmse, m[own].relmse)] for k, v in m.items()])
@@ -155,7 +161,8 @@ def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
     return Section(f"explain-{preset}", f"Error decomposition ({scene_name}, preset {preset})",
                    (f"pbrcheck explain {scene_name} --preset {preset} --size {st.explain_size} --spp {st.explain_spp}: "
                      f"one approximation at a time made exact, the scene re-rendered; contribution = relmse "
-                     f"of the preset - relmse with that source exact. The {st.explain_spp}-spp reference's own "
+                     f"of the preset - relmse with that source exact. Reference spp rule: {_rule(res.reference_spp)}. "
+                     f"The {res.spp}-spp reference's own "
                      f"noise explains relmse {_fmt(noise)}; what all-exact leaves above it ({_fmt(left)}) "
                      f"comes from what no option replaces (the diffuse split Kd(n.v) E(n), the runtime "
                      f"estimator's mip filtering, texel filtering). "
@@ -169,10 +176,11 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
     """``pbrcheck fit-roughness`` of every preset on ``scene_name``: plot and table of r* against r."""
     scene = load_scene(scene_name)
     results = {}
+    scans: dict = {}  # the scan's renders do not depend on the preset: made once for all of them
     with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:
         for p in presets:
             results[p] = run_fit_roughness(scene, preset=p, options=dict(st.options), size=st.fitrough_size,
-                                           iterations=st.fitrough_iterations)
+                                           iterations=st.fitrough_iterations, scan_cache=scans)
             prog.update(1, p)
     write_json_atomic(out_dir / "fit_roughness.json", results)
     plt = pyplot()

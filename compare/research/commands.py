@@ -16,6 +16,7 @@ from realtime.presets import overrides_from_args
 from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
+from ..verdict_spp import DEFAULT_SPP_CAP
 from . import diagnose, energy, explain, fit_lod, fit_roughness, hardcases
 
 
@@ -23,7 +24,7 @@ def _cmd_hardcases(args) -> int:
     settings = {"size": args.size, "spp": args.spp, "presets": split_list(args.presets),
                 "cases": split_list(args.cases), "cube_size": args.cube_size}
     rows = hardcases.run_hardcases(size=args.size, spp=args.spp, presets=settings["presets"], cases=settings["cases"],
-                         cube_size=args.cube_size, progress=not args.quiet)
+                         cube_size=args.cube_size, spp_cap=args.spp_cap, progress=not args.quiet)
     paths = hardcases.write_hardcases(rows, Path(args.out), settings)
     print(hardcases.table_markdown(rows), end="")
     for k, p in paths.items():
@@ -46,7 +47,7 @@ def _cmd_fit_lod(args) -> int:
             raise PbrcheckError(f"fit-lod: --roughness: expected numbers separated by commas, found {args.roughness!r}")
     chains = split_list(args.chains) if args.chains else None
     res = fit_lod.run_fit_lod(scene, roughness=rough, preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
-                      size=args.size, out=Path(args.out), progress=not args.quiet,
+                      size=args.size, out=Path(args.out), spp_cap=args.spp_cap, progress=not args.quiet,
                       **({"chains": chains} if chains else {}))
     print(fit_lod.table_markdown(res), end="")
     print(f"json: {args.out}\nglsl: {res.glsl}")
@@ -55,7 +56,7 @@ def _cmd_fit_lod(args) -> int:
 
 def _cmd_explain(args) -> int:
     res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
-                      size=args.size or None, fitted=args.fitted, progress=not args.quiet)
+                      size=args.size or None, fitted=args.fitted, spp_cap=args.spp_cap, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
     print(f"json: {out}\ntable: {out.with_suffix('.md')}")
@@ -112,6 +113,12 @@ def _cmd_energy(args) -> int:
     return 0
 
 
+def _spp_cap_arg(s, cap: int) -> None:
+    s.add_argument("--spp-cap", type=int, default=cap, metavar="N",
+                   help=f"most reference samples per pixel (default {cap}): --spp is the least, more are rendered "
+                        f"until the reference's noise floor is 10x below the error; at the cap: noise-limited")
+
+
 def _renderer_args(s, *, spp: int, size: int | None, size_help: str) -> None:
     """The arguments every research command shares: the scene, the renderer under test and its
     overrides, the reference spp and the image height."""
@@ -128,7 +135,9 @@ def register(sub, bench_sub) -> None:
     s = sub.add_parser("hardcases", help="hard-case scenes through the reference and every preset: "
                                          "NaN/Inf check and error table (exit 1 on a non-finite output)")
     s.add_argument("--out", default="out/hardcases", metavar="DIR", help="output directory (default out/hardcases)")
-    s.add_argument("--spp", type=int, default=16, help="reference samples per pixel (default 16)")
+    s.add_argument("--spp", type=int, default=16, help="least reference samples per pixel (default 16); more "
+                   "are rendered until the reference's noise floor is 10x below the presets' smallest error")
+    _spp_cap_arg(s, hardcases.SPP_CAP)
     s.add_argument("--size", type=int, default=48, help="image height in pixels (default 48)")
     s.add_argument("--presets", metavar="P,...", help="real-time presets (default: all)")
     s.add_argument("--cases", metavar="C,...", help="only these cases (default: all)")
@@ -141,6 +150,7 @@ def register(sub, bench_sub) -> None:
                                        "and every mapping's error")
     _renderer_args(s, spp=64, size=None, size_help="image height (default: 96 for the probe grid, the scene's "
                    "own otherwise); a sphere grid in the scene is used as is")
+    _spp_cap_arg(s, DEFAULT_SPP_CAP)
     s.add_argument("--roughness", metavar="R1,R2,...", help="roughness values (default: 16 in [0, 1]); "
                    "they are rendered as metal spheres under the scene's environment")
     s.add_argument("--out", default="out/fit_lod.json", metavar="FILE.json", help="JSON (the GLSL goes next to it)")
@@ -152,6 +162,7 @@ def register(sub, bench_sub) -> None:
     s = sub.add_parser("explain", help="error decomposition: make one approximation exact at a time and "
                                        "measure the error it contributes")
     _renderer_args(s, spp=64, size=64, size_help="image height (default 64; 0: the scene's own)")
+    _spp_cap_arg(s, DEFAULT_SPP_CAP)
     s.add_argument("--fitted", metavar="FILE.json", help="also try this fitted LOD mapping (pbrcheck fit-lod)")
     s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
     s.add_argument("--quiet", action="store_true", help="no progress output")

@@ -48,6 +48,7 @@ from pbrcheck.scene import Scene
 
 from .. import renderers
 from ..metrics import REL_EPS, compare_images
+from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
 from .results import ExplainCombined, ExplainResult, ExplainRow
 
 #: Reference samples per pixel (command default).
@@ -95,7 +96,8 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
 
 def run_explain(scene: Scene, *, preset: str = "default", options: dict | None = None, spp: int = DEFAULT_SPP,
                 size: int | None = None, fitted: str | None = None, cube_max: int = 512,
-                samples_scale: float = 1.0, progress: bool = False) -> ExplainResult:
+                samples_scale: float = 1.0, spp_cap: int | None = DEFAULT_SPP_CAP,
+                progress: bool = False) -> ExplainResult:
     """Measure each approximation's contribution to ``preset``'s error on ``scene``.
 
     Parameters
@@ -107,7 +109,9 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     options : dict, optional
         Option overrides of the baseline.
     spp : int, optional
-        Reference samples per pixel.
+        Least reference samples per pixel: more (powers of two, at most ``spp_cap``) until the
+        reference's noise floor is 10x below the baseline's error (:mod:`compare.verdict_spp`; the
+        outcome is the result's ``reference_spp``, ``noise_limited`` at the cap).
     size : int, optional
         Image height in pixels (width keeps the aspect); None: the scene's own.
     fitted : str, optional
@@ -116,6 +120,8 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         Face size of the exact environment cube.
     samples_scale : float, optional
         Scales the exact counterparts' sample counts (< 1 for tests).
+    spp_cap : int, optional
+        Most reference samples per pixel (None: as many as render in the verdict rule's time budget).
     progress : bool, optional
         Show reference render progress.
 
@@ -129,19 +135,23 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     if size is not None:
         scene = scene.with_camera(width=max(8, int(round(size * scene.camera.width / scene.camera.height))),
                                   height=int(size))
-    ref = renderers.render_reference(scene, spp=spp, mode="local", progress=progress)
+    # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
+    base_img = renderers.render_under_test(scene, preset, base, progress=False)
+    ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
+                                         progress=progress)
+    spp = verdict.spp
 
     valid = None
 
-    def measure(over: dict) -> dict:
+    def measure(over: dict, img=None) -> dict:
         nonlocal valid
-        img = renderers.render_under_test(scene, preset, {**base, **over}, progress=False)
+        img = img if img is not None else renderers.render_under_test(scene, preset, {**base, **over}, progress=False)
         c = compare_images(ref, img, scene=scene, noise=False)
         if valid is None:
             valid = c.valid  # the baseline's valid pixels, for the noise figure
         return {k: c.metrics[k] for k in KEEP}
 
-    baseline = measure({})
+    baseline = measure({}, base_img)
     noise_relmse = None
     if ref.variance is not None:
         r64 = ref.rgb.astype(np.float64)
@@ -151,7 +161,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         # An external renderer (ext:NAME) has no options to swap for exact counterparts: its
         # error against the reference is the whole result (the baseline).
         return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
-                             baseline, noise_relmse, rows)
+                             baseline, noise_relmse, rows, reference_spp=verdict.to_dict())
     srcs = sources(o, cube_max=cube_max, samples_scale=samples_scale, scene_ndf=scene.brdf.ndf)
     if o["ibl"] == "runtime":
         # Already runtime sampling: its exact counterpart is the same estimator at many samples in
@@ -194,7 +204,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         m = measure(allo)
         combined[label] = ExplainCombined(allo, m, baseline[PRIMARY] - m[PRIMARY])
     return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
-                         baseline, noise_relmse, rows, **combined)
+                         baseline, noise_relmse, rows, **combined, reference_spp=verdict.to_dict())
 
 
 #: Labels of the combined rows in the tables.
@@ -208,6 +218,7 @@ def table_markdown(res: ExplainResult) -> str:
 
     b = res.baseline[PRIMARY]
     lines = [f"scene {res.scene}, preset {res.preset}: {PRIMARY} {f(b)} against the {res.spp}-spp reference",
+             *([f"Reference spp rule: {VerdictSpp(**res.reference_spp).provenance()}"] if res.reference_spp else []),
              "", f"| source made exact | {PRIMARY} after | contribution | share of {PRIMARY} | flip_mean after |",
              "| --- | --- | --- | --- | --- |"]
     extra = [ExplainRow(lab, c.options, c.metrics, c.contribution) for k, lab in COMBINED_LABELS

@@ -47,6 +47,7 @@ from pbrcheck.scene import Scene, scene_from_dict
 
 from .. import renderers
 from ..metrics import REL_EPS, pixel_classes
+from ..verdict_spp import DEFAULT_SPP_CAP, reference_for_verdict
 from .monotone_fit import fit_lod_mapping, fit_lod_to_error, predicted_error
 from .results import ChainFit, FitLodResult, LodSample, MappingEval
 
@@ -156,7 +157,7 @@ def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tupl
 
 def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", options: dict | None = None,
                 spp: int = 64, size: int | None = None, out: Path, lod_step: float = LOD_STEP,
-                chains=BUILTIN, progress: bool = False) -> FitLodResult:
+                chains=BUILTIN, spp_cap: int | None = DEFAULT_SPP_CAP, progress: bool = False) -> FitLodResult:
     """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``.
 
     ``chains``: the built-in mappings whose prefiltered chains are scanned and fitted on (default all
@@ -173,7 +174,9 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     preset, options : str, dict
         The renderer under test and its overrides (must use the prefiltered map, built-in mapping).
     spp : int
-        Reference samples per pixel.
+        Least reference samples per pixel: more (powers of two, at most ``spp_cap``) until the
+        reference's noise floor is 10x below the preset's error on the fit scene
+        (:mod:`compare.verdict_spp`; the outcome is the result's ``reference_spp``).
     size : int, optional
         Image height.
     out : Path
@@ -217,7 +220,12 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             width=max(8, int(round(size * scene.camera.width / scene.camera.height))), height=int(size))
     fit_scene = _no_lights(fit_scene)
     groups = _groups(fit_scene)
-    ref = renderers.render_reference(fit_scene, spp=spp, mode="local", progress=progress)
+    # The reference's spp: its noise floor 10x below the preset's own error on the fit scene (the
+    # error every scanned level is measured against; compare.verdict_spp), at most spp_cap.
+    own_img = renderers.render_under_test(fit_scene, preset, base, progress=False)
+    ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local", metric="relmse",
+                                         progress=progress)
+    spp = verdict.spp
     M = o["prefilter_levels"] - 1
     cube_log2 = math.log2(o["cube_size"])
     lods = np.arange(0.0, M + 1e-9, lod_step)
@@ -256,7 +264,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             chains={c: ChainFit(v["predicted_relmse"], v["builtin_predicted_relmse"],
                                 list(v["mapping"].coefficients), [s.lod for s in v["samples"]])
                     for c, v in per_chain.items()},
-            mappings={"fitted": MappingEval(None, mapping=fitted.to_json())})
+            mappings={"fitted": MappingEval(None, mapping=fitted.to_json())}, reference_spp=verdict.to_dict())
         write_json_atomic(out, result)  # the fitted mapping must be on disk to render it
         for name in BUILTIN:
             img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": name})

@@ -47,6 +47,7 @@ import time
 import numpy as np
 
 from pbrcheck.brdf import DELTA_LOBE_ALPHA
+from pbrcheck.environment import scene_hash
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.scene import Scene, scene_from_dict
 from reference.diff import fit_materials, load_differentiable_scene, param_key, render_image
@@ -145,22 +146,35 @@ def bracket(scan: list[list[float]]) -> tuple[float, list[float]]:
     return scan[b][0], [scan[max(lo - 1, 0)][0], scan[min(hi + 1, len(scan) - 1)][0]]
 
 
-def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.ndarray], own: list[float], *,
-               spp: int, grid=SCAN_ROUGHNESS) -> list[dict]:
-    """Per object, the unbiased loss (:func:`unbiased_fit_loss`) of every value among ``grid`` and the
-    object's own roughness (two independent primal renders per value; every object set to it at
-    once), and its :func:`bracket`. Returns per object ``{"start", "range": [lo, hi],
-    "scan": [[r, loss, se], ...]}`` (``range`` None for an object with no pixels)."""
-
+def scan_renders(ms, params, keys: list[str], candidates: list[float], *, spp: int) -> list[tuple]:
+    """``[(r, a, b), ...]``: two independent primal renders (H, W, 3) per candidate roughness ``r``, every
+    object set to it at once (roughness does not couple objects at this depth). They depend on the
+    scene and not on the target, so one scan serves every preset fitted on the same scene and size
+    (:func:`run_fit_roughness`'s ``scan_cache``)."""
     mi, _ = _mi()
-    candidates = sorted({float(g) for g in grid} | set(own))
-    table: list[list[list[float]]] = [[] for _ in keys]
+    out = []
     for j, g in enumerate(candidates):
         for k in keys:
             params[k] = mi.Float(g)
         params.update()
         a = render_image(ms, params, spp=spp, seed=50_000 + 2 * j)
         b = render_image(ms, params, spp=spp, seed=50_001 + 2 * j)
+        out.append((g, a, b))
+    return out
+
+
+def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.ndarray], own: list[float], *,
+               spp: int, grid=SCAN_ROUGHNESS, renders: list[tuple] | None = None) -> list[dict]:
+    """Per object, the unbiased loss (:func:`unbiased_fit_loss`) of every value among ``grid`` and the
+    object's own roughness (:func:`scan_renders`, or ``renders`` already made for those values), and
+    its :func:`bracket`. Returns per object ``{"start", "range": [lo, hi], "scan": [[r, loss, se], ...]}``
+    (``range`` None for an object with no pixels)."""
+
+    candidates = sorted({float(g) for g in grid} | set(own))
+    if renders is None or [r[0] for r in renders] != candidates:
+        renders = scan_renders(ms, params, keys, candidates, spp=spp)
+    table: list[list[list[float]]] = [[] for _ in keys]
+    for g, a, b in renders:
         for i, m in enumerate(masks):
             if m.any():
                 table[i].append([g, *unbiased_fit_loss(a[m], b[m], target[m])])
@@ -176,11 +190,13 @@ def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.n
 
 def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, *, iterations: int = ITERATIONS,
                   lr: float = LR, spp: int = SPP, start=None,
-                  scan: bool = True) -> tuple[list[ApparentRoughness], list[float]]:
+                  scan: bool = True, scan_cache: dict | None = None) -> tuple[list[ApparentRoughness], list[float]]:
     """Fit every object's reference roughness to ``target_rgb`` (H, W, 3); one row per object.
 
     Each object starts at ``start[i]`` (default: its own roughness) or, with ``scan``, at the best of
-    that and :data:`SCAN_ROUGHNESS` (:func:`scan_start`).
+    that and :data:`SCAN_ROUGHNESS` (:func:`scan_start`). ``scan_cache``: a dict shared by fits of the
+    same scene (any targets): the scan's renders are made once and kept there (by scene content,
+    candidates and spp).
 
     Returns
     -------
@@ -197,7 +213,16 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
     masks = [np.rint(object_ids) == i for i in range(len(scene.objects))]
     own = [float(np.clip(scene.objects[i].material.roughness if start is None else start[i], ROUGH_MIN, 1.0))
            for i in range(len(keys))]
-    scans = scan_start(ms, params, keys, target, masks, own, spp=SCAN_SPP_FACTOR * spp) if scan and keys else None
+    scans = None
+    if scan and keys:
+        candidates = sorted({float(g) for g in SCAN_ROUGHNESS} | set(own))
+        ck = (scene_hash(scene), tuple(candidates), SCAN_SPP_FACTOR * spp)
+        renders = (scan_cache or {}).get(ck)
+        if renders is None:
+            renders = scan_renders(ms, params, keys, candidates, spp=SCAN_SPP_FACTOR * spp)
+            if scan_cache is not None:
+                scan_cache[ck] = renders
+        scans = scan_start(ms, params, keys, target, masks, own, spp=SCAN_SPP_FACTOR * spp, renders=renders)
     r0 = [sc["start"] for sc in scans] if scans else own
     for k, r in zip(keys, r0):
         params[k] = mi.Float(r)
@@ -223,16 +248,17 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
 
 def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | None = None,
                       size: int | None = None, iterations: int = ITERATIONS, lr: float = LR, spp: int = SPP,
-                      scan: bool = True) -> FitRoughnessResult:
+                      scan: bool = True, scan_cache: dict | None = None) -> FitRoughnessResult:
     """The preset's real-time image of ``scene`` (height ``size``) as the target of :func:`fit_roughness`:
     per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss` over its
-    pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``)."""
+    pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``).
+    ``scan_cache``: one dict passed to every preset's fit on the same scene shares the scan's renders."""
     if size is not None:
         scene = scene.with_camera(width=max(8, round(size * scene.camera.width / scene.camera.height)),
                                   height=int(size))
     img = renderers.render_under_test(scene, preset, options, progress=False)
     rows, trace = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp,
-                                scan=scan)
+                                scan=scan, scan_cache=scan_cache)
     return FitRoughnessResult(scene.name, preset, dict(options or {}), iterations, lr, min(lr, LR_FINAL),
                               AVERAGE_LAST, spp, scan, "tone_mse", [scene.camera.width, scene.camera.height],
                               rows, trace)

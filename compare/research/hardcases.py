@@ -30,12 +30,15 @@ from pbrcheck.scene import Scene, load_scene, scene_from_dict
 
 from .. import renderers
 from ..metrics import compare_images
+from ..verdict_spp import reference_for_verdict
 from .results import HardcaseRow
 
 #: Resolution of the hard-case renders (the command's default; the tests use 16).
 DEFAULT_SIZE = 48
 #: Reference samples per pixel: enough to see a gross error, not a converged image.
 DEFAULT_SPP = 16
+#: Most reference spp of a case (at the default 48 px, 2.4 M samples: about a second on 2 CPU cores).
+SPP_CAP = 1024
 #: Scales of the "very large" and "very small" scene cases.
 SCALES = (1e4, 1e-4)
 #: The metrics the table shows.
@@ -152,7 +155,7 @@ def small_cube_options(preset: str, cube_size: int) -> dict:
 
 def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: list[str] | None = None,
                   cases: list[str] | None = None, cube_size: int | None = None, options: dict | None = None,
-                  progress: bool = False) -> list[HardcaseRow]:
+                  spp_cap: int | None = SPP_CAP, progress: bool = False) -> list[HardcaseRow]:
     """Render every case with the reference and each preset; one row per render.
 
     Parameters
@@ -160,7 +163,9 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
     size : int, optional
         Image height in pixels.
     spp : int, optional
-        Reference samples per pixel.
+        Least reference samples per pixel: more (powers of two, at most ``spp_cap``) until the
+        reference's noise floor is 10x below the smallest error of the presets on the case
+        (:mod:`compare.verdict_spp`; the outcome is the reference row's ``reference_spp``).
     presets : list of str, optional
         Renderers under test (default: every real-time preset).
     cases : list of str, optional
@@ -169,6 +174,8 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
         Bake ``cube_size``^2 cubes instead of each preset's own (:func:`small_cube_options`).
     options : dict, optional
         Further real-time option overrides for every preset.
+    spp_cap : int, optional
+        Most reference samples per pixel of a case (None: the verdict rule's time budget).
     progress : bool, optional
         Show render progress.
 
@@ -197,22 +204,31 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 raise PbrcheckError(f"hardcases: unknown case(s) {', '.join(missing)}; cases are: "
                                     f"{', '.join(case_dicts(Path(tmp)))}")
         for name, sc in scenes.items():
-            ref = renderers.render_reference(sc, spp=spp, mode="local", seed=0, use_cache=False, progress=progress)
-            nf = _nonfinite(ref)
-            ref_ok = nf == 0
-            rows.append(HardcaseRow(name, "reference", None, finite=nf == 0, nonfinite=nf))
+            # The presets first: the reference's spp is then chosen so that its noise floor sits 10x
+            # below the smallest of their errors (compare.verdict_spp), at most spp_cap.
+            imgs, prow = {}, []
             for p in presets:
                 o = dict(small_cube_options(p, cube_size) if cube_size else {})
                 o.update(options or {})
                 try:
                     img = renderers.render_under_test(sc, p, o, progress=progress)
                 except PbrcheckError as e:
-                    rows.append(HardcaseRow(name, "realtime", p, finite=False, nonfinite=None,
+                    prow.append(HardcaseRow(name, "realtime", p, finite=False, nonfinite=None,
                                             error=f"{type(e).__name__}: {e}"))
                     continue
                 nf = _nonfinite(img)
-                row = HardcaseRow(name, "realtime", p, finite=nf == 0, nonfinite=nf)
-                if nf == 0 and ref_ok:
+                prow.append(HardcaseRow(name, "realtime", p, finite=nf == 0, nonfinite=nf))
+                if nf == 0:
+                    imgs[p] = img
+            ref, verdict = reference_for_verdict(sc, list(imgs.values()), spp=spp, cap=spp_cap, mode="local",
+                                                 metric="relmse", seed=0, use_cache=False, progress=progress)
+            nf = _nonfinite(ref)
+            ref_ok = nf == 0
+            rows.append(HardcaseRow(name, "reference", None, finite=nf == 0, nonfinite=nf,
+                                    reference_spp=verdict.to_dict()))
+            for row in prow:
+                img = imgs.get(row.preset)
+                if img is not None and ref_ok:
                     try:
                         c = compare_images(ref, img, scene=sc, noise=False)
                         row.metrics = {k: c.metrics[k] for k in TABLE_METRICS}

@@ -47,6 +47,9 @@ class HardcaseRow(_JSON):
     nonfinite: int | None
     metrics: dict | None = None
     error: str | None = None
+    #: the reference row: how its spp was chosen (compare.verdict_spp.VerdictSpp.to_dict())
+    reference_spp: dict | None = None
+    _omit_none = ("reference_spp",)
 
 
 # --- explain -------------------------------------------------------------------------------------
@@ -87,7 +90,9 @@ class ExplainResult(_JSON):
     sources: list[ExplainRow]
     all_but_vnr: ExplainCombined | None = None
     all_exact: ExplainCombined | None = None
-    _omit_none = ("all_but_vnr", "all_exact")
+    #: how the reference spp was chosen (compare.verdict_spp.VerdictSpp.to_dict())
+    reference_spp: dict | None = None
+    _omit_none = ("all_but_vnr", "all_exact", "reference_spp")
 
 
 # --- fit-lod -------------------------------------------------------------------------------------
@@ -148,6 +153,8 @@ class FitLodResult(_JSON):
     mappings: dict[str, MappingEval]
     per_roughness_optimum_mean_relmse: float | None = None
     glsl: str | None = None
+    #: how the reference spp was chosen (compare.verdict_spp.VerdictSpp.to_dict())
+    reference_spp: dict | None = None
 
     def to_json(self) -> dict:
         d = {k: getattr(self, k) for k in ("scene", "fit_scene", "preset", "options", "spp", "size", "lod_step",
@@ -159,6 +166,8 @@ class FitLodResult(_JSON):
             d["per_roughness_optimum_mean_relmse"] = self.per_roughness_optimum_mean_relmse
         if self.glsl is not None:
             d["glsl"] = self.glsl
+        if self.reference_spp is not None:
+            d["reference_spp"] = self.reference_spp
         return d
 
 

@@ -1,0 +1,111 @@
+"""Content-addressed cache of real-time renders: a re-run of unchanged shaders costs a file read.
+
+A real-time render is deterministic: the same scene, options, shader sources and GL implementation
+give the same pixels. :func:`render_cached` keys a render by all of them and keeps it in the
+``realtime`` namespace of :class:`pbrcheck.cache.Cache` (atomic writes; a corrupt or mismatched
+entry is a miss):
+
+* the scene's content hash with the environment's pixels (:func:`pbrcheck.environment.scene_hash`);
+* the preset name and its resolved options (:func:`realtime.presets.resolve_options`), the SHA-256
+  of a shader hook file (``shader`` option) and of a fitted LOD mapping's file (``fitted:PATH``);
+* :func:`code_hash`: the SHA-256 of every source the pixels can depend on (``realtime/``'s Python,
+  GLSL and compute shaders, and the core package ``pbrcheck/``): any edit of a shader or of the
+  code that drives it is a miss, with no version number to forget;
+* the GL renderer and version strings (llvmpipe and a GPU round differently; Mesa's version is in
+  ``GL_VERSION``) and moderngl's version.
+
+A hit is the stored image with its stored timings (the frame and bakes as measured when it was
+rendered, on the ``gl_renderer`` of its metadata) and ``meta["cache"] = "hit"``; the warnings the
+render printed are printed again. Callers choose: :func:`compare.renderers.render_under_test` uses
+it only inside :func:`compare.renderers.realtime_cache` (the report and the gate), so a test or a
+benchmark of the renderer always renders.
+
+API: :data:`NAMESPACE`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import moderngl
+
+from pbrcheck.cache import Cache, cache_key
+from pbrcheck.environment import scene_hash
+from pbrcheck.scene import Scene
+
+from .gl import get_context, renderer_name
+from .hooks import load_hook_file
+from .presets import resolve_options
+from .render import environment_of, render_realtime
+
+#: Cache namespace of real-time renders (``$PBRCHECK_CACHE/realtime``).
+NAMESPACE = "realtime"
+#: Sources whose content keys every entry: this package and the core it reads (relative to the
+#: repository root; suffixes hashed).
+_CODE_DIRS = ("realtime", "pbrcheck")
+_CODE_SUFFIXES = (".py", ".glsl", ".comp", ".toml")
+
+
+@lru_cache(maxsize=1)
+def code_hash() -> str:
+    """SHA-256 over the relative path and bytes of every source under :data:`_CODE_DIRS` (once per
+    process: the code does not change under a running process)."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for d in _CODE_DIRS:
+        for p in sorted((root / d).rglob("*")):
+            if p.is_file() and p.suffix in _CODE_SUFFIXES and "__pycache__" not in p.parts:
+                h.update(str(p.relative_to(root)).encode())
+                h.update(b"\0")
+                h.update(p.read_bytes())
+                h.update(b"\0")
+    return h.hexdigest()
+
+
+def _file_sha256(path: str) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None  # resolve_options / the render report the missing file
+
+
+def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -> str:
+    """The content address of ``scene`` rendered by ``preset`` with ``options`` (module docstring).
+
+    Raises the errors of :func:`realtime.presets.resolve_options` for a bad preset or option."""
+    o = resolve_options(preset, options)
+    env = environment_of(scene)
+    lod = o.get("lod_mapping")
+    fitted = _file_sha256(lod[len("fitted:"):]) if isinstance(lod, str) and lod.startswith("fitted:") else None
+    hooks = load_hook_file(o["shader"]).sha256 if o.get("shader") else None
+    return cache_key(kind="realtime", scene_hash=scene_hash(scene, env.content_hash), preset=preset,
+                     options=json.dumps(o, sort_keys=True, default=str), shader_hooks=hooks, fitted_lod=fitted,
+                     code=code_hash(), gl_renderer=renderer_name(),
+                     gl_version=str(get_context().info.get("GL_VERSION", "?")), moderngl=moderngl.__version__)
+
+
+def render_cached(scene: Scene, preset: str = "default", options: dict | None = None, *,
+                  progress: bool = False, cache: Cache | None = None):
+    """:func:`realtime.render.render_realtime` through the content-addressed cache (module docstring);
+    ``meta["cache"]`` is ``hit`` or ``miss``."""
+    cache = cache if cache is not None else Cache(NAMESPACE)
+    key = realtime_cache_key(scene, preset, options)
+    img = cache.get(key)
+    if img is not None:
+        img.meta["cache"] = "hit"
+        img.meta["scene"] = scene.name  # the key ignores names: two scenes may share an entry
+        if progress:
+            for w in json.loads(img.meta.get("warnings", "[]")):
+                print(f"pbrcheck realtime: {w}", file=sys.stderr)
+        return img
+    img = render_realtime(scene, preset, options, progress=progress)
+    cache.put(key, img)
+    img.meta["cache"] = "miss"
+    return img
+
+
+__all__ = ["NAMESPACE", "code_hash", "realtime_cache_key", "render_cached"]
