@@ -18,6 +18,12 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   ``pbr_material``, C++ for ``roughconductor``, once per call) and ``bsdf_kernel_seconds`` (compile
   cache lookup, launch, run): ``bsdf_kernel_ratio`` is the ratio without tracing, which is what a
   render pays (the integrator traces the BSDF once per pass, not once per sample).
+* ``material_gather``: the local estimator with every ``pbr_material`` gathered per lane
+  (:class:`reference.bsdf.MaterialView`, the default) against Mitsuba's per-material dispatch, which
+  traces the lobes once per material (30 on ``spheres``): warm seconds of a small render
+  (``SMALL_SIZE`` px high, ``SMALL_SPP`` spp, moments) and of one differentiable step (render and
+  backward of every object's roughness, fit-roughness's size), median of repeats; there tracing, not
+  sampling, is the cost.
 * ``seconds_to_10x_noise_floor``: seconds for the ``local`` reference of ``spheres`` to bring its
   noise floor (mean pixel variance) to a tenth of the default preset's error there
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
@@ -54,6 +60,9 @@ NOISE_FLOOR_FACTOR = 10.0
 #: ``pbrcheck realtime spheres`` against ``pbrcheck reference spheres --spp 4096`` (2026-11-23: MSE
 #: 2.22e-4, noise floor 4.1e-5, corrected 1.805e-4; the reference's per-sample variance is 0.17).
 SPHERES_DEFAULT_MSE = 1.8e-4
+
+#: The small renders of ``material_gather`` (fit-roughness's and the research sections' sizes).
+SMALL_SIZE, SMALL_SPP = 48, 16
 
 GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9}
 
@@ -133,6 +142,53 @@ def _time_bsdf(bsdf, lanes, repeats):
     return statistics.median(total) / lanes, statistics.median(trace), statistics.median(kernel)
 
 
+def _time_gather(scene, repeats):
+    """{"per_instance" | "gathered": {"render_seconds", "grad_step_seconds"}} (module docstring)."""
+    mi, dr = _mi()
+    from .integrator import INTEGRATOR_NAME, sensor_dict  # local: needs the variant set
+
+    small = scene.with_camera(width=round(SMALL_SIZE * scene.camera.width / scene.camera.height), height=SMALL_SIZE)
+    out = {}
+    for label, gather in (("per_instance", False), ("gathered", True)):
+        d = scene_dict(small)
+        d["sensor"] = sensor_dict(small.camera, SMALL_SPP)
+        d["integrator"] = {"type": INTEGRATOR_NAME, "mode": "local", "gather_materials": gather}
+        ms = mi.load_dict(d)
+        moments = mi.load_dict({**d["integrator"], "moments": True})
+        params = mi.traverse(ms)
+        keys = [k for k in params.keys() if k.endswith(".roughness")]
+
+        def render():
+            dr.eval(mi.render(ms, sensor=ms.sensors()[0], integrator=moments, spp=SMALL_SPP))
+            dr.sync_thread()
+
+        def step():
+            for k in keys:
+                dr.enable_grad(params[k])
+            params.update()
+            dr.backward(dr.mean(mi.render(ms, params, spp=SMALL_SPP), axis=None))
+            grads = [dr.grad(params[k]) for k in keys]
+            dr.eval(grads)
+            dr.sync_thread()
+            for k in keys:
+                dr.disable_grad(params[k])
+            params.update()
+
+        times = {"render_seconds": [], "grad_step_seconds": []}
+        for k in range(repeats + 1):
+            for name, fn in (("render_seconds", render), ("grad_step_seconds", step)):
+                _, t, _ = _timed_render(fn)
+                if k:  # the first run compiles
+                    times[name].append(t)
+        out[label] = {n: statistics.median(v) for n, v in times.items()}
+    out["render_speedup"] = out["per_instance"]["render_seconds"] / out["gathered"]["render_seconds"]
+    out["grad_step_speedup"] = out["per_instance"]["grad_step_seconds"] / out["gathered"]["grad_step_seconds"]
+    out["materials"] = len(scene.objects)
+    out["size"] = [small.camera.width, small.camera.height]
+    out["spp"] = SMALL_SPP
+    return out
+
+
 def run_bench(quick: bool = False) -> dict:
     """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
@@ -157,6 +213,8 @@ def run_bench(quick: bool = False) -> dict:
     s_cpp, tr_cpp, k_cpp = _time_bsdf(cpp, lanes, repeats)
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
 
+    gather = _time_gather(scene, 2 if quick else 5)
+
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
     sigma2 = vc_local * spp
@@ -174,6 +232,8 @@ def run_bench(quick: bool = False) -> dict:
         "seconds_to_10x_noise_floor": seconds_floor,
         "spp_to_10x_noise_floor": spp_floor,
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
+        "material_gather_render_speedup": gather["render_speedup"],
+        "material_gather_grad_step_speedup": gather["grad_step_speedup"],
     }
     goals = {f"{k}_goal": v for k, v in GOALS.items()}
     met = {k: figures[k] >= v for k, v in GOALS.items()}
@@ -206,6 +266,7 @@ def run_bench(quick: bool = False) -> dict:
         "bsdf_trace_seconds": {"roughconductor": tr_cpp, "pbr_material": tr_py},
         "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
         "peer_roughness": PEER_ROUGHNESS,
+        "material_gather": gather,
         "noise_floor_factor": NOISE_FLOOR_FACTOR,
         "noise_floor_target_mse": SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR,
         "noise_floor_note": "spp = 10 x per-sample variance / the default preset's MSE on spheres; seconds "

@@ -173,67 +173,27 @@ def _mean(c):
     return (c.x + c.y + c.z) * (1.0 / 3.0)
 
 
-class PBRMaterial(mi.BSDF):
-    """``{"type": "pbr_material", "base_color": [r,g,b], "metallic", "roughness", "specular",
-    "ndf", "geometry", "fresnel"}``."""
-
-    def __init__(self, props):
-        mi.BSDF.__init__(self, props)
-
-        def get(name, default):
-            return props.get(name, default) if hasattr(props, "get") else (props[name] if name in props else default)
-
-        bc = get("base_color", [1.0, 1.0, 1.0])
-        if isinstance(bc, (int, float)):
-            bc = [bc] * 3
-        self.base_color = mi.Color3f(*[float(x) for x in bc])
-        self.metallic = mi.Float(float(get("metallic", 0.0)))
-        self.roughness = mi.Float(float(get("roughness", 0.5)))
-        self.specular = mi.Float(float(get("specular", 0.04)))
-        self.ndf = str(get("ndf", "ggx"))
-        self.geometry = str(get("geometry", "smith_ggx_correlated"))
-        self.fresnel = str(get("fresnel", "schlick"))
-        if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
-            raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
-        # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
-        self.multiscatter = str(get("multiscatter", "none"))
-        self.ms_seed = int(get("multiscatter_seed", 0))
-        if self.multiscatter not in MULTISCATTERS:
-            raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
-        multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
-        self._update()
-
-    # ---- parameters ------------------------------------------------------------------------
-    def _update(self):
-        r = float(dr.slice(self.roughness)) if dr.width(self.roughness) == 1 else 0.5
-        self.delta = max(r * r, MIN_ALPHA) < DELTA_LOBE_ALPHA
-        spec = mi.BSDFFlags.DeltaReflection if self.delta else mi.BSDFFlags.GlossyReflection
-        comps = [spec | mi.BSDFFlags.FrontSide]
-        flags = spec | mi.BSDFFlags.FrontSide
-        if self.fresnel != "none":
-            comps.append(mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide)
-            flags = flags | mi.BSDFFlags.DiffuseReflection
-        self.m_components = comps
-        self.m_flags = flags
-
-    def traverse(self, callback):
-        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
-        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
-        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
-        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
-
-    def parameters_changed(self, keys=None):
-        self._update()
-        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
-
-    def to_string(self):
-        return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "
-                f"delta={self.delta}, base_color={self.base_color}, metallic={self.metallic}, "
-                f"roughness={self.roughness}, specular={self.specular}]")
+class PBRLobes:
+    """The material model's lobes over parameters that are either one BSDF instance's (scalars:
+    :class:`PBRMaterial`) or per-lane arrays gathered by the shape each lane hit
+    (:class:`MaterialView`). Attributes read: ``base_color`` (Color3f), ``metallic``, ``roughness``,
+    ``specular`` (Float), ``ndf``, ``geometry``, ``fresnel``, ``multiscatter``, ``ms_seed`` (the
+    scene-wide model) and ``delta``: the mirror limit, a Python bool for an instance (decided from its
+    roughness, so the other lobe is not even traced) or a per-lane mask (both traced, selected)."""
 
     # ---- shared pieces ---------------------------------------------------------------------
+    def _nondelta(self):
+        """Where the specular lobe is glossy: ``True`` / ``False`` for one instance, else a mask."""
+        return (not self.delta) if isinstance(self.delta, bool) else ~self.delta
+
     def _alpha(self):
         return dr.maximum(self.roughness * self.roughness, MIN_ALPHA)
+
+    def _glossy_alpha(self, nd):
+        """alpha for the glossy lobe's terms: where a lane is a mirror (its glossy terms are computed
+        and discarded by a select) alpha 1 keeps them finite, so no inf * 0 reaches a gradient."""
+        a = self._alpha()
+        return a if isinstance(nd, bool) else dr.select(nd, a, 1.0)
 
     def _f0(self):
         return self.specular * (1.0 - self.metallic) + self.base_color * self.metallic
@@ -299,7 +259,6 @@ class PBRMaterial(mi.BSDF):
         NoL = mi.Frame3f.cos_theta(wo)
         valid = active & (NoV > 0) & (NoL > 0)
         F0 = self._f0()
-        alpha = self._alpha()
         h = dr.normalize(wi + wo)
         VoH = dr.clip(dr.dot(wi, h), 0.0, 1.0)
         F = fresnel_term(self.fresnel, VoH, F0)
@@ -309,14 +268,20 @@ class PBRMaterial(mi.BSDF):
         if self.fresnel != "none":
             value += (1.0 - F) * (1.0 - self.metallic) * self.base_color * (INV_PI * NoL)
             pdf += (1.0 - p_spec) * INV_PI * NoL
-        if not self.delta:
+        nd = self._nondelta()
+        if nd is not False:
+            alpha = self._glossy_alpha(nd)
             D = NDF[self.ndf](h, alpha)
             G = geometry_term(self.geometry, NoV, NoL, self.roughness, alpha)
-            value += F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
+            spec = F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
             spec_pdf = self._spec_pdf(wi, wo, h, alpha)
             if self.multiscatter != "none":  # hook: the walk's orders >= 2, approximate pdf
                 ms, spec_pdf = multiscatter.eval_pdf_hook(self, si, wo, spec_pdf, alpha, F0, valid)
-                value += ms
+                spec += ms
+            if nd is not True:  # per lane: mirror lanes have no glossy lobe
+                spec = dr.select(nd, spec, 0.0)
+                spec_pdf = dr.select(nd, spec_pdf, 0.0)
+            value += spec
             pdf += p_spec * spec_pdf
         return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
 
@@ -331,51 +296,205 @@ class PBRMaterial(mi.BSDF):
         return self._eval_pdf(si, wo, active)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
-        if self.multiscatter != "none" and not self.delta:  # hook: the random walk's sampling
-            return multiscatter.sample_hook(self, ctx, si, sample1, sample2, active)
+        nd = self._nondelta()
+        if self.multiscatter != "none" and nd is not False:  # hook: the random walk's sampling
+            walk = multiscatter.sample_hook(self, ctx, si, sample1, sample2, active)
+            if nd is True:
+                return walk
+            # mirror lanes: the mirror-limit sampler alone (its glossy branch would trace a walk
+            # evaluation at a direction that depends on the parameters: a loop AD cannot reverse)
+            single = self._sample_single(ctx, si, sample1, sample2, mi.Bool(active) & ~nd, nd=False)
+            return dr.select(nd, walk[0], single[0]), dr.select(nd, walk[1], single[1])
+        return self._sample_single(ctx, si, sample1, sample2, active)
+
+    def _sample_single(self, ctx, si, sample1, sample2, active=True, nd=None):
+        """Single-scattering sampling of the mixture (module docstring); ``nd``: the lanes' glossy
+        mask (default :meth:`_nondelta`; ``False`` samples every lane as a mirror limit)."""
         wi = si.wi
         NoV = mi.Frame3f.cos_theta(wi)
         active = mi.Bool(active) & (NoV > 0)
         F0 = self._f0()
-        alpha = self._alpha()
         p_spec = self._p_spec(dr.clip(NoV, 0, 1), F0)
         choose_spec = sample1 < p_spec
+        nd = self._nondelta() if nd is None else nd
 
         bs = dr.zeros(mi.BSDFSample3f)
         bs.eta = 1.0
         wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
-        if self.delta:
-            wo_spec = mi.Vector3f(-wi.x, -wi.y, wi.z)
+        mirror = mi.Vector3f(-wi.x, -wi.y, wi.z)
+        if nd is False:
+            wo_spec = mirror
         else:
-            h = self._sample_h(wi, sample2, alpha)
+            h = self._sample_h(wi, sample2, self._glossy_alpha(nd))
             wo_spec = 2.0 * dr.dot(wi, h) * h - wi
+            if nd is not True:
+                wo_spec = dr.select(nd, wo_spec, mirror)
         bs.wo = dr.select(choose_spec, wo_spec, wo_diff)
         NoL = mi.Frame3f.cos_theta(bs.wo)
         active &= NoL > 0
 
-        if self.delta:
-            spec_type, spec_comp = mi.UInt32(+mi.BSDFFlags.DeltaReflection), 0
-        else:
-            spec_type, spec_comp = mi.UInt32(+mi.BSDFFlags.GlossyReflection), 0
+        glossy, mirror_t = mi.UInt32(+mi.BSDFFlags.GlossyReflection), mi.UInt32(+mi.BSDFFlags.DeltaReflection)
+        spec_type = glossy if nd is True else (mirror_t if nd is False else dr.select(nd, glossy, mirror_t))
         bs.sampled_type = dr.select(choose_spec, spec_type, mi.UInt32(+mi.BSDFFlags.DiffuseReflection))
-        bs.sampled_component = dr.select(choose_spec, mi.UInt32(spec_comp), mi.UInt32(1))
+        bs.sampled_component = dr.select(choose_spec, mi.UInt32(0), mi.UInt32(1))
 
         value, pdf = self._eval_pdf(si, bs.wo, active)
-        if self.delta:
+        bs.pdf = pdf
+        weight = value / dr.maximum(pdf, 1e-20)
+        if nd is not True:
             # Mirror limit: weight F(n.v) G(v, v) / P_spec, pdf = the discrete probability.
             F = fresnel_term(self.fresnel, dr.clip(NoV, 0, 1), F0)
-            G = geometry_term(self.geometry, NoV, NoV, self.roughness, alpha)
+            G = geometry_term(self.geometry, NoV, NoV, self.roughness, self._alpha())
             w_spec = F * G / dr.maximum(p_spec, 1e-20)
-            bs.pdf = dr.select(choose_spec, p_spec, pdf)
-            weight = dr.select(choose_spec, w_spec, value / dr.maximum(pdf, 1e-20))
-        else:
-            bs.pdf = pdf
-            weight = value / dr.maximum(pdf, 1e-20)
+            d_pdf = dr.select(choose_spec, p_spec, pdf)
+            d_weight = dr.select(choose_spec, w_spec, weight)
+            if nd is False:
+                bs.pdf, weight = d_pdf, d_weight
+            else:
+                bs.pdf = dr.select(nd, bs.pdf, d_pdf)
+                weight = dr.select(nd, weight, d_weight)
         active &= bs.pdf > 0
         return bs, dr.select(active, weight, 0.0)
 
+
+class PBRMaterial(mi.BSDF):
+    """``{"type": "pbr_material", "base_color": [r,g,b], "metallic", "roughness", "specular",
+    "ndf", "geometry", "fresnel"}``."""
+
+    # The lobes are PBRLobes' functions, shared by reference (a nanobind class takes one base class,
+    # so PBRLobes cannot be a mixin here).
+    _nondelta = PBRLobes._nondelta
+    _alpha = PBRLobes._alpha
+    _glossy_alpha = PBRLobes._glossy_alpha
+    _f0 = PBRLobes._f0
+    _p_spec = PBRLobes._p_spec
+    _spec_pdf = PBRLobes._spec_pdf
+    _sample_h = PBRLobes._sample_h
+    _eval_pdf = PBRLobes._eval_pdf
+    _sample_single = PBRLobes._sample_single
+    eval = PBRLobes.eval
+    pdf = PBRLobes.pdf
+    eval_pdf = PBRLobes.eval_pdf
+    sample = PBRLobes.sample
+
+    def __init__(self, props):
+        mi.BSDF.__init__(self, props)
+
+        def get(name, default):
+            return props.get(name, default) if hasattr(props, "get") else (props[name] if name in props else default)
+
+        bc = get("base_color", [1.0, 1.0, 1.0])
+        if isinstance(bc, (int, float)):
+            bc = [bc] * 3
+        self.base_color = mi.Color3f(*[float(x) for x in bc])
+        self.metallic = mi.Float(float(get("metallic", 0.0)))
+        self.roughness = mi.Float(float(get("roughness", 0.5)))
+        self.specular = mi.Float(float(get("specular", 0.04)))
+        self.ndf = str(get("ndf", "ggx"))
+        self.geometry = str(get("geometry", "smith_ggx_correlated"))
+        self.fresnel = str(get("fresnel", "schlick"))
+        if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
+            raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
+        # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
+        self.multiscatter = str(get("multiscatter", "none"))
+        self.ms_seed = int(get("multiscatter_seed", 0))
+        if self.multiscatter not in MULTISCATTERS:
+            raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
+        multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
+        self._update()
+
+    # ---- parameters ------------------------------------------------------------------------
+    def _update(self):
+        r = float(dr.slice(self.roughness)) if dr.width(self.roughness) == 1 else 0.5
+        self.delta = bool(is_mirror_limit(r))
+        spec = mi.BSDFFlags.DeltaReflection if self.delta else mi.BSDFFlags.GlossyReflection
+        comps = [spec | mi.BSDFFlags.FrontSide]
+        flags = spec | mi.BSDFFlags.FrontSide
+        if self.fresnel != "none":
+            comps.append(mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide)
+            flags = flags | mi.BSDFFlags.DiffuseReflection
+        self.m_components = comps
+        self.m_flags = flags
+
+    def traverse(self, callback):
+        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
+        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
+        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
+        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=None):
+        self._update()
+        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
+
+    def to_string(self):
+        return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "
+                f"delta={self.delta}, base_color={self.base_color}, metallic={self.metallic}, "
+                f"roughness={self.roughness}, specular={self.specular}]")
+
+    def model(self) -> tuple:
+        """The scene-wide part of the model (equal for every material of a scene)."""
+        return (self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed)
+
     def eval_diffuse_reflectance(self, si, active=True):
         return (1.0 - self.metallic) * self.base_color
+
+
+def is_mirror_limit(roughness):
+    """Whether the specular lobe is the Dirac mirror limit (alpha below DELTA_LOBE_ALPHA): a Python
+    bool for a float, a mask for a Dr.Jit array (the same formula both ways)."""
+    if isinstance(roughness, (int, float)):
+        return max(roughness * roughness, MIN_ALPHA) < DELTA_LOBE_ALPHA
+    return dr.maximum(roughness * roughness, MIN_ALPHA) < DELTA_LOBE_ALPHA
+
+
+class MaterialView(PBRLobes):
+    """Every ``pbr_material`` of a scene as one set of per-lane parameters, gathered by the shape
+    each lane hit, so the lobes are traced once per call site instead of once per material.
+
+    Mitsuba dispatches a BSDF call on a wavefront as a virtual call that traces the method of every
+    instance: on the spheres scene (30 materials) each of the local estimator's BSDF calls traced 30
+    copies of the same Python maths, which dominated small renders and every differentiable step
+    (``pbrcheck bench reference`` prints both). The maths is the same :class:`PBRLobes`; the mirror
+    limit becomes a per-lane mask. Gradients flow to each instance's parameters through the scatter
+    into the tables and the gather (both differentiable)."""
+
+    def __init__(self, model: tuple, base_color, metallic, roughness, specular):
+        self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed = model
+        self.base_color, self.metallic, self.roughness, self.specular = base_color, metallic, roughness, specular
+        self.delta = dr.detach(is_mirror_limit(roughness))
+
+    @staticmethod
+    def table(scene):
+        """``(model, shape registry id -> material index lookup, materials)`` for a scene whose shapes
+        all carry a ``pbr_material`` of one model, else None (then the caller dispatches per BSDF)."""
+        shapes = scene.shapes()
+        mats = [s.bsdf() for s in shapes]
+        if not mats or not all(isinstance(m, PBRMaterial) for m in mats):
+            return None
+        model = mats[0].model()
+        if any(m.model() != model for m in mats):
+            return None
+        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
+        lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
+        dr.scatter(lut, dr.arange(mi.UInt32, len(mats)), ids)
+        dr.eval(lut)
+        return model, lut, mats
+
+    @classmethod
+    def gather(cls, table, si, active):
+        """The view of the materials hit by ``si`` (lanes outside ``active`` read material 0)."""
+        model, lut, mats = table
+        n = len(mats)
+        idx = dr.gather(mi.UInt32, lut, dr.reinterpret_array(mi.UInt32, si.shape), active)
+
+        def column(tp, name):
+            t = dr.zeros(tp, n)
+            for k, m in enumerate(mats):
+                dr.scatter(t, getattr(m, name), mi.UInt32(k))
+            return dr.gather(tp, t, idx, active)
+
+        return cls(model, column(mi.Color3f, "base_color"), column(mi.Float, "metallic"),
+                   column(mi.Float, "roughness"), column(mi.Float, "specular"))
 
 
 _REGISTERED: set[str] = set()

@@ -1,6 +1,7 @@
 """The reference's estimators as one Mitsuba integrator, ``pbrcheck_reference``, rendered by ``mi.render``.
 
-``{"type": "pbrcheck_reference", "mode": "local" | "path", "max_depth": D, "moments": bool}``; a
+``{"type": "pbrcheck_reference", "mode": "local" | "path", "max_depth": D, "moments": bool,
+"gather_materials": bool}``; a
 subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, params, ...)`` differentiates it.
 
 * ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
@@ -8,6 +9,9 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
   lobe takes weight 1), **no visibility tests**; every delta-position emitter (point light) is added
   exactly through its deterministic ``sample_direction`` (``f cos I / d^2``), without a shadow ray.
   Camera rays that miss see the environment. This is the integral real-time IBL approximates.
+  With ``gather_materials`` (the default) the BSDF of each lane is a :class:`reference.bsdf.MaterialView`:
+  every ``pbr_material``'s parameters gathered by the shape hit, the lobes traced once instead of once
+  per material (Mitsuba's virtual call); the same maths and samples as the per-instance dispatch.
 * ``mode = "path"``: Mitsuba's ``path`` integrator (``max_depth``) with the same BSDF and emitters,
   its ``sample`` called on the same camera rays (primal only).
 
@@ -53,6 +57,8 @@ import mitsuba as mi
 
 # Needs a variant set (reference.variant.ensure_variant imports this module after setting it).
 from mitsuba.python.ad.integrators.common import RBIntegrator
+
+from .bsdf import MaterialView
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -134,6 +140,9 @@ class ReferenceIntegrator(RBIntegrator):
         if self.mode not in MODES:
             raise ValueError(f"{INTEGRATOR_NAME}: mode must be one of {MODES}, not {self.mode!r}")
         self.moments = bool(props.get("moments", False))
+        # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
+        self.gather_materials = bool(props.get("gather_materials", True))
+        self._table = None  # (scene, MaterialView.table(scene))
         self.path = None
         if self.mode == "path":
             self.path = mi.load_dict({"type": "path", "max_depth": int(props.get("max_depth", 8))})
@@ -144,6 +153,16 @@ class ReferenceIntegrator(RBIntegrator):
         return f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}]"
 
     # ---- estimators ------------------------------------------------------------------------------
+    def _bsdf(self, scene, si, ray, hit):
+        """The BSDF of each lane: a :class:`reference.bsdf.MaterialView` (one trace of the lobes for
+        every material) where the scene's materials allow it, else Mitsuba's per-instance dispatch."""
+        if self.gather_materials:
+            if self._table is None or self._table[0] is not scene:
+                self._table = (scene, MaterialView.table(scene))
+            if self._table[1] is not None:
+                return MaterialView.gather(self._table[1], si, hit)
+        return si.bsdf(ray)
+
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
@@ -155,7 +174,8 @@ class ReferenceIntegrator(RBIntegrator):
         if env is not None:
             L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
         ctx = mi.BSDFContext()
-        bsdf = si.bsdf(ray)
+        with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
+            bsdf = self._bsdf(scene, si, ray, hit)
         if env is not None:
             # Environment sample, MIS against the BSDF's density.
             ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)

@@ -255,6 +255,9 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
               "resolution", "variant"):
         assert k in res, k
     assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0
+    g = res["material_gather"]
+    assert g["materials"] == 30 and g["gathered"]["render_seconds"] > 0 and g["per_instance"]["grad_step_seconds"] > 0
+    assert res["material_gather_render_speedup"] == g["render_speedup"] > 0
 
 
 def test_black_environment_point_lights_only():
