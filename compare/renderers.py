@@ -10,6 +10,8 @@ API
 - :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
   (:func:`realtime.render.render_realtime`) or ``ext:NAME``, an external renderer of
   ``renderers.toml`` (:func:`clients.run.render_external`).
+- :func:`prefetch_external` -- a context that renders some external renderers' images in a
+  background thread while this process renders the rest (the report).
 - :func:`realtime_cache` -- a context in which :func:`render_under_test` serves real-time renders
   from the content-addressed cache (:mod:`realtime.cache`; the report and the gate).
 - :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
@@ -26,6 +28,8 @@ API
 from __future__ import annotations
 
 import contextlib
+import json
+from concurrent.futures import ThreadPoolExecutor
 
 from clients import config as _clients_config
 from clients import run as _clients
@@ -70,10 +74,48 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     """
     if is_external(name):
         _no_options(name, options)
+        for futures in _PREFETCH:
+            fut = futures.pop(_prefetch_key(scene, name), None)
+            if fut is not None:  # rendered (or being rendered) in the background: its result or error
+                return fut.result()
         return _clients.render_external(scene, name, progress=progress)
     if _CACHE_REALTIME[0]:
         return _realtime_cache.render_cached(scene, name, options, progress=progress)
     return _realtime.render_realtime(scene, name, options, progress=progress)
+
+
+#: The futures of :func:`prefetch_external` contexts, by (scene content, renderer name).
+_PREFETCH: list[dict] = []
+
+
+def _prefetch_key(scene: Scene, name: str) -> str:
+    return json.dumps([scene.content_dict(), name], sort_keys=True, default=str)
+
+
+@contextlib.contextmanager
+def prefetch_external(jobs, workers: int = 1):
+    """Render the external renderers' images of ``jobs`` (``(scene, "ext:NAME")`` pairs) in
+    ``workers`` background threads while this process renders the rest: an external renderer is a
+    process of its own (a browser on SwiftShader) that this one would otherwise only wait for.
+    :func:`render_under_test` of one of them takes its result (waiting if needed; a failed render
+    raises its own error there, as it would have). On exit, renders not yet started are cancelled and
+    running ones finish (their results stay in the external renderers' cache)."""
+    futures: dict = {}
+    pool = ThreadPoolExecutor(max_workers=max(1, int(workers)), thread_name_prefix="pbrcheck-prefetch")
+    try:
+        for scene, name in jobs:
+            if is_external(name):
+                k = _prefetch_key(scene, name)
+                if k not in futures:
+                    futures[k] = pool.submit(_clients.render_external, scene, name, progress=False)
+        _PREFETCH.append(futures)
+        yield
+    finally:
+        if futures in _PREFETCH:
+            _PREFETCH.remove(futures)
+        for f in futures.values():
+            f.cancel()
+        pool.shutdown(wait=True)
 
 
 #: Whether :func:`render_under_test` serves real-time renders from the cache (see :func:`realtime_cache`).

@@ -49,6 +49,9 @@ MIN_TRUSTED_MSE = 1e-9
 ERROR_Z = 3.0
 #: Refinement steps at most (each re-renders at the spp the last one asked for).
 MAX_STEPS = 3
+#: The research commands' ``probe`` (:func:`reference_for_verdict`): an unresolved error is looked
+#: for once more at 16x the spp (a quarter of the noise's standard deviation) before "within noise".
+RESEARCH_PROBE = 16
 #: The error measures the rule can put the noise floor below (:func:`noise_and_error`).
 VERDICT_METRICS = ("mse", "relmse")
 
@@ -168,12 +171,16 @@ def cap_for_time(ref: Image, spp: int, time_budget_s: float) -> int:
 
 def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | None = DEFAULT_SPP_CAP,
                           factor: float = NOISE_FLOOR_FACTOR, time_budget_s: float = DEFAULT_TIME_BUDGET_S,
-                          metric: str = "mse", **kwargs) -> tuple[Image, VerdictSpp]:
+                          metric: str = "mse", probe: int | None = None, **kwargs) -> tuple[Image, VerdictSpp]:
     """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``; None:
     :func:`cap_for_time` of ``time_budget_s``) whose noise floor is ``factor`` times below the
     smallest error of ``tests`` against it.
 
     ``metric``: the error the floor is compared with (:func:`noise_and_error`: ``"mse"`` or ``"relmse"``).
+    ``probe``: when no error is resolved above the noise, render once more at ``probe`` times the spp
+    (at most ``cap``) before concluding so: an error below a coarse reference's noise then gets its
+    trusted spp instead of none (the research commands, whose small images start noisy), while an
+    exact renderer costs one render more. None: conclude at once (the report and the gate).
     ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
     Returns the reference and a :class:`VerdictSpp` (``noise_limited`` when the cap stopped it).
     """
@@ -181,6 +188,7 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
     kwargs.setdefault("progress", False)
     cur = int(spp)
     steps = []
+    probed = False
     while True:
         ref = renderers.render_reference(scene, spp=cur, **kwargs)
         if cap is None:
@@ -188,6 +196,11 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
         cap = max(int(cap), int(spp))
         floor, err = noise_and_error(ref, tests, scene=scene, metric=metric) if tests else (None, None)
         steps.append([cur, floor, err])
+        if (probe and not probed and err is None and floor is not None and math.isfinite(floor) and floor > 0
+                and cur < cap and len(steps) < MAX_STEPS):
+            probed = True
+            cur = int(min(cur * int(probe), cap))
+            continue
         if floor is None or err is None or not (math.isfinite(floor) and math.isfinite(err)):
             # nothing to set the spp by (a non-finite image is the hard cases' finding, not noise)
             return ref, VerdictSpp(cur, floor, err, None, False, cap, factor, steps, metric)

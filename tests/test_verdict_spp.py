@@ -203,3 +203,22 @@ def test_the_relative_metric_weights_pixels_as_relmse_does():
     assert "relmse" in v_rel.provenance()
     with pytest.raises(ValueError, match="verdict metric"):
         vs.noise_and_error(ref, [img], metric="flip")
+
+
+def test_a_probe_looks_for_an_unresolved_error_once_more():
+    """probe=16: an error hidden by the first render's noise is looked for at 16x the spp, and then
+    gets its trusted spp; an exact renderer costs that one render and is "within noise"."""
+    hidden = _test_image(2e-5)  # under 3 standard errors (~2e-5 each) of the 64-spp MSE estimate
+    _, v0 = vs.reference_for_verdict(None, [hidden], spp=64, cap=1 << 14)
+    assert v0.smallest_error is None and calls == [64]
+    calls.clear()
+    _, v = vs.reference_for_verdict(None, [hidden], spp=64, cap=1 << 14, probe=16)
+    assert calls[:2] == [64, 1024] and v.smallest_error is not None
+    assert v.noise_limited or v.ratio >= vs.NOISE_FLOOR_FACTOR, v
+    calls.clear()
+    exact = Image.from_rgb(TRUTH.copy(), {}, **_aovs())
+    _, ve = vs.reference_for_verdict(None, [exact], spp=64, cap=1 << 14, probe=16)
+    assert calls == [64, 1024] and ve.smallest_error is None and not ve.noise_limited
+    calls.clear()
+    _, vc = vs.reference_for_verdict(None, [exact], spp=64, cap=256, probe=16)
+    assert calls == [64, 256]  # the probe stops at the cap

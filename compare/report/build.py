@@ -36,7 +36,7 @@ from ..verdict_spp import VerdictSpp, reference_for_verdict
 from .references import references_sections
 from .research_sections import research_sections
 from .section import Section, Table
-from .summary import furnace_section, summary_section
+from .summary import furnace_scene, furnace_section, summary_section
 from .summary import timed_on as timed_on_text
 from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
                     write_table)
@@ -516,7 +516,12 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     total = len(scenes) * (1 + len(presets) + n_conv + n_sweep) + (len(presets) if furnace else 0)
     total += len(scenes) * sum(renderers.is_external(p) for p in presets)  # both references per ext:NAME
     sections = []
+    # The external renderers' images, in the order the sections use them, rendered in a background
+    # thread while this process renders the presets, references and maps.
+    ext = [p for p in presets if renderers.is_external(p)]
+    prefetch = [(load_scene(s), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if furnace else [])
     with Progress("report", total=total, enabled=progress) as prog, renderers.realtime_cache(cache), \
+            renderers.prefetch_external(prefetch if spec is None else []), \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
                             spp_cap=None if spp_cap is None else int(spp_cap))

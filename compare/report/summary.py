@@ -84,10 +84,15 @@ def _sphere_means(img, ids: np.ndarray, covered: np.ndarray, n: int) -> list[flo
     return out
 
 
+def furnace_scene():
+    """The furnace section's scene: the built-in furnace at :data:`FURNACE_SIZE`."""
+    return load_scene("furnace").with_camera(width=FURNACE_SIZE[0], height=FURNACE_SIZE[1])
+
+
 def furnace_section(presets: list[str], spp: int, progress=None) -> Section:
     """The white furnace through the reference and every renderer of ``presets`` (see the module
     docstring); one row per renderer: the mean radiance of each sphere, roughness 0 to 1."""
-    scene = load_scene("furnace").with_camera(width=FURNACE_SIZE[0], height=FURNACE_SIZE[1])
+    scene = furnace_scene()
     ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
     ids = np.rint(ref.channels["object"]).astype(np.int64)
     covered = ref.channels["coverage"] >= FULL_COVERAGE if "coverage" in ref.channels else ids >= 0

@@ -48,7 +48,7 @@ from pbrcheck.scene import Scene
 
 from .. import renderers
 from ..metrics import REL_EPS, compare_images
-from ..verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
+from ..verdict_spp import RESEARCH_PROBE, DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
 from .results import ExplainCombined, ExplainResult, ExplainRow
 
 #: Reference samples per pixel (command default).
@@ -138,7 +138,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
     base_img = renderers.render_under_test(scene, preset, base, progress=False)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
-                                         progress=progress)
+                                         probe=RESEARCH_PROBE, progress=progress)
     spp = verdict.spp
 
     valid = None

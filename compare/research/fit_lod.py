@@ -47,7 +47,7 @@ from pbrcheck.scene import Scene, scene_from_dict
 
 from .. import renderers
 from ..metrics import REL_EPS, pixel_classes
-from ..verdict_spp import DEFAULT_SPP_CAP, reference_for_verdict
+from ..verdict_spp import RESEARCH_PROBE, DEFAULT_SPP_CAP, reference_for_verdict
 from .monotone_fit import fit_lod_mapping, fit_lod_to_error, predicted_error
 from .results import ChainFit, FitLodResult, LodSample, MappingEval
 
@@ -223,8 +223,8 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     # The reference's spp: its noise floor 10x below the preset's own error on the fit scene (the
     # error every scanned level is measured against; compare.verdict_spp), at most spp_cap.
     own_img = renderers.render_under_test(fit_scene, preset, base, progress=False)
-    ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local", metric="relmse",
-                                         progress=progress)
+    ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local",
+                                         metric="relmse", probe=RESEARCH_PROBE, progress=progress)
     spp = verdict.spp
     M = o["prefilter_levels"] - 1
     cube_log2 = math.log2(o["cube_size"])

@@ -30,7 +30,7 @@ from pbrcheck.scene import Scene, load_scene, scene_from_dict
 
 from .. import renderers
 from ..metrics import compare_images
-from ..verdict_spp import reference_for_verdict
+from ..verdict_spp import RESEARCH_PROBE, reference_for_verdict
 from .results import HardcaseRow
 
 #: Resolution of the hard-case renders (the command's default; the tests use 16).
@@ -221,7 +221,8 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 if nf == 0:
                     imgs[p] = img
             ref, verdict = reference_for_verdict(sc, list(imgs.values()), spp=spp, cap=spp_cap, mode="local",
-                                                 metric="relmse", seed=0, use_cache=False, progress=progress)
+                                                 metric="relmse", probe=RESEARCH_PROBE, seed=0, use_cache=False,
+                                                 progress=progress)
             nf = _nonfinite(ref)
             ref_ok = nf == 0
             rows.append(HardcaseRow(name, "reference", None, finite=nf == 0, nonfinite=nf,
