@@ -119,6 +119,7 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
     params.update(opt)
     losses = []
     history: dict[str, list[np.ndarray]] = {k: [] for k in keys}
+    n = min(int(average_last), iterations)
     for it in range(iterations):
         if lr_final is not None and iterations > 1:
             opt.set_learning_rate(lr * (lr_final / lr) ** (it / (iterations - 1)))
@@ -126,12 +127,13 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
         loss = loss_fn(img, tgt)
         dr.backward(loss)
         opt.step()
+        keep = n > 1 and it >= iterations - n  # only the averaged iterates are read back
         for k in keys:
             opt[k] = dr.clip(opt[k], *bounds[k])
-            history[k].append(np.array(opt[k]))
+            if keep:
+                history[k].append(np.array(opt[k]))
         params.update(opt)
         losses.append(float(np.array(loss).ravel()[0]))
-    n = min(int(average_last), iterations)
     if n > 1:
         for k in keys:
             params[k] = type(params[k])(np.mean(history[k][-n:], axis=0))
