@@ -47,19 +47,17 @@ rebuild the kernel.
 
 from __future__ import annotations
 
-import math
-
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
 from pbrcheck.scene import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS
 
 from . import multiscatter
+from .terms import D_GGX, INV_PI, fresnel_term  # noqa: F401  (re-exported: this module's API too)
 
 import drjit as dr
 import mitsuba as mi
 
 PLUGIN_NAME = "pbr_material"
-INV_PI = 1.0 / math.pi
 
 
 def _log1p_neg(s):
@@ -80,13 +78,6 @@ def blinn_phong_exponent(alpha):
 
 
 # ---- NDFs D(h), h in the local frame -------------------------------------------------------------
-
-def D_GGX(h, alpha):
-    a2 = alpha * alpha
-    s = h.x * h.x + h.y * h.y
-    t = s / a2 + h.z * h.z
-    return dr.select(h.z > 0, INV_PI / (a2 * t * t), 0.0)
-
 
 def D_Beckmann(h, alpha):
     a2 = alpha * alpha
@@ -154,14 +145,6 @@ def geometry_term(geometry, NoV, NoL, roughness, alpha):
     else:
         raise ValueError(f"unknown geometry term {geometry!r}")
     return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
-
-
-def fresnel_term(fresnel, VoH, F0):
-    if fresnel == "none":
-        return mi.Color3f(1.0)
-    c = dr.clip(VoH, 0.0, 1.0)
-    w = dr.square(dr.square(1.0 - c)) * (1.0 - c)
-    return F0 + (1.0 - F0) * w
 
 
 def _divide(a, b):

@@ -135,6 +135,8 @@ from pbrcheck.registry import MULTISCATTER_GEOMETRY
 import drjit as dr
 import mitsuba as mi
 
+from .terms import D_GGX, INV_PI, fresnel_term
+
 #: Walks longer than this are cut (their remaining energy dropped; see the module docstring).
 MAX_SCATTERING_ORDER = 256
 #: |w.z| below which a ray is taken as horizontal (hits at its current height) [Heitz16 code].
@@ -153,7 +155,6 @@ VNDF_COT_MAX = 6.0
 VNDF_SLOPE_SPAN = 6.0
 INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
 
-INV_PI = 1.0 / math.pi
 _U24 = 1.0 / float(1 << 24)
 
 
@@ -220,14 +221,6 @@ def lambda_ggx(w, alpha):
     s2 = dr.maximum(w.x * w.x + w.y * w.y, 0.0)
     r = dr.sqrt(z * z + alpha * alpha * s2) / dr.maximum(dr.abs(z), 1e-20)
     return 0.5 * (-1.0 + dr.select(z >= 0, r, -r))
-
-
-def D_GGX(m, alpha):
-    """GGX NDF on the local normal ``m`` (stable form, same as :func:`reference.bsdf.D_GGX`)."""
-    a2 = alpha * alpha
-    s = m.x * m.x + m.y * m.y
-    t = s / a2 + m.z * m.z
-    return dr.select(m.z > 0, INV_PI / (a2 * t * t), 0.0)
 
 
 def erfcx_pos(z):
@@ -329,15 +322,6 @@ def sample_vndf(v, u1, u2, alpha):
     return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 1e-7)))
 
 
-def _fresnel(c, F0, fresnel):
-    """Schlick [Schlick94 eq. 15] at cosine ``c`` (clamped to [0, 1]), or 1 for ``none``."""
-    if fresnel == "none":
-        return mi.Color3f(1.0)
-    c = dr.clip(c, 0.0, 1.0)
-    w = dr.square(dr.square(1.0 - c)) * (1.0 - c)
-    return F0 + (1.0 - F0) * w
-
-
 def _next_height(w, L, u, alpha, ndf="ggx"):
     """(escaped, L') for a ray of direction ``w`` from log-height ``L`` [Heitz16 alg. 2]."""
     lam = lambda_ndf(w, alpha, ndf)
@@ -392,7 +376,7 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True
         m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
         c = dr.dot(v, m)
         wn = 2.0 * c * m - v
-        energy = dr.select(running, energy * _fresnel(c, F0, fresnel), energy)
+        energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
         wr = dr.select(running, wn, wr)
         running = running & (order < MAX_SCATTERING_ORDER)
         return wr, L, energy, order, k, running, escaped_any
@@ -429,12 +413,12 @@ def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_ord
         order = dr.select(running, order + 1, order)
         v = -wr
         ps, h = _phase_shadowed(v, wo, L, alpha, ndf)
-        contrib = energy * _fresnel(dr.dot(v, h), F0, fresnel) * ps
+        contrib = energy * fresnel_term(fresnel, dr.dot(v, h), F0) * ps
         use = running & (order >= min_order) & dr.isfinite(ps)
         total = dr.select(use, total + contrib, total)
         m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
         c = dr.dot(v, m)
-        energy = dr.select(running, energy * _fresnel(c, F0, fresnel), energy)
+        energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
         wr = dr.select(running, 2.0 * c * m - v, wr)
         running = running & (order < min(int(max_order), MAX_SCATTERING_ORDER))
         return wr, L, energy, total, order, k, running
@@ -491,7 +475,7 @@ def sample_hook(bsdf, ctx, si, sample1, sample2, active):
     pdf = p_spec * spec_pdf
     if bsdf.fresnel != "none":
         pdf += (1.0 - p_spec) * INV_PI * dr.maximum(NoL, 0.0)
-        F = _fresnel(dr.dot(wi, h), F0, bsdf.fresnel)
+        F = fresnel_term(bsdf.fresnel, dr.dot(wi, h), F0)
         w_diff = (1.0 - F) * (1.0 - bsdf.metallic) * bsdf.base_color / dr.maximum(1.0 - p_spec, 1e-20)
     else:
         w_diff = mi.Color3f(0.0)
