@@ -81,7 +81,7 @@ def raycast(scene):
     return rgb, aovs
 
 
-CALLS = {"reference": [], "realtime": []}
+CALLS = {"reference": [], "realtime": [], "cached": []}
 
 
 def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progress=True):
@@ -97,7 +97,10 @@ def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progr
 
 
 def fake_realtime(scene, preset="default", options=None, *, progress=True):
+    import compare.renderers as renderers
+
     CALLS["realtime"].append((preset, dict(options or {})))
+    CALLS["cached"].append(renderers._CACHE_REALTIME[0])
     rgb, aovs = raycast(scene)
     opts = dict(options or {})
     n = opts.get("prefilter_samples", 64)
@@ -197,6 +200,13 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
     assert html.index('id="summary"') < html.index('id="furnace-per-renderer"') < html.index('id="tiny"')
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]
     assert summary.count("<tr>") == 1 + 2 and "delta_e_itp_mean" in summary and "timed on" in summary
+    # every real-time render of the report may come from the content-addressed cache...
+    assert fakes["cached"] and all(fakes["cached"])
+    fakes["cached"].clear()
+    # ... and --no-cache renders them all
+    assert main(["report", str(scene_file), "--out", str(tmp_path / "r2"), "--spp", "16", "--quiet",
+                 "--no-cache", "--no-sweep", "--no-convergence"]) == 0
+    assert fakes["cached"] and not any(fakes["cached"])
 
 
 def test_sweep_writes_table_and_pareto_plot(fakes, scene_file, tmp_path, capsys):

@@ -76,12 +76,16 @@ def test_cli_exits_1_on_non_finite(tmp_path, monkeypatch, capsys):
     assert code == 1
     d = json.loads((tmp_path / "hardcases.json").read_text())
     assert d["all_finite"] is False
+    ref = [r for r in d["rows"] if r["renderer"] == "reference"][0]
+    assert ref["reference_spp"]["steps"][0][0] == 2  # the rule's outcome, from --spp up
     rt = [r for r in d["rows"] if r["renderer"] == "realtime"]
     assert rt[0]["nonfinite"] == 1
     assert "NO" in (tmp_path / "hardcases.md").read_text()
     monkeypatch.setattr(rr, "render_realtime", real)
     assert main(["hardcases", "--out", str(tmp_path), "--size", "8", "--spp", "2", "--cube-size", "16",
-                 "--cases", "roughness_1", "--presets", "default", "--quiet"]) == 0
+                 "--cases", "roughness_1", "--presets", "default", "--quiet", "--spp-cap", "2"]) == 0
+    ref = [r for r in json.loads((tmp_path / "hardcases.json").read_text())["rows"] if r["renderer"] == "reference"]
+    assert ref[0]["reference_spp"]["spp"] == 2 and ref[0]["reference_spp"]["cap"] == 2  # --spp-cap holds it
 
 
 def test_unknown_case_is_an_error():
