@@ -142,7 +142,7 @@ class ReferenceIntegrator(RBIntegrator):
         self.moments = bool(props.get("moments", False))
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
-        self._table = None  # (scene, MaterialView.table(scene))
+        self._table = None  # (the scene's shapes, MaterialView.table(scene))
         self.path = None
         if self.mode == "path":
             self.path = mi.load_dict({"type": "path", "max_depth": int(props.get("max_depth", 8))})
@@ -157,8 +157,13 @@ class ReferenceIntegrator(RBIntegrator):
         """The BSDF of each lane: a :class:`reference.bsdf.MaterialView` (one trace of the lobes for
         every material) where the scene's materials allow it, else Mitsuba's per-instance dispatch."""
         if self.gather_materials:
-            if self._table is None or self._table[0] is not scene:
-                self._table = (scene, MaterialView.table(scene))
+            # Keyed by the scene's shapes (the same Python objects on every call), not by the scene:
+            # a differentiable scene holds this integrator, so holding the scene would be a cycle
+            # Python cannot collect (Mitsuba objects take no weak references).
+            shapes = scene.shapes()
+            if (self._table is None or len(self._table[0]) != len(shapes)
+                    or any(a is not b for a, b in zip(self._table[0], shapes))):
+                self._table = (tuple(shapes), MaterialView.table(scene))
             if self._table[1] is not None:
                 return MaterialView.gather(self._table[1], si, hit)
         return si.bsdf(ray)

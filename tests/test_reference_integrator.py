@@ -202,3 +202,19 @@ def test_a_scene_with_another_bsdf_falls_back_to_per_instance_dispatch():
                              integrator=rr.load_integrator("local"), spp=4))
     assert np.isfinite(img).all() and img[..., :3].max() > 0
     assert MaterialView.table(rr.load_mitsuba_scene(_scene(size=12))) is not None
+
+
+def test_one_integrator_renders_two_scenes_each_with_its_own_materials():
+    """The material table is per scene: an integrator object reused across scenes (as a cached one
+    would be) gives each scene the pixels a fresh integrator gives it."""
+    mi, _ = _mi()
+    a, b = _scene(size=12, roughness=0.2, metallic=1.0), _scene(size=12, roughness=0.8, metallic=0.0)
+    sensor = mi.load_dict(ri.sensor_dict(a.camera, 8))
+    shared = rr.load_integrator("local")
+    out = {}
+    for name, sc in (("a", a), ("b", b), ("a2", a)):
+        ms = rr.load_mitsuba_scene(sc)
+        out[name] = np.array(mi.render(ms, sensor=sensor, integrator=shared, spp=8, seed=1))
+        fresh = np.array(mi.render(ms, sensor=sensor, integrator=rr.load_integrator("local"), spp=8, seed=1))
+        np.testing.assert_allclose(out[name], fresh, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(out["a"][..., :3], out["b"][..., :3])
