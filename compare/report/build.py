@@ -30,11 +30,12 @@ from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
+from ..research.fit_roughness import fit_scene
 from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import VerdictSpp, reference_for_verdict
 from .references import references_sections
-from .research_sections import research_sections
+from .research_sections import ResearchSettings, research_sections
 from .section import Section, Table
 from .summary import furnace_scene, furnace_section, summary_section
 from .summary import timed_on as timed_on_text
@@ -520,17 +521,18 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     # thread while this process renders the presets, references and maps.
     ext = [p for p in presets if renderers.is_external(p)]
     prefetch = [(load_scene(s), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if furnace else [])
-    with Progress("report", total=total, enabled=progress) as prog, renderers.realtime_cache(cache), \
-            renderers.prefetch_external(prefetch if spec is None else []), \
-            (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
-        st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
-                            spp_cap=None if spp_cap is None else int(spp_cap))
-        for s in scenes:
-            sections.append(_scene_section(s, out_dir, st, prog))
-        top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
-        top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
+    if research:  # fit-roughness's targets (the first scene at its fit size)
+        prefetch += [(fit_scene(load_scene(scenes[0]), ResearchSettings().fitrough_size), p) for p in ext]
     extras = list(extras or [])
-    with renderers.realtime_cache(cache):
+    with renderers.realtime_cache(cache), renderers.prefetch_external(prefetch if spec is None else []):
+        with Progress("report", total=total, enabled=progress) as prog, \
+                (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
+            st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
+                                spp_cap=None if spp_cap is None else int(spp_cap))
+            for s in scenes:
+                sections.append(_scene_section(s, out_dir, st, prog))
+            top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
+            top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
         extras += _research_and_hardcases(scenes, out_dir, presets, sections, research, hardcases, progress)
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(

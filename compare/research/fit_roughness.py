@@ -246,6 +246,14 @@ def fit_roughness(scene: Scene, target_rgb: np.ndarray, object_ids: np.ndarray, 
     return rows, list(losses)
 
 
+def fit_scene(scene: Scene, size: int | None) -> Scene:
+    """``scene`` at image height ``size`` (width keeps the aspect; None: as it is): the scene
+    :func:`run_fit_roughness` renders the target of and fits."""
+    if size is None:
+        return scene
+    return scene.with_camera(width=max(8, round(size * scene.camera.width / scene.camera.height)), height=int(size))
+
+
 def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | None = None,
                       size: int | None = None, iterations: int = ITERATIONS, lr: float = LR, spp: int = SPP,
                       scan: bool = True, scan_cache: dict | None = None) -> FitRoughnessResult:
@@ -253,9 +261,7 @@ def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | 
     per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss` over its
     pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``).
     ``scan_cache``: one dict passed to every preset's fit on the same scene shares the scan's renders."""
-    if size is not None:
-        scene = scene.with_camera(width=max(8, round(size * scene.camera.width / scene.camera.height)),
-                                  height=int(size))
+    scene = fit_scene(scene, size)
     img = renderers.render_under_test(scene, preset, options, progress=False)
     rows, trace = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp,
                                 scan=scan, scan_cache=scan_cache)
