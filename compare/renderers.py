@@ -13,7 +13,7 @@ API
 - :func:`prefetch_external` -- a context that renders some external renderers' images in a
   background thread while this process renders the rest (the report).
 - :func:`realtime_cache` -- a context in which :func:`render_under_test` serves real-time renders
-  from the content-addressed cache (:mod:`realtime.cache`; the report and the gate).
+  from the content-addressed cache (:mod:`realtime.cache`; the report).
 - :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
