@@ -344,22 +344,6 @@ class PBRMaterial(mi.BSDF):
     """``{"type": "pbr_material", "base_color": [r,g,b], "metallic", "roughness", "specular",
     "ndf", "geometry", "fresnel"}``."""
 
-    # The lobes are PBRLobes' functions, shared by reference (a nanobind class takes one base class,
-    # so PBRLobes cannot be a mixin here).
-    _nondelta = PBRLobes._nondelta
-    _alpha = PBRLobes._alpha
-    _glossy_alpha = PBRLobes._glossy_alpha
-    _f0 = PBRLobes._f0
-    _p_spec = PBRLobes._p_spec
-    _spec_pdf = PBRLobes._spec_pdf
-    _sample_h = PBRLobes._sample_h
-    _eval_pdf = PBRLobes._eval_pdf
-    _sample_single = PBRLobes._sample_single
-    eval = PBRLobes.eval
-    pdf = PBRLobes.pdf
-    eval_pdf = PBRLobes.eval_pdf
-    sample = PBRLobes.sample
-
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
 
@@ -420,6 +404,14 @@ class PBRMaterial(mi.BSDF):
 
     def eval_diffuse_reflectance(self, si, active=True):
         return (1.0 - self.metallic) * self.base_color
+
+
+# The lobes of PBRMaterial are PBRLobes' functions, shared by reference: a nanobind class takes one
+# base class, so PBRLobes cannot be a mixin of it.
+LOBE_METHODS = ("_nondelta", "_alpha", "_glossy_alpha", "_f0", "_p_spec", "_spec_pdf", "_sample_h", "_eval_pdf",
+                "_sample_single", "eval", "pdf", "eval_pdf", "sample")
+for _name in LOBE_METHODS:
+    setattr(PBRMaterial, _name, getattr(PBRLobes, _name))
 
 
 def is_mirror_limit(roughness):

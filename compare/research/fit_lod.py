@@ -267,7 +267,9 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             mappings={"fitted": MappingEval(None, mapping=fitted.to_json())}, reference_spp=verdict.to_dict())
         write_json_atomic(out, result)  # the fitted mapping must be on disk to render it
         for name in BUILTIN:
-            img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": name})
+            # the preset's own mapping is the image the spp rule already rendered
+            img = own_img if name == o["lod_mapping"] else renderers.render_under_test(
+                fit_scene, preset, {**base, "lod_mapping": name})
             result.mappings[name] = MappingEval(_scene_relmse(ref, img, valid),
                                                 [float(v) for v in builtin_lod(name, rr, M, cube_log2)])
             prog.update(1, f"evaluate {name}")
