@@ -27,6 +27,9 @@ Display-referred images (an external renderer that can only give 8-bit sRGB, ``o
 reference clamped to [0, 1] and sRGB-encoded as the engine did, without the noise floor;
 ``summary["space"]`` is ``display-referred`` (else ``linear``).
 
+FLIP maps are memoized per process by content (:data:`MAP_MEMO_SIZE`) and, inside
+:func:`map_cache` (the report), kept on disk by content.
+
 Noise floor (when the reference has ``variance.R/G/B``, the variance of its pixel estimate):
 ``mean_variance`` = mean of the variance channels over valid pixels; ``mse_corrected`` =
 mean (t - r)^2 - mean_variance (an unbiased estimate of the squared error against the converged
@@ -40,13 +43,17 @@ value (for ``psnr``, higher is better: no lower than the simulated value less
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import importlib.metadata
+import json
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.cache import Cache, cache_key
+from pbrcheck.errors import CacheError, PbrcheckError
 from pbrcheck.exr import RGB, VARIANCE, Image
 
 from .maps import srgb_oetf
@@ -169,16 +176,46 @@ def _flip_exposures(ref_rgb: np.ndarray) -> tuple[float, float]:
 #: the reference-spp rule and the final comparison, a preset and its research section).
 MAP_MEMO_SIZE = 48
 _map_memo: dict = {}
+#: Cache namespace of HDR-FLIP maps on disk (``$PBRCHECK_CACHE/flip``), used inside :func:`map_cache`.
+FLIP_NAMESPACE = "flip"
+#: Part of every FLIP cache key: bump when the way a map is computed here changes (the exposure
+#: range of :func:`_flip_exposures`, the clipping of :func:`flip_map`); flip-evaluator's own
+#: version is in the key too.
+FLIP_CODE_VERSION = 1
+#: The disk store of FLIP maps while :func:`map_cache` is active (None: compute every map).
+_MAP_STORE: list = [None]
 
 
-def _memo(kind: str, a: np.ndarray, b: np.ndarray, fn):
-    """``fn()`` memoized by ``kind`` and the bytes of ``a`` and ``b`` (a copy is returned)."""
-    h = hashlib.sha1(kind.encode())
+@contextlib.contextmanager
+def map_cache(enabled: bool = True):
+    """Within the ``with`` block, HDR-FLIP maps are also kept on disk by content
+    (:class:`pbrcheck.cache.Cache` namespace :data:`FLIP_NAMESPACE`): the key is the SHA-256 of both
+    images' bytes, shape and dtype, the exposure range, flip-evaluator's version and
+    :data:`FLIP_CODE_VERSION`, so a re-run of a report whose images did not change reads its maps
+    (a FLIP map is ~0.3-0.6 s of both cores at 360 x 300, ~180 per report). Outside the block, or
+    with ``enabled=False``, every map is computed (tests measure the metric, not a file)."""
+    old = _MAP_STORE[0]
+    _MAP_STORE[0] = Cache(FLIP_NAMESPACE) if enabled else None
+    try:
+        yield
+    finally:
+        _MAP_STORE[0] = old
+
+
+def _digest(kind: str, a: np.ndarray, b: np.ndarray) -> str:
+    """SHA-256 of ``kind`` and the dtype, shape and bytes of ``a`` and ``b``."""
+    h = hashlib.sha256(kind.encode())
     for x in (a, b):
         x = np.ascontiguousarray(x)
         h.update(f"{x.dtype}{x.shape}".encode())
         h.update(x.tobytes())
-    key = h.hexdigest()
+    return h.hexdigest()
+
+
+def _memo(kind: str, a: np.ndarray, b: np.ndarray, fn, key: str | None = None):
+    """``fn()`` memoized by ``kind`` and the bytes of ``a`` and ``b`` (or ``key``, their
+    :func:`_digest`, when the caller has it); a copy is returned."""
+    key = key or _digest(kind, a, b)
     hit = _map_memo.pop(key, None)
     if hit is None:
         hit = fn()
@@ -198,7 +235,36 @@ def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
         raise ComparisonError("FLIP input has NaN/Inf")
     r = np.ascontiguousarray(np.clip(ref_rgb, 0.0, None), dtype=np.float32)
     t = np.ascontiguousarray(np.clip(test_rgb, 0.0, None), dtype=np.float32)
-    return _memo("flip", r, t, lambda: _flip_map(r, t))
+    digest = _digest("flip", r, t)
+    return _memo("flip", r, t, lambda: _stored_flip_map(r, t, digest), key=digest)
+
+
+def _flip_version() -> str:
+    try:
+        return importlib.metadata.version("flip-evaluator")
+    except importlib.metadata.PackageNotFoundError:  # an unpackaged build: its module's file
+        import flip_evaluator
+
+        return str(getattr(flip_evaluator, "__file__", "unknown"))
+
+
+def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str) -> np.ndarray:
+    """:func:`_flip_map`, read from / written to the disk store of :func:`map_cache` when active.
+    A store that cannot be written is not an error (the map is returned; the next run computes it)."""
+    store = _MAP_STORE[0]
+    if store is None:
+        return _flip_map(r, t)
+    key = cache_key(kind="hdr-flip", inputs=digest, exposures=_flip_exposures(r), flip=_flip_version(),
+                    code=FLIP_CODE_VERSION)
+    img = store.get(key)
+    if img is not None and "flip" in img.channels and img.channels["flip"].shape == r.shape[:2]:
+        return np.asarray(img.channels["flip"], np.float32)
+    err = _flip_map(r, t)
+    try:
+        store.put(key, Image({"flip": err}, {"kind": "HDR-FLIP map", "exposures": json.dumps(_flip_exposures(r))}))
+    except CacheError:
+        pass
+    return err
 
 
 def _flip_map(r: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -370,12 +436,15 @@ def display_referred(img: Image) -> Image:
 
 
 def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
-                   ref_name: str = "reference", test_name: str = "test") -> Comparison:
+                   ref_name: str = "reference", test_name: str = "test", flip: bool = True,
+                   itp: bool = True) -> Comparison:
     """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be.
 
     When either image is display-referred (an 8-bit ``png-srgb`` engine), both are compared in
     display space (:func:`display_referred`: the same clamp and sRGB transfer applied to the other),
     without the noise floor, and ``summary["space"]`` says ``display-referred`` (else ``linear``).
+    ``flip=False`` / ``itp=False``: a caller that reads neither ``flip_mean`` nor ``delta_e_itp_*``
+    skips those maps (the costly part of a comparison); those metrics are then None.
     """
     space = "linear"
     if is_display_referred(ref) or is_display_referred(test):
@@ -385,7 +454,7 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     if not valid.any():
         raise ComparisonError(f"no valid pixel: {int(edge.sum())} edge and {int(background.sum())} "
                               "background pixel(s), no fully covered object pixel in both images")
-    m = pixel_maps(ref.rgb, test.rgb)
+    m = pixel_maps(ref.rgb, test.rgb, flip=flip, itp=itp)
     peak = psnr_peak(m, valid)
     summary: dict = {
         "space": space,
@@ -430,7 +499,8 @@ def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metric
     mse = _f((m.diff[valid] ** 2).mean())
     rng = np.random.default_rng(NOISE_SEED)
     sim_t = m.ref + np.sqrt(2.0 * var) * rng.standard_normal(m.ref.shape)
-    sim = pixel_maps(m.ref.astype(np.float32), sim_t.astype(np.float32))
+    sim = pixel_maps(m.ref.astype(np.float32), sim_t.astype(np.float32), flip=m.flip is not None,
+                     itp=m.dE is not None)
     sim_metrics = summarize(sim, valid, peak=peak)
     flags = {}
     for k in METRICS:

@@ -28,7 +28,7 @@ from .. import renderers
 from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure, write_flip_png, write_rel_png, write_tonemapped
-from ..metrics import METRICS, compare_images
+from ..metrics import METRICS, compare_images, map_cache
 from ..research.diagnose import diagnose
 from ..research.fit_roughness import fit_scene
 from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
@@ -359,7 +359,7 @@ def _convergence(scene, ref, spp: int, prog) -> list[dict]:
     conv = []
     for s in _convergence_spps(spp):
         low = renderers.render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
-        c = compare_images(ref, low, noise=False)
+        c = compare_images(ref, low, noise=False, flip=False, itp=False)  # reads mse and relmse only
         lv = low.variance
         exp = None
         if lv is not None and ref.variance is not None:
@@ -488,7 +488,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     and the random-walk reference (:mod:`compare.report.references`). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the presets'
     and the sweep's renders run there (:mod:`compare.corpus.renderlist`). ``cache``: real-time renders
     come from the content-addressed cache where their scene, options, shader and code are unchanged
-    (:func:`compare.renderers.realtime_cache`; their timings are those measured when rendered).
+    (:func:`compare.renderers.realtime_cache`; their timings are those measured when rendered), and
+    HDR-FLIP maps from the disk where both images are unchanged (:func:`compare.metrics.map_cache`).
 
     Raises
     ------
@@ -524,7 +525,7 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     if research:  # fit-roughness's targets (the first scene at its fit size)
         prefetch += [(fit_scene(load_scene(scenes[0]), ResearchSettings().fitrough_size), p) for p in ext]
     extras = list(extras or [])
-    with renderers.realtime_cache(cache), renderers.prefetch_external(prefetch if spec is None else []):
+    with renderers.realtime_cache(cache), map_cache(cache), renderers.prefetch_external(prefetch if spec is None else []):
         with Progress("report", total=total, enabled=progress) as prog, \
                 (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
             st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,

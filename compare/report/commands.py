@@ -79,8 +79,9 @@ def register(sub, bench_sub) -> None:
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.add_argument("--no-cache", action="store_true",
-                   help="render every real-time image (default: reuse a cached render whose scene, options, "
-                        "shader and code are unchanged; its timings are those measured when it was rendered)")
+                   help="render every real-time image and compute every FLIP map (default: reuse a cached "
+                        "render whose scene, options, shader and code are unchanged, its timings those measured "
+                        "when it was rendered, and a FLIP map whose two images are unchanged)")
     s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.add_argument("--corpus", action="append", metavar="DIR", help="add the section of a finished corpus "
                    "(the --out folder of pbrcheck corpus; repeatable)")

@@ -1,0 +1,109 @@
+"""HDR-FLIP maps on disk (compare.metrics.map_cache): inside the context a map whose two images are
+unchanged is read back, equal to the computed one; any change of either image is a miss; a corrupt
+entry is recomputed; outside the context (or disabled) nothing is read or written. And
+``compare_images(flip=False, itp=False)`` skips both maps (their metrics None, the rest unchanged)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from compare import metrics
+from pbrcheck.exr import Image
+
+
+@pytest.fixture
+def pair():
+    rng = np.random.default_rng(3)
+    a = (rng.random((12, 16, 3)) ** 4 * 20).astype(np.float32)
+    return a, (a * 1.1 + 0.01).astype(np.float32)
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Count evaluations by flip-evaluator; empty the per-process memo so only the disk can serve."""
+    calls = []
+    real = metrics._flip_map
+    monkeypatch.setattr(metrics, "_flip_map", lambda r, t: calls.append(1) or real(r, t))
+    monkeypatch.setattr(metrics, "_map_memo", {})
+    return calls
+
+
+def _entries(root):
+    return sorted(p for p in (root / metrics.FLIP_NAMESPACE).rglob("*.exr")) if (root / metrics.FLIP_NAMESPACE).exists() else []
+
+
+def test_a_stored_map_is_read_back_equal(tmp_cache, pair, counted, monkeypatch):
+    a, b = pair
+    with metrics.map_cache():
+        m1 = metrics.flip_map(a, b)
+    assert len(counted) == 1 and len(_entries(tmp_cache)) == 1
+    monkeypatch.setattr(metrics, "_map_memo", {})        # a new process: only the disk has it
+    with metrics.map_cache():
+        m2 = metrics.flip_map(a.copy(), b.copy())
+    assert len(counted) == 1                             # read, not computed
+    np.testing.assert_array_equal(m1, m2)
+    assert m2.dtype == np.float32 and m2.shape == a.shape[:2]
+
+
+def test_either_image_changed_is_a_miss(tmp_cache, pair, counted, monkeypatch):
+    a, b = pair
+    with metrics.map_cache():
+        metrics.flip_map(a, b)
+        b2 = b.copy()
+        b2[3, 4, 1] += 0.5
+        metrics.flip_map(a, b2)
+        a2 = a.copy()
+        a2[0, 0, 0] *= 2.0
+        metrics.flip_map(a2, b)
+    assert len(counted) == 3 and len(_entries(tmp_cache)) == 3
+
+
+def test_a_corrupt_entry_is_recomputed(tmp_cache, pair, counted, monkeypatch):
+    a, b = pair
+    with metrics.map_cache():
+        m1 = metrics.flip_map(a, b)
+    (entry,) = _entries(tmp_cache)
+    entry.write_bytes(b"not an exr")
+    monkeypatch.setattr(metrics, "_map_memo", {})
+    with metrics.map_cache():
+        m2 = metrics.flip_map(a, b)
+    assert len(counted) == 2
+    np.testing.assert_array_equal(m1, m2)
+
+
+def test_outside_the_context_or_disabled_nothing_is_stored(tmp_cache, pair, counted):
+    a, b = pair
+    metrics.flip_map(a, b)
+    with metrics.map_cache(False):
+        metrics.flip_map(a, b * 1.5)
+    assert _entries(tmp_cache) == [] and len(counted) == 2
+
+
+def test_the_key_has_the_flip_version_and_code_version(tmp_cache, pair, counted, monkeypatch):
+    a, b = pair
+    with metrics.map_cache():
+        metrics.flip_map(a, b)
+    monkeypatch.setattr(metrics, "_map_memo", {})
+    monkeypatch.setattr(metrics, "FLIP_CODE_VERSION", metrics.FLIP_CODE_VERSION + 1)
+    with metrics.map_cache():
+        metrics.flip_map(a, b)
+    monkeypatch.setattr(metrics, "_map_memo", {})
+    monkeypatch.setattr(metrics, "_flip_version", lambda: "0.0-other")
+    with metrics.map_cache():
+        metrics.flip_map(a, b)
+    assert len(counted) == 3
+
+
+def test_compare_without_flip_and_itp(pair, counted):
+    a, b = pair
+    ref, test = Image.from_rgb(a), Image.from_rgb(b)
+    full = metrics.compare_images(ref, test)
+    lean = metrics.compare_images(ref, test, flip=False, itp=False)
+    assert len(counted) == 1                              # the full comparison's map only
+    for k, v in lean.metrics.items():
+        if k in ("flip_mean", "delta_e_itp_mean", "delta_e_itp_p95"):
+            assert v is None
+        else:
+            assert v == pytest.approx(full.metrics[k], rel=1e-12), k
+    assert lean.maps.flip is None and lean.maps.dE is None
