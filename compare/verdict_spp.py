@@ -10,14 +10,16 @@ image). The floor falls as 1 / spp, so from a render at ``spp`` the spp needed i
 
 rounded up to a power of two (the cache then reuses the renders of other runs) and capped at
 ``cap``; at the cap the verdict is flagged **noise-limited**. Without a ``cap`` it follows from a time
-budget: the largest power of two whose render, at the seconds per spp of the first render (its
-``seconds`` metadata), fits in ``time_budget_s`` (at most :data:`HARD_SPP_CAP`). So a GPU, ~50x
+budget: the largest power of two whose render, at the seconds per spp of the first render
+(:func:`seconds_per_spp`: on a CPU its CPU time over its threads, so the load of other processes
+does not move it), fits in ``time_budget_s`` (at most :data:`HARD_SPP_CAP`). So a GPU, ~50x
 faster, reaches the floor where a CPU stops at the cap (spheres at 360 x 300 needs ~10^4 spp: the
 default preset's corrected MSE is 1.8e-4, the local estimator's per-sample variance 0.17). Renders go through the seam
 ``compare.renderers.render_reference`` (cached by spp), so a re-run costs nothing.
 
 API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
-:func:`noise_and_error`, :func:`reference_for_verdict`, :func:`verdict_of`, :func:`cap_for_time`.
+:func:`noise_and_error`, :func:`reference_for_verdict`, :func:`verdict_of`, :func:`cap_for_time`,
+:func:`seconds_per_spp`.
 """
 
 from __future__ import annotations
@@ -35,12 +37,15 @@ from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
 #: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of
-#: the spheres scene (360 x 300) is about 2 min on 2 CPU cores and a second on an H100.
+#: the spheres scene (360 x 300) is about 22 s on 2 CPU cores (19.8 M samples/s) and well under a
+#: second on an H100.
 DEFAULT_SPP_CAP = 4096
 #: Largest spp a time budget may allow (2^16: 7 G samples on spheres; a few seconds on an H100).
 HARD_SPP_CAP = 1 << 16
-#: Default time budget of one scene's reference in the report (seconds of rendering).
-DEFAULT_TIME_BUDGET_S = 30.0
+#: Default time budget of one scene's reference in the report (seconds of rendering on this
+#: machine's cores, :func:`seconds_per_spp`): 2048 spp of the spheres scene (360 x 300) on 2 CPU
+#: cores (noise-limited, flagged), the whole noise floor (~10^4 spp) in a second of an H100.
+DEFAULT_TIME_BUDGET_S = 15.0
 #: Errors below this (squared radiance) count as "no error": a preset equal to the reference within
 #: float32 rounding would otherwise ask for infinite spp.
 MIN_TRUSTED_MSE = 1e-9
@@ -156,13 +161,28 @@ def verdict_of(ref: Image, noise: dict | None, factor: float = NOISE_FLOOR_FACTO
     return VerdictSpp(spp, floor, err, ratio, bool(ratio < factor), spp, factor, [[spp, floor, err, need]])
 
 
+def seconds_per_spp(ref: Image, spp: int) -> float:
+    """Seconds one spp of ``ref``'s render takes on this machine's cores, NaN when unknown.
+
+    On Dr.Jit's LLVM backend: the render's CPU time over its thread count (``render_cpu_seconds /
+    threads``), i.e. its wall time with the cores to itself: the report renders while the
+    external renderers' browsers run in the background, and wall time under that load made the
+    same scene's budget 1024 spp in one run and 2048 in another (the cap, and so the cached
+    reference and the verdict, followed the machine's load). On a GPU, and for an image without
+    those fields, the render's wall time (``render_seconds``, else ``seconds``: an older cache entry)."""
+    m = ref.meta
+    try:
+        if str(m.get("variant", "")).startswith("llvm") and "render_cpu_seconds" in m and int(m.get("threads", 0)) > 0:
+            return float(m["render_cpu_seconds"]) / int(m["threads"]) / spp
+        return float(m.get("render_seconds", m.get("seconds", "nan"))) / spp
+    except ValueError:
+        return math.nan
+
+
 def cap_for_time(ref: Image, spp: int, time_budget_s: float) -> int:
     """The largest power-of-two spp (>= ``spp``, <= :data:`HARD_SPP_CAP`) whose render fits in
-    ``time_budget_s`` at the seconds per spp of ``ref`` (rendered at ``spp``)."""
-    try:
-        per = float(ref.meta.get("seconds", "nan")) / spp
-    except ValueError:
-        per = math.nan
+    ``time_budget_s`` at the :func:`seconds_per_spp` of ``ref`` (rendered at ``spp``)."""
+    per = seconds_per_spp(ref, spp)
     if not (per > 0) or not math.isfinite(per):
         return max(int(spp), DEFAULT_SPP_CAP)
     n = 1 << max(0, int(math.floor(math.log2(max(time_budget_s / per, 1.0)))))

@@ -198,8 +198,9 @@ def test_meta_and_channels():
 
     assert m["scene_hash"] == scene_hash(scene)
     for k in ("spp", "mode", "seed", "variant", "pbrcheck_version", "mitsuba_version", "drjit_version",
-              "variance_method", "seconds"):
+              "variance_method", "seconds", "render_seconds", "render_cpu_seconds", "threads"):
         assert m.get(k), k
+    assert 0 < float(m["render_seconds"]) <= float(m["seconds"]) and int(m["threads"]) >= 1
     obj = img.channels["object"]
     assert set(np.unique(obj)) == {-1.0, 0.0}
     bg = obj == -1

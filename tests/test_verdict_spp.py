@@ -88,6 +88,22 @@ def test_cap_from_a_time_budget():
     assert vs.cap_for_time(Image.from_rgb(TRUTH, {}, **_aovs()), 64, 30.0) == vs.DEFAULT_SPP_CAP
 
 
+def test_cpu_render_rate_is_its_cpu_time_over_its_threads():
+    """On the LLVM backend the budget reads the render's CPU time over its threads, which other
+    processes sharing the cores do not inflate; its wall time (here doubled by such a load) is not
+    used. On a GPU, and for an entry without those fields, the wall time is."""
+    loaded = {"spp": "256", "seconds": "6.0", "render_seconds": "4.4", "render_cpu_seconds": "3.6",
+              "threads": "2", "variant": "llvm_ad_rgb"}
+    img = Image.from_rgb(TRUTH, loaded, **_aovs())
+    assert vs.seconds_per_spp(img, 256) == pytest.approx(1.8 / 256)
+    assert vs.cap_for_time(img, 256, 15.0) == 2048                 # 15 s / 7 ms -> 2133 -> 2048
+    gpu = Image.from_rgb(TRUTH, {**loaded, "variant": "cuda_ad_rgb"}, **_aovs())
+    assert vs.seconds_per_spp(gpu, 256) == pytest.approx(4.4 / 256)  # a GPU: the render's wall time
+    old = Image.from_rgb(TRUTH, {"spp": "256", "seconds": "6.0", "variant": "llvm_ad_rgb"}, **_aovs())
+    assert vs.seconds_per_spp(old, 256) == pytest.approx(6.0 / 256)  # an older cache entry: its wall time
+    assert math.isnan(vs.seconds_per_spp(Image.from_rgb(TRUTH, {"seconds": "x"}, **_aovs()), 256))
+
+
 def test_report_default_cap_follows_the_time_budget(monkeypatch):
     def slow_reference(scene, *, spp, **kw):
         img = fake_reference(scene, spp=spp, **kw)
