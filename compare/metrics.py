@@ -48,6 +48,7 @@ import hashlib
 import importlib.metadata
 import json
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -184,6 +185,9 @@ FLIP_NAMESPACE = "flip"
 FLIP_CODE_VERSION = 1
 #: The disk store of FLIP maps while :func:`map_cache` is active (None: compute every map).
 _MAP_STORE: list = [None]
+#: FLIP maps this process read from the disk store (``hit``), computed and stored (``miss``) and
+#: computed outside :func:`map_cache` (``off``); per-process memo hits are not counted.
+FLIP_STORE_COUNTS: Counter = Counter()
 
 
 @contextlib.contextmanager
@@ -253,12 +257,15 @@ def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str) -> np.ndarray:
     A store that cannot be written is not an error (the map is returned; the next run computes it)."""
     store = _MAP_STORE[0]
     if store is None:
+        FLIP_STORE_COUNTS["off"] += 1
         return _flip_map(r, t)
     key = cache_key(kind="hdr-flip", inputs=digest, exposures=_flip_exposures(r), flip=_flip_version(),
                     code=FLIP_CODE_VERSION)
     img = store.get(key)
     if img is not None and "flip" in img.channels and img.channels["flip"].shape == r.shape[:2]:
+        FLIP_STORE_COUNTS["hit"] += 1
         return np.asarray(img.channels["flip"], np.float32)
+    FLIP_STORE_COUNTS["miss"] += 1
     err = _flip_map(r, t)
     try:
         store.put(key, Image({"flip": err}, {"kind": "HDR-FLIP map", "exposures": json.dumps(_flip_exposures(r))}))

@@ -21,6 +21,8 @@ API
   after checking that it exists.
 - :func:`multiscatter_albedo` -- the reference random walk's directional albedo
   (:func:`reference.multiscatter_measure.directional_albedo`).
+- :func:`backends` -- the GL renderer and the reference's variant this process renders with.
+- :data:`CACHE_COUNTS` -- hits and misses of the real-time and reference caches in this process.
 - :func:`trim_caches` -- bound the renderers' per-process caches to a few environments (corpus
   workers, :func:`realtime.render.trim_environment_caches`).
 """
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 
 from clients import config as _clients_config
@@ -37,15 +40,23 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image
 from pbrcheck.scene import Scene
 from realtime import cache as _realtime_cache
+from realtime import gl as _realtime_gl
 from realtime import presets as _presets
 from realtime import render as _realtime
 from reference import render as _reference
 
 
+#: Hits, misses and uncached renders (``off``) of the renderers' caches in this process, by renderer
+#: kind (:mod:`compare.report.runlog` reports a run's share).
+CACHE_COUNTS: dict[str, Counter] = {"realtime": Counter(), "reference": Counter()}
+
+
 def render_reference(scene: Scene, **kwargs) -> Image:
     """The reference image of ``scene``; keyword arguments as :func:`reference.render.render_reference`
     (``spp``, ``mode``, ``seed``, ``use_cache``, ``progress``)."""
-    return _reference.render_reference(scene, **kwargs)
+    img = _reference.render_reference(scene, **kwargs)
+    CACHE_COUNTS["reference"][img.meta.get("cache", "off")] += 1
+    return img
 
 
 def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False) -> Image:
@@ -80,8 +91,21 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
                 return fut.result()
         return _clients.render_external(scene, name, progress=progress)
     if _CACHE_REALTIME[0]:
-        return _realtime_cache.render_cached(scene, name, options, progress=progress)
+        img = _realtime_cache.render_cached(scene, name, options, progress=progress)
+        CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
+        return img
+    CACHE_COUNTS["realtime"]["off"] += 1
     return _realtime.render_realtime(scene, name, options, progress=progress)
+
+
+def backends() -> dict:
+    """What this process renders with: the GL renderer and clock of the real-time renders and the
+    reference's Mitsuba variant (``None`` for a renderer this process has not started)."""
+    from reference import variant as _variant  # local: only reads the chosen variant, sets nothing
+
+    gl = _realtime_gl.current_renderer_name()
+    return {"gl_renderer": gl, "timing_clock": _realtime_gl.timing_clock(gl) if gl else None,
+            "reference_variant": _variant.chosen_variant()}
 
 
 #: The futures of :func:`prefetch_external` contexts, by (scene content, renderer name).

@@ -72,6 +72,11 @@ def renderer_name() -> str:
     return str(get_context().info.get("GL_RENDERER", "?"))
 
 
+def current_renderer_name() -> str | None:
+    """:func:`renderer_name` when this process has created its GL context, else None (creates nothing)."""
+    return renderer_name() if _ctx is not None else None
+
+
 #: GL_RENDERER substrings of Mesa's CPU rasterizers, where a GL timer query measures nothing useful
 #: (the work runs on the CPU, partly at glFinish) and the wall clock is used instead.
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")

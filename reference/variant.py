@@ -26,6 +26,11 @@ def _works(variant: str) -> bool:
     return True
 
 
+def chosen_variant() -> str | None:
+    """The variant :func:`ensure_variant` chose in this process, None before it ran (sets nothing)."""
+    return _chosen
+
+
 def ensure_variant() -> str:
     """Set (once per process) and return the variant the reference renders with; registers the BSDF
     and the integrator."""

@@ -166,7 +166,7 @@ def check_offline_html(index: Path):
     return p.refs
 
 
-def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
+def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache, monkeypatch):
     out = tmp_path / "report"
     rc = main(["report", str(scene_file), "--out", str(out), "--spp", "16", "--quiet"])
     assert rc == 0
@@ -203,10 +203,30 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache):
     # every real-time render of the report may come from the content-addressed cache...
     assert fakes["cached"] and all(fakes["cached"])
     fakes["cached"].clear()
-    # ... and --no-cache renders them all
+    # ... and --no-cache renders them all (and computes every FLIP map: no per-process memo either)
+    import compare.metrics
+
+    monkeypatch.setattr(compare.metrics, "_map_memo", {})
     assert main(["report", str(scene_file), "--out", str(tmp_path / "r2"), "--spp", "16", "--quiet",
                  "--no-cache", "--no-sweep", "--no-convergence"]) == 0
     assert fakes["cached"] and not any(fakes["cached"])
+    # where the time went: run.json and the page's last section (stages, the caches' counts)
+    run = json.loads((out / "run.json").read_text())
+    names = [x["name"] for x in run["stages"]]
+    for stage in ("tiny: renderers under test", "tiny: reference", "tiny: comparisons and diagnose", "tiny: sweep",
+                  "tiny: convergence", "summary and furnace", "both references"):
+        assert stage in names, stage
+    assert run["wall_s"] >= sum(x["wall_s"] for x in run["stages"]) > 0 and run["cores"] >= 1
+    assert run["caches"].get("flip_miss", 0) > 0 and not run["caches"].get("flip_hit")
+    assert 'id="run"' in html and "Where this report" in html and html.index('id="tiny"') < html.index('id="run"')
+    r2 = json.loads((tmp_path / "r2" / "run.json").read_text())
+    assert r2["caches"].get("flip_off", 0) > 0 and not r2["caches"].get("flip_miss")
+    assert "tiny: convergence" not in [x["name"] for x in r2["stages"]] and "tiny: sweep" not in [x["name"] for x in r2["stages"]]
+    # again with the cache, in a "new process" (no per-process memo): unchanged pairs' FLIP maps are read back
+    monkeypatch.setattr(compare.metrics, "_map_memo", {})
+    assert main(["report", str(scene_file), "--out", str(tmp_path / "r3"), "--spp", "16", "--quiet"]) == 0
+    r3 = json.loads((tmp_path / "r3" / "run.json").read_text())
+    assert r3["caches"].get("flip_hit", 0) > 0 and not r3["caches"].get("flip_miss")
 
 
 def test_sweep_writes_table_and_pareto_plot(fakes, scene_file, tmp_path, capsys):

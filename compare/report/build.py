@@ -37,6 +37,7 @@ from ..verdict_spp import VerdictSpp, reference_for_verdict
 from .references import references_sections
 from .research_sections import ResearchSettings, research_sections
 from .section import Section, Table
+from .runlog import RUN_FILE, RunLog, recording, run_section, stage
 from .summary import furnace_scene, furnace_section, summary_section
 from .summary import timed_on as timed_on_text
 from .sweep import (combinations, image_timings, parse_vary, plot_speed_error, sweep_rows, timed_on,
@@ -378,11 +379,14 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     sd.mkdir(parents=True, exist_ok=True)
     # The renderers under test first: the reference's spp is chosen so that its noise floor sits
     # NOISE_FLOOR_FACTOR below the smallest of their errors (compare.verdict_spp), at most spp_cap.
-    if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
-        images = dict(zip(st.presets, renderlist.render_images(st.executor, scene, [(p, None) for p in st.presets])))
-    else:
-        images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
-    ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
+    with stage(f"{scene.name}: renderers under test"):
+        if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
+            images = dict(zip(st.presets, renderlist.render_images(st.executor, scene,
+                                                                   [(p, None) for p in st.presets])))
+        else:
+            images = {p: renderers.render_under_test(scene, p, None, progress=False) for p in st.presets}
+    with stage(f"{scene.name}: reference"):
+        ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
     prog.update(1, f"{scene.name}: reference ({verdict.spp} spp)")
     write_tonemapped(sd / "reference.png", ref.rgb)
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
@@ -390,7 +394,8 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     provenance.append(("reference spp rule", verdict.provenance()))
     noise_floor = None
     for preset in st.presets:
-        res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, images[preset])
+        with stage(f"{scene.name}: comparisons and diagnose"):
+            res, cmp, img = _measure_preset(scene, ref, preset, sd, sid, images[preset])
         if cmp.summary["noise"] is not None:
             noise_floor = cmp.summary["noise"]["mean_variance"]
         results.append(res)
@@ -415,7 +420,8 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     combos = combinations(st.vary) if st.vary else (default_sweep(st.presets[0]) if st.sweep else [])
     sweep_table = []
     if combos:
-        srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog, executor=st.executor)
+        with stage(f"{scene.name}: sweep"):
+            srows = sweep_rows(scene, ref, combos, preset=st.presets[0], progress=prog, executor=st.executor)
         write_table(sd, srows, sorted({k for c in combos for k in c}))
         for r in srows:
             label = ",".join(f"{k}={v}" for k, v in r["options"].items())
@@ -425,7 +431,10 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
                           f"{scene.name}: speed against error")
     plots.append({"title": "Speed against error (presets" + (" and sweep" if sweep_table else "") + ")",
                   "src": f"{sid}/{sp.name}", "note": "Red: Pareto front (no other point is both faster and more accurate)."})
-    conv = _convergence(scene, ref, verdict.spp, prog) if st.convergence else []
+    conv = []
+    if st.convergence:
+        with stage(f"{scene.name}: convergence"):
+            conv = _convergence(scene, ref, verdict.spp, prog)
     if conv:
         cp = plot_convergence(sd / "convergence.png", conv, verdict.spp, noise_floor, {r.preset: r.mse for r in results})
         if cp:
@@ -525,16 +534,22 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     if research:  # fit-roughness's targets (the first scene at its fit size)
         prefetch += [(fit_scene(load_scene(scenes[0]), ResearchSettings().fitrough_size), p) for p in ext]
     extras = list(extras or [])
-    with renderers.realtime_cache(cache), map_cache(cache), renderers.prefetch_external(prefetch if spec is None else []):
+    with recording(RunLog()) as log, renderers.realtime_cache(cache), map_cache(cache), \
+            renderers.prefetch_external(prefetch if spec is None else []):
         with Progress("report", total=total, enabled=progress) as prog, \
                 (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
             st = ReportSettings(list(presets), spp, vary_d, convergence, sweep, executor=ex,
                                 spp_cap=None if spp_cap is None else int(spp_cap))
             for s in scenes:
                 sections.append(_scene_section(s, out_dir, st, prog))
-            top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
-            top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both references
+            with stage("summary and furnace"):
+                top = [summary_section(sections)] + ([furnace_section(list(presets), spp, prog)] if furnace else [])
+            with stage("both references"):
+                top += references_sections(scenes, sections, list(presets), out_dir, prog)  # ext:NAME vs both
         extras += _research_and_hardcases(scenes, out_dir, presets, sections, research, hardcases, progress)
+    run = log.to_dict()
+    write_json_atomic(out_dir / RUN_FILE, run, indent=1)
+    extras.append(run_section(run))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
         scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
@@ -554,8 +569,9 @@ def _research_and_hardcases(scenes, out_dir: Path, presets, sections, research: 
     if hardcases:
         # The shipped shaders' robustness: real-time presets only (an external engine's hard cases
         # cost a browser start each; `pbrcheck hardcases --presets ext:NAME` runs them on their own).
-        extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not renderers.is_external(p)],
-                                        progress))
+        with stage("hard cases"):
+            extras.append(hardcases_section(out_dir / "hardcases",
+                                            [p for p in presets if not renderers.is_external(p)], progress))
     return extras
 
 

@@ -1,8 +1,10 @@
-"""CLI subcommands of the report layer (registered by :mod:`pbrcheck.cli`): ``report``, ``sweep`` and
-``demo`` (the main job). Library errors propagate; only :mod:`pbrcheck.cli` maps them to exit codes."""
+"""CLI subcommands of the report layer (registered by :mod:`pbrcheck.cli`): ``report``, ``sweep``,
+``demo`` (the main job) and ``bench report``. Library errors propagate; only :mod:`pbrcheck.cli` maps them to exit codes."""
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
 from pathlib import Path
 
@@ -16,6 +18,7 @@ from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
 from .corpus_section import corpus_section
+from .runlog import bench_report
 from .sweep import parse_vary, run_sweep
 
 
@@ -52,6 +55,15 @@ def _cmd_demo(args) -> int:
     return demo.run(args)
 
 
+def _cmd_bench_report(args) -> int:
+    rargs = list(args.report_args or [])
+    if rargs and rargs[0] == "--":
+        rargs = rargs[1:]
+    res = bench_report(rargs or None, fresh_home=not args.keep_home)
+    print(json.dumps(res, indent=2))
+    return 0
+
+
 def register(sub, bench_sub) -> None:
     """Add ``report``, ``sweep`` and ``demo`` to the ``pbrcheck`` parser."""
     s = sub.add_parser("report", help="render, compare and write a static HTML accuracy report")
@@ -66,7 +78,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp", type=int, default=64, help="least reference samples per pixel (default 64); more "
                    "are rendered until the reference's noise floor is 10x below the smallest error reported")
     s.add_argument("--spp-cap", type=int, default=None, metavar="N",
-                   help="most reference samples per pixel (default: as many as render in 30 s per scene); "
+                   help="most reference samples per pixel (default: as many as render in 15 s per scene); "
                         "at the cap a verdict is flagged noise-limited")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="sweep these real-time options (repeatable, every combination); default: the main cost "
@@ -100,6 +112,14 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--scheduler", metavar="SPEC", help=SCHEDULER_HELP + " (default: this process)")
     s.set_defaults(func=_cmd_sweep)
 
+
+    b = bench_sub.add_parser("report", help="the report's wall time, first run (empty caches) and again, with "
+                             "where it went and the goal (JSON)")
+    b.add_argument("--keep-home", action="store_true", help="keep HOME (Dr.Jit's kernel cache and Mesa's shader "
+                   "cache warm); default: a temporary HOME, as on a fresh machine")
+    b.add_argument("report_args", nargs=argparse.REMAINDER, metavar="-- REPORT ARGS",
+                   help="arguments of pbrcheck report (default: those of `make report`)")
+    b.set_defaults(func=_cmd_bench_report)
 
     s = sub.add_parser("demo", help="the main job on the default scene (what `make demo` runs)")
     s.add_argument("--scene", default=DEFAULT_SCENE)

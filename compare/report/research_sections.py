@@ -31,6 +31,7 @@ from ..research.fit_lod import run_fit_lod
 from ..research.fit_roughness import run_fit_roughness
 from ..research.results import ApparentRoughness
 from ..verdict_spp import VerdictSpp
+from .runlog import stage
 from .section import Section, Table
 
 @dataclass(frozen=True)
@@ -293,10 +294,14 @@ def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, rep
                       st: ResearchSettings = ResearchSettings(), progress: bool = False) -> list[Section]:
     """The research sections for ``scene_name`` (files under ``out_dir``); ``energy`` is scene-independent."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, st=st, progress=progress)]
-    secs.append(explain_section(scene_name, out_dir, st=st, progress=progress))
-    secs.append(fit_roughness_section(scene_name, out_dir, presets, st=st, progress=progress))
-    secs.append(energy_section(out_dir, st=st, progress=progress))
+    with stage("research: fit-lod"):
+        secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, st=st, progress=progress)]
+    with stage("research: explain"):
+        secs.append(explain_section(scene_name, out_dir, st=st, progress=progress))
+    with stage("research: fit-roughness"):
+        secs.append(fit_roughness_section(scene_name, out_dir, presets, st=st, progress=progress))
+    with stage("research: energy"):
+        secs.append(energy_section(out_dir, st=st, progress=progress))
     return secs
 
 

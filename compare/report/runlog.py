@@ -1,0 +1,187 @@
+"""Where a report's time went: wall and CPU seconds per stage, and what its caches served.
+
+A report is long work on a CPU (minutes on 2 cores, most of it GL compute on llvmpipe, the
+reference's kernels, HDR-FLIP and the browsers of external renderers), so it says where its own time
+went: :func:`build_report <compare.report.build.build_report>` records each stage (a scene's renders,
+its reference, its comparisons, sweep and convergence; the summary and reference sections; each
+research section; the hard cases) with :func:`stage`, counts the hits and misses of the three
+caches (real-time renders, references, FLIP maps), writes ``run.json`` beside ``index.html`` and
+shows the table at the end of the page. ``pbrcheck bench report`` (:func:`bench_report`) runs the
+report twice in fresh processes, first with empty caches (a first run on a fresh machine), then
+again, and prints both runs' figures with the goal.
+
+Stages are sequential and flat; a stage's CPU seconds are this process's (every thread: llvmpipe's
+and Dr.Jit's workers included), so ``cpu / wall`` near the core count means the stage kept the
+machine busy. External renderers render in a background thread and in their own processes (a
+browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
+
+API: :class:`RunLog`, :func:`recording`, :func:`stage`, :func:`run_section`, :func:`bench_report`,
+:data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from pbrcheck.errors import PbrcheckError
+
+from .. import renderers
+from ..metrics import FLIP_STORE_COUNTS
+from .section import Section, Table
+
+#: The run log's file in the report folder.
+RUN_FILE = "run.json"
+#: Goals of the report's wall time (issue 12): on 2 CPU cores, and on a machine with a GPU.
+REPORT_GOAL_S = {"cpu": 120.0, "gpu": 30.0}
+#: The report that ``make report`` builds (``pbrcheck bench report``'s default arguments).
+MAKE_REPORT_ARGS = ("spheres", "furnace", "grazing", "--spp", "256", "--with", "ext:threejs,ext:sample-viewer",
+                    "--hardcases", "--research")
+
+
+@dataclass
+class Stage:
+    """One stage: its name, wall and CPU seconds."""
+    name: str
+    wall_s: float
+    cpu_s: float
+
+
+@dataclass
+class RunLog:
+    """Stages of one report run and the caches' counts over it (:meth:`to_dict` for ``run.json``)."""
+    stages: list = field(default_factory=list)
+    _t0: float = field(default_factory=time.perf_counter)
+    _c0: float = field(default_factory=time.process_time)
+    _counts0: dict = field(default_factory=lambda: _counts())
+
+    @contextlib.contextmanager
+    def stage(self, name: str):
+        w, c = time.perf_counter(), time.process_time()
+        try:
+            yield
+        finally:
+            self.stages.append(Stage(name, time.perf_counter() - w, time.process_time() - c))
+
+    def to_dict(self) -> dict:
+        now = _counts()
+        caches = {k: now[k] - self._counts0.get(k, 0) for k in now}
+        ch = os.times()
+        return {
+            "wall_s": time.perf_counter() - self._t0,
+            "cpu_s": time.process_time() - self._c0,
+            "children_cpu_s": ch.children_user + ch.children_system,
+            "cores": os.cpu_count(),
+            "backends": renderers.backends(),
+            "caches": caches,
+            "stages": [asdict(s) for s in self.stages],
+        }
+
+
+def _counts() -> dict:
+    """The caches' hit and miss counts of this process so far."""
+    out = {f"{kind}_{k}": v for kind, d in renderers.CACHE_COUNTS.items() for k, v in d.items()}
+    out.update({f"flip_{k}": v for k, v in FLIP_STORE_COUNTS.items()})
+    return out
+
+
+_ACTIVE: list = [None]
+
+
+@contextlib.contextmanager
+def recording(log: RunLog):
+    """Within the block, :func:`stage` records into ``log``."""
+    old = _ACTIVE[0]
+    _ACTIVE[0] = log
+    try:
+        yield log
+    finally:
+        _ACTIVE[0] = old
+
+
+def stage(name: str):
+    """A context that records stage ``name`` into the active :class:`RunLog` (a no-op outside
+    :func:`recording`)."""
+    log = _ACTIVE[0]
+    return log.stage(name) if log is not None else contextlib.nullcontext()
+
+
+def run_section(run: dict) -> Section:
+    """The page's section of a run log (:meth:`RunLog.to_dict`): one row per stage, then the caches."""
+    b = run.get("backends") or {}
+    c = run.get("caches") or {}
+
+    def cache(kind: str) -> str:
+        return ", ".join(f"{c[f'{kind}_{k}']} {k}" for k in ("hit", "miss", "off") if c.get(f"{kind}_{k}"))
+
+    wall = run["wall_s"]
+    rows = [[x["name"], f"{x['wall_s']:.1f}", f"{100.0 * x['wall_s'] / wall:.0f} %" if wall > 0 else "",
+             f"{x['cpu_s'] / x['wall_s']:.2f}" if x["wall_s"] > 0 else ""] for x in run["stages"]]
+    rest = wall - sum(x["wall_s"] for x in run["stages"])
+    rows.append(["(set-up, validation, waiting on background work)", f"{rest:.1f}",
+                 f"{100.0 * rest / wall:.0f} %" if wall > 0 else "", ""])
+    note = (f"This run: {wall:.1f} s wall, {run['cpu_s']:.1f} s CPU in this process on {run['cores']} core(s) "
+            f"(external renderers' browsers run beside it in their own processes); GL renderer "
+            f"{b.get('gl_renderer') or 'n/a'}, reference variant {b.get('reference_variant') or 'n/a'}. "
+            f"Caches: real-time renders {cache('realtime') or 'none'}; references {cache('reference') or 'none'}; "
+            f"FLIP maps {cache('flip') or 'none'}. `pbrcheck bench report` measures a first run (empty "
+            f"caches) and a second one. File: {RUN_FILE}.")
+    return Section("run", "Where this report's time went", note,
+                   [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)])
+
+
+class BenchReportError(PbrcheckError):
+    """A report run of ``pbrcheck bench report`` failed (its exit status and the end of its output)."""
+
+
+def _run(args: list[str], out: Path, env: dict) -> dict:
+    cmd = [sys.executable, "-m", "pbrcheck.cli", "report", *args, "--out", str(out), "--quiet"]
+    t = time.perf_counter()
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if p.returncode != 0:
+        raise BenchReportError(f"bench report: `{' '.join(cmd)}` exited {p.returncode}:\n{p.stderr[-2000:]}")
+    run = json.loads((out / RUN_FILE).read_text())
+    run["process_wall_s"] = wall  # with the interpreter's start and imports
+    return run
+
+
+def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, progress: bool = True) -> dict:
+    """Run ``pbrcheck report ARGS`` twice, each in a new process: ``first`` with empty caches (a
+    temporary ``PBRCHECK_CACHE`` and, with ``fresh_home``, a temporary ``HOME``, so Dr.Jit's kernel
+    cache and Mesa's shader cache start empty too: a first run on a fresh machine), then ``again``
+    with the caches the first run left. Returns both runs' ``run.json`` (plus ``process_wall_s``), the
+    goal for this machine (:data:`REPORT_GOAL_S`: ``gpu`` when the reference ran on CUDA) and whether
+    each run meets it."""
+    args = list(MAKE_REPORT_ARGS if args is None else args)
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-report-") as tmp:
+        tmp = Path(tmp)
+        env = {**os.environ, "PBRCHECK_CACHE": str(tmp / "cache")}
+        if fresh_home:
+            (tmp / "home").mkdir()
+            env["HOME"] = str(tmp / "home")
+        runs = {}
+        for name in ("first", "again"):
+            if progress:
+                print(f"bench report: {name} run ...", file=sys.stderr, flush=True)
+            runs[name] = _run(args, tmp / f"out_{name}", env)
+    gpu = str(runs["first"]["backends"].get("reference_variant", "")).startswith("cuda")
+    goal = REPORT_GOAL_S["gpu" if gpu else "cpu"]
+    return {
+        "args": args,
+        "goal_s": goal,
+        "goal_machine": "gpu" if gpu else "cpu",
+        "first_wall_s": runs["first"]["wall_s"],
+        "again_wall_s": runs["again"]["wall_s"],
+        "first_meets_goal": runs["first"]["wall_s"] <= goal,
+        "again_meets_goal": runs["again"]["wall_s"] <= goal,
+        "first": runs["first"],
+        "again": runs["again"],
+    }

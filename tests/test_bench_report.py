@@ -1,0 +1,66 @@
+"""``pbrcheck bench report`` (compare.report.runlog.bench_report): two report runs in new processes,
+the first with empty caches and a temporary HOME, the second with what the first left; their
+run.json figures and the goal of the machine (CPU or GPU)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from compare.report import runlog
+
+TINY = ["furnace", "--presets", "default", "--no-sweep", "--no-convergence", "--no-furnace", "--spp", "4"]
+
+
+def test_goal_follows_the_reference_backend(monkeypatch):
+    seen = []
+
+    def fake_run(args, out, env):
+        seen.append((list(args), dict(env)))
+        first = len(seen) == 1
+        return {"wall_s": 150.0 if first else 40.0, "backends": {"reference_variant": variant},
+                "caches": {"realtime_miss" if first else "realtime_hit": 3}, "stages": []}
+
+    variant = "llvm_ad_rgb"
+    monkeypatch.setattr(runlog, "_run", fake_run)
+    res = runlog.bench_report(["furnace"], progress=False)
+    assert res["goal_machine"] == "cpu" and res["goal_s"] == runlog.REPORT_GOAL_S["cpu"]
+    assert not res["first_meets_goal"] and res["again_meets_goal"]
+    (a1, e1), (a2, e2) = seen
+    assert a1 == a2 == ["furnace"]
+    # both runs share one temporary cache and HOME, neither the user's
+    assert e1["PBRCHECK_CACHE"] == e2["PBRCHECK_CACHE"] and "pbrcheck-bench-report-" in e1["PBRCHECK_CACHE"]
+    assert e1["HOME"] == e2["HOME"] and "pbrcheck-bench-report-" in e1["HOME"]
+    seen.clear()
+    variant = "cuda_ad_rgb"
+    res = runlog.bench_report(None, fresh_home=False, progress=False)
+    assert res["goal_machine"] == "gpu" and res["goal_s"] == runlog.REPORT_GOAL_S["gpu"]
+    assert seen[0][0] == list(runlog.MAKE_REPORT_ARGS)
+    import os
+
+    assert seen[0][1].get("HOME") == os.environ.get("HOME")
+
+
+def test_a_failed_run_is_a_typed_error_with_its_output(tmp_path):
+    with pytest.raises(runlog.BenchReportError, match="no-such-scene"):
+        runlog._run(["no-such-scene"], tmp_path / "out", {**__import__("os").environ,
+                                                           "PBRCHECK_CACHE": str(tmp_path / "c")})
+
+
+@pytest.mark.slow
+def test_bench_report_runs_the_report_twice(capsys):
+    from pbrcheck.cli import main
+
+    assert main(["bench", "report", "--", *TINY]) == 0
+    res = json.loads(capsys.readouterr().out)
+    first, again = res["first"], res["again"]
+    assert res["args"] == TINY and res["first_wall_s"] == first["wall_s"] > 0
+    assert first["caches"]["realtime_miss"] == 1 and first["caches"]["reference_miss"] == 1
+    assert again["caches"]["realtime_hit"] == 1 and again["caches"]["reference_hit"] == 1
+    assert again["caches"].get("flip_hit", 0) >= 1 and not again["caches"].get("flip_miss")
+    assert first["backends"]["reference_variant"] and first["backends"]["gl_renderer"]
+    assert [s["name"] for s in first["stages"]][:3] == ["furnace: renderers under test", "furnace: reference",
+                                                       "furnace: comparisons and diagnose"]
+    assert first["process_wall_s"] >= first["wall_s"]
