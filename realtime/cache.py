@@ -7,7 +7,9 @@ entry is a miss):
 
 * the scene's content hash with the environment's pixels (:func:`pbrcheck.environment.scene_hash`);
 * the preset name and its resolved options (:func:`realtime.presets.resolve_options`), the SHA-256
-  of a shader hook file (``shader`` option) and of a fitted LOD mapping's file (``fitted:PATH``);
+  of a shader hook file (``shader`` option) and of a fitted LOD mapping's file (``fitted:PATH``),
+  those files by content only (the same file in another folder is a hit; the hit's ``options`` and
+  ``shader`` metadata name this call's paths);
 * :func:`code_hash`: the SHA-256 of every source the pixels can depend on (``realtime/``'s Python,
   GLSL and compute shaders, and the core package ``pbrcheck/``): any edit of a shader or of the
   code that drives it is a miss, with no version number to forget;
@@ -82,8 +84,11 @@ def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -
     lod = o.get("lod_mapping")
     fitted = _file_sha256(lod[len("fitted:"):]) if isinstance(lod, str) and lod.startswith("fitted:") else None
     hooks = load_hook_file(o["shader"]).sha256 if o.get("shader") else None
+    # A file enters the key by its content, not its path: the same fitted mapping or hook file
+    # written to another folder (another report's --out) renders the same pixels.
+    keyed = {**o, **({"lod_mapping": "fitted:"} if fitted else {}), **({"shader": "hooks"} if hooks else {})}
     return cache_key(kind="realtime", scene_hash=scene_hash(scene, env.content_hash), preset=preset,
-                     options=json.dumps(o, sort_keys=True, default=str), shader_hooks=hooks, fitted_lod=fitted,
+                     options=json.dumps(keyed, sort_keys=True, default=str), shader_hooks=hooks, fitted_lod=fitted,
                      code=code_hash(), gl_renderer=renderer_name(),
                      gl_version=str(get_context().info.get("GL_VERSION", "?")), moderngl=moderngl.__version__)
 
@@ -98,6 +103,11 @@ def render_cached(scene: Scene, preset: str = "default", options: dict | None = 
     if img is not None:
         img.meta["cache"] = "hit"
         img.meta["scene"] = scene.name  # the key ignores names: two scenes may share an entry
+        # ... and files' paths (keyed by content): the metadata names this call's files
+        o = resolve_options(preset, options)
+        img.meta["options"] = json.dumps(o, sort_keys=True)
+        if img.meta.get("shader") and img.meta["shader"] != "null" and o.get("shader"):
+            img.meta["shader"] = json.dumps({**json.loads(img.meta["shader"]), "path": load_hook_file(o["shader"]).path})
         if progress:
             for w in json.loads(img.meta.get("warnings", "[]")):
                 print(f"pbrcheck realtime: {w}", file=sys.stderr)

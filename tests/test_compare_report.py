@@ -217,6 +217,7 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache, monkey
                   "tiny: convergence", "summary and furnace", "both references"):
         assert stage in names, stage
     assert run["wall_s"] >= sum(x["wall_s"] for x in run["stages"]) > 0 and run["cores"] >= 1
+    assert {x["name"]: x["calls"] for x in run["stages"]}["tiny: comparisons and diagnose"] == 2  # one per renderer
     assert run["caches"].get("flip_miss", 0) > 0 and not run["caches"].get("flip_hit")
     assert 'id="run"' in html and "Where this report" in html and html.index('id="tiny"') < html.index('id="run"')
     r2 = json.loads((tmp_path / "r2" / "run.json").read_text())

@@ -6,6 +6,7 @@ mapping's file, the code) changes the key; a corrupt entry is re-rendered; outsi
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -67,6 +68,33 @@ def test_every_input_of_the_pixels_changes_the_key(scene, tmp_path, monkeypatch,
     # The code: any edit of realtime/ or pbrcheck/ (code_hash) is a miss.
     monkeypatch.setattr(rc, "code_hash", lambda: "0" * 64)
     assert rc.realtime_cache_key(scene, "default", SMALL) != base
+
+
+def test_files_enter_the_key_by_content_not_path(scene, tmp_path, counted, tmp_cache):
+    """The same fitted mapping (another report's --out) or hook file in another folder is a hit, and
+    the hit's metadata names this call's paths."""
+    from pbrcheck.lodmap import LodMapping
+
+    fit = LodMapping((0.0, 0.0, 0.0, 0.0, 1.0, 1.5), SMALL["cube_size"], SMALL["prefilter_levels"], "quadratic")
+    hook_text = "vec3 hook_diffuse_ibl(vec3 n) { return vec3(0.0); }\n"
+    paths = []
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / "fit_lod.json").write_text(json.dumps(fit.to_json()))
+        (tmp_path / d / "h.glsl").write_text(hook_text)
+        paths.append({**SMALL, "lod_mapping": f"fitted:{tmp_path / d / 'fit_lod.json'}",
+                      "shader": str(tmp_path / d / "h.glsl")})
+    assert rc.realtime_cache_key(scene, "default", paths[0]) == rc.realtime_cache_key(scene, "default", paths[1])
+    a = rc.render_cached(scene, "default", paths[0])
+    b = rc.render_cached(scene, "default", paths[1])
+    assert (a.meta["cache"], b.meta["cache"]) == ("miss", "hit") and len(counted) == 1
+    np.testing.assert_array_equal(a.rgb, b.rgb)
+    assert str(tmp_path / "b" / "fit_lod.json") in json.loads(b.meta["options"])["lod_mapping"]
+    assert json.loads(b.meta["shader"])["path"].endswith(str(Path("b") / "h.glsl"))
+    # ... and a changed file is a miss
+    fit2 = LodMapping((0.0, 0.0, 0.0, 0.0, 1.2, 1.5), SMALL["cube_size"], SMALL["prefilter_levels"], "quadratic")
+    (tmp_path / "b" / "fit_lod.json").write_text(json.dumps(fit2.to_json()))
+    assert rc.realtime_cache_key(scene, "default", paths[0]) != rc.realtime_cache_key(scene, "default", paths[1])
 
 
 def test_code_hash_covers_the_shaders_and_the_python():

@@ -28,7 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
@@ -81,8 +81,19 @@ class RunLog:
             "cores": os.cpu_count(),
             "backends": renderers.backends(),
             "caches": caches,
-            "stages": [asdict(s) for s in self.stages],
+            "stages": self.merged(),
         }
+
+    def merged(self) -> list[dict]:
+        """The stages with one row per name (in order of first appearance): seconds summed, ``calls``
+        counted (a scene's comparisons are one stage per renderer)."""
+        rows: dict[str, dict] = {}
+        for st in self.stages:
+            r = rows.setdefault(st.name, {"name": st.name, "wall_s": 0.0, "cpu_s": 0.0, "calls": 0})
+            r["wall_s"] += st.wall_s
+            r["cpu_s"] += st.cpu_s
+            r["calls"] += 1
+        return list(rows.values())
 
 
 def _counts() -> dict:
@@ -122,11 +133,12 @@ def run_section(run: dict) -> Section:
         return ", ".join(f"{c[f'{kind}_{k}']} {k}" for k in ("hit", "miss", "off") if c.get(f"{kind}_{k}"))
 
     wall = run["wall_s"]
-    rows = [[x["name"], f"{x['wall_s']:.1f}", f"{100.0 * x['wall_s'] / wall:.0f} %" if wall > 0 else "",
+    rows = [[x["name"] + (f" (x{x['calls']})" if x.get("calls", 1) > 1 else ""), f"{x['wall_s']:.1f}",
+             f"{100.0 * x['wall_s'] / wall:.0f} %" if wall > 0 else "",
              f"{x['cpu_s'] / x['wall_s']:.2f}" if x["wall_s"] > 0 else ""] for x in run["stages"]]
     rest = wall - sum(x["wall_s"] for x in run["stages"])
-    rows.append(["(set-up, validation, waiting on background work)", f"{rest:.1f}",
-                 f"{100.0 * rest / wall:.0f} %" if wall > 0 else "", ""])
+    rows.append(["(set-up, plots' files, the page)", f"{rest:.1f}", f"{100.0 * rest / wall:.0f} %" if wall > 0 else "",
+                 ""])
     note = (f"This run: {wall:.1f} s wall, {run['cpu_s']:.1f} s CPU in this process on {run['cores']} core(s) "
             f"(external renderers' browsers run beside it in their own processes); GL renderer "
             f"{b.get('gl_renderer') or 'n/a'}, reference variant {b.get('reference_variant') or 'n/a'}. "
