@@ -7,8 +7,9 @@ entry is a miss):
 
 * the scene's content hash with the environment's pixels (:func:`pbrcheck.environment.scene_hash`);
 * the preset name and its resolved options (:func:`realtime.presets.resolve_options`), the SHA-256
-  of a shader hook file (``shader`` option) and of a fitted LOD mapping's file (``fitted:PATH``),
-  those files by content only (the same file in another folder is a hit; the hit's ``options`` and
+  of a shader hook file (``shader`` option) and of the mapping a fitted LOD file holds
+  (``fitted:PATH``: its coefficients, cube size, mip count and chain; the file's other fields are the
+  fit's record), by content only (the same file in another folder is a hit; the hit's ``options`` and
   ``shader`` metadata name this call's paths);
 * :func:`code_hash`: the SHA-256 of every source the pixels can depend on (``realtime/``'s Python,
   GLSL and compute shaders, and the core package ``pbrcheck/``): any edit of a shader or of the
@@ -41,7 +42,7 @@ from pbrcheck.scene import Scene
 
 from .gl import get_context, renderer_name
 from .hooks import load_hook_file
-from .presets import resolve_options
+from .presets import fitted_mapping, resolve_options
 from .render import environment_of, render_realtime
 
 #: Cache namespace of real-time renders (``$PBRCHECK_CACHE/realtime``).
@@ -68,13 +69,6 @@ def code_hash() -> str:
     return h.hexdigest()
 
 
-def _file_sha256(path: str) -> str | None:
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None  # resolve_options / the render report the missing file
-
-
 def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -> str:
     """The content address of ``scene`` rendered by ``preset`` with ``options`` (module docstring).
 
@@ -82,7 +76,8 @@ def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -
     o = resolve_options(preset, options)
     env = environment_of(scene)
     lod = o.get("lod_mapping")
-    fitted = _file_sha256(lod[len("fitted:"):]) if isinstance(lod, str) and lod.startswith("fitted:") else None
+    fm = fitted_mapping(lod)  # what the render reads of the file (its other fields are the fit's record)
+    fitted = hashlib.sha256(json.dumps(fm.to_json(), sort_keys=True).encode()).hexdigest() if fm else None
     hooks = load_hook_file(o["shader"]).sha256 if o.get("shader") else None
     # A file enters the key by its content, not its path: the same fitted mapping or hook file
     # written to another folder (another report's --out) renders the same pixels.

@@ -71,8 +71,8 @@ def test_every_input_of_the_pixels_changes_the_key(scene, tmp_path, monkeypatch,
 
 
 def test_files_enter_the_key_by_content_not_path(scene, tmp_path, counted, tmp_cache):
-    """The same fitted mapping (another report's --out) or hook file in another folder is a hit, and
-    the hit's metadata names this call's paths."""
+    """The same fitted mapping (another report's --out: the fit's record names other paths) or hook
+    file in another folder is a hit, and the hit's metadata names this call's paths."""
     from pbrcheck.lodmap import LodMapping
 
     fit = LodMapping((0.0, 0.0, 0.0, 0.0, 1.0, 1.5), SMALL["cube_size"], SMALL["prefilter_levels"], "quadratic")
@@ -80,7 +80,9 @@ def test_files_enter_the_key_by_content_not_path(scene, tmp_path, counted, tmp_c
     paths = []
     for d in ("a", "b"):
         (tmp_path / d).mkdir()
-        (tmp_path / d / "fit_lod.json").write_text(json.dumps(fit.to_json()))
+        # fit-lod's file: the mapping under "mappings.fitted" and the fit's record, which names its --out
+        (tmp_path / d / "fit_lod.json").write_text(json.dumps({"glsl": str(tmp_path / d / "fit_lod.glsl"),
+                                                               "mappings": {"fitted": fit.to_json()}}))
         (tmp_path / d / "h.glsl").write_text(hook_text)
         paths.append({**SMALL, "lod_mapping": f"fitted:{tmp_path / d / 'fit_lod.json'}",
                       "shader": str(tmp_path / d / "h.glsl")})
