@@ -17,7 +17,7 @@ TINY = ["furnace", "--presets", "default", "--no-sweep", "--no-convergence", "--
 def test_goal_follows_the_reference_backend(monkeypatch):
     seen = []
 
-    def fake_run(args, out, env):
+    def fake_run(args, out, env, progress=False):
         seen.append((list(args), dict(env)))
         first = len(seen) == 1
         return {"wall_s": 150.0 if first else 40.0, "backends": {"reference_variant": variant},

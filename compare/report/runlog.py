@@ -153,13 +153,16 @@ class BenchReportError(PbrcheckError):
     """A report run of ``pbrcheck bench report`` failed (its exit status and the end of its output)."""
 
 
-def _run(args: list[str], out: Path, env: dict) -> dict:
-    cmd = [sys.executable, "-m", "pbrcheck.cli", "report", *args, "--out", str(out), "--quiet"]
+def _run(args: list[str], out: Path, env: dict, progress: bool = False) -> dict:
+    """One report run in a new process; with ``progress`` its progress bars go to this stderr (and a
+    failure points there), else its output is captured and a failure quotes its end."""
+    cmd = [sys.executable, "-m", "pbrcheck.cli", "report", *args, "--out", str(out)] + ([] if progress else ["--quiet"])
     t = time.perf_counter()
-    p = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=None if progress else subprocess.PIPE, text=True)
     wall = time.perf_counter() - t
     if p.returncode != 0:
-        raise BenchReportError(f"bench report: `{' '.join(cmd)}` exited {p.returncode}:\n{p.stderr[-2000:]}")
+        why = "its output is above" if progress else p.stderr[-2000:]
+        raise BenchReportError(f"bench report: `{' '.join(cmd)}` exited {p.returncode}:\n{why}")
     run = json.loads((out / RUN_FILE).read_text())
     run["process_wall_s"] = wall  # with the interpreter's start and imports
     return run
@@ -183,7 +186,7 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
         for name in ("first", "again"):
             if progress:
                 print(f"bench report: {name} run ...", file=sys.stderr, flush=True)
-            runs[name] = _run(args, tmp / f"out_{name}", env)
+            runs[name] = _run(args, tmp / f"out_{name}", env, progress)
     gpu = str(runs["first"]["backends"].get("reference_variant", "")).startswith("cuda")
     goal = REPORT_GOAL_S["gpu" if gpu else "cpu"]
     return {
