@@ -259,8 +259,8 @@ def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str) -> np.ndarray:
     if store is None:
         FLIP_STORE_COUNTS["off"] += 1
         return _flip_map(r, t)
-    key = cache_key(kind="hdr-flip", inputs=digest, exposures=_flip_exposures(r), flip=_flip_version(),
-                    code=FLIP_CODE_VERSION)
+    exposures = _flip_exposures(r)
+    key = cache_key(kind="hdr-flip", inputs=digest, exposures=exposures, flip=_flip_version(), code=FLIP_CODE_VERSION)
     img = store.get(key)
     if img is not None and "flip" in img.channels and img.channels["flip"].shape == r.shape[:2]:
         FLIP_STORE_COUNTS["hit"] += 1
@@ -268,7 +268,7 @@ def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str) -> np.ndarray:
     FLIP_STORE_COUNTS["miss"] += 1
     err = _flip_map(r, t)
     try:
-        store.put(key, Image({"flip": err}, {"kind": "HDR-FLIP map", "exposures": json.dumps(_flip_exposures(r))}))
+        store.put(key, Image({"flip": err}, {"kind": "HDR-FLIP map", "exposures": json.dumps(exposures)}))
     except CacheError:
         pass
     return err

@@ -14,6 +14,7 @@ Stages are sequential and flat; a stage's CPU seconds are this process's (every 
 and Dr.Jit's workers included), so ``cpu / wall`` near the core count means the stage kept the
 machine busy. External renderers render in a background thread and in their own processes (a
 browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
+The cache counts are this process's: renders that a ``--scheduler``'s workers run are not in them.
 
 API: :class:`RunLog`, :func:`recording`, :func:`stage`, :func:`run_section`, :func:`bench_report`,
 :data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
