@@ -166,10 +166,12 @@ def check_offline_html(index: Path):
     return p.refs
 
 
-def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache, monkeypatch):
+def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache, monkeypatch, capsys):
     out = tmp_path / "report"
     rc = main(["report", str(scene_file), "--out", str(out), "--spp", "16", "--quiet"])
     assert rc == 0
+    printed = capsys.readouterr().out
+    assert f"stages in {out / 'run.json'}" in printed and "s CPU on" in printed and "FLIP maps" in printed
     index = out / "index.html"
     refs = check_offline_html(index)
     names = {Path(r).name for r in refs}

@@ -18,7 +18,7 @@ from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
 from .build import build_report
 from .corpus_section import corpus_section
-from .runlog import bench_report
+from .runlog import RUN_FILE, bench_report, summary_line
 from .sweep import parse_vary, run_sweep
 
 
@@ -39,6 +39,9 @@ def _cmd_report(args) -> int:
                        hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
                        scheduler=args.scheduler, cache=not args.no_cache)
     print(f"report: {out}")
+    run = Path(out).parent / RUN_FILE
+    if run.is_file():  # where the time went (also the page's last section)
+        print(f"report: {summary_line(json.loads(run.read_text()))}; stages in {run}")
     return 0
 
 

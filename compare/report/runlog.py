@@ -16,7 +16,8 @@ machine busy. External renderers render in a background thread and in their own 
 browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
 The cache counts are this process's: renders that a ``--scheduler``'s workers run are not in them.
 
-API: :class:`RunLog`, :func:`recording`, :func:`stage`, :func:`run_section`, :func:`bench_report`,
+API: :class:`RunLog`, :func:`recording`, :func:`stage`, :func:`run_section`, :func:`summary_line`,
+:func:`cache_line`, :func:`bench_report`,
 :data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
 """
 
@@ -125,14 +126,24 @@ def stage(name: str):
     return log.stage(name) if log is not None else contextlib.nullcontext()
 
 
+def cache_line(run: dict) -> str:
+    """The caches' counts of a run log in words: ``real-time renders 5 hit, 225 miss; ...``."""
+    c = run.get("caches") or {}
+
+    def one(kind: str) -> str:
+        return ", ".join(f"{c[f'{kind}_{k}']} {k}" for k in ("hit", "miss", "off") if c.get(f"{kind}_{k}")) or "none"
+
+    return f"real-time renders {one('realtime')}; references {one('reference')}; FLIP maps {one('flip')}"
+
+
+def summary_line(run: dict) -> str:
+    """One line of a run log for the terminal: wall and CPU seconds and the caches."""
+    return f"{run['wall_s']:.1f} s ({run['cpu_s']:.1f} s CPU on {run['cores']} cores); {cache_line(run)}"
+
+
 def run_section(run: dict) -> Section:
     """The page's section of a run log (:meth:`RunLog.to_dict`): one row per stage, then the caches."""
     b = run.get("backends") or {}
-    c = run.get("caches") or {}
-
-    def cache(kind: str) -> str:
-        return ", ".join(f"{c[f'{kind}_{k}']} {k}" for k in ("hit", "miss", "off") if c.get(f"{kind}_{k}"))
-
     wall = run["wall_s"]
     rows = [[x["name"] + (f" (x{x['calls']})" if x.get("calls", 1) > 1 else ""), f"{x['wall_s']:.1f}",
              f"{100.0 * x['wall_s'] / wall:.0f} %" if wall > 0 else "",
@@ -143,8 +154,7 @@ def run_section(run: dict) -> Section:
     note = (f"This run: {wall:.1f} s wall, {run['cpu_s']:.1f} s CPU in this process on {run['cores']} core(s) "
             f"(external renderers' browsers run beside it in their own processes); GL renderer "
             f"{b.get('gl_renderer') or 'n/a'}, reference variant {b.get('reference_variant') or 'n/a'}. "
-            f"Caches: real-time renders {cache('realtime') or 'none'}; references {cache('reference') or 'none'}; "
-            f"FLIP maps {cache('flip') or 'none'}. `pbrcheck bench report` measures a first run (empty "
+            f"Caches: {cache_line(run)}. `pbrcheck bench report` measures a first run (empty "
             f"caches) and a second one. File: {RUN_FILE}.")
     return Section("run", "Where this report's time went", note,
                    [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)])
