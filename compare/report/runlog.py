@@ -63,6 +63,7 @@ class RunLog:
     _t0: float = field(default_factory=time.perf_counter)
     _c0: float = field(default_factory=time.process_time)
     _counts0: dict = field(default_factory=lambda: _counts())
+    _children0: float = field(default_factory=lambda: _children_cpu())
 
     @contextlib.contextmanager
     def stage(self, name: str):
@@ -74,12 +75,11 @@ class RunLog:
 
     def to_dict(self) -> dict:
         now = _counts()
-        caches = {k: now[k] - self._counts0.get(k, 0) for k in now}
-        ch = os.times()
+        caches = {k: now[k] - self._counts0.get(k, 0) for k in now if now[k] != self._counts0.get(k, 0)}
         return {
             "wall_s": time.perf_counter() - self._t0,
             "cpu_s": time.process_time() - self._c0,
-            "children_cpu_s": ch.children_user + ch.children_system,
+            "children_cpu_s": _children_cpu() - self._children0,
             "cores": os.cpu_count(),
             "backends": renderers.backends(),
             "caches": caches,
@@ -96,6 +96,12 @@ class RunLog:
             r["cpu_s"] += st.cpu_s
             r["calls"] += 1
         return list(rows.values())
+
+
+def _children_cpu() -> float:
+    """CPU seconds of the child processes this one has waited for, so far."""
+    t = os.times()
+    return t.children_user + t.children_system
 
 
 def _counts() -> dict:
