@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 
 import clients.commands
 import clients.config
@@ -27,9 +28,9 @@ import compare.research.commands
 import realtime.commands
 import reference.commands
 
-from . import __version__
+from . import __version__, cache
 from .environment import load_environment, scene_hash
-from .errors import PbrcheckError
+from .errors import CacheError, PbrcheckError
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -61,6 +62,37 @@ def _cmd_check_scene(args) -> int:
     return 0
 
 
+def _fmt_bytes(n: int) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024.0
+    return f"{n:.1f} GiB"  # pragma: no cover
+
+
+def _cmd_cache(args) -> int:
+    root = cache.cache_root()
+    if args.action in (None, "info"):
+        rows = cache.usage(root)
+        print(f"cache: {root}")
+        for u in rows:
+            age = "" if u.oldest_use is None else \
+                f", least recently used {(time.time() - u.oldest_use) / 86400.0:.1f} days ago"
+            print(f"  {u.namespace:<10} {u.entries:6d} entries {_fmt_bytes(u.bytes):>10}{age}")
+        print(f"  {'total':<10} {sum(u.entries for u in rows):6d} entries {_fmt_bytes(sum(u.bytes for u in rows)):>10}")
+        return 0
+    if args.action == "prune" and args.older_than is None and args.max_size is None:
+        raise CacheError("cache prune: give --older-than DAYS and/or --max-size SIZE (pbrcheck cache clear removes all)")
+    res = cache.prune(root=root, namespaces=args.namespace, dry_run=args.dry_run,
+                      older_than_days=args.older_than if args.action == "prune" else None,
+                      max_bytes=cache.parse_size(args.max_size) if args.action == "prune" and args.max_size else None)
+    verb = "would remove" if args.dry_run else "removed"
+    print(f"cache: {verb} {res.removed} entries ({_fmt_bytes(res.freed_bytes)}); {res.kept} entries "
+          f"({_fmt_bytes(res.kept_bytes)}) kept in {root}"
+          + (f"; {res.stale_temp_files} stale temporary file(s)" if res.stale_temp_files else ""))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``pbrcheck`` argument parser with every package's subcommands."""
     p = argparse.ArgumentParser(
@@ -80,6 +112,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene", help="built-in scene name or path to a TOML scene file")
     s.add_argument("--json", action="store_true", help="print the resolved scene as JSON")
     s.set_defaults(func=_cmd_check_scene)
+
+    s = sub.add_parser("cache", help="what the render cache holds ($PBRCHECK_CACHE), prune or clear it")
+    s.add_argument("action", nargs="?", choices=("info", "prune", "clear"), default="info",
+                   help="info (default): entries and size per namespace; prune: the least recently used "
+                        "(--older-than, --max-size); clear: every entry")
+    s.add_argument("--older-than", type=float, metavar="DAYS", help="prune: entries not used for DAYS days")
+    s.add_argument("--max-size", metavar="SIZE", help="prune: then the least recently used until the rest fits "
+                   "in SIZE (e.g. 2G, 500M)")
+    s.add_argument("--namespace", action="append", metavar="NS",
+                   help="only this namespace (reference, realtime, flip, clients; repeatable)")
+    s.add_argument("--dry-run", action="store_true", help="say what would be removed, remove nothing")
+    s.set_defaults(func=_cmd_cache)
 
     bench = sub.add_parser("bench", help="benchmarks that print JSON figures")
     bench_sub = bench.add_subparsers(dest="bench_target", metavar="TARGET")
