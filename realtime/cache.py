@@ -73,7 +73,11 @@ def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -
     """The content address of ``scene`` rendered by ``preset`` with ``options`` (module docstring).
 
     Raises the errors of :func:`realtime.presets.resolve_options` for a bad preset or option."""
-    o = resolve_options(preset, options)
+    return _key(scene, preset, resolve_options(preset, options))
+
+
+def _key(scene: Scene, preset: str, o: dict) -> str:
+    """:func:`realtime_cache_key` of the resolved options ``o``."""
     env = environment_of(scene)
     lod = o.get("lod_mapping")
     fm = fitted_mapping(lod)  # what the render reads of the file (its other fields are the fit's record)
@@ -93,13 +97,13 @@ def render_cached(scene: Scene, preset: str = "default", options: dict | None = 
     """:func:`realtime.render.render_realtime` through the content-addressed cache (module docstring);
     ``meta["cache"]`` is ``hit`` or ``miss``."""
     cache = cache if cache is not None else Cache(NAMESPACE)
-    key = realtime_cache_key(scene, preset, options)
+    o = resolve_options(preset, options)
+    key = _key(scene, preset, o)
     img = cache.get(key)
     if img is not None:
         img.meta["cache"] = "hit"
         img.meta["scene"] = scene.name  # the key ignores names: two scenes may share an entry
         # ... and files' paths (keyed by content): the metadata names this call's files
-        o = resolve_options(preset, options)
         img.meta["options"] = json.dumps(o, sort_keys=True)
         if img.meta.get("shader") and img.meta["shader"] != "null" and o.get("shader"):
             img.meta["shader"] = json.dumps({**json.loads(img.meta["shader"]), "path": load_hook_file(o["shader"]).path})
