@@ -47,10 +47,30 @@ from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
-REFERENCE_CODE_VERSION = "2"  # 2: rendered by mi.render with pbrcheck_reference
+REFERENCE_CODE_VERSION = "3"  # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
+REPLICATES_METHOD = ("replicates: unbiased sample variance of the K independent replicate means / K "
+                     "(K - 1 degrees of freedom)")
+#: The samplers (reference.integrator.SAMPLERS) and the default: ``qmc`` with ``adaptive``.
+SAMPLER_NAMES = ("independent", "qmc")
+DEFAULT_SAMPLER = "qmc"
+DEFAULT_ADAPTIVE = True
+#: Adaptive sampling: a pilot of ``spp x ADAPTIVE_PILOT_FRACTION`` spp (at least
+#: ``ADAPTIVE_MIN_PILOT``) decides each pixel's spp; only the final passes, independent of the
+#: pilot, are averaged (Kirk & Arvo 1991). Below ``ADAPTIVE_MIN_SPP`` the render is uniform.
+ADAPTIVE_PILOT_FRACTION = 0.125
+ADAPTIVE_MIN_PILOT = 32
+ADAPTIVE_MIN_SPP = 256
+#: A pixel's final spp lies within [spp / ADAPTIVE_RANGE, spp x ADAPTIVE_RANGE ** 2].
+ADAPTIVE_RANGE = 8
+#: Ratio of successive per-pixel spp levels (powers of 4: counts ``multijitter`` takes as they are).
+ADAPTIVE_LADDER = 4
+#: The relative metric's epsilon (compare.metrics.REL_EPS; this layer cannot import the comparator):
+#: the allocation weighs each pixel by 1 + (1 / (r^2 + eps)) / mean(...), so both the absolute and
+#: the relative noise floors fall.
+ADAPTIVE_REL_EPS = 0.01
 AOV_METHOD = "N, NdotV, object: pixel-centre ray; coverage: fraction of box-filter samples hitting geometry"
 
 
@@ -123,13 +143,67 @@ def load_mitsuba_scene(scene: Scene, env: EnvMap | None = None, **kw):
 # Rendering
 # ------------------------------------------------------------------------------------------------
 
-def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True):
-    """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``."""
+def check_sampler(sampler: str) -> str:
+    if sampler not in SAMPLER_NAMES:
+        raise ValueError(f"sampler must be one of {SAMPLER_NAMES}, not {sampler!r}")
+    return sampler
+
+
+def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: int, K: int,
+                        count_ok=None) -> np.ndarray:
+    """Each pixel's final spp (multiples ``K n`` with n a count the sampler takes, ``count_ok``)
+    from a pilot's ``(H, W, 3)`` mean and variance at ``pilot_spp``: ``spp_i`` proportional to
+    ``sqrt(a_i) sigma_i`` (Neyman allocation, minimizing ``sum a_i sigma_i^2 / spp_i`` at a fixed
+    total), ``sigma_i^2 = pilot_spp x var_i`` (channel mean), ``a_i = 1 + w_i / mean(w)`` with
+    ``w_i = 1 / (r_i^2 + ADAPTIVE_REL_EPS)`` (the absolute and the relative floor alike), clipped to
+    ``[spp / ADAPTIVE_RANGE, spp x ADAPTIVE_RANGE^2]``, rounded to the nearest level of a
+    ladder of ratio :data:`ADAPTIVE_LADDER` (in log) and scaled so that the mean is at most
+    ``spp``. Flat ``(H W,)`` int array."""
+    from .integrator import multijitter_count_ok  # local: needs the variant set
+
+    count_ok = count_ok or multijitter_count_ok
+    sigma = np.sqrt(np.clip(var.astype(np.float64), 0, None).mean(-1).ravel() * pilot_spp)
+    r2 = (mean.astype(np.float64) ** 2).mean(-1).ravel()
+    w = 1.0 / (r2 + ADAPTIVE_REL_EPS)
+    ideal = np.sqrt(1.0 + w / w.mean()) * sigma
+    lo_n = max(1, spp // ADAPTIVE_RANGE // K)
+    hi_n = max(lo_n, spp * ADAPTIVE_RANGE ** 2 // K)
+    # a ladder of ratio ADAPTIVE_LADDER (each distinct count compiles kernels of its own): at most
+    # a factor 2 from the ideal, a variance cost of at most (2 + 1/2) / 2 = 1.25 on a pixel
+    counts = [1]
+    while counts[-1] * ADAPTIVE_LADDER <= hi_n:
+        counts.append(counts[-1] * ADAPTIVE_LADDER)
+    counts = np.array([n for n in counts if n >= lo_n and count_ok(n)] or [lo_n])
+    logc = np.log(counts)
+
+    def quantize(lam):
+        x = np.log(np.clip(lam * ideal / K, counts[0], counts[-1]))
+        j = np.clip(np.searchsorted(logc, x), 1, len(counts) - 1)
+        j = np.where(np.abs(logc[j - 1] - x) <= np.abs(logc[j] - x), j - 1, j)
+        return counts[j] * K
+
+    if not (ideal.max() > 0):
+        return quantize(0.0)
+    lo, hi = 0.0, spp * ADAPTIVE_RANGE ** 2 / max(ideal[ideal > 0].min(), 1e-30)
+    for _ in range(60):  # the largest scale whose quantized mean fits in spp
+        mid = 0.5 * (lo + hi)
+        if quantize(mid).mean() <= spp:
+            lo = mid
+        else:
+            hi = mid
+    return quantize(lo)
+
+
+def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
+                    sampler: str = "independent"):
+    """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
+    ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``)."""
     mi, _ = _mi()
-    from .integrator import INTEGRATOR_NAME  # local: subclasses mi.ad, which needs the variant set
+    from .integrator import INTEGRATOR_NAME, MIN_REPLICATES  # local: subclasses mi.ad, needs the variant set
 
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
-    return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments})
+    return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
+                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
@@ -154,8 +228,9 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
 
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
-                    mscene=None) -> Image:
+                    mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE) -> Image:
     """Render without the cache (see :func:`render_reference`)."""
+    check_sampler(sampler)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
     if spp < 2:
@@ -170,18 +245,35 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     if mscene is None:
         mscene = load_mitsuba_scene(scene, env)
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
-    from .integrator import MOMENT_CHANNELS, pass_sizes, sensor_dict  # local: needs the variant set
+    from .integrator import MIN_REPLICATES, MOMENT_CHANNELS, pass_sizes, replicate_plan, sensor_dict  # variant set
 
-    integrator = load_integrator(mode, depth)
-    sensor = mi.load_dict(sensor_dict(scene.camera, spp))
+    integrator = load_integrator(mode, depth, sampler=sampler)
+    sensor = mi.load_dict(sensor_dict(scene.camera, spp, sampler))
     W, H = scene.camera.width, scene.camera.height
-    with Progress(f"reference {scene.name} ({mode}, {spp} spp)", total=spp, unit="spp",
-                  enabled=progress) as prog:
+    adaptive = bool(adaptive) and sampler == "qmc" and spp >= ADAPTIVE_MIN_SPP
+    pilot_spp, levels = 0, None
+    if adaptive:
+        pilot_spp = max(ADAPTIVE_MIN_PILOT, int(spp * ADAPTIVE_PILOT_FRACTION))
+        pilot_spp -= pilot_spp % MIN_REPLICATES
+    with Progress(f"reference {scene.name} ({mode}, {sampler}{' adaptive' if adaptive else ''}, {spp} spp)",
+                  total=spp + pilot_spp, unit="spp", enabled=progress) as prog:
         integrator.progress = prog.update
         r_wall, r_cpu = time.perf_counter(), time.process_time()
         try:
-            out = np.array(mi.render(mscene, sensor=sensor, integrator=integrator, spp=spp, seed=seed),
-                           dtype=np.float64)
+            if not adaptive:
+                out = np.array(mi.render(mscene, sensor=sensor, integrator=integrator, spp=spp, seed=seed),
+                               dtype=np.float64)
+            else:
+                # The pilot (streams 0 ..: a uniform qmc render at pilot_spp) decides the allocation;
+                # the final groups draw from streams of their own and alone make the image.
+                pilot = np.array(mi.render(mscene, sensor=sensor, integrator=integrator, spp=pilot_spp,
+                                           seed=seed), dtype=np.float64)
+                K = MIN_REPLICATES
+                alloc = adaptive_allocation(pilot[..., :3], pilot[..., 3:6], pilot_spp, spp, K)
+                levels = np.unique(alloc)
+                groups = [(np.flatnonzero(alloc == lv), K, int(lv) // K, (g + 1) << 20)
+                          for g, lv in enumerate(levels)]
+                out = np.array(integrator.render_groups(mscene, sensor, groups, seed, W, H), dtype=np.float64)
         finally:
             integrator.progress = None
         # The render alone (no scene load, no AOV pass): its wall time, and the CPU time of this
@@ -205,30 +297,47 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "mitsuba_version": mitsuba.__version__,
         "drjit_version": drjit.__version__,
         "reference_code_version": REFERENCE_CODE_VERSION,
-        "variance_method": VARIANCE_METHOD,
+        "sampler": sampler,
+        "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
         "pixel_filter": "box",
         "integrator": f"mi.render + pbrcheck_reference (mode {mode})",
-        "passes": str(len(pass_sizes(spp, W * H))),
+        "passes": str(len(pass_sizes(spp, W * H))) if sampler == "independent" else "replicates",
         "resolution": f"{W}x{H}",
         "seconds": f"{time.perf_counter() - t0:.3f}",
         "render_seconds": f"{r_wall:.3f}",
         "render_cpu_seconds": f"{r_cpu:.3f}",
         "threads": str(dr.thread_count()),
     }
+    if sampler == "qmc":
+        K, n = replicate_plan(spp) if not adaptive else (MIN_REPLICATES, 0)
+        meta["replicates"] = str(K)
+        meta["adaptive"] = "off"
+        if not adaptive:
+            meta["samples_per_replicate"] = str(n)
+        else:
+            meta["adaptive"] = (f"pilot {pilot_spp} spp (discarded); final spp per pixel "
+                                f"{int(alloc.min())}..{int(alloc.max())}, mean {alloc.mean():.1f} "
+                                f"({len(levels)} levels)")
+            meta["pilot_spp"] = str(pilot_spp)
+            meta["mean_spp"] = f"{alloc.mean():.3f}"
     return Image(ch, meta)
 
 
 def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_depth: int | None,
-                        env: EnvMap | None = None) -> str:
+                        env: EnvMap | None = None, sampler: str = DEFAULT_SAMPLER,
+                        adaptive: bool = DEFAULT_ADAPTIVE) -> str:
     env = env if env is not None else load_environment(scene)
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH) if mode == "path" else None
+    adaptive = bool(adaptive) and sampler == "qmc" and int(spp) >= ADAPTIVE_MIN_SPP
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
-                     mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION)
+                     mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
+                     sampler=check_sampler(sampler), adaptive=adaptive)
 
 
 def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
-                     max_depth: int | None = None, use_cache: bool = True, progress: bool = True) -> Image:
+                     max_depth: int | None = None, use_cache: bool = True, progress: bool = True,
+                     sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE) -> Image:
     """Render the reference image of ``scene`` (channels R, G, B, variance.*, N.*, NdotV, object,
     coverage; metadata as in the module docstring). Cached in the ``reference`` namespace of
     :class:`pbrcheck.cache.Cache` by scene content (environment pixels included), spp, mode, seed,
@@ -237,12 +346,14 @@ def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: 
     cache = Cache("reference") if use_cache else None
     key = None
     if cache is not None:
-        key = reference_cache_key(scene, spp=spp, mode=mode, seed=seed, max_depth=max_depth, env=env)
+        key = reference_cache_key(scene, spp=spp, mode=mode, seed=seed, max_depth=max_depth, env=env,
+                                  sampler=sampler, adaptive=adaptive)
         img = cache.get(key)
         if img is not None:
             img.meta["cache"] = "hit"
             return img
-    img = render_uncached(scene, spp=spp, mode=mode, seed=seed, max_depth=max_depth, progress=progress, env=env)
+    img = render_uncached(scene, spp=spp, mode=mode, seed=seed, max_depth=max_depth, progress=progress, env=env,
+                          sampler=sampler, adaptive=adaptive)
     if cache is not None:
         cache.put(key, img)
         img.meta["cache"] = "miss"
