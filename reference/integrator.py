@@ -51,6 +51,8 @@ from __future__ import annotations
 import hashlib
 import math
 
+import numpy as np
+
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 
 import drjit as dr
@@ -395,39 +397,44 @@ class ReferenceIntegrator(RBIntegrator):
         """``(H, W, 7)`` moments (:data:`MOMENT_CHANNELS`) from independent replicates, by groups of
         pixels: ``groups`` = ``[(pixels, K, n, stream), ...]``, ``pixels`` a numpy array of pixel
         indices (row-major; None: every pixel), rendered as K replicates of n samples each.
-        Replicate r of a group is one randomization of the sensor's sampler, seeded
-        :func:`pass_seed` ``(seed, stream + r)`` (so distinct streams never share samples), over
-        :func:`replicate_parts` passes (``advance`` between them: the passes of a replicate are one
-        point set). Its pixel means ``Y_r`` give the estimate ``mean(Y)`` and its variance
-        ``s^2(Y) / K``, unbiased because the replicates are i.i.d. A pixel in no group is 0 with
-        variance 0 and coverage 0."""
+
+        The replicates of a group share wavefronts: a pass holds R of them (as many as
+        :func:`max_lanes` allows), laid out replicate-major, pixel, then sample, so that each
+        (replicate, pixel) is a sequence of its own of the sensor's sampler, which permutes and
+        jitters every sequence independently (Mitsuba's ``compute_per_sequence_seed``: a hash of the
+        pass seed and the sequence index); pass c is seeded :func:`pass_seed` ``(seed, stream + c)``
+        (distinct streams never share samples). A replicate too large for one pass is split in
+        :func:`replicate_parts` passes (``advance`` between them: one point set). The pixel means
+        ``Y_r`` of the replicates give the estimate ``mean(Y)`` and its variance ``s^2(Y) / K``,
+        unbiased because the replicates are i.i.d. A pixel in no group is 0 with variance 0 and
+        coverage 0."""
         npix = W * H
-        F64 = dr.float64_array_t(mi.Float)
         nch = len(MOMENT_CHANNELS)
-        out = dr.zeros(mi.Float, npix * nch)
+        out = np.zeros((npix, nch))
+        lanes = max_lanes()
         with dr.suspend_grad():
             for pixels, K, n, stream in groups:
                 if K < 2:
                     raise ValueError(f"{INTEGRATOR_NAME}: a replicate render needs K >= 2 replicates, not {K}")
-                ids = None if pixels is None else mi.UInt32(pixels.astype("uint32"))
-                m = npix if pixels is None else len(pixels)
+                pix = np.arange(npix, dtype=np.uint32) if pixels is None else np.asarray(pixels, dtype=np.uint32)
+                m = len(pix)
                 if m == 0:
                     continue
-                parts = replicate_parts(n, m)
+                R = max(1, min(K, lanes // max(m * n, 1)))
+                parts = 1 if R > 1 else replicate_parts(n, m, lanes)
                 per = n // parts
-                s1 = [dr.zeros(F64, m) for _ in range(3)]
-                s2 = [dr.zeros(F64, m) for _ in range(3)]
-                hits = dr.zeros(F64, m)
-                shift = None
-                for r in range(K):
+                y = np.zeros((3, K, m))
+                hits = np.zeros(m)
+                for c, r0 in enumerate(range(0, K, R)):
+                    r1 = min(K, r0 + R)
+                    ids = mi.UInt32(np.tile(pix, r1 - r0))
                     sampler = sensor.sampler().clone()
                     sampler.set_sample_count(n)
                     if int(sampler.sample_count()) != n:
                         raise ValueError(f"{INTEGRATOR_NAME}: the sampler takes {int(sampler.sample_count())} "
                                          f"samples per pixel, not the replicate's {n}")
                     sampler.set_samples_per_wavefront(per)
-                    sampler.seed(pass_seed(seed, stream + r), m * per)
-                    y = [dr.zeros(F64, m) for _ in range(3)]
+                    sampler.seed(pass_seed(seed, stream + c), (r1 - r0) * m * per)
                     for j in range(parts):
                         if j:
                             sampler.advance()
@@ -438,30 +445,16 @@ class ReferenceIntegrator(RBIntegrator):
                         dr.eval(L, hit)  # one kernel (see render)
                         p1 = dr.block_sum(L, per)
                         ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), per)
-                        for c in range(3):
-                            y[c] += F64(p1[c])
-                        hits += F64(ph)
-                        dr.eval(y, hits)
+                        dr.eval(p1, ph)
+                        y[:, r0:r1, :] += np.array(p1, dtype=np.float64).reshape(3, r1 - r0, m)
+                        hits += np.array(ph, dtype=np.float64).reshape(r1 - r0, m).sum(0)
                         if self.progress is not None:
-                            self.progress(per * m / npix)
-                    y = [v / n for v in y]
-                    if shift is None:  # the first replicate's means (no float cancellation in s2)
-                        shift = y
-                    for c in range(3):
-                        d = y[c] - shift[c]
-                        s1[c] += d
-                        s2[c] += d * d
-                    dr.eval(s1, s2)
-                target = dr.arange(mi.UInt32, m) if ids is None else ids
-                base = target * nch
-                for c in range(3):
-                    mean = s1[c] / K + shift[c]
-                    var = dr.maximum(s2[c] - s1[c] * s1[c] / K, 0.0) / ((K - 1) * K)
-                    dr.scatter(out, mi.Float(mean), base + c)
-                    dr.scatter(out, mi.Float(var), base + 3 + c)
-                dr.scatter(out, mi.Float(hits / (K * n)), base + 6)
-                dr.eval(out)
-            return mi.TensorXf(out, (H, W, nch))
+                            self.progress(per * m * (r1 - r0) / npix)
+                y /= n
+                out[pix, 0:3] = y.mean(1).T
+                out[pix, 3:6] = y.var(1, ddof=1).T / K
+                out[pix, 6] = hits / (K * n)
+            return mi.TensorXf(mi.Float(out.ravel().astype(np.float32)), (H, W, nch))
 
 
 _REGISTERED: set[str] = set()

@@ -302,7 +302,8 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "aov_method": AOV_METHOD,
         "pixel_filter": "box",
         "integrator": f"mi.render + pbrcheck_reference (mode {mode})",
-        "passes": str(len(pass_sizes(spp, W * H))) if sampler == "independent" else "replicates",
+        "passes": (str(len(pass_sizes(spp, W * H))) if sampler == "independent"
+                   else "replicates share passes as memory allows"),
         "resolution": f"{W}x{H}",
         "seconds": f"{time.perf_counter() - t0:.3f}",
         "render_seconds": f"{r_wall:.3f}",
