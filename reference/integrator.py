@@ -19,6 +19,9 @@ Output of ``render``:
 
 * ``moments = False`` (the default, and what AD needs): Mitsuba's film, ``(H, W, 3)`` mean radiance,
   exactly :meth:`ADIntegrator.render`.
+* ``moments = True, replicates = K > 0`` (a QMC sensor sampler): the same channels from K
+  independent replicates (:meth:`ReferenceIntegrator.render_groups`, :func:`replicate_plan`):
+  the variance of each pixel mean is ``s^2(Y) / K`` of the replicate means ``Y``.
 * ``moments = True`` (the reference renderer): ``(H, W, 7)`` = mean ``R, G, B``, the variance of each
   pixel mean ``variance.R/G/B`` (per-pixel moments: unbiased sample variance of the spp samples over
   spp) and ``coverage`` (the fraction of samples whose camera ray hit geometry). The spp samples of a
@@ -41,9 +44,13 @@ Camera: the scenes' sensor is Mitsuba's ``perspective`` (:func:`sensor_dict`): `
 offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 at the top.
 
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
-:func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :data:`MOMENT_CHANNELS`.
+:func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
+:func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :data:`SAMPLERS`,
+:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`.
 References: Veach 1997 ch. 9 (MIS, power heuristic); Vicini et al. 2021, "Path Replay
-Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``.
+Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
+Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Owen 2013, *Monte Carlo
+theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates).
 """
 
 from __future__ import annotations

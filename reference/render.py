@@ -18,8 +18,17 @@ Camera: horizontal fov, row 0 at the top, ``x_ndc = 2 (j + sx) / W - 1``, ``y_nd
 H`` with ``(sx, sy)`` uniform in the pixel: a box pixel filter; the sensor's rays are those of
 :func:`pbrcheck.camera.primary_rays` (tested).
 
-Variance: per-pixel moments. Each pixel's ``spp`` samples give the unbiased sample variance ``s^2``;
-the variance of the pixel estimate (the mean) is ``s^2 / spp`` (``variance.R/G/B``).
+Samplers and variance (``sampler``, ``adaptive``; docs/reference.md):
+
+* ``independent``: per-pixel moments. Each pixel's ``spp`` samples give the unbiased sample variance
+  ``s^2``; the variance of the pixel estimate (the mean) is ``s^2 / spp`` (``variance.R/G/B``).
+* ``qmc`` (default): randomized QMC (Mitsuba's ``multijitter``) as K independent replicates
+  (:func:`reference.integrator.replicate_plan`, K = 16 or 32); the estimate is the mean of the K
+  replicate means ``Y_r``, its variance ``s^2(Y) / K`` (unbiased, K - 1 degrees of freedom).
+* ``adaptive`` (default, ``qmc`` at >= :data:`ADAPTIVE_MIN_SPP` spp): a pilot render at ``spp / 8``
+  sets each pixel's spp (:func:`adaptive_allocation`, Neyman: proportional to its standard
+  deviation, mean ``spp``); the final replicates, on seeds of their own, alone make the image, the
+  pilot is discarded, so the stopping rule does not bias the estimate (Kirk & Arvo 1991).
 
 AOVs (``N.X/Y/Z``, ``NdotV``, ``object``) come from the ray through the pixel centre (what a
 rasterizer sees at that pixel), ``coverage`` is the fraction of the box-filter samples that hit
@@ -27,7 +36,12 @@ geometry.
 
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
-:data:`REFERENCE_CODE_VERSION`.
+:func:`adaptive_allocation`, :func:`check_sampler`, :data:`REFERENCE_CODE_VERSION`,
+:data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
+References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
+Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH); Neyman 1934 (optimal
+allocation); Owen 2013, *Monte Carlo theory, methods and examples*, ch. 8 (stratification) and 17
+(randomized QMC, replicates).
 """
 
 from __future__ import annotations
