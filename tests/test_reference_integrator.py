@@ -128,17 +128,23 @@ def test_replicate_plan_and_adaptive_allocation():
     for spp in (64, 256, 4096):
         K, n = ri.replicate_plan(spp)
         assert K * n == spp and K >= 2 and ri.multijitter_count_ok(n)
-    # Neyman: a pixel with 4x the standard deviation gets more spp (4x, on a ladder of ratio 4 and
-    # within the budget: 4x or 16x); the mean stays within the budget
+    # Neyman (defensive, dilated): pixels with 4x the standard deviation get more spp, every pixel at least
+    # half the mean (rr.ADAPTIVE_DEFENSIVE), the mean within the budget, each spp a level
     mean = np.full((4, 8, 3), 0.5)
     var = np.full((4, 8, 3), 1e-4)
     var[0, :4] *= 16.0
-    alloc = rr.adaptive_allocation(mean, var, 32, 256, 16)
-    assert alloc.mean() <= 256 and alloc.mean() > 128
-    assert np.all(alloc % 16 == 0)
-    assert np.all(alloc[4:] == alloc[4:].min())
-    assert np.all(alloc[:4] >= 4 * alloc[4:].min()) and np.all(alloc[:4] <= 16 * alloc[4:].min())
-    assert alloc.min() >= 256 // rr.ADAPTIVE_RANGE and alloc.max() <= 256 * rr.ADAPTIVE_RANGE ** 2
+    alloc = rr.adaptive_allocation(mean, var, 32, 256)
+    assert 128 < alloc.mean() <= 256
+    assert set(alloc.tolist()) <= set(rr.adaptive_levels(256))
+    a = alloc.reshape(4, 8)  # the high pixels and their neighbours (dilated by one pixel) get more
+    assert np.all(a[2:] == a[2:].min()) and a.min() == a[2:].min() >= rr.ADAPTIVE_DEFENSIVE * 256
+    assert np.all(a[:2, :5] >= 2 * a.min()) and np.all(a[:, 6:] == a.min())
+    assert rr.adaptive_levels(256) == [32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384]
+    for lv in rr.adaptive_levels(4096):
+        K, n = ri.replicate_plan(lv)
+        assert K in (16, 32) and K * n == lv
+    # a pilot without variance (a constant image): uniform
+    assert np.all(rr.adaptive_allocation(mean, 0 * var, 32, 256) == 256)
 
 
 def test_film_render_equals_moments_mean():
