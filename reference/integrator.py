@@ -166,7 +166,10 @@ def sensor_dict(camera, spp: int = 16, sampler: str = "independent") -> dict:
         "to_world": mi.ScalarTransform4f().look_at(origin=[float(v) for v in camera.origin],
                                                    target=[float(v) for v in camera.target],
                                                    up=[float(v) for v in camera.up]),
-        "sampler": {"type": SAMPLERS.get(sampler, sampler), "sample_count": int(spp)},
+        # qmc: a count multijitter takes as it is (else it logs a warning on stdout); the moments
+        # render sets each replicate's own count
+        "sampler": {"type": SAMPLERS.get(sampler, sampler),
+                    "sample_count": int(spp) if sampler == "independent" else replicate_plan(max(int(spp), 2))[1]},
         "film": {"type": "hdrfilm", "width": int(camera.width), "height": int(camera.height),
                  "rfilter": {"type": "box"}, "pixel_format": "rgb"},
     }

@@ -276,3 +276,16 @@ def test_one_integrator_renders_two_scenes_each_with_its_own_materials():
         fresh = np.array(mi.render(ms, sensor=sensor, integrator=rr.load_integrator("local"), spp=8, seed=1))
         np.testing.assert_allclose(out[name], fresh, rtol=1e-5, atol=1e-6)
     assert not np.allclose(out["a"][..., :3], out["b"][..., :3])
+
+
+def test_cache_key_names_the_sampler_and_adaptive():
+    scene = _scene(size=12)
+    k = lambda **kw: rr.reference_cache_key(scene, spp=kw.pop("spp", 256), mode="local", seed=0, max_depth=None, **kw)  # noqa: E731
+    assert rr.DEFAULT_SAMPLER == "qmc" and rr.DEFAULT_ADAPTIVE
+    assert k() == k(sampler="qmc", adaptive=True)
+    assert len({k(sampler="independent"), k(sampler="qmc", adaptive=False), k(sampler="qmc", adaptive=True)}) == 3
+    # below ADAPTIVE_MIN_SPP an adaptive render is the uniform one: one entry
+    assert k(spp=64, adaptive=True) == k(spp=64, adaptive=False)
+    assert k(sampler="independent", adaptive=True) == k(sampler="independent", adaptive=False)
+    with pytest.raises(ValueError, match="sampler"):
+        k(sampler="sobol")
