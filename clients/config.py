@@ -41,7 +41,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.export import OUTPUT_FORMATS
 
 #: The folder of the built-in clients (this package).
@@ -212,6 +212,8 @@ def _read(path: Path, *, builtin: bool = False) -> dict[str, RendererConfig]:
         raise RendererConfigError(f"{path}: cannot read: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise RendererConfigError(f"{path}: not valid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise RendererConfigError(f"{path}: cannot read: {decode_reason(e)}") from None
     return parse_renderers(data, file=str(path), config_dir=path.resolve().parent, builtin=builtin)
 
 
