@@ -31,7 +31,6 @@ check runs (exit 2, nothing written).
 
 from __future__ import annotations
 
-import hashlib
 import math
 import sys
 import time
@@ -152,6 +151,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
+        same = [n for n in names if _safe(n) == _safe(name)]
+        if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
+            raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
+                       f"(both are {_safe(name)!r})", name)
         names.add(name)
         for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
@@ -278,11 +281,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
 
 def _safe(name: str) -> str:
     """The folder name of a check's maps: the name with other characters than letters, digits and
-    ``-_.`` replaced by ``_``, and then a short hash of the name (``a/b`` and ``a_b`` stay apart)."""
+    ``-_.`` replaced by ``_`` (:func:`load_budget` refuses two checks whose folders would be one)."""
     safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-    if safe == name and safe not in (".", ".."):
-        return safe
-    return f"{safe}-{hashlib.sha256(name.encode()).hexdigest()[:8]}"
+    return "_" * len(safe) if safe in (".", "..") else safe
 
 
 
