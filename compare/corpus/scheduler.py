@@ -233,6 +233,37 @@ class DaskExecutor:
             fut.release()
 
 
+#: Seconds to wait for a TCP connection to a ``tcp://`` scheduler before Dask's own (retrying) connect:
+#: a refused or unreachable port fails at once instead of after :data:`CONNECT_TIMEOUT_S`.
+PROBE_TIMEOUT_S = 10.0
+
+
+def _probe(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Raise :class:`SchedulerUnavailable` at once when nothing listens at ``tcp://HOST:PORT``."""
+    import socket
+    from urllib.parse import urlsplit
+
+    try:
+        u = urlsplit(address)
+        host, port = u.hostname, u.port
+    except ValueError as e:
+        raise SchedulerError(f"--scheduler {address!r}: {e}") from None
+    if not host or port is None:
+        raise SchedulerError(f"--scheduler {address!r}: expected tcp://HOST:PORT")
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as e:
+        reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+        raise SchedulerUnavailable(f"--scheduler {address}: cannot connect ({reason})") from None
+
+
+def _silence_dask() -> None:
+    """Interrupted: the closing cluster's and client's logging says nothing more."""
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
 @contextlib.contextmanager
 def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RETRIES,
                   timeout: float = CONNECT_TIMEOUT_S):
@@ -255,11 +286,19 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     from distributed import Client, LocalCluster  # local: a heavy import only Dask runs need
 
     if spec.kind == "local":
+        # the workers' own logging is silenced (CRITICAL): a Ctrl-C reaches them too, and their
+        # CommClosedError tracebacks would bury pbrcheck's one line; a task's failure still comes
+        # back as its error row
         with LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+                          dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, \
                 Client(cluster, timeout=timeout) as client:
-            yield DaskExecutor(client, retries)
+            try:
+                yield DaskExecutor(client, retries)
+            except BaseException:
+                _silence_dask()
+                raise
         return
+    _probe(spec.address)
     try:
         client = Client(spec.address, timeout=timeout)
     except (OSError, TimeoutError) as e:
@@ -270,4 +309,8 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
         except (OSError, TimeoutError):
             raise SchedulerUnavailable(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
                                  f"(start some with `dask worker {spec.address} --nthreads 1`)") from None
-        yield DaskExecutor(client, retries)
+        try:
+            yield DaskExecutor(client, retries)
+        except BaseException:
+            _silence_dask()
+            raise

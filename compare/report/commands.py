@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
+from pbrcheck.atomic import check_output_path
 from pbrcheck.scene import DEFAULT_SCENE
 from realtime.presets import SHADER_SEP
 
@@ -28,6 +29,7 @@ def _cmd_report(args) -> int:
         presets = (presets or renderers.preset_names()) + split_list(args.also)
     if args.shader:  # each hook file as one more renderer: the default preset with the hooks
         presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
+    check_output_path(args.out, folder=True)  # before any render
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
@@ -47,6 +49,7 @@ def _cmd_report(args) -> int:
 
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
+    check_output_path(args.out, folder=True)  # before any render
     paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
                       progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
     for k, p in paths.items():
