@@ -199,14 +199,19 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "renderers", None):
         clients.config.set_renderers_file(args.renderers)
-    if not isinstance(sys.stdout, _ClosedPipeSafe):
-        sys.stdout = _ClosedPipeSafe(sys.stdout)
+    stdout = sys.stdout
+    if not isinstance(stdout, _ClosedPipeSafe):
+        sys.stdout = _ClosedPipeSafe(stdout)
+    old_term = None
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _on_sigterm)
+        old_term = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return _run(args)
     finally:
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
+        sys.stdout = stdout
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
 
 
 def _run(args) -> int:
