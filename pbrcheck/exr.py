@@ -128,6 +128,15 @@ def _first_line(e: BaseException, said: list[str]) -> str:
     return text.splitlines()[0]
 
 
+def _flush_c_stdio() -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
 @contextlib.contextmanager
 def _quiet_stderr():
     """OpenEXR's libraries print their own messages (a corrupt chunk on stderr, "Warning: Exception
@@ -152,16 +161,22 @@ def _quiet_stderr():
             os.close(fd)
         yield said
         return
+    py_streams = sys.stdout, sys.stderr  # the bindings print their "Warning: ..." through Python
     try:
         for fd in saved:
             os.dup2(sink.fileno(), fd)
+        sys.stdout, sys.stderr = io.StringIO(), io.StringIO()
         try:
             yield said
         finally:
+            _flush_c_stdio()  # the library's buffered std::cout/stdio lines go to the sink, not later
             for fd, keep in saved.items():
                 os.dup2(keep, fd)
+            printed = sys.stdout.getvalue() + sys.stderr.getvalue()
+            sys.stdout, sys.stderr = py_streams
             sink.seek(0)
-            said.extend(l.strip() for l in sink.read().decode("utf-8", "replace").splitlines() if l.strip())
+            text = sink.read().decode("utf-8", "replace") + printed
+            said.extend(l.strip() for l in text.splitlines() if l.strip())
     finally:
         for fd in saved.values():
             os.close(fd)

@@ -15,6 +15,7 @@ from pbrcheck.scene import load_scene
 
 from . import render as R
 from .gl import renderer_name
+from .hooks import load_hook_file
 from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
 
@@ -22,6 +23,8 @@ from .render import dfg_lut, read_lut, render_realtime
 def _cmd_realtime(args) -> int:
     overrides = overrides_from_args(args.set, args.shader)
     resolve_options(args.preset, overrides)  # validate before any GL work
+    if args.shader:
+        load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
     scene = load_scene(args.scene)
     out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
     check_output_path(out)  # before the render
