@@ -40,6 +40,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import shutil
+import sys
+import tempfile
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -259,9 +262,11 @@ def _probe(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
 
 
 def _silence_dask() -> None:
-    """Interrupted: the closing cluster's and client's logging says nothing more."""
+    """Interrupted: the closing cluster's and client's logging says nothing more, nor does Dask's
+    clean-up at exit (``close_clusters`` of a cluster interrupted while it started)."""
     for name in ("distributed", "tornado", "asyncio"):
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    sys.unraisablehook = lambda unraisable: None
 
 
 @contextlib.contextmanager
@@ -283,20 +288,28 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     if spec.kind == "serial":
         yield SerialExecutor()
         return
+    import dask
     from distributed import Client, LocalCluster  # local: a heavy import only Dask runs need
 
     if spec.kind == "local":
         # the workers' own logging is silenced (CRITICAL): a Ctrl-C reaches them too, and their
         # CommClosedError tracebacks would bury pbrcheck's one line; a task's failure still comes
         # back as its error row
-        with LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, \
-                Client(cluster, timeout=timeout) as client:
-            try:
+        # the workers' scratch folder is this run's own, removed at the end (Dask's default,
+        # $TMPDIR/dask-scratch-space, stays behind)
+        scratch = tempfile.mkdtemp(prefix="pbrcheck-dask-")
+        try:
+            with dask.config.set({"temporary-directory": scratch}), \
+                    LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
+                                 dashboard_address=None, silence_logs=logging.CRITICAL,
+                                 local_directory=scratch) as cluster, \
+                    Client(cluster, timeout=timeout) as client:
                 yield DaskExecutor(client, retries)
-            except BaseException:
-                _silence_dask()
-                raise
+        except BaseException:  # also an interrupt while the cluster starts
+            _silence_dask()
+            raise
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
         return
     _probe(spec.address)
     try:
