@@ -43,6 +43,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -236,13 +237,15 @@ class DaskExecutor:
             fut.release()
 
 
-#: Seconds to wait for a TCP connection to a ``tcp://`` scheduler before Dask's own (retrying) connect:
-#: a refused or unreachable port fails at once instead of after :data:`CONNECT_TIMEOUT_S`.
-PROBE_TIMEOUT_S = 10.0
+#: Seconds during which a ``tcp://`` scheduler's port is tried (every 0.25 s: a scheduler that is
+#: still starting) before Dask's own connect: a refused or unreachable port fails after this, not
+#: after :data:`CONNECT_TIMEOUT_S`.
+PROBE_TIMEOUT_S = 15.0
 
 
 def _probe(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
-    """Raise :class:`SchedulerUnavailable` at once when nothing listens at ``tcp://HOST:PORT``."""
+    """Raise :class:`SchedulerUnavailable` when nothing listens at ``tcp://HOST:PORT`` within
+    ``timeout`` seconds."""
     import socket
     from urllib.parse import urlsplit
 
@@ -253,12 +256,18 @@ def _probe(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
         raise SchedulerError(f"--scheduler {address!r}: {e}") from None
     if not host or port is None:
         raise SchedulerError(f"--scheduler {address!r}: expected tcp://HOST:PORT")
-    try:
-        with socket.create_connection((host, port), timeout=timeout):
-            pass
-    except OSError as e:
-        reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
-        raise SchedulerUnavailable(f"--scheduler {address}: cannot connect ({reason})") from None
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=max(0.5, deadline - time.monotonic())):
+                return
+        except OSError as e:
+            if time.monotonic() + 0.25 < deadline and not isinstance(e, (TimeoutError, socket.gaierror)):
+                time.sleep(0.25)
+                continue
+            reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+            raise SchedulerUnavailable(f"--scheduler {address}: cannot connect within {timeout:g} s "
+                                       f"({reason})") from None
 
 
 def _silence_dask() -> None:
@@ -311,7 +320,7 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
         return
-    _probe(spec.address)
+    _probe(spec.address, min(timeout, PROBE_TIMEOUT_S))
     try:
         client = Client(spec.address, timeout=timeout)
     except (OSError, TimeoutError) as e:
