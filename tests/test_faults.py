@@ -598,3 +598,25 @@ def test_bounded_renderer_output(tmp_path):
     script = "import sys\nfor i in range(40):\n    sys.stdout.write('x' * (1 << 20))\nsys.stdout.write('END')\n"
     r = R.run_process([sys.executable, "-c", script], cwd=tmp_path, timeout=60, label="ext:loud")
     assert r.returncode == 0 and r.stdout.endswith("END") and len(r.stdout) <= R.OUTPUT_TAIL_BYTES
+
+
+def test_interrupted_rerun_leaves_no_stale_table(work, tmp_path, monkeypatch):
+    from compare.corpus.study import CorpusSettings, RendererSpec, run_corpus
+    from pbrcheck.scene import load_scene
+    from realtime.presets import parse_sets
+
+    monkeypatch.setenv("PBRCHECK_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "corpus"
+    out.mkdir()
+    (out / "corpus.csv").write_text("environment,renderer\nold,run\n")  # a previous run's table
+    (out / "corpus.json").write_text("{}\n")
+
+    def stop(row):
+        raise KeyboardInterrupt
+
+    settings = CorpusSettings(load_scene(work / "tiny.toml"),
+                              (RendererSpec("default", parse_sets(RT_FAST[1::2])),),
+                              spp=4)
+    with pytest.raises(KeyboardInterrupt):
+        run_corpus(work / "envs", settings, out, scheduler="serial", progress=False, on_row=stop)
+    assert not (out / "corpus.csv").exists() and not (out / "corpus.json").exists()
