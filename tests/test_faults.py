@@ -432,7 +432,7 @@ def test_signal_during_report_leaves_nothing(work, tmp_path, sig):
     t0 = time.time()
     rc, err = _run_and_signal(argv, sig, lambda: time.time() - t0 > 8, tmp, marker)
     _assert_clean(rc, err, sig, tmp, marker)
-    assert not (out / "index.html").exists()
+    assert not out.exists() and not list(tmp_path.glob(".report.*")), list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("sig", SIGNALS)

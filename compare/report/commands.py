@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
-from pbrcheck.atomic import check_output_path
+from pbrcheck.atomic import check_output_path, staged_folder
 from pbrcheck.scene import DEFAULT_SCENE
 from realtime.presets import SHADER_SEP
 
@@ -33,13 +33,17 @@ def _cmd_report(args) -> int:
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
-    out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
-                       extras=extras,
-                       spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                       convergence=not args.no_convergence,
-                       sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
-                       scheduler=args.scheduler, cache=not args.no_cache)
+    # The page and its files are written into a sibling temporary folder (same depth: the corpus
+    # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
+    with staged_folder(args.out) as stage:
+        built = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=stage,
+                             extras=extras,
+                             spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                             convergence=not args.no_convergence,
+                             sweep=not args.no_sweep, progress=not args.quiet,
+                             hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
+                             scheduler=args.scheduler, cache=not args.no_cache)
+    out = Path(args.out) / Path(built).relative_to(stage)
     print(f"report: {out}")
     run = Path(out).parent / RUN_FILE
     if run.is_file():  # where the time went (also the page's last section)
@@ -50,8 +54,10 @@ def _cmd_report(args) -> int:
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
     check_output_path(args.out, folder=True)  # before any render
-    paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
+    with staged_folder(args.out) as stage:  # all of its files, or none
+        staged = run_sweep(args.scene, vary, preset=args.preset, out_dir=stage, spp=args.spp,
+                           progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
+    paths = {k: Path(args.out) / Path(p).relative_to(stage) for k, p in staged.items()}
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0
