@@ -123,6 +123,10 @@ def staged_folder(path: str | Path):
                 rel = os.path.relpath(e.filename, stage)
                 raise path_error(e, path / rel) from None
             raise
+        except Exception as e:  # a typed error (e.g. an EXR that cannot be written) naming the stage
+            if len(e.args) == 1 and isinstance(e.args[0], str) and str(stage) in e.args[0]:
+                e.args = (e.args[0].replace(str(stage), str(path)),)
+            raise
         try:
             if path.is_dir():
                 _merge(stage, path)
