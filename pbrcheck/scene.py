@@ -38,7 +38,7 @@ MULTISCATTERS = _MULTISCATTERS.scene_names
 #: The scene ``pbrcheck`` commands use when none is named.
 DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
-OBJECT_TYPES = ("sphere", "plane", "sphere_grid")
+OBJECT_TYPES = ("sphere", "plane", "sphere_grid", "gltf")
 
 # Smallest |up x view| (sine of the angle) accepted before the camera frame is called degenerate.
 CAMERA_UP_PARALLEL_SINE = 1e-6
@@ -159,6 +159,8 @@ class Scene:
     # The grid layout of sphere_grid objects, for reports: (first id, rows, columns, metallic range,
     # roughness range) per grid.
     grids: tuple[dict, ...] = field(default_factory=tuple)
+    # glTF assets (pbrcheck.gltf_scene.AssetInstance), their primitives in ``objects`` as Mesh.
+    assets: tuple = field(default_factory=tuple)
 
     def to_dict(self) -> dict[str, Any]:
         """Resolved scene as plain data (objects expanded, defaults filled)."""
@@ -171,6 +173,8 @@ class Scene:
             "brdf": asdict(self.brdf),
             "objects": [asdict(o) for o in self.objects],
         }
+        if self.assets:
+            d["assets"] = [a.to_dict() for a in self.assets]
         return _plain(d)
 
     def content_dict(self) -> dict[str, Any]:
@@ -183,6 +187,8 @@ class Scene:
             d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
         for o in d["objects"]:
             o.pop("name", None)
+        for a in d.get("assets", []):
+            a.pop("path", None)  # the content hash stands for the file and its resources
         return d
 
     def with_camera(self, **changes) -> "Scene":
@@ -427,6 +433,8 @@ def _objects(ctx, lst):
         raise ctx.err("objects", "a non-empty array of tables [[objects]]", lst)
     objects: list[Sphere | Plane] = []
     grids: list[dict] = []
+    assets: list = []
+    asset_lights: list[PointLight] = []
     for i, t in enumerate(lst):
         w = f"objects[{i}]"
         if not isinstance(t, dict):
@@ -438,7 +446,13 @@ def _objects(ctx, lst):
         if typ != "sphere_grid" and "id" in t and t["id"] != len(objects):
             # resolved scenes (check-scene output) carry ids; they must be the index after expansion
             raise ctx.err(f"{w}.id", f"{len(objects)} (the object's index after sphere grids are expanded)", t["id"])
-        if typ == "sphere":
+        if typ == "gltf":  # pbrcheck.gltf_scene: one Mesh object per (node, primitive)
+            from .gltf_scene import expand_gltf_object
+            inst, meshes, lights = expand_gltf_object(ctx, t, w, len(objects), len(assets))
+            assets.append(inst)
+            objects.extend(meshes)
+            asset_lights.extend(lights)
+        elif typ == "sphere":
             _check_keys(ctx, t, {"type", "name", "id", "center", "radius", "material"}, w)
             objects.append(Sphere(id=len(objects), name=name or f"sphere{len(objects)}",
                                   center=_vec3(ctx, t, "center", w, (0.0, 0.0, 0.0)),
@@ -485,7 +499,7 @@ def _objects(ctx, lst):
                                           center=pos, radius=radius,
                                           material=replace(base, metallic=round(m, 9), roughness=round(g, 9))))
             grids.append({"first_id": first, "rows": rows, "columns": cols, "metallic": met, "roughness": rough})
-    return tuple(objects), tuple(grids)
+    return tuple(objects), tuple(grids), tuple(assets), tuple(asset_lights)
 
 
 def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None) -> Scene:
@@ -496,17 +510,18 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     _check_keys(ctx, data, {"name", "description", "camera", "environment", "lights", "brdf", "objects"}, "")
     if "environment" not in data:
         raise ctx.err("environment", "exactly one [environment] table", "nothing")
-    objects, grids = _objects(ctx, data.get("objects"))
+    objects, grids, assets, asset_lights = _objects(ctx, data.get("objects"))
     return Scene(
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),
         camera=_camera(ctx, data.get("camera", {})),
         environment=_environment(ctx, data["environment"]),
-        lights=_lights(ctx, data.get("lights", [])),
+        lights=_lights(ctx, data.get("lights", [])) + asset_lights,
         brdf=_brdf(ctx, data.get("brdf", {})),
         objects=objects,
         source=file,
         grids=grids,
+        assets=assets,
     )
 
 
@@ -525,6 +540,9 @@ def load_scene(name_or_path: str | Path) -> Scene:
     """Load a built-in scene by name (``spheres``) or a TOML file by path."""
     s = str(name_or_path)
     p = Path(s)
+    if p.suffix.lower() in (".gltf", ".glb") and p.is_file():
+        from .gltf_scene import asset_scene  # an asset alone: --env / --size (pbrcheck.gltf_scene)
+        return asset_scene(p)
     if not p.suffix and s in builtin_scene_names():
         p = builtin_scene_path(s)
     elif not p.exists():
