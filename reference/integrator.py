@@ -168,6 +168,10 @@ class ReferenceIntegrator(RBIntegrator):
                 return MaterialView.gather(self._table[1], si, hit)
         return si.bsdf(ray)
 
+    @staticmethod
+    def has_area_emitters(scene) -> bool:
+        return any(mi.has_flag(e.flags(), mi.EmitterFlags.Surface) for e in scene.emitters())
+
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
@@ -178,6 +182,8 @@ class ReferenceIntegrator(RBIntegrator):
         L = mi.Color3f(0.0)
         if env is not None:
             L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
+        if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
+            L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
             bsdf = self._bsdf(scene, si, ray, hit)

@@ -95,7 +95,12 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
     for k, light in enumerate(scene.lights):
         d[f"light{k}"] = {"type": "point", "position": list(light.position),
                           "intensity": {"type": "rgb", "value": list(light.intensity)}}
+    if getattr(scene, "assets", ()):  # glTF primitives: meshes from the decoded buffers (reference.textured)
+        from .textured import asset_shapes
+        d.update(asset_shapes(scene, None if bsdf_override is None else (lambda obj: bsdf_override)))
     for i, obj in enumerate(scene.objects):
+        if obj.type == "mesh":
+            continue
         bsdf = bsdf_override if bsdf_override is not None else material_dict(obj.material, scene.brdf)
         if isinstance(obj, Sphere):
             d[shape_id(i)] = {"type": "sphere", "center": list(obj.center), "radius": float(obj.radius),
