@@ -26,7 +26,7 @@ pixel ``(v H, u W)`` without a flip. Where ``NORMAL`` is absent every triangle g
 (the vertices are unwelded); where ``TANGENT`` is absent and the material has a normal texture,
 tangents are generated (:func:`generate_tangents`: MikkTSpace's per-triangle tangents from the UV
 derivatives, angle-weighted at each vertex, orthogonalised against the normal, ``w`` from the
-bitangent's handedness). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
+bitangent's handedness, negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
 or their indices where unnamed, and the primitive's index).
 
 The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
@@ -517,7 +517,7 @@ def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.
     """(N, 4) tangents with handedness: MikkTSpace's construction on a welded mesh -- per triangle
     the tangent and bitangent from the UV derivatives (Mikkelsen 2008), accumulated at each vertex
     weighted by the triangle's angle there, orthogonalised against the vertex normal (Gram-Schmidt);
-    ``w = sign(dot(cross(N, T), B))``. Triangles with degenerate UVs do not contribute."""
+    ``w = -sign(dot(cross(N, T), B))`` (glTF's bitangent points to decreasing v). Triangles with degenerate UVs do not contribute."""
     p = pos.astype(np.float64)
     t = uv.astype(np.float64)
     v0, v1, v2 = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
@@ -527,7 +527,8 @@ def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.
     det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
     ok = np.abs(det) > UV_AREA_EPS
     r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
-    # glTF's v points down the image: the bitangent follows +v as stored (MikkTSpace on glTF UVs).
+    # B follows +v as stored; glTF's v points down the image and its bitangent (w (N x T)) points up
+    # the image, so w is MikkTSpace's sign negated (as three.js's computeMikkTSpaceTangents negateSign).
     T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r
     B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r
     acc_t = np.zeros_like(p)
@@ -546,7 +547,7 @@ def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.
     ln = np.linalg.norm(tt, axis=1, keepdims=True)
     bad = ln[:, 0] < TANGENT_EPS
     tt = np.where(bad[:, None], _any_orthogonal(n), tt / np.maximum(ln, 1e-30))
-    w = np.where(np.einsum("ij,ij->i", np.cross(n, tt), acc_b) < 0, -1.0, 1.0)
+    w = np.where(np.einsum("ij,ij->i", np.cross(n, tt), acc_b) < 0, 1.0, -1.0)
     return np.concatenate([tt, w[:, None]], axis=1).astype(np.float32)
 
 
