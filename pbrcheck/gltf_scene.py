@@ -291,3 +291,26 @@ def describe(scene: Scene) -> list[str]:
     out.append(f"# camera: origin {[round(x, 6) for x in c.origin]}, target {[round(x, 6) for x in c.target]}, "
                f"horizontal fov {c.fov:.4g} deg, {c.width}x{c.height}")
     return out
+
+
+#: The one-line reason a real-time preset cannot render an asset scene (until it rasterizes meshes).
+RASTER_MISSING = ("the real-time renderer ray-casts analytic spheres and planes; its mesh raster pipeline for "
+                  "glTF assets does not exist yet (use ext:threejs or ext:sample-viewer)")
+
+
+class UnsupportedSceneError(AssetError):
+    """A renderer that cannot render a scene holding glTF assets."""
+
+
+def require_analytic(scene: Scene, renderer: str) -> None:
+    """Raise :class:`UnsupportedSceneError` when ``scene`` holds glTF assets (``renderer`` names who asks)."""
+    if scene_has_assets(scene):
+        raise UnsupportedSceneError(scene.source, "", f"{renderer}: {RASTER_MISSING}")
+
+
+def split_presets(scene: Scene, presets) -> tuple[list[str], list[str]]:
+    """(usable, skipped) presets for ``scene``: real-time presets are skipped on asset scenes."""
+    if not scene_has_assets(scene):
+        return list(presets), []
+    use = [p for p in presets if str(p).startswith("ext:")]
+    return use, [p for p in presets if p not in use]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import jinja2
@@ -20,6 +20,7 @@ from pbrcheck import __version__
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
@@ -374,6 +375,11 @@ def _convergence(scene, ref, spp: int, prog) -> list[dict]:
 def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneSection:
     """Render the reference and every renderer of ``st`` on one scene, compare, plot, write files."""
     scene = load_scene(scene_arg)
+    presets, skipped = split_presets(scene, st.presets)  # asset scenes: external renderers only
+    if skipped:
+        if not presets:
+            raise PbrcheckError(f"report: {scene.source}: every preset skipped ({', '.join(skipped)}): {RASTER_MISSING}")
+        st = replace(st, presets=presets, vary=None, sweep=False)
     sid = _safe(scene.name)
     sd = out_dir / sid
     sd.mkdir(parents=True, exist_ok=True)
@@ -392,6 +398,12 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
     provenance = _provenance(scene, ref)
     provenance.append(("reference spp rule", verdict.provenance()))
+    if skipped:
+        provenance.append(("presets skipped", f"{', '.join(skipped)}: {RASTER_MISSING}"))
+    for a in getattr(scene, "assets", ()):
+        provenance.append((f"glTF asset {Path(a.path).name}", f"sha256 {a.content_hash}; extensions used: "
+                           f"{', '.join(a.asset.extensions_used) or 'none'}; ignored: "
+                           f"{', '.join(a.asset.extensions_ignored) or 'none'}"))
     noise_floor = None
     for preset in st.presets:
         with stage(f"{scene.name}: comparisons and diagnose"):
