@@ -5,7 +5,8 @@
 "geometry", "fresnel", "base_color_texture": <texture>, "metallic_roughness_texture": <texture>,
 "normal_texture": <texture>, "normal_scale", "double_sided"}`` where each ``<texture>`` is a Mitsuba
 ``bitmap`` (float32 linear pixels: colour textures sRGB-decoded on load, :meth:`GltfImage.linear`;
-``filter_type = "bilinear"``, the sampler's wrap mode, no mip filtering: the pixel's box-filter
+``filter_type = "bilinear"`` (``"nearest"`` where the sampler's magFilter is NEAREST), the
+sampler's wrapS for both axes (Mitsuba's bitmap has one wrap mode), no mip filtering: the pixel's box-filter
 samples integrate the texture's footprint, the truth a mip chain approximates; ``to_uv`` =
 ``KHR_texture_transform``'s matrix). Per lane (glTF 2.0 specification, section 3.9 and Appendix B)::
 
@@ -21,6 +22,13 @@ flipped frame (glTF: the back face's normal is the negated one); single-sided ba
 texture approximates it) and ``path`` computes it. Emission: an ``area`` emitter whose radiance is
 the emissive texture (sRGB-decoded) times ``emissiveFactor`` times ``KHR_materials_emissive_strength``,
 on the primitive's mesh: ``local`` adds it at the first hit, ``path`` lights the scene with it.
+
+Alpha (glTF ``alphaMode``): ``MASK`` has opacity ``alpha >= alphaCutoff`` (0 or 1), ``BLEND`` opacity
+``alpha`` (``baseColorFactor.a`` times the base colour texture's alpha), exactly: a Null component
+(``eval_null_transmission = 1 - opacity``; ``sample`` passes through with that probability, weight
+1; ``eval``/``pdf`` scale by the opacity). ``local`` continues camera rays through each surface with
+that probability (:meth:`reference.integrator.ReferenceIntegrator._first_opaque_hit`); ``path`` renders
+such scenes with Mitsuba's ``volpath``, whose shadow rays pass null interfaces (``path``'s do not).
 
 UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
 0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
@@ -43,6 +51,8 @@ from .bsdf import MaterialView, is_mirror_limit
 
 PLUGIN_NAME = "pbr_textured"
 WRAP_MODES = {WRAP_CLAMP: "clamp", WRAP_MIRROR: "mirror"}   # else repeat
+#: glTF's magFilter NEAREST (9728): the texel itself; LINEAR or unset: bilinear.
+MAG_NEAREST = 9728
 #: Shading-frame tangents shorter than this after Gram-Schmidt fall back to Mitsuba's frame.
 FRAME_EPS = 1e-8
 
@@ -50,7 +60,8 @@ FRAME_EPS = 1e-8
 def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
     """A Mitsuba ``bitmap`` texture of float32 linear ``pixels`` (H, W, C) read as glTF ``ref`` reads it."""
     d = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.float32)), "raw": True,
-         "filter_type": "bilinear", "wrap_mode": WRAP_MODES.get(ref.wrap[0], "repeat")}
+         "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear",
+         "wrap_mode": WRAP_MODES.get(ref.wrap[0], "repeat")}
     if ref.transform is not None:
         m = np.asarray(ref.transform, float).reshape(3, 3)
         d["to_uv"] = mi.ScalarTransform3f(m)
@@ -70,9 +81,13 @@ class TexturedMaterial(mi.BSDF):
                       str(props.get("fresnel", "schlick")), "none", 0)
         self.normal_scale = float(props.get("normal_scale", 1.0))
         self.double_sided = bool(props.get("double_sided", False))
+        # glTF alphaMode: 0 OPAQUE, 1 MASK (opacity = alpha >= cutoff), 2 BLEND (opacity = alpha)
+        self.alpha_mode = int(props.get("alpha_mode", 0))
+        self.alpha_cutoff = float(props.get("alpha_cutoff", 0.5))
+        self.alpha = float(props.get("alpha", 1.0))
         self.tex = {}
         self.uvset = {}
-        for slot in ("base_color", "metallic_roughness", "normal"):
+        for slot in ("base_color", "metallic_roughness", "normal", "alpha"):
             if f"{slot}_texture" in props:
                 self.tex[slot] = props.get(f"{slot}_texture")
                 self.uvset[slot] = int(props.get(f"{slot}_texcoord", 0))
@@ -81,7 +96,11 @@ class TexturedMaterial(mi.BSDF):
             flags = flags | mi.BSDFFlags.BackSide
         if self.tex:
             flags = flags | mi.BSDFFlags.SpatiallyVarying
-        self.m_components = [flags]
+        comps = [flags]
+        if self.alpha_mode:
+            comps.append(mi.BSDFFlags.Null | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide)
+            flags = flags | mi.BSDFFlags.Null | mi.BSDFFlags.BackSide
+        self.m_components = comps
         self.m_flags = flags
 
     def traverse(self, callback):
@@ -140,6 +159,22 @@ class TexturedMaterial(mi.BSDF):
         view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular))
         return view, frame
 
+    def opacity(self, si, active=True):
+        """glTF's coverage at the hit: 1 (OPAQUE), alpha >= cutoff (MASK) or alpha (BLEND), with
+        alpha = baseColorFactor.a * baseColorTexture.a."""
+        if not self.alpha_mode:
+            return mi.Float(1.0)
+        a = mi.Float(self.alpha)
+        if "alpha" in self.tex:
+            a = a * self._lookup("alpha", si, active).x
+        if self.alpha_mode == 1:
+            return dr.select(a >= self.alpha_cutoff, 1.0, 0.0)
+        return dr.clip(a, 0.0, 1.0)
+
+    def eval_null_transmission(self, si, active=True):
+        """The fraction that passes through (1 - opacity): Mitsuba's null interface."""
+        return mi.Spectrum(1.0 - self.opacity(si, active))
+
     def _local_si(self, si, frame):
         s2 = mi.SurfaceInteraction3f(si)
         s2.wi = frame.to_local(si.wi)
@@ -153,6 +188,9 @@ class TexturedMaterial(mi.BSDF):
         same = mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(wo) > 0
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         f, pdf = view.eval_pdf(ctx, s2, wo2, active & same & front)
+        if self.alpha_mode:  # the surface is there with probability opacity
+            op = self.opacity(si, active)
+            f, pdf = f * op, pdf * op
         return dr.select(same & front, f, 0.0), dr.select(same & front, pdf, 0.0)
 
     def eval(self, ctx, si, wo, active=True):
@@ -168,7 +206,26 @@ class TexturedMaterial(mi.BSDF):
         bs, w = view.sample(ctx, s2, sample1, sample2, mi.Bool(active) & front)
         bs.wo = frame.to_world(bs.wo)
         ok = front & (mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(bs.wo) > 0)
-        return bs, dr.select(ok, w, 0.0)
+        w = dr.select(ok, w, 0.0)
+        if self.alpha_mode:
+            # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
+            # value and pdf both scale by the opacity); sample1 is reused, rescaled, for the lobe choice
+            op = self.opacity(si, active)
+            through = sample1 >= op
+            bs2, w2 = view.sample(ctx, s2, dr.select(through, 0.0, sample1 / dr.maximum(op, 1e-20)), sample2,
+                                  mi.Bool(active) & front & ~through)
+            bs2.wo = frame.to_world(bs2.wo)
+            ok2 = front & (mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(bs2.wo) > 0)
+            w = dr.select(ok2, w2, 0.0)
+            bs = bs2
+            bs.pdf = bs.pdf * op
+            bs.wo = dr.select(through, -si.wi, bs.wo)
+            bs.pdf = dr.select(through, 1.0 - op, bs.pdf)
+            bs.eta = 1.0
+            bs.sampled_type = dr.select(through, mi.UInt32(+mi.BSDFFlags.Null), bs.sampled_type)
+            bs.sampled_component = dr.select(through, mi.UInt32(1), bs.sampled_component)
+            w = dr.select(through, 1.0, w)
+        return bs, w
 
     def eval_diffuse_reflectance(self, si, active=True):
         view, _ = self._view(si, active)
@@ -206,6 +263,16 @@ def _material_dict(asset, index: int, brdf, cache: dict) -> dict:
             cache[key] = asset.images[ref.image].linear(srgb)[..., :3]
         d[f"{slot}_texture"] = texture_dict(cache[key], ref)
         d[f"{slot}_texcoord"] = ref.texcoord
+    if m.alpha_mode != "OPAQUE":
+        d.update(alpha_mode=1 if m.alpha_mode == "MASK" else 2, alpha_cutoff=float(m.alpha_cutoff),
+                 alpha=float(m.base_color[3]))
+        ref = m.base_color_texture
+        if ref is not None:
+            key = (ref.image, "alpha")
+            if key not in cache:
+                cache[key] = asset.images[ref.image].linear(False)[..., 3:4]
+            d["alpha_texture"] = texture_dict(cache[key], ref)
+            d["alpha_texcoord"] = ref.texcoord
     return d
 
 

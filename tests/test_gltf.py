@@ -280,3 +280,22 @@ def test_emissive_texture_seen_at_the_hit(tmp_path, tmp_cache):
     a, img = _render(quad_scene(tmp_path, p, env="[0.0, 0.0, 0.0]"))
     c = img.channels["coverage"] == 1.0
     assert np.allclose(a[c], 4.0, rtol=1e-5)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["local", "path"])
+def test_mask_cutout_shows_the_environment(tmp_path, tmp_cache, mode):
+    # left half of the texture alpha 0 (cut out), right half alpha 1; a black diffuse quad in a
+    # constant environment of radiance 0.5: cut-out pixels see 0.5, the rest see the black surface
+    # (local) or the black surface (path: nothing reaches it except through itself: dark)
+    img = np.zeros((4, 4, 4), np.uint8)
+    img[..., 3] = 255
+    img[:, :2, 3] = 0
+    p = quad_asset(tmp_path / "m.gltf", {"alphaMode": "MASK", "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": 0}, "metallicFactor": 0.0},
+        "doubleSided": True}, [(img, {"magFilter": 9728, "wrapS": 33071, "wrapT": 33071})])
+    a, im = _render(quad_scene(tmp_path, p, env="[0.5, 0.5, 0.5]", fov=20.0), mode=mode)
+    H, W = a.shape[:2]
+    left, right = a[H // 2, W // 4], a[H // 2, 3 * W // 4]
+    assert np.allclose(left, 0.5, atol=1e-6), left
+    assert right.max() < 0.5 * 0.1, right   # specular of a black dielectric only: F0 = 0.04 x 0.5
