@@ -28,6 +28,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   noise floor (mean pixel variance) to a tenth of the default preset's error there
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
+* ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
+  size, spp and environment: load and Mitsuba-scene (BVH) seconds apart, its local samples/s and
+  ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
 """
 
 from __future__ import annotations
@@ -64,7 +67,7 @@ SPHERES_DEFAULT_MSE = 1.8e-4
 #: The small renders of ``material_gather`` (fit-roughness's and the research sections' sizes).
 SMALL_SIZE, SMALL_SPP = 48, 16
 
-GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9}
+GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9, "asset_vs_spheres": 0.7}
 
 
 def _timed_render(fn):
@@ -214,6 +217,8 @@ def run_bench(quick: bool = False) -> dict:
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
 
     gather = _time_gather(scene, 2 if quick else 5)
+    from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
+    asset = bench_asset(scene, spp, t_local, rep, quick=quick)
 
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
@@ -234,6 +239,7 @@ def run_bench(quick: bool = False) -> dict:
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
         "material_gather_render_speedup": gather["render_speedup"],
         "material_gather_grad_step_speedup": gather["grad_step_speedup"],
+        "asset_vs_spheres": asset["vs_spheres"],
     }
     goals = {f"{k}_goal": v for k, v in GOALS.items()}
     met = {k: figures[k] >= v for k, v in GOALS.items()}
@@ -267,6 +273,7 @@ def run_bench(quick: bool = False) -> dict:
         "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
         "peer_roughness": PEER_ROUGHNESS,
         "material_gather": gather,
+        "asset": asset,
         "noise_floor_factor": NOISE_FLOOR_FACTOR,
         "noise_floor_target_mse": SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR,
         "noise_floor_note": "spp = 10 x per-sample variance / the default preset's MSE on spheres; seconds "
