@@ -7,7 +7,7 @@ under one node ``pbrcheck_root`` carrying the scene file's placement (``matrix``
 omitted when the identity), pbrcheck's camera first in ``cameras`` (the asset's cameras follow,
 their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``scene.bin``; external
 buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
-objects cannot share an exported scene with an asset yet (:class:`~pbrcheck.export.ExportError`).
+objects cannot share an exported scene with an asset yet (:class:`~pbrcheck.gltf.AssetError`).
 
 API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).
@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
+from .gltf import AssetError
 
 #: Most candidate (triangle, pixel) pairs rasterized at once by :func:`mesh_object_ids`.
 RASTER_CHUNK = 1 << 22
@@ -44,11 +45,9 @@ def _read_doc(path: Path) -> tuple[dict, bytes | None]:
 
 def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scene.bin") -> tuple[dict, dict[str, bytes]]:
     """(glTF JSON, {relative path: bytes}) of a scene whose objects all come from one asset."""
-    from .export import ExportError
-
     if len(scene.assets) != 1 or any(o.type != "mesh" for o in scene.objects):
-        raise ExportError(f"{scene.source}: objects: an exported scene holds one glTF asset and no analytic "
-                          "objects (mixing them is not supported by export yet)")
+        raise AssetError(scene.source, "objects", "an exported scene holds one glTF asset and no analytic "
+                         "objects (mixing them is not supported by export yet)")
     inst = scene.assets[0]
     src = Path(inst.path)
     doc, blob = _read_doc(src)
@@ -66,7 +65,7 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
                 continue
             rel = urllib.parse.unquote(uri)
             if Path(rel).is_absolute() or ".." in Path(rel).parts:
-                raise ExportError(f"{src}: /{key}/{k}/uri: a resource outside the asset's folder ({uri!r})")
+                raise AssetError(src, f"/{key}/{k}/uri", f"a resource outside the asset's folder ({uri!r})")
             files[rel] = (src.parent / rel).read_bytes()
     si = inst.asset.scene
     roots = doc["scenes"][si]["nodes"] if doc.get("scenes") else inst.asset and [

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SceneError
-from .gltf_scene import DEFAULT_ASSET_SIZE, FRAMING_FOV_DEG, framing_camera, is_asset_path
+from .gltf_objects import DEFAULT_ASSET_SIZE, FRAMING_FOV_DEG, is_asset_path
+from .gltf_scene import framing_camera
 from .scene import dump_toml, scene_from_dict
 
 KEYS = ("name", "model", "lighting", "dimensions", "target", "orbit", "verticalFoV", "renderSkybox")

@@ -1,8 +1,9 @@
 """The scene model both renderers read, and its TOML loader.
 
 A scene file names a camera, exactly one environment, optional point lights, the ground-truth BRDF
-model and a list of objects (spheres, planes and sphere grids, the latter expanded here into one
-sphere object each). The field names are a contract (see README.md, "Scene files").
+model and a list of objects (spheres, planes, sphere grids and glTF assets, the latter two expanded
+here into one sphere object each and one mesh object per (node, primitive):
+:mod:`pbrcheck.gltf_objects`). A ``.gltf`` / ``.glb`` path is a scene too (:func:`asset_scene`). The field names are a contract (see README.md, "Scene files").
 
 Every problem is a :class:`~pbrcheck.errors.SceneError` naming the file, the dotted field, what was
 expected and what was found. Loading never writes anything.
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError
+from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
@@ -159,7 +161,7 @@ class Scene:
     # The grid layout of sphere_grid objects, for reports: (first id, rows, columns, metallic range,
     # roughness range) per grid.
     grids: tuple[dict, ...] = field(default_factory=tuple)
-    # glTF assets (pbrcheck.gltf_scene.AssetInstance), their primitives in ``objects`` as Mesh.
+    # glTF assets (pbrcheck.gltf_objects.AssetInstance), their primitives in ``objects`` as Mesh.
     assets: tuple = field(default_factory=tuple)
 
     def to_dict(self) -> dict[str, Any]:
@@ -446,9 +448,10 @@ def _objects(ctx, lst):
         if typ != "sphere_grid" and "id" in t and t["id"] != len(objects):
             # resolved scenes (check-scene output) carry ids; they must be the index after expansion
             raise ctx.err(f"{w}.id", f"{len(objects)} (the object's index after sphere grids are expanded)", t["id"])
-        if typ == "gltf":  # pbrcheck.gltf_scene: one Mesh object per (node, primitive)
-            from .gltf_scene import expand_gltf_object
-            inst, meshes, lights = expand_gltf_object(ctx, t, w, len(objects), len(assets))
+        if typ == "gltf":  # pbrcheck.gltf_objects: one Mesh object per (node, primitive)
+            inst, meshes, lights = expand_gltf_object(ctx, t, w, len(objects), len(assets), check_keys=_check_keys,
+                                                      num=_num, vec3=_vec3, material_cls=Material,
+                                                      light_cls=PointLight)
             assets.append(inst)
             objects.extend(meshes)
             asset_lights.extend(lights)
@@ -541,8 +544,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
     s = str(name_or_path)
     p = Path(s)
     if p.suffix.lower() in (".gltf", ".glb") and p.is_file():
-        from .gltf_scene import asset_scene  # an asset alone: --env / --size (pbrcheck.gltf_scene)
-        return asset_scene(p)
+        return asset_scene(p)  # an asset alone: --env / --size
     if not p.suffix and s in builtin_scene_names():
         p = builtin_scene_path(s)
     elif not p.exists():
@@ -558,6 +560,39 @@ def load_scene(name_or_path: str | Path) -> Scene:
     except tomllib.TOMLDecodeError as e:
         raise SceneError(str(p), None, "valid TOML", message=f"{p}: invalid TOML: {e}") from None
     return scene_from_dict(data, file=str(p), base_dir=p.parent)
+
+
+def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None) -> Scene:
+    """A scene of one glTF asset (``pbrcheck COMMAND asset.glb``): its first camera, else model-viewer's
+    default framing (:func:`pbrcheck.gltf_objects.framing`); ``env`` (an .hdr/.exr file; default the
+    CLI's ``--env``) or the neutral constant environment of radiance 1; ``size`` (W, H; default the
+    CLI's ``--size``, else 512 x 512, or the camera's aspect ratio at that height)."""
+    p = Path(path)
+    opts = asset_options()
+    env = env if env is not None else opts["env"]
+    size = size if size is not None else opts["size"]
+    data: dict = {"name": p.stem, "description": f"glTF asset {p.name}",
+                  "objects": [{"type": "gltf", "path": str(p.resolve())}],
+                  "environment": {"type": "file", "path": str(Path(env).resolve())} if env is not None
+                  else {"type": "constant", "radiance": list(NEUTRAL_RADIANCE)}}
+    scene = scene_from_dict(data, file=str(p), base_dir=p.parent)
+    asset = scene.assets[0].asset
+    if asset.cameras:
+        cam = asset.cameras[0]
+        if size is None:
+            H = DEFAULT_ASSET_SIZE[1]
+            W = int(round(H * cam.aspect)) if cam.aspect else DEFAULT_ASSET_SIZE[0]
+        else:
+            W, H = size
+        tx = math.tan(cam.yfov / 2) * W / H
+        target = tuple(float(o + f) for o, f in zip(cam.origin, cam.forward))
+        camera = Camera(origin=cam.origin, target=target, up=cam.up, fov=math.degrees(2 * math.atan(tx)),
+                        width=W, height=H)
+    else:
+        W, H = size if size is not None else DEFAULT_ASSET_SIZE
+        origin, target, fov = framing(*scene.assets[0].bounds(), W, H)
+        camera = Camera(origin=origin, target=target, up=(0.0, 1.0, 0.0), fov=fov, width=W, height=H)
+    return replace(scene, camera=camera)
 
 
 def dump_toml(d: dict) -> str:

@@ -97,7 +97,7 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
                           "intensity": {"type": "rgb", "value": list(light.intensity)}}
     if getattr(scene, "assets", ()):  # glTF primitives: meshes from the decoded buffers (reference.textured)
         from .textured import asset_shapes
-        d.update(asset_shapes(scene, None if bsdf_override is None else (lambda obj: bsdf_override)))
+        d.update(asset_shapes(scene, shape_id, None if bsdf_override is None else (lambda obj: bsdf_override)))
     for i, obj in enumerate(scene.objects):
         if obj.type == "mesh":
             continue

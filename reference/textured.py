@@ -288,10 +288,11 @@ def _emitter_dict(asset, index: int, cache: dict) -> dict | None:
     return {"type": "area", "radiance": texture_dict(cache[key], m.emissive_texture)}
 
 
-def asset_shapes(scene, bsdf_for=None) -> dict:
-    """{shape id: Mitsuba mesh} for every :class:`pbrcheck.gltf_scene.Mesh` of ``scene``, built from
-    the decoded buffers (placed by their instance's matrix); ``bsdf_for(obj)`` overrides the material."""
-    from pbrcheck.gltf_scene import Mesh
+def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
+    """{shape id: Mitsuba mesh} for every :class:`pbrcheck.gltf_objects.Mesh` of ``scene``, built from
+    the decoded buffers (placed by their instance's matrix); ``shape_id(index)`` names a shape
+    (:func:`reference.render.shape_id`); ``bsdf_for(obj)`` overrides the material."""
+    from pbrcheck.gltf_objects import Mesh
 
     register()
     out = {}
@@ -323,8 +324,6 @@ def asset_shapes(scene, bsdf_for=None) -> dict:
         em = _emitter_dict(inst.asset, obj.gltf_material, textures)
         if em is not None:
             props["emitter"] = mi.load_dict(em)
-        from .render import shape_id
-
         mesh = mi.Mesh(shape_id(obj.id), int(pos.shape[0]), int(tri.shape[0]), props,
                        has_vertex_normals=True, has_vertex_texcoords=uv0 is not None)
         params = mi.traverse(mesh)
