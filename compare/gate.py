@@ -44,6 +44,7 @@ from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import RGB, read_exr
 from pbrcheck.fmt import format_value
+from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
@@ -87,7 +88,7 @@ class Result:
     objects and whether the reference's noise could explain it) or ``error`` (with the message and
     the exit code it maps to)."""
     check: Check
-    status: str                      # pass | fail | error
+    status: str                      # pass | fail | error | skip (a real-time preset on an asset scene)
     metrics: dict | None = None
     failures: list[dict] = field(default_factory=list)
     error: str | None = None
@@ -219,6 +220,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
+        if check.test is None and scene is not None and split_presets(scene, [check.preset])[1]:
+            res.status, res.error, res.exit_code = "skip", f"{check.preset} on a glTF asset scene: {RASTER_MISSING}", 0
+            res.seconds = time.perf_counter() - t0
+            return res
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)
@@ -345,6 +350,8 @@ def write_junit(path: Path, results: list[Result]) -> Path:
             ET.SubElement(tc, "failure", message=lines[0]).text = "\n".join(lines)
         elif r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
+        elif r.status == "skip":
+            ET.SubElement(tc, "skipped", message=r.error or "skipped")
         if r.metrics:
             lines = [f"{k} = {format_value(v)}" for k, v in r.metrics.items()]
             if r.verdict is not None:
@@ -361,12 +368,12 @@ def write_junit(path: Path, results: list[Result]) -> Path:
 
 def write_summary(path: Path, results: list[Result]) -> Path:
     """Write a Markdown table of every check's metrics against its budgets (for CI summaries)."""
-    icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR"}
+    icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR", "skip": "SKIP"}
     lines = ["# pbrcheck gate", "", "| check | status | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:
         budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
-        if r.status == "error":
-            lines.append(f"| {r.check.name} | {icon['error']} | | | {r.error} |")
+        if r.status in ("error", "skip"):
+            lines.append(f"| {r.check.name} | {icon[r.status]} | | | {r.error} |")
             continue
         failed = {f["metric"] for f in r.failures}
         for m, b, op in budgets:
@@ -427,14 +434,17 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
                 print(line, file=stream)
             if r.maps:
                 print(f"     error maps: {Path(r.maps['rel_error']).parent}", file=stream)
+        elif r.status == "skip":
+            print(f"skip {c.name}: {r.error}", file=stream)
         else:
             print(f"ERROR {c.name}: {r.error}", file=stream)
     if junit:
         write_junit(Path(junit), results)
     if summary:
         write_summary(Path(summary), results)
-    n = {s: sum(r.status == s for r in results) for s in ("pass", "fail", "error")}
-    print(f"gate: {n['pass']} passed, {n['fail']} failed, {n['error']} error(s)", file=stream)
+    n = {s: sum(r.status == s for r in results) for s in ("pass", "fail", "error", "skip")}
+    print(f"gate: {n['pass']} passed, {n['fail']} failed, {n['error']} error(s)"
+          + (f", {n['skip']} skipped (real-time presets on glTF asset scenes)" if n["skip"] else ""), file=stream)
     errors = [r.exit_code for r in results if r.status == "error"]
     if errors:
         return max(errors)

@@ -107,3 +107,15 @@ def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_c
     chroma = cov & (ref.rgb.max(-1) > 2 * np.sort(ref.rgb, -1)[..., 1])   # red, green or blue texels
     assert chroma.sum() > 100
     assert (a[chroma] == b[chroma]).mean() > 0.97
+
+
+def test_gate_skips_realtime_presets_on_asset_scenes_and_says_why(tmp_path, capsys):
+    quad_asset(tmp_path / "q.gltf", {})
+    b = tmp_path / "budget.toml"
+    b.write_text('[[check]]\nname = "asset-default"\nscene = "q.gltf"\npreset = "default"\n'
+                 'reference = "auto"\n[check.max]\nrelmse = 0.1\n')
+    junit = tmp_path / "junit.xml"
+    assert cli.main(["gate", str(b), "--junit", str(junit)]) == 0
+    out = capsys.readouterr().out
+    assert "skip asset-default" in out and "raster pipeline" in out and "1 skipped" in out
+    assert "<skipped" in junit.read_text()
