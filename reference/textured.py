@@ -30,6 +30,8 @@ Alpha (glTF ``alphaMode``): ``MASK`` has opacity ``alpha >= alphaCutoff`` (0 or 
 that probability (:meth:`reference.integrator.ReferenceIntegrator._first_opaque_hit`); ``path`` renders
 such scenes with Mitsuba's ``volpath``, whose shadow rays pass null interfaces (``path``'s do not).
 
+``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
+
 UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
 0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
 
@@ -80,6 +82,7 @@ class TexturedMaterial(mi.BSDF):
         self.model = (str(props.get("ndf", "ggx")), str(props.get("geometry", "smith_ggx_correlated")),
                       str(props.get("fresnel", "schlick")), "none", 0)
         self.normal_scale = float(props.get("normal_scale", 1.0))
+        self.vertex_color = bool(props.get("vertex_color", False))   # COLOR_0 multiplies the base colour
         self.double_sided = bool(props.get("double_sided", False))
         # glTF alphaMode: 0 OPAQUE, 1 MASK (opacity = alpha >= cutoff), 2 BLEND (opacity = alpha)
         self.alpha_mode = int(props.get("alpha_mode", 0))
@@ -131,6 +134,8 @@ class TexturedMaterial(mi.BSDF):
         met, rough = mi.Float(self.metallic), mi.Float(self.roughness)
         if "base_color" in self.tex:
             bc = bc * self._lookup("base_color", si, active)
+        if self.vertex_color:
+            bc = bc * si.shape.eval_attribute_3("vertex_color", si, active)
         if "metallic_roughness" in self.tex:
             mr = self._lookup("metallic_roughness", si, active)
             rough = rough * mr.y
@@ -247,9 +252,9 @@ def register() -> None:
 # Shapes
 # ------------------------------------------------------------------------------------------------
 
-def _material_dict(asset, index: int, brdf, cache: dict) -> dict:
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False) -> dict:
     m = asset.material(index)
-    d = {"type": PLUGIN_NAME, "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
+    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
@@ -316,9 +321,10 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
         if bsdf_for is not None:
             bsdf = mi.load_dict(bsdf_for(obj))
         else:
-            key = (obj.instance, obj.gltf_material)
+            key = (obj.instance, obj.gltf_material, prim.color is not None)
             if key not in mats:
-                mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures))
+                mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
+                                                        vertex_color=prim.color is not None))
             bsdf = mats[key]
         props["bsdf"] = bsdf
         em = _emitter_dict(inst.asset, obj.gltf_material, textures)
@@ -339,6 +345,8 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
             t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
             w = t[:, 3] * (1.0 if det > 0 else -1.0)
             mesh.add_attribute("vertex_tangent", 4, mi.Float(np.concatenate([t3, w[:, None]], 1).astype(np.float32).reshape(-1)))
+        if prim.color is not None:
+            mesh.add_attribute("vertex_color", 3, mi.Float(np.ascontiguousarray(prim.color[:, :3], np.float32).reshape(-1)))
         if prim.texcoords[1] is not None:
             uv1 = np.concatenate([prim.texcoords[1], np.zeros((prim.texcoords[1].shape[0], 1))], 1)
             mesh.add_attribute("vertex_uv1", 3, mi.Float(uv1.astype(np.float32).reshape(-1)))

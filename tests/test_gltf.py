@@ -208,6 +208,15 @@ def _close(a, b, rtol=SAME_RENDER_RTOL):
     assert np.all(np.abs(a - b) <= rtol * np.maximum(np.abs(b), 1e-3)), float(np.max(np.abs(a - b)))
 
 
+# Standard deviations two renders of one expectation may differ by (per pixel and channel).
+NOISE_SIGMAS = 5.0
+
+
+def _close_noise(a, b, ia, ib):
+    sd = np.sqrt(np.stack([ia.channels[f"variance.{c}"] + ib.channels[f"variance.{c}"] for c in "RGB"], -1))
+    assert np.all(np.abs(a - b) <= NOISE_SIGMAS * sd + 1e-6), float(np.max(np.abs(a - b) / (sd + 1e-9)))
+
+
 @pytest.mark.slow
 def test_constant_texture_equals_factor_and_flat_normal_map_equals_none(tmp_path, tmp_cache):
     col = (200, 120, 40)
@@ -299,3 +308,37 @@ def test_mask_cutout_shows_the_environment(tmp_path, tmp_cache, mode):
     left, right = a[H // 2, W // 4], a[H // 2, 3 * W // 4]
     assert np.allclose(left, 0.5, atol=1e-6), left
     assert right.max() < 0.5 * 0.1, right   # specular of a black dielectric only: F0 = 0.04 x 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tangents", [True, False])
+def test_normal_map_green_tilts_toward_image_up(tmp_path, tmp_cache, tangents):
+    # glTF: green > 0.5 tilts the normal toward the bitangent w (N x T), which points up the image
+    # (decreasing v): +y on the quad. A point light above lights the up-tilted quad more than the
+    # flat one, the down-tilted one less (given tangents or generated ones alike).
+    vals = []
+    for g in (38, 128, 218):
+        img = np.full((2, 2, 3), (128, g, 218 if g != 128 else 255), np.uint8)
+        p = quad_asset(tmp_path / f"n{g}.gltf", {"normalTexture": {"index": 0}, "pbrMetallicRoughness": {
+            "metallicFactor": 0.0, "roughnessFactor": 1.0}}, [(img, None)], tangents=tangents)
+        s = quad_scene(tmp_path, p, env="[0.0, 0.0, 0.0]", name=f"n{g}.toml")
+        s.write_text(s.read_text() + "\n[[lights]]\nposition = [0.0, 6.0, 1.0]\nintensity = [40.0, 40.0, 40.0]\n")
+        a, _ = _render(s, spp=4)
+        vals.append(float(a[12, 12].mean()))
+    assert vals[0] < vals[1] < vals[2], vals
+
+
+@pytest.mark.slow
+def test_color0_multiplies_the_base_colour(tmp_path, tmp_cache):
+    doc = Doc()
+    attrs = {"POSITION": doc.accessor(QUAD_POS, "VEC3", minmax=True), "NORMAL": doc.accessor(QUAD_NRM, "VEC3"),
+             "COLOR_0": doc.accessor(np.array([[255, 128, 0, 255]] * 4, np.uint8), "VEC4", normalized=True)}
+    doc.d["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 1.0, 1.0, 1.0], "metallicFactor": 0.0}}]
+    doc.node(doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0))
+    a, ia = _render(quad_scene(tmp_path, doc.write(tmp_path / "c.gltf"), name="c.toml"))
+    f = quad_asset(tmp_path / "f.gltf", {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 128 / 255, 0.0, 1.0],
+                                                                    "metallicFactor": 0.0}})
+    b, ib = _render(quad_scene(tmp_path, f, name="f.toml"))
+    # the quads differ in UVs (hence Mitsuba's tangent frame, hence the samples): equal within noise
+    _close_noise(a, b, ia, ib)
+    assert a[12, 12, 2] < 0.1 * a[12, 12, 0]     # blue from the specular only: COLOR_0's blue is 0

@@ -119,3 +119,35 @@ def test_gate_skips_realtime_presets_on_asset_scenes_and_says_why(tmp_path, caps
     out = capsys.readouterr().out
     assert "skip asset-default" in out and "raster pipeline" in out and "1 skipped" in out
     assert "<skipped" in junit.read_text()
+
+
+# Relative difference allowed between the analytic reference and its exported-and-read-back
+# tessellation (interpolated vertex normals of a UV sphere within 0.25 px of the silhouette), on
+# top of the noise.
+TESSELLATION_RTOL = 0.02
+
+
+@pytest.mark.slow
+def test_analytic_scene_exported_and_read_back_renders_the_same_reference(tmp_path, tmp_cache):
+    from pbrcheck.scene import asset_scene, scene_from_dict
+    from reference.render import render_reference
+
+    sc = scene_from_dict({
+        "camera": {"origin": [0.0, 1.0, 5.0], "target": [0.0, 0.0, 0.0], "fov": 40.0, "width": 40, "height": 32},
+        "environment": {"type": "constant", "radiance": [0.6, 0.7, 0.8]},
+        "lights": [{"position": [2.0, 3.0, 2.0], "intensity": [8.0, 8.0, 8.0]}],
+        "objects": [{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.3, 0.2], "metallic": 0.0, "roughness": 0.4, "specular": 0.05}},
+                    {"type": "plane", "center": [0.0, -1.0, 0.0], "size": [6.0, 6.0],
+                     "material": {"base_color": [0.9, 0.9, 0.9], "metallic": 1.0, "roughness": 0.6}}]})
+    export_scene(sc, tmp_path / "out")
+    back = asset_scene(tmp_path / "out" / "scene.gltf", size=(40, 32))
+    back = back.__class__(**{**back.__dict__, "environment": sc.environment})
+    assert [o.type for o in back.objects] == ["mesh", "mesh"] and len(back.lights) == 1
+    assert np.allclose(back.camera.origin, sc.camera.origin) and back.camera.fov == pytest.approx(sc.camera.fov)
+    a = render_reference(sc, spp=64, use_cache=False, progress=False)
+    b = render_reference(back, spp=64, use_cache=False, progress=False)
+    m = (a.channels["coverage"] == 1) & (b.channels["coverage"] == 1) & (a.channels["object"] == b.channels["object"])
+    assert m.mean() > 0.5
+    sd = np.sqrt(a.variance + b.variance)
+    assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])
