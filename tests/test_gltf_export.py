@@ -151,3 +151,22 @@ def test_analytic_scene_exported_and_read_back_renders_the_same_reference(tmp_pa
     assert m.mean() > 0.5
     sd = np.sqrt(a.variance + b.variance)
     assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])
+
+
+def test_corpus_with_only_realtime_presets_on_an_asset_scene_is_one_line(tmp_path, capsys):
+    p = quad_asset(tmp_path / "q.gltf", {})
+    env = tmp_path / "envs"
+    env.mkdir()
+    out = tmp_path / "corpus"
+    assert cli.main(["corpus", str(env), "--scene", str(p), "--presets", "default", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "skipping default" in err and err.strip().splitlines()[-1].count("raster pipeline") == 1
+    assert not out.exists()
+
+
+def test_sweep_on_an_asset_scene_is_one_line_nothing_written(tmp_path, capsys):
+    p = quad_asset(tmp_path / "q.gltf", {})
+    out = tmp_path / "sweep"
+    assert cli.main(["sweep", str(p), "--vary", "cube_size=32,64", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "raster pipeline" in err and not out.exists()
