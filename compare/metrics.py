@@ -50,6 +50,7 @@ import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -442,6 +443,24 @@ def display_referred(img: Image) -> Image:
     return Image.from_rgb(rgb, {**img.meta, "display_referred": "1"}, **extra)
 
 
+def _material_metrics(scene, ids, valid, m, peak) -> list[dict]:
+    """Metrics over the pixels of each glTF material (``asset file: material name``; the objects of
+    one material pooled)."""
+    groups: dict[str, list[int]] = {}
+    for o in scene.objects:
+        if o.type == "mesh":
+            inst = scene.assets[o.instance]
+            key = f"{Path(inst.path).name}: {inst.asset.material(o.gltf_material).name}"
+            groups.setdefault(key, []).append(o.id)
+    out = []
+    for name, oids in groups.items():
+        mask = valid & np.isin(ids, oids)
+        if mask.any():
+            out.append({"material": name, "objects": oids, "pixels": int(mask.sum()),
+                        "metrics": summarize(m, mask, peak=peak)})
+    return out
+
+
 def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
                    ref_name: str = "reference", test_name: str = "test", flip: bool = True,
                    itp: bool = True) -> Comparison:
@@ -481,6 +500,8 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
             objects.append({"id": int(oid), "name": name, "material": material,
                             "pixels": int(mask.sum()), "metrics": summarize(m, mask, peak=peak)})
     summary["objects"] = objects
+    if obj is not None and getattr(scene, "assets", ()):  # glTF assets: per material too
+        summary["materials"] = _material_metrics(scene, np.rint(obj).astype(np.int64), valid, m, peak)
     # Error against NdotV (the reference's, else the test's).
     ndv = ref.channels.get("NdotV", test.channels.get("NdotV"))
     bins = []

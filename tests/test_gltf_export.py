@@ -170,3 +170,22 @@ def test_sweep_on_an_asset_scene_is_one_line_nothing_written(tmp_path, capsys):
     assert cli.main(["sweep", str(p), "--vary", "cube_size=32,64", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "raster pipeline" in err and not out.exists()
+
+
+def test_per_material_metrics_of_an_asset_scene(tmp_path):
+    from compare.metrics import compare_images
+    from pbrcheck.exr import Image
+
+    doc_path = quad_asset(tmp_path / "q.gltf", {"name": "matte"})
+    sc = load_scene(quad_scene(tmp_path, doc_path, size=(8, 8)))
+    rgb = np.full((8, 8, 3), 0.5, np.float32)
+    ids = np.zeros((8, 8), np.float32)
+    ref = Image.from_rgb(rgb)
+    ref.channels["object"] = ids
+    test = Image.from_rgb(rgb * 1.1)
+    test.channels["object"] = ids
+    cmp = compare_images(ref, test, scene=sc, noise=False, flip=False, itp=False)
+    mats = cmp.summary["materials"]
+    assert [m["material"] for m in mats] == ["q.gltf: matte"] and mats[0]["pixels"] == 64
+    assert mats[0]["metrics"] == cmp.summary["objects"][0]["metrics"]   # one object: the same pixels
+    assert mats[0]["metrics"]["relmse"] > 0
