@@ -451,7 +451,10 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
                     "gltf_node": f"light_{k}"} for k, l in enumerate(scene.lights)],
         "units": "point light intensity: 1 cd is taken as 1 W/sr (radiometric); radiance in W/(sr m^2), "
                  "linear Rec.709 primaries",
-        "objects": [{"id": o.id, "name": o.name, "type": o.type, "gltf_node": f"object_{o.id}_{o.name}",
+        "objects": [{"id": o.id, "name": o.name, "type": o.type,
+                     **({"gltf_node": f"object_{o.id}_{o.name}"} if o.type != "mesh" else
+                        {"gltf_node_index": scene.assets[o.instance].asset.primitives[o.primitive].node,
+                         "gltf_primitive": scene.assets[o.instance].asset.primitives[o.primitive].primitive}),
                      **({"segments": segments[o.id]} if segments and o.id in segments else {})}
                     for o in scene.objects],
         "tessellation": {"silhouette_tolerance_px": SILHOUETTE_TOLERANCE_PX, "triangles": triangles,
