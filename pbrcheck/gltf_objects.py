@@ -30,7 +30,7 @@ export's convention, times ``color``); spot and directional lights are refused (
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -85,6 +85,7 @@ class AssetInstance:
     scene: int | None = None
     content_hash: str = ""
     first_id: int = 0
+    lights: int = 0          # point lights of the asset appended to the scene's lights
     asset: Asset | None = field(default=None, compare=False, repr=False)
 
     def matrix(self) -> np.ndarray:
@@ -171,6 +172,7 @@ def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: 
               for k, prim in enumerate(asset.primitives)]
     lights = []
     m = inst.matrix()
+    inst = replace(inst, lights=len(asset.lights))
     for L in asset.lights:
         if L.type != "point":
             raise AssetError(asset.path, "/extensions/KHR_lights_punctual/lights",

@@ -166,17 +166,21 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """Resolved scene as plain data (objects expanded, defaults filled)."""
+        # glTF assets: their ``gltf`` table in place of their mesh objects, their lights left out
+        # (both come back from the asset when the resolved scene is loaded again)
+        objects = [a.to_dict() if o.type == "mesh" else asdict(o) for o in self.objects
+                   for a in ([self.assets[o.instance]] if o.type == "mesh" else [None])
+                   if o.type != "mesh" or o.id == a.first_id]
+        own_lights = self.lights[:len(self.lights) - sum(a.lights for a in self.assets)]
         d = {
             "name": self.name,
             "description": self.description,
             "camera": asdict(self.camera),
             "environment": _environment_dict(self.environment),
-            "lights": [asdict(l) for l in self.lights],
+            "lights": [asdict(l) for l in own_lights],
             "brdf": asdict(self.brdf),
-            "objects": [asdict(o) for o in self.objects],
+            "objects": objects,
         }
-        if self.assets:
-            d["assets"] = [a.to_dict() for a in self.assets]
         return _plain(d)
 
     def content_dict(self) -> dict[str, Any]:
@@ -189,8 +193,8 @@ class Scene:
             d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
         for o in d["objects"]:
             o.pop("name", None)
-        for a in d.get("assets", []):
-            a.pop("path", None)  # the content hash stands for the file and its resources
+            if o["type"] == "gltf":
+                o.pop("path")  # the content hash stands for the file and its resources
         return d
 
     def with_camera(self, **changes) -> "Scene":

@@ -342,3 +342,25 @@ def test_color0_multiplies_the_base_colour(tmp_path, tmp_cache):
     # the quads differ in UVs (hence Mitsuba's tangent frame, hence the samples): equal within noise
     _close_noise(a, b, ia, ib)
     assert a[12, 12, 2] < 0.1 * a[12, 12, 0]     # blue from the specular only: COLOR_0's blue is 0
+
+
+def test_resolved_asset_scene_reloads_to_the_same_hash(tmp_path):
+    from pbrcheck.environment import scene_hash
+    from pbrcheck.scene import dump_toml
+
+    doc = json.loads(quad_asset(tmp_path / "q.gltf", {}).read_text())
+    doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 3.0}]}}
+    doc["nodes"].append({"name": "lamp", "translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    doc["scenes"][0]["nodes"].append(1)
+    (tmp_path / "q.gltf").write_text(json.dumps(doc))
+    s = tmp_path / "s.toml"
+    s.write_text('[environment]\ntype = "constant"\n[[lights]]\nposition = [0.0, 0.0, 3.0]\nintensity = [1.0, 1.0, 1.0]\n'
+                 '[[objects]]\ntype = "sphere"\n[[objects]]\ntype = "gltf"\npath = "q.gltf"\nscale = 2.0\n')
+    a = load_scene(s)
+    assert len(a.lights) == 2 and a.lights[1].position == (0.0, 4.0, 0.0) and a.lights[1].intensity == (3.0, 3.0, 3.0)
+    r = tmp_path / "resolved.toml"
+    r.write_text(dump_toml(a.to_dict()))
+    b = load_scene(r)
+    assert len(b.lights) == 2 and [o.type for o in b.objects] == ["sphere", "mesh"]
+    assert scene_hash(a, "e") == scene_hash(b, "e")
