@@ -182,15 +182,18 @@ class ReferenceIntegrator(RBIntegrator):
         """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
         layer; unrolled, no early exit, so the estimator stays one kernel), up to :data:`MAX_NULL_LAYERS`;
         a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
+        going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
         for _ in range(self.MAX_NULL_LAYERS):
             bsdf = si.bsdf(ray)
-            t = mi.Float(bsdf.eval_null_transmission(si, hit).x)
-            u = sampler.next_1d(hit)
-            through = hit & (u < t)
+            t = mi.Float(bsdf.eval_null_transmission(si, going).x)
+            u = sampler.next_1d(going)
+            through = going & (u < t)
+            going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
             si2 = scene.ray_intersect(ray, through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
+            going &= hit
         return si, hit
 
     @staticmethod
@@ -212,6 +215,8 @@ class ReferenceIntegrator(RBIntegrator):
         if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
             L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
+        if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque
+            ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
             bsdf = self._bsdf(scene, si, ray, hit)
         if env is not None:

@@ -27,8 +27,10 @@ Alpha (glTF ``alphaMode``): ``MASK`` has opacity ``alpha >= alphaCutoff`` (0 or 
 ``alpha`` (``baseColorFactor.a`` times the base colour texture's alpha), exactly: a Null component
 (``eval_null_transmission = 1 - opacity``; ``sample`` passes through with that probability, weight
 1; ``eval``/``pdf`` scale by the opacity). ``local`` continues camera rays through each surface with
-that probability (:meth:`reference.integrator.ReferenceIntegrator._first_opaque_hit`); ``path`` renders
-such scenes with Mitsuba's ``volpath``, whose shadow rays pass null interfaces (``path``'s do not).
+that probability (:meth:`reference.integrator.ReferenceIntegrator._first_opaque_hit`) and shades the
+surface where a ray stopped as opaque (its ``BSDFContext.type_mask`` leaves Null out); ``path``
+renders such scenes with Mitsuba's ``volpath``, whose shadow rays pass null interfaces (``path``'s do
+not).
 
 ``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
 
@@ -176,6 +178,13 @@ class TexturedMaterial(mi.BSDF):
             return dr.select(a >= self.alpha_cutoff, 1.0, 0.0)
         return dr.clip(a, 0.0, 1.0)
 
+    @staticmethod
+    def _null_enabled(ctx) -> bool:
+        """Whether the context asks for the null component: no when the caller (the ``local``
+        estimator) has already decided that the surface is there (``type_mask`` without Null); then
+        the surface is shaded as opaque."""
+        return bool(int(ctx.type_mask) & int(mi.BSDFFlags.Null))
+
     def eval_null_transmission(self, si, active=True):
         """The fraction that passes through (1 - opacity): Mitsuba's null interface."""
         return mi.Spectrum(1.0 - self.opacity(si, active))
@@ -193,7 +202,7 @@ class TexturedMaterial(mi.BSDF):
         same = mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(wo) > 0
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         f, pdf = view.eval_pdf(ctx, s2, wo2, active & same & front)
-        if self.alpha_mode:  # the surface is there with probability opacity
+        if self.alpha_mode and self._null_enabled(ctx):  # the surface is there with probability opacity
             op = self.opacity(si, active)
             f, pdf = f * op, pdf * op
         return dr.select(same & front, f, 0.0), dr.select(same & front, pdf, 0.0)
@@ -208,24 +217,22 @@ class TexturedMaterial(mi.BSDF):
         view, frame = self._view(si, active)
         s2 = self._local_si(si, frame)
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
-        bs, w = view.sample(ctx, s2, sample1, sample2, mi.Bool(active) & front)
+        lanes = mi.Bool(active) & front
+        mixed = bool(self.alpha_mode) and self._null_enabled(ctx)
+        if mixed:
+            # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
+            # value and pdf both scale by the opacity); sample1, rescaled, still chooses the lobe
+            op = self.opacity(si, active)
+            through = sample1 >= op
+            sample1 = dr.select(through, 0.0, sample1 / dr.maximum(op, 1e-20))
+            lanes &= ~through
+        bs, w = view.sample(ctx, s2, sample1, sample2, lanes)
         bs.wo = frame.to_world(bs.wo)
         ok = front & (mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(bs.wo) > 0)
         w = dr.select(ok, w, 0.0)
-        if self.alpha_mode:
-            # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
-            # value and pdf both scale by the opacity); sample1 is reused, rescaled, for the lobe choice
-            op = self.opacity(si, active)
-            through = sample1 >= op
-            bs2, w2 = view.sample(ctx, s2, dr.select(through, 0.0, sample1 / dr.maximum(op, 1e-20)), sample2,
-                                  mi.Bool(active) & front & ~through)
-            bs2.wo = frame.to_world(bs2.wo)
-            ok2 = front & (mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(bs2.wo) > 0)
-            w = dr.select(ok2, w2, 0.0)
-            bs = bs2
-            bs.pdf = bs.pdf * op
+        if mixed:
+            bs.pdf = dr.select(through, 1.0 - op, bs.pdf * op)
             bs.wo = dr.select(through, -si.wi, bs.wo)
-            bs.pdf = dr.select(through, 1.0 - op, bs.pdf)
             bs.eta = 1.0
             bs.sampled_type = dr.select(through, mi.UInt32(+mi.BSDFFlags.Null), bs.sampled_type)
             bs.sampled_component = dr.select(through, mi.UInt32(1), bs.sampled_component)

@@ -364,3 +364,22 @@ def test_resolved_asset_scene_reloads_to_the_same_hash(tmp_path):
     b = load_scene(r)
     assert len(b.lights) == 2 and [o.type for o in b.objects] == ["sphere", "mesh"]
     assert scene_hash(a, "e") == scene_hash(b, "e")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["local", "path"])
+def test_blend_is_exact_opacity(tmp_path, tmp_cache, mode):
+    # BLEND with alpha 0.25 (opacity): three quarters of the environment (0.5) come through, a quarter
+    # of the opaque surface's radiance is seen: L = 0.75 * 0.5 + 0.25 * L_opaque, within the noise
+    mat = {"pbrMetallicRoughness": {"baseColorFactor": [0.6, 0.3, 0.1, 0.25], "metallicFactor": 0.0,
+                                    "roughnessFactor": 0.5}}
+    b = quad_asset(tmp_path / "b.gltf", {**mat, "alphaMode": "BLEND"})
+    o = quad_asset(tmp_path / "o.gltf", mat)
+    lb, ib = _render(quad_scene(tmp_path, b, env="[0.5, 0.5, 0.5]", name="b.toml"), spp=256, mode=mode)
+    lo, io = _render(quad_scene(tmp_path, o, env="[0.5, 0.5, 0.5]", name="o.toml"), spp=256, mode=mode)
+    c = io.channels["coverage"] == 1.0      # (the blended quad's coverage counts the rays it stopped)
+    assert c.sum() > 100
+    want = 0.75 * 0.5 + 0.25 * lo
+    sd = np.sqrt(np.stack([ib.channels[f"variance.{k}"] + 0.25 ** 2 * io.channels[f"variance.{k}"] for k in "RGB"], -1))
+    assert np.all(np.abs(lb - want)[c] <= NOISE_SIGMAS * sd[c] + 1e-5)
+    assert abs(float(lb[c].mean() - want[c].mean())) < 0.01 * float(want[c].mean())
