@@ -25,6 +25,9 @@ AOVs (``N.X/Y/Z``, ``NdotV``, ``object``) come from the ray through the pixel ce
 rasterizer sees at that pixel), ``coverage`` is the fraction of the box-filter samples that hit
 geometry.
 
+glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_textured`` BSDF
+(:mod:`reference.textured`), shape ids ``object<k>`` like every object.
+
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
 :data:`REFERENCE_CODE_VERSION`.
