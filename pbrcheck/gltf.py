@@ -32,7 +32,8 @@ or their indices where unnamed, and the primitive's index).
 The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
 ``KHR_draco_mesh_compression`` is decoded with DracoPy (Google's Draco); images with Pillow.
 References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_materials_ior,
-KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression; Mikkelsen 2008,
+KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
+(integer attributes: any component type, decoded as above); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
@@ -53,7 +54,7 @@ from .errors import PbrcheckError
 
 #: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
-                        "KHR_texture_transform", "KHR_draco_mesh_compression")
+                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}

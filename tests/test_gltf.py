@@ -383,3 +383,13 @@ def test_blend_is_exact_opacity(tmp_path, tmp_cache, mode):
     sd = np.sqrt(np.stack([ib.channels[f"variance.{k}"] + 0.25 ** 2 * io.channels[f"variance.{k}"] for k in "RGB"], -1))
     assert np.all(np.abs(lb - want)[c] <= NOISE_SIGMAS * sd[c] + 1e-5)
     assert abs(float(lb[c].mean() - want[c].mean())) < 0.01 * float(want[c].mean())
+
+
+def test_mesh_quantization_int16_positions(tmp_path):
+    doc = Doc()
+    q = (QUAD_POS * 32767).astype(np.int16)
+    pos = doc.accessor(q, "VEC3", normalized=True)
+    doc.node(doc.mesh({"POSITION": pos}, doc.accessor(QUAD_IDX, "SCALAR"), None), scale=[2.0, 2.0, 2.0])
+    doc.d["extensionsUsed"] = doc.d["extensionsRequired"] = ["KHR_mesh_quantization"]
+    a = load_asset(doc.write(tmp_path / "q.gltf"))
+    assert np.allclose(a.primitives[0].positions, QUAD_POS * 2, atol=1e-6)
