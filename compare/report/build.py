@@ -261,6 +261,10 @@ def _fmt(v) -> str:
     return format_value(v, TABLE_DIGITS)
 
 
+#: The metrics the report lists per glTF material (the summary's ``materials``).
+MATERIAL_METRICS = ("relmse", "flip_mean", "delta_e_itp_mean")
+
+
 @dataclass(frozen=True)
 class ReportSettings:
     """What every scene section renders: the renderers under test, the reference spp, the sweep
@@ -418,6 +422,10 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"{preset} options", img.meta.get("options", "")))
+        for mrow in cmp.summary.get("materials", []):  # glTF assets: per material
+            provenance.append((f"{preset}: material {mrow['material']}", ", ".join(
+                f"{k} {format_value(mrow['metrics'].get(k), TABLE_DIGITS)}" for k in MATERIAL_METRICS)
+                + f" ({mrow['pixels']} px)"))
         if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
             provenance.append((f"{preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
