@@ -3,7 +3,8 @@
 A scene file names a camera, exactly one environment, optional point lights, the ground-truth BRDF
 model and a list of objects (spheres, planes, sphere grids and glTF assets, the latter two expanded
 here into one sphere object each and one mesh object per (node, primitive):
-:mod:`pbrcheck.gltf_objects`). A ``.gltf`` / ``.glb`` path is a scene too (:func:`asset_scene`). The field names are a contract (see README.md, "Scene files").
+:mod:`pbrcheck.gltf_objects`). A ``.gltf`` / ``.glb`` path is a scene too (:func:`asset_scene`). The
+field names are a contract (see README.md, "Scene files").
 
 Every problem is a :class:`~pbrcheck.errors.SceneError` naming the file, the dotted field, what was
 expected and what was found. Loading never writes anything.
@@ -22,7 +23,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .errors import SceneError
+from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
@@ -559,6 +560,9 @@ def load_scene(name_or_path: str | Path) -> Scene:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise SceneError(str(p), None, "a readable file", message=f"{p}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:  # e.g. a binary file given as a TOML scene
+        raise SceneError(str(p), None, "a TOML scene file (UTF-8 text)",
+                         message=f"{p}: not a TOML scene file: {decode_reason(e)}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

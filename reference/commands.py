@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from pbrcheck.args import positive_int
+from pbrcheck.atomic import check_output_path
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 
@@ -17,9 +18,10 @@ from .render import render_reference
 
 def _cmd_reference(args) -> int:
     scene = load_scene(args.scene)
+    out = Path(args.out) if args.out else Path("out") / f"reference_{scene.name}_{args.mode}_{args.spp}spp.exr"
+    check_output_path(out)  # before the render
     img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,
                            use_cache=not args.no_cache, progress=True)
-    out = Path(args.out) if args.out else Path("out") / f"reference_{scene.name}_{args.mode}_{args.spp}spp.exr"
     write_exr(out, img)
     m = img.meta
     print(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, variant {m['variant']}, "

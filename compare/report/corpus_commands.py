@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from pbrcheck.args import positive_int, split_list
+from pbrcheck.atomic import check_output_path
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import DEFAULT_SCENE, load_scene
@@ -36,6 +37,7 @@ def _cmd_corpus(args) -> int:
                                            for n in names), spp=args.spp,
                               seed=args.seed, rank_metric=args.rank_metric)
     spec = parse_scheduler(args.scheduler, default="local")
+    check_output_path(args.out, folder=True)  # before any render
     res = run_corpus(args.corpus, settings, Path(args.out), scheduler=spec, resume=args.resume,
                      progress=not args.quiet)
     page = write_corpus_page(res)
