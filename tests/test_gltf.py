@@ -393,3 +393,14 @@ def test_mesh_quantization_int16_positions(tmp_path):
     doc.d["extensionsUsed"] = doc.d["extensionsRequired"] = ["KHR_mesh_quantization"]
     a = load_asset(doc.write(tmp_path / "q.gltf"))
     assert np.allclose(a.primitives[0].positions, QUAD_POS[QUAD_IDX] * 2, atol=1e-6)   # unwelded: flat normals
+
+
+def test_multiscatter_with_assets_is_refused(tmp_path):
+    from pbrcheck.errors import SceneError
+
+    quad_asset(tmp_path / "q.gltf", {})
+    s = tmp_path / "s.toml"
+    s.write_text('[environment]\ntype = "constant"\n[brdf]\nmultiscatter = "random_walk"\n'
+                 '[[objects]]\ntype = "gltf"\npath = "q.gltf"\n')
+    with pytest.raises(SceneError, match="brdf.multiscatter"):
+        load_scene(s)

@@ -99,6 +99,10 @@ IMAGE_HYPOTHESES = ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linea
 SCENE_HYPOTHESES = ("env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha",
                     "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi", "light_units_4pi",
                     "light_units_over_4pi", "multiple_scattering")
+#: Scene hypotheses that change the materials or the BRDF model: skipped on glTF asset scenes (their
+#: textured material reads the glTF material, not the objects' factor summaries).
+ASSET_MATERIAL_HYPOTHESES = ("roughness_as_alpha", "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi",
+                             "multiple_scattering")
 #: Hypotheses that are a difference of physical model, not of convention (named so in the verdict).
 MODEL_HYPOTHESES = ("multiple_scattering",)
 
@@ -368,7 +372,10 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
 
             with tempfile.TemporaryDirectory(prefix="pbrcheck-diagnose-") as tmp:
                 for name in SCENE_HYPOTHESES:
-                    if name.startswith("light_units") and not scene.lights:
+                    if getattr(scene, "assets", ()) and name in ASSET_MATERIAL_HYPOTHESES:
+                        row(name, "scene", None, None, skipped="glTF asset materials (textures, the single-"
+                            "scattering pbr_textured) are not changed by this hypothesis yet")
+                    elif name.startswith("light_units") and not scene.lights:
                         row(name, "scene", None, None, skipped="the scene has no point lights")
                     elif name.startswith("diffuse_") and not any(o.material.metallic == 0 for o in scene.objects):
                         row(name, "scene", None, None, skipped="the scene has no dielectric object")
