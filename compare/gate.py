@@ -47,15 +47,13 @@ from pbrcheck.fmt import format_value
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
-from .maps import write_maps
+from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
-from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
+from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
               "mode", "seed"}
 DEFAULT_SPP = 64
-#: The reference renderer needs two samples per pixel for its variance channels.
-MIN_REFERENCE_SPP = 2
 
 
 class BudgetError(PbrcheckError):
@@ -268,15 +266,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res.status = "fail" if res.failures else "pass"
     res.exit_code = 1 if res.failures else 0
     if res.failures and maps_dir is not None:
-        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / _safe(check.name), cmp).items()}
+        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / safe_name(check.name), cmp).items()}
     res.seconds = time.perf_counter() - t0
     return res
-
-
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-
-
 
 
 #: A budget is trusted when it is at least this many times the reference's noise in its metric.

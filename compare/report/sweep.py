@@ -26,6 +26,7 @@ from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot
 from ..metrics import METRICS, compare_images
 from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
+from ..verdict_spp import MIN_REFERENCE_SPP
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -118,17 +119,18 @@ def combinations(vary: dict[str, list]) -> list[dict]:
 
 
 def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
-               executor=None) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``); one row each. With an
-    ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
+               executor=None, context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``, rendered in ``context``);
+    one row each. With an ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
     (:func:`compare.corpus.renderlist.sweep_metrics`)."""
     if executor is not None:
-        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
+        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress,
+                                       context=context)
         return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
                  **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
-        img = renderers.render_under_test(scene, preset, options, progress=False)
+        img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
         cmp = compare_images(ref, img, scene=scene, noise=False)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
@@ -168,8 +170,9 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     SweepError
         ``spp`` below 2; ``OptionError`` for an unknown option or value (before any render).
     """
-    if spp < 2:
-        raise SweepError(f"--spp must be >= 2 (the reference's variance needs two samples), got {spp}")
+    if spp < MIN_REFERENCE_SPP:
+        raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
+                         f"got {spp}")
     scene = load_scene(scene_arg)
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)

@@ -133,7 +133,7 @@ def _sphere_means(img) -> list:
             for k in range(int(obj.max()) + 1)]
 
 
-def _images(scenes, *, preset, options, spp, size, out_dir, progress):
+def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
     rows: list[ImageRow] = []
     comps = ENERGY_COMPENSATIONS.names
     with Progress("energy images", total=len(scenes) * (2 + len(comps)), enabled=progress) as prog:
@@ -159,7 +159,8 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress):
                                  _sphere_means(ref_ss) if furnace else None,
                                  f"energy_{name}_reference_single.png" if out_dir is not None else None))
             for c in comps:
-                img = renderers.render_under_test(s, preset, {**options, "energy_compensation": c})
+                img = renderers.render_under_test(s, preset, {**options, "energy_compensation": c},
+                                                  context=context)
                 png = None
                 if out_dir is not None:
                     png = f"energy_{name}_{c}.png"
@@ -174,7 +175,7 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress):
 def run_energy(*, roughness=DEFAULT_ROUGHNESS, f0=DEFAULT_F0, nov=DEFAULT_NOV, samples: int = DEFAULT_SAMPLES,
                seed: int = 0, images: bool = True, scenes=DEFAULT_SCENES, preset: str = "default",
                options: dict | None = None, spp: int = 128, size: int | None = 64, out_dir: Path | None = None,
-               progress: bool = False) -> EnergyResult:
+               progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> EnergyResult:
     """Measure every compensation against the random walk (module docstring).
 
     Parameters
@@ -210,7 +211,8 @@ def run_energy(*, roughness=DEFAULT_ROUGHNESS, f0=DEFAULT_F0, nov=DEFAULT_NOV, s
         albedo[c] = alb.tolist()
         summaries.append(_summary(c, alb - walk, R, F, M, roughness))
     rows = _images(list(scenes), preset=preset, options=dict(options or {}), spp=spp, size=size,
-                   out_dir=Path(out_dir) if out_dir is not None else None, progress=progress) if images else []
+                   out_dir=Path(out_dir) if out_dir is not None else None, progress=progress,
+                   context=context) if images else []
     return EnergyResult(roughness, f0, nov, int(samples), walk.tolist(), se.tolist(), (F * A + B).tolist(), albedo,
                         summaries, rows, {"seed": seed, "preset": preset, "options": dict(options or {}), "spp": spp,
                                            "size": size, "scenes": list(scenes) if images else []})
