@@ -96,11 +96,9 @@ def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progr
                           **var, **aovs)
 
 
-def fake_realtime(scene, preset="default", options=None, *, progress=True):
-    import compare.renderers as renderers
-
+def fake_realtime(scene, preset="default", options=None, *, progress=True, context=None):
     CALLS["realtime"].append((preset, dict(options or {})))
-    CALLS["cached"].append(renderers._CACHE_REALTIME[0])
+    CALLS["cached"].append(bool(context and context.cache))
     rgb, aovs = raycast(scene)
     opts = dict(options or {})
     n = opts.get("prefilter_samples", 64)
@@ -346,8 +344,8 @@ def test_report_cli_with_and_shader_add_renderers_after_the_presets(monkeypatch,
 
     seen = {}
 
-    def fake_build(scenes, *, presets, out_dir, **kw):
-        seen["presets"] = presets
+    def fake_build(scenes, out_dir, config, **kw):
+        seen["presets"] = config.presets
         return out_dir / "index.html"
 
     monkeypatch.setattr(rc, "build_report", fake_build)

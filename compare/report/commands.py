@@ -16,7 +16,7 @@ from .. import renderers
 
 from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
-from .build import build_report
+from .build import ReportConfig, build_report
 from .corpus_section import corpus_section
 from .runlog import RUN_FILE, bench_report, summary_line
 from .sweep import parse_vary, run_sweep
@@ -31,13 +31,11 @@ def _cmd_report(args) -> int:
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
-    out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
-                       extras=extras,
-                       spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                       convergence=not args.no_convergence,
-                       sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
-                       scheduler=args.scheduler, cache=not args.no_cache)
+    config = ReportConfig(presets=presets, spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                          convergence=not args.no_convergence, sweep=not args.no_sweep, furnace=not args.no_furnace,
+                          hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
+                          cache=not args.no_cache, progress=not args.quiet)
+    out = build_report(args.scenes or [DEFAULT_SCENE], Path(args.out), config, extras=extras)
     print(f"report: {out}")
     run = Path(out).parent / RUN_FILE
     if run.is_file():  # where the time went (also the page's last section)

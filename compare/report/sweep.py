@@ -2,7 +2,8 @@
 reference, tabulate precompute time, frame time and every metric, and plot the Pareto front.
 
 ``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
-seconds), split by :func:`compare.timings.split_timings`.
+seconds), split by :func:`compare.timings.split_timings`. :data:`DEFAULT_SWEEP` and
+:func:`default_sweep`: the report's sweep over the main cost knobs, one at a time.
 """
 
 from __future__ import annotations
@@ -110,6 +111,36 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
+
+
+#: The report's default sweep over the main cost knobs: each entry is varied alone around the
+#: first preset (a product of all of them would be hundreds of renders). ``runtime_samples`` only
+#: matters with runtime importance sampling, so it is swept together with ``ibl = "runtime"``.
+DEFAULT_SWEEP = (
+    [{"prefilter_samples": n} for n in (64, 256, 1024)]
+    + [{"cube_size": n} for n in (64, 128, 256)]
+    + [{"lut_size": n} for n in (16, 32, 64)]
+    + [{"lut_format": f} for f in ("f16", "f32")]
+    + [{"irradiance": m} for m in ("convolution", "sh9")]
+    + [{"ibl": "runtime", "runtime_samples": n} for n in (16, 64)]
+)
+
+
+def default_sweep(preset: str = "default") -> list[dict]:
+    """:data:`DEFAULT_SWEEP` less the entries the renderer rejects or that repeat ``preset`` itself."""
+    try:
+        base = renderers.resolve_options(preset, {})
+    except PbrcheckError:  # a renderer without these options: no sweep
+        return []
+    out = []
+    for combo in DEFAULT_SWEEP:
+        try:
+            opts = renderers.resolve_options(preset, combo)
+        except PbrcheckError:  # an option this renderer does not have
+            continue
+        if opts != base and opts not in [renderers.resolve_options(preset, c) for c in out]:
+            out.append(combo)
+    return out
 
 
 def combinations(vary: dict[str, list]) -> list[dict]:
