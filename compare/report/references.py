@@ -155,7 +155,7 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
     """The report's "both references" section (``[]`` when ``presets`` name no external renderer).
 
     ``scene_args`` are the report's scene arguments and ``scene_sections`` its
-    :class:`~compare.report.build.SceneSection` s, in the same order (their ``verdict.spp``, else
+    :class:`~compare.report.results.SceneSection` s, in the same order (their ``verdict.spp``, else
     ``spp``, is the single-scattering reference's spp). Writes ``OUT/<section id>/references.json``."""
     externals = [p for p in presets if renderers.is_external(p)]
     if not externals:

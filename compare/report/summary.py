@@ -58,7 +58,7 @@ def timed_on(meta: dict) -> str:
 
 def summary_section(scene_sections) -> Section:
     """One row per renderer and scene (``scene_sections``: the report's
-    :class:`~compare.report.build.SceneSection` s, whose results carry ``timed_on``)."""
+    :class:`~compare.report.results.SceneSection` s, whose results carry ``timed_on``)."""
     rows = []
     for s in scene_sections:
         for r in s.presets:
