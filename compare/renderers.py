@@ -13,7 +13,8 @@ API
 - :class:`RenderContext` -- how :func:`render_under_test` renders, passed to it explicitly
   (``context=``): whether real-time renders come from the content-addressed cache
   (:mod:`realtime.cache`; the report) and the external renders started in the background
-  (:class:`Prefetch`). :data:`DIRECT` (the default) renders every call.
+  (:class:`Prefetch`); and whether their comparisons keep FLIP maps on disk. :data:`DIRECT` (the
+  default) renders every call.
 - :func:`prefetch_external` -- a context that renders some external renderers' images in a
   background thread while this process renders the rest; yields the :class:`Prefetch` to put in a
   :class:`RenderContext` (the report).
@@ -96,10 +97,13 @@ class RenderContext:
     ``miss``); otherwise every call renders, so the renderer's own tests and benchmarks always measure
     a render. External renderers have their own cache (:mod:`clients.run`). ``prefetch``: external
     renders started in the background (:func:`prefetch_external`); one of them is taken from there
-    (waiting if needed; a failed render raises its own error there, as it would have)."""
+    (waiting if needed; a failed render raises its own error there, as it would have).
+    ``flip_cache``: the comparisons of these renders keep their HDR-FLIP maps on disk by content
+    (callers pass it on as ``compare.metrics.compare_images(..., flip_cache=...)``)."""
 
     cache: bool = False
     prefetch: Prefetch | None = field(default=None, compare=False)
+    flip_cache: bool = False
 
     def local(self) -> "RenderContext":
         """This context without its prefetch (what a render in another process can use)."""

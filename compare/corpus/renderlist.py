@@ -74,11 +74,11 @@ class _StageProgress:
             self.progress.update(n, note)
 
 
-def _sweep_row(ref, img, scene):
+def _sweep_row(ref, img, scene, flip_cache: bool = False):
     if isinstance(img, Failed):
         return img
     try:
-        cmp = compare_images(ref, img, scene=scene, noise=False)
+        cmp = compare_images(ref, img, scene=scene, noise=False, flip_cache=flip_cache)
     except PbrcheckError as e:
         return Failed("compare", str(e))
     pre, frame = image_timings(img)
@@ -97,7 +97,7 @@ def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None
     renders = [replace_deliver(t) for t in _render_tasks(scene, jobs, context)]
     ref_key = f"sweep-reference-{cache_key(renders=[t.key for t in renders])}"
     tasks = [Task(ref_key, _identity, (ref,), "reference"), *renders]
-    rows = [Task(f"sweep-compare-{t.key}", _sweep_row, (Dep(ref_key), Dep(t.key), scene), "compare", deliver=True)
+    rows = [Task(f"sweep-compare-{t.key}", _sweep_row, (Dep(ref_key), Dep(t.key), scene, context.flip_cache), "compare", deliver=True)
             for t in renders]
     out: dict[str, object] = {}
     executor.run(tasks + rows, lambda t, v: out.__setitem__(t.key, v), _StageProgress(progress, "compare"))

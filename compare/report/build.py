@@ -33,7 +33,7 @@ from pbrcheck.scene import load_scene
 
 from .. import renderers
 from ..corpus.scheduler import open_executor, parse_scheduler
-from ..metrics import METRICS, map_cache
+from ..metrics import METRICS
 from ..research.fit_roughness import fit_scene
 from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
@@ -216,7 +216,7 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     come from the content-addressed cache where their scene, options, shader and code are unchanged
     (a caching :class:`compare.renderers.RenderContext`; their timings are those measured when
     rendered), and HDR-FLIP maps from the disk where both images are unchanged
-    (:func:`compare.metrics.map_cache`).
+    (``compare_images(..., flip_cache=True)``).
 
     Raises
     ------
@@ -229,12 +229,12 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     page = _Page(extras=list(extras or []))
-    with recording(RunLog()) as log, map_cache(cfg.cache), \
-            renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
+    with recording(RunLog()) as log, renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
-                            context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched))
+                            context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
+                                                            flip_cache=cfg.cache))
         works = [SceneWork(s, out_dir, st) for s in scenes]
         run_stages(report_stages(scenes, works, st, cfg, out_dir, page), "report", enabled=cfg.progress)
     run = log.to_dict()

@@ -130,11 +130,13 @@ def measure_references(scene: Scene, externals: list[str], spp: int, *, progress
     out = []
     for name in externals:
         img = renderers.render_under_test(scene, name, None, progress=False, context=context)
-        c1 = compare_images(ss, img, scene=scene, ref_name="single-scattering reference", test_name=name)
+        c1 = compare_images(ss, img, scene=scene, ref_name="single-scattering reference", test_name=name,
+                            flip_cache=context.flip_cache)
         pair = ReferencePair(scene.name, name, {m: c1.metrics.get(m) for m in REFERENCE_METRICS}, _within(c1),
                              spp_single=int(spp), note=why)
         if rw is not None:
-            c2 = compare_images(rw, img, scene=scene, ref_name="random-walk reference", test_name=name)
+            c2 = compare_images(rw, img, scene=scene, ref_name="random-walk reference", test_name=name,
+                                flip_cache=context.flip_cache)
             pair.vs_random_walk = {m: c2.metrics.get(m) for m in REFERENCE_METRICS}
             pair.within_random_walk = _within(c2)
             pair.spp_random_walk = rw_spp

@@ -130,7 +130,8 @@ class SceneWork:
         """Compare ``preset``'s image, write its images (and diagnose an external renderer)."""
         scene, ref, sd, sid, img = self.scene, self.ref, self.sd, self.sid, self.images[preset]
         cmp = compare_images(ref, img, scene=scene, ref_name="reference",
-                             test_name=preset if renderers.is_external(preset) else f"real-time {preset}")
+                             test_name=preset if renderers.is_external(preset) else f"real-time {preset}",
+                             flip_cache=self.st.context.flip_cache)
         p = safe_name(preset)
         options = img.meta_json("options", None) if "options" in img.meta else None
         write_tonemapped(sd / f"rt_{p}.png", img.rgb, options)

@@ -162,7 +162,7 @@ def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progr
     rows = []
     for options in combos:
         img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
-        cmp = compare_images(ref, img, scene=scene, noise=False)
+        cmp = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
                      **timed_on(img), **cmp.metrics})

@@ -134,6 +134,9 @@ def _sphere_means(img) -> list:
 
 
 def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
+    def _metrics(r, t) -> dict:
+        return compare_images(r, t, noise=False, flip_cache=context.flip_cache).metrics
+
     rows: list[ImageRow] = []
     comps = ENERGY_COMPENSATIONS.names
     with Progress("energy images", total=len(scenes) * (2 + len(comps)), enabled=progress) as prog:
@@ -152,10 +155,10 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
                 png = f"energy_{name}_reference_random_walk.png"
                 write_tonemapped(out_dir / png, ref_rw.rgb)
                 write_tonemapped(out_dir / f"energy_{name}_reference_single.png", ref_ss.rgb)
-            rows.append(ImageRow(name, "reference: random_walk", {}, compare_images(ref_ss, ref_rw, noise=False).metrics,
+            rows.append(ImageRow(name, "reference: random_walk", {}, _metrics(ref_ss, ref_rw),
                                  _sphere_means(ref_rw) if furnace else None, png))
             rows.append(ImageRow(name, "reference: single scattering",
-                                 compare_images(ref_rw, ref_ss, noise=False).metrics, {},
+                                 _metrics(ref_rw, ref_ss), {},
                                  _sphere_means(ref_ss) if furnace else None,
                                  f"energy_{name}_reference_single.png" if out_dir is not None else None))
             for c in comps:
@@ -165,8 +168,8 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
                 if out_dir is not None:
                     png = f"energy_{name}_{c}.png"
                     write_tonemapped(out_dir / png, img.rgb)
-                rows.append(ImageRow(name, c, compare_images(ref_rw, img, noise=False).metrics,
-                                     compare_images(ref_ss, img, noise=False).metrics,
+                rows.append(ImageRow(name, c, _metrics(ref_rw, img),
+                                     _metrics(ref_ss, img),
                                      _sphere_means(img) if furnace else None, png))
                 prog.update(1, f"{name}: {c}")
     return rows
