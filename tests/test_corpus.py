@@ -94,7 +94,7 @@ def fake(monkeypatch, tmp_cache):
     monkeypatch.setattr(compare.renderers, "render_reference", f.reference)
     monkeypatch.setattr(compare.renderers, "render_under_test", f.under_test)
     # FLIP costs ~0.4 s per call whatever the image size; these tests check plumbing, not FLIP.
-    monkeypatch.setattr(compare.metrics, "flip_map", lambda r, t: np.abs(t - r).mean(axis=-1))
+    monkeypatch.setattr(compare.metrics, "flip_map", lambda r, t, cache=False: np.abs(t - r).mean(axis=-1))
     monkeypatch.setattr(compare.renderers, "resolve_options",
                         lambda n, o=None: {} if n in ("broken", "crash") else real_resolve(n, o))
     return f
