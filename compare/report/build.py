@@ -39,9 +39,9 @@ from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import MIN_REFERENCE_SPP, VerdictSpp
 from .references import references_sections
-from .research_sections import ResearchSettings, research_sections
+from .research_sections import ResearchSettings, research_parts
 from .results import SceneSection
-from .runlog import RUN_FILE, RunLog, recording, run_section
+from .runlog import RUN_FILE, RunLog, run_section
 from .scene import ReportSettings, SceneWork
 from .section import Section, Table
 from .stages import ReportStage, run_stages
@@ -105,9 +105,6 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     def references(prog):  # ext:NAME against both references
         page.top += references_sections(scenes, sections(), list(presets), out_dir, prog, context=st.context)
 
-    def research(prog):  # at the first scene's trusted-verdict spp (the reference its sections compare against)
-        page.extras += research_sections(scenes[0], out_dir / "research", presets, report_spp=works[0].verdict.spp,
-                                         progress=cfg.progress, context=st.context)
 
     def hardcases(prog):
         # The shipped shaders' robustness: real-time presets only (an external engine's hard cases
@@ -118,8 +115,10 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     out = [s for w in works for s in w.stages()]
     out += [ReportStage("summary and furnace", len(presets) if cfg.furnace else 0, summary),
             ReportStage("both references", len(scenes) * n_ext, references)]
-    if cfg.research:  # records its own stages (research: fit-lod, ...)
-        out.append(ReportStage("research", 0, research, record=False))
+    if cfg.research:  # at the first scene's trusted-verdict spp (the reference its sections compare against)
+        parts = research_parts(scenes[0], out_dir / "research", presets, report_spp=lambda: works[0].verdict.spp,
+                               progress=cfg.progress, context=st.context)
+        out += [ReportStage(name, 0, lambda prog, make=make: page.extras.append(make())) for name, make in parts]
     if cfg.hardcases:
         out.append(ReportStage("hard cases", 0, hardcases))
     return out
@@ -229,14 +228,15 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     page = _Page(extras=list(extras or []))
-    with recording(RunLog()) as log, renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
+    log = RunLog()
+    with renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))
         works = [SceneWork(s, out_dir, st) for s in scenes]
-        run_stages(report_stages(scenes, works, st, cfg, out_dir, page), "report", enabled=cfg.progress)
+        run_stages(report_stages(scenes, works, st, cfg, out_dir, page), "report", enabled=cfg.progress, log=log)
     run = log.to_dict()
     write_json_atomic(out_dir / RUN_FILE, run, indent=1)
     page.extras.append(run_section(run))

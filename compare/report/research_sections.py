@@ -10,6 +10,7 @@ three together take a few minutes on two CPU cores.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,7 +32,6 @@ from ..research.fit_lod import run_fit_lod
 from ..research.fit_roughness import run_fit_roughness
 from ..research.results import ApparentRoughness
 from ..verdict_spp import VerdictSpp
-from .runlog import stage
 from .section import Section, Table
 
 @dataclass(frozen=True)
@@ -300,18 +300,26 @@ def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, rep
                       context: renderers.RenderContext = renderers.DIRECT) -> list[Section]:
     """The research sections for ``scene_name`` (files under ``out_dir``; renders in ``context``);
     ``energy`` is scene-independent."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    return [make() for _, make in research_parts(scene_name, out_dir, presets, report_spp=lambda: report_spp,
+                                                 st=st, progress=progress, context=context)]
+
+
+def research_parts(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: Callable[[], int],
+                   st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                   context: renderers.RenderContext = renderers.DIRECT) -> list[tuple[str, Callable[[], Section]]]:
+    """The research sections as (stage name, a function that builds the section), in order: the
+    report runs each as a stage of its own (:mod:`compare.report.stages`). ``report_spp()``: the
+    report's reference spp, asked when the LOD fit's section is built. The first creates ``out_dir``."""
     kw = {"st": st, "progress": progress, "context": context}
-    with stage("research: fit-lod"):
-        secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, **kw)]
-    with stage("research: explain"):
-        secs.append(explain_section(scene_name, out_dir, **kw))
-    with stage("research: fit-roughness"):
-        secs.append(fit_roughness_section(scene_name, out_dir, presets, **kw))
-    with stage("research: energy"):
-        secs.append(energy_section(out_dir, **kw))
-    return secs
+    def fit_lod() -> Section:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return fit_lod_section(scene_name, out_dir, report_spp=report_spp(), **kw)
+
+    return [("research: fit-lod", fit_lod),
+            ("research: explain", lambda: explain_section(scene_name, out_dir, **kw)),
+            ("research: fit-roughness", lambda: fit_roughness_section(scene_name, out_dir, presets, **kw)),
+            ("research: energy", lambda: energy_section(out_dir, **kw))]
 
 
-__all__ = ["ResearchSettings", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section",
+__all__ = ["ResearchSettings", "research_parts", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section",
            "energy_section"]

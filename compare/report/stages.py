@@ -17,14 +17,13 @@ from dataclasses import dataclass
 
 from pbrcheck.progress import Progress
 
-from .runlog import stage
+from .runlog import RunLog
 
 
 @dataclass(frozen=True)
 class ReportStage:
     """One stage: ``run(progress)`` does its work, advancing ``progress`` by at most ``steps``.
-    ``record``: recorded in the run log under ``name`` (a stage that only writes files, or one that
-    records its own stages, is not)."""
+    ``record``: recorded in the run log under ``name`` (a stage that only writes files is not)."""
 
     name: str
     steps: int
@@ -53,12 +52,14 @@ def total_steps(stages: list[ReportStage]) -> int:
     return sum(s.steps for s in stages)
 
 
-def run_stages(stages: list[ReportStage], label: str = "report", *, enabled: bool = True) -> None:
-    """Run ``stages`` in order under one progress bar (``label``, total :func:`total_steps`)."""
+def run_stages(stages: list[ReportStage], label: str = "report", *, enabled: bool = True,
+               log: RunLog | None = None) -> None:
+    """Run ``stages`` in order under one progress bar (``label``, total :func:`total_steps`),
+    recording each (its ``record``) into ``log`` when given."""
     with Progress(label, total=total_steps(stages), enabled=enabled) as bar:
         for s in stages:
             sub = _StageBar(bar, s.steps, s.name)
-            with stage(s.name) if s.record else contextlib.nullcontext():
+            with log.stage(s.name) if s.record and log is not None else contextlib.nullcontext():
                 s.run(sub)
             sub.finish()
 
