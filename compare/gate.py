@@ -39,9 +39,9 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pbrcheck.atomic import write_text_atomic
+from pbrcheck.atomic import check_output_path, write_bytes_atomic, write_text_atomic
 from pbrcheck.environment import scene_hash
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, read_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.scene import builtin_scene_names, load_scene
@@ -110,8 +110,8 @@ def _bounds(file, where, t) -> dict[str, float]:
     for k, v in t.items():
         if k not in METRICS:
             raise _err(file, f"{where}.{k}", "a metric name (" + ", ".join(METRICS) + ")", k)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
-            raise _err(file, f"{where}.{k}", "a number", v)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise _err(file, f"{where}.{k}", "a finite number >= 0", v)
         out[k] = float(v)
     return out
 
@@ -123,8 +123,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         raise BudgetError(f"{path}: no such budget file")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+    except tomllib.TOMLDecodeError as e:
         raise BudgetError(f"{path}: invalid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise BudgetError(f"{path}: cannot read: {decode_reason(e)}") from None
     except OSError as e:
         raise BudgetError(f"{path}: cannot read: {e.strerror}") from None
     extra = set(data) - {"check"}
@@ -147,6 +149,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
+        same = [n for n in names if safe_name(n) == safe_name(name)]
+        if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
+            raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
+                       f"(both are {safe_name(name)!r})", name)
         names.add(name)
         for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
@@ -305,7 +311,9 @@ def noise_note(r: Result) -> str:
     metric (or an ``auto`` reference stopped at its cap)."""
     bad = [b for b in r.budget_noise if not b["trusted"]]
     parts = [f"{b['metric']} budget {format_value(b['budget'])} is {b['ratio']:.3g}x the reference's noise "
-             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x at {math.ceil(b['spp_needed'])} spp)"
+             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x "
+             + (f"at {math.ceil(b['spp_needed'])} spp)" if math.isfinite(b["spp_needed"])
+                else "at no spp: a budget of 0 is below any noise)")
              for b in bad]
     if r.check.reference == "auto" and r.verdict is not None and r.verdict.noise_limited:
         parts.append(r.verdict.provenance())
@@ -343,12 +351,9 @@ def write_junit(path: Path, results: list[Result]) -> Path:
                 lines.append(f"reference: {r.verdict.provenance()}")
             lines += [f"budget {b['metric']}: {b['ratio']:.3g}x the reference's noise" for b in r.budget_noise]
             ET.SubElement(tc, "system-out").text = "\n".join(lines)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     root = ET.Element("testsuites")
     root.append(suite)
-    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
-    return path
+    return write_bytes_atomic(path, ET.tostring(root, encoding="utf-8", xml_declaration=True))
 
 
 def write_summary(path: Path, results: list[Result]) -> Path:
@@ -373,10 +378,7 @@ def write_summary(path: Path, results: list[Result]) -> Path:
     fails = [l for r in results for l in failure_lines(r)]
     if fails:
         lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(path, "\n".join(lines) + "\n")
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | None = None,
@@ -408,6 +410,10 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     """
     stream = stream or sys.stdout
     checks, base = load_budget(budget)
+    # the outputs' paths are checked before any render (a crash after the work helps nobody)
+    for out, folder in ((junit, False), (summary, False), (maps_dir, True)):
+        if out:
+            check_output_path(out, folder=folder)
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
