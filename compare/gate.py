@@ -48,15 +48,13 @@ from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
-from .maps import write_maps
+from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
-from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
+from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
               "mode", "seed"}
 DEFAULT_SPP = 64
-#: The reference renderer needs two samples per pixel for its variance channels.
-MIN_REFERENCE_SPP = 2
 
 
 class BudgetError(PbrcheckError):
@@ -152,10 +150,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
-        same = [n for n in names if _safe(n) == _safe(name)]
+        same = [n for n in names if safe_name(n) == safe_name(name)]
         if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
             raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
-                       f"(both are {_safe(name)!r})", name)
+                       f"(both are {safe_name(name)!r})", name)
         names.add(name)
         for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
@@ -279,18 +277,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res.status = "fail" if res.failures else "pass"
     res.exit_code = 1 if res.failures else 0
     if res.failures and maps_dir is not None:
-        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / _safe(check.name), cmp).items()}
+        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / safe_name(check.name), cmp).items()}
     res.seconds = time.perf_counter() - t0
     return res
-
-
-def _safe(name: str) -> str:
-    """The folder name of a check's maps: the name with other characters than letters, digits and
-    ``-_.`` replaced by ``_`` (:func:`load_budget` refuses two checks whose folders would be one)."""
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-    return "_" * len(safe) if safe in (".", "..") else safe
-
-
 
 
 #: A budget is trusted when it is at least this many times the reference's noise in its metric.
