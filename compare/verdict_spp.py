@@ -27,7 +27,7 @@ per-sample variance 0.17). Renders go through the seam ``compare.renderers.rende
 
 API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
 :func:`noise_and_error`, :func:`reference_for_verdict`, :func:`pilot_seed`, :func:`verdict_of`,
-:func:`cap_for_time`, :func:`seconds_per_spp`.
+:func:`cap_for_time`, :func:`seconds_per_spp`, :data:`MIN_REFERENCE_SPP`.
 Reference: Kirk & Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH): a
 sample size chosen from the samples being averaged biases the estimate; a pilot whose samples are
 not reused does not.
@@ -45,6 +45,9 @@ from pbrcheck.exr import Image
 from . import renderers
 from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
 
+#: The least reference spp anything may ask for: the reference renderer needs two samples per pixel
+#: for its variance channels (the gate's and the report's floor).
+MIN_REFERENCE_SPP = 2
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
 #: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of
