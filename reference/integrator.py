@@ -221,8 +221,9 @@ def _balance(a, b):
 
 #: The MIS heuristics of the local estimator (property ``mis``), name -> weight function of the
 #: two densities. Measured (docs/reference.md, ``pbrcheck bench reference`` ``variance_reduction``):
-#: the balance heuristic's floor is within ~1 % of the power heuristic's on spheres and on a real
-#: HDR environment, so the default stays the power heuristic.
+#: the balance heuristic's floor is 0-3 % below the power heuristic's on spheres and on a real HDR
+#: environment (1.5-8 % on a 48 x 40 crop), within the CPU-time noise per second and not worth a new
+#: REFERENCE_CODE_VERSION (every cached and committed reference), so the default stays the power heuristic.
 MIS_HEURISTICS = {"power": _power, "balance": _balance}
 DEFAULT_MIS = "power"
 
