@@ -72,10 +72,13 @@ HALF_MAX = 65504.0
 #: them: the split sum's prefiltered cube, max_lod and lod_override (ibl=runtime has none); the
 #: log2 mapping's cube_log2; runtime sampling's env_cube, env_face_size and runtime_samples; the
 #: LUT-based DFG's dfg_lut (dfg=analytic); the irradiance cube (irradiance=sh9); the material
-#: composition's Kd LUT (the article compositions have their own diffuse). Every other uniform is
+#: composition's Kd LUT (the article compositions have their own diffuse); the SH9 coefficients
+#: ``sh`` (irradiance=convolution, or fresnel=none on the material composition, which has no
+#: diffuse term). Every other uniform is
 #: required: setting one the program lacks is an error (a renamed uniform would render with 0).
 FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "cube_log2", "env_cube",
-                                    "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut"})
+                                    "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut",
+                                    "sh"})
 
 
 def chain_mapping(o: dict) -> str:
@@ -107,15 +110,30 @@ class UniformError(BackendError):
     """A uniform the program lacks was set without being declared optional (renamed or misspelt)."""
 
 
-def _set(prog, name, value, optional: bool = False):
-    """Set uniform ``name``; a uniform the program lacks raises :class:`UniformError` unless
-    ``optional`` (GLSL compilers drop uniforms a variant does not read: only those are optional)."""
+def _uniform(prog, name: str, optional: bool):
+    """The program's uniform ``name``, or None when it lacks it and ``optional`` (GLSL compilers
+    drop uniforms a variant does not read: only those are optional); else :class:`UniformError`."""
     try:
-        prog[name].value = value
+        return prog[name]
     except KeyError:
         if not optional:
             raise UniformError(f"uniform {name!r} is not in the program (renamed or misspelt?); "
                                f"declare it optional where a variant does not read it") from None
+        return None
+
+
+def _set(prog, name, value, optional: bool = False):
+    """Set uniform ``name`` (see :func:`_uniform` for ``optional``)."""
+    uniform = _uniform(prog, name, optional)
+    if uniform is not None:
+        uniform.value = value
+
+
+def _write(prog, name, data: bytes, optional: bool = False):
+    """Write an array uniform's bytes (``sh``; see :func:`_uniform` for ``optional``)."""
+    uniform = _uniform(prog, name, optional)
+    if uniform is not None:
+        uniform.write(data)
 
 
 def _timed(ctx, fn):
@@ -474,7 +492,7 @@ def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
         (tex if tex is not None else _dummy(kind)).use(unit)
         _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
     if o["irradiance"] == "sh9":
-        prog["sh"].write(np.asarray(sh, np.float32).tobytes())  # KeyError here: the uniform was renamed
+        _write(prog, "sh", np.asarray(sh, np.float32).tobytes(), optional="sh" in FRAME_VARIANT_UNIFORMS)
     r, u, f = camera_frame(scene.camera)
     tx, ty = tan_half_fov(scene.camera)
     _set(prog, "n_objects", len(scene.objects))
