@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from .registry import FRESNELS, GEOMETRIES, NDFS
+
 # Smallest alpha the term functions evaluate with. alpha = 0 is a delta distribution that no
 # function can evaluate; renderers treat roughness 0 as a perfect mirror explicitly. 1e-7 keeps
 # alpha^2 = 1e-14 well inside float32's normal range and D_GGX(1) = 1/(pi alpha^2) finite (3e13).
@@ -88,7 +90,6 @@ def D_BlinnPhong(NoH, alpha):
     return np.where(NoH > 0, v, 0.0)
 
 
-NDF_FUNCTIONS = {"ggx": D_GGX, "beckmann": D_Beckmann, "blinn_phong": D_BlinnPhong}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -188,24 +189,26 @@ def k_schlick_direct(roughness):
     return (r + 1.0) ** 2 / 8.0
 
 
+def _term(registry, name: str):
+    """The numpy function of member ``name`` of a term registry and its width function (None for a
+    term without one); ValueError naming the list for an unknown member."""
+    if name not in registry:
+        raise ValueError(f"unknown {registry.define.lower()} term {name!r}; terms are: {', '.join(registry.names)}")
+    impl = registry[name].impl
+    return globals()[impl.numpy], (globals()[impl.width] if impl.width else None)
+
+
 def geometry_term(geometry: str, NoV, NoL, roughness):
-    """Dispatch on the scene's ``[brdf] geometry`` name; ``roughness`` is perceptual."""
-    if geometry == "smith_ggx_correlated":
-        return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness))
-    if geometry == "smith_ggx":
-        return G_SmithGGX(NoV, NoL, alpha_from_roughness(roughness))
-    if geometry == "schlick_ggx_ibl":
-        return G_SchlickGGX(NoV, NoL, k_schlick_ibl(roughness))
-    if geometry == "schlick_ggx_direct":
-        return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness))
-    if geometry == "smith_beckmann_correlated":
-        return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness))
-    raise ValueError(f"unknown geometry term {geometry!r}")
+    """Dispatch on the scene's ``[brdf] geometry`` name (:data:`pbrcheck.registry.GEOMETRIES`: the
+    member's function at its width); ``roughness`` is perceptual."""
+    g, width = _term(GEOMETRIES, geometry)
+    return g(NoV, NoL, width(roughness))
 
 
 def ndf_term(ndf: str, NoH, roughness):
-    """Dispatch on ``[brdf] ndf``; ``roughness`` is perceptual."""
-    return NDF_FUNCTIONS[ndf](NoH, alpha_from_roughness(roughness))
+    """Dispatch on ``[brdf] ndf`` (:data:`pbrcheck.registry.NDFS`); ``roughness`` is perceptual."""
+    d, width = _term(NDFS, ndf)
+    return d(NoH, width(roughness))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -225,13 +228,14 @@ def Fd_Lambert():
     return 1.0 / PI
 
 
+def F_None(VoH, F0):
+    """No Fresnel factor: ``F = 1``, broadcast to the shapes of ``VoH`` and ``F0``."""
+    return np.ones(np.broadcast_shapes(np.shape(VoH), np.shape(F0)))
+
+
 def fresnel_term(fresnel: str, VoH, F0):
-    """Dispatch on ``[brdf] fresnel``: Schlick, or ``none`` (F = 1)."""
-    if fresnel == "schlick":
-        return F_Schlick(VoH, F0)
-    if fresnel == "none":
-        return np.ones(np.broadcast_shapes(np.shape(VoH), np.shape(F0)))
-    raise ValueError(f"unknown fresnel term {fresnel!r}")
+    """Dispatch on ``[brdf] fresnel`` (:data:`pbrcheck.registry.FRESNELS`): Schlick, or ``none`` (F = 1)."""
+    return _term(FRESNELS, fresnel)[0](VoH, F0)
 
 
 def material_f0(base_color, metallic, specular):

@@ -49,10 +49,11 @@ from __future__ import annotations
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
-from pbrcheck.scene import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS
+from pbrcheck import registry
+from pbrcheck.scene import FRESNEL_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import multiscatter
-from .terms import D_GGX, INV_PI, fresnel_term  # noqa: F401  (re-exported: this module's API too)
+from .terms import D_GGX, INV_PI, F_None, F_Schlick, fresnel_term  # noqa: F401  (re-exported: this module's API too)
 
 import drjit as dr
 import mitsuba as mi
@@ -93,7 +94,6 @@ def D_BlinnPhong(h, alpha):
     return dr.select(h.z > 0, v, 0.0)
 
 
-NDF = {"ggx": D_GGX, "beckmann": D_Beckmann, "blinn_phong": D_BlinnPhong}
 
 
 # ---- geometry terms G(l, v) (cosines clamped to [0, 1]) ------------------------------------------
@@ -129,22 +129,42 @@ def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
     return dr.select((NoV > 0) & (NoL > 0), g, 0.0)
 
 
-def geometry_term(geometry, NoV, NoL, roughness, alpha):
-    NoV = dr.clip(NoV, 0.0, 1.0)
-    NoL = dr.clip(NoL, 0.0, 1.0)
-    if geometry == "smith_beckmann_correlated":
-        return G_SmithBeckmannCorrelated(NoV, NoL, alpha)
-    if geometry == "smith_ggx_correlated":
-        return G_SmithGGXCorrelated(NoV, NoL, alpha)
-    if geometry == "smith_ggx":
-        return G_SmithGGX(NoV, NoL, alpha)
-    if geometry == "schlick_ggx_ibl":
-        k = alpha * 0.5
-    elif geometry == "schlick_ggx_direct":
-        k = (roughness + 1.0) * (roughness + 1.0) * 0.125
-    else:
-        raise ValueError(f"unknown geometry term {geometry!r}")
+def G_SchlickGGX(NoV, NoL, k):
     return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+def G_SchlickBeckmann(NoV, NoL, alpha):
+    """Schlick's approximation of Smith-Beckmann (article 001's catalogue): k = alpha sqrt(2 / pi)."""
+    k = alpha * 0.7978845608
+    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+# ---- the terms' widths (pbrcheck.registry Impl.width) of the perceptual roughness and its alpha ----
+
+def alpha_from_roughness(roughness, alpha):
+    return alpha
+
+
+def k_schlick_ibl(roughness, alpha):
+    """[Karis13] eq. 4 footnote: k = alpha / 2."""
+    return alpha * 0.5
+
+
+def k_schlick_direct(roughness, alpha):
+    """[Karis13] eq. 4: k = (roughness + 1)^2 / 8."""
+    return (roughness + 1.0) * (roughness + 1.0) * 0.125
+
+
+def geometry_term(geometry, NoV, NoL, roughness, alpha):
+    """The registry's member ``geometry`` (:data:`pbrcheck.registry.GEOMETRIES`): its Dr.Jit function
+    at its width, cosines clamped to [0, 1]."""
+    impl = registry.GEOMETRIES[geometry].impl
+    return globals()[impl.drjit](dr.clip(NoV, 0.0, 1.0), dr.clip(NoL, 0.0, 1.0),
+                                 globals()[impl.width](roughness, alpha))
+
+
+#: Each NDF's Dr.Jit function of the local half vector and alpha, from the registry.
+NDF = {e.name: globals()[e.impl.drjit] for e in registry.NDFS}
 
 
 def _divide(a, b):
@@ -360,12 +380,12 @@ class PBRMaterial(mi.BSDF):
         self.ndf = str(get("ndf", "ggx"))
         self.geometry = str(get("geometry", "smith_ggx_correlated"))
         self.fresnel = str(get("fresnel", "schlick"))
-        if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
+        if self.ndf not in NDF_NAMES or self.geometry not in GEOMETRY_NAMES or self.fresnel not in FRESNEL_NAMES:
             raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
         # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
         self.multiscatter = str(get("multiscatter", "none"))
         self.ms_seed = int(get("multiscatter_seed", 0))
-        if self.multiscatter not in MULTISCATTERS:
+        if self.multiscatter not in MULTISCATTER_NAMES:
             raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
         multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
         self._update()

@@ -78,13 +78,7 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
     for (uint i = 0u; i < ns; ++i) {
         // Alchemy-style XOR scrambling of the radical inverse by a per-pixel key.
         vec2 u = vec2(float(i) / float(ns), float(bitfieldReverse(i) ^ rot) * 2.3283064365386963e-10);
-#if RUNTIME_SAMPLING == RUNTIME_SAMPLING_BECKMANN
-        vec3 ht = sample_Beckmann(u, alpha);
-#elif RUNTIME_SAMPLING == RUNTIME_SAMPLING_GGX
-        vec3 ht = sample_GGX(u, alpha);
-#elif RUNTIME_SAMPLING == RUNTIME_SAMPLING_VNDF
-        vec3 ht = sample_GGX_VNDF(u.yx, vt, alpha);
-#endif
+        vec3 ht = runtime_half_vector(u, vt, alpha);
         vec3 h = tx * ht.x + ty * ht.y + n * ht.z;
         float VoH = dot(v, h);
         vec3 l = 2.0 * VoH * h - v;
