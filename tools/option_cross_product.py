@@ -1,10 +1,12 @@
 """Render the cross product of the real-time renderer's choice and bool options once.
 
-``python tools/option_cross_product.py [--limit N]`` counts the full cross product of every choice
+``python tools/option_cross_product.py [--limit N] [--seed S]`` counts the full cross product of every choice
 and bool option of :data:`realtime.presets.OPTIONS` on the default preset (accepted and refused by
 :func:`realtime.presets.resolve_options`), then renders an 8 x 8 furnace for every distinct program
 that product compiles, and reports any combination that neither renders with finite pixels nor is
-refused with an OptionError. Exit status 1 if there is one.
+refused with an OptionError. Exit status 1 if there is one. The programs run in a random order
+(``--seed``, default 0), so that a run stopped early (``--limit``, or interrupted: progress lines
+every 250) has rendered a uniform sample of them.
 
 The rendered set: resolve_options couples only ``shading``, ``ibl`` and ``energy_compensation``, so
 the count is the accepted (shading, ibl, energy_compensation) triples times the other options'
@@ -99,7 +101,10 @@ def main(argv) -> int:
     total, accepted = full_count(sw)
     print(f"full cross product of {len(sw)} choice and bool options: {total} combinations, "
           f"{accepted} accepted by resolve_options", flush=True)
-    todo = list(variants(sw))[:limit]
+    seed = int(argv[argv.index("--seed") + 1]) if "--seed" in argv else 0
+    todo = list(variants(sw))
+    print(f"{len(todo)} distinct programs (frame variants and bakes)", flush=True)
+    todo = [todo[i] for i in np.random.default_rng(seed).permutation(len(todo))][:limit]
     scene = load_scene("furnace").with_camera(width=8, height=8)
     failed, refused, t0 = [], 0, time.perf_counter()
     for i, over in enumerate(todo):
@@ -110,15 +115,15 @@ def main(argv) -> int:
             continue
         except (PbrcheckError, KeyError) as e:
             failed.append(f"{over}: {type(e).__name__}: {str(e).splitlines()[0][:160]}")
+            print("FAILED", failed[-1], flush=True)
             continue
         if not all(np.all(np.isfinite(img.channels[c])) for c in ("R", "G", "B")):
             failed.append(f"{over}: non-finite pixels")
+            print("FAILED", failed[-1], flush=True)
         if (i + 1) % 250 == 0:
             print(f"  {i + 1}/{len(todo)} ({time.perf_counter() - t0:.0f} s)", flush=True)
     print(f"{len(todo)} distinct programs rendered in {time.perf_counter() - t0:.0f} s "
           f"({refused} refused, {len(failed)} failed)")
-    for f in failed:
-        print("FAILED", f)
     return 1 if failed else 0
 
 
