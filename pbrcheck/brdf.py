@@ -282,19 +282,52 @@ def _gauss(n, a, b):
     return 0.5 * (b - a) * x + 0.5 * (b + a), 0.5 * (b - a) * w
 
 
+def _theta_h_GGX(u, a):
+    """[Walter07] eq. 35: the inverse CDF of ``D_GGX cos(theta_h)`` in theta_h."""
+    return np.arctan(a * np.sqrt(u / (1.0 - u)))
+
+
+def _theta_h_Beckmann(u, a):
+    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u)``."""
+    return np.arctan(np.sqrt(-a * a * np.log1p(-u)))
+
+
+def _theta_h_BlinnPhong(u, a):
+    """pdf ``cos^(n+1) sin``: ``cos theta_h = (1 - u)^(1 / (n + 2))``."""
+    n = float(blinn_phong_exponent(a))
+    return np.arccos(np.power(1.0 - u, 1.0 / (n + 2.0)))
+
+
+def _cdf_theta_h_GGX(theta, a):
+    """The CDF of ``D_GGX cos(theta_h)`` at theta_h < pi/2: ``t / (1 + t)``, ``t = tan^2 / alpha^2``."""
+    t2 = np.tan(theta) ** 2 / (a * a)
+    return t2 / (1.0 + t2)
+
+
+def _cdf_theta_h_Beckmann(theta, a):
+    """``1 - exp(-tan^2 / alpha^2)``."""
+    return -np.expm1(-np.tan(theta) ** 2 / (a * a))
+
+
+def _cdf_theta_h_BlinnPhong(theta, a):
+    """``1 - cos^(n+2)``."""
+    return 1.0 - np.cos(theta) ** (float(blinn_phong_exponent(a)) + 2.0)
+
+
+def _ndf_quadrature(ndf: str, kind: str):
+    """The NDF's ``_theta_h_<D>`` or ``_cdf_theta_h_<D>`` (``kind`` ``theta_h`` or ``cdf_theta_h``;
+    ``<D>`` its registry function's name without ``D_``): a new NDF adds its pair under that name."""
+    if ndf not in NDFS:
+        raise ValueError(f"unknown ndf {ndf!r}; NDFs are: {', '.join(NDFS.names)}")
+    return globals()[f"_{kind}_{NDFS[ndf].impl.numpy[2:]}"]
+
+
 def _ndf_theta_from_u(ndf, u, alpha):
     """theta_h as the inverse CDF of ``D(h) cos(theta_h)`` at u (the quadrature's variable), so
     that nodes crowd where the lobe is; ``pdf(theta) = 2 pi D cos sin`` is the Jacobian's inverse."""
     a = max(float(alpha), MIN_ALPHA)
     u = np.clip(u, 0.0, 1.0 - 1e-16)
-    if ndf == "ggx":          # [Walter07] eq. 35
-        return np.arctan(a * np.sqrt(u / (1.0 - u)))
-    if ndf == "beckmann":     # [Walter07] eq. 28
-        return np.arctan(np.sqrt(-a * a * np.log1p(-u)))
-    if ndf == "blinn_phong":  # pdf cos^(n+1) sin: cos theta = (1-u)^(1/(n+2))
-        n = float(blinn_phong_exponent(a))
-        return np.arccos(np.power(1.0 - u, 1.0 / (n + 2.0)))
-    raise ValueError(ndf)
+    return _ndf_quadrature(ndf, "theta_h")(u, a)
 
 
 def _ndf_u_from_theta(ndf, theta, alpha):
@@ -302,14 +335,7 @@ def _ndf_u_from_theta(ndf, theta, alpha):
     a = max(float(alpha), MIN_ALPHA)
     if theta >= np.pi / 2:
         return 1.0
-    t2 = np.tan(theta) ** 2 / (a * a)
-    if ndf == "ggx":
-        return t2 / (1.0 + t2)
-    if ndf == "beckmann":
-        return -np.expm1(-t2)
-    if ndf == "blinn_phong":
-        return 1.0 - np.cos(theta) ** (float(blinn_phong_exponent(a)) + 2.0)
-    raise ValueError(ndf)
+    return _ndf_quadrature(ndf, "cdf_theta_h")(theta, a)
 
 
 def specular_dfg(NoV, roughness, *, ndf="ggx", geometry="smith_ggx_correlated", n_theta=24, n_phi=48):

@@ -167,6 +167,64 @@ def geometry_term(geometry, NoV, NoL, roughness, alpha):
 NDF = {e.name: globals()[e.impl.drjit] for e in registry.NDFS}
 
 
+# ---- the NDFs' half-vector samplers and their densities (local frame) ---------------------------
+
+def sample_h_GGX(wi, u, alpha):
+    """GGX visible normals, [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch."""
+    vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
+    lensq = vh.x * vh.x + vh.y * vh.y
+    inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
+    T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
+    T2 = dr.cross(vh, T1)
+    r = dr.sqrt(u.x)
+    phi = 2.0 * dr.pi * u.y
+    t1 = r * dr.cos(phi)
+    t2 = r * dr.sin(phi)
+    s = 0.5 * (1.0 + vh.z)
+    t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
+    nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
+    return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
+
+
+def pdf_h_GGX(wi, h, alpha):
+    """[Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)."""
+    return G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(dr.dot(wi, h), 0.0) * D_GGX(h, alpha) \
+        / dr.maximum(wi.z, COS_EPS)
+
+
+def _h_from_theta(cos_t, sin_t, u):
+    phi = 2.0 * dr.pi * u.y
+    return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
+
+
+def sample_h_Beckmann(wi, u, alpha):
+    """[Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u), density D (n.h)."""
+    t2 = -alpha * alpha * _log1p_neg(u.x)
+    cos_t = dr.rsqrt(1.0 + t2)
+    return _h_from_theta(cos_t, dr.sqrt(t2) * cos_t, u)
+
+
+def sample_h_BlinnPhong(wi, u, alpha):
+    """pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))."""
+    n = blinn_phong_exponent(alpha)
+    x = _log1p_neg(u.x) / (n + 2.0)
+    return _h_from_theta(dr.exp(x), dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0)), u)
+
+
+def pdf_h_Beckmann(wi, h, alpha):
+    return D_Beckmann(h, alpha) * dr.maximum(h.z, 0.0)
+
+
+def pdf_h_BlinnPhong(wi, h, alpha):
+    return D_BlinnPhong(h, alpha) * dr.maximum(h.z, 0.0)
+
+
+#: Each NDF's (sampler, density of h) pair: ``sample_h_<D>`` and ``pdf_h_<D>``, ``<D>`` its registry
+#: function's name without ``D_`` (a new NDF adds its pair under that name).
+NDF_SAMPLERS = {e.name: (globals()[f"sample_h_{e.impl.drjit[2:]}"], globals()[f"pdf_h_{e.impl.drjit[2:]}"])
+                for e in registry.NDFS}
+
+
 def _divide(a, b):
     """a / b; a seam so that a test can emulate CUDA's inexact division on the CPU."""
     return a / b
@@ -215,45 +273,11 @@ class PBRLobes:
 
     def _spec_pdf(self, wi, wo, h, alpha):
         """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
-        VoH = dr.dot(wi, h)
         jac = 1.0 / dr.maximum(4.0 * dr.abs(dr.dot(wo, h)), 1e-20)
-        if self.ndf == "ggx":
-            # [Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)
-            pdf_h = G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(VoH, 0.0) * D_GGX(h, alpha) \
-                / dr.maximum(wi.z, COS_EPS)
-        else:
-            pdf_h = NDF[self.ndf](h, alpha) * dr.maximum(h.z, 0.0)
-        return pdf_h * jac
+        return NDF_SAMPLERS[self.ndf][1](wi, h, alpha) * jac
 
     def _sample_h(self, wi, u, alpha):
-        if self.ndf == "ggx":
-            # [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch.
-            vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
-            lensq = vh.x * vh.x + vh.y * vh.y
-            inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-            T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-            T2 = dr.cross(vh, T1)
-            r = dr.sqrt(u.x)
-            phi = 2.0 * dr.pi * u.y
-            t1 = r * dr.cos(phi)
-            t2 = r * dr.sin(phi)
-            s = 0.5 * (1.0 + vh.z)
-            t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-            nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-            return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
-        phi = 2.0 * dr.pi * u.y
-        if self.ndf == "beckmann":
-            # [Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u)
-            t2 = -alpha * alpha * _log1p_neg(u.x)
-            cos_t = dr.rsqrt(1.0 + t2)
-            sin_t = dr.sqrt(t2) * cos_t
-        else:
-            # pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))
-            n = blinn_phong_exponent(alpha)
-            x = _log1p_neg(u.x) / (n + 2.0)
-            cos_t = dr.exp(x)
-            sin_t = dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0))
-        return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
+        return NDF_SAMPLERS[self.ndf][0](wi, u, alpha)
 
     def _eval_pdf(self, si, wo, active):
         """(f cos, pdf) of the non-delta part, local frame."""

@@ -139,6 +139,12 @@ def test_every_term_has_its_three_implementations(define):
             assert callable(getattr(brdf, e.impl.width)) and callable(getattr(bsdf, e.impl.width))
             assert re.search(rf"^float {e.impl.width}\(", brdf_glsl, re.M), e.impl.width
         assert f"{reg.constant(e.name)}\n    return {e.impl.glsl}(" in dispatch
+        if define == "NDF":  # its samplers: GLSL (numpy twin in pbrcheck.sampling), quadrature, Dr.Jit
+            from pbrcheck import sampling
+            assert callable(getattr(sampling, e.extra["sample"], None)), e.extra["sample"]
+            assert re.search(rf"^vec3 {e.extra['sample']}\(", (SHADER_DIR / "sampling.glsl").read_text(), re.M)
+            assert brdf._ndf_quadrature(e.name, "theta_h") and brdf._ndf_quadrature(e.name, "cdf_theta_h")
+            assert e.name in bsdf.NDF_SAMPLERS
     twins = {"NDF": harness.test_ndf_twins, "GEOMETRY": harness.test_g2_twins,
              "FRESNEL": harness.test_fresnel_twins}[define]
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
