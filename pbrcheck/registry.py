@@ -13,15 +13,24 @@ Everything else is derived from it:
   ``{"GEOMETRY": "GEOMETRY_SMITH_GGX_CORRELATED"}`` (:meth:`Registry.select`);
 * generated GLSL dispatch functions where a list maps to one function per member
   (:func:`glsl_generated`: ``lod_from_roughness`` / ``roughness_from_lod`` call the mapping's own
-  ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``);
+  ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``; ``ndf_term`` /
+  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` and
+  ``runtime_half_vector`` the samplers');
 * the docs' tables, checked against it by ``tests/test_registry.py``.
 
 Adding a LOD mapping is one :data:`LOD_MAPPINGS` entry, its two GLSL functions in
 ``realtime/shaders/lod.glsl`` and their numpy twins of the same names in :mod:`pbrcheck.lodmap`.
+The term registries (:data:`TERM_REGISTRIES`: NDFs, geometry and Fresnel terms) own their
+implementations: each entry's :class:`Impl` names its numpy, Dr.Jit and GLSL functions and its
+width; adding a G term is one :data:`GEOMETRIES` entry and its three functions (docs/realtime.md
+has the worked example). An NDF also names its GLSL sampler (``extra["sample"]``, numpy twin in
+:mod:`pbrcheck.sampling`) and has, under its D function's name without ``D_``, a quadrature pair in
+:mod:`pbrcheck.brdf` (``_theta_h_<D>``, ``_cdf_theta_h_<D>``) and a Dr.Jit sampler pair in
+:mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``).
 
 API
 ---
-:class:`Entry`, :class:`Registry`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
+:class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
 :data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
@@ -42,8 +51,9 @@ class Impl:
     numpy : str
         The ground truth's function in :mod:`pbrcheck.brdf`.
     drjit : str
-        The reference BSDF's function: in :mod:`reference.terms` (resolved there, lazily: the core
-        does not import the renderers).
+        The reference BSDF's function, looked up by name in :mod:`reference.bsdf` (which holds
+        :mod:`reference.terms`' too) when the reference dispatches: the core does not import the
+        renderers; ``tests/test_registry.py`` checks that it exists.
     glsl : str
         The shader function (``realtime/shaders/brdf.glsl``), twin of ``numpy`` of the same name
         and called by the generated dispatch (:func:`glsl_generated`).
