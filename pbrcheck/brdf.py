@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from .registry import FRESNELS, GEOMETRIES, NDFS
+
 # Smallest alpha the term functions evaluate with. alpha = 0 is a delta distribution that no
 # function can evaluate; renderers treat roughness 0 as a perfect mirror explicitly. 1e-7 keeps
 # alpha^2 = 1e-14 well inside float32's normal range and D_GGX(1) = 1/(pi alpha^2) finite (3e13).
@@ -88,7 +90,6 @@ def D_BlinnPhong(NoH, alpha):
     return np.where(NoH > 0, v, 0.0)
 
 
-NDF_FUNCTIONS = {"ggx": D_GGX, "beckmann": D_Beckmann, "blinn_phong": D_BlinnPhong}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -188,24 +189,26 @@ def k_schlick_direct(roughness):
     return (r + 1.0) ** 2 / 8.0
 
 
+def _term(registry, name: str):
+    """The numpy function of member ``name`` of a term registry and its width function (None for a
+    term without one); ValueError naming the list for an unknown member."""
+    if name not in registry:
+        raise ValueError(f"unknown {registry.define.lower()} term {name!r}; terms are: {', '.join(registry.names)}")
+    impl = registry[name].impl
+    return globals()[impl.numpy], (globals()[impl.width] if impl.width else None)
+
+
 def geometry_term(geometry: str, NoV, NoL, roughness):
-    """Dispatch on the scene's ``[brdf] geometry`` name; ``roughness`` is perceptual."""
-    if geometry == "smith_ggx_correlated":
-        return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness))
-    if geometry == "smith_ggx":
-        return G_SmithGGX(NoV, NoL, alpha_from_roughness(roughness))
-    if geometry == "schlick_ggx_ibl":
-        return G_SchlickGGX(NoV, NoL, k_schlick_ibl(roughness))
-    if geometry == "schlick_ggx_direct":
-        return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness))
-    if geometry == "smith_beckmann_correlated":
-        return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness))
-    raise ValueError(f"unknown geometry term {geometry!r}")
+    """Dispatch on the scene's ``[brdf] geometry`` name (:data:`pbrcheck.registry.GEOMETRIES`: the
+    member's function at its width); ``roughness`` is perceptual."""
+    g, width = _term(GEOMETRIES, geometry)
+    return g(NoV, NoL, width(roughness))
 
 
 def ndf_term(ndf: str, NoH, roughness):
-    """Dispatch on ``[brdf] ndf``; ``roughness`` is perceptual."""
-    return NDF_FUNCTIONS[ndf](NoH, alpha_from_roughness(roughness))
+    """Dispatch on ``[brdf] ndf`` (:data:`pbrcheck.registry.NDFS`); ``roughness`` is perceptual."""
+    d, width = _term(NDFS, ndf)
+    return d(NoH, width(roughness))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -225,13 +228,14 @@ def Fd_Lambert():
     return 1.0 / PI
 
 
+def F_None(VoH, F0):
+    """No Fresnel factor: ``F = 1``, broadcast to the shapes of ``VoH`` and ``F0``."""
+    return np.ones(np.broadcast_shapes(np.shape(VoH), np.shape(F0)))
+
+
 def fresnel_term(fresnel: str, VoH, F0):
-    """Dispatch on ``[brdf] fresnel``: Schlick, or ``none`` (F = 1)."""
-    if fresnel == "schlick":
-        return F_Schlick(VoH, F0)
-    if fresnel == "none":
-        return np.ones(np.broadcast_shapes(np.shape(VoH), np.shape(F0)))
-    raise ValueError(f"unknown fresnel term {fresnel!r}")
+    """Dispatch on ``[brdf] fresnel`` (:data:`pbrcheck.registry.FRESNELS`): Schlick, or ``none`` (F = 1)."""
+    return _term(FRESNELS, fresnel)[0](VoH, F0)
 
 
 def material_f0(base_color, metallic, specular):
@@ -278,19 +282,52 @@ def _gauss(n, a, b):
     return 0.5 * (b - a) * x + 0.5 * (b + a), 0.5 * (b - a) * w
 
 
+def _theta_h_GGX(u, a):
+    """[Walter07] eq. 35: the inverse CDF of ``D_GGX cos(theta_h)`` in theta_h."""
+    return np.arctan(a * np.sqrt(u / (1.0 - u)))
+
+
+def _theta_h_Beckmann(u, a):
+    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u)``."""
+    return np.arctan(np.sqrt(-a * a * np.log1p(-u)))
+
+
+def _theta_h_BlinnPhong(u, a):
+    """pdf ``cos^(n+1) sin``: ``cos theta_h = (1 - u)^(1 / (n + 2))``."""
+    n = float(blinn_phong_exponent(a))
+    return np.arccos(np.power(1.0 - u, 1.0 / (n + 2.0)))
+
+
+def _cdf_theta_h_GGX(theta, a):
+    """The CDF of ``D_GGX cos(theta_h)`` at theta_h < pi/2: ``t / (1 + t)``, ``t = tan^2 / alpha^2``."""
+    t2 = np.tan(theta) ** 2 / (a * a)
+    return t2 / (1.0 + t2)
+
+
+def _cdf_theta_h_Beckmann(theta, a):
+    """``1 - exp(-tan^2 / alpha^2)``."""
+    return -np.expm1(-np.tan(theta) ** 2 / (a * a))
+
+
+def _cdf_theta_h_BlinnPhong(theta, a):
+    """``1 - cos^(n+2)``."""
+    return 1.0 - np.cos(theta) ** (float(blinn_phong_exponent(a)) + 2.0)
+
+
+def _ndf_quadrature(ndf: str, kind: str):
+    """The NDF's ``_theta_h_<D>`` or ``_cdf_theta_h_<D>`` (``kind`` ``theta_h`` or ``cdf_theta_h``;
+    ``<D>`` its registry function's name without ``D_``): a new NDF adds its pair under that name."""
+    if ndf not in NDFS:
+        raise ValueError(f"unknown ndf {ndf!r}; NDFs are: {', '.join(NDFS.names)}")
+    return globals()[f"_{kind}_{NDFS[ndf].impl.numpy[2:]}"]
+
+
 def _ndf_theta_from_u(ndf, u, alpha):
     """theta_h as the inverse CDF of ``D(h) cos(theta_h)`` at u (the quadrature's variable), so
     that nodes crowd where the lobe is; ``pdf(theta) = 2 pi D cos sin`` is the Jacobian's inverse."""
     a = max(float(alpha), MIN_ALPHA)
     u = np.clip(u, 0.0, 1.0 - 1e-16)
-    if ndf == "ggx":          # [Walter07] eq. 35
-        return np.arctan(a * np.sqrt(u / (1.0 - u)))
-    if ndf == "beckmann":     # [Walter07] eq. 28
-        return np.arctan(np.sqrt(-a * a * np.log1p(-u)))
-    if ndf == "blinn_phong":  # pdf cos^(n+1) sin: cos theta = (1-u)^(1/(n+2))
-        n = float(blinn_phong_exponent(a))
-        return np.arccos(np.power(1.0 - u, 1.0 / (n + 2.0)))
-    raise ValueError(ndf)
+    return _ndf_quadrature(ndf, "theta_h")(u, a)
 
 
 def _ndf_u_from_theta(ndf, theta, alpha):
@@ -298,14 +335,7 @@ def _ndf_u_from_theta(ndf, theta, alpha):
     a = max(float(alpha), MIN_ALPHA)
     if theta >= np.pi / 2:
         return 1.0
-    t2 = np.tan(theta) ** 2 / (a * a)
-    if ndf == "ggx":
-        return t2 / (1.0 + t2)
-    if ndf == "beckmann":
-        return -np.expm1(-t2)
-    if ndf == "blinn_phong":
-        return 1.0 - np.cos(theta) ** (float(blinn_phong_exponent(a)) + 2.0)
-    raise ValueError(ndf)
+    return _ndf_quadrature(ndf, "cdf_theta_h")(theta, a)
 
 
 def specular_dfg(NoV, roughness, *, ndf="ggx", geometry="smith_ggx_correlated", n_theta=24, n_phi=48):

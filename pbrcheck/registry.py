@@ -13,15 +13,24 @@ Everything else is derived from it:
   ``{"GEOMETRY": "GEOMETRY_SMITH_GGX_CORRELATED"}`` (:meth:`Registry.select`);
 * generated GLSL dispatch functions where a list maps to one function per member
   (:func:`glsl_generated`: ``lod_from_roughness`` / ``roughness_from_lod`` call the mapping's own
-  ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``);
+  ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``; ``ndf_term`` /
+  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` and
+  ``runtime_half_vector`` the samplers');
 * the docs' tables, checked against it by ``tests/test_registry.py``.
 
 Adding a LOD mapping is one :data:`LOD_MAPPINGS` entry, its two GLSL functions in
 ``realtime/shaders/lod.glsl`` and their numpy twins of the same names in :mod:`pbrcheck.lodmap`.
+The term registries (:data:`TERM_REGISTRIES`: NDFs, geometry and Fresnel terms) own their
+implementations: each entry's :class:`Impl` names its numpy, Dr.Jit and GLSL functions and its
+width; adding a G term is one :data:`GEOMETRIES` entry and its three functions (docs/realtime.md
+has the worked example). An NDF also names its GLSL sampler (``extra["sample"]``, numpy twin in
+:mod:`pbrcheck.sampling`) and has, under its D function's name without ``D_``, a quadrature pair in
+:mod:`pbrcheck.brdf` (``_theta_h_<D>``, ``_cdf_theta_h_<D>``) and a Dr.Jit sampler pair in
+:mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``).
 
 API
 ---
-:class:`Entry`, :class:`Registry`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
+:class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
 :data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
@@ -31,6 +40,33 @@ members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPP
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class Impl:
+    """A term's implementation in the three languages, each named by its function's name.
+
+    Attributes
+    ----------
+    numpy : str
+        The ground truth's function in :mod:`pbrcheck.brdf`.
+    drjit : str
+        The reference BSDF's function, looked up by name in :mod:`reference.bsdf` (which holds
+        :mod:`reference.terms`' too) when the reference dispatches: the core does not import the
+        renderers; ``tests/test_registry.py`` checks that it exists.
+    glsl : str
+        The shader function (``realtime/shaders/brdf.glsl``), twin of ``numpy`` of the same name
+        and called by the generated dispatch (:func:`glsl_generated`).
+    width : str
+        The term's width argument as a function of the perceptual roughness, named alike in the
+        three languages: ``alpha_from_roughness``, ``k_schlick_ibl``, ``k_schlick_direct``; empty
+        for a term without one (Fresnel).
+    """
+
+    numpy: str
+    drjit: str
+    glsl: str
+    width: str = ""
 
 
 @dataclass(frozen=True)
@@ -46,13 +82,18 @@ class Entry:
     scene : bool
         False for members only the real-time renderer offers (not a scene's ``[brdf]`` value).
     extra : dict
-        Per-list data (a LOD mapping's basis coefficients, a term's numpy twin name).
+        Per-list data (a LOD mapping's basis coefficients; an NDF's GLSL sampler ``sample``).
+    impl : Impl or None
+        The term's functions (NDFs, geometry and Fresnel terms): the numpy, Dr.Jit and GLSL
+        dispatch loop over these (:func:`pbrcheck.brdf.geometry_term`,
+        :func:`reference.terms.geometry_term`, :func:`glsl_generated`).
     """
 
     name: str
     source: str
     scene: bool = True
     extra: dict = field(default_factory=dict)
+    impl: Impl | None = None
 
 
 class Registry:
@@ -105,26 +146,44 @@ class Registry:
         return {self.constant(e.name): i for i, e in enumerate(self.entries)}
 
 
+_ALPHA = "alpha_from_roughness"
+
 NDFS = Registry("NDF", [
-    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33"),
-    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25"),
-    Entry("blinn_phong", "normalized Blinn-Phong, Walter et al. 2007 eq. 30 with n = 2/alpha^2 - 2"),
+    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33", extra={"sample": "sample_GGX"},
+          impl=Impl("D_GGX", "D_GGX", "D_GGX", _ALPHA)),
+    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25", extra={"sample": "sample_Beckmann"},
+          impl=Impl("D_Beckmann", "D_Beckmann", "D_Beckmann", _ALPHA)),
+    Entry("blinn_phong", "normalized Blinn-Phong, Walter et al. 2007 eq. 30 with n = 2/alpha^2 - 2",
+          extra={"sample": "sample_BlinnPhong"}, impl=Impl("D_BlinnPhong", "D_BlinnPhong", "D_BlinnPhong", _ALPHA)),
 ])
 
 GEOMETRIES = Registry("GEOMETRY", [
-    Entry("smith_ggx_correlated", "height-correlated Smith GGX, Heitz 2014 eq. 99"),
-    Entry("smith_ggx", "separable Smith GGX G1(l) G1(v), as Mitsuba's roughconductor"),
-    Entry("schlick_ggx_ibl", "Schlick-GGX with k = alpha/2, Karis 2013"),
-    Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013"),
-    Entry("schlick_beckmann", "Schlick's Beckmann approximation (article 000's listing), real time only",
-          scene=False),
-    Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80"),
+    Entry("smith_ggx_correlated", "height-correlated Smith GGX, Heitz 2014 eq. 99",
+          impl=Impl("G_SmithGGXCorrelated", "G_SmithGGXCorrelated", "G_SmithGGXCorrelated", _ALPHA)),
+    Entry("smith_ggx", "separable Smith GGX G1(l) G1(v), as Mitsuba's roughconductor",
+          impl=Impl("G_SmithGGX", "G_SmithGGX", "G_SmithGGX", _ALPHA)),
+    Entry("schlick_ggx_ibl", "Schlick-GGX with k = alpha/2, Karis 2013",
+          impl=Impl("G_SchlickGGX", "G_SchlickGGX", "G_SchlickGGX", "k_schlick_ibl")),
+    Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013",
+          impl=Impl("G_SchlickGGX", "G_SchlickGGX", "G_SchlickGGX", "k_schlick_direct")),
+    Entry("schlick_beckmann", "Schlick's approximation of Smith-Beckmann, k = alpha sqrt(2/pi) (article 001's "
+                              "catalogue), real time only", scene=False,
+          impl=Impl("G_SchlickBeckmann", "G_SchlickBeckmann", "G_SchlickBeckmann", _ALPHA)),
+    Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80",
+          impl=Impl("G_SmithBeckmannCorrelated", "G_SmithBeckmannCorrelated", "G_SmithBeckmannCorrelated", _ALPHA)),
 ])
 
 FRESNELS = Registry("FRESNEL", [
-    Entry("schlick", "Schlick 1994 eq. 15"),
-    Entry("none", "F = 1 (also removes the diffuse term)"),
+    Entry("schlick", "Schlick 1994 eq. 15", impl=Impl("F_Schlick", "F_Schlick", "F_Schlick")),
+    Entry("none", "F = 1 (also removes the diffuse term)", impl=Impl("F_None", "F_None", "F_None")),
 ])
+
+#: The registries whose entries carry their implementations (:class:`Impl`), by GLSL switch, with
+#: the GLSL dispatch function each generates, its signature and its user hook.
+TERM_REGISTRIES = {"NDF": (NDFS, "float ndf_term(float NoH, float roughness)", "hook_D(NoH, roughness)"),
+                   "GEOMETRY": (GEOMETRIES, "float geometry_term(float NoV, float NoL, float roughness)",
+                                "hook_G(NoV, NoL, roughness)"),
+                   "FRESNEL": (FRESNELS, "vec3 fresnel_term(float VoH, vec3 F0)", "hook_F(VoH, F0)")}
 
 #: Roughness -> prefiltered mip level. ``extra["basis"]``: the mapping as coefficients of
 #: :data:`pbrcheck.lodmap.BASIS_NAMES` times the last level ``M`` (None: not a member of the fit's
@@ -149,10 +208,13 @@ SHADINGS = Registry("SHADING", [
     Entry("article002", "article 002 (EnvBRDFApprox, SH9)"),
 ])
 
+#: ``extra["glsl"]``: the half vector's expression in tangent space (``u`` the 2-D point, ``vt`` the
+#: view direction in tangent space), generated into ``runtime_half_vector`` (sampling_dispatch.glsl).
 RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
-    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)"),
-    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36"),
-    Entry("vndf", "GGX visible normals, Heitz 2018"),
+    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
+          extra={"glsl": "sample_Beckmann(u, alpha)"}),
+    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36", extra={"glsl": "sample_GGX(u, alpha)"}),
+    Entry("vndf", "GGX visible normals, Heitz 2018", extra={"glsl": "sample_GGX_VNDF(u.yx, vt, alpha)"}),
 ])
 
 def _switch(define: str, **members: str) -> Registry:
@@ -198,11 +260,10 @@ def glsl_defines() -> dict[str, int]:
     return out
 
 
-def glsl_generated() -> dict[str, str]:
-    """Generated GLSL sources by include name: ``lod_dispatch.glsl`` defines ``lod_from_roughness``
-    and ``roughness_from_lod``, each calling the selected mapping's ``lod_<name>`` /
-    ``roughness_<name>`` (``realtime/shaders/lod.glsl``). ``fitted`` reads through ``LOD_FITTED(r)``
-    (a ``#define`` of the fitted expression, frame pass only) and bakes nothing."""
+def _lod_dispatch() -> str:
+    """``lod_from_roughness`` and ``roughness_from_lod``, each calling the selected mapping's
+    ``lod_<name>`` / ``roughness_<name>`` (``realtime/shaders/lod.glsl``). ``fitted`` reads through
+    ``LOD_FITTED(r)`` (a ``#define`` of the fitted expression, frame pass only) and bakes nothing."""
     lines = ["// Generated from pbrcheck.registry.LOD_MAPPINGS: do not edit.",
              "float lod_from_roughness(float r, float max_lod, float cube_log2) {"]
     for i, e in enumerate(LOD_MAPPINGS):
@@ -225,4 +286,54 @@ def glsl_generated() -> dict[str, str]:
         lines.append(f"    return roughness_{e.name}(lod, max_lod, cube_log2);")
         first = False
     lines += ["#else", "    return -1.0;  // not a baking mapping", "#endif", "}", ""]
-    return {"lod_dispatch.glsl": "\n".join(lines)}
+    return "\n".join(lines)
+
+
+def _switch_lines(registry: Registry, body) -> list[str]:
+    """``#if``/``#elif`` on ``registry``'s switch, one branch per member with the lines
+    ``body(entry)``, and an ``#error`` for a value no member has."""
+    lines = []
+    for i, e in enumerate(registry):
+        lines.append(f"#{'if' if i == 0 else 'elif'} {registry.define} == {registry.constant(e.name)}")
+        lines += body(e)
+    return lines + ["#else", f"#error {registry.define} names no member of pbrcheck.registry", "#endif"]
+
+
+def _terms_dispatch() -> str:
+    """``ndf_term``, ``geometry_term`` and ``fresnel_term``: the user's hook where the frame pass
+    defines it (hooks.glsl), else the selected member's GLSL function at its width."""
+    lines = ["// Generated from pbrcheck.registry (NDFS, GEOMETRIES, FRESNELS): do not edit.",
+             "// Each term function is the selected member's GLSL function (brdf.glsl), called with the",
+             "// member's width (alpha_from_roughness, k_schlick_ibl, k_schlick_direct) of roughness."]
+    for define, (registry, signature, hook) in TERM_REGISTRIES.items():
+        params = [p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(",")]
+
+        def call(e, params=params):
+            args = [f"{e.impl.width}({p})" if p == "roughness" and e.impl.width else p for p in params]
+            return [f"    return {e.impl.glsl}({', '.join(args)});"]
+
+        lines += ["", f"#ifndef {define}", f"#define {define} {registry.constant(registry.names[0])}", "#endif",
+                  signature + " {", f"#ifdef HOOK_{hook[5:hook.index('(')]}", f"    return {hook};",
+                  *["#el" + line[1:] if i == 0 else line for i, line in enumerate(_switch_lines(registry, call))],
+                  "}"]
+    return "\n".join(lines) + "\n"
+
+
+def _sampling_dispatch() -> str:
+    """``sample_ndf(u, alpha)``: a half vector drawn from the selected NDF's ``D (n.h)`` (its entry's
+    ``extra["sample"]``); ``runtime_half_vector(u, vt, alpha)``: RUNTIME_SAMPLING's draw."""
+    lines = ["// Generated from pbrcheck.registry (NDFS, RUNTIME_SAMPLINGS): do not edit.",
+             "#ifndef RUNTIME_SAMPLING", f"#define RUNTIME_SAMPLING {RUNTIME_SAMPLINGS.constant('vndf')}", "#endif",
+             "vec3 sample_ndf(vec2 u, float alpha) {",
+             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", "",
+             "vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha) {",
+             *_switch_lines(RUNTIME_SAMPLINGS, lambda e: [f"    return {e.extra['glsl']};"]), "}", ""]
+    return "\n".join(lines)
+
+
+def glsl_generated() -> dict[str, str]:
+    """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
+    ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
+    (:func:`_sampling_dispatch`)."""
+    return {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
+            "sampling_dispatch.glsl": _sampling_dispatch()}

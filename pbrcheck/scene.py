@@ -33,11 +33,12 @@ from .registry import NDFS as _NDFS
 
 Vec3 = tuple[float, float, float]
 
-#: The ``[brdf]`` values a scene may name (pbrcheck.registry owns the lists).
-NDFS = _NDFS.scene_names
-GEOMETRIES = _GEOMETRIES.scene_names
-FRESNELS = _FRESNELS.scene_names
-MULTISCATTERS = _MULTISCATTERS.scene_names
+#: The ``[brdf]`` values a scene may name: tuples of names (pbrcheck.registry owns the lists, as
+#: :class:`~pbrcheck.registry.Registry` objects named without ``_NAMES``).
+NDF_NAMES = _NDFS.scene_names
+GEOMETRY_NAMES = _GEOMETRIES.scene_names
+FRESNEL_NAMES = _FRESNELS.scene_names
+MULTISCATTER_NAMES = _MULTISCATTERS.scene_names
 #: The scene ``pbrcheck`` commands use when none is named.
 DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
@@ -406,10 +407,10 @@ def _lights(ctx, lst) -> tuple[PointLight, ...]:
 def _brdf(ctx, t) -> BRDFModel:
     _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter"}, "brdf")
     model = BRDFModel(
-        ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDFS),
-        geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRIES),
-        fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNELS),
-        multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTERS),
+        ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDF_NAMES),
+        geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRY_NAMES),
+        fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNEL_NAMES),
+        multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTER_NAMES),
     )
     if model.multiscatter != "none":
         # The random walk's first bounce is the NDF's height-correlated Smith term.

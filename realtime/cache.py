@@ -42,7 +42,7 @@ from pbrcheck.scene import Scene
 
 from .gl import get_context, renderer_name
 from .hooks import load_hook_file
-from .presets import fitted_mapping, resolve_options
+from .presets import RealtimeOptions, resolve_options
 from .render import environment_of, render_realtime
 
 #: Cache namespace of real-time renders (``$PBRCHECK_CACHE/realtime``).
@@ -76,16 +76,15 @@ def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -
     return _key(scene, preset, resolve_options(preset, options))
 
 
-def _key(scene: Scene, preset: str, o: dict) -> str:
+def _key(scene: Scene, preset: str, o: RealtimeOptions) -> str:
     """:func:`realtime_cache_key` of the resolved options ``o``."""
     env = environment_of(scene)
-    lod = o.get("lod_mapping")
-    fm = fitted_mapping(lod)  # what the render reads of the file (its other fields are the fit's record)
+    fm = o.fitted  # what the render reads of the mapping (a file's other fields are the fit's record)
     fitted = hashlib.sha256(json.dumps(fm.to_json(), sort_keys=True).encode()).hexdigest() if fm else None
-    hooks = load_hook_file(o["shader"]).sha256 if o.get("shader") else None
+    hooks = load_hook_file(o.shader).sha256 if o.shader else None
     # A file enters the key by its content, not its path: the same fitted mapping or hook file
     # written to another folder (another report's --out) renders the same pixels.
-    keyed = {**o, **({"lod_mapping": "fitted:"} if fitted else {}), **({"shader": "hooks"} if hooks else {})}
+    keyed = {**o.as_dict(), **({"lod_mapping": "fitted:"} if fitted else {}), **({"shader": "hooks"} if hooks else {})}
     return cache_key(kind="realtime", scene_hash=scene_hash(scene, env.content_hash), preset=preset,
                      options=json.dumps(keyed, sort_keys=True, default=str), shader_hooks=hooks, fitted_lod=fitted,
                      code=code_hash(), gl_renderer=renderer_name(),
@@ -104,9 +103,9 @@ def render_cached(scene: Scene, preset: str = "default", options: dict | None = 
         img.meta["cache"] = "hit"
         img.meta["scene"] = scene.name  # the key ignores names: two scenes may share an entry
         # ... and files' paths (keyed by content): the metadata names this call's files
-        img.meta["options"] = json.dumps(o, sort_keys=True)
-        if img.meta.get("shader") and img.meta["shader"] != "null" and o.get("shader"):
-            img.meta["shader"] = json.dumps({**json.loads(img.meta["shader"]), "path": load_hook_file(o["shader"]).path})
+        img.meta["options"] = json.dumps(o.as_dict(), sort_keys=True)
+        if img.meta.get("shader") and img.meta["shader"] != "null" and o.shader:
+            img.meta["shader"] = json.dumps({**json.loads(img.meta["shader"]), "path": load_hook_file(o.shader).path})
         if progress:
             for w in json.loads(img.meta.get("warnings", "[]")):
                 print(f"pbrcheck realtime: {w}", file=sys.stderr)

@@ -4,12 +4,21 @@ Every approximation choice is an option (``--set key=value``); a preset is a com
 values. ``default`` is the most accurate split-sum this project makes (see docs/realtime.md for the
 measurements behind it); the article presets reproduce ``../shared/articles`` 000, 001 and 002,
 their mistakes included.
+
+API
+---
+:class:`Option`, :data:`OPTIONS`, :data:`DEFAULT`, :data:`PRESETS`, :class:`RealtimeOptions` (the
+typed, frozen, validated options of one render), :func:`resolve_options`, :func:`parse_value`,
+:func:`parse_sets`, :func:`overrides_from_args`, :func:`fitted_mapping`, :class:`OptionError`,
+:data:`SHADER_SEP`.
 """
 
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, make_dataclass
+from dataclasses import replace as _replace
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
@@ -219,6 +228,8 @@ def parse_value(name: str, raw) -> object:
             v = float(raw)
             if v != v or v in (float("inf"), float("-inf")):
                 raise ValueError
+        elif name == "lod_mapping" and isinstance(raw, LodMapping):
+            return raw  # a fitted mapping in memory (pbrcheck fit-lod's, before it is written)
         elif name == "lod_mapping" and isinstance(raw, str) and raw.startswith("fitted:"):
             return _fitted_value(raw)
         elif opt.kind == "file":
@@ -250,11 +261,75 @@ def _fitted_value(raw: str) -> str:
     return f"fitted:{path.resolve()}"
 
 
-def fitted_mapping(value: str):
-    """The :class:`pbrcheck.lodmap.LodMapping` of a ``fitted:PATH`` option value, else None."""
+def fitted_mapping(value):
+    """The :class:`pbrcheck.lodmap.LodMapping` of a ``lod_mapping`` value: the value itself when it is
+    one, the file's for ``fitted:PATH``, else None (a built-in mapping)."""
+    if isinstance(value, LodMapping):
+        return value
     if not isinstance(value, str) or not value.startswith("fitted:"):
         return None
     return LodMapping.load(value[len("fitted:"):])
+
+
+#: The option value a fitted mapping held in memory has in JSON (metadata, cache keys): the file
+#: form ``fitted:PATH`` without a path.
+IN_MEMORY_FITTED = "fitted:"
+
+
+class _OptionsBase(Mapping):
+    """Methods of :class:`RealtimeOptions`; read-only ``o["name"]`` too (a :class:`~collections.abc.Mapping`
+    over the option names, for callers written against the option dict)."""
+
+    def __getitem__(self, name: str):
+        if name not in OPTIONS:
+            raise KeyError(name)
+        return getattr(self, name)
+
+    def __iter__(self):
+        return iter(OPTIONS)
+
+    def __len__(self) -> int:
+        return len(OPTIONS)
+
+    def as_dict(self) -> dict:
+        """Every option's JSON value (``Image.meta["options"]``, cache keys): a fitted mapping held
+        in memory is :data:`IN_MEMORY_FITTED`."""
+        return {f.name: (IN_MEMORY_FITTED if isinstance(v := getattr(self, f.name), LodMapping) else v)
+                for f in fields(self)}
+
+    def replace(self, **changes) -> "RealtimeOptions":
+        """A copy with ``changes`` (values as :func:`parse_value` returns them; not re-validated)."""
+        return _replace(self, **changes)
+
+    @property
+    def fitted(self) -> LodMapping | None:
+        """The fitted LOD mapping (held, or read from its ``fitted:PATH`` file), else None."""
+        return fitted_mapping(self.lod_mapping)
+
+    @property
+    def chain(self) -> str:
+        """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``)."""
+        fm = self.fitted
+        return fm.chain if fm is not None else self.lod_mapping
+
+    def __repr__(self) -> str:
+        return f"RealtimeOptions({', '.join(f'{k}={v!r}' for k, v in self.as_dict().items())})"
+
+
+_PY_TYPES = {"int": int, "float": float, "bool": bool, "choice": str, "file": str}
+
+#: The resolved options of one real-time render, one typed attribute per :data:`OPTIONS` entry
+#: (``o.cube_size``), frozen; built by :func:`resolve_options` only (its values are validated).
+#: ``lod_mapping`` is a built-in name, ``fitted:PATH``, or a :class:`~pbrcheck.lodmap.LodMapping`.
+RealtimeOptions = make_dataclass(
+    "RealtimeOptions",
+    [(name, "str | LodMapping" if name == "lod_mapping" else _PY_TYPES[opt.kind]) for name, opt in OPTIONS.items()],
+    bases=(_OptionsBase,), frozen=True, eq=True, repr=False)
+RealtimeOptions.__module__ = __name__
+RealtimeOptions.__doc__ = """The resolved options of one real-time render: one typed, read-only attribute per
+:data:`OPTIONS` entry (``o.cube_size``; also ``o["cube_size"]``), built by :func:`resolve_options`.
+``lod_mapping`` is a built-in name, ``fitted:PATH`` or a :class:`~pbrcheck.lodmap.LodMapping` held in
+memory; :attr:`fitted` and :attr:`chain` read it, :meth:`as_dict` is the JSON form."""
 
 
 def parse_sets(items) -> dict:
@@ -276,8 +351,8 @@ def overrides_from_args(sets, shader: str | None = None) -> dict:
     return out
 
 
-def resolve_options(preset: str = "default", overrides: dict | None = None) -> dict:
-    """The complete option dict of ``preset`` with ``overrides`` applied and validated.
+def resolve_options(preset: str = "default", overrides: dict | None = None) -> RealtimeOptions:
+    """The complete options of ``preset`` with ``overrides`` applied and validated.
 
     ``preset`` may carry a shader hook file as ``PRESET+FILE.glsl`` (the ``shader`` option), so a hook
     file can be named wherever a preset is."""
@@ -294,10 +369,11 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
                           f"cube_size {d['cube_size']}, found {d['prefilter_levels']}")
     fm = fitted_mapping(d["lod_mapping"])
     if fm is not None and (fm.cube_size != d["cube_size"] or fm.mip_count != d["prefilter_levels"]):
-        raise OptionError(f"option lod_mapping: {d['lod_mapping'][len('fitted:'):]} was fitted for a "
+        what = "the fitted mapping" if isinstance(d["lod_mapping"], LodMapping) else d["lod_mapping"][len("fitted:"):]
+        raise OptionError(f"option lod_mapping: {what} was fitted for a "
                           f"{fm.cube_size}^2 cube with {fm.mip_count} mips; this render has cube_size "
                           f"{d['cube_size']} and prefilter_levels {d['prefilter_levels']}")
-    # Which compositions have which specular IBL (realtime/shaders/render.comp): article 001 is
+    # Which compositions have which specular IBL (realtime/shaders/shading.glsl): article 001 is
     # runtime sampling only, articles 000 and 002 are split sum only, the material model has both.
     ibl_of = {"article001": ("runtime",), "article000": ("splitsum",), "article002": ("splitsum",)}
     if d["ibl"] not in ibl_of.get(d["shading"], ("splitsum", "runtime")):
@@ -314,4 +390,4 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> d
     if d["energy_compensation"] not in ("none", "scene") and (d["shading"] != "material" or d["ibl"] != "splitsum"):
         raise OptionError(f"option energy_compensation: {d['energy_compensation']} needs shading=material and "
                           f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
-    return d
+    return RealtimeOptions(**d)

@@ -11,8 +11,9 @@ Conventions at both ends of every baked artifact
 * Prefiltered cube: ``prefilter_levels`` levels, level L baked at roughness
   ``roughness_from_lod(L)`` of the ``lod_mapping`` (shaders/lod.glsl), read at
   ``lod_from_roughness`` (its inverse); max level = prefilter_levels - 1. Two hooks for
-  ``pbrcheck fit-lod``: ``lod_mapping=fitted:FILE`` bakes the chain of the file's ``chain`` mapping
-  and reads it at the fitted function (``LOD_FITTED(r)``, a ``#define`` of
+  ``pbrcheck fit-lod``: ``lod_mapping=fitted:FILE`` (or a :class:`~pbrcheck.lodmap.LodMapping` held
+  in :class:`~realtime.presets.RealtimeOptions`) bakes the chain of the mapping's ``chain`` and
+  reads it at the fitted function (``LOD_FITTED(r)``, a ``#define`` of
   :meth:`pbrcheck.lodmap.LodMapping.glsl_expr`); ``lod_override >= 0`` reads every object at that
   level.
 * DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
@@ -65,34 +66,26 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import fitted_mapping, resolve_options
+from .presets import RealtimeOptions, resolve_options
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
 #: them: the split sum's prefiltered cube, max_lod and lod_override (ibl=runtime has none); the
 #: log2 mapping's cube_log2; runtime sampling's env_cube, env_face_size and runtime_samples; the
 #: LUT-based DFG's dfg_lut (dfg=analytic); the irradiance cube (irradiance=sh9); the material
-#: composition's Kd LUT (the article compositions have their own diffuse). Every other uniform is
+#: composition's Kd LUT (the article compositions have their own diffuse); the SH9 coefficients
+#: ``sh`` (irradiance=convolution, or fresnel=none on the material composition, which has no
+#: diffuse term). Every other uniform is
 #: required: setting one the program lacks is an error (a renamed uniform would render with 0).
 FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "cube_log2", "env_cube",
-                                    "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut"})
+                                    "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut",
+                                    "sh"})
 
 
-def chain_mapping(o: dict) -> str:
-    """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``).
-
-    Parameters
-    ----------
-    o : dict
-        Resolved real-time options (:func:`realtime.presets.resolve_options`).
-
-    Returns
-    -------
-    str
-        A built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`.
-    """
-    fm = fitted_mapping(o["lod_mapping"])
-    return fm.chain if fm is not None else o["lod_mapping"]
+def chain_mapping(o: RealtimeOptions) -> str:
+    """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``):
+    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`."""
+    return o.chain
 
 
 # Samples of the Kd (diffuse Fresnel) LUT: a smooth 1-D integrand, error < 1e-4 at 4096 points.
@@ -107,15 +100,30 @@ class UniformError(BackendError):
     """A uniform the program lacks was set without being declared optional (renamed or misspelt)."""
 
 
-def _set(prog, name, value, optional: bool = False):
-    """Set uniform ``name``; a uniform the program lacks raises :class:`UniformError` unless
-    ``optional`` (GLSL compilers drop uniforms a variant does not read: only those are optional)."""
+def _uniform(prog, name: str, optional: bool):
+    """The program's uniform ``name``, or None when it lacks it and ``optional`` (GLSL compilers
+    drop uniforms a variant does not read: only those are optional); else :class:`UniformError`."""
     try:
-        prog[name].value = value
+        return prog[name]
     except KeyError:
         if not optional:
             raise UniformError(f"uniform {name!r} is not in the program (renamed or misspelt?); "
                                f"declare it optional where a variant does not read it") from None
+        return None
+
+
+def _set(prog, name, value, optional: bool = False):
+    """Set uniform ``name`` (see :func:`_uniform` for ``optional``)."""
+    uniform = _uniform(prog, name, optional)
+    if uniform is not None:
+        uniform.value = value
+
+
+def _write(prog, name, data: bytes, optional: bool = False):
+    """Write an array uniform's bytes (``sh``; see :func:`_uniform` for ``optional``)."""
+    uniform = _uniform(prog, name, optional)
+    if uniform is not None:
+        uniform.write(data)
 
 
 def _timed(ctx, fn):
@@ -206,16 +214,16 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
     return _baked("env_cube", key, timings, run)
 
 
-def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
-    src_lod = math.log2(o["cube_size"] / o["irradiance_source_size"])
-    method = 0 if o["irradiance_method"] == "texel_sum" else 1
-    key = ("irr", env.content_hash, o["cube_size"], fmt, o["irradiance_size"], o["irradiance_source_size"], method,
-           o["irradiance_step"] if method else None)
+    src_lod = math.log2(o.cube_size / o.irradiance_source_size)
+    method = 0 if o.irradiance_method == "texel_sum" else 1
+    key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
+           o.irradiance_step if method else None)
     ctx = get_context()
     prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt),
-                                               **IRRADIANCE_METHODS.select(o["irradiance_method"])})
-    size = o["irradiance_size"]
+                                               **IRRADIANCE_METHODS.select(o.irradiance_method)})
+    size = o.irradiance_size
 
     def run():
         tex = ctx.texture_cube((size, size), 4, dtype="f2" if fmt == "f16" else "f4")
@@ -224,9 +232,9 @@ def irradiance_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
         _set(prog, "src_cube", 1)
         _set(prog, "face_size", size)
         # texel_sum reads src_size, polar_steps reads step_size; each variant drops the other.
-        _set(prog, "src_size", o["irradiance_source_size"], optional=o["irradiance_method"] != "texel_sum")
+        _set(prog, "src_size", o.irradiance_source_size, optional=o.irradiance_method != "texel_sum")
         _set(prog, "src_lod", float(src_lod))
-        _set(prog, "step_size", float(o["irradiance_step"]), optional=o["irradiance_method"] != "polar_steps")
+        _set(prog, "step_size", float(o.irradiance_step), optional=o.irradiance_method != "polar_steps")
         tex.bind_to_image(0, read=False, write=True, level=0)
         prog.run(groups(size, 8), groups(size, 8), 6)
         return tex
@@ -240,10 +248,10 @@ _SH_A = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
 _SH_K = np.array([0.282095, 0.488603, 0.488603, 0.488603, 1.092548, 1.092548, 0.315392, 1.092548, 0.546274])
 
 
-def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.ndarray:
+def sh9_coefficients(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict) -> np.ndarray:
     """(9, 3) coefficients c_i so that sum_i c_i b_i(n) = E(n) / pi (article 002's basis order)."""
-    size = o["irradiance_source_size"]
-    key = ("sh9", env.content_hash, o["cube_size"], fmt, size)
+    size = o.irradiance_source_size
+    key = ("sh9", env.content_hash, o.cube_size, fmt, size)
     ctx = get_context()
     prog = compute_program("sh9.comp")
 
@@ -254,7 +262,7 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
         cube.use(1)
         _set(prog, "src_cube", 1)
         _set(prog, "src_size", size)
-        _set(prog, "src_lod", float(math.log2(o["cube_size"] / size)))
+        _set(prog, "src_lod", float(math.log2(o.cube_size / size)))
         prog.run(groups(size, 8), groups(size, 8), 6)
         ctx.finish()
         proj = np.frombuffer(buf.read(), np.float32).reshape(-1, 9, 4)[..., :3].astype(np.float64).sum(axis=0)
@@ -265,27 +273,27 @@ def sh9_coefficients(env: EnvMap, cube, o: dict, fmt: str, timings: dict) -> np.
     return _baked("sh9", key, timings, run)
 
 
-def prefiltered_cube(env: EnvMap, cube, o: dict, fmt: str, timings: dict):
+def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the prefiltered chain: level L holds GGX-filtered radiance at the roughness of the chain
     mapping's inverse (``roughness_from_lod``)."""
-    levels = o["prefilter_levels"]
-    size = o["cube_size"]
+    levels = o.prefilter_levels
+    size = o.cube_size
     chain = chain_mapping(o)
-    key = ("pre", env.content_hash, size, fmt, levels, o["prefilter_samples"], o["prefilter_filtered"],
-           o["prefilter_nl_weight"], chain)
+    key = ("pre", env.content_hash, size, fmt, levels, o.prefilter_samples, o.prefilter_filtered,
+           o.prefilter_nl_weight, chain)
     prog = compute_program("prefilter.comp", {
-        "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o["prefilter_filtered"]),
-        "NL_WEIGHT": int(o["prefilter_nl_weight"]), **LOD_MAPPINGS.select(chain)})
+        "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o.prefilter_filtered),
+        "NL_WEIGHT": int(o.prefilter_nl_weight), **LOD_MAPPINGS.select(chain)})
 
     def run():
         tex = _cube(size, fmt, levels)
         cube.use(1)
         _set(prog, "src_cube", 1)
         # Filtered importance sampling reads the source size; only the log2 chain reads cube_log2.
-        _set(prog, "src_face_size", float(size), optional=not o["prefilter_filtered"])
+        _set(prog, "src_face_size", float(size), optional=not o.prefilter_filtered)
         _set(prog, "max_lod", float(levels - 1))
         _set(prog, "cube_log2", float(math.log2(size)), optional=chain != "log2")
-        _set(prog, "n_samples", int(o["prefilter_samples"]))
+        _set(prog, "n_samples", int(o.prefilter_samples))
         for L in range(levels):
             s = max(size >> L, 1)
             tex.bind_to_image(0, read=False, write=True, level=L)
@@ -398,49 +406,49 @@ def _object_buffer(scene: Scene) -> np.ndarray:
     return np.asarray(rows, np.float32)
 
 
-def resolved_terms(scene: Scene, o: dict) -> dict:
+def resolved_terms(scene: Scene, o: RealtimeOptions) -> dict:
     """The D, G, F and LUT-G terms this render uses: an option's value, or the scene's ``[brdf]`` for ``scene``."""
-    ndf = scene.brdf.ndf if o["ndf"] == "scene" else o["ndf"]
-    geometry = scene.brdf.geometry if o["geometry"] == "scene" else o["geometry"]
-    fresnel = scene.brdf.fresnel if o["fresnel"] == "scene" else o["fresnel"]
-    lut_geometry = scene.brdf.geometry if o["lut_geometry"] == "scene" else o["lut_geometry"]
+    ndf = scene.brdf.ndf if o.ndf == "scene" else o.ndf
+    geometry = scene.brdf.geometry if o.geometry == "scene" else o.geometry
+    fresnel = scene.brdf.fresnel if o.fresnel == "scene" else o.fresnel
+    lut_geometry = scene.brdf.geometry if o.lut_geometry == "scene" else o.lut_geometry
     return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
 
 
-def resolved_energy_compensation(scene: Scene, o: dict) -> str:
+def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
     """The energy compensation this render uses: the option's value, or for ``scene`` the one that
     matches the scene's reference physics (:data:`pbrcheck.energy.SCENE_COMPENSATION`: none for
     single scattering, the best measured one for ``multiscatter = "random_walk"``)."""
-    v = o["energy_compensation"]
+    v = o.energy_compensation
     if v != "scene":
         return v
-    if o["shading"] != "material" or o["ibl"] != "splitsum":
+    if o.shading != "material" or o.ibl != "splitsum":
         return "none"  # only the material composition's split sum has the DFG terms it scales
     return SCENE_COMPENSATION[scene.brdf.multiscatter]
 
 
-def frame_defines(o: dict, terms: dict) -> dict:
+def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
     """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
     :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
 
     Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
     a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
     """
-    shading = o["shading"]  # its combination with ibl is checked by resolve_options
-    fm = fitted_mapping(o["lod_mapping"])
+    shading = o.shading  # its combination with ibl is checked by resolve_options
+    fm = o.fitted
     defines = {
         **SHADINGS.select(shading), **NDFS.select(terms["ndf"]), **GEOMETRIES.select(terms["geometry"]),
-        **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o["irradiance"]), **DFGS.select(o["dfg"]),
-        **LOD_MAPPINGS.select("fitted" if fm is not None else o["lod_mapping"]), "SHADOWS": int(o["shadows"]),
-        **RUNTIME_SAMPLINGS.select(o["runtime_sampling"]),
+        **FRESNELS.select(terms["fresnel"]), **IRRADIANCES.select(o.irradiance), **DFGS.select(o.dfg),
+        **LOD_MAPPINGS.select("fitted" if fm is not None else o.lod_mapping), "SHADOWS": int(o.shadows),
+        **RUNTIME_SAMPLINGS.select(o.runtime_sampling),
         **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
-        "RUNTIME_LOD": int(o["runtime_lod"]), "RUNTIME_ROTATE": int(o["runtime_rotate"]),
-        "REFLECT_BUG": int(o["reflect_bug"]), "IBL_RUNTIME": int(o["ibl"] == "runtime"),
+        "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
+        "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
-    if o["shader"]:
-        defines.update(load_hook_file(o["shader"]).defines)
+    if o.shader:
+        defines.update(load_hook_file(o.shader).defines)
     return defines
 
 
@@ -449,7 +457,7 @@ FRAME_TEXTURE_UNITS = (("prefiltered", 1, "cube"), ("irradiance_cube", 2, "cube"
                        ("dfg_lut", 4, "2d"), ("kd_lut", 5, "2d"))
 
 
-def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
+def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh) -> tuple:
     """Bind the frame pass's inputs and outputs and set its uniforms.
 
     Returns the GL objects to release after the frame: the object and light buffers, then the colour,
@@ -473,8 +481,8 @@ def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
         tex = textures[name]
         (tex if tex is not None else _dummy(kind)).use(unit)
         _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
-    if o["irradiance"] == "sh9":
-        prog["sh"].write(np.asarray(sh, np.float32).tobytes())  # KeyError here: the uniform was renamed
+    if o.irradiance == "sh9":
+        _write(prog, "sh", np.asarray(sh, np.float32).tobytes(), optional="sh" in FRAME_VARIANT_UNIFORMS)
     r, u, f = camera_frame(scene.camera)
     tx, ty = tan_half_fov(scene.camera)
     _set(prog, "n_objects", len(scene.objects))
@@ -484,18 +492,18 @@ def _bind_frame(prog, scene: Scene, o: dict, env, textures: dict, sh) -> tuple:
     _set(prog, "cam_up", tuple(float(x) for x in u * ty))
     _set(prog, "cam_forward", tuple(float(x) for x in f))
     _set(prog, "image_size", (W, H))
-    _set(prog, "ss", int(o["supersample"]))
-    for name, value in (("max_lod", float(o["prefilter_levels"] - 1)),
-                        ("cube_log2", float(math.log2(o["cube_size"]))),
-                        ("env_face_size", float(o["cube_size"])),
-                        ("runtime_samples", int(o["runtime_samples"])),
-                        ("lod_override", float(o["lod_override"]))):
+    _set(prog, "ss", int(o.supersample))
+    for name, value in (("max_lod", float(o.prefilter_levels - 1)),
+                        ("cube_log2", float(math.log2(o.cube_size))),
+                        ("env_face_size", float(o.cube_size)),
+                        ("runtime_samples", int(o.runtime_samples)),
+                        ("lod_override", float(o.lod_override))):
         _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
-    _set(prog, "min_roughness", float(o["min_roughness"]))
+    _set(prog, "min_roughness", float(o.min_roughness))
     return objs, lbuf, out_color, out_aov, out_obj
 
 
-def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, cached_before: set,
+def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timings: dict, cached_before: set,
                 fmt: str, warnings: list, hooks=None) -> dict:
     """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
     shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
@@ -507,7 +515,7 @@ def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, 
         "gl_renderer": renderer_name(),
         "timing_clock": timing_clock(),
         "preset": preset,
-        "options": json.dumps(o, sort_keys=True),
+        "options": json.dumps(o.as_dict(), sort_keys=True),
         "terms": json.dumps(terms, sort_keys=True),
         "timings": json.dumps(timings, sort_keys=True),
         "cached_passes": json.dumps(cached),
@@ -519,7 +527,7 @@ def _frame_meta(scene: Scene, preset: str, o: dict, terms: dict, timings: dict, 
         "conventions": json.dumps({
             "cube_faces": "+X,-X,+Y,-Y,+Z,-Z (GL order)",
             "lut": "pixel (row j, col i): n.v=(i+0.5)/N, roughness=(j+0.5)/N, row 0 smoothest; R=A, G=B",
-            "prefilter_levels": o["prefilter_levels"],
+            "prefilter_levels": o.prefilter_levels,
             "irradiance": "E(n)/pi",
             "aovs": "N, NdotV, object at the pixel centre ray; coverage over the s x s samples",
         }),
@@ -544,7 +552,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     cached_before = {k for k in _cache}
     warnings = []
     env = environment_of(scene)
-    fmt, warn = effective_cube_format(env, o["cube_format"])
+    fmt, warn = effective_cube_format(env, o.cube_format)
     if warn:
         warnings.append(warn)
         if progress:
@@ -552,29 +560,29 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     W, H = scene.camera.width, scene.camera.height
     n_passes = 6
     with Progress(f"realtime {scene.name} [{preset}]", total=n_passes, enabled=progress) as bar:
-        cube = env_cube(env, o["cube_size"], fmt, timings)
+        cube = env_cube(env, o.cube_size, fmt, timings)
         bar.update(1, "env_cube")
         irr = None
         sh = np.zeros((9, 3))
-        if o["irradiance"] == "sh9":
+        if o.irradiance == "sh9":
             sh = sh9_coefficients(env, cube, o, fmt, timings)
         else:
             irr = irradiance_cube(env, cube, o, fmt, timings)
         bar.update(1, "irradiance")
         pre = None
-        if o["ibl"] == "splitsum":
+        if o.ibl == "splitsum":
             pre = prefiltered_cube(env, cube, o, fmt, timings)
         bar.update(1, "prefilter")
         lut = None
-        if o["dfg"] == "lut" and o["ibl"] == "splitsum":  # runtime sampling integrates the BRDF itself
-            lut = dfg_lut(o["lut_size"], o["lut_samples"], o["lut_format"], terms["lut_geometry"], terms["ndf"],
-                          o["lut_sampling"], timings)
+        if o.dfg == "lut" and o.ibl == "splitsum":  # runtime sampling integrates the BRDF itself
+            lut = dfg_lut(o.lut_size, o.lut_samples, o.lut_format, terms["lut_geometry"], terms["ndf"],
+                          o.lut_sampling, timings)
         bar.update(1, "dfg_lut")
-        kd = kd_lut(o["lut_size"], timings)
+        kd = kd_lut(o.lut_size, timings)
         bar.update(1, "kd_lut")
 
         defines = frame_defines(o, terms)
-        hooks = load_hook_file(o["shader"]) if o["shader"] else None
+        hooks = load_hook_file(o.shader) if o.shader else None
         t0 = time.perf_counter()
         prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
         timings["compile_frame"] = time.perf_counter() - t0

@@ -49,10 +49,11 @@ from __future__ import annotations
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
-from pbrcheck.scene import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS
+from pbrcheck import registry
+from pbrcheck.scene import FRESNEL_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import multiscatter
-from .terms import D_GGX, INV_PI, fresnel_term  # noqa: F401  (re-exported: this module's API too)
+from .terms import D_GGX, INV_PI, F_None, F_Schlick, fresnel_term  # noqa: F401  (re-exported: this module's API too)
 
 import drjit as dr
 import mitsuba as mi
@@ -93,7 +94,6 @@ def D_BlinnPhong(h, alpha):
     return dr.select(h.z > 0, v, 0.0)
 
 
-NDF = {"ggx": D_GGX, "beckmann": D_Beckmann, "blinn_phong": D_BlinnPhong}
 
 
 # ---- geometry terms G(l, v) (cosines clamped to [0, 1]) ------------------------------------------
@@ -129,22 +129,100 @@ def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
     return dr.select((NoV > 0) & (NoL > 0), g, 0.0)
 
 
-def geometry_term(geometry, NoV, NoL, roughness, alpha):
-    NoV = dr.clip(NoV, 0.0, 1.0)
-    NoL = dr.clip(NoL, 0.0, 1.0)
-    if geometry == "smith_beckmann_correlated":
-        return G_SmithBeckmannCorrelated(NoV, NoL, alpha)
-    if geometry == "smith_ggx_correlated":
-        return G_SmithGGXCorrelated(NoV, NoL, alpha)
-    if geometry == "smith_ggx":
-        return G_SmithGGX(NoV, NoL, alpha)
-    if geometry == "schlick_ggx_ibl":
-        k = alpha * 0.5
-    elif geometry == "schlick_ggx_direct":
-        k = (roughness + 1.0) * (roughness + 1.0) * 0.125
-    else:
-        raise ValueError(f"unknown geometry term {geometry!r}")
+def G_SchlickGGX(NoV, NoL, k):
     return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+def G_SchlickBeckmann(NoV, NoL, alpha):
+    """Schlick's approximation of Smith-Beckmann (article 001's catalogue): k = alpha sqrt(2 / pi)."""
+    k = alpha * 0.7978845608
+    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+
+
+# ---- the terms' widths (pbrcheck.registry Impl.width) of the perceptual roughness and its alpha ----
+
+def alpha_from_roughness(roughness, alpha):
+    return alpha
+
+
+def k_schlick_ibl(roughness, alpha):
+    """[Karis13] eq. 4 footnote: k = alpha / 2."""
+    return alpha * 0.5
+
+
+def k_schlick_direct(roughness, alpha):
+    """[Karis13] eq. 4: k = (roughness + 1)^2 / 8."""
+    return (roughness + 1.0) * (roughness + 1.0) * 0.125
+
+
+def geometry_term(geometry, NoV, NoL, roughness, alpha):
+    """The registry's member ``geometry`` (:data:`pbrcheck.registry.GEOMETRIES`): its Dr.Jit function
+    at its width, cosines clamped to [0, 1]."""
+    impl = registry.GEOMETRIES[geometry].impl
+    return globals()[impl.drjit](dr.clip(NoV, 0.0, 1.0), dr.clip(NoL, 0.0, 1.0),
+                                 globals()[impl.width](roughness, alpha))
+
+
+#: Each NDF's Dr.Jit function of the local half vector and alpha, from the registry.
+NDF = {e.name: globals()[e.impl.drjit] for e in registry.NDFS}
+
+
+# ---- the NDFs' half-vector samplers and their densities (local frame) ---------------------------
+
+def sample_h_GGX(wi, u, alpha):
+    """GGX visible normals, [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch."""
+    vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
+    lensq = vh.x * vh.x + vh.y * vh.y
+    inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
+    T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
+    T2 = dr.cross(vh, T1)
+    r = dr.sqrt(u.x)
+    phi = 2.0 * dr.pi * u.y
+    t1 = r * dr.cos(phi)
+    t2 = r * dr.sin(phi)
+    s = 0.5 * (1.0 + vh.z)
+    t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
+    nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
+    return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
+
+
+def pdf_h_GGX(wi, h, alpha):
+    """[Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)."""
+    return G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(dr.dot(wi, h), 0.0) * D_GGX(h, alpha) \
+        / dr.maximum(wi.z, COS_EPS)
+
+
+def _h_from_theta(cos_t, sin_t, u):
+    phi = 2.0 * dr.pi * u.y
+    return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
+
+
+def sample_h_Beckmann(wi, u, alpha):
+    """[Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u), density D (n.h)."""
+    t2 = -alpha * alpha * _log1p_neg(u.x)
+    cos_t = dr.rsqrt(1.0 + t2)
+    return _h_from_theta(cos_t, dr.sqrt(t2) * cos_t, u)
+
+
+def sample_h_BlinnPhong(wi, u, alpha):
+    """pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))."""
+    n = blinn_phong_exponent(alpha)
+    x = _log1p_neg(u.x) / (n + 2.0)
+    return _h_from_theta(dr.exp(x), dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0)), u)
+
+
+def pdf_h_Beckmann(wi, h, alpha):
+    return D_Beckmann(h, alpha) * dr.maximum(h.z, 0.0)
+
+
+def pdf_h_BlinnPhong(wi, h, alpha):
+    return D_BlinnPhong(h, alpha) * dr.maximum(h.z, 0.0)
+
+
+#: Each NDF's (sampler, density of h) pair: ``sample_h_<D>`` and ``pdf_h_<D>``, ``<D>`` its registry
+#: function's name without ``D_`` (a new NDF adds its pair under that name).
+NDF_SAMPLERS = {e.name: (globals()[f"sample_h_{e.impl.drjit[2:]}"], globals()[f"pdf_h_{e.impl.drjit[2:]}"])
+                for e in registry.NDFS}
 
 
 def _divide(a, b):
@@ -195,45 +273,11 @@ class PBRLobes:
 
     def _spec_pdf(self, wi, wo, h, alpha):
         """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
-        VoH = dr.dot(wi, h)
         jac = 1.0 / dr.maximum(4.0 * dr.abs(dr.dot(wo, h)), 1e-20)
-        if self.ndf == "ggx":
-            # [Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)
-            pdf_h = G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(VoH, 0.0) * D_GGX(h, alpha) \
-                / dr.maximum(wi.z, COS_EPS)
-        else:
-            pdf_h = NDF[self.ndf](h, alpha) * dr.maximum(h.z, 0.0)
-        return pdf_h * jac
+        return NDF_SAMPLERS[self.ndf][1](wi, h, alpha) * jac
 
     def _sample_h(self, wi, u, alpha):
-        if self.ndf == "ggx":
-            # [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch.
-            vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
-            lensq = vh.x * vh.x + vh.y * vh.y
-            inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-            T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-            T2 = dr.cross(vh, T1)
-            r = dr.sqrt(u.x)
-            phi = 2.0 * dr.pi * u.y
-            t1 = r * dr.cos(phi)
-            t2 = r * dr.sin(phi)
-            s = 0.5 * (1.0 + vh.z)
-            t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-            nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-            return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
-        phi = 2.0 * dr.pi * u.y
-        if self.ndf == "beckmann":
-            # [Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u)
-            t2 = -alpha * alpha * _log1p_neg(u.x)
-            cos_t = dr.rsqrt(1.0 + t2)
-            sin_t = dr.sqrt(t2) * cos_t
-        else:
-            # pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))
-            n = blinn_phong_exponent(alpha)
-            x = _log1p_neg(u.x) / (n + 2.0)
-            cos_t = dr.exp(x)
-            sin_t = dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0))
-        return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
+        return NDF_SAMPLERS[self.ndf][0](wi, u, alpha)
 
     def _eval_pdf(self, si, wo, active):
         """(f cos, pdf) of the non-delta part, local frame."""
@@ -360,12 +404,12 @@ class PBRMaterial(mi.BSDF):
         self.ndf = str(get("ndf", "ggx"))
         self.geometry = str(get("geometry", "smith_ggx_correlated"))
         self.fresnel = str(get("fresnel", "schlick"))
-        if self.ndf not in NDFS or self.geometry not in GEOMETRIES or self.fresnel not in FRESNELS:
+        if self.ndf not in NDF_NAMES or self.geometry not in GEOMETRY_NAMES or self.fresnel not in FRESNEL_NAMES:
             raise ValueError(f"pbr_material: bad model {(self.ndf, self.geometry, self.fresnel)}")
         # Multiple scattering (reference.multiscatter): "none" or "random_walk", and its hash seed.
         self.multiscatter = str(get("multiscatter", "none"))
         self.ms_seed = int(get("multiscatter_seed", 0))
-        if self.multiscatter not in MULTISCATTERS:
+        if self.multiscatter not in MULTISCATTER_NAMES:
             raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
         multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
         self._update()

@@ -2,7 +2,7 @@
 (:mod:`reference.multiscatter`), so both evaluate the very same functions. Local shading frame,
 ``n = +Z``; numpy twins of the same names in :mod:`pbrcheck.brdf`.
 
-API: :data:`INV_PI`, :func:`D_GGX`, :func:`fresnel_term`.
+API: :data:`INV_PI`, :func:`D_GGX`, :func:`F_Schlick`, :func:`F_None`, :func:`fresnel_term`.
 References: [Walter07] Walter et al., "Microfacet Models for Refraction through Rough Surfaces",
 EGSR 2007 (eq. 33); [Schlick94] Schlick, "An Inexpensive BRDF Model for Physically-based
 Rendering", CGF 1994 (eq. 15).
@@ -17,6 +17,8 @@ import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 import drjit as dr
 import mitsuba as mi
 
+from pbrcheck.registry import FRESNELS
+
 INV_PI = 1.0 / math.pi
 
 
@@ -30,11 +32,19 @@ def D_GGX(h, alpha):
     return dr.select(h.z > 0, INV_PI / (a2 * t * t), 0.0)
 
 
-def fresnel_term(fresnel, c, F0):
-    """``F_Schlick`` [Schlick94 eq. 15] at the cosine ``c`` (clamped to [0, 1]):
-    ``F0 + (1 - F0) (1 - c)^5``; ``fresnel = "none"``: 1 (Color3f)."""
-    if fresnel == "none":
-        return mi.Color3f(1.0)
+def F_Schlick(c, F0):
+    """[Schlick94 eq. 15] at the cosine ``c`` (clamped to [0, 1]): ``F0 + (1 - F0) (1 - c)^5``."""
     c = dr.clip(c, 0.0, 1.0)
     w = dr.square(dr.square(1.0 - c)) * (1.0 - c)
     return F0 + (1.0 - F0) * w
+
+
+def F_None(c, F0):
+    """No Fresnel factor: 1 (Color3f)."""
+    return mi.Color3f(1.0)
+
+
+def fresnel_term(fresnel, c, F0):
+    """The registry's member ``fresnel`` (:data:`pbrcheck.registry.FRESNELS`): ``schlick``
+    (:func:`F_Schlick`) or ``none`` (:func:`F_None`)."""
+    return globals()[FRESNELS[fresnel].impl.drjit](c, F0)

@@ -11,7 +11,7 @@ from pbrcheck import brdf
 from pbrcheck.brdf import (D_Beckmann, D_BlinnPhong, D_GGX, F_Schlick, G1_SchlickGGX, G1_SmithGGX,
                            G_SchlickGGX, G_SmithGGX, G_SmithGGXCorrelated, alpha_from_roughness,
                            brdf_eval, diffuse_albedo, geometry_term, specular_albedo, specular_dfg)
-from pbrcheck.scene import GEOMETRIES, NDFS
+from pbrcheck.scene import GEOMETRY_NAMES, NDF_NAMES
 
 # The projected NDF integrates to 1; a piecewise Gauss-Legendre rule resolves every lobe to ~1e-9,
 # so 1e-6 leaves room for float64 cancellation in 1 - cos^2 at the narrowest lobe (roughness 0.02).
@@ -51,7 +51,7 @@ roughness_st = st.floats(0.0, 1.0)
 @settings(max_examples=300, deadline=None)
 @given(cosines, cosines, roughness_st)
 def test_geometry_terms_in_unit_interval(nv, nl, r):
-    for g in GEOMETRIES:
+    for g in GEOMETRY_NAMES:
         v = float(geometry_term(g, nv, nl, r))
         assert 0.0 <= v <= 1.0 + 1e-12, (g, nv, nl, r, v)
     a = float(alpha_from_roughness(r))
@@ -73,7 +73,7 @@ def _unit(v):
 
 @settings(max_examples=200, deadline=None)
 @given(st.floats(0.01, 1.0), st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1),
-       st.sampled_from(NDFS), st.sampled_from(GEOMETRIES))
+       st.sampled_from(NDF_NAMES), st.sampled_from(GEOMETRY_NAMES))
 def test_reciprocity(r, vx, vy, lx, ly, ndf, geometry):
     n = np.array([0.0, 0.0, 1.0])
     v = _unit([vx, vy, 0.5])
@@ -86,7 +86,7 @@ def test_reciprocity(r, vx, vy, lx, ly, ndf, geometry):
 MISMATCHED = {("ggx", "smith_beckmann_correlated"), ("blinn_phong", "smith_beckmann_correlated")}
 
 
-@pytest.mark.parametrize("ndf, geometry", [(n, g) for g in GEOMETRIES for n in NDFS if (n, g) not in MISMATCHED])
+@pytest.mark.parametrize("ndf, geometry", [(n, g) for g in GEOMETRY_NAMES for n in NDF_NAMES if (n, g) not in MISMATCHED])
 def test_white_furnace_albedo_at_most_one(ndf, geometry):
     """White furnace of the specular lobe (metal, F0 = 1): directional albedo <= 1 everywhere, and
     of the whole dielectric BRDF (white base colour) near normal incidence. Beckmann's masking
@@ -136,7 +136,7 @@ def test_albedo_crosscheck_against_light_direction_grid():
     T, P = np.meshgrid(th, ph, indexing="ij")
     l = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
     W = (wt[:, None] * wp[None, :]) * np.sin(T) * np.cos(T)
-    for geometry in GEOMETRIES:
+    for geometry in GEOMETRY_NAMES:
         for r, nv in [(0.5, 0.8), (0.7, 0.3), (1.0, 0.1)]:
             v = np.array([np.sqrt(1 - nv * nv), 0.0, nv])
             f = brdf_eval(n, v, l, base_color=[1, 1, 1], metallic=1.0, roughness=r, specular=0.0, geometry=geometry)
@@ -151,7 +151,7 @@ def test_dfg_known_values():
     # ... and the quadrature tends to it, for every geometry term (schlick_ggx_direct keeps
     # k = 1/8 at roughness 0, so its limit is G1(n.v, 1/8)^2, not 1)
     # A lobe this narrow (alpha 1.2e-4) is a mirror weighted by G(v, v) at its own roughness.
-    for geometry in GEOMETRIES:
+    for geometry in GEOMETRY_NAMES:
         A2, B2 = specular_dfg(0.5, 0.011, geometry=geometry)
         g = float(geometry_term(geometry, 0.5, 0.5, 0.011))
         assert (A2, B2) == pytest.approx((g * A, g * B), abs=1e-5)
@@ -164,7 +164,7 @@ def test_dfg_known_values():
 
 
 def test_quadrature_converges():
-    for ndf in NDFS:
+    for ndf in NDF_NAMES:
         for r, nv in [(0.5, 1.0), (0.1, 1e-3), (1.0, 1e-3), (0.05, 0.3)]:
             a = specular_dfg(nv, r, ndf=ndf)
             b = specular_dfg(nv, r, ndf=ndf, n_theta=96, n_phi=160)
@@ -179,14 +179,14 @@ def test_finite_at_extremes(r, nv, nl):
     for f in (D_GGX, D_Beckmann, D_BlinnPhong):
         for noh in (0.0, 1e-6, 0.5, 1.0):
             assert np.isfinite(f(noh, a)) and f(noh, a) >= 0
-    for g in GEOMETRIES:
+    for g in GEOMETRY_NAMES:
         assert np.isfinite(geometry_term(g, nv, nl, r))
     assert np.isfinite(G_SchlickGGX(nv, nl, 0.0))
     n = np.array([0.0, 0.0, 1.0])
     v = np.array([np.sqrt(1 - nv * nv), 0.0, nv])
     l = np.array([-np.sqrt(1 - nl * nl), 0.0, nl])
-    for ndf in NDFS:
-        for geo in GEOMETRIES:
+    for ndf in NDF_NAMES:
+        for geo in GEOMETRY_NAMES:
             assert np.all(np.isfinite(brdf_eval(n, v, l, [1, 1, 1], 0.5, r, 0.04, ndf=ndf, geometry=geo)))
     assert all(np.isfinite(specular_dfg(max(nv, 0.0), r)))
 

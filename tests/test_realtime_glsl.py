@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrcheck import brdf, sampling
+from pbrcheck import brdf, registry, sampling
 from pbrcheck.environment import EnvMap
 from realtime.glsl_harness import run_glsl
 
@@ -52,7 +52,9 @@ def close(glsl, ref, rtol=RTOL_F32, atol=ATOL_F32):
     assert not bad.any(), f"{bad.sum()} mismatches, worst glsl={glsl[bad][:3]} ref={ref[bad][:3]}"
 
 
-@pytest.mark.parametrize("name", ["D_GGX", "D_Beckmann", "D_BlinnPhong"])
+# The term twins loop over the registry's entries (tests/test_registry.py checks every entry's three
+# implementations exist and that these loops cover them).
+@pytest.mark.parametrize("name", [e.impl.glsl for e in registry.NDFS])
 def test_ndf_twins(name):
     c, r = grid2(COS, ROUGH)
     alpha = f32(brdf.alpha_from_roughness(r))
@@ -84,13 +86,19 @@ def test_g1_twins(name):
     close(run_glsl(f"{name}(x0, x1)", c, alpha)[ok], getattr(brdf, name)(c, alpha)[ok], rtol=1e-4)
 
 
-@pytest.mark.parametrize("name", ["G_SmithGGX", "G_SmithGGXCorrelated", "G_SchlickBeckmann",
-                                  "G_SmithBeckmannCorrelated"])
-def test_g2_twins(name):
+@pytest.mark.parametrize("entry", list(registry.GEOMETRIES), ids=registry.GEOMETRIES.names)
+def test_g2_twins(entry):
+    """Each G term at its width (alpha, or Schlick's k) of every roughness of the grid."""
     v, l = grid2(COS, COS)
     for r in ROUGH:
-        a = float(np.float32(brdf.alpha_from_roughness(r)))
-        close(run_glsl(f"{name}(x0, x1, x2)", v, l, a), getattr(brdf, name)(v, l, a))
+        w = float(np.float32(getattr(brdf, entry.impl.width)(r)))
+        close(run_glsl(f"{entry.impl.glsl}(x0, x1, x2)", v, l, w), getattr(brdf, entry.impl.numpy)(v, l, w))
+
+
+@pytest.mark.parametrize("entry", list(registry.FRESNELS), ids=registry.FRESNELS.names)
+def test_fresnel_twins(entry):
+    c, F0 = grid2(COS, np.linspace(0.0, 1.0, 6))
+    close(run_glsl(f"{entry.impl.glsl}(x0, vec3(x1)).x", c, F0), getattr(brdf, entry.impl.numpy)(c, F0))
 
 
 def test_lambda_beckmann_twins():
@@ -192,3 +200,4 @@ def test_env_radiance_twin():
     jump = max(np.abs(np.diff(env.data, axis=0)).max(), np.abs(np.diff(env.data, axis=1)).max())
     grad = env.scale * jump * max(env.width / (2 * np.pi), (env.height - 1) / np.pi)
     close(g, env.radiance(d), rtol=0, atol=TRIG_RAD * grad)
+

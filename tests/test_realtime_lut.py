@@ -15,7 +15,7 @@ GOAL_MAX_ABS = 1e-3
 GOAL_MEAN_ABS = 2e-4
 # Rows checked: the reference costs ~2 ms per texel; all of them fit the test budget.
 
-GEOMETRIES = ("smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct")
+LUT_GEOMETRIES = ("smith_ggx_correlated", "smith_ggx", "schlick_ggx_ibl", "schlick_ggx_direct")
 
 _ref_cache: dict = {}
 
@@ -34,7 +34,7 @@ def _rows(N):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("geometry", GEOMETRIES)
+@pytest.mark.parametrize("geometry", LUT_GEOMETRIES)
 def test_default_lut_meets_the_accuracy_goal(geometry):
     o = resolve_options("default")
     assert o["lut_format"] == "f32"

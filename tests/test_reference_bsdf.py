@@ -9,7 +9,7 @@ import pytest
 
 import pbrcheck  # noqa: F401
 from pbrcheck import brdf as nb
-from pbrcheck.scene import GEOMETRIES, NDFS
+from pbrcheck.scene import GEOMETRY_NAMES, NDF_NAMES
 from reference.variant import ensure_variant
 
 ensure_variant()
@@ -37,13 +37,13 @@ def _mat(ndf="ggx", geometry="smith_ggx_correlated", fresnel="schlick", roughnes
 
 
 @pytest.mark.parametrize("fresnel", ["schlick", "none"])
-@pytest.mark.parametrize("ndf", NDFS)
+@pytest.mark.parametrize("ndf", NDF_NAMES)
 def test_eval_matches_numpy_terms(ndf, fresnel):
     rng = np.random.default_rng(1)
     n = 2000
     v = rng.normal(size=(n, 3)); v[:, 2] = np.abs(v[:, 2]); v /= np.linalg.norm(v, axis=1, keepdims=True)
     l = rng.normal(size=(n, 3)); l[:, 2] = np.abs(l[:, 2]); l /= np.linalg.norm(l, axis=1, keepdims=True)
-    for geometry in GEOMETRIES:
+    for geometry in GEOMETRY_NAMES:
         for rough in (0.15, 0.5, 1.0):
             d = _mat(ndf, geometry, fresnel, rough)
             b = mi.load_dict(d)
@@ -68,13 +68,13 @@ def _chi2(d, wi, **kw):
 
 @pytest.mark.parametrize("inc", INCIDENCES)
 @pytest.mark.parametrize("rough", [0.4, 0.9])
-@pytest.mark.parametrize("ndf", NDFS)
+@pytest.mark.parametrize("ndf", NDF_NAMES)
 def test_chi2_sampling(ndf, rough, inc):
     _chi2(_mat(ndf, roughness=rough), _wi(inc), sample_count=400_000)
 
 
 @pytest.mark.parametrize("inc", [45.0, 80.0])
-@pytest.mark.parametrize("ndf", NDFS)
+@pytest.mark.parametrize("ndf", NDF_NAMES)
 def test_chi2_sampling_alpha_005_fine(ndf, inc):
     """alpha = 0.05 (roughness 0.2236), Mitsuba's finer settings (res 201, ires 8) for its own
     alpha = 0.05 tests. Normal incidence puts this narrow lobe on the spherical domain's pole, where
@@ -124,7 +124,7 @@ class MirrorZoomDomain:
 
 
 @pytest.mark.parametrize("inc", INCIDENCES)
-@pytest.mark.parametrize("ndf", NDFS)
+@pytest.mark.parametrize("ndf", NDF_NAMES)
 @pytest.mark.parametrize("rough", [0.05, math.sqrt(0.05)])
 def test_chi2_sampling_narrow_zoomed(rough, ndf, inc):
     """roughness 0.05 (alpha 0.0025): the lobe is ~0.15 degrees wide, narrower than any cell of the
@@ -138,7 +138,7 @@ def test_chi2_sampling_narrow_zoomed(rough, ndf, inc):
     assert chi.run(CHI2_SIGNIFICANCE, quiet=True), chi.messages[-1500:]
 
 
-@pytest.mark.parametrize("geometry", GEOMETRIES)
+@pytest.mark.parametrize("geometry", GEOMETRY_NAMES)
 @pytest.mark.parametrize("rough", [0.0, 1e-4])
 def test_mirror_limit_is_a_finite_delta(rough, geometry):
     """Roughness below 0.01 is a delta lobe: mirror direction, weight F G(v, v) / P_spec, no NaN."""

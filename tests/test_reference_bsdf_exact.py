@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import pbrcheck  # noqa: F401
-from pbrcheck.scene import GEOMETRIES
+from pbrcheck.scene import GEOMETRY_NAMES
 from reference.variant import ensure_variant
 
 ensure_variant()
@@ -40,7 +40,7 @@ def _si(n=64):
 
 
 @pytest.mark.parametrize("factor", ROUNDING)
-@pytest.mark.parametrize("geometry", GEOMETRIES)
+@pytest.mark.parametrize("geometry", GEOMETRY_NAMES)
 @pytest.mark.parametrize("rough", [0.0, 1e-4])
 def test_delta_only_metal_pdf_is_exactly_zero_under_inexact_division(monkeypatch, factor, geometry, rough):
     monkeypatch.setattr(rb, "_divide", lambda a, b: (a / b) * factor)

@@ -13,7 +13,7 @@ from pbrcheck import brdf as nb
 from pbrcheck.camera import primary_rays
 from pbrcheck.environment import load_environment
 from pbrcheck.exr import AOVS, RGB, VARIANCE, read_exr
-from pbrcheck.scene import GEOMETRIES, load_scene, scene_from_dict
+from pbrcheck.scene import GEOMETRY_NAMES, load_scene, scene_from_dict
 from reference import render as rr
 from reference.render import _mi, load_mitsuba_scene, render_reference, render_uncached
 
@@ -73,7 +73,7 @@ def _subpixel_ndotv(scene, k=4):
 
 
 @pytest.mark.parametrize("roughness", [0.0, 0.5])
-@pytest.mark.parametrize("geometry", GEOMETRIES)
+@pytest.mark.parametrize("geometry", GEOMETRY_NAMES)
 def test_white_furnace_equals_quadrature_albedo(geometry, roughness):
     # (schlick_ggx_direct at roughness 0: k = (0 + 1)^2 / 8 does not vanish, so the mirror limit is
     # G1(n.v, 1/8)^2; pbrcheck.brdf.specular_dfg uses G(v, v) in its mirror limit for every term.)

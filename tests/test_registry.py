@@ -53,8 +53,8 @@ def test_options_and_scene_read_the_registry():
     assert presets.OPTIONS["shading"].choices == registry.SHADINGS.names
     assert presets.OPTIONS["lod_mapping"].choices == registry.BUILTIN_LOD_MAPPINGS
     assert presets.OPTIONS["geometry"].choices == ("scene", *registry.GEOMETRIES.names)
-    assert scene.NDFS == registry.NDFS.scene_names
-    assert scene.GEOMETRIES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRIES
+    assert scene.NDF_NAMES == registry.NDFS.scene_names
+    assert scene.GEOMETRY_NAMES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRY_NAMES
 
 
 def test_shaders_switch_on_named_constants_only():
@@ -112,3 +112,53 @@ def test_registry_rejects_unknown_members():
         registry.GEOMETRIES.constant("smith_typo")
     with pytest.raises(lodmap.LodFitError, match="lod_mapping"):
         lodmap.builtin_lod("fitted", [0.5], 6.0, 8.0)
+
+
+@pytest.mark.parametrize("define", list(registry.TERM_REGISTRIES))
+def test_every_term_has_its_three_implementations(define):
+    """Each member of a term registry names a numpy function (pbrcheck.brdf), a Dr.Jit function
+    (reference.bsdf) and a GLSL function (brdf.glsl) that exist, and a width function in each
+    language; the generated GLSL dispatch calls it; the GLSL harness twins it
+    (tests/test_realtime_glsl.py's test_ndf_twins, test_g2_twins and test_fresnel_twins are
+    parametrized by these entries; the GLSL function is the numpy twin of the same name)."""
+    import test_realtime_glsl as harness
+    from pbrcheck import brdf
+    from reference.variant import ensure_variant
+    ensure_variant()
+    from reference import bsdf
+    reg = registry.TERM_REGISTRIES[define][0]
+    brdf_glsl = (SHADER_DIR / "brdf.glsl").read_text()
+    dispatch = registry.glsl_generated()["terms_dispatch.glsl"]
+    for e in reg:
+        assert e.impl is not None, e.name
+        assert callable(getattr(brdf, e.impl.numpy, None)), (e.name, e.impl.numpy)
+        assert e.impl.glsl == e.impl.numpy, f"{e.name}: the GLSL twin has the numpy function's name"
+        assert callable(getattr(bsdf, e.impl.drjit, None)), (e.name, e.impl.drjit)
+        assert re.search(rf"^\w+ {e.impl.glsl}\(", brdf_glsl, re.M), (e.name, e.impl.glsl)
+        if e.impl.width:
+            assert callable(getattr(brdf, e.impl.width)) and callable(getattr(bsdf, e.impl.width))
+            assert re.search(rf"^float {e.impl.width}\(", brdf_glsl, re.M), e.impl.width
+        assert f"{reg.constant(e.name)}\n    return {e.impl.glsl}(" in dispatch
+        if define == "NDF":  # its samplers: GLSL (numpy twin in pbrcheck.sampling), quadrature, Dr.Jit
+            from pbrcheck import sampling
+            assert callable(getattr(sampling, e.extra["sample"], None)), e.extra["sample"]
+            assert re.search(rf"^vec3 {e.extra['sample']}\(", (SHADER_DIR / "sampling.glsl").read_text(), re.M)
+            assert brdf._ndf_quadrature(e.name, "theta_h") and brdf._ndf_quadrature(e.name, "cdf_theta_h")
+            assert e.name in bsdf.NDF_SAMPLERS
+    twins = {"NDF": harness.test_ndf_twins, "GEOMETRY": harness.test_g2_twins,
+             "FRESNEL": harness.test_fresnel_twins}[define]
+    params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
+    covered = {p if isinstance(p, str) else p.name for p in params}
+    assert covered >= ({e.impl.glsl for e in reg} if define == "NDF" else set(reg.names)), covered
+
+def test_term_dispatch_matches_the_registry_in_numpy():
+    """pbrcheck.brdf's dispatch is the registry's: each member's function at its width."""
+    from pbrcheck import brdf
+    c, r = np.linspace(0.05, 1.0, 7), np.linspace(0.0, 1.0, 7)
+    for e in registry.GEOMETRIES:
+        ref = getattr(brdf, e.impl.numpy)(c, c[::-1], getattr(brdf, e.impl.width)(r))
+        np.testing.assert_array_equal(brdf.geometry_term(e.name, c, c[::-1], r), ref)
+    for e in registry.NDFS:
+        np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), getattr(brdf, e.impl.numpy)(c, brdf.alpha_from_roughness(r)))
+    with pytest.raises(ValueError, match="unknown geometry term 'nope'"):
+        brdf.geometry_term("nope", c, c, r)

@@ -205,7 +205,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     o = renderers.resolve_options(preset, base)
     if o["ibl"] != "splitsum":
         raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o['ibl']})")
-    if str(o["lod_mapping"]).startswith("fitted:"):
+    if o.fitted is not None:
         raise PbrcheckError("fit-lod: start from a built-in lod_mapping, not a fitted one")
     chains = tuple(chains)
     if not chains or any(c not in BUILTIN for c in chains):
@@ -266,7 +266,6 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
                                 list(v["mapping"].coefficients), [s.lod for s in v["samples"]])
                     for c, v in per_chain.items()},
             mappings={"fitted": MappingEval(None, mapping=fitted.to_json())}, reference_spp=verdict.to_dict())
-        write_json_atomic(out, result)  # the fitted mapping must be on disk to render it
         for name in BUILTIN:
             # the preset's own mapping is the image the spp rule already rendered
             img = own_img if name == o["lod_mapping"] else renderers.render_under_test(
@@ -274,8 +273,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             result.mappings[name] = MappingEval(_scene_relmse(ref, img, valid),
                                                 [float(v) for v in builtin_lod(name, rr, M, cube_log2)])
             prog.update(1, f"evaluate {name}")
-        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"},
-                                          context=context)
+        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": fitted}, context=context)
         prog.update(1, "evaluate fitted")
     result.mappings["fitted"].relmse = _scene_relmse(ref, img, valid)
     result.mappings["fitted"].lod = [float(v) for v in fitted(rr)]

@@ -136,65 +136,18 @@ vec3 F_Schlick(float VoH, vec3 F0, float F90) {
 }
 vec3 F_Schlick(float VoH, vec3 F0) { return F_Schlick(VoH, F0, 1.0); }
 
+// Source: no Fresnel factor (pbrcheck.registry FRESNELS "none"). Equation: F = 1.
+vec3 F_None(float VoH, vec3 F0) { return vec3(1.0); }
+
 // Source: Lambert. Equation: f_d = 1 / pi.
 float Fd_Lambert() { return 1.0 / PI; }
 
 // The scene's terms, chosen at compile time: NDF, GEOMETRY and FRESNEL are constants of
 // pbrcheck.registry (NDF_GGX, GEOMETRY_SMITH_GGX_CORRELATED, FRESNEL_SCHLICK, ...), prepended to
-// every shader by realtime/gl.py.
-#ifndef NDF
-#define NDF NDF_GGX
-#endif
-#ifndef GEOMETRY
-#define GEOMETRY GEOMETRY_SMITH_GGX_CORRELATED
-#endif
-#ifndef FRESNEL
-#define FRESNEL FRESNEL_SCHLICK
-#endif
-
-float ndf_term(float NoH, float roughness) {
-#ifdef HOOK_D
-    return hook_D(NoH, roughness);
-#endif
-    float a = alpha_from_roughness(roughness);
-#if NDF == NDF_GGX
-    return D_GGX(NoH, a);
-#elif NDF == NDF_BECKMANN
-    return D_Beckmann(NoH, a);
-#elif NDF == NDF_BLINN_PHONG
-    return D_BlinnPhong(NoH, a);
-#endif
-}
-
-float geometry_term(float NoV, float NoL, float roughness) {
-#ifdef HOOK_G
-    return hook_G(NoV, NoL, roughness);
-#endif
-#if GEOMETRY == GEOMETRY_SMITH_GGX_CORRELATED
-    return G_SmithGGXCorrelated(NoV, NoL, alpha_from_roughness(roughness));
-#elif GEOMETRY == GEOMETRY_SMITH_GGX
-    return G_SmithGGX(NoV, NoL, alpha_from_roughness(roughness));
-#elif GEOMETRY == GEOMETRY_SCHLICK_GGX_IBL
-    return G_SchlickGGX(NoV, NoL, k_schlick_ibl(roughness));
-#elif GEOMETRY == GEOMETRY_SCHLICK_GGX_DIRECT
-    return G_SchlickGGX(NoV, NoL, k_schlick_direct(roughness));
-#elif GEOMETRY == GEOMETRY_SCHLICK_BECKMANN
-    return G_SchlickBeckmann(NoV, NoL, alpha_from_roughness(roughness));
-#elif GEOMETRY == GEOMETRY_SMITH_BECKMANN_CORRELATED
-    return G_SmithBeckmannCorrelated(NoV, NoL, alpha_from_roughness(roughness));
-#endif
-}
-
-// Dispatch on FRESNEL (numpy twin: pbrcheck.brdf.fresnel_term): Schlick, or none (F = 1).
-vec3 fresnel_term(float VoH, vec3 F0) {
-#ifdef HOOK_F
-    return hook_F(VoH, F0);
-#elif FRESNEL == FRESNEL_SCHLICK
-    return F_Schlick(VoH, F0);
-#else
-    return vec3(1.0);
-#endif
-}
+// every shader by realtime/gl.py. ndf_term, geometry_term and fresnel_term (numpy twins of the same
+// names in pbrcheck/brdf.py) are generated from the registry's entries: each calls its member's
+// function above, or the user's hook_D / hook_G / hook_F.
+#include "terms_dispatch.glsl"
 
 // Source: README "Material model" (pbrcheck.brdf.brdf_eval). Equation:
 // f = (1 - F(v.h)) (1 - metallic) base_color / pi + D(h) G(l, v) F(v.h) / (4 (n.l)(n.v)); 0 below the horizon.

@@ -24,12 +24,8 @@ void main() {
         u.x += 0.5 / float(ns);
 #if LUT_SAMPLING == LUT_SAMPLING_VNDF
         vec3 h = sample_GGX_VNDF(u.yx, v, alpha);
-#elif NDF == NDF_BECKMANN
-        vec3 h = sample_Beckmann(u, alpha);
-#elif NDF == NDF_BLINN_PHONG
-        vec3 h = sample_BlinnPhong(u, alpha);
-#elif NDF == NDF_GGX
-        vec3 h = sample_GGX(u, alpha);
+#else
+        vec3 h = sample_ndf(u, alpha);
 #endif
         float VoH = dot(v, h);
         vec3 l = 2.0 * VoH * h - v;

@@ -76,3 +76,7 @@ vec3 sample_cosine(vec2 u) {
     float r = sqrt(u.y);
     return vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u.y, 0.0)));
 }
+
+// sample_ndf (the selected NDF's sampler) and runtime_half_vector (RUNTIME_SAMPLING's), generated
+// from pbrcheck.registry.
+#include "sampling_dispatch.glsl"
