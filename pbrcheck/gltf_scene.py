@@ -1,12 +1,12 @@
-"""glTF assets in resolved scenes: what ``check-scene`` prints about them, the real-time renderer's
+"""glTF assets in resolved scenes: what ``check-scene`` prints about them, the ray-cast pipeline's
 refusal of asset scenes and the presets a report keeps for them.
 
 API
 ---
 - :func:`describe` -- ``check-scene``'s lines: meshes, triangles, materials, textures, lights, camera,
   extensions used and ignored.
-- :func:`require_analytic`, :class:`UnsupportedSceneError`, :data:`RASTER_MISSING` -- the real-time
-  renderer's one-line refusal (until it rasterizes meshes).
+- :func:`require_analytic`, :class:`UnsupportedSceneError`, :data:`RASTER_MISSING` -- the ray-cast
+  pipeline's one-line refusal of meshes (``pipeline=raycast``; ``auto`` rasterizes them).
 - :func:`split_presets` -- (usable, skipped) presets of a scene.
 - :func:`scene_has_assets`, :func:`framing_camera`; re-exported: :class:`~pbrcheck.gltf_objects.Mesh`,
   :class:`~pbrcheck.gltf_objects.AssetInstance`, :func:`~pbrcheck.scene.asset_scene`,
@@ -79,9 +79,9 @@ def describe(scene: Scene) -> list[str]:
     return out
 
 
-#: The one-line reason a real-time preset cannot render an asset scene (until it rasterizes meshes).
-RASTER_MISSING = ("the real-time renderer ray-casts analytic spheres and planes; its mesh raster pipeline for "
-                  "glTF assets does not exist yet (use ext:threejs or ext:sample-viewer)")
+#: The one-line reason the ray-cast pipeline cannot render an asset scene (the raster pipeline can).
+RASTER_MISSING = ("the real-time pipeline=raycast ray-casts analytic spheres and planes only; glTF meshes need "
+                  "pipeline=raster (or auto)")
 
 
 class UnsupportedSceneError(AssetError):
@@ -95,8 +95,6 @@ def require_analytic(scene: Scene, renderer: str) -> None:
 
 
 def split_presets(scene: Scene, presets) -> tuple[list[str], list[str]]:
-    """(usable, skipped) presets for ``scene``: real-time presets are skipped on asset scenes."""
-    if not scene_has_assets(scene):
-        return list(presets), []
-    use = [p for p in presets if str(p).startswith("ext:")]
-    return use, [p for p in presets if p not in use]
+    """(usable, skipped) presets for ``scene``: every preset is usable (real-time presets draw asset
+    scenes with the raster pipeline); kept for callers that report skipped presets."""
+    return list(presets), []

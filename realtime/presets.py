@@ -107,6 +107,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "reference's `local` integrator casts no shadow rays, so the default comparison measures "
            "shading approximations only; turn on against `--mode path`)"),
     Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16),
+    Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes, else raycast) | "
+           "raycast (the compute pass's exact analytic shapes) | raster (meshes; analytic shapes tessellated)",
+           ("auto", "raycast", "raster")),
+    Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
+           lo=1.0, hi=16.0),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces")),
     Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
@@ -150,6 +155,8 @@ DEFAULT = {
     "reflect_bug": False,
     "shadows": False,  # as the reference's `local` integrator (no visibility tests)
     "supersample": 4,
+    "pipeline": "auto",
+    "anisotropy": 1.0,
     "tonemap": "none",
     "exposure": 1.0,
     "shader": "",
@@ -390,4 +397,6 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
     if d["energy_compensation"] not in ("none", "scene") and (d["shading"] != "material" or d["ibl"] != "splitsum"):
         raise OptionError(f"option energy_compensation: {d['energy_compensation']} needs shading=material and "
                           f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
+    if d["pipeline"] == "raster" and d["shadows"]:
+        raise OptionError("option shadows: the raster pipeline has no shadow rays (use pipeline=raycast)")
     return RealtimeOptions(**d)

@@ -154,15 +154,17 @@ def environment_of(scene: Scene) -> EnvMap:
     return _cache[key]
 
 
-def _bind_env(prog, env_tex, env: EnvMap, unit: int = 0):
+def _bind_env(prog, env_tex, env: EnvMap, unit: int = 0, optional: bool = False):
+    """Bind the equirect environment of env.glsl (``optional``: the raster fragment program reads
+    it only where a variant looks the environment up directly)."""
     env_tex.use(unit)
-    _set(prog, "env_equirect", unit)
-    _set(prog, "env_size", (env.width, env.height))
+    _set(prog, "env_equirect", unit, optional)
+    _set(prog, "env_size", (env.width, env.height), optional)
     R = env.to_world()
-    _set(prog, "env_rot0", tuple(float(x) for x in R[:, 0]))
-    _set(prog, "env_rot1", tuple(float(x) for x in R[:, 1]))
-    _set(prog, "env_rot2", tuple(float(x) for x in R[:, 2]))
-    _set(prog, "env_scale", float(env.scale))
+    _set(prog, "env_rot0", tuple(float(x) for x in R[:, 0]), optional)
+    _set(prog, "env_rot1", tuple(float(x) for x in R[:, 1]), optional)
+    _set(prog, "env_rot2", tuple(float(x) for x in R[:, 2]), optional)
+    _set(prog, "env_scale", float(env.scale), optional)
 
 
 def env_texture(env: EnvMap):
@@ -466,33 +468,42 @@ def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh)
     ctx = get_context()
     W, H = scene.camera.width, scene.camera.height
     objs = ctx.buffer(_object_buffer(scene).tobytes())
-    lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
-    lbuf = ctx.buffer(lights.tobytes())
     objs.bind_to_storage_buffer(0)
-    lbuf.bind_to_storage_buffer(1)
+    lbuf = _bind_shading(prog, scene, o, env, textures, sh)
     out_color = ctx.texture((W, H), 4, dtype="f4")
     out_aov = ctx.texture((W, H), 4, dtype="f4")
     out_obj = ctx.texture((W, H), 1, dtype="f4")
     out_color.bind_to_image(0, read=False, write=True, level=0)
     out_aov.bind_to_image(1, read=False, write=True, level=0)
     out_obj.bind_to_image(2, read=False, write=True, level=0)
-    _bind_env(prog, env_texture(env), env, 0)
-    for name, unit, kind in FRAME_TEXTURE_UNITS:
-        tex = textures[name]
-        (tex if tex is not None else _dummy(kind)).use(unit)
-        _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
-    if o.irradiance == "sh9":
-        _write(prog, "sh", np.asarray(sh, np.float32).tobytes(), optional="sh" in FRAME_VARIANT_UNIFORMS)
     r, u, f = camera_frame(scene.camera)
     tx, ty = tan_half_fov(scene.camera)
     _set(prog, "n_objects", len(scene.objects))
-    _set(prog, "n_lights", len(scene.lights))
     _set(prog, "cam_origin", tuple(float(x) for x in scene.camera.origin))
     _set(prog, "cam_right", tuple(float(x) for x in r * tx))
     _set(prog, "cam_up", tuple(float(x) for x in u * ty))
     _set(prog, "cam_forward", tuple(float(x) for x in f))
     _set(prog, "image_size", (W, H))
     _set(prog, "ss", int(o.supersample))
+    return objs, lbuf, out_color, out_aov, out_obj
+
+
+def _bind_shading(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh, raster: bool = False):
+    """Bind the shading module's inputs (shading.glsl: environment, baked textures, SH, lights
+    buffer, LOD and roughness uniforms) for ``prog`` (the compute frame pass or the raster
+    fragment program); returns the lights buffer to release after the frame."""
+    ctx = get_context()
+    lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
+    lbuf = ctx.buffer(lights.tobytes())
+    lbuf.bind_to_storage_buffer(1)
+    _bind_env(prog, env_texture(env), env, 0, optional=raster)
+    for name, unit, kind in FRAME_TEXTURE_UNITS:
+        tex = textures[name]
+        (tex if tex is not None else _dummy(kind)).use(unit)
+        _set(prog, name, unit, optional=name in FRAME_VARIANT_UNIFORMS)
+    if o.irradiance == "sh9":
+        _write(prog, "sh", np.asarray(sh, np.float32).tobytes(), optional="sh" in FRAME_VARIANT_UNIFORMS)
+    _set(prog, "n_lights", len(scene.lights))
     for name, value in (("max_lod", float(o.prefilter_levels - 1)),
                         ("cube_log2", float(math.log2(o.cube_size))),
                         ("env_face_size", float(o.cube_size)),
@@ -500,7 +511,7 @@ def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh)
                         ("lod_override", float(o.lod_override))):
         _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
     _set(prog, "min_roughness", float(o.min_roughness))
-    return objs, lbuf, out_color, out_aov, out_obj
+    return lbuf
 
 
 def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timings: dict, cached_before: set,
@@ -543,9 +554,8 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
     ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
     """
-    from pbrcheck.gltf_scene import require_analytic
-    require_analytic(scene, f"real-time preset {preset}")
     o = resolve_options(preset, options)
+    pipeline = resolved_pipeline(scene, o)
     ctx = get_context()
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
@@ -583,12 +593,18 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
 
         defines = frame_defines(o, terms)
         hooks = load_hook_file(o.shader) if o.shader else None
+        baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd}
+        if pipeline == "raster":
+            color, aov, obj = _raster(scene, o, env, baked, sh, defines, hooks, timings)
+            bar.update(1, "frame")
+            meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
+            meta["pipeline"] = pipeline
+            return _image(color, aov, obj, meta)
         t0 = time.perf_counter()
         prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
         timings["compile_frame"] = time.perf_counter() - t0
 
-        buffers = _bind_frame(prog, scene, o, env, {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube,
-                                                     "dfg_lut": lut, "kd_lut": kd}, sh)
+        buffers = _bind_frame(prog, scene, o, env, baked, sh)
         out_color, out_aov, out_obj = buffers[2:]
 
         def frame():
@@ -608,11 +624,58 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         for t in buffers:
             t.release()
 
+    meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
+    meta["pipeline"] = pipeline
+    return _image(color, aov, obj, meta)
+
+
+def _image(color, aov, obj, meta) -> Image:
     return Image({
         "R": color[..., 0], "G": color[..., 1], "B": color[..., 2],
         "N.X": aov[..., 0], "N.Y": aov[..., 1], "N.Z": aov[..., 2], "NdotV": aov[..., 3],
         "object": obj, "coverage": color[..., 3],
-    }, _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks))
+    }, meta)
+
+
+def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
+    """``raycast`` or ``raster``: the option's value, or for ``auto`` raster exactly when the scene
+    holds glTF meshes (analytic scenes keep the exact ray-cast geometry). ``raycast`` on a scene with
+    meshes raises :class:`pbrcheck.gltf_scene.UnsupportedSceneError`."""
+    from pbrcheck.gltf_scene import require_analytic, scene_has_assets
+    if o.pipeline == "auto":
+        return "raster" if scene_has_assets(scene) else "raycast"
+    if o.pipeline == "raycast":
+        require_analytic(scene, "real-time pipeline=raycast")
+    return o.pipeline
+
+
+def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dict, hooks, timings: dict):
+    """One frame of the raster pipeline (:mod:`realtime.raster`): (color, aov, object) arrays."""
+    from . import raster
+    ctx = get_context()
+    user = (hooks.path, hooks.text) if hooks else None
+    t0 = time.perf_counter()
+    prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 0}, user)
+    aov_prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 1}, user)
+    bg_prog = raster.graphics_program("fullscreen.vert", "raster_background.frag")
+    timings["compile_frame"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    items = raster.draw_items(scene)
+    timings["geometry"] = time.perf_counter() - t0
+    lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
+    _bind_env(bg_prog, env_texture(env), env, 0)
+    try:
+        t0 = time.perf_counter()
+        for it in items:  # upload the material textures (and their mips) before the timed frame
+            for image, ref, srgb in it.textures.values():
+                raster._texture(image, ref, srgb, o.anisotropy)
+        ctx.finish()
+        timings["textures"] = time.perf_counter() - t0
+        (color, aov, obj), timings["frame"] = _timed(
+            ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy))
+    finally:
+        lbuf.release()
+    return color, aov, obj
 
 
 #: Cache kinds whose key's second element is an environment's content hash.

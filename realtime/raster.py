@@ -1,0 +1,390 @@
+"""The raster pipeline of the real-time renderer: glTF meshes (and tessellated analytic shapes) drawn
+with a vertex and a fragment shader that includes the frame pass's shading module unchanged
+(``shaders/raster.vert``, ``shaders/raster.frag``), so every preset, option, hook and energy
+compensation applies as in the ray-cast compute pass.
+
+Conventions (the same at both ends as :mod:`realtime.render`)
+-------------------------------------------------------------
+* Camera: :func:`pbrcheck.camera.camera_frame` / :func:`~pbrcheck.camera.tan_half_fov`; NDC (x, y) is
+  the direction ``x tx r + y ty u + f`` of the reference's primary rays; the colour pass runs at
+  ``(s W, s H)`` so its fragments are the compute pass's sub-pixel samples ``(k + 0.5) / s`` and the
+  box filter averages them; the AOV pass runs at ``(W, H)`` (pixel centres). Images are read back
+  with row 0 at the top (GL's row 0 is the bottom: flipped).
+* Outputs: R, G, B (radiance), coverage (the fraction of samples covered by geometry; with BLEND
+  the accumulated alpha ``a + (1 - a) dst``), N / NdotV (the interpolated vertex normal at the pixel
+  centre, flipped on a double-sided back face; not the normal-mapped one), object (the id of the
+  nearest primitive at the pixel centre, -1 background; BLEND primitives included).
+* Geometry: each glTF primitive of :class:`pbrcheck.gltf.Primitive` placed by its instance's
+  matrix (normals by the inverse transpose, tangents' w and the winding flipped where the
+  determinant is negative); spheres tessellated as UV spheres of :data:`SPHERE_SEGMENTS` with exact
+  normals, rectangles as two triangles; analytic shapes are drawn without culling (their back side
+  shades black, as the compute pass's).
+* Culling: back faces (counter-clockwise fronts) culled unless ``doubleSided``.
+* Textures: RGBA16F with full mip chains (glGenerateMipmap, a box filter in linear space), baseColor
+  and emissive sRGB-decoded before upload (:meth:`pbrcheck.gltf.GltfImage.linear`), the others
+  linear; trilinear filtering, anisotropy the option ``anisotropy`` (1: off); REPEAT and
+  CLAMP_TO_EDGE by the texture, MIRRORED_REPEAT folded in the shader; glTF samplers' min/mag
+  filters are not followed (always trilinear). The occlusion texture is not read yet.
+* Alpha: OPAQUE, MASK (discard below ``alphaCutoff``), BLEND (after the opaque primitives, sorted
+  back to front by the distance of each primitive's bounding-box centre, depth test without depth
+  writes, ``src alpha, 1 - src alpha``).
+* Point lights: unshadowed (``shadows`` is refused with this pipeline).
+
+API
+---
+:func:`draw_items` (the scene's primitives as vertex arrays and materials), :func:`raster_frame`
+(one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
+:data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`.
+
+References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
+specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pbrcheck.camera import camera_frame, tan_half_fov
+from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
+from pbrcheck.scene import Plane, Scene, plane_frame
+
+from .gl import ShaderCompileError, assemble, get_context, map_errors
+
+#: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
+VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
+VERTEX_FLOATS = 18
+#: (longitude, latitude) segments of a tessellated analytic sphere.
+SPHERE_SEGMENTS = (256, 128)
+#: Depth range: near = far x this (and at least the nearest vertex depth x 0.5 when positive).
+NEAR_FAR_RATIO = 1e-4
+#: Texture slots of raster.frag, in order: (glTF slot, sRGB).
+TEXTURE_SLOTS = (("baseColor", True), ("metallicRoughness", False), ("normal", False), ("emissive", True))
+#: First texture unit of the material textures (units 0-5 are the shading module's).
+MATERIAL_UNIT0 = 6
+TEXTURE_SLOTS_N = 4
+ALPHA_CODES = {"OPAQUE": 0, "MASK": 1, "BLEND": 2}
+
+_programs: dict = {}
+_textures: dict = {}
+
+
+@dataclass
+class DrawItem:
+    """One primitive to draw: vertices (N, 18) float32, triangles (T, 3) uint32, its material."""
+    object_id: int
+    name: str
+    vertices: np.ndarray
+    indices: np.ndarray
+    base_color: tuple = (1.0, 1.0, 1.0, 1.0)
+    metallic: float = 0.0
+    roughness: float = 0.5
+    specular: float = 0.04
+    emissive: tuple = (0.0, 0.0, 0.0)
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    cull: bool = True
+    flip_backface: bool = False
+    normal_scale: float = 1.0
+    textures: dict = field(default_factory=dict)   # slot -> (GltfImage, TextureRef, srgb)
+
+    @property
+    def centre(self) -> np.ndarray:
+        p = self.vertices[:, :3]
+        return 0.5 * (p.min(axis=0) + p.max(axis=0))
+
+
+def graphics_program(vert: str, frag: str, defines: dict | None = None, user: tuple[str, str] | None = None):
+    """Compiled (cached) vertex + fragment program (sources assembled as :func:`realtime.gl.assemble`)."""
+    key = (vert, frag, tuple(sorted((defines or {}).items())), user)
+    if key in _programs:
+        return _programs[key]
+    vs, fs = assemble(vert, defines), assemble(frag, defines, user)
+    try:
+        prog = get_context().program(vertex_shader=vs.text, fragment_shader=fs.text)
+    except Exception as e:
+        msg = str(e)
+        raise ShaderCompileError(f"{frag}: GLSL compile failed: {map_errors(msg, fs)}", user=user is not None) from None
+    _programs[key] = prog
+    return prog
+
+
+def _vertices(pos, nrm, tan=None, uv0=None, uv1=None, col=None) -> np.ndarray:
+    n = len(pos)
+    v = np.zeros((n, VERTEX_FLOATS), np.float32)
+    v[:, 0:3], v[:, 3:6] = pos, nrm
+    v[:, 6:10] = tan if tan is not None else (1.0, 0.0, 0.0, 1.0)
+    if uv0 is not None:
+        v[:, 10:12] = uv0
+    if uv1 is not None:
+        v[:, 12:14] = uv1
+    v[:, 14:18] = col if col is not None else 1.0
+    return v
+
+
+def tessellate_sphere(center, radius: float, segments=SPHERE_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+    """(positions, normals, triangles) of a UV sphere, counter-clockwise seen from outside."""
+    nu, nv = segments
+    th = np.linspace(0.0, math.pi, nv + 1)
+    ph = np.linspace(0.0, 2 * math.pi, nu + 1)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    n = np.stack([np.sin(T) * np.cos(P), np.cos(T), -np.sin(T) * np.sin(P)], axis=-1).reshape(-1, 3)
+    idx = np.arange((nv + 1) * (nu + 1)).reshape(nv + 1, nu + 1)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+    tri = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    # orient every triangle counter-clockwise seen from outside (drop the degenerate pole ones)
+    p = n * radius + np.asarray(center, float)
+    e = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
+    area = np.linalg.norm(e, axis=1)
+    keep = area > 1e-14 * radius * radius
+    tri = tri[keep]
+    outward = np.einsum("ij,ij->i", e[keep], n[tri].mean(axis=1)) > 0
+    tri[~outward] = tri[~outward][:, ::-1]
+    return p.astype(np.float32), n.astype(np.float32), tri.astype(np.uint32)
+
+
+def draw_items(scene: Scene) -> list[DrawItem]:
+    """Every object of ``scene`` as a :class:`DrawItem` (glTF primitives placed; analytic shapes tessellated)."""
+    out = []
+    for ob in scene.objects:
+        if getattr(ob, "type", "") == "mesh":
+            inst = scene.assets[ob.instance]
+            prim = inst.asset.primitives[ob.primitive]
+            m = inst.asset.material(ob.gltf_material) if ob.gltf_material >= 0 else inst.asset.material(-1)
+            M = inst.matrix()
+            A = M[:3, :3]
+            det = float(np.linalg.det(A))
+            pos = prim.positions.astype(np.float64) @ A.T + M[:3, 3]
+            nrm = prim.normals.astype(np.float64) @ np.linalg.inv(A)
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
+            tan = None
+            if prim.tangents is not None:
+                t = prim.tangents[:, :3].astype(np.float64) @ A.T
+                t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-30)
+                tan = np.concatenate([t, prim.tangents[:, 3:4] * (1.0 if det >= 0 else -1.0)], axis=1)
+            tri = prim.indices if det >= 0 else prim.indices[:, ::-1]
+            tex = {}
+            refs = m.textures()
+            for slot, srgb in TEXTURE_SLOTS:
+                ref = refs.get(slot)
+                if ref is not None:
+                    tex[slot] = (inst.asset.images[ref.image], ref, srgb)
+            out.append(DrawItem(
+                ob.id, ob.name, _vertices(pos, nrm, tan, prim.texcoords[0], prim.texcoords[1], prim.color),
+                np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
+                tuple(m.emissive), m.alpha_mode, m.alpha_cutoff, cull=not m.double_sided,
+                flip_backface=m.double_sided,
+                normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex))
+            continue
+        mat = ob.material
+        common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
+                      specular=mat.specular, cull=False, flip_backface=False)
+        if isinstance(ob, Plane):
+            t, b, n = (np.asarray(x, float) for x in plane_frame(ob.normal))
+            c = np.asarray(ob.center, float)
+            hx, hy = 0.5 * ob.size[0] * t, 0.5 * ob.size[1] * b
+            pos = np.array([c - hx - hy, c + hx - hy, c + hx + hy, c - hx + hy])
+            tri = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+            if np.dot(np.cross(pos[1] - pos[0], pos[2] - pos[0]), n) < 0:
+                tri = tri[:, ::-1].copy()
+            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, np.tile(n, (4, 1))), tri, **common))
+        else:
+            pos, nrm, tri = tessellate_sphere(ob.center, ob.radius)
+            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, nrm), tri, **common))
+    return out
+
+
+def _texture(image, ref, srgb: bool, anisotropy: float):
+    """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap)."""
+    key = (id(image), srgb, ref.wrap, anisotropy)
+    hit = _textures.get(key)
+    if hit is not None and hit[0] is image:
+        return hit[1]
+    ctx = get_context()
+    px = image.linear(srgb).astype(np.float16)
+    h, w = px.shape[:2]
+    tex = ctx.texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
+    tex.build_mipmaps()
+    tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR (trilinear)
+    tex.repeat_x = ref.wrap[0] != WRAP_CLAMP
+    tex.repeat_y = ref.wrap[1] != WRAP_CLAMP
+    if anisotropy > 1.0:
+        tex.anisotropy = float(anisotropy)
+    _textures[key] = (image, tex)
+    return tex
+
+
+def _white():
+    key = ("white",)
+    if key not in _textures:
+        _textures[key] = (None, get_context().texture((1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4"))
+    return _textures[key][1]
+
+
+def _set(prog, name, value):
+    """Set a uniform where the program has it (the AOV variant drops the shading inputs)."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, bytes):  # an array: the compiler may have shortened it to the elements read
+        n = getattr(u, "array_length", 1) or 1
+        u.write(value[:n * (len(value) // TEXTURE_SLOTS_N)] if name == "tex_xf" else value)
+    else:
+        u.value = value
+
+
+def _depth_range(items: list[DrawItem], origin, f) -> tuple[float, float]:
+    zs = [(it.vertices[:, :3].astype(np.float64) - origin) @ f for it in items]
+    z = np.concatenate(zs) if zs else np.array([1.0])
+    far = max(float(z.max()) * 1.01, 1e-3)
+    near = far * NEAR_FAR_RATIO
+    zmin = float(z.min())
+    if zmin > 0:
+        near = max(near, 0.5 * zmin)
+    return near, far
+
+
+def _set_camera(prog, scene: Scene, near: float, far: float):
+    r, u, f = camera_frame(scene.camera)
+    tx, ty = tan_half_fov(scene.camera)
+    _set(prog, "cam_origin", tuple(float(x) for x in scene.camera.origin))
+    _set(prog, "cam_r", tuple(float(x) for x in r))
+    _set(prog, "cam_u", tuple(float(x) for x in u))
+    _set(prog, "cam_f", tuple(float(x) for x in f))
+    _set(prog, "cam_tan", (float(tx), float(ty)))
+    _set(prog, "depth_ab", ((far + near) / (far - near), -2.0 * far * near / (far - near)))
+
+
+def _set_material(prog, it: DrawItem, anisotropy: float):
+    _set(prog, "base_factor", tuple(float(x) for x in it.base_color))
+    _set(prog, "metallic_factor", float(it.metallic))
+    _set(prog, "roughness_factor", float(it.roughness))
+    _set(prog, "specular_f0", float(it.specular))
+    _set(prog, "emissive_factor", tuple(float(x) for x in it.emissive))
+    _set(prog, "alpha_mode", ALPHA_CODES[it.alpha_mode])
+    _set(prog, "alpha_cutoff", float(it.alpha_cutoff))
+    _set(prog, "normal_scale", float(it.normal_scale))
+    _set(prog, "flip_backface", int(it.flip_backface))
+    _set(prog, "object_id", float(it.object_id))
+    has, sets, mirror, xf = [], [], [], []
+    for k, ((slot, _), name) in enumerate(zip(TEXTURE_SLOTS, ("tex_base", "tex_mr", "tex_normal", "tex_emissive"))):
+        entry = it.textures.get(slot)
+        unit = MATERIAL_UNIT0 + k
+        if entry is None:
+            _white().use(unit)
+            has.append(0), sets.append(0), mirror.append(0), xf.append(np.eye(3))
+        else:
+            image, ref, srgb = entry
+            _texture(image, ref, srgb, anisotropy).use(unit)
+            has.append(1), sets.append(int(ref.texcoord))
+            mirror.append(int(ref.wrap[0] == WRAP_MIRROR) | 2 * int(ref.wrap[1] == WRAP_MIRROR))
+            xf.append(np.asarray(ref.transform, float).reshape(3, 3) if ref.transform else np.eye(3))
+        _set(prog, name, unit)
+    _set(prog, "tex_has", tuple(has))
+    _set(prog, "tex_set", tuple(sets))
+    _set(prog, "tex_mirror", tuple(mirror))
+    # GLSL mat3 is column-major: write the transposes of the row-major matrices
+    _set(prog, "tex_xf", np.ascontiguousarray(np.stack([m.T for m in xf]), np.float32).tobytes())
+
+
+def _vaos(prog, items: list[DrawItem]):
+    ctx = get_context()
+    out = []
+    for it in items:
+        vbo = ctx.buffer(np.ascontiguousarray(it.vertices, np.float32).tobytes())
+        ibo = ctx.buffer(np.ascontiguousarray(it.indices, np.uint32).tobytes())
+        names = [n for n in VERTEX_LAYOUT[1:] if n in prog]
+        fmt = " ".join(f if n in names else f[0] + "x4" for f, n in zip(VERTEX_LAYOUT[0].split(), VERTEX_LAYOUT[1:]))
+        out.append((ctx.vertex_array(prog, [(vbo, fmt, *names)], ibo, index_element_size=4), vbo, ibo))
+    return out
+
+
+def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
+                 anisotropy: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Draw one frame: ``(color (H, W, 4) = radiance, coverage; aov (H, W, 4) = N, NdotV; object (H, W))``.
+
+    ``color_prog`` has the shading inputs bound by the caller; the background program its
+    environment. The colour pass runs at (ss W, ss H) and is box-filtered to (W, H)."""
+    import moderngl
+    ctx = get_context()
+    W, H = scene.camera.width, scene.camera.height
+    r, u, f = camera_frame(scene.camera)
+    origin = np.asarray(scene.camera.origin, float)
+    near, far = _depth_range(items, origin, np.asarray(f, float))
+    opaque = [it for it in items if it.alpha_mode != "BLEND"]
+    blend = sorted((it for it in items if it.alpha_mode == "BLEND"),
+                   key=lambda it: -float(np.linalg.norm(it.centre - origin)))
+    released = []
+    try:
+        # colour pass
+        sw, sh = W * ss, H * ss
+        col = ctx.texture((sw, sh), 4, dtype="f4")
+        depth = ctx.depth_renderbuffer((sw, sh))
+        fbo = ctx.framebuffer(color_attachments=[col], depth_attachment=depth)
+        released += [fbo, col, depth]
+        fbo.use()
+        fbo.viewport = (0, 0, sw, sh)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        for p in (color_prog, aov_prog, bg_prog):
+            _set_camera(p, scene, near, far)
+        _set(bg_prog, "target_size", (float(sw), float(sh)))
+        empty = ctx.vertex_array(bg_prog, [])
+        released.append(empty)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+        empty.render(moderngl.TRIANGLES, vertices=3)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.front_face = "ccw"
+        ctx.cull_face = "back"
+        vaos = _vaos(color_prog, opaque + blend)
+        for v in vaos:
+            released.extend(v)
+        for it, (vao, _, _) in zip(opaque + blend, vaos):
+            if it.alpha_mode == "BLEND":
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                                  moderngl.ONE_MINUS_SRC_ALPHA)
+                fbo.depth_mask = False
+            if it.cull:
+                ctx.enable(moderngl.CULL_FACE)
+            else:
+                ctx.disable(moderngl.CULL_FACE)
+            _set_material(color_prog, it, anisotropy)
+            vao.render(moderngl.TRIANGLES)
+        fbo.depth_mask = True
+        ctx.disable(moderngl.BLEND)
+        color = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]
+        color = color.reshape(H, ss, W, ss, 4).mean(axis=(1, 3))
+        # AOV pass at the pixel centres
+        aov_t = ctx.texture((W, H), 4, dtype="f4")
+        obj_t = ctx.texture((W, H), 4, dtype="f4")
+        depth2 = ctx.depth_renderbuffer((W, H))
+        fbo2 = ctx.framebuffer(color_attachments=[aov_t, obj_t], depth_attachment=depth2)
+        released += [fbo2, aov_t, obj_t, depth2]
+        fbo2.use()
+        fbo2.viewport = (0, 0, W, H)
+        fbo2.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        vaos2 = _vaos(aov_prog, items)
+        for v in vaos2:
+            released.extend(v)
+        for it, (vao, _, _) in zip(items, vaos2):
+            if it.cull:
+                ctx.enable(moderngl.CULL_FACE)
+            else:
+                ctx.disable(moderngl.CULL_FACE)
+            _set_material(aov_prog, it, anisotropy)
+            vao.render(moderngl.TRIANGLES)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        aov = np.frombuffer(fbo2.read(components=4, dtype="f4", attachment=0), np.float32).reshape(H, W, 4)[::-1].copy()
+        obj4 = np.frombuffer(fbo2.read(components=4, dtype="f4", attachment=1), np.float32).reshape(H, W, 4)[::-1]
+        covered = obj4[..., 3] > 0.5
+        obj = np.where(covered, obj4[..., 0], -1.0).astype(np.float32)
+        return np.ascontiguousarray(color, np.float32), aov, obj
+    finally:
+        for g in released:
+            try:
+                g.release()
+            except Exception:
+                pass

@@ -1,0 +1,100 @@
+// raster.frag: pass "raster". Shades the rasterized surface with shading.glsl's shade(), included
+// unchanged (every preset, option, hook and energy compensation applies), plus glTF 2.0's material
+// inputs (Khronos glTF 2.0 specification, section 3.9): base colour = factor x texture (sRGB
+// decoded at upload) x COLOR_0; metallic = factor x texture.B, roughness = factor x texture.G;
+// normal = normalize(TBN ((2 t - 1) (scale, scale, 1))) with B = w cross(N, T) (MikkTSpace frame,
+// the loader's tangents); emissive = factor x texture (sRGB), added to the outgoing radiance;
+// alpha = base colour's alpha: MASK discards below alpha_cutoff, BLEND writes (radiance, alpha)
+// for the host's blending. Double-sided back faces flip N, T and B (spec 3.9.5).
+// AOV_PASS (a #define): writes the interpolated geometric normal, its n.v and the object id at
+// the pixel centre instead of shading.
+#include "env.glsl"
+#include "shading.glsl"
+
+in vec3 v_pos;
+in vec3 v_nrm;
+in vec4 v_tan;
+in vec2 v_uv0;
+in vec2 v_uv1;
+in vec4 v_col;
+
+uniform vec3 cam_origin;
+uniform vec4 base_factor;
+uniform float metallic_factor;
+uniform float roughness_factor;
+uniform float specular_f0;        // dielectric F0 from the ior
+uniform vec3 emissive_factor;
+uniform int alpha_mode;           // 0 OPAQUE, 1 MASK, 2 BLEND
+uniform float alpha_cutoff;
+uniform float normal_scale;
+uniform int flip_backface;        // glTF doubleSided: back faces shade with the flipped frame
+uniform float object_id;
+
+// Texture slots: 0 baseColor, 1 metallicRoughness, 2 normal, 3 emissive.
+uniform sampler2D tex_base;
+uniform sampler2D tex_mr;
+uniform sampler2D tex_normal;
+uniform sampler2D tex_emissive;
+uniform ivec4 tex_has;            // per slot: 1 when the material has the texture
+uniform ivec4 tex_set;            // per slot: TEXCOORD_n
+uniform mat3 tex_xf[4];           // per slot: KHR_texture_transform (identity when absent)
+uniform ivec4 tex_mirror;         // per slot: bit 0 S, bit 1 T mirrored repeat (folded here)
+
+#if AOV_PASS
+layout(location = 0) out vec4 out_aov;     // N.xyz, NdotV
+layout(location = 1) out vec4 out_obj;     // object id, 0, 0, 1 (covered)
+#else
+layout(location = 0) out vec4 out_color;   // radiance, alpha (coverage)
+#endif
+
+// No shadow rays in the raster pipeline (option shadows is refused with it).
+bool occluded(vec3 p, vec3 l, float dist) { return false; }
+
+float fold(float x) { return 1.0 - abs(mod(x, 2.0) - 1.0); }
+
+// Trilinear (and anisotropic where the texture has it) lookup of slot k, derivatives of the
+// unfolded coordinates so the mip level does not jump at a mirror fold.
+vec4 slot(sampler2D t, int k, vec4 fallback) {
+    if (tex_has[k] == 0) return fallback;
+    vec2 uv = tex_set[k] == 0 ? v_uv0 : v_uv1;
+    uv = (tex_xf[k] * vec3(uv, 1.0)).xy;
+    vec2 dx = dFdx(uv), dy = dFdy(uv);
+    if ((tex_mirror[k] & 1) != 0) uv.x = fold(uv.x);
+    if ((tex_mirror[k] & 2) != 0) uv.y = fold(uv.y);
+    return textureGrad(t, uv, dx, dy);
+}
+
+void main() {
+    vec4 base = base_factor * slot(tex_base, 0, vec4(1.0)) * v_col;
+    if (alpha_mode == 1 && base.a < alpha_cutoff) discard;
+    vec3 N = normalize(v_nrm);
+    bool back = !gl_FrontFacing && flip_backface != 0;
+    if (back) N = -N;
+    vec3 v = normalize(cam_origin - v_pos);
+#if AOV_PASS
+    out_aov = vec4(N, max(dot(N, v), 0.0));
+    out_obj = vec4(object_id, 0.0, 0.0, 1.0);
+#else
+    vec3 n = N;
+    if (tex_has[2] != 0) {
+        vec3 T = v_tan.xyz - dot(v_tan.xyz, N) * N;
+        if (back) T = -T;
+        float lt = length(T);
+        if (lt > 1e-8) {
+            T /= lt;
+            vec3 B = (back ? -v_tan.w : v_tan.w) * cross(N, T);
+            vec3 tn = slot(tex_normal, 2, vec4(0.5, 0.5, 1.0, 1.0)).xyz * 2.0 - 1.0;
+            tn.xy *= normal_scale;
+            n = normalize(mat3(T, B, N) * tn);
+        }
+    }
+    vec4 mr = slot(tex_mr, 1, vec4(1.0));
+    float metallic = clamp(metallic_factor * mr.b, 0.0, 1.0);
+    float roughness = clamp(roughness_factor * mr.g, 0.0, 1.0);
+    uvec2 px = uvec2(gl_FragCoord.xy);
+    uint seed = px.y * 65536u + px.x;
+    vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0), seed);
+    radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;
+    out_color = vec4(radiance, alpha_mode == 2 ? base.a : 1.0);
+#endif
+}
