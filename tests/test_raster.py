@@ -1,0 +1,153 @@
+"""The raster pipeline (realtime/raster.py): glTF meshes drawn with the shading module of the
+ray-cast pass, against known answers built here (textured quads, a tessellated sphere)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pbrcheck import cli
+from pbrcheck.gltf import srgb_to_linear
+from pbrcheck.gltf_export import mesh_object_ids
+from pbrcheck.gltf_scene import UnsupportedSceneError
+from pbrcheck.scene import load_scene, scene_from_dict
+from realtime.render import render_realtime
+
+from gltf_build import quad_asset, quad_scene
+
+SMALL = {"cube_size": 32, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 4,
+         "prefilter_samples": 64, "lut_size": 16, "lut_samples": 256, "supersample": 1}
+#: A constant texture against the same factor: the texture is RGBA16F (relative step 2^-11), its
+#: sRGB decode the loader's in float32.
+TEXTURE_FACTOR_RTOL = 2e-3
+#: Raster of the 256 x 128 UV sphere against the ray-cast sphere, pixels covered in both and not on
+#: the silhouette: interpolated normals of the tessellation (measured max 0.3 %).
+SPHERE_RTOL = 0.01
+#: Pixels whose object id may differ from the numpy pixel-centre rasterizer (ties on shared edges).
+EDGE_TIES = 0.01
+
+
+def _render(scene_path, **opts):
+    return render_realtime(load_scene(str(scene_path)), "default", {**SMALL, **opts}, progress=False)
+
+
+def test_constant_texture_equals_its_factor(tmp_path):
+    c = np.array([200, 100, 50], np.uint8)
+    px = np.zeros((8, 8, 4), np.uint8)
+    px[..., :3], px[..., 3] = c, 255
+    mr = np.zeros((4, 4, 3), np.uint8)
+    mr[..., 1], mr[..., 2] = 128, 255          # roughness 128/255, metallic 1 (x factors below)
+    tex = quad_asset(tmp_path / "t.gltf", {"pbrMetallicRoughness": {
+        "baseColorTexture": {"index": 0}, "metallicRoughnessTexture": {"index": 1},
+        "metallicFactor": 0.5, "roughnessFactor": 1.0}}, [(px, None), (mr, None)])
+    lin = [float(x) for x in srgb_to_linear(c.astype(np.float32) / 255.0)]
+    fac = quad_asset(tmp_path / "f.gltf", {"pbrMetallicRoughness": {
+        "baseColorFactor": [*lin, 1.0], "metallicFactor": 0.5, "roughnessFactor": 128 / 255}})
+    env = "[0.5, 0.8, 1.0]"
+    a = _render(quad_scene(tmp_path, tex, env=env, name="a.toml"))
+    b = _render(quad_scene(tmp_path, fac, env=env, name="b.toml"))
+    assert a.meta["pipeline"] == "raster"
+    m = a.channels["coverage"] == 1
+    assert m.mean() > 0.3
+    assert np.allclose(a.rgb[m], b.rgb[m], rtol=TEXTURE_FACTOR_RTOL, atol=0)
+    assert np.array_equal(a.channels["coverage"], b.channels["coverage"])
+
+
+def test_texture_rows_top_down_and_mask_cut_out(tmp_path):
+    """UV (0, 0) is the texture's top-left: its top half (red, opaque) lands on the image's top rows;
+    the bottom half (alpha 0) is cut out by MASK."""
+    px = np.zeros((8, 8, 4), np.uint8)
+    px[:4] = (255, 0, 0, 255)
+    px[4:] = (0, 0, 255, 0)
+    q = quad_asset(tmp_path / "m.gltf", {"alphaMode": "MASK", "alphaCutoff": 0.5, "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}, [(px, None)])
+    img = _render(quad_scene(tmp_path, q, size=(32, 32), fov=60.0), supersample=2)  # quad: rows 9-23
+    cov, obj = img.channels["coverage"], img.channels["object"]
+    col = 16
+    assert cov[12, col] == 1 and obj[12, col] == 0          # top half of the quad: kept
+    assert img.channels["R"][12, col] > 2 * img.channels["B"][12, col]
+    assert cov[20, col] == 0 and obj[20, col] == -1         # bottom half: cut out
+    assert cov[2, col] == 0 and obj[2, col] == -1           # background above the quad
+
+
+def _placed_scene(tmp_path, asset, double_sided_rot=30.0):
+    p = tmp_path / "placed.toml"
+    p.write_text(f"""
+[camera]
+origin = [0.4, 0.9, 4.0]
+target = [0.0, 0.0, 0.0]
+fov = 35.0
+width = 48
+height = 36
+
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+
+[[objects]]
+type = "gltf"
+path = "{asset.name}"
+translation = [0.3, -0.2, 0.0]
+rotation = [10.0, {double_sided_rot}, 5.0]
+""")
+    return p
+
+
+def test_object_ids_on_the_pixels_of_the_reference_camera(tmp_path):
+    """The object AOV equals the numpy pixel-centre rasterizer of the reference's camera."""
+    q = quad_asset(tmp_path / "q.gltf", {"doubleSided": True})
+    sc = load_scene(str(_placed_scene(tmp_path, q)))
+    img = render_realtime(sc, "default", SMALL, progress=False)
+    H, W = img.channels["object"].shape
+    ids = np.full((H, W), -1.0)
+    mesh_object_ids(sc, ids, np.full((H, W), np.inf))
+    assert (ids >= 0).mean() > 0.2
+    assert (img.channels["object"] != ids).mean() <= EDGE_TIES
+
+
+def test_back_faces_culled_unless_double_sided(tmp_path):
+    one = quad_asset(tmp_path / "one.gltf", {})
+    two = quad_asset(tmp_path / "two.gltf", {"doubleSided": True})
+    a = render_realtime(load_scene(str(_placed_scene(tmp_path, one, 180.0))), "default", SMALL, progress=False)
+    assert a.channels["coverage"].max() == 0 and a.channels["object"].max() == -1
+    b = render_realtime(load_scene(str(_placed_scene(tmp_path, two, 180.0))), "default", SMALL, progress=False)
+    m = b.channels["coverage"] == 1
+    assert m.mean() > 0.2 and np.all(b.channels["NdotV"][b.channels["object"] == 0] > 0)
+
+
+def test_tessellated_sphere_matches_the_ray_cast_sphere():
+    sc = scene_from_dict({
+        "camera": {"origin": [0.0, 0.5, 4.0], "target": [0.0, 0.0, 0.0], "fov": 35.0, "width": 40, "height": 32},
+        "environment": {"type": "constant", "radiance": [0.6, 0.7, 0.8]},
+        "lights": [{"position": [2.0, 3.0, 2.0], "intensity": [8.0, 8.0, 8.0]}],
+        "objects": [{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.3, 0.2], "metallic": 0.0, "roughness": 0.4}}]})
+    ray = render_realtime(sc, "default", SMALL, progress=False)
+    ras = render_realtime(sc, "default", {**SMALL, "pipeline": "raster"}, progress=False)
+    assert ray.meta["pipeline"] == "raycast" and ras.meta["pipeline"] == "raster"
+    c1, c2 = ray.channels["coverage"], ras.channels["coverage"]
+    inner = (c1 == 1) & (c2 == 1)
+    # away from the silhouette: the 4-neighbours covered too
+    inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
+    assert inner.mean() > 0.2
+    assert np.allclose(ras.rgb[inner], ray.rgb[inner], rtol=SPHERE_RTOL, atol=0)
+    assert np.array_equal(ray.channels["object"][inner], ras.channels["object"][inner])
+    assert (np.abs(c1 - c2) > 0).mean() < 0.1     # only silhouette pixels differ in coverage
+
+
+def test_raycast_pipeline_refuses_meshes(tmp_path):
+    q = quad_asset(tmp_path / "q.gltf", {})
+    with pytest.raises(UnsupportedSceneError, match="pipeline=raycast"):
+        _render(quad_scene(tmp_path, q), pipeline="raycast")
+
+
+def test_cli_realtime_renders_an_asset(tmp_path, capsys):
+    q = quad_asset(tmp_path / "q.glb".replace(".glb", ".gltf"), {"emissiveFactor": [0.5, 0.0, 0.0]})
+    out = tmp_path / "r.exr"
+    args = ["realtime", str(q), "--size", "16x12", "--out", str(out)]
+    for k, v in SMALL.items():
+        args += ["--set", f"{k}={v}"]
+    assert cli.main(args) == 0 and out.is_file()
+    assert cli.main(args[:-2] + ["--out", str(tmp_path / "x.exr"), "--set", "pipeline=raycast"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "pipeline=raycast" in err[-1] and not (tmp_path / "x.exr").exists()
