@@ -81,11 +81,11 @@ def test_import_scenario_bad_input_is_one_line_exit_2(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "model" in err and not out.exists()
 
 
-def test_realtime_preset_on_an_asset_scene_is_one_line(tmp_path, capsys):
+def test_raycast_pipeline_on_an_asset_scene_is_one_line(tmp_path, capsys):
     p = quad_asset(tmp_path / "q.gltf", {})
-    assert cli.main(["realtime", str(p), "--out", str(tmp_path / "r.exr")]) == 2
+    assert cli.main(["realtime", str(p), "--set", "pipeline=raycast", "--out", str(tmp_path / "r.exr")]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "raster pipeline" in err and not (tmp_path / "r.exr").exists()
+    assert len(err.splitlines()) == 1 and "pipeline=raycast" in err and not (tmp_path / "r.exr").exists()
 
 
 @pytest.mark.slow
@@ -109,16 +109,11 @@ def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_c
     assert (a[chroma] == b[chroma]).mean() > 0.97
 
 
-def test_gate_skips_realtime_presets_on_asset_scenes_and_says_why(tmp_path, capsys):
-    quad_asset(tmp_path / "q.gltf", {})
-    b = tmp_path / "budget.toml"
-    b.write_text('[[check]]\nname = "asset-default"\nscene = "q.gltf"\npreset = "default"\n'
-                 'reference = "auto"\n[check.max]\nrelmse = 0.1\n')
-    junit = tmp_path / "junit.xml"
-    assert cli.main(["gate", str(b), "--junit", str(junit)]) == 0
-    out = capsys.readouterr().out
-    assert "skip asset-default" in out and "raster pipeline" in out and "1 skipped" in out
-    assert "<skipped" in junit.read_text()
+def test_realtime_presets_are_kept_on_asset_scenes(tmp_path):
+    """Report, gate and corpus keep every preset on an asset scene (the raster pipeline draws it)."""
+    from pbrcheck.gltf_scene import split_presets
+    sc = load_scene(str(quad_asset(tmp_path / "q.gltf", {})))
+    assert split_presets(sc, ["default", "filament", "ext:threejs"]) == (["default", "filament", "ext:threejs"], [])
 
 
 # Relative difference allowed between the analytic reference and its exported-and-read-back
@@ -151,25 +146,6 @@ def test_analytic_scene_exported_and_read_back_renders_the_same_reference(tmp_pa
     assert m.mean() > 0.5
     sd = np.sqrt(a.variance + b.variance)
     assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])
-
-
-def test_corpus_with_only_realtime_presets_on_an_asset_scene_is_one_line(tmp_path, capsys):
-    p = quad_asset(tmp_path / "q.gltf", {})
-    env = tmp_path / "envs"
-    env.mkdir()
-    out = tmp_path / "corpus"
-    assert cli.main(["corpus", str(env), "--scene", str(p), "--presets", "default", "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "skipping default" in err and err.strip().splitlines()[-1].count("raster pipeline") == 1
-    assert not out.exists()
-
-
-def test_sweep_on_an_asset_scene_is_one_line_nothing_written(tmp_path, capsys):
-    p = quad_asset(tmp_path / "q.gltf", {})
-    out = tmp_path / "sweep"
-    assert cli.main(["sweep", str(p), "--vary", "cube_size=32,64", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "raster pipeline" in err and not out.exists()
 
 
 def test_per_material_metrics_of_an_asset_scene(tmp_path):

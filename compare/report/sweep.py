@@ -17,7 +17,6 @@ from pathlib import Path
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.gltf_scene import require_analytic
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
 from pbrcheck.scene import load_scene
@@ -203,7 +202,6 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
         raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
                          f"got {spp}")
     scene = load_scene(scene_arg)
-    require_analytic(scene, f"sweep of the real-time preset {preset}")  # before any render or write
     for combo in combinations(vary):  # every option and value is checked before rendering
         renderers.resolve_options(preset, combo)
     also = list(also or [])
