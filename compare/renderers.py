@@ -59,7 +59,8 @@ def render_reference(scene: Scene, **kwargs) -> Image:
     return img
 
 
-def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False) -> Image:
+def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False,
+                      use_cache: bool = True) -> Image:
     """Render ``scene`` with the renderer under test ``name``.
 
     Parameters
@@ -72,6 +73,9 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
         Option overrides (``--set key=value``), validated by the renderer.
     progress : bool, optional
         Show progress on stderr.
+    use_cache : bool, optional
+        False: render afresh even where a cache would serve the image (an external renderer's
+        render cache, :func:`realtime_cache`): the gate's run-to-run spread.
 
     Returns
     -------
@@ -89,8 +93,8 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
             fut = futures.pop(_prefetch_key(scene, name), None)
             if fut is not None:  # rendered (or being rendered) in the background: its result or error
                 return fut.result()
-        return _clients.render_external(scene, name, progress=progress)
-    if _CACHE_REALTIME[0]:
+        return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
+    if _CACHE_REALTIME[0] and use_cache:
         img = _realtime_cache.render_cached(scene, name, options, progress=progress)
         CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
         return img

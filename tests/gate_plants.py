@@ -1,0 +1,127 @@
+"""Planted regressions of the gate's own test suite (tests/test_gate_plants.py, docs/compare.md).
+
+Each plant is a change of the real-time default preset of a size users care about, made through a
+shader hook (docs/hooks.md), an option, or a scene edit (the renderer under test sees the edited
+scene, the reference does not): the gate must call it ``regressed`` or ``changed`` against baselines
+accepted from the unchanged tree on the CI scenes (compare/budgets/spheres_ci.toml, furnace_ci.toml
+with their committed references), and a real improvement (the fitted LOD mapping of
+reports/research/fit_lod.json) ``improved``.
+
+API: :data:`PLANTS`, :data:`IMPROVEMENT`, :func:`base_budget`, :func:`accept_baselines`, :func:`plant_budget`.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pbrcheck.exr import write_exr
+from pbrcheck.scene import load_scene, scene_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+BUDGETS = ROOT / "compare" / "budgets"
+#: The CI scenes, their committed references and ci.toml's budgets of the default preset.
+SCENES = {"spheres": ("spheres_ci.toml", "refs/spheres_ci.exr", {"relmse": 0.0023, "flip_mean": 0.074, "delta_e_itp_mean": 3}),
+          "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 0.00031, "flip_mean": 0.0078, "delta_e_itp_mean": 1.1})}
+
+
+def _lod(shift: float) -> str:
+    return ("float hook_lod(float roughness, float max_lod, float cube_log2) {\n"
+            f"    return clamp(lod_from_roughness(roughness, max_lod, cube_log2) + ({shift}), 0.0, max_lod);\n}}\n")
+
+
+@dataclass
+class Plant:
+    """One planted change: ``shader`` hook text, ``options`` or a ``scene_edit`` (a function of the
+    scene's dict), and the verdicts that count as caught."""
+    name: str
+    how: str
+    shader: str | None = None
+    options: dict = field(default_factory=dict)
+    scene_edit: object = None
+    caught: tuple = ("regressed", "changed")
+    preset: str = "default"
+
+
+def _rotate(d: dict) -> dict:
+    d = json.loads(json.dumps(d))
+    d["environment"]["rotation"] = d["environment"].get("rotation", 0.0) + 1.0
+    return d
+
+
+PLANTS = [
+    Plant("diffuse x0.99", "hook_diffuse_ibl",
+          shader="vec3 hook_diffuse_ibl(vec3 n) { return 0.99 * textureLod(irradiance_cube, n, 0.0).rgb; }\n"),
+    Plant("diffuse x1.01", "hook_diffuse_ibl",
+          shader="vec3 hook_diffuse_ibl(vec3 n) { return 1.01 * textureLod(irradiance_cube, n, 0.0).rgb; }\n"),
+    Plant("DFG x0.99", "hook_dfg",
+          shader="vec2 hook_dfg(float NoV, float roughness) { return 0.99 * dfg_lookup(dfg_lut, NoV, roughness); }\n"),
+    Plant("LOD +0.1 mip", "hook_lod", shader=_lod(0.1)),
+    Plant("LOD -0.1 mip", "hook_lod", shader=_lod(-0.1)),
+    Plant("prefilter 1024 -> 64 samples", "option prefilter_samples=64", options={"prefilter_samples": 64}),
+    Plant("LUT at 8 samples", "option lut_samples=8", options={"lut_samples": 8}),
+    Plant("F90 0.97", "hook_dfg (B x 0.97) + hook_F",
+          shader="vec2 hook_dfg(float NoV, float roughness) {\n    vec2 ab = dfg_lookup(dfg_lut, NoV, roughness);\n"
+                 "    return vec2(ab.x, 0.97 * ab.y);\n}\n"
+                 "vec3 hook_F(float VoH, vec3 F0) { return F0 + (vec3(0.97) - F0) * pow(1.0 - VoH, 5.0); }\n"),
+    Plant("environment rotated 1 deg", "scene edit: environment.rotation += 1", scene_edit=_rotate),
+]
+#: A real improvement: the fitted LOD mapping (pbrcheck fit-lod's, committed in reports/research).
+IMPROVEMENT = Plant("fitted LOD mapping", "option lod_mapping=fitted:reports/research/fit_lod.json",
+                    options={"lod_mapping": "fitted:" + str(ROOT / "reports" / "research" / "fit_lod.json")},
+                    caught=("improved",))
+
+
+def _check(name, scene, ref, budgets, extra: str) -> str:
+    mx = "\n".join(f"{k} = {v}" for k, v in budgets.items())
+    return (f'[[check]]\nname = "{name}"\nscene = "{scene}"\nreference = "{ref}"\n{extra}[check.max]\n{mx}\n\n')
+
+
+def base_budget(folder: Path, preset: str = "default", scenes=("spheres", "furnace")) -> Path:
+    """The unchanged tree's budget of ``preset`` on the CI scenes, in ``folder``."""
+    text = "".join(_check(f"{s}-{preset}", BUDGETS / SCENES[s][0], BUDGETS / SCENES[s][1], SCENES[s][2],
+                          f'preset = "{preset}"\n') for s in scenes)
+    p = Path(folder) / "base.toml"
+    p.write_text(text)
+    return p
+
+
+def accept_baselines(folder: Path, preset: str = "default", scenes=("spheres", "furnace")) -> Path:
+    """Accept the unchanged tree's baselines into ``folder/baselines``; returns the budget."""
+    from compare.gate import run_gate
+
+    b = base_budget(folder, preset, scenes)
+    rc = run_gate(b, accept_reason="unchanged tree", progress=False, stream=io.StringIO())
+    assert rc == 0
+    return b
+
+
+def plant_budget(folder: Path, plant: Plant, scenes=("spheres", "furnace")) -> Path:
+    """A budget in ``folder`` (beside the accepted baselines) whose checks render with ``plant``."""
+    from compare import renderers
+
+    folder = Path(folder)
+    safe = "".join(c if c.isalnum() else "_" for c in plant.name)
+    text = ""
+    for s in scenes:
+        scene_file, ref, budgets = SCENES[s]
+        if plant.scene_edit is not None:
+            d = json.loads(json.dumps(load_scene(BUDGETS / scene_file).to_dict()))
+            edited = scene_from_dict(plant.scene_edit(d))
+            img = renderers.render_under_test(edited, plant.preset, plant.options or None)
+            test = write_exr(folder / f"{safe}-{s}.exr", img)
+            text += _check(f"{s}-{plant.preset}", BUDGETS / scene_file, BUDGETS / ref, budgets, f'test = "{test}"\n')
+            continue
+        extra = f'preset = "{plant.preset}"\n'
+        if plant.shader:
+            hook = folder / f"{safe}.glsl"
+            hook.write_text(plant.shader)
+            extra += f'shader = "{hook}"\n'
+        if plant.options:
+            extra += "options = { " + ", ".join(f"{k} = {json.dumps(v)}" for k, v in plant.options.items()) + " }\n"
+        text += _check(f"{s}-{plant.preset}", BUDGETS / scene_file, BUDGETS / ref, budgets, extra)
+    p = folder / f"{safe}.toml"
+    p.write_text(text)
+    return p
