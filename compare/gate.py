@@ -137,7 +137,7 @@ def _bounds(file, where, t) -> dict[str, float]:
         if k not in METRICS:
             raise _err(file, f"{where}.{k}", "a metric name (" + ", ".join(METRICS) + ")", k)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise _err(file, f"{where}.{k}", "a finite number >= 0", v)
+            raise _err(file, f"{where}.{k}", "a number, finite and >= 0", v)
         out[k] = float(v)
     return out
 
