@@ -655,6 +655,7 @@ def _accept_one(r: Result, base: Path, staging: Path, reason: str, date: str, pr
     probe = None
     if c.test is None:
         for _ in range(SPREAD_RUNS - 1):
+            renderers.trim_caches(0)  # every run bakes its environment afresh
             images.append(renderers.render_under_test(scene, c.preset, c.options or None, progress=progress,
                                                       use_cache=False).rgb)
         if _takes_hooks(c):
