@@ -448,7 +448,29 @@ def change_lines(r: Result, budget_path: str = "BUDGET.toml") -> list[str]:
         out.append(f"     ... and {len(rows) - NAMED_REGIONS} more region(s)")
     if r.likely:
         out.append(f"     likely term: {r.likely}")
+    out += [f"     note: {n}" for n in provenance_changes(r)]
     return out
+
+
+def provenance_changes(r: Result) -> list[str]:
+    """What made the baseline and differs now (GL renderer, client version, shader sources, hook
+    file): a change may come from the machine, not the shaders."""
+    if r.baseline is None or r.test_image is None:
+        return []
+    rec, meta, out = r.baseline.record, r.test_image.meta, []
+    for key, what in (("gl_renderer", "GL renderer"), ("version", "renderer version")):
+        if rec.get(key) and meta.get(key) and rec[key] != meta[key]:
+            out.append(f"the baseline was made with {what} {rec[key]!r}, this run used {meta[key]!r}")
+    if rec.get("shader_sources_sha256") and meta.get("renderer") == "realtime":
+        from .baseline import shader_sources_hash
+
+        if shader_sources_hash() != rec["shader_sources_sha256"]:
+            out.append("the real-time shader sources changed since the baseline was accepted")
+    hook = json.loads(meta["shader"]) if meta.get("shader") else None
+    old = rec.get("hook") or None
+    if (hook or {}).get("sha256") != (old or {}).get("sha256"):
+        out.append("the shader hook file differs from the baseline's" if hook or old else "")
+    return [x for x in out if x]
 
 
 def _check_line(r: Result) -> str:

@@ -209,3 +209,20 @@ def test_zero_budget_noise_note_does_not_crash():
     r.budget_noise = budget_noise(c, {"simulated": {"relmse": 1e-4}}, 64)
     assert math.isinf(r.budget_noise[0]["spp_needed"])
     assert "a budget of 0" in noise_note(r)
+
+
+def test_a_change_names_a_different_renderer_version(gate_dir, capsys):
+    import json
+
+    t = under_test()
+    t.meta["version"] = "engine 1.0"
+    write_exr(gate_dir / "test.exr", t)
+    assert accept(gate_dir) == 0
+    rec = json.loads((gate_dir / "baselines" / "synthetic.json").read_text())
+    assert rec["version"] == "engine 1.0"
+    t = under_test(1.06, 1.0)
+    t.meta["version"] = "engine 2.0"
+    write_exr(gate_dir / "test.exr", t)
+    capsys.readouterr()
+    assert gate(gate_dir) == 1
+    assert "baseline was made with renderer version 'engine 1.0', this run used 'engine 2.0'" in capsys.readouterr().out
