@@ -45,12 +45,15 @@ test: setup test-packages
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer).
+# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer):
+# accuracy against the references and change against the accepted baselines (compare/budgets/baselines/;
+# accept an intended change with `pbrcheck gate BUDGET.toml --accept --reason "..."`).
 gate: setup
 	@rc=0; \
-	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md || rc=$$?; \
+	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md \
+		--html out/ci/gate-html || rc=$$?; \
 	$(VENV)/bin/pbrcheck gate compare/budgets/clients.toml --junit out/ci/gate-clients-junit.xml \
-		--summary out/ci/gate-clients-summary.md || { r=$$?; [ $$r -gt $$rc ] && rc=$$r; }; \
+		--summary out/ci/gate-clients-summary.md --html out/ci/gate-clients-html || { r=$$?; [ $$r -gt $$rc ] && rc=$$r; }; \
 	exit $$rc
 
 bench: setup
