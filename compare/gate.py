@@ -17,16 +17,39 @@ Budget format (TOML; see docs/compare.md)::
     [check.min]                      # optional: metric = smallest allowed value (e.g. psnr)
     psnr = 30
 
-Outcome per check: ``pass``, ``fail`` (a metric outside its budget) or ``error`` (missing or
-unreadable image, size mismatch, NaN, bad scene...). Trusted verdicts: a budget is trusted when it
+Top level (optional): ``require_baselines = true`` (a check without an accepted baseline is an
+error), ``on_change = "fail" | "pass"`` (also per check), ``[[history]]`` (appended by ``--accept``).
+
+Each check is measured twice: (a) accuracy against the reference: ``pass`` or ``fail`` (a metric
+outside its budget) as before; (b) change against its accepted baseline (:mod:`compare.baseline`:
+``baselines/<check>.exr`` + ``.json`` beside the budget), per object and per screen tile, with the
+noise that would explain it: ``pass``, ``regressed`` (a region significantly worse against the
+reference), ``improved`` (better, none worse) or ``changed`` (beyond the renderer's run-to-run noise,
+neither better nor worse beyond the reference's). ``error``: missing or unreadable image, size
+mismatch, NaN, bad scene, a missing required baseline. Trusted verdicts: a budget is trusted when it
 sits :data:`BUDGET_NOISE_FACTOR` (10) times above the reference's noise in its own metric (the
 metric of a simulated noise-only pair, :func:`compare.metrics.noise_floor`); an ``auto`` reference
 is rendered from ``spp`` up (powers of two, at most ``spp_cap``, default 4096) until its noise floor
 is also 10x below the check's error (:mod:`compare.verdict_spp`). Where a budget is not trusted the
-check's line says ``noise-limited`` with the spp that would be (it still passes or fails on its
-budgets); the reference's spp and these figures are in the JUnit output and the summary. Exit status: 2 if any check errored (never
-pass on missing data), else 1 if any failed, else 0. A malformed budget is an error before any
-check runs (exit 2, nothing written).
+check's line says ``noise-limited`` with the spp that would be. Each check's line prints its
+sensitivity (the smallest brightness change and LOD shift the baseline comparison detects).
+
+Exit status: 2 if any check errored (never pass on missing data), else 1 if any failed, regressed or
+changed (unless ``on_change = "pass"``), else 0 (``improved`` prints the command that accepts it).
+A malformed budget is an error before any check runs (exit 2, nothing written).
+``--accept --reason``: :func:`accept` (refused, nothing written, when a check errors).
+
+API
+---
+- :func:`load_budget`, :func:`budget_settings` -- parse and validate a budget.
+- :func:`run_check` -- one check (:class:`Result`); :func:`run_gate` -- a budget, printed, exit code.
+- :func:`accept` -- rewrite the baselines and append the history.
+- :func:`write_junit`, :func:`write_summary`, :func:`write_html`, :func:`write_thumbnails` -- CI outputs.
+- :func:`failure_lines`, :func:`change_lines`, :func:`sensitivity_text`, :func:`noise_note` -- the lines.
+- :func:`budget_noise` -- each budget against the reference's noise.
+
+References: JUnit XML as read by CI systems (one testcase per check and per regressed region);
+Filament's renderdiff and model-viewer's fidelity test (golden images: a change, not its direction).
 """
 
 from __future__ import annotations

@@ -226,3 +226,18 @@ def test_a_change_names_a_different_renderer_version(gate_dir, capsys):
     capsys.readouterr()
     assert gate(gate_dir) == 1
     assert "baseline was made with renderer version 'engine 1.0', this run used 'engine 2.0'" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("budget", ["ci.toml", "clients.toml"])
+def test_shipped_budgets_require_and_have_baselines(budget):
+    from pathlib import Path
+
+    from compare.gate import _safe, budget_settings
+
+    path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / budget
+    checks, base = load_budget(path)
+    assert budget_settings(path)["require_baselines"]
+    for c in checks:
+        b = load_baseline(base, _safe(c.name))
+        assert b is not None, c.name
+        assert b.record["check"] == c.name and b.record["bit_exact"] and b.record["runs"] >= 3
