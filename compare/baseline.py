@@ -376,7 +376,8 @@ def likely_term(change: Change, materials: dict[str, dict]) -> str | None:
     if len(objs) < 2:
         return None
     b = np.array([r.bias for r, _ in objs])
-    if np.all(b != 0) and (np.all(b > 0) or np.all(b < 0)) and float(np.std(b)) <= UNIFORM_SPREAD * abs(float(np.mean(b))):
+    every = len(objs) == sum(r.name in materials for r in change.regions)
+    if every and np.all(b != 0) and (np.all(b > 0) or np.all(b < 0)) and float(np.std(b)) <= UNIFORM_SPREAD * abs(float(np.mean(b))):
         return f"a uniform factor x{1 + float(np.mean(b)):.4g} on every object (exposure, an environment scale)"
     allobj = [(r, materials[r.name]) for r in change.regions if r.name in materials]
     diel = [abs(r.bias) for r, m in allobj if (m.get("metallic") or 0.0) <= 0.0]

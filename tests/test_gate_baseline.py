@@ -241,3 +241,18 @@ def test_shipped_budgets_require_and_have_baselines(budget):
         b = load_baseline(base, _safe(c.name))
         assert b is not None, c.name
         assert b.record["check"] == c.name and b.record["bit_exact"] and b.record["runs"] >= 3
+
+
+def test_likely_term_from_which_objects_changed():
+    from compare.baseline import RegionChange, Change, likely_term
+
+    def reg(name, bias):
+        return RegionChange(name, 10, bias, 1e-4, 0.0, 1e-6, 0.0, 0.0, 0.0, 1.0, abs(bias) > 1e-4, "changed")
+
+    mats = {"object d": {"metallic": 0.0}, "object m": {"metallic": 1.0}, "object d2": {"metallic": 0.0}}
+    assert "uniform factor x0.99" in likely_term(Change("changed", [reg("object d", -0.01), reg("object m", -0.01),
+                                                                    reg("object d2", -0.01)]), mats)
+    assert "diffuse term" in likely_term(Change("changed", [reg("object d", -0.01), reg("object m", 0.0),
+                                                            reg("object d2", -0.01)]), mats)
+    assert "specular term" in likely_term(Change("changed", [reg("object d", -0.0001), reg("object m", -0.01),
+                                                             reg("object d2", -0.0002)]), mats)
