@@ -385,7 +385,7 @@ def likely_term(change: Change, materials: dict[str, dict]) -> str | None:
     if diel and metal:
         d, s = float(np.mean(diel)), float(np.mean(metal))
         if s < GROUP_RATIO * d:
-            return f"the diffuse term (dielectrics' mean |bias| {d:.2%}, metals' {s:.2%})"
+            return f"the diffuse term (dielectrics' mean abs bias {d:.2%}, metals' {s:.2%})"
         if d < GROUP_RATIO * s:
-            return f"the specular term (metals' mean |bias| {s:.2%}, dielectrics' {d:.2%})"
+            return f"the specular term (metals' mean abs bias {s:.2%}, dielectrics' {d:.2%})"
     return None
