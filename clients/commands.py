@@ -10,6 +10,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
@@ -20,6 +21,7 @@ from .run import render_external
 
 def _cmd_export(args) -> int:
     scene = load_scene(args.scene)
+    check_output_path(args.out, folder=True)
     exp = export_scene(scene, Path(args.out), output=args.output)
     segs = sorted(set(exp.segments.values()))
     print(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
@@ -31,8 +33,9 @@ def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
     scene = load_scene(args.scene)
-    img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     out = Path(args.out or f"out/render/{scene.name}_{args.renderer.replace(':', '_')}.exr")
+    check_output_path(out)  # before the render
+    img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     write_exr(out, img)
     print(f"{out}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
           f"({img.meta['version']}), {float(img.meta['seconds']):.2f}s")

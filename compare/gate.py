@@ -65,9 +65,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrcheck.atomic import write_text_atomic
+from pbrcheck.atomic import check_output_path, write_text_atomic
 from pbrcheck.environment import scene_hash
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, Image, read_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.scene import builtin_scene_names, load_scene
@@ -160,7 +160,7 @@ def _bounds(file, where, t) -> dict[str, float]:
         if k not in METRICS:
             raise _err(file, f"{where}.{k}", "a metric name (" + ", ".join(METRICS) + ")", k)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise _err(file, f"{where}.{k}", "a number, finite and >= 0", v)
+            raise _err(file, f"{where}.{k}", "a finite number >= 0", v)
         out[k] = float(v)
     return out
 
@@ -172,8 +172,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         raise BudgetError(f"{path}: no such budget file")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+    except tomllib.TOMLDecodeError as e:
         raise BudgetError(f"{path}: invalid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise BudgetError(f"{path}: cannot read: {decode_reason(e)}") from None
     except OSError as e:
         raise BudgetError(f"{path}: cannot read: {e.strerror}") from None
     extra = set(data) - BUDGET_KEYS
@@ -204,6 +206,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
+        same = [n for n in names if _safe(n) == _safe(name)]
+        if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
+            raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
+                       f"(both are {_safe(name)!r})", name)
         names.add(name)
         if "on_change" in t and t["on_change"] not in ON_CHANGE:
             raise _err(path, f"{w}.on_change", " or ".join(f'"{x}"' for x in ON_CHANGE), t["on_change"])
@@ -353,7 +359,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
 
 
 def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    """The folder name of a check's maps: the name with other characters than letters, digits and
+    ``-_.`` replaced by ``_`` (:func:`load_budget` refuses two checks whose folders would be one)."""
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    return "_" * len(safe) if safe in (".", "..") else safe
 
 
 
@@ -392,8 +401,9 @@ def noise_note(r: Result) -> str:
     metric (or an ``auto`` reference stopped at its cap)."""
     bad = [b for b in r.budget_noise if not b["trusted"]]
     parts = [f"{b['metric']} budget {format_value(b['budget'])} is {b['ratio']:.3g}x the reference's noise "
-             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x at "
-             + (f"{math.ceil(b['spp_needed'])} spp)" if math.isfinite(b["spp_needed"]) else "no spp: a budget of 0)")
+             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x "
+             + (f"at {math.ceil(b['spp_needed'])} spp)" if math.isfinite(b["spp_needed"])
+                else "at no spp: a budget of 0 is below any noise)")
              for b in bad]
     if r.check.reference == "auto" and r.verdict is not None and r.verdict.noise_limited:
         parts.append(r.verdict.provenance())
@@ -805,6 +815,10 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     stream = stream or sys.stdout
     checks, base = load_budget(budget)
     settings = budget_settings(budget)
+    # the outputs' paths are checked before any render (a crash after the work helps nobody)
+    for out, folder in ((junit, False), (summary, False), (maps_dir, True), (html, True)):
+        if out:
+            check_output_path(out, folder=folder)
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)

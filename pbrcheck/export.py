@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .atomic import write_bytes_atomic
+from .atomic import staged_folder, write_bytes_atomic
 from .camera import camera_frame, tan_half_fov
 from .environment import EnvMap, load_environment, scene_hash
 from .errors import PbrcheckError
@@ -458,8 +458,9 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
 def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None) -> Export:
     """Write the scene's files (:data:`FILES`) into ``out_dir`` (created).
 
-    Everything is computed before the first write (a bad scene or environment writes nothing);
-    each file is written atomically.
+    Everything is computed before the first write (a bad scene or environment writes nothing); the
+    files are written into a sibling temporary folder and moved into ``out_dir`` together
+    (:func:`pbrcheck.atomic.staged_folder`): all of them appear, or none.
 
     Parameters
     ----------
@@ -485,12 +486,13 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
     eq = equirect_image(env)
     sc = scenario(scene, env, eq.shape[:2], output=output, segments=segments, triangles=triangles)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     files = {name: out / name for name in FILES}
-    write_bytes_atomic(files["scene.bin"], blob)
-    write_bytes_atomic(files["scene.gltf"], (dump_json(doc) + "\n").encode())
-    write_exr(files["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
-    write_hdr(files["environment.hdr"], eq)
-    write_json_atomic(files["scenario.json"], sc)
+    with staged_folder(out) as stage:
+        staged = {name: stage / name for name in FILES}
+        write_bytes_atomic(staged["scene.bin"], blob)
+        write_bytes_atomic(staged["scene.gltf"], (dump_json(doc) + "\n").encode())
+        write_exr(staged["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
+        write_hdr(staged["environment.hdr"], eq)
+        write_json_atomic(staged["scenario.json"], sc)
     return Export(out, files, sc, segments, triangles)
 

@@ -21,7 +21,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .errors import SceneError
+from .errors import SceneError, decode_reason
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
@@ -535,6 +535,9 @@ def load_scene(name_or_path: str | Path) -> Scene:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise SceneError(str(p), None, "a readable file", message=f"{p}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:  # e.g. a binary file given as a TOML scene
+        raise SceneError(str(p), None, "a TOML scene file (UTF-8 text)",
+                         message=f"{p}: not a TOML scene file: {decode_reason(e)}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -191,8 +191,8 @@ def test_require_baselines(gate_dir, capsys):
     assert accept(gate_dir) == 0 and gate(gate_dir) == 0
 
 
-@pytest.mark.parametrize("bound, msg", [("-1", "a number, finite and >= 0"), ("inf", "a number, finite and >= 0"),
-                                        ("nan", "a number, finite and >= 0")])
+@pytest.mark.parametrize("bound, msg", [("-1", "a finite number >= 0"), ("inf", "a finite number >= 0"),
+                                        ("nan", "a finite number >= 0")])
 def test_budget_bounds_finite_and_non_negative(tmp_path, bound, msg):
     p = tmp_path / "b.toml"
     p.write_text(BUDGET.format(top="", extra="").replace("relmse = 1", f"relmse = {bound}"))

@@ -269,6 +269,11 @@ class CorpusResult:
     tasks: int = 0             # tasks submitted by this run
 
 
+#: Files of a finished run removed when a run computes new rows (an interrupted re-run with other
+#: settings must not leave the previous run's table beside its rows); written again at the end.
+STALE_ON_RERUN = ("corpus.csv", "corpus.json")
+
+
 def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path, *,
                scheduler: str | SchedulerSpec | None = "serial", executor=None, resume: bool = False,
                progress: bool = True, on_row: Callable[[dict], None] | None = None,
@@ -325,6 +330,9 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
         # The executor first: a scheduler that cannot be reached stops the corpus before any write.
         if tasks and executor is None:
             executor = stack.enter_context(open_executor(spec))
+        if tasks:  # the summary files describe a finished run: a previous run's go before new rows come
+            for name in STALE_ON_RERUN:
+                (out / name).unlink(missing_ok=True)
         rows_dir.mkdir(parents=True, exist_ok=True)
         computed = 0
 

@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 from pbrcheck.args import positive_int, split_list
+from pbrcheck.atomic import check_output_path
 from pbrcheck.scene import DEFAULT_SCENE, load_scene
 from realtime.presets import parse_sets
 
@@ -28,6 +29,7 @@ def _cmd_corpus(args) -> int:
                                            for n in names), spp=args.spp,
                               seed=args.seed, rank_metric=args.rank_metric)
     spec = parse_scheduler(args.scheduler, default="local")
+    check_output_path(args.out, folder=True)  # before any render
     res = run_corpus(args.corpus, settings, Path(args.out), scheduler=spec, resume=args.resume,
                      progress=not args.quiet)
     page = write_corpus_page(res)

@@ -23,7 +23,7 @@ from pbrcheck.scene import load_scene
 from .. import renderers
 from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
-from ..maps import pyplot
+from ..maps import pyplot, save_figure
 from ..metrics import METRICS, compare_images
 from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
 
@@ -104,10 +104,7 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path)  # atomically
     return path
 
 
