@@ -297,11 +297,15 @@ def object_ids(scene: Scene) -> np.ndarray:
             p = o + d * t[..., None] - np.asarray(obj.center, float)
             inside = (np.abs(p @ tg) <= obj.size[0] / 2) & (np.abs(p @ bt) <= obj.size[1] / 2)
             t = np.where((np.abs(denom) > 1e-12) & (t > 0) & inside, t, np.inf)
-        else:  # pragma: no cover - the loader expands grids
+        else:  # meshes below; the loader expands grids
             continue
         closer = t < best
         best = np.where(closer, t, best)
         ids[closer] = obj.id
+    if getattr(scene, "assets", ()):  # meshes: pixel-centre rasterization (pbrcheck.gltf_export)
+        from pbrcheck.gltf_export import mesh_object_ids
+        best = np.ascontiguousarray(best)
+        mesh_object_ids(scene, ids, best)
     return ids
 
 

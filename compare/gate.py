@@ -70,13 +70,14 @@ from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, Image, read_exr
 from pbrcheck.fmt import format_value
+from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
 from .baseline import Baseline, Change, compare_to_baseline, likely_term, load_baseline, sensitivity
-from .maps import write_maps
+from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
-from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
+from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
               "mode", "seed", "on_change"}
@@ -85,8 +86,6 @@ BUDGET_KEYS = {"check", "history", "on_change", "require_baselines"}
 #: What a ``changed`` verdict (differs from the baseline, neither better nor worse) does.
 ON_CHANGE = ("fail", "pass")
 DEFAULT_SPP = 64
-#: The reference renderer needs two samples per pixel for its variance channels.
-MIN_REFERENCE_SPP = 2
 
 
 class BudgetError(PbrcheckError):
@@ -119,7 +118,7 @@ class Result:
     objects and whether the reference's noise could explain it) or ``error`` (with the message and
     the exit code it maps to)."""
     check: Check
-    status: str                      # pass | fail | error
+    status: str                      # pass | fail | error | skip (a real-time preset on an asset scene)
     metrics: dict | None = None
     failures: list[dict] = field(default_factory=list)
     error: str | None = None
@@ -139,8 +138,8 @@ class Result:
 
     @property
     def outcome(self) -> str:
-        """pass | fail (accuracy budget) | regressed | improved | changed | error."""
-        if self.status in ("error", "fail"):
+        """pass | fail (accuracy budget) | regressed | improved | changed | error | skip."""
+        if self.status in ("error", "fail", "skip"):
             return self.status
         return self.change.verdict if self.change is not None else "pass"
 
@@ -206,10 +205,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
-        same = [n for n in names if _safe(n) == _safe(name)]
+        same = [n for n in names if safe_name(n) == safe_name(name)]
         if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
             raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
-                       f"(both are {_safe(name)!r})", name)
+                       f"(both are {safe_name(name)!r})", name)
         names.add(name)
         if "on_change" in t and t["on_change"] not in ON_CHANGE:
             raise _err(path, f"{w}.on_change", " or ".join(f'"{x}"' for x in ON_CHANGE), t["on_change"])
@@ -290,6 +289,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
+        if check.test is None and scene is not None and split_presets(scene, [check.preset])[1]:
+            res.status, res.error, res.exit_code = "skip", f"{check.preset} on a glTF asset scene: {RASTER_MISSING}", 0
+            res.seconds = time.perf_counter() - t0
+            return res
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)
@@ -324,7 +327,7 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             res.materials = {f"object {o.name}" if o.name else f"object #{i}":
                              {"metallic": o.material.metallic, "roughness": o.material.roughness}
                              for i, o in enumerate(scene.objects)}
-        res.baseline = load_baseline(base, _safe(check.name))
+        res.baseline = load_baseline(base, safe_name(check.name))
         if res.baseline is not None:
             res.change = compare_to_baseline(ref, res.baseline, test, res.names)
             res.sensitivity = sensitivity(ref, res.baseline, res.names)
@@ -353,18 +356,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     if res.outcome == "regressed" or (res.outcome == "changed" and check.on_change == "fail"):
         res.exit_code = 1
     if res.outcome != "pass" and maps_dir is not None:
-        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / _safe(check.name), cmp).items()}
+        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / safe_name(check.name), cmp).items()}
     res.seconds = time.perf_counter() - t0
     return res
-
-
-def _safe(name: str) -> str:
-    """The folder name of a check's maps: the name with other characters than letters, digits and
-    ``-_.`` replaced by ``_`` (:func:`load_budget` refuses two checks whose folders would be one)."""
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-    return "_" * len(safe) if safe in (".", "..") else safe
-
-
 
 
 #: A budget is trusted when it is at least this many times the reference's noise in its metric.
@@ -527,6 +521,8 @@ def write_junit(path: Path, results: list[Result]) -> Path:
         lines = failure_lines(r) + change_lines(r)
         if r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
+        elif r.status == "skip":
+            ET.SubElement(tc, "skipped", message=r.error or "skipped")
         elif r.exit_code:
             ET.SubElement(tc, "failure", message=lines[0] if lines else r.outcome).text = "\n".join(lines)
         if r.metrics:
@@ -578,7 +574,7 @@ def write_thumbnails(folder: Path, r: Result) -> dict[str, Path]:
             opts = None
     disp = (lambda x: np.clip(x, 0, 1)) if r.test_image.meta.get("display_referred") == "1" else (lambda x: display_rgb(x, opts))
     rel = (np.abs(t1 - t0) / (np.abs(t0) + REL_EPS)).max(axis=-1)
-    stem = _safe(r.check.name)
+    stem = safe_name(r.check.name)
     out = {}
     for kind, img in (("before", disp(t0)), ("after", disp(t1)), ("diff", false_colour(rel, DIFF_THUMB_MAX, "inferno"))):
         out[kind] = _save_rgb(Path(folder) / f"{stem}-{kind}.png", img[::step, ::step])
@@ -594,8 +590,8 @@ def write_summary(path: Path, results: list[Result], budget_path: str = "BUDGET.
     lines = ["# pbrcheck gate", "", "| check | outcome | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:
         budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
-        if r.status == "error":
-            lines.append(f"| {r.check.name} | ERROR | | | {r.error} |")
+        if r.status in ("error", "skip"):
+            lines.append(f"| {r.check.name} | {r.status.upper()} | | | {r.error} |")
             continue
         failed = {f["metric"] for f in r.failures}
         for m, b, op in budgets:
@@ -734,7 +730,7 @@ def _accept_one(r: Result, base: Path, staging: Path, reason: str, date: str, pr
         "conventions": "regions: 'object NAME' and 'tile xA-B,yC-D' (compare/baseline.py); lod_probe: per region "
                        "bias and change of a render LOD_PROBE mip deeper",
     }
-    stage_baseline(staging, _safe(c.name), r.test_image, spread, record)
+    stage_baseline(staging, safe_name(c.name), r.test_image, spread, record)
     before = r.change.verdict if r.change is not None else "new"
     fig = ", ".join(f"{k} {format_value(r.metrics.get(k))}" for k in r.check.max)
     return (f"{c.name}: {before}; {fig}; {'bit-exact' if record['bit_exact'] else 'spread max ' + format_value(record['spread_max'])}"
@@ -763,7 +759,7 @@ def accept(budget: Path, results: list[Result], reason: str, *, progress: bool =
     target.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=target))
     try:
-        lines = [_accept_one(r, base, staging, reason, date, progress) for r in results]
+        lines = [_accept_one(r, base, staging, reason, date, progress) for r in results if r.status != "skip"]
         for p in sorted(staging.iterdir()):
             os.replace(p, target / p.name)
     finally:
@@ -822,11 +818,15 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
-        if r.status != "error" and r.baseline is None and settings["require_baselines"] and accept_reason is None:
+        if r.status not in ("error", "skip") and r.baseline is None and settings["require_baselines"] \
+                and accept_reason is None:
             r.status, r.exit_code = "error", 2
-            r.error = (f"no accepted baseline ({Path(base) / 'baselines' / _safe(c.name)}.exr) and the budget sets "
+            r.error = (f"no accepted baseline ({Path(base) / 'baselines' / safe_name(c.name)}.exr) and the budget sets "
                        f"require_baselines = true; accept one: pbrcheck gate {budget} --accept --reason \"...\"")
         results.append(r)
+        if r.status == "skip":
+            print(f"skip {c.name}: {r.error}", file=stream)
+            continue
         if r.status == "error":
             print(f"ERROR {c.name}: {r.error}", file=stream)
             continue
@@ -843,8 +843,10 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
         write_summary(Path(summary), results, str(budget))
     if html:
         print(f"gate: page {write_html(Path(html), results, str(budget))}", file=stream)
-    n = {s: sum(r.outcome == s for r in results) for s in ("pass", "fail", "regressed", "improved", "changed", "error")}
-    print("gate: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k == "pass"), file=stream)
+    n = {s: sum(r.outcome == s for r in results)
+         for s in ("pass", "fail", "regressed", "improved", "changed", "error", "skip")}
+    label = {"skip": "skipped (real-time presets on glTF asset scenes)"}
+    print("gate: " + ", ".join(f"{v} {label.get(k, k)}" for k, v in n.items() if v or k == "pass"), file=stream)
     errors = [r.exit_code for r in results if r.status == "error"]
     if errors:
         if accept_reason is not None:

@@ -62,6 +62,9 @@ def _cmd_check_scene(args) -> int:
     print(f"# {len(scene.objects)} object(s), {len(scene.lights)} light(s), environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g})")
     print(f"# scene hash {scene_hash(scene, env.content_hash)}")
+    if getattr(scene, "assets", ()):
+        from .gltf_scene import describe
+        print("\n".join(describe(scene)))
     print(dump_toml(scene.to_dict()), end="")
     return 0
 
@@ -95,6 +98,36 @@ def _cmd_cache(args) -> int:
           f"({_fmt_bytes(res.kept_bytes)}) kept in {root}"
           + (f"; {res.stale_temp_files} stale temporary file(s)" if res.stale_temp_files else ""))
     return 0
+
+
+def _asset_options(argv: list[str]) -> list[str]:
+    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE`` and ``--size WxH`` out of
+    ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every command that takes a SCENE
+    accepts an asset that way; an integer ``--size`` stays the command's own)."""
+    from .gltf_scene import is_asset_path, parse_size, set_asset_options
+
+    if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
+        set_asset_options()
+        return argv
+    env = size = None
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        key, eq, val = a.partition("=")
+        if key in ("--env", "--size") and (eq or i + 1 < len(argv)):
+            v = val if eq else argv[i + 1]
+            if key == "--env" or "x" in v.lower():
+                if key == "--env":
+                    env = v
+                else:
+                    size = parse_size(v)
+                i += 1 if eq else 2
+                continue
+        out.append(a)
+        i += 1
+    set_asset_options(env, size)
+    return out
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -196,6 +229,12 @@ def main(argv: list[str] | None = None) -> int:
     temporary folders removed); a closed stdout is not an error.
     """
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        argv = _asset_options(argv)
+    except ValueError as e:
+        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     if getattr(args, "renderers", None):
         clients.config.set_renderers_file(args.renderers)

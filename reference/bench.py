@@ -28,6 +28,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   noise floor (mean pixel variance) to a tenth of the default preset's error there
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
+* ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
+  size, spp and environment: load and Mitsuba-scene (BVH) seconds apart, its local samples/s and
+  ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
 * ``samplers``: the same figure for each sampler, side by side in one run (:data:`SAMPLER_CONFIGS`:
   ``independent``, ``qmc`` uniform, ``qmc`` adaptive, the default), each rendered at
   ``FLOOR_SPP`` spp (a warm-up render of a 16 x 12 crop first, which compiles the same kernels,
@@ -86,7 +89,7 @@ SPHERES_DEFAULT_MSE = 1.8e-4
 SMALL_SIZE, SMALL_SPP = 48, 16
 
 GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9,
-         "default_sampler_seconds_speedup": 5.0}
+         "default_sampler_seconds_speedup": 5.0, "asset_vs_spheres": 0.7}
 #: (label, sampler, adaptive) of the ``samplers`` figures; the last is the default.
 SAMPLER_CONFIGS = (("independent", "independent", False), ("qmc", "qmc", False), ("qmc_adaptive", "qmc", True))
 #: The spp each sampler is rendered at, and the seeds (renders) its floor is the mean of: one
@@ -306,6 +309,8 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
 
     gather = _time_gather(scene, 2 if quick else 5)
+    from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
+    asset = bench_asset(scene, spp, t_local, rep, quick=quick)
 
     full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
     fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP
@@ -337,6 +342,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
         "material_gather_render_speedup": gather["render_speedup"],
         "material_gather_grad_step_speedup": gather["grad_step_speedup"],
+        "asset_vs_spheres": asset["vs_spheres"],
         "default_sampler_seconds_speedup": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["seconds_speedup"],
         "default_sampler_cpu_seconds_speedup": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["cpu_seconds_speedup"],
         "default_sampler_spp_ratio": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["spp_ratio"],
@@ -373,6 +379,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
         "peer_roughness": PEER_ROUGHNESS,
         "material_gather": gather,
+        "asset": asset,
         "samplers": samplers,
         "samplers_note": "each sampler at the same spp, its floor from its own variance channels; spp to the "
                          "floor extrapolated as 1/spp (exact for independent, an upper bound for qmc); seconds "

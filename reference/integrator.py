@@ -230,8 +230,10 @@ class ReferenceIntegrator(RBIntegrator):
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
         self.path = None
+        self._volpath = None
+        self.max_depth_value = int(props.get("max_depth", 8))
         if self.mode == "path":
-            self.path = mi.load_dict({"type": "path", "max_depth": int(props.get("max_depth", 8))})
+            self.path = mi.load_dict({"type": "path", "max_depth": self.max_depth_value})
         # Called as progress(samples_per_pixel_done) after each pass of a moments render.
         self.progress = None
 
@@ -255,17 +257,53 @@ class ReferenceIntegrator(RBIntegrator):
                 return MaterialView.gather(self._table[1], si, hit)
         return si.bsdf(ray)
 
+    #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
+    MAX_NULL_LAYERS = 8
+
+    @staticmethod
+    def has_null_bsdfs(scene) -> bool:
+        """Whether a shape's BSDF can be passed through (a Null component: glTF MASK / BLEND)."""
+        return any(mi.has_flag(s.bsdf().flags(), mi.BSDFFlags.Null) for s in scene.shapes())
+
+    def _first_opaque_hit(self, scene, sampler, ray, si, hit):
+        """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
+        layer; unrolled, no early exit, so the estimator stays one kernel), up to :data:`MAX_NULL_LAYERS`;
+        a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
+        going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
+        for _ in range(self.MAX_NULL_LAYERS):
+            bsdf = si.bsdf(ray)
+            t = mi.Float(bsdf.eval_null_transmission(si, going).x)
+            u = sampler.next_1d(going)
+            through = going & (u < t)
+            going = through
+            ray = dr.select(through, si.spawn_ray(ray.d), ray)
+            si2 = scene.ray_intersect(ray, through)
+            si = dr.select(through, si2, si)
+            hit = dr.select(through, si2.is_valid(), hit)
+            going &= hit
+        return si, hit
+
+    @staticmethod
+    def has_area_emitters(scene) -> bool:
+        return any(mi.has_flag(e.flags(), mi.EmitterFlags.Surface) for e in scene.emitters())
+
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
         ray = mi.Ray3f(ray)
         si = scene.ray_intersect(ray, active)
         hit = active & si.is_valid()
+        if self.has_null_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic)
+            si, hit = self._first_opaque_hit(scene, sampler, ray, si, hit)
         env = scene.environment()
         L = mi.Color3f(0.0)
         if env is not None:
             L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
+        if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
+            L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
+        if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque
+            ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
             bsdf = self._bsdf(scene, si, ray, hit)
         if env is not None:
@@ -316,7 +354,12 @@ class ReferenceIntegrator(RBIntegrator):
         if self.mode == "local":
             return self.local_radiance(scene, sampler, ray, active)
         hit = scene.ray_test(mi.Ray3f(ray), active)
-        L, _, _ = self.path.sample(scene, sampler, ray, None, active)
+        path = self.path
+        if self.has_null_bsdfs(scene):  # shadow rays through glTF cut-outs: volpath's null interfaces
+            if self._volpath is None:
+                self._volpath = mi.load_dict({"type": "volpath", "max_depth": self.max_depth_value})
+            path = self._volpath
+        L, _, _ = path.sample(scene, sampler, ray, None, active)
         return mi.Color3f(L), hit
 
     def sample(self, mode, scene, sampler, ray, depth=None, δL=None, δaovs=None, state_in=None,

@@ -34,6 +34,9 @@ AOVs (``N.X/Y/Z``, ``NdotV``, ``object``) come from the ray through the pixel ce
 rasterizer sees at that pixel), ``coverage`` is the fraction of the box-filter samples that hit
 geometry.
 
+glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_textured`` BSDF
+(:mod:`reference.textured`), shape ids ``object<k>`` like every object.
+
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
 :func:`adaptive_allocation`, :func:`check_sampler`, :data:`REFERENCE_CODE_VERSION`,
@@ -135,7 +138,12 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
     for k, light in enumerate(scene.lights):
         d[f"light{k}"] = {"type": "point", "position": list(light.position),
                           "intensity": {"type": "rgb", "value": list(light.intensity)}}
+    if getattr(scene, "assets", ()):  # glTF primitives: meshes from the decoded buffers (reference.textured)
+        from .textured import asset_shapes
+        d.update(asset_shapes(scene, shape_id, None if bsdf_override is None else (lambda obj: bsdf_override)))
     for i, obj in enumerate(scene.objects):
+        if obj.type == "mesh":
+            continue
         bsdf = bsdf_override if bsdf_override is not None else material_dict(obj.material, scene.brdf)
         if isinstance(obj, Sphere):
             d[shape_id(i)] = {"type": "sphere", "center": list(obj.center), "radius": float(obj.radius),

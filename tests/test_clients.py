@@ -275,7 +275,7 @@ def test_committed_clients_budget_is_well_formed():
 def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_difference(fake, tmp_path, monkeypatch):
     """An external renderer that keeps a white furnace at 1.0 where the (here: faked) single-scattering
     reference loses energy is named a model difference in the report, and appears in the summary."""
-    from compare.report.build import build_report
+    from compare.report.build import ReportConfig, build_report
     from tests.test_compare_report import fake_reference
 
     (fake / "fake.py").write_text(FAKE.replace("img = np.full((H, W, 3), 0.5, np.float32)",
@@ -290,8 +290,8 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
 
     monkeypatch.setattr(renderers, "render_reference", lossy_reference)
     (tmp_path / "tiny.toml").write_text(__import__("pbrcheck.scene", fromlist=["dump_toml"]).dump_toml(SCENE))
-    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm"], out_dir=tmp_path / "r", spp=4,
-                         convergence=False, sweep=False, progress=False)
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm"], spp=4, convergence=False, sweep=False, progress=False))
     html = index.read_text()
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]

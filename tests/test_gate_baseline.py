@@ -232,7 +232,8 @@ def test_a_change_names_a_different_renderer_version(gate_dir, capsys):
 def test_shipped_budgets_require_and_have_baselines(budget):
     from pathlib import Path
 
-    from compare.gate import _safe, budget_settings
+    from compare.gate import budget_settings
+    from compare.maps import safe_name as _safe
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / budget
     checks, base = load_budget(path)
