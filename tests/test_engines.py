@@ -1,4 +1,5 @@
-"""The Babylon.js and PlayCanvas clients (``ext:babylon``, ``ext:playcanvas``), for real: headless
+"""The Babylon.js, PlayCanvas and Filament clients (``ext:babylon``, ``ext:playcanvas``,
+``ext:filament``), for real: headless
 Chromium (WebGL2 on SwiftShader) renders an exported scene with each engine's own loaders,
 prefiltering and shaders. The render tests skip where node, Chromium or the client's
 ``node_modules`` are absent (``make setup`` installs them); on a machine set up by ``make setup``
@@ -9,7 +10,8 @@ the report and gated by ``compare/budgets/clients.toml``.
   the runner's usage errors;
 - the orientation probe: markers of radiance 8 in the environment (rotated 30 degrees) land in the
   reference's pixels in the background and in a mirror sphere (each engine's panorama lookup is a
-  quarter turn off the export's; the client turns it back: docs/renderers.md), and keep their
+  quarter turn off the export's; the client turns it back: docs/renderers.md; Filament's cube is
+  built by the page in GL's cube convention), and keep their
   radiance (linear float output: no tone map, no gamma, no clamp at 1).
 """
 
@@ -32,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CLIENTS = {
     "babylon": ("babylon", {"@babylonjs/core": "9.28.0", "@babylonjs/loaders": "9.28.0"}, "babylon client"),
     "playcanvas": ("playcanvas", {"playcanvas": "2.23.3"}, "playcanvas client"),
+    "filament": ("filament", {"filament": "1.53.4"}, "filament client"),
 }
 #: Pixels a marker's centroid may lie from the reference's: in the background (large markers) and in
 #: the mirror sphere (markers of 8 to 13 pixels; Babylon's panorama-to-cube conversion reads the

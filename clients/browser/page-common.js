@@ -59,7 +59,8 @@ export function glRendererName(gl) {
  * SW x SH, bound wherever the engine binds the default framebuffer (``null``) until ``restore()``.
  * For engines whose last pass draws into the canvas (8 bit): with their tone mapping and output
  * encoding off, the shading result lands here untouched. ``read()`` returns the RGBA float pixels
- * (GL's rows, bottom-up) and throws on a GL error. Used by the Babylon.js, PlayCanvas and
+ * (GL's rows, bottom-up) and throws on a GL error of the read. Call it before the engine makes its first
+ * draw (for Filament: before Engine.create, on the context the engine will find). Used by the Babylon.js, PlayCanvas and
  * Filament pages (the Sample Viewer page has its own copy of the same hook). */
 export function floatCanvas(gl, SW, SH) {
   if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('EXT_color_buffer_float missing: no float render target');
@@ -82,11 +83,13 @@ export function floatCanvas(gl, SW, SH) {
   if (status !== gl.FRAMEBUFFER_COMPLETE) throw new Error(`float framebuffer incomplete (0x${status.toString(16)})`);
   gl.clearColor(0, 0, 0, 1);
   gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT | gl.STENCIL_BUFFER_BIT);
-  bind(gl.FRAMEBUFFER, null);
-  gl.bindFramebuffer = (target, fb) => bind(target, fb === null ? fbo : fb);
+  // Left bound: an engine that caches GL state and never binds "0" because it thinks it is bound
+  // already (Filament) draws here too.
+  gl.bindFramebuffer = (target, fb) => bind(target, fb == null ? fbo : fb);   // null, or undefined (emscripten's id 0)
   return {
     restore() { gl.bindFramebuffer = bind; },
     read() {
+      while (gl.getError() !== gl.NO_ERROR) { /* an engine's earlier error is not the read's */ }
       bind(gl.READ_FRAMEBUFFER, fbo);
       const px = new Float32Array(SW * SH * 4);
       gl.readPixels(0, 0, SW, SH, gl.RGBA, gl.FLOAT, px);
