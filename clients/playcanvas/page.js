@@ -7,6 +7,11 @@
 // none (linear output) into a float target, then POSTs linear radiance to the runner (render.mjs).
 // See docs/renderers.md.
 //
+// - Point lights: left as the loader makes them, disabled (its glTF lights are created with
+//   enabled: false and, in its default non-physical units, an intensity clamped to [0, 2] and an
+//   inverse-square falloff of 16 / (d^2 + 1): engine issue #3252). Enabled with the glTF
+//   intensity, a 10 cd lamp at 4 m renders 49x the reference (measured), so ext:playcanvas
+//   measures the image-based lighting only (docs/renderers.md, section 8).
 // - Camera: a camera entity made from scenario.json (origin, target, up, vertical fov, near clip);
 //   the glTF camera describes the same view.
 // - The float target: ../browser/page-common.js's floatCanvas stands in for the canvas (the
