@@ -1,5 +1,5 @@
 """CLI subcommands of this package (registered by pbrcheck.cli): ``export``, ``render``,
-``renderers`` and ``bench client``. Library errors propagate; only pbrcheck.cli maps them to exit
+``import-scenario``, ``renderers`` and ``bench client``. Library errors propagate; only pbrcheck.cli maps them to exit
 codes."""
 
 from __future__ import annotations
@@ -10,8 +10,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
+from pbrcheck.scenario_import import import_scenario
 from pbrcheck.scene import load_scene
 
 from .config import load_renderers, set_renderers_file
@@ -20,6 +23,7 @@ from .run import render_external
 
 def _cmd_export(args) -> int:
     scene = load_scene(args.scene)
+    check_output_path(args.out, folder=True)
     exp = export_scene(scene, Path(args.out), output=args.output)
     segs = sorted(set(exp.segments.values()))
     print(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
@@ -31,11 +35,22 @@ def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
     scene = load_scene(args.scene)
-    img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     out = Path(args.out or f"out/render/{scene.name}_{args.renderer.replace(':', '_')}.exr")
+    check_output_path(out)  # before the render
+    img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     write_exr(out, img)
     print(f"{out}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
           f"({img.meta['version']}), {float(img.meta['seconds']):.2f}s")
+    return 0
+
+
+def _cmd_import_scenario(args) -> int:
+    text = import_scenario(args.scenario)
+    if args.out is None:
+        print(text, end="")
+    else:
+        write_text_atomic(args.out, text)
+        print(f"{args.out}: scene of {args.scenario}")
     return 0
 
 
@@ -88,6 +103,13 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default=None, help="output EXR (default out/render/SCENE_NAME.exr)")
     s.add_argument("--no-cache", action="store_true", help="render even when a cached image exists")
     s.set_defaults(func=_cmd_render)
+
+    s = sub.add_parser("import-scenario", help="a Khronos Render Fidelity / model-viewer scenario (JSON) as a "
+                       "pbrcheck scene (TOML)")
+    s.add_argument("scenario", help="scenario JSON (model, lighting, dimensions, target, orbit, verticalFoV, "
+                   "renderSkybox), or the scenario.json of pbrcheck export")
+    s.add_argument("--out", default=None, help="the scene TOML to write (default: print it)")
+    s.set_defaults(func=_cmd_import_scenario)
 
     s = sub.add_parser("renderers", help="list the external renderers (built-in clients and renderers.toml)")
     s.add_argument("--renderers", dest="renderers_file", default=None, metavar="FILE", help="renderers file")

@@ -41,7 +41,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.export import OUTPUT_FORMATS
 
 #: The folder of the built-in clients (this package).
@@ -52,6 +52,9 @@ ENV_VAR = "PBRCHECK_RENDERERS"
 #: The prefix that names an external renderer wherever a preset can be named.
 PREFIX = "ext:"
 DEFAULT_TIMEOUT_S = 600.0
+#: The largest ``timeout`` a renderers file may give (seconds: one day; finite, so that every wait
+#: and every kill deadline stays representable).
+MAX_TIMEOUT_S = 86400.0
 PLACEHOLDERS = ("scenario", "out", "dir", "width", "height", "clients", "config_dir")
 KEYS = {"command", "output", "timeout", "version_command", "lockfile", "inputs", "description", "timed_on"}
 NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
@@ -133,11 +136,14 @@ def expand_one(arg: str, values: dict[str, str], source: str, where: str) -> str
                                   f"known: {', '.join('{' + p + '}' for p in PLACEHOLDERS)}") from None
 
 
-def expand(cfg: RendererConfig, argv: tuple[str, ...], **values) -> list[str]:
+def expand(cfg: RendererConfig, argv: tuple[str, ...], key: str | None = None, **values) -> list[str]:
     """The command ``argv`` of ``cfg`` with placeholders filled (``values``: scenario, out, dir,
-    width, height as strings)."""
+    width, height as strings); ``key`` names it in errors (default ``command``, or
+    ``version_command`` when ``argv`` is that)."""
+    if key is None:
+        key = "version_command" if argv == cfg.version_command and argv != cfg.command else "command"
     vals = {**cfg._base_values(), **{k: str(v) for k, v in values.items()}}
-    return [expand_one(a, vals, cfg.source, f"renderer.{cfg.name}.command") for a in argv]
+    return [expand_one(a, vals, cfg.source, f"renderer.{cfg.name}.{key}") for a in argv]
 
 
 def _placeholders(arg: str) -> set[str]:
@@ -185,8 +191,9 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
         if output not in OUTPUT_FORMATS:
             raise RendererConfigError(f"{file}: {w}.output: expected one of {', '.join(OUTPUT_FORMATS)}, found {output!r}")
         timeout = t.get("timeout", DEFAULT_TIMEOUT_S)
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-            raise RendererConfigError(f"{file}: {w}.timeout: expected a positive number of seconds, found {timeout!r}")
+        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout <= MAX_TIMEOUT_S:
+            raise RendererConfigError(f"{file}: {w}.timeout: expected a number of seconds > 0 and <= "
+                                      f"{MAX_TIMEOUT_S:g} (one day), found {timeout!r}")
         vc = t.get("version_command")
         if vc is not None:
             vc = _command(file, f"{w}.version_command", vc, need_out=False)
@@ -212,6 +219,8 @@ def _read(path: Path, *, builtin: bool = False) -> dict[str, RendererConfig]:
         raise RendererConfigError(f"{path}: cannot read: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise RendererConfigError(f"{path}: not valid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise RendererConfigError(f"{path}: cannot read: {decode_reason(e)}") from None
     return parse_renderers(data, file=str(path), config_dir=path.resolve().parent, builtin=builtin)
 
 

@@ -6,8 +6,10 @@ API
   validate its output against the contract, return a pbrcheck :class:`~pbrcheck.exr.Image`
   (linear ``R G B`` plus an ``object`` AOV, metadata renderer / version / command / seconds);
   cached by scene hash + renderer config + the client's lockfile hash.
-- :func:`run_process` -- one command in its own process group, killed with its children after
-  the timeout; stdout and the stderr tail come back.
+- :func:`run_process` -- one command in its own session, killed with all its descendants (its
+  session, its process group, every process carrying its :data:`MARKER_VAR`) after the timeout, on
+  Ctrl-C or SIGTERM; the tails of stdout and stderr come back (bounded buffers).
+- :func:`kill_run`, :func:`run_members` -- that kill, and the /proc walk that finds the run's processes.
 - :func:`read_output` -- a renderer's output file, validated (exists, readable, size, finite).
 - :func:`object_ids` -- the ``object`` AOV of a scene at pixel centres (numpy ray casting).
 - :class:`RendererError` -- every failure, one line naming the renderer (exit 2; the gate's
@@ -15,7 +17,7 @@ API
 
 Failure modes (each a :class:`RendererError`, nothing written outside the temporary folder): the
 executable is missing; it exits non-zero (the last lines of its stderr are shown); it runs past
-``timeout`` (its whole process group is killed); it writes no file; the file is unreadable, of the
+``timeout`` (its whole session and every descendant are killed); it writes no file; the file is unreadable, of the
 wrong size, or holds NaN/Inf.
 """
 
@@ -26,7 +28,9 @@ import os
 import signal
 import subprocess
 import tempfile
+import threading
 import time
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,15 +82,121 @@ def stderr_tail(text: str) -> str:
     return tail[-STDERR_TAIL_CHARS:] if tail else "(no stderr)"
 
 
-def _kill_group(proc: subprocess.Popen) -> None:
+#: The environment variable that marks every process of one :func:`run_process` (its value is unique
+#: per run): descendants that left the session (``setsid``) still carry it and are found by it.
+MARKER_VAR = "PBRCHECK_RUN_MARKER"
+#: Bytes of a renderer's stdout and of its stderr kept (the tail; the rest is read and dropped).
+OUTPUT_TAIL_BYTES = 1 << 20
+
+
+class _Tail:
+    """The last ``limit`` bytes of a stream, read to its end by a daemon thread."""
+
+    def __init__(self, stream, limit: int = OUTPUT_TAIL_BYTES):
+        self.buf = bytearray()
+        self.dropped = 0
+        self.limit = limit
+        self.thread = threading.Thread(target=self._pump, args=(stream,), daemon=True)
+        self.thread.start()
+
+    def _pump(self, stream) -> None:
+        try:
+            while True:
+                chunk = stream.read1(1 << 16) if hasattr(stream, "read1") else stream.read(1 << 16)
+                if not chunk:
+                    break
+                self.buf += chunk
+                if len(self.buf) > 2 * self.limit:
+                    cut = len(self.buf) - self.limit
+                    self.dropped += cut
+                    del self.buf[:cut]
+        except (OSError, ValueError):
+            pass
+        finally:
+            try:
+                stream.close()
+            except OSError:
+                pass
+
+    def text(self, grace: float | None = None) -> str:
+        self.thread.join(grace)
+        data = bytes(self.buf[-self.limit:])
+        return data.decode("utf-8", "replace")
+
+
+def _proc_ids(pid: int) -> tuple[int, int] | None:
+    """(process group, session) of ``pid`` from /proc (None when it is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read().decode("utf-8", "replace")
+    except OSError:
+        return None
+    fields = stat[stat.rindex(")") + 2:].split()
+    return int(fields[2]), int(fields[3])
+
+
+def _has_marker(pid: int, marker: bytes) -> bool:
+    try:
+        with open(f"/proc/{pid}/environ", "rb") as f:
+            return marker in f.read().split(b"\0")
+    except OSError:
+        return False
+
+
+def run_members(leader: int, marker: str) -> list[int]:
+    """Every process of one run: in the session or process group of ``leader``, or carrying
+    ``MARKER_VAR=marker`` in its environment (a descendant that called ``setsid``); found by walking
+    /proc (no cgroup needed). Empty without /proc."""
+    me = os.getpid()
+    tag = f"{MARKER_VAR}={marker}".encode()
+    out = []
+    try:
+        pids = [int(d) for d in os.listdir("/proc") if d.isdigit()]
+    except OSError:
+        return out
+    for pid in pids:
+        if pid == me:
+            continue
+        ids = _proc_ids(pid)
+        if ids is None:
+            continue
+        if leader in ids or _has_marker(pid, tag):
+            out.append(pid)
+    return out
+
+
+def kill_run(proc: subprocess.Popen, marker: str) -> None:
+    """SIGKILL the whole run of ``proc``: its process group, its session and every process carrying
+    its marker (:func:`run_members`), repeated until none is left (a process forking while it is
+    killed) or 20 rounds have passed."""
     try:
         os.killpg(proc.pid, signal.SIGKILL)   # the session leader's pid is the group id
     except (ProcessLookupError, PermissionError):
         pass
+    for _ in range(20):
+        members = [p for p in run_members(proc.pid, marker) if p != proc.pid or proc.returncode is None]
+        alive = []
+        for pid in members:
+            try:
+                os.kill(pid, signal.SIGKILL)
+                alive.append(pid)
+            except (ProcessLookupError, PermissionError):
+                pass
+        if proc.returncode is None:
+            try:
+                proc.wait(timeout=0.05)
+            except subprocess.TimeoutExpired:
+                pass
+        if not alive:
+            return
+        time.sleep(0.02)
 
 
-def run_process(argv: list[str], *, cwd: Path, timeout: float, label: str) -> ProcessResult:
-    """Run ``argv`` in ``cwd`` in a new session (process group); kill the group on timeout.
+def run_process(argv: list[str], *, cwd: Path, timeout: float, label: str, key: str = "command") -> ProcessResult:
+    """Run ``argv`` in ``cwd`` in a new session; on timeout, interrupt or SIGTERM kill the whole run
+    (:func:`kill_run`: its session, its process group and every descendant carrying the run's
+    marker variable, ``setsid`` grandchildren included), and after a normal exit whatever it left
+    running. stdout and stderr are read into bounded buffers (:data:`OUTPUT_TAIL_BYTES`, the tail).
 
     Raises
     ------
@@ -94,35 +204,31 @@ def run_process(argv: list[str], *, cwd: Path, timeout: float, label: str) -> Pr
         The executable is missing or not executable, or the command ran past ``timeout``.
     """
     t0 = time.perf_counter()
+    who = f"{label}: " if key == "command" else f"{label}: {key}: "
+    marker = uuid.uuid4().hex
+    env = {**os.environ, MARKER_VAR: marker}
     try:
         proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, start_new_session=True)
+                                stderr=subprocess.PIPE, start_new_session=True, env=env)
     except FileNotFoundError:
-        raise RendererError(f"{label}: executable not found: {argv[0]!r} (is it installed and on PATH?)") from None
+        raise RendererError(f"{who}executable not found: {argv[0]!r} (is it installed and on PATH?)") from None
     except PermissionError:
-        raise RendererError(f"{label}: cannot execute {argv[0]!r} (permission denied)") from None
+        raise RendererError(f"{who}cannot execute {argv[0]!r} (permission denied)") from None
     except OSError as e:
-        raise RendererError(f"{label}: cannot start {argv[0]!r}: {e.strerror or e}") from None
+        raise RendererError(f"{who}cannot start {argv[0]!r}: {e.strerror or e}") from None
+    out, err = _Tail(proc.stdout), _Tail(proc.stderr)
     try:
-        out, err = proc.communicate(timeout=timeout)
+        proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
-        _kill_group(proc)
-        try:
-            out, err = proc.communicate(timeout=KILL_GRACE_S)
-        except subprocess.TimeoutExpired:   # a grandchild kept the pipes open in another group
-            proc.kill()
-            out, err = b"", b""
-        raise RendererError(f"{label}: timed out after {timeout:g} s (killed with its children); "
-                            f"stderr: {stderr_tail(err.decode('utf-8', 'replace'))}") from None
-    except BaseException:
-        _kill_group(proc)
-        proc.wait()
+        kill_run(proc, marker)
+        raise RendererError(f"{who}timed out after {timeout:g} s (killed with its children: its session, "
+                            f"its process group and every descendant carrying {MARKER_VAR}); stderr: "
+                            f"{stderr_tail(err.text(KILL_GRACE_S))}") from None
+    except BaseException:   # Ctrl-C, SIGTERM (pbrcheck.errors.Terminated)
+        kill_run(proc, marker)
         raise
-    finally:
-        if proc.poll() is None:
-            _kill_group(proc)
-    _kill_group(proc)  # whatever the renderer left running in its group
-    return ProcessResult(proc.returncode, out.decode("utf-8", "replace"), err.decode("utf-8", "replace"),
+    kill_run(proc, marker)  # whatever the renderer left running
+    return ProcessResult(proc.returncode, out.text(KILL_GRACE_S), err.text(KILL_GRACE_S),
                          time.perf_counter() - t0)
 
 
@@ -157,9 +263,10 @@ def renderer_version(cfg: RendererConfig) -> str:
         return "unknown"
     key = (cfg.name, cfg.version_command, cfg.lockfile_hash())
     if key not in _versions:
-        argv = expand(cfg, cfg.version_command)
+        argv = expand(cfg, cfg.version_command, key="version_command")
         try:
-            r = run_process(argv, cwd=cfg.config_dir, timeout=VERSION_TIMEOUT_S, label=cfg.label)
+            r = run_process(argv, cwd=cfg.config_dir, timeout=VERSION_TIMEOUT_S, label=cfg.label,
+                            key="version_command")
             line = r.stdout.strip().splitlines()[0] if r.returncode == 0 and r.stdout.strip() else ""
             _versions[key] = line or f"unknown (version command exited {r.returncode}: {stderr_tail(r.stderr)})"
         except RendererError as e:
@@ -190,11 +297,15 @@ def object_ids(scene: Scene) -> np.ndarray:
             p = o + d * t[..., None] - np.asarray(obj.center, float)
             inside = (np.abs(p @ tg) <= obj.size[0] / 2) & (np.abs(p @ bt) <= obj.size[1] / 2)
             t = np.where((np.abs(denom) > 1e-12) & (t > 0) & inside, t, np.inf)
-        else:  # pragma: no cover - the loader expands grids
+        else:  # meshes below; the loader expands grids
             continue
         closer = t < best
         best = np.where(closer, t, best)
         ids[closer] = obj.id
+    if getattr(scene, "assets", ()):  # meshes: pixel-centre rasterization (pbrcheck.gltf_export)
+        from pbrcheck.gltf_export import mesh_object_ids
+        best = np.ascontiguousarray(best)
+        mesh_object_ids(scene, ids, best)
     return ids
 
 

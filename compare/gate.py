@@ -39,23 +39,22 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pbrcheck.atomic import write_text_atomic
+from pbrcheck.atomic import check_output_path, write_bytes_atomic, write_text_atomic
 from pbrcheck.environment import scene_hash
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, read_exr
 from pbrcheck.fmt import format_value
+from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
-from .maps import write_maps
+from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
-from .verdict_spp import DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict, verdict_of
+from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
               "mode", "seed"}
 DEFAULT_SPP = 64
-#: The reference renderer needs two samples per pixel for its variance channels.
-MIN_REFERENCE_SPP = 2
 
 
 class BudgetError(PbrcheckError):
@@ -87,7 +86,7 @@ class Result:
     objects and whether the reference's noise could explain it) or ``error`` (with the message and
     the exit code it maps to)."""
     check: Check
-    status: str                      # pass | fail | error
+    status: str                      # pass | fail | error | skip (a real-time preset on an asset scene)
     metrics: dict | None = None
     failures: list[dict] = field(default_factory=list)
     error: str | None = None
@@ -112,8 +111,8 @@ def _bounds(file, where, t) -> dict[str, float]:
     for k, v in t.items():
         if k not in METRICS:
             raise _err(file, f"{where}.{k}", "a metric name (" + ", ".join(METRICS) + ")", k)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
-            raise _err(file, f"{where}.{k}", "a number", v)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise _err(file, f"{where}.{k}", "a finite number >= 0", v)
         out[k] = float(v)
     return out
 
@@ -125,8 +124,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         raise BudgetError(f"{path}: no such budget file")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+    except tomllib.TOMLDecodeError as e:
         raise BudgetError(f"{path}: invalid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise BudgetError(f"{path}: cannot read: {decode_reason(e)}") from None
     except OSError as e:
         raise BudgetError(f"{path}: cannot read: {e.strerror}") from None
     extra = set(data) - {"check"}
@@ -149,6 +150,10 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, f"{w}.name", "a non-empty string", name if name is not None else "nothing")
         if name in names:
             raise _err(path, f"{w}.name", "a unique check name", name)
+        same = [n for n in names if safe_name(n) == safe_name(name)]
+        if same:  # e.g. "a/b" and "a_b": their error maps would go to one folder
+            raise _err(path, f"{w}.name", f"a name whose maps folder is not that of check {same[0]!r} "
+                       f"(both are {safe_name(name)!r})", name)
         names.add(name)
         for k in ("scene", "preset", "reference", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
@@ -219,6 +224,10 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
+        if check.test is None and scene is not None and split_presets(scene, [check.preset])[1]:
+            res.status, res.error, res.exit_code = "skip", f"{check.preset} on a glTF asset scene: {RASTER_MISSING}", 0
+            res.seconds = time.perf_counter() - t0
+            return res
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)
@@ -268,15 +277,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res.status = "fail" if res.failures else "pass"
     res.exit_code = 1 if res.failures else 0
     if res.failures and maps_dir is not None:
-        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / _safe(check.name), cmp).items()}
+        res.maps = {k: str(p) for k, p in write_maps(Path(maps_dir) / safe_name(check.name), cmp).items()}
     res.seconds = time.perf_counter() - t0
     return res
-
-
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-
-
 
 
 #: A budget is trusted when it is at least this many times the reference's noise in its metric.
@@ -313,7 +316,9 @@ def noise_note(r: Result) -> str:
     metric (or an ``auto`` reference stopped at its cap)."""
     bad = [b for b in r.budget_noise if not b["trusted"]]
     parts = [f"{b['metric']} budget {format_value(b['budget'])} is {b['ratio']:.3g}x the reference's noise "
-             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x at {math.ceil(b['spp_needed'])} spp)"
+             f"{format_value(b['noise'])} (>= {BUDGET_NOISE_FACTOR:g}x "
+             + (f"at {math.ceil(b['spp_needed'])} spp)" if math.isfinite(b["spp_needed"])
+                else "at no spp: a budget of 0 is below any noise)")
              for b in bad]
     if r.check.reference == "auto" and r.verdict is not None and r.verdict.noise_limited:
         parts.append(r.verdict.provenance())
@@ -345,28 +350,27 @@ def write_junit(path: Path, results: list[Result]) -> Path:
             ET.SubElement(tc, "failure", message=lines[0]).text = "\n".join(lines)
         elif r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
+        elif r.status == "skip":
+            ET.SubElement(tc, "skipped", message=r.error or "skipped")
         if r.metrics:
             lines = [f"{k} = {format_value(v)}" for k, v in r.metrics.items()]
             if r.verdict is not None:
                 lines.append(f"reference: {r.verdict.provenance()}")
             lines += [f"budget {b['metric']}: {b['ratio']:.3g}x the reference's noise" for b in r.budget_noise]
             ET.SubElement(tc, "system-out").text = "\n".join(lines)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     root = ET.Element("testsuites")
     root.append(suite)
-    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
-    return path
+    return write_bytes_atomic(path, ET.tostring(root, encoding="utf-8", xml_declaration=True))
 
 
 def write_summary(path: Path, results: list[Result]) -> Path:
     """Write a Markdown table of every check's metrics against its budgets (for CI summaries)."""
-    icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR"}
+    icon = {"pass": "PASS", "fail": "FAIL", "error": "ERROR", "skip": "SKIP"}
     lines = ["# pbrcheck gate", "", "| check | status | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:
         budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
-        if r.status == "error":
-            lines.append(f"| {r.check.name} | {icon['error']} | | | {r.error} |")
+        if r.status in ("error", "skip"):
+            lines.append(f"| {r.check.name} | {icon[r.status]} | | | {r.error} |")
             continue
         failed = {f["metric"] for f in r.failures}
         for m, b, op in budgets:
@@ -381,10 +385,7 @@ def write_summary(path: Path, results: list[Result]) -> Path:
     fails = [l for r in results for l in failure_lines(r)]
     if fails:
         lines += ["", "## Failures", ""] + [f"- {l}" for l in fails]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(path, "\n".join(lines) + "\n")
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | None = None,
@@ -416,6 +417,10 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     """
     stream = stream or sys.stdout
     checks, base = load_budget(budget)
+    # the outputs' paths are checked before any render (a crash after the work helps nobody)
+    for out, folder in ((junit, False), (summary, False), (maps_dir, True)):
+        if out:
+            check_output_path(out, folder=folder)
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
@@ -427,14 +432,17 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
                 print(line, file=stream)
             if r.maps:
                 print(f"     error maps: {Path(r.maps['rel_error']).parent}", file=stream)
+        elif r.status == "skip":
+            print(f"skip {c.name}: {r.error}", file=stream)
         else:
             print(f"ERROR {c.name}: {r.error}", file=stream)
     if junit:
         write_junit(Path(junit), results)
     if summary:
         write_summary(Path(summary), results)
-    n = {s: sum(r.status == s for r in results) for s in ("pass", "fail", "error")}
-    print(f"gate: {n['pass']} passed, {n['fail']} failed, {n['error']} error(s)", file=stream)
+    n = {s: sum(r.status == s for r in results) for s in ("pass", "fail", "error", "skip")}
+    print(f"gate: {n['pass']} passed, {n['fail']} failed, {n['error']} error(s)"
+          + (f", {n['skip']} skipped (real-time presets on glTF asset scenes)" if n["skip"] else ""), file=stream)
     errors = [r.exit_code for r in results if r.status == "error"]
     if errors:
         return max(errors)

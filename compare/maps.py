@@ -9,15 +9,18 @@ API
 ---
 :func:`write_maps`, :func:`write_rel_png`, :func:`write_flip_png`, :func:`write_diff_exr`,
 :func:`write_tonemapped`, :func:`display_rgb`, :func:`tonemap`, :func:`tonemap_aces`,
-:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`.
+:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`, :func:`safe_name` (a
+renderer's, scene's or check's name as a file or folder name: the gate's and the report's).
 """
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.atomic import staged_folder, write_bytes_atomic
 from pbrcheck.exr import Image, write_exr
 
 #: Relative error |t - r| / (r + 0.01) mapped to the full colour range (values above saturate).
@@ -43,20 +46,33 @@ def pyplot():
     return _mpl()[1]
 
 
+def safe_name(name: str) -> str:
+    """``name`` as a file or folder name: every character but letters, digits and ``-_.`` becomes
+    ``_``, and ``.`` or ``..`` all ``_`` (the gate's :func:`~compare.gate.load_budget` refuses two
+    checks whose folders would be one)."""
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    return "_" * len(safe) if safe in (".", "..") else safe
+
+
 def save_figure(fig, path: Path, dpi: int = 80) -> str:
-    """Lay out ``fig``, write it to ``path`` (PNG), close it; returns the file name."""
+    """Lay out ``fig``, write it to ``path`` (PNG, atomically), close it; returns the file name."""
     plt = pyplot()
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
     return Path(path).name
 
 
 def _save_rgb(path: Path, rgb: np.ndarray) -> Path:
+    """``rgb`` in [0, 1] as a PNG at ``path``, encoded in memory and written atomically."""
     _, plt = _mpl()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    plt.imsave(str(path), np.clip(rgb, 0.0, 1.0))
-    return path
+    buf = io.BytesIO()
+    plt.imsave(buf, np.clip(rgb, 0.0, 1.0), format="png")
+    return write_bytes_atomic(path, buf.getvalue())
 
 
 def false_colour(values: np.ndarray, vmax: float, cmap: str, mask: np.ndarray | None = None) -> np.ndarray:
@@ -145,10 +161,12 @@ def write_diff_exr(path: Path, comparison) -> Path:
 
 
 def write_maps(out_dir: Path, comparison, prefix: str = "") -> dict[str, Path]:
-    """The three maps of ``compare --maps``: ``rel_error.png``, ``flip.png``, ``diff.exr``."""
+    """The three maps of ``compare --maps``: ``rel_error.png``, ``flip.png``, ``diff.exr``, staged in
+    a sibling temporary folder and moved into ``out_dir`` together (all three or none)."""
     out_dir = Path(out_dir)
-    return {
-        "rel_error": write_rel_png(out_dir / f"{prefix}rel_error.png", comparison),
-        "flip": write_flip_png(out_dir / f"{prefix}flip.png", comparison),
-        "diff": write_diff_exr(out_dir / f"{prefix}diff.exr", comparison),
-    }
+    names = {"rel_error": f"{prefix}rel_error.png", "flip": f"{prefix}flip.png", "diff": f"{prefix}diff.exr"}
+    with staged_folder(out_dir) as stage:
+        write_rel_png(stage / names["rel_error"], comparison)
+        write_flip_png(stage / names["flip"], comparison)
+        write_diff_exr(stage / names["diff"], comparison)
+    return {k: out_dir / n for k, n in names.items()}

@@ -19,7 +19,7 @@ default preset's corrected MSE is 1.8e-4, the local estimator's per-sample varia
 
 API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
 :func:`noise_and_error`, :func:`reference_for_verdict`, :func:`verdict_of`, :func:`cap_for_time`,
-:func:`seconds_per_spp`.
+:func:`seconds_per_spp`, :data:`MIN_REFERENCE_SPP`.
 """
 
 from __future__ import annotations
@@ -34,6 +34,9 @@ from pbrcheck.exr import Image
 from . import renderers
 from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
 
+#: The least reference spp anything may ask for: the reference renderer needs two samples per pixel
+#: for its variance channels (the gate's and the report's floor).
+MIN_REFERENCE_SPP = 2
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
 #: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of

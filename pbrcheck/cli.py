@@ -2,7 +2,8 @@
 
 Library code raises :class:`~pbrcheck.errors.PbrcheckError`; this module alone maps errors to exit
 codes: 0 success, 1 a check failed (``gate``), 2 bad input (one line on stderr, no traceback,
-nothing written), 3 a backend is unavailable, 130 interrupted.
+nothing written), 3 a backend is unavailable, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
+:func:`main` is the one error boundary (an :class:`OSError` of a write is ``PATH: reason``, exit 2).
 
 Layers import one way (``tests/test_layers.py`` enforces it): core ``pbrcheck`` <- renderers
 ``reference``, ``realtime`` <- comparator ``compare`` <- ``compare.research``, then
@@ -16,7 +17,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 import time
 
 import clients.commands
@@ -30,7 +34,7 @@ import reference.commands
 
 from . import __version__, cache
 from .environment import load_environment, scene_hash
-from .errors import CacheError, PbrcheckError
+from .errors import CacheError, PbrcheckError, Terminated, os_reason
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -58,6 +62,9 @@ def _cmd_check_scene(args) -> int:
     print(f"# {len(scene.objects)} object(s), {len(scene.lights)} light(s), environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g})")
     print(f"# scene hash {scene_hash(scene, env.content_hash)}")
+    if getattr(scene, "assets", ()):
+        from .gltf_scene import describe
+        print("\n".join(describe(scene)))
     print(dump_toml(scene.to_dict()), end="")
     return 0
 
@@ -91,6 +98,36 @@ def _cmd_cache(args) -> int:
           f"({_fmt_bytes(res.kept_bytes)}) kept in {root}"
           + (f"; {res.stale_temp_files} stale temporary file(s)" if res.stale_temp_files else ""))
     return 0
+
+
+def _asset_options(argv: list[str]) -> list[str]:
+    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE`` and ``--size WxH`` out of
+    ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every command that takes a SCENE
+    accepts an asset that way; an integer ``--size`` stays the command's own)."""
+    from .gltf_scene import is_asset_path, parse_size, set_asset_options
+
+    if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
+        set_asset_options()
+        return argv
+    env = size = None
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        key, eq, val = a.partition("=")
+        if key in ("--env", "--size") and (eq or i + 1 < len(argv)):
+            v = val if eq else argv[i + 1]
+            if key == "--env" or "x" in v.lower():
+                if key == "--env":
+                    env = v
+                else:
+                    size = parse_size(v)
+                i += 1 if eq else 2
+                continue
+        out.append(a)
+        i += 1
+    set_asset_options(env, size)
+    return out
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -135,18 +172,100 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class _ClosedPipeSafe:
+    """``sys.stdout`` that outlives its reader (``pbrcheck scenes | head -1``): once the pipe is
+    closed, the rest of the output goes to /dev/null and the command finishes with its own exit
+    code (no ``BrokenPipeError``)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._closed = False
+
+    def _drop(self) -> None:
+        self._closed = True
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())  # the buffered rest flushes to /dev/null
+            os.close(devnull)
+        except (OSError, ValueError):
+            pass
+
+    def write(self, s):
+        if not self._closed:
+            try:
+                return self._stream.write(s)
+            except BrokenPipeError:
+                self._drop()
+        return len(s)
+
+    def flush(self):
+        if not self._closed:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._drop()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated(signum)
+
+
+def _describe_os_error(e: OSError) -> str:
+    """``PATH: reason`` of an OSError that escaped a command (a write, or a user's file read)."""
+    names = [str(f) for f in (e.filename, e.filename2) if f is not None]
+    return f"{' -> '.join(names)}: {os_reason(e)}" if names else os_reason(e)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit code.
+
+    The one error boundary: a :class:`~pbrcheck.errors.PbrcheckError` prints its line and exits with
+    its code; any other :class:`OSError` (a write that failed: read-only folder, a file in the way,
+    a full disk; or a user's file that cannot be read) prints ``pbrcheck: error: PATH: reason``, exit
+    2; Ctrl-C exits 130 and SIGTERM 143, after the commands' own clean-up (children killed,
+    temporary folders removed); a closed stdout is not an error.
+    """
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        argv = _asset_options(argv)
+    except ValueError as e:
+        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     if getattr(args, "renderers", None):
         clients.config.set_renderers_file(args.renderers)
+    stdout = sys.stdout
+    if not isinstance(stdout, _ClosedPipeSafe):
+        sys.stdout = _ClosedPipeSafe(stdout)
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _run(args)
+    finally:
+        sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
+        sys.stdout = stdout
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+def _run(args) -> int:
     try:
         return int(args.func(args) or 0)
     except PbrcheckError as e:
         print(f"pbrcheck: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt:
+    except OSError as e:
+        print(f"pbrcheck: error: {_describe_os_error(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as e:
+        if isinstance(e, Terminated):
+            print("pbrcheck: terminated", file=sys.stderr)
+            return 128 + e.signum
         print("pbrcheck: interrupted", file=sys.stderr)
         return 130
 

@@ -59,6 +59,49 @@ class BackendError(PbrcheckError):
 
 
 class ShaderCompileError(PbrcheckError):
-    """A GLSL compile/link error, mapped back to the original shader file and line."""
+    """A GLSL compile/link error, mapped back to the original shader file and line.
+
+    Exit 3 (the shipped shaders do not compile: a broken GL backend) unless ``user`` (a user's
+    shader hook file took part: bad input, exit 2, the message names ``FILE.glsl:LINE``)."""
 
     exit_code = 3
+
+    def __init__(self, message: str, *, user: bool = False):
+        super().__init__(message)
+        if user:
+            self.exit_code = 2
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread by the CLI's handler: a ``KeyboardInterrupt`` so that every
+    clean-up written for Ctrl-C (children's process groups killed, temporary folders removed) runs
+    for it too; the CLI exits 128 + ``signum`` (143)."""
+
+    def __init__(self, signum: int = 15):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def os_reason(e: OSError) -> str:
+    """The reason of an :class:`OSError` in words (``strerror``, else its text)."""
+    return e.strerror or str(e) or type(e).__name__
+
+
+def decode_reason(e: UnicodeDecodeError) -> str:
+    """A text file's bad encoding in words: where the first byte that is not UTF-8 is."""
+    return f"not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset {e.start})"
+
+
+def read_user_text(path, error: type, what: str = "file") -> str:
+    """The UTF-8 text of a user's file ``path``; an unreadable file or one that is not UTF-8 raises
+    ``error(f"{path}: cannot read the {what}: reason")`` (one line, exit 2)."""
+    from pathlib import Path
+
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except OSError as e:
+        raise error(f"{path}: cannot read the {what}: {os_reason(e)}") from None
+    except UnicodeDecodeError as e:
+        raise error(f"{path}: cannot read the {what}: {decode_reason(e)}") from None

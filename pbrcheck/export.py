@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .atomic import write_bytes_atomic
+from .atomic import staged_folder, write_bytes_atomic
 from .camera import camera_frame, tan_half_fov
 from .environment import EnvMap, load_environment, scene_hash
 from .errors import PbrcheckError
@@ -237,6 +237,9 @@ def _znear(scene: Scene) -> float:
     for obj in scene.objects:
         if isinstance(obj, Sphere):
             gaps.append(np.linalg.norm(np.asarray(obj.center) - o) - obj.radius)
+    for inst in getattr(scene, "assets", ()):
+        lo, hi = inst.bounds()
+        gaps.append(np.linalg.norm(0.5 * (lo + hi) - o) - 0.5 * np.linalg.norm(hi - lo))
     near = 0.5 * min([g for g in gaps if g > 0], default=0.1)
     return float(max(min(near, 0.1), 1e-4))
 
@@ -278,6 +281,26 @@ class _Buffer:
         return self.add(flat.astype(np.uint32), target=34963, component=5125, type_="SCALAR")
 
 
+def _camera(scene: Scene) -> tuple[dict, dict]:
+    """(camera node, glTF camera) of the scene's camera."""
+    cam = scene.camera
+    r, u, f = camera_frame(cam)
+    rot = np.stack([r, u, -f], axis=1)           # camera looks down its local -Z, +Y up
+    node = {"name": "camera", "camera": 0, "translation": [float(c) for c in cam.origin],
+            "rotation": _quaternion(rot)}
+    return node, {"name": "camera", "type": "perspective",
+                  "perspective": {"yfov": camera_yfov(scene), "aspectRatio": cam.width / cam.height,
+                                  "znear": _znear(scene)}}
+
+
+def _asset_document(scene: Scene, bin_name: str):
+    from .gltf_export import asset_document
+
+    node, cam = _camera(scene)
+    doc, files = asset_document(scene, node, cam, bin_name)
+    return doc, files, {}, sum(o.triangles for o in scene.objects)
+
+
 def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
     """The glTF 2.0 JSON of ``scene`` and its binary buffer.
 
@@ -287,6 +310,8 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
         The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``), segments around each
         sphere (object id -> n) and the number of triangles.
     """
+    if getattr(scene, "assets", ()):  # the user's asset itself (pbrcheck.gltf_export)
+        return _asset_document(scene, bin_name)
     buf = _Buffer()
     meshes, nodes, materials = [], [], []
     sphere_geo: dict[int, tuple[int, int, int]] = {}
@@ -316,14 +341,9 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
             {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": obj.id, "mode": 4}]})
         nodes.append(node)
 
-    cam = scene.camera
-    r, u, f = camera_frame(cam)
-    rot = np.stack([r, u, -f], axis=1)           # camera looks down its local -Z, +Y up
-    nodes.append({"name": "camera", "camera": 0, "translation": [float(c) for c in cam.origin],
-                  "rotation": _quaternion(rot)})
-    cameras = [{"name": "camera", "type": "perspective",
-                "perspective": {"yfov": camera_yfov(scene), "aspectRatio": cam.width / cam.height,
-                                "znear": _znear(scene)}}]
+    cam_node, cam_dict = _camera(scene)
+    nodes.append(cam_node)
+    cameras = [cam_dict]
     used = set()
     if any("extensions" in m for m in materials):
         used.add("KHR_materials_ior")
@@ -431,7 +451,10 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
                     "gltf_node": f"light_{k}"} for k, l in enumerate(scene.lights)],
         "units": "point light intensity: 1 cd is taken as 1 W/sr (radiometric); radiance in W/(sr m^2), "
                  "linear Rec.709 primaries",
-        "objects": [{"id": o.id, "name": o.name, "type": o.type, "gltf_node": f"object_{o.id}_{o.name}",
+        "objects": [{"id": o.id, "name": o.name, "type": o.type,
+                     **({"gltf_node": f"object_{o.id}_{o.name}"} if o.type != "mesh" else
+                        {"gltf_node_index": scene.assets[o.instance].asset.primitives[o.primitive].node,
+                         "gltf_primitive": scene.assets[o.instance].asset.primitives[o.primitive].primitive}),
                      **({"segments": segments[o.id]} if segments and o.id in segments else {})}
                     for o in scene.objects],
         "tessellation": {"silhouette_tolerance_px": SILHOUETTE_TOLERANCE_PX, "triangles": triangles,
@@ -458,8 +481,9 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
 def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None) -> Export:
     """Write the scene's files (:data:`FILES`) into ``out_dir`` (created).
 
-    Everything is computed before the first write (a bad scene or environment writes nothing);
-    each file is written atomically.
+    Everything is computed before the first write (a bad scene or environment writes nothing); the
+    files are written into a sibling temporary folder and moved into ``out_dir`` together
+    (:func:`pbrcheck.atomic.staged_folder`): all of them appear, or none.
 
     Parameters
     ----------
@@ -485,12 +509,20 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
     eq = equirect_image(env)
     sc = scenario(scene, env, eq.shape[:2], output=output, segments=segments, triangles=triangles)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     files = {name: out / name for name in FILES}
-    write_bytes_atomic(files["scene.bin"], blob)
-    write_bytes_atomic(files["scene.gltf"], (dump_json(doc) + "\n").encode())
-    write_exr(files["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
-    write_hdr(files["environment.hdr"], eq)
-    write_json_atomic(files["scenario.json"], sc)
+    with staged_folder(out) as stage:
+        staged = {name: stage / name for name in FILES}
+        if isinstance(blob, dict):  # an asset: its own resources under their relative paths
+            files.pop("scene.bin")
+            for rel, data in blob.items():
+                files[rel] = out / rel
+                (stage / rel).parent.mkdir(parents=True, exist_ok=True)
+                write_bytes_atomic(stage / rel, data)
+        else:
+            write_bytes_atomic(staged["scene.bin"], blob)
+        write_bytes_atomic(staged["scene.gltf"], (dump_json(doc) + "\n").encode())
+        write_exr(staged["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
+        write_hdr(staged["environment.hdr"], eq)
+        write_json_atomic(staged["scenario.json"], sc)
     return Export(out, files, sc, segments, triangles)
 

@@ -17,15 +17,19 @@ then ``os.replace``.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
+import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import OpenEXR
 
-from .atomic import temp_beside
+from .atomic import _mkdir_parent, temp_beside
 from .errors import ImageIOError
 
 META_PREFIX = "pbrcheck."
@@ -85,23 +89,114 @@ def write_exr(path: str | Path, image: Image) -> Path:
     """Write atomically; metadata values that are not strings are stored as JSON strings."""
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    _mkdir_parent(path)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for k, v in image.meta.items():
         header[META_PREFIX + k] = _meta_value(v)
     channels = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in image.channels.items()}
     tmp = temp_beside(path, ".tmp.exr")  # default permissions, same folder: os.replace is atomic
     try:
-        with OpenEXR.File(header, channels) as f:
-            f.write(tmp)
+        with _quiet_stderr() as said:
+            with OpenEXR.File(header, channels) as f:
+                f.write(tmp)
         os.replace(tmp, path)
-    except Exception as e:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass
-        raise ImageIOError(str(path), f"cannot write EXR ({e})") from None
+        if not isinstance(e, Exception):
+            raise
+        free = _free_bytes(path.parent)
+        if free is not None and free < 1 << 16:  # OpenEXR's message on a full disk names no reason
+            raise OSError(28, "No space left on device", str(path)) from None
+        raise ImageIOError(str(path), f"cannot write EXR ({_first_line(e, said)})") from None
     return path
+
+
+def _free_bytes(folder: Path) -> int | None:
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def _first_line(e: BaseException, said: list[str]) -> str:
+    """The first line of an OpenEXR exception (else of what the library printed)."""
+    text = str(e).strip() or (said[0] if said else "") or type(e).__name__
+    return text.splitlines()[0]
+
+
+def _flush_c_stdio() -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """OpenEXR's libraries print their own messages (a corrupt chunk on stderr, "Warning: Exception
+    raised ..." on stdout) before raising: in the main thread both file descriptors are captured here
+    (the list yielded gets their lines after the block) so that pbrcheck's one error line stands
+    alone."""
+    said: list[str] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield said
+        return
+    import sys
+
+    saved: dict[int, int] = {}
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        sink = tempfile.TemporaryFile()
+        for fd in (1, 2):
+            saved[fd] = os.dup(fd)
+    except (OSError, ValueError, AttributeError):
+        for fd in saved.values():
+            os.close(fd)
+        yield said
+        return
+    py_streams = sys.stdout, sys.stderr  # the bindings print their "Warning: ..." through Python
+    try:
+        for fd in saved:
+            os.dup2(sink.fileno(), fd)
+        sys.stdout, sys.stderr = io.StringIO(), io.StringIO()
+        try:
+            yield said
+        finally:
+            _flush_c_stdio()  # the library's buffered std::cout/stdio lines go to the sink, not later
+            for fd, keep in saved.items():
+                os.dup2(keep, fd)
+            printed = sys.stdout.getvalue() + sys.stderr.getvalue()
+            sys.stdout, sys.stderr = py_streams
+            sink.seek(0)
+            text = sink.read().decode("utf-8", "replace") + printed
+            said.extend(l.strip() for l in text.splitlines() if l.strip())
+    finally:
+        for fd in saved.values():
+            os.close(fd)
+        sink.close()
+
+
+def exr_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) of an EXR from its header alone (no pixel is read).
+
+    Raises :class:`ImageIOError` for a missing or unreadable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ImageIOError(str(path), "no such file")
+    try:
+        with _quiet_stderr() as said:
+            with OpenEXR.File(str(path), header_only=True) as f:
+                lo, hi = f.header()["dataWindow"]
+    except Exception as e:
+        raise ImageIOError(str(path), f"not a readable EXR ({_first_line(e, said)})") from None
+    return int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
 
 
 def read_exr(path: str | Path, require: tuple[str, ...] = ()) -> Image:
@@ -115,11 +210,15 @@ def read_exr(path: str | Path, require: tuple[str, ...] = ()) -> Image:
     if not path.is_file():
         raise ImageIOError(str(path), "no such file")
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
-            hdr = dict(f.header())  # copy: reading channels clears the live header dict
-            chans = {name: np.array(c.pixels, dtype=np.float32) for name, c in f.channels().items()}
+        with _quiet_stderr() as said:
+            with OpenEXR.File(str(path), separate_channels=True) as f:
+                hdr = dict(f.header())  # copy: reading channels clears the live header dict
+                chans = {name: np.array(c.pixels, dtype=np.float32) for name, c in f.channels().items()}
     except Exception as e:
-        raise ImageIOError(str(path), f"not a readable EXR ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+        detail = _first_line(e, said)
+        if said and "file has 0 parts" in detail:  # the library's own line says what was wrong
+            detail = said[0].replace(f"{path}: ", "")
+        raise ImageIOError(str(path), f"not a readable EXR ({detail})") from None
     out: dict[str, np.ndarray] = {}
     for name, a in chans.items():
         if a.ndim == 3:  # interleaved (only when a tool wrote e.g. "RGB" as one channel group)

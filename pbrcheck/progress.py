@@ -31,6 +31,12 @@ class Progress:
     def __exit__(self, *exc):
         if self._shown and exc[0] is None:
             self._draw(final=True)
+        elif self._shown and self.tty:  # an error: erase the bar, so that the error line stands alone
+            try:
+                self.stream.write("\r\033[K")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
         return False
 
     def update(self, n: float = 1.0, note: str = ""):

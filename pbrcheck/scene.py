@@ -1,8 +1,10 @@
 """The scene model both renderers read, and its TOML loader.
 
 A scene file names a camera, exactly one environment, optional point lights, the ground-truth BRDF
-model and a list of objects (spheres, planes and sphere grids, the latter expanded here into one
-sphere object each). The field names are a contract (see README.md, "Scene files").
+model and a list of objects (spheres, planes, sphere grids and glTF assets, the latter two expanded
+here into one sphere object each and one mesh object per (node, primitive):
+:mod:`pbrcheck.gltf_objects`). A ``.gltf`` / ``.glb`` path is a scene too (:func:`asset_scene`). The
+field names are a contract (see README.md, "Scene files").
 
 Every problem is a :class:`~pbrcheck.errors.SceneError` naming the file, the dotted field, what was
 expected and what was found. Loading never writes anything.
@@ -21,7 +23,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .errors import SceneError
+from .errors import SceneError, decode_reason
+from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
@@ -38,7 +41,7 @@ MULTISCATTERS = _MULTISCATTERS.scene_names
 #: The scene ``pbrcheck`` commands use when none is named.
 DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
-OBJECT_TYPES = ("sphere", "plane", "sphere_grid")
+OBJECT_TYPES = ("sphere", "plane", "sphere_grid", "gltf")
 
 # Smallest |up x view| (sine of the angle) accepted before the camera frame is called degenerate.
 CAMERA_UP_PARALLEL_SINE = 1e-6
@@ -159,17 +162,25 @@ class Scene:
     # The grid layout of sphere_grid objects, for reports: (first id, rows, columns, metallic range,
     # roughness range) per grid.
     grids: tuple[dict, ...] = field(default_factory=tuple)
+    # glTF assets (pbrcheck.gltf_objects.AssetInstance), their primitives in ``objects`` as Mesh.
+    assets: tuple = field(default_factory=tuple)
 
     def to_dict(self) -> dict[str, Any]:
         """Resolved scene as plain data (objects expanded, defaults filled)."""
+        # glTF assets: their ``gltf`` table in place of their mesh objects, their lights left out
+        # (both come back from the asset when the resolved scene is loaded again)
+        objects = [a.to_dict() if o.type == "mesh" else asdict(o) for o in self.objects
+                   for a in ([self.assets[o.instance]] if o.type == "mesh" else [None])
+                   if o.type != "mesh" or o.id == a.first_id]
+        own_lights = self.lights[:len(self.lights) - sum(a.lights for a in self.assets)]
         d = {
             "name": self.name,
             "description": self.description,
             "camera": asdict(self.camera),
             "environment": _environment_dict(self.environment),
-            "lights": [asdict(l) for l in self.lights],
+            "lights": [asdict(l) for l in own_lights],
             "brdf": asdict(self.brdf),
-            "objects": [asdict(o) for o in self.objects],
+            "objects": objects,
         }
         return _plain(d)
 
@@ -183,6 +194,8 @@ class Scene:
             d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
         for o in d["objects"]:
             o.pop("name", None)
+            if o["type"] == "gltf":
+                o.pop("path")  # the content hash stands for the file and its resources
         return d
 
     def with_camera(self, **changes) -> "Scene":
@@ -427,6 +440,8 @@ def _objects(ctx, lst):
         raise ctx.err("objects", "a non-empty array of tables [[objects]]", lst)
     objects: list[Sphere | Plane] = []
     grids: list[dict] = []
+    assets: list = []
+    asset_lights: list[PointLight] = []
     for i, t in enumerate(lst):
         w = f"objects[{i}]"
         if not isinstance(t, dict):
@@ -438,7 +453,14 @@ def _objects(ctx, lst):
         if typ != "sphere_grid" and "id" in t and t["id"] != len(objects):
             # resolved scenes (check-scene output) carry ids; they must be the index after expansion
             raise ctx.err(f"{w}.id", f"{len(objects)} (the object's index after sphere grids are expanded)", t["id"])
-        if typ == "sphere":
+        if typ == "gltf":  # pbrcheck.gltf_objects: one Mesh object per (node, primitive)
+            inst, meshes, lights = expand_gltf_object(ctx, t, w, len(objects), len(assets), check_keys=_check_keys,
+                                                      num=_num, vec3=_vec3, material_cls=Material,
+                                                      light_cls=PointLight)
+            assets.append(inst)
+            objects.extend(meshes)
+            asset_lights.extend(lights)
+        elif typ == "sphere":
             _check_keys(ctx, t, {"type", "name", "id", "center", "radius", "material"}, w)
             objects.append(Sphere(id=len(objects), name=name or f"sphere{len(objects)}",
                                   center=_vec3(ctx, t, "center", w, (0.0, 0.0, 0.0)),
@@ -485,7 +507,7 @@ def _objects(ctx, lst):
                                           center=pos, radius=radius,
                                           material=replace(base, metallic=round(m, 9), roughness=round(g, 9))))
             grids.append({"first_id": first, "rows": rows, "columns": cols, "metallic": met, "roughness": rough})
-    return tuple(objects), tuple(grids)
+    return tuple(objects), tuple(grids), tuple(assets), tuple(asset_lights)
 
 
 def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None) -> Scene:
@@ -496,17 +518,21 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     _check_keys(ctx, data, {"name", "description", "camera", "environment", "lights", "brdf", "objects"}, "")
     if "environment" not in data:
         raise ctx.err("environment", "exactly one [environment] table", "nothing")
-    objects, grids = _objects(ctx, data.get("objects"))
+    objects, grids, assets, asset_lights = _objects(ctx, data.get("objects"))
+    if assets and isinstance(data.get("brdf"), dict) and data["brdf"].get("multiscatter", "none") != "none":
+        raise ctx.err("brdf.multiscatter", '"none" in a scene with glTF assets (their textured material is '
+                      "single-scattering)", data["brdf"]["multiscatter"])
     return Scene(
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),
         camera=_camera(ctx, data.get("camera", {})),
         environment=_environment(ctx, data["environment"]),
-        lights=_lights(ctx, data.get("lights", [])),
+        lights=_lights(ctx, data.get("lights", [])) + asset_lights,
         brdf=_brdf(ctx, data.get("brdf", {})),
         objects=objects,
         source=file,
         grids=grids,
+        assets=assets,
     )
 
 
@@ -525,6 +551,8 @@ def load_scene(name_or_path: str | Path) -> Scene:
     """Load a built-in scene by name (``spheres``) or a TOML file by path."""
     s = str(name_or_path)
     p = Path(s)
+    if p.suffix.lower() in (".gltf", ".glb") and p.is_file():
+        return asset_scene(p)  # an asset alone: --env / --size
     if not p.suffix and s in builtin_scene_names():
         p = builtin_scene_path(s)
     elif not p.exists():
@@ -535,11 +563,47 @@ def load_scene(name_or_path: str | Path) -> Scene:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise SceneError(str(p), None, "a readable file", message=f"{p}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:  # e.g. a binary file given as a TOML scene
+        raise SceneError(str(p), None, "a TOML scene file (UTF-8 text)",
+                         message=f"{p}: not a TOML scene file: {decode_reason(e)}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(str(p), None, "valid TOML", message=f"{p}: invalid TOML: {e}") from None
     return scene_from_dict(data, file=str(p), base_dir=p.parent)
+
+
+def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None) -> Scene:
+    """A scene of one glTF asset (``pbrcheck COMMAND asset.glb``): its first camera, else model-viewer's
+    default framing (:func:`pbrcheck.gltf_objects.framing`); ``env`` (an .hdr/.exr file; default the
+    CLI's ``--env``) or the neutral constant environment of radiance 1; ``size`` (W, H; default the
+    CLI's ``--size``, else 512 x 512, or the camera's aspect ratio at that height)."""
+    p = Path(path)
+    opts = asset_options()
+    env = env if env is not None else opts["env"]
+    size = size if size is not None else opts["size"]
+    data: dict = {"name": p.stem, "description": f"glTF asset {p.name}",
+                  "objects": [{"type": "gltf", "path": str(p.resolve())}],
+                  "environment": {"type": "file", "path": str(Path(env).resolve())} if env is not None
+                  else {"type": "constant", "radiance": list(NEUTRAL_RADIANCE)}}
+    scene = scene_from_dict(data, file=str(p), base_dir=p.parent)
+    asset = scene.assets[0].asset
+    if asset.cameras:
+        cam = asset.cameras[0]
+        if size is None:
+            H = DEFAULT_ASSET_SIZE[1]
+            W = int(round(H * cam.aspect)) if cam.aspect else DEFAULT_ASSET_SIZE[0]
+        else:
+            W, H = size
+        tx = math.tan(cam.yfov / 2) * W / H
+        target = tuple(float(o + f) for o, f in zip(cam.origin, cam.forward))
+        camera = Camera(origin=cam.origin, target=target, up=cam.up, fov=math.degrees(2 * math.atan(tx)),
+                        width=W, height=H)
+    else:
+        W, H = size if size is not None else DEFAULT_ASSET_SIZE
+        origin, target, fov = framing(*scene.assets[0].bounds(), W, H)
+        camera = Camera(origin=origin, target=target, up=(0.0, 1.0, 0.0), fov=fov, width=W, height=H)
+    return replace(scene, camera=camera)
 
 
 def dump_toml(d: dict) -> str:

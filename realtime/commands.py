@@ -9,11 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.atomic import check_output_path
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import load_scene
 
 from . import render as R
 from .gl import renderer_name
+from .hooks import load_hook_file
 from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
 
@@ -21,9 +23,12 @@ from .render import dfg_lut, read_lut, render_realtime
 def _cmd_realtime(args) -> int:
     overrides = overrides_from_args(args.set, args.shader)
     resolve_options(args.preset, overrides)  # validate before any GL work
+    if args.shader:
+        load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
     scene = load_scene(args.scene)
-    img = render_realtime(scene, args.preset, overrides, progress=True)
     out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
+    check_output_path(out)  # before the render
+    img = render_realtime(scene, args.preset, overrides, progress=True)
     write_exr(out, img)
     t = json.loads(img.meta["timings"])
     print(f"{out}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
@@ -42,6 +47,7 @@ def _cmd_lut(args) -> int:
     if geometry == "scene":
         geometry = "smith_ggx_correlated"
     sampling = parse_value("lut_sampling", args.sampling)
+    check_output_path(args.out)
     t0 = time.perf_counter()
     lut = read_lut(dfg_lut(size, samples, fmt, geometry, args.ndf, sampling))
     dt = time.perf_counter() - t0

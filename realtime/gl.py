@@ -166,7 +166,7 @@ def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | No
         uname, utext = user
         for i, line in enumerate(utext.splitlines(), start=1):
             if _INCLUDE.match(line):
-                raise ShaderCompileError(f"{uname}:{i}: #include is not available in a hook file")
+                raise ShaderCompileError(f"{uname}:{i}: #include is not available in a hook file", user=True)
             lines.append(line)
             lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
@@ -197,6 +197,14 @@ def map_errors(message: str, src: Source) -> str:
     return "; ".join(out) or message.strip()
 
 
+def _user_first(message: str, user: tuple[str, str] | None) -> str:
+    """A compile error of a hook file ``user`` led by its first ``FILE.glsl:LINE`` location."""
+    if user is None:
+        return message
+    m = re.search(re.escape(user[0]) + r":\d+", message)
+    return f"{m.group(0)}: {message}" if m else f"{user[0]}: {message}"
+
+
 def compute_program(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None):
     """Compiled (cached) compute shader of ``entry`` with ``defines`` (and a hook file ``user`` =
     ``(file name, text)``, see :func:`assemble`)."""
@@ -209,7 +217,9 @@ def compute_program(entry: str, defines: dict | None = None, user: tuple[str, st
     try:
         prog = ctx.compute_shader(src.text)
     except Exception as e:
-        raise ShaderCompileError(f"{entry}: GLSL compile failed: {map_errors(str(e), src)}") from None
+        # with a user's hook file taking part the error is bad input (exit 2, FILE.glsl:LINE first)
+        raise ShaderCompileError(_user_first(f"{entry}: GLSL compile failed: {map_errors(str(e), src)}", user),
+                                 user=user is not None) from None
     _programs[key] = prog
     return prog
 

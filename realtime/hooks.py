@@ -27,7 +27,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from pbrcheck.errors import PbrcheckError
+from pbrcheck.errors import PbrcheckError, read_user_text
 
 
 class HookError(PbrcheckError):
@@ -112,10 +112,7 @@ def load_hook_file(path: str | Path) -> HookFile:
         another signature than :data:`HOOKS` states, or defines no hook at all.
     """
     p = Path(path)
-    try:
-        text = p.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        raise HookError(f"{p}: cannot read the shader hook file ({e.strerror or e})") from None
+    text = read_user_text(p, HookError, "shader hook file")
     # Comments out first, so a commented-out hook does not count (line count unchanged).
     code = re.sub(r"/\*.*?\*/", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
     code = re.sub(r"//[^\n]*", "", code)

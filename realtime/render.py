@@ -535,6 +535,8 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
     ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
     """
+    from pbrcheck.gltf_scene import require_analytic
+    require_analytic(scene, f"real-time preset {preset}")
     o = resolve_options(preset, options)
     ctx = get_context()
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}

@@ -28,6 +28,27 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   noise floor (mean pixel variance) to a tenth of the default preset's error there
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
+* ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
+  size, spp and environment: load and Mitsuba-scene (BVH) seconds apart, its local samples/s and
+  ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
+* ``samplers``: the same figure for each sampler, side by side in one run (:data:`SAMPLER_CONFIGS`:
+  ``independent``, ``qmc`` uniform, ``qmc`` adaptive, the default), each rendered at
+  ``FLOOR_SPP`` spp (a warm-up render of a 16 x 12 crop first, which compiles the same kernels,
+  then ``FLOOR_SEEDS`` timed renders, seeds 1 ...; median seconds): its noise floor (mean pixel
+  variance over covered pixels, from its own variance channels, averaged over the seeds), the spp to the 10x floor
+  extrapolated as ``FLOOR_SPP x floor / target`` (exact for independent samples; for QMC, whose
+  error falls faster than 1 / spp, an upper bound), seconds and CPU seconds to it (seconds per spp
+  x that spp, at 360 x 300; the adaptive pilot included); ``variance_ratio`` (independent's floor
+  over this one's, at equal spp: load-independent), ``seconds_speedup`` and
+  ``cpu_seconds_speedup`` (independent's seconds to the floor over this one's; goal >= 5 for the
+  default on spheres); ``mean_z`` (the image mean against independent's, in standard errors:
+  ``sum(a - b) / sqrt(sum(var_a + var_b))``, of the seed-averaged images) and ``pixels_within_1.96`` (share of pixel-channels
+  with ``|a - b| < 1.96 sqrt(var_a + var_b)``, about 0.95 when both are unbiased and calibrated).
+  Scenes: ``spheres`` (target: :data:`SPHERES_DEFAULT_MSE` / 10) and ``spheres`` under a real HDR
+  environment (``--envmap``, default the first of :data:`ENVMAPS`; skipped when absent): there no
+  preset error is known here (this layer cannot render the real-time image), so its target is
+  independent's floor at ``FLOOR_SPP`` / ``HDR_TARGET_FACTOR``, and the speedups, ratios of seconds
+  at a common target, do not depend on it.
 """
 
 from __future__ import annotations
@@ -38,8 +59,11 @@ import time
 
 import numpy as np
 
+from dataclasses import replace
+from pathlib import Path
+
 from pbrcheck.environment import load_environment
-from pbrcheck.scene import load_scene
+from pbrcheck.scene import Environment, load_scene
 
 from .render import _mi, load_mitsuba_scene, render_uncached, scene_dict
 
@@ -64,7 +88,19 @@ SPHERES_DEFAULT_MSE = 1.8e-4
 #: The small renders of ``material_gather`` (fit-roughness's and the research sections' sizes).
 SMALL_SIZE, SMALL_SPP = 48, 16
 
-GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9}
+GOALS = {"local_vs_mitsuba_path": 1.0, "integrator_efficiency": 2.0, "bsdf_speed_ratio": 0.9,
+         "default_sampler_seconds_speedup": 5.0, "asset_vs_spheres": 0.7}
+#: (label, sampler, adaptive) of the ``samplers`` figures; the last is the default.
+SAMPLER_CONFIGS = (("independent", "independent", False), ("qmc", "qmc", False), ("qmc_adaptive", "qmc", True))
+#: The spp each sampler is rendered at, and the seeds (renders) its floor is the mean of: one
+#: render's floor is itself noisy where a few highlight pixels hold most of it (``--quick``: 48 x 40).
+FLOOR_SPP, FLOOR_SPP_QUICK = 512, 256
+FLOOR_SEEDS, FLOOR_SEEDS_QUICK = 3, 6
+#: Real HDR environments (never in the repository), tried in this order.
+ENVMAPS = Path(__file__).resolve().parents[1].parent / "shared" / "envmaps"
+ENVMAP_NAMES = ("royal_esplanade_1k.hdr", "venice_sunset_1k.hdr", "chinese_garden_1k.hdr")
+#: The real-HDR scene's target: independent's floor at FLOOR_SPP over this (about 10^4 spp).
+HDR_TARGET_FACTOR = 8.0
 
 
 def _timed_render(fn):
@@ -100,7 +136,7 @@ def _time_renders(scene, spp, mscene, env, repeats):
             else:
                 img, t, c = _timed_render(lambda: render_uncached(
                     scene, spp=spp, mode=mode, max_depth=PATH_DEPTH, mscene=mscene, env=env,
-                    progress=False, seed=k))
+                    progress=False, seed=k, sampler="independent"))
                 var = float(np.mean(img.variance))
                 # the comparator's noise floor: covered pixels only (compare.metrics.FULL_COVERAGE)
                 cov = img.channels["coverage"] >= FULL_COVERAGE
@@ -189,7 +225,66 @@ def _time_gather(scene, repeats):
     return out
 
 
-def run_bench(quick: bool = False) -> dict:
+def _floor_of(img) -> float:
+    cov = img.channels["coverage"] >= FULL_COVERAGE
+    return float(np.mean(img.variance[cov])) if cov.any() else float(np.mean(img.variance))
+
+
+def _samplers(scene, spp: int, seeds: int, target: float | None, full_pixels: int) -> dict:
+    """The ``samplers`` figures of one scene (module docstring); ``target`` None: independent's
+    floor / :data:`HDR_TARGET_FACTOR`."""
+    env = load_environment(scene)
+    mscene = load_mitsuba_scene(scene, env)
+    tiny = scene.with_camera(width=16, height=12)
+    scale = full_pixels / (scene.camera.width * scene.camera.height)
+    out, imgs = {}, {}
+    for label, sampler, adaptive in SAMPLER_CONFIGS:
+        def render(sc, seed):
+            return render_uncached(sc, spp=spp, seed=seed, sampler=sampler, adaptive=adaptive,
+                                   mscene=mscene, env=env, progress=False)
+        render(tiny, 0)  # compiles the same kernels (the image size is not part of them)
+        runs = [_timed_render(lambda: render(scene, 1 + k)) for k in range(seeds)]
+        imgs[label] = [r[0] for r in runs]
+        per_seed = [_floor_of(r[0]) for r in runs]
+        floor = float(np.mean(per_seed))  # each unbiased: their mean too
+        t = statistics.median(r[1] for r in runs)
+        c = statistics.median(r[2] for r in runs)
+        if target is None:
+            target = floor / HDR_TARGET_FACTOR
+        need = max(2, math.ceil(spp * floor / target))
+        out[label] = {"sampler": sampler, "adaptive": adaptive, "spp": spp, "seconds": t, "cpu_seconds": c,
+                      "noise_floor": floor, "noise_floor_per_seed": per_seed,
+                      "spp_to_10x_noise_floor": need,
+                      "seconds_to_10x_noise_floor": need * t / spp * scale,
+                      "cpu_seconds_to_10x_noise_floor": need * c / spp * scale,
+                      "adaptive_allocation": runs[0][0].meta.get("adaptive", "off")}
+    base = out["independent"]
+    a_m = np.mean([i.rgb for i in imgs["independent"]], axis=0, dtype=np.float64)
+    a_v = np.mean([i.variance for i in imgs["independent"]], axis=0, dtype=np.float64) / seeds
+    for label, r in out.items():
+        r["variance_ratio"] = base["noise_floor"] / r["noise_floor"]
+        r["spp_ratio"] = base["spp_to_10x_noise_floor"] / r["spp_to_10x_noise_floor"]
+        r["seconds_speedup"] = base["seconds_to_10x_noise_floor"] / r["seconds_to_10x_noise_floor"]
+        r["cpu_seconds_speedup"] = base["cpu_seconds_to_10x_noise_floor"] / r["cpu_seconds_to_10x_noise_floor"]
+        if label != "independent":
+            d = np.mean([i.rgb for i in imgs[label]], axis=0, dtype=np.float64) - a_m
+            v = np.mean([i.variance for i in imgs[label]], axis=0, dtype=np.float64) / seeds + a_v
+            r["mean_z"] = float(d.sum() / math.sqrt(max(v.sum(), 1e-300)))
+            r["pixels_within_1.96"] = float(np.mean(np.abs(d) < 1.96 * np.sqrt(v) + 1e-7))
+    return {"target_floor": target, "resolution": [scene.camera.width, scene.camera.height], "seeds": seeds,
+            "environment": scene.environment.path or scene.environment.type, **out}
+
+
+def _hdr_envmap(envmap: str | None) -> Path | None:
+    if envmap:
+        return Path(envmap)
+    for name in ENVMAP_NAMES:
+        if (ENVMAPS / name).is_file():
+            return ENVMAPS / name
+    return None
+
+
+def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
 
@@ -214,6 +309,19 @@ def run_bench(quick: bool = False) -> dict:
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
 
     gather = _time_gather(scene, 2 if quick else 5)
+    from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
+    asset = bench_asset(scene, spp, t_local, rep, quick=quick)
+
+    full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
+    fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP
+    fseeds = FLOOR_SEEDS_QUICK if quick else FLOOR_SEEDS
+    samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
+    hdr = _hdr_envmap(envmap)
+    if hdr is not None and hdr.is_file():
+        hscene = replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
+        samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full)
+    else:
+        samplers["spheres_hdr"] = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
 
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
@@ -234,6 +342,10 @@ def run_bench(quick: bool = False) -> dict:
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
         "material_gather_render_speedup": gather["render_speedup"],
         "material_gather_grad_step_speedup": gather["grad_step_speedup"],
+        "asset_vs_spheres": asset["vs_spheres"],
+        "default_sampler_seconds_speedup": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["seconds_speedup"],
+        "default_sampler_cpu_seconds_speedup": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["cpu_seconds_speedup"],
+        "default_sampler_spp_ratio": samplers["spheres"][SAMPLER_CONFIGS[-1][0]]["spp_ratio"],
     }
     goals = {f"{k}_goal": v for k, v in GOALS.items()}
     met = {k: figures[k] >= v for k, v in GOALS.items()}
@@ -267,6 +379,11 @@ def run_bench(quick: bool = False) -> dict:
         "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
         "peer_roughness": PEER_ROUGHNESS,
         "material_gather": gather,
+        "asset": asset,
+        "samplers": samplers,
+        "samplers_note": "each sampler at the same spp, its floor from its own variance channels; spp to the "
+                         "floor extrapolated as 1/spp (exact for independent, an upper bound for qmc); seconds "
+                         "are wall time under the machine's load: spp_ratio and variance_ratio do not depend on it",
         "noise_floor_factor": NOISE_FLOOR_FACTOR,
         "noise_floor_target_mse": SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR,
         "noise_floor_note": "spp = 10 x per-sample variance / the default preset's MSE on spheres; seconds "

@@ -3,32 +3,37 @@ and ``bench multiscatter``."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
 from pbrcheck.args import positive_int
+from pbrcheck.atomic import check_output_path
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 
 from .bench import run_bench
-from .render import render_reference
+from .render import DEFAULT_ADAPTIVE, DEFAULT_SAMPLER, SAMPLER_NAMES, render_reference
 
 
 def _cmd_reference(args) -> int:
     scene = load_scene(args.scene)
-    img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,
-                           use_cache=not args.no_cache, progress=True)
     out = Path(args.out) if args.out else Path("out") / f"reference_{scene.name}_{args.mode}_{args.spp}spp.exr"
+    check_output_path(out)  # before the render
+    img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,
+                           use_cache=not args.no_cache, progress=True, sampler=args.sampler,
+                           adaptive=args.adaptive)
     write_exr(out, img)
     m = img.meta
-    print(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, variant {m['variant']}, "
-          f"{m['seconds']} s render, cache {m.get('cache', 'off')}")
+    print(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, sampler {m.get('sampler')}"
+          + (f" (adaptive: {m['adaptive']})" if m.get("adaptive", "off") != "off" else "")
+          + f", variant {m['variant']}, {m['seconds']} s render, cache {m.get('cache', 'off')}")
     return 0
 
 
 def _cmd_bench(args) -> int:
-    print(json.dumps(run_bench(quick=args.quick), indent=2))
+    print(json.dumps(run_bench(quick=args.quick, envmap=args.envmap), indent=2))
     sys.stdout.flush()
     return 0
 
@@ -51,12 +56,20 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--seed", type=positive_int(0), default=0)
     s.add_argument("--max-depth", type=positive_int(1), default=None,
                    help="path mode: maximum path depth (default 8)")
+    s.add_argument("--sampler", choices=SAMPLER_NAMES, default=DEFAULT_SAMPLER,
+                   help="qmc: randomized quasi-Monte Carlo (multijitter), variance from 16 replicates "
+                        "(default); independent: uniform random numbers, per-sample variance")
+    s.add_argument("--adaptive", action=argparse.BooleanOptionalAction, default=DEFAULT_ADAPTIVE,
+                   help="qmc at >= 256 spp: a pilot (discarded) sets each pixel's spp, mean = --spp (default on)")
     s.add_argument("--out", default=None, help="output EXR (default out/reference_<scene>_<mode>_<spp>spp.exr)")
     s.add_argument("--no-cache", action="store_true", help="render even if a cached reference exists, store nothing")
     s.set_defaults(func=_cmd_reference)
 
     b = bench_sub.add_parser("reference", help="reference throughput against Mitsuba's path, integrator efficiency, BSDF speed, seconds to the 10x noise floor (JSON, with goals)")
     b.add_argument("--quick", action="store_true", help="smaller sizes (for tests)")
+    b.add_argument("--envmap", default=None,
+                   help="HDR environment of the real-HDR figures (default: the first of ../shared/envmaps; "
+                        "skipped when absent)")
     b.set_defaults(func=_cmd_bench)
 
     b = bench_sub.add_parser("multiscatter", help="BSDF samples per second: random_walk against single "

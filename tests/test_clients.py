@@ -162,7 +162,7 @@ def _alive(pid: int) -> bool:
 
 def test_timeout_kills_the_renderer_and_its_children(fake, scene):
     t0 = time.perf_counter()
-    with pytest.raises(R.RendererError, match=r"timed out after 3 s \(killed with its children\)"):
+    with pytest.raises(R.RendererError, match=r"timed out after 3 s \(killed with its children: its session"):
         renderers.render_under_test(scene, "ext:sleep")
     assert time.perf_counter() - t0 < 20
     pid = int((fake / "child.pid").read_text())
@@ -223,7 +223,7 @@ def test_gate_reports_error_never_pass(fake, tmp_path, scene, capsys):
     ("[renderer.a]\ncommand = ['x', '{scene}', '{out}']\n", "unknown placeholder(s) scene"),
     ("[renderer.a]\ncommand = ['x']\n", "must name the output file with {out}"),
     ("[renderer.a]\ncommand = ['x', '{out}']\noutput = 'jpg'\n", "renderer.a.output: expected one of exr, hdr, pfm, png-srgb"),
-    ("[renderer.a]\ncommand = ['x', '{out}']\ntimeout = -1\n", "renderer.a.timeout: expected a positive number"),
+    ("[renderer.a]\ncommand = ['x', '{out}']\ntimeout = -1\n", "renderer.a.timeout: expected a number of seconds > 0"),
     ("[renderer.a]\ncommand = ['x', '{out}']\ncolour = 1\n", "unknown key(s) colour"),
     ("[renderer.a]\ncommand = 'x {out}'\n", "renderer.a.command: expected a non-empty array"),
     ("[renderer.a\n", "not valid TOML"),
@@ -279,7 +279,7 @@ def test_committed_clients_budget_is_well_formed():
 def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_difference(fake, tmp_path, monkeypatch):
     """An external renderer that keeps a white furnace at 1.0 where the (here: faked) single-scattering
     reference loses energy is named a model difference in the report, and appears in the summary."""
-    from compare.report.build import build_report
+    from compare.report.build import ReportConfig, build_report
     from tests.test_compare_report import fake_reference
 
     (fake / "fake.py").write_text(FAKE.replace("img = np.full((H, W, 3), 0.5, np.float32)",
@@ -294,8 +294,8 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
 
     monkeypatch.setattr(renderers, "render_reference", lossy_reference)
     (tmp_path / "tiny.toml").write_text(__import__("pbrcheck.scene", fromlist=["dump_toml"]).dump_toml(SCENE))
-    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm"], out_dir=tmp_path / "r", spp=4,
-                         convergence=False, sweep=False, progress=False)
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm"], spp=4, convergence=False, sweep=False, progress=False))
     html = index.read_text()
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]

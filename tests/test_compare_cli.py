@@ -145,7 +145,7 @@ def test_gate_missing_data_exits_2(exrs, tmp_path, capsys, ref, test, msg):
     ("this is not toml", "invalid TOML"),
     ("", "at least one [[check]]"),
     ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='img/ref.exr'\n[check.max]\nbogus=1\n", "bogus"),
-    ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='img/ref.exr'\n[check.max]\nrelmse='big'\n", "a number"),
+    ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='img/ref.exr'\n[check.max]\nrelmse='big'\n", "a finite number >= 0"),
     ("[[check]]\nname='x'\ntest='img/good.exr'\nreference='img/ref.exr'\n", "at least one metric budget"),
     ("[[check]]\nname='x'\nreference='img/ref.exr'\n[check.max]\nrelmse=1\n", "neither"),
     ("[[check]]\ntest='img/good.exr'\nreference='img/ref.exr'\n[check.max]\nrelmse=1\n", "name"),

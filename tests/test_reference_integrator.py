@@ -44,13 +44,19 @@ def _z_agree(a_mean, a_var, b_mean, b_var, atol=1e-5):
 @pytest.mark.parametrize("mode,rough", [("local", 0.4), ("local", 0.0), ("path", 0.4)])
 def test_same_pixels_as_the_version_1_renderer(mode, rough):
     scene = _scene(roughness=rough)
-    new = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=1, progress=False)
+    new = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=1, progress=False, sampler="independent")
     m, v, c = legacy_render(scene, spp=64, mode=mode, max_depth=3, seed=2)
     _z_agree(new.rgb, new.variance, m, v)
     # the variance estimates agree too (pooled over the image: a few percent at 64 spp)
     ratio = new.variance.mean() / v.mean()
     assert 0.85 < ratio < 1.15, ratio
     assert abs(new.channels["coverage"].mean() - c.mean()) < 0.02
+    # the qmc sampler (replicates): the same pixels within its own noise, and less of it
+    q = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=3, progress=False, sampler="qmc")
+    _z_agree(q.rgb, q.variance, m, v)
+    assert q.variance.mean() < new.variance.mean()
+    assert abs(q.channels["coverage"].mean() - c.mean()) < 0.02
+    assert q.meta["sampler"] == "qmc" and q.meta["replicates"] == "16"
     assert new.meta["reference_code_version"] == rr.REFERENCE_CODE_VERSION != "1"
     assert new.meta["integrator"].startswith("mi.render")
 
@@ -69,7 +75,7 @@ def test_pass_sizes():
 
 def test_passes_only_where_memory_requires_them(monkeypatch):
     scene = _scene(size=16)
-    one = render_uncached(scene, spp=24, seed=3, progress=False)
+    one = render_uncached(scene, spp=24, seed=3, progress=False, sampler="independent")
     assert one.meta["passes"] == "1"
     monkeypatch.setitem(ri.MAX_LANES, "llvm", 16 * 12 * 7)
     monkeypatch.setitem(ri.MAX_LANES, "cuda", 16 * 12 * 7)
@@ -81,12 +87,64 @@ def test_passes_only_where_memory_requires_them(monkeypatch):
         return real(self, *a, **k)
 
     monkeypatch.setattr(ri.ReferenceIntegrator, "render", spy)
-    many = render_uncached(scene, spp=24, seed=4, progress=False)
+    many = render_uncached(scene, spp=24, seed=4, progress=False, sampler="independent")
     assert many.meta["passes"] == "4" and done == [6, 6, 6, 6]
     _z_agree(one.rgb, one.variance, many.rgb, many.variance)
     ratio = many.variance.mean() / one.variance.mean()
     assert 0.8 < ratio < 1.25, ratio
     np.testing.assert_array_equal(one.channels["NdotV"], many.channels["NdotV"])
+
+
+@pytest.mark.parametrize("lanes", [16 * 12 * 4, 16 * 12 * 2])
+def test_qmc_replicates_share_wavefronts_or_split(monkeypatch, lanes):
+    """qmc: all 16 replicates in one pass where memory allows; else a pass per replicate (lanes =
+    pixels x 4), or a replicate split over passes with ``advance`` (pixels x 2): the same pixels
+    within noise, progress summing to the spp."""
+    scene = _scene(size=16)
+    assert ri.replicate_plan(64) == (16, 4)
+    one = render_uncached(scene, spp=64, seed=3, progress=False, sampler="qmc", adaptive=False)
+    monkeypatch.setitem(ri.MAX_LANES, "llvm", lanes)
+    monkeypatch.setitem(ri.MAX_LANES, "cuda", lanes)
+    done = []
+    real = ri.ReferenceIntegrator.render_groups
+
+    def spy(self, *a, **k):
+        self.progress = (lambda n, p=self.progress: (done.append(n), p and p(n)))
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(ri.ReferenceIntegrator, "render_groups", spy)
+    many = render_uncached(scene, spp=64, seed=4, progress=False, sampler="qmc", adaptive=False)
+    assert len(done) == (16 if lanes == 16 * 12 * 4 else 32) and abs(sum(done) - 64) < 1e-9
+    _z_agree(one.rgb, one.variance, many.rgb, many.variance)
+    ratio = many.variance.mean() / one.variance.mean()
+    assert 0.7 < ratio < 1.4, ratio
+    assert abs(one.channels["coverage"].mean() - many.channels["coverage"].mean()) < 0.02
+
+
+def test_replicate_plan_and_adaptive_allocation():
+    assert [ri.replicate_plan(s) for s in (2, 4, 16, 64, 128, 256, 1024, 2048, 4096)] == [
+        (2, 1), (2, 2), (8, 2), (16, 4), (16, 8), (16, 16), (16, 64), (32, 64), (16, 256)]
+    assert ri.replicate_plan(1000) == (1000, 1)  # no multijitter count fits: independent samples
+    for spp in (64, 256, 4096):
+        K, n = ri.replicate_plan(spp)
+        assert K * n == spp and K >= 2 and ri.multijitter_count_ok(n)
+    # Neyman (defensive, dilated): pixels with 4x the standard deviation get more spp, every pixel at least
+    # half the mean (rr.ADAPTIVE_DEFENSIVE), the mean within the budget, each spp a level
+    mean = np.full((4, 8, 3), 0.5)
+    var = np.full((4, 8, 3), 1e-4)
+    var[0, :4] *= 16.0
+    alloc = rr.adaptive_allocation(mean, var, 32, 256)
+    assert 128 < alloc.mean() <= 256
+    assert set(alloc.tolist()) <= set(rr.adaptive_levels(256))
+    a = alloc.reshape(4, 8)  # the high pixels and their neighbours (dilated by one pixel) get more
+    assert np.all(a[2:] == a[2:].min()) and a.min() == a[2:].min() >= rr.ADAPTIVE_DEFENSIVE * 256
+    assert np.all(a[:2, :5] >= 2 * a.min()) and np.all(a[:, 6:] == a.min())
+    assert rr.adaptive_levels(256) == [32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384]
+    for lv in rr.adaptive_levels(4096):
+        K, n = ri.replicate_plan(lv)
+        assert K in (16, 32) and K * n == lv
+    # a pilot without variance (a constant image): uniform
+    assert np.all(rr.adaptive_allocation(mean, 0 * var, 32, 256) == 256)
 
 
 def test_film_render_equals_moments_mean():
@@ -218,3 +276,16 @@ def test_one_integrator_renders_two_scenes_each_with_its_own_materials():
         fresh = np.array(mi.render(ms, sensor=sensor, integrator=rr.load_integrator("local"), spp=8, seed=1))
         np.testing.assert_allclose(out[name], fresh, rtol=1e-5, atol=1e-6)
     assert not np.allclose(out["a"][..., :3], out["b"][..., :3])
+
+
+def test_cache_key_names_the_sampler_and_adaptive():
+    scene = _scene(size=12)
+    k = lambda **kw: rr.reference_cache_key(scene, spp=kw.pop("spp", 256), mode="local", seed=0, max_depth=None, **kw)  # noqa: E731
+    assert rr.DEFAULT_SAMPLER == "qmc" and rr.DEFAULT_ADAPTIVE
+    assert k() == k(sampler="qmc", adaptive=True)
+    assert len({k(sampler="independent"), k(sampler="qmc", adaptive=False), k(sampler="qmc", adaptive=True)}) == 3
+    # below ADAPTIVE_MIN_SPP an adaptive render is the uniform one: one entry
+    assert k(spp=64, adaptive=True) == k(spp=64, adaptive=False)
+    assert k(sampler="independent", adaptive=True) == k(sampler="independent", adaptive=False)
+    with pytest.raises(ValueError, match="sampler"):
+        k(sampler="sobol")

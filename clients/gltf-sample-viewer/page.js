@@ -35,6 +35,12 @@ async function main() {
   const scenario = await (await fetch('/scene/scenario.json')).json();
   const W = scenario.size.width, H = scenario.size.height;
   const SW = W * ss, SH = H * ss;
+  // A user's Draco-compressed asset: the stub above cannot decode it (the Sample Viewer fetches its
+  // decoder from a CDN, which this offline client cannot reach): say so instead of drawing nothing.
+  const doc = await (await fetch('/scene/' + scenario.gltf)).json();
+  if ((doc.extensionsRequired || []).includes('KHR_draco_mesh_compression')) {
+    throw new Error('KHR_draco_mesh_compression: the Sample Viewer client has no offline Draco decoder');
+  }
 
   const canvas = document.createElement('canvas');
   canvas.width = SW; canvas.height = SH;

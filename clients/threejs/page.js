@@ -2,7 +2,7 @@
 // renders linear radiance into a float render target and POSTs the pixels to the runner
 // (render.mjs), which writes the PFM. See docs/renderers.md.
 //
-// - GLTFLoader: meshes, MeshStandardMaterial (MeshPhysicalMaterial where KHR_materials_ior is
+// - GLTFLoader (+ DRACOLoader for Draco-compressed assets): meshes, MeshStandardMaterial (MeshPhysicalMaterial where KHR_materials_ior is
 //   used), KHR_lights_punctual point lights (decay 2, no range), the glTF camera.
 // - EXRLoader (float32) + PMREMGenerator: the image-based lighting; the equirectangular texture
 //   itself is the background.
@@ -11,6 +11,7 @@
 //   pixels are box-filtered too). GL's rows start at the bottom, which is PFM's order.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
 import { EXRLoader } from 'three/addons/loaders/EXRLoader.js';
 import { boxFilter, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
@@ -30,7 +31,9 @@ async function main() {
   renderer.setPixelRatio(1);
   renderer.setSize(SW, SH, false);
 
-  const gltf = await new GLTFLoader().loadAsync('/scene/' + scenario.gltf);
+  // KHR_draco_mesh_compression (users' assets): three.js's own Draco decoder, shipped in the package
+  const draco = new DRACOLoader().setDecoderPath('/three/examples/jsm/libs/draco/');
+  const gltf = await new GLTFLoader().setDRACOLoader(draco).loadAsync('/scene/' + scenario.gltf);
   const envTex = await new EXRLoader().setDataType(THREE.FloatType).loadAsync('/scene/' + scenario.environment.exr);
   envTex.mapping = THREE.EquirectangularReflectionMapping;
   envTex.colorSpace = THREE.LinearSRGBColorSpace;

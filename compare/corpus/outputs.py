@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrcheck.atomic import temp_beside, write_text_atomic
+from pbrcheck.atomic import write_bytes_atomic, write_text_atomic
 from pbrcheck.jsonio import write_json_atomic
 
 from ..maps import pyplot, save_figure
@@ -90,16 +90,9 @@ def summarize(rows: list[dict], settings, env_keys: dict[str, str]) -> dict:
 def write_thumbnail(folder: Path, key: str, rgb8: np.ndarray) -> Path:
     """Write the uint8 sRGB array ``rgb8`` as ``folder/key.png`` atomically."""
     plt = pyplot()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{key}.png"
-    tmp = temp_beside(path, ".png")
-    try:
-        plt.imsave(tmp, rgb8, format="png")
-        Path(tmp).replace(path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    buf = io.BytesIO()
+    plt.imsave(buf, rgb8, format="png")
+    return write_bytes_atomic(folder / f"{key}.png", buf.getvalue())
 
 
 def write_csv(path: Path, rows: list[dict], columns) -> Path:

@@ -40,6 +40,10 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import shutil
+import sys
+import tempfile
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -233,6 +237,47 @@ class DaskExecutor:
             fut.release()
 
 
+#: Seconds during which a ``tcp://`` scheduler's port is tried (every 0.25 s: a scheduler that is
+#: still starting) before Dask's own connect: a refused or unreachable port fails after this, not
+#: after :data:`CONNECT_TIMEOUT_S`.
+PROBE_TIMEOUT_S = 15.0
+
+
+def _probe(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Raise :class:`SchedulerUnavailable` when nothing listens at ``tcp://HOST:PORT`` within
+    ``timeout`` seconds."""
+    import socket
+    from urllib.parse import urlsplit
+
+    try:
+        u = urlsplit(address)
+        host, port = u.hostname, u.port
+    except ValueError as e:
+        raise SchedulerError(f"--scheduler {address!r}: {e}") from None
+    if not host or port is None:
+        raise SchedulerError(f"--scheduler {address!r}: expected tcp://HOST:PORT")
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=max(0.5, deadline - time.monotonic())):
+                return
+        except OSError as e:
+            if time.monotonic() + 0.25 < deadline and not isinstance(e, (TimeoutError, socket.gaierror)):
+                time.sleep(0.25)
+                continue
+            reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+            raise SchedulerUnavailable(f"--scheduler {address}: cannot connect within {timeout:g} s "
+                                       f"({reason})") from None
+
+
+def _silence_dask() -> None:
+    """Interrupted: the closing cluster's and client's logging says nothing more, nor does Dask's
+    clean-up at exit (``close_clusters`` of a cluster interrupted while it started)."""
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    sys.unraisablehook = lambda unraisable: None
+
+
 @contextlib.contextmanager
 def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RETRIES,
                   timeout: float = CONNECT_TIMEOUT_S):
@@ -252,14 +297,30 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
     if spec.kind == "serial":
         yield SerialExecutor()
         return
+    import dask
     from distributed import Client, LocalCluster  # local: a heavy import only Dask runs need
 
     if spec.kind == "local":
-        with LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
-                Client(cluster, timeout=timeout) as client:
-            yield DaskExecutor(client, retries)
+        # the workers' own logging is silenced (CRITICAL): a Ctrl-C reaches them too, and their
+        # CommClosedError tracebacks would bury pbrcheck's one line; a task's failure still comes
+        # back as its error row
+        # the workers' scratch folder is this run's own, removed at the end (Dask's default,
+        # $TMPDIR/dask-scratch-space, stays behind)
+        scratch = tempfile.mkdtemp(prefix="pbrcheck-dask-")
+        try:
+            with dask.config.set({"temporary-directory": scratch}), \
+                    LocalCluster(n_workers=spec.workers, threads_per_worker=1, processes=True,
+                                 dashboard_address=None, silence_logs=logging.CRITICAL,
+                                 local_directory=scratch) as cluster, \
+                    Client(cluster, timeout=timeout) as client:
+                yield DaskExecutor(client, retries)
+        except BaseException:  # also an interrupt while the cluster starts
+            _silence_dask()
+            raise
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
         return
+    _probe(spec.address, min(timeout, PROBE_TIMEOUT_S))
     try:
         client = Client(spec.address, timeout=timeout)
     except (OSError, TimeoutError) as e:
@@ -270,4 +331,8 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
         except (OSError, TimeoutError):
             raise SchedulerUnavailable(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
                                  f"(start some with `dask worker {spec.address} --nthreads 1`)") from None
-        yield DaskExecutor(client, retries)
+        try:
+            yield DaskExecutor(client, retries)
+        except BaseException:
+            _silence_dask()
+            raise

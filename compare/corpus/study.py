@@ -53,6 +53,7 @@ from pbrcheck.scene import Environment, Scene
 
 from .. import renderers
 from ..metrics import METRICS
+from ..verdict_spp import MIN_REFERENCE_SPP
 from .envstats import STAT_COLUMNS
 from .outputs import summarize, write_outputs, write_thumbnail
 from .scheduler import Dep, Failed, SchedulerSpec, Task, open_executor, parse_scheduler, unique_tasks
@@ -63,7 +64,7 @@ SUFFIXES = (".exr", ".hdr")
 #: Reference integrator of a corpus (the integral real-time image-based lighting approximates).
 REFERENCE_MODE = "local"
 #: Minimum reference spp (the variance channels need two samples).
-MIN_SPP = 2
+MIN_SPP = MIN_REFERENCE_SPP
 
 TIMING_COLUMNS = ("reference_s", "render_s", "precompute_s", "frame_s", "compare_s")
 ROW_COLUMNS = ("environment", "renderer", "status", "stage", "error", *STAT_COLUMNS, *METRICS,
@@ -269,6 +270,11 @@ class CorpusResult:
     tasks: int = 0             # tasks submitted by this run
 
 
+#: Files of a finished run removed when a run computes new rows (an interrupted re-run with other
+#: settings must not leave the previous run's table beside its rows); written again at the end.
+STALE_ON_RERUN = ("corpus.csv", "corpus.json")
+
+
 def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path, *,
                scheduler: str | SchedulerSpec | None = "serial", executor=None, resume: bool = False,
                progress: bool = True, on_row: Callable[[dict], None] | None = None,
@@ -325,6 +331,9 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
         # The executor first: a scheduler that cannot be reached stops the corpus before any write.
         if tasks and executor is None:
             executor = stack.enter_context(open_executor(spec))
+        if tasks:  # the summary files describe a finished run: a previous run's go before new rows come
+            for name in STALE_ON_RERUN:
+                (out / name).unlink(missing_ok=True)
         rows_dir.mkdir(parents=True, exist_ok=True)
         computed = 0
 

@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 
 from pbrcheck.args import split_list
+from pbrcheck.atomic import check_output_path, staged_folder
 from pbrcheck.scene import DEFAULT_SCENE
 from realtime.presets import SHADER_SEP
 
@@ -16,7 +17,7 @@ from .. import renderers
 
 from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
-from .build import build_report
+from .build import ReportConfig, build_report
 from .corpus_section import corpus_section
 from .runlog import RUN_FILE, bench_report, summary_line
 from .sweep import parse_vary, run_sweep
@@ -28,16 +29,19 @@ def _cmd_report(args) -> int:
         presets = (presets or renderers.preset_names()) + split_list(args.also)
     if args.shader:  # each hook file as one more renderer: the default preset with the hooks
         presets = (presets or renderers.preset_names()) + [f"default{SHADER_SEP}{f}" for f in args.shader]
+    check_output_path(args.out, folder=True)  # before any render
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
-    out = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=Path(args.out),
-                       extras=extras,
-                       spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                       convergence=not args.no_convergence,
-                       sweep=not args.no_sweep, progress=not args.quiet,
-                       hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
-                       scheduler=args.scheduler, cache=not args.no_cache)
+    config = ReportConfig(presets=presets, spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                          convergence=not args.no_convergence, sweep=not args.no_sweep, furnace=not args.no_furnace,
+                          hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
+                          cache=not args.no_cache, progress=not args.quiet)
+    # The page and its files are written into a sibling temporary folder (same depth: the corpus
+    # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
+    with staged_folder(args.out) as stage:
+        built = build_report(args.scenes or [DEFAULT_SCENE], stage, config, extras=extras)
+    out = Path(args.out) / Path(built).relative_to(stage)
     print(f"report: {out}")
     run = Path(out).parent / RUN_FILE
     if run.is_file():  # where the time went (also the page's last section)
@@ -47,8 +51,11 @@ def _cmd_report(args) -> int:
 
 def _cmd_sweep(args) -> int:
     vary = parse_vary(args.vary)
-    paths = run_sweep(args.scene, vary, preset=args.preset, out_dir=Path(args.out), spp=args.spp,
-                      progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
+    check_output_path(args.out, folder=True)  # before any render
+    with staged_folder(args.out) as stage:  # all of its files, or none
+        staged = run_sweep(args.scene, vary, preset=args.preset, out_dir=stage, spp=args.spp,
+                           progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
+    paths = {k: Path(args.out) / Path(p).relative_to(stage) for k, p in staged.items()}
     for k, p in paths.items():
         print(f"{k}: {p}")
     return 0

@@ -1,0 +1,843 @@
+"""glTF 2.0 assets: read a ``.gltf`` / ``.glb`` into flat, world-space triangle primitives, materials,
+images, lights and cameras that both the reference and the exporters consume.
+
+API
+---
+- :func:`load_asset` -- parse and resolve an asset (cached per file content); returns an :class:`Asset`.
+- :class:`Asset`, :class:`Primitive`, :class:`GltfMaterial`, :class:`TextureRef`, :class:`GltfImage`,
+  :class:`GltfLight`, :class:`GltfCamera` -- the resolved asset (immutable dataclasses, numpy arrays).
+- :class:`AssetError` -- every problem, naming the file and the JSON pointer
+  (``/meshes/0/primitives/1/attributes/NORMAL``); the CLI maps it to exit 2.
+- :data:`SUPPORTED_EXTENSIONS` -- the extensions implemented (any other one in ``extensionsRequired``
+  is an error; an optional one is listed in :attr:`Asset.extensions_ignored`).
+- :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
+- :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
+- :func:`content_hash` -- sha256 of the asset file and every external resource it names.
+
+Conventions (glTF 2.0 specification, sections 3.5 accessors, 3.7 geometry, 3.9 materials, 3.8
+textures; the extensions' specifications): world = the node hierarchy's product of local matrices
+(``matrix`` or ``T * R * S``), +Y up, right-handed, metres; positions and tangents' xyz by the world
+matrix, normals by its inverse transpose; a node whose world matrix has a negative determinant has
+its triangles' winding reversed (spec 3.7.4) and its tangents' handedness ``w`` flipped. Normalized
+integer accessors are decoded as ``max(c / (2^(b-1) - 1), -1)`` (signed) or ``c / (2^b - 1)``;
+sparse accessors replace their indices' elements after the base (or zeros). UVs are glTF's (origin
+at the image's top-left, v down), images are stored row 0 at the top, so a UV ``(u, v)`` reads
+pixel ``(v H, u W)`` without a flip. Where ``NORMAL`` is absent every triangle gets its flat normal
+(the vertices are unwelded); where ``TANGENT`` is absent and the material has a normal texture,
+tangents are generated (:func:`generate_tangents`: MikkTSpace's per-triangle tangents from the UV
+derivatives, angle-weighted at each vertex, orthogonalised against the normal, ``w`` from the
+bitangent's handedness, negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
+or their indices where unnamed, and the primitive's index).
+
+The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
+``KHR_draco_mesh_compression`` is decoded with DracoPy (Google's Draco); images with Pillow.
+References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_materials_ior,
+KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
+(integer attributes: any component type, decoded as above); Mikkelsen 2008,
+"Simulation of wrinkled surfaces revisited" (MikkTSpace).
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import io
+import json
+import math
+import urllib.parse
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PbrcheckError
+
+#: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
+SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
+                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
+COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
+                    5126: np.float32}
+TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0")
+WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR = 10497, 33071, 33648
+ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
+#: Triangles whose UV-space area is below this are skipped by tangent generation (degenerate UVs).
+UV_AREA_EPS = 1e-20
+#: A tangent shorter than this after orthogonalisation is replaced by any vector orthogonal to N.
+TANGENT_EPS = 1e-12
+#: Largest triangle count accepted in one asset (a corrupt count guard: 2^27).
+MAX_TRIANGLES = 1 << 27
+
+
+class AssetError(PbrcheckError):
+    """A glTF asset that cannot be used: names the file and the JSON pointer."""
+
+    def __init__(self, file: str | Path, pointer: str, problem: str):
+        self.file = str(file)
+        self.pointer = pointer
+        self.problem = problem
+        where = f"{self.file}: {pointer}" if pointer else self.file
+        super().__init__(f"{where}: {problem}")
+
+
+@dataclass(frozen=True)
+class TextureRef:
+    """A material slot's texture: the image, the UV set, the sampler and ``KHR_texture_transform``."""
+    image: int
+    texcoord: int = 0
+    wrap: tuple[int, int] = (WRAP_REPEAT, WRAP_REPEAT)    # (S, T)
+    mag_filter: int | None = None
+    min_filter: int | None = None
+    transform: tuple[float, ...] | None = None            # row-major 3x3 UV matrix, or None
+    scale: float = 1.0                                    # normalTexture.scale / occlusionTexture.strength
+    pointer: str = ""
+
+
+@dataclass(frozen=True)
+class GltfMaterial:
+    """A glTF material (metal-rough). Factors as in the specification; textures as :class:`TextureRef`."""
+    name: str
+    base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    metallic: float = 1.0
+    roughness: float = 1.0
+    base_color_texture: TextureRef | None = None
+    metallic_roughness_texture: TextureRef | None = None
+    normal_texture: TextureRef | None = None
+    occlusion_texture: TextureRef | None = None
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)   # emissiveFactor * emissive_strength
+    emissive_texture: TextureRef | None = None
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    double_sided: bool = False
+    ior: float = 1.5
+
+    @property
+    def specular(self) -> float:
+        """Dielectric F0 from the ior: ((ior - 1) / (ior + 1))^2 (0.04 at glTF's default 1.5)."""
+        return ((self.ior - 1.0) / (self.ior + 1.0)) ** 2
+
+    def textures(self) -> dict[str, TextureRef]:
+        slots = {"baseColor": self.base_color_texture, "metallicRoughness": self.metallic_roughness_texture,
+                 "normal": self.normal_texture, "occlusion": self.occlusion_texture,
+                 "emissive": self.emissive_texture}
+        return {k: v for k, v in slots.items() if v is not None}
+
+
+#: The material of primitives without one (glTF spec 3.9.6).
+DEFAULT_MATERIAL = GltfMaterial(name="default")
+#: Slots whose images hold sRGB-encoded colour (the others are linear data).
+SRGB_SLOTS = ("baseColor", "emissive")
+
+
+@dataclass(frozen=True, eq=False)
+class GltfImage:
+    """A decoded image: ``pixels`` (H, W, C) uint8 or uint16, row 0 at the top, as stored."""
+    name: str
+    source: str          # the uri, "data URI" or "bufferView k"
+    mime: str
+    pixels: np.ndarray
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.pixels.shape[1]), int(self.pixels.shape[0])
+
+    def linear(self, srgb: bool) -> np.ndarray:
+        """(H, W, 4) float32 in [0, 1]: colour channels sRGB-decoded when ``srgb``, alpha linear,
+        grey expanded to RGB, alpha 1 where absent."""
+        p = self.pixels
+        x = p.astype(np.float32) / float(np.iinfo(p.dtype).max)
+        if x.ndim == 2:
+            x = x[..., None]
+        c = x.shape[2]
+        if c in (1, 2):
+            rgb, a = np.repeat(x[..., :1], 3, axis=2), (x[..., 1:2] if c == 2 else None)
+        else:
+            rgb, a = x[..., :3], (x[..., 3:4] if c == 4 else None)
+        if srgb:
+            rgb = srgb_to_linear(rgb)
+        if a is None:
+            a = np.ones(rgb.shape[:2] + (1,), np.float32)
+        return np.ascontiguousarray(np.concatenate([rgb, a], axis=2), dtype=np.float32)
+
+
+@dataclass(frozen=True, eq=False)
+class Primitive:
+    """One (node, primitive): world-space, triangle list. Arrays are float32 except ``indices``."""
+    name: str                      # node/mesh/primitive
+    node: int
+    mesh: int
+    primitive: int
+    material: int                  # index into Asset.materials (-1: the default material)
+    positions: np.ndarray          # (N, 3)
+    normals: np.ndarray            # (N, 3) unit
+    indices: np.ndarray            # (T, 3) uint32, counter-clockwise front faces
+    tangents: np.ndarray | None = None   # (N, 4) xyz unit, w = +-1
+    texcoords: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # TEXCOORD_0/1 (N, 2)
+    color: np.ndarray | None = None      # COLOR_0 (N, 4) linear
+    flat_normals: bool = False
+    generated_tangents: bool = False
+
+    @property
+    def triangles(self) -> int:
+        return int(self.indices.shape[0])
+
+
+@dataclass(frozen=True)
+class GltfLight:
+    """A ``KHR_lights_punctual`` light in world space. ``intensity``: candela (point, spot) or lux
+    (directional), times ``color``; ``direction``: where it shines (the node's -Z)."""
+    name: str
+    type: str
+    color: tuple[float, float, float]
+    intensity: float
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    range: float | None = None
+    inner_cone: float = 0.0
+    outer_cone: float = math.pi / 4
+
+
+@dataclass(frozen=True)
+class GltfCamera:
+    """The first camera of the asset, in world space: origin, forward, up, vertical fov (radians)."""
+    name: str
+    origin: tuple[float, float, float]
+    forward: tuple[float, float, float]
+    up: tuple[float, float, float]
+    yfov: float
+    aspect: float | None
+    znear: float
+
+
+@dataclass(frozen=True, eq=False)
+class Asset:
+    """A resolved asset (see the module docstring)."""
+    path: str
+    primitives: tuple[Primitive, ...]
+    materials: tuple[GltfMaterial, ...]
+    images: tuple[GltfImage, ...]
+    lights: tuple[GltfLight, ...]
+    cameras: tuple[GltfCamera, ...]
+    extensions_used: tuple[str, ...]
+    extensions_ignored: tuple[str, ...]
+    content_hash: str
+    resources: tuple[str, ...] = ()          # external files (absolute), for the exporter
+    scene: int = 0
+
+    def material(self, index: int) -> GltfMaterial:
+        return DEFAULT_MATERIAL if index < 0 else self.materials[index]
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) of every primitive's world positions."""
+        lo = np.min([p.positions.min(axis=0) for p in self.primitives], axis=0)
+        hi = np.max([p.positions.max(axis=0) for p in self.primitives], axis=0)
+        return lo.astype(np.float64), hi.astype(np.float64)
+
+    @property
+    def triangles(self) -> int:
+        return sum(p.triangles for p in self.primitives)
+
+    def texture_slots(self) -> dict[int, list[str]]:
+        """image index -> ["material name:slot", ...]."""
+        out: dict[int, list[str]] = {}
+        for m in self.materials:
+            for slot, t in m.textures().items():
+                out.setdefault(t.image, []).append(f"{m.name}:{slot}")
+        return out
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def texture_transform_matrix(offset=(0.0, 0.0), rotation: float = 0.0, scale=(1.0, 1.0)) -> np.ndarray:
+    """``KHR_texture_transform``: uv' = T(offset) R(rotation) S(scale) uv, with
+    R = [[cos, sin], [-sin, cos]] (the extension's matrix; rotation counter-clockwise in UV space)."""
+    c, s = math.cos(rotation), math.sin(rotation)
+    T = np.array([[1, 0, offset[0]], [0, 1, offset[1]], [0, 0, 1]], float)
+    R = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]], float)
+    S = np.array([[scale[0], 0, 0], [0, scale[1], 0], [0, 0, 1]], float)
+    return T @ R @ S
+
+
+# ------------------------------------------------------------------------------------------------
+# Reading
+# ------------------------------------------------------------------------------------------------
+
+def _file_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as e:
+        raise AssetError(path, "", f"cannot read: {e.strerror}") from None
+
+
+def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
+    """(glTF JSON, GLB binary chunk or None) via pygltflib."""
+    import pygltflib
+
+    try:
+        if raw[:4] == b"glTF":
+            g = pygltflib.GLTF2.load_from_bytes(raw)
+            blob = g.binary_blob()
+        else:
+            json.loads(raw.decode("utf-8"))   # pygltflib's own error on bad JSON is not one line
+            g = pygltflib.GLTF2.from_json(raw.decode("utf-8"))
+            blob = None
+        doc = json.loads(g.to_json())
+    except AssetError:
+        raise
+    except Exception as e:  # noqa: BLE001 - pygltflib raises anything on corrupt input
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise AssetError(path, "", f"not a valid glTF 2.0 file ({msg})") from None
+    if not isinstance(doc, dict) or not str(doc.get("asset", {}).get("version", "")).startswith("2"):
+        raise AssetError(path, "/asset/version", "expected glTF version 2.0")
+    return doc, blob
+
+
+def content_hash(path: str | Path) -> str:
+    """sha256 of the file and of every external resource (buffers, images) it names."""
+    p = Path(path)
+    raw = _file_bytes(p)
+    h = hashlib.sha256(raw)
+    for uri in _external_uris(p, raw):
+        f = p.parent / urllib.parse.unquote(uri)
+        h.update(uri.encode())
+        h.update(f.read_bytes() if f.is_file() else b"<missing>")
+    return h.hexdigest()
+
+
+def _external_uris(p: Path, raw: bytes) -> list[str]:
+    if raw[:4] == b"glTF":
+        try:
+            n = int.from_bytes(raw[12:16], "little")
+            doc = json.loads(raw[20:20 + n].decode("utf-8"))
+        except Exception:  # noqa: BLE001 - corrupt: load_asset reports it
+            return []
+    else:
+        try:
+            doc = json.loads(raw.decode("utf-8"))
+        except Exception:  # noqa: BLE001
+            return []
+    uris = []
+    for key in ("buffers", "images"):
+        for b in doc.get(key, []) if isinstance(doc, dict) else []:
+            u = b.get("uri") if isinstance(b, dict) else None
+            if isinstance(u, str) and not u.startswith("data:"):
+                uris.append(u)
+    return uris
+
+
+class _Reader:
+    """Buffers, accessors and images of one document, with pointers for every error."""
+
+    def __init__(self, path: Path, doc: dict, blob: bytes | None):
+        self.path, self.doc, self.blob = path, doc, blob
+        self._buffers: dict[int, bytes] = {}
+        self.resources: list[str] = []
+
+    def err(self, pointer: str, problem: str) -> AssetError:
+        return AssetError(self.path, pointer, problem)
+
+    def get(self, key: str, index, pointer: str) -> dict:
+        arr = self.doc.get(key, [])
+        if isinstance(index, bool) or not isinstance(index, int) or not (0 <= index < len(arr)):
+            raise self.err(pointer, f"index {index!r} out of range (the file has {len(arr)} {key})")
+        return arr[index]
+
+    def _uri_bytes(self, uri: str, pointer: str, what: str) -> bytes:
+        if uri.startswith("data:"):
+            head, _, data = uri.partition(",")
+            try:
+                return base64.b64decode(data) if head.endswith(";base64") else urllib.parse.unquote_to_bytes(data)
+            except Exception:  # noqa: BLE001
+                raise self.err(pointer + "/uri", f"undecodable data URI of a {what}") from None
+        f = self.path.parent / urllib.parse.unquote(uri)
+        try:
+            data = f.read_bytes()
+        except OSError as e:
+            raise self.err(pointer + "/uri", f"missing or unreadable {what} {str(f)!r} ({e.strerror})") from None
+        self.resources.append(str(f.resolve()))
+        return data
+
+    def buffer(self, index: int, pointer: str) -> bytes:
+        if index not in self._buffers:
+            p = f"/buffers/{index}"
+            b = self.get("buffers", index, pointer)
+            if "uri" in b:
+                data = self._uri_bytes(b["uri"], p, "buffer")
+            elif index == 0 and self.blob is not None:
+                data = self.blob
+            else:
+                raise self.err(p, "a buffer without uri outside a GLB's binary chunk")
+            if len(data) < int(b.get("byteLength", 0)):
+                raise self.err(p + "/byteLength", f"{b.get('byteLength')} bytes declared, {len(data)} present")
+            self._buffers[index] = data
+        return self._buffers[index]
+
+    def view(self, index: int, pointer: str) -> tuple[bytes, int, int, int | None]:
+        """(buffer bytes, byte offset, byte length, byte stride) of a buffer view."""
+        v = self.get("bufferViews", index, pointer)
+        p = f"/bufferViews/{index}"
+        data = self.buffer(v.get("buffer", -1), p + "/buffer")
+        off, length = int(v.get("byteOffset", 0)), int(v.get("byteLength", 0))
+        if off < 0 or off + length > len(data):
+            raise self.err(p, f"byte range [{off}, {off + length}) outside its buffer of {len(data)} bytes")
+        return data, off, length, v.get("byteStride")
+
+    def _elements(self, view: int, byte_offset: int, count: int, dtype, ncomp: int, pointer: str,
+                  what: str) -> np.ndarray:
+        data, voff, vlen, stride = self.view(view, pointer + "/bufferView")
+        item = np.dtype(dtype).itemsize
+        elem = item * ncomp
+        stride = int(stride) if stride else elem
+        need = byte_offset + (count - 1) * stride + elem if count else 0
+        if byte_offset < 0 or need > vlen:
+            raise self.err(pointer, f"{what} out of range: needs {need} bytes of bufferView {view}, which has {vlen}")
+        if count == 0:
+            return np.zeros((0, ncomp), dtype)
+        return np.ndarray((count, ncomp), dtype=dtype, buffer=data, offset=voff + byte_offset,
+                          strides=(stride, item)).copy()
+
+    def accessor(self, index, pointer: str) -> np.ndarray:
+        """(count, components) array, normalized integers as floats, sparse applied."""
+        a = self.get("accessors", index, pointer)
+        p = f"/accessors/{index}"
+        ct, typ = a.get("componentType"), a.get("type")
+        if ct not in COMPONENT_DTYPES:
+            raise self.err(p + "/componentType", f"unknown component type {ct!r}")
+        if typ not in TYPE_SIZES:
+            raise self.err(p + "/type", f"unknown type {typ!r}")
+        dtype, n = COMPONENT_DTYPES[ct], TYPE_SIZES[typ]
+        count = a.get("count")
+        if not isinstance(count, int) or count < 0:
+            raise self.err(p + "/count", f"expected a count >= 0, found {count!r}")
+        if "bufferView" in a:
+            x = self._elements(a["bufferView"], int(a.get("byteOffset", 0)), count, dtype, n, p, "accessor")
+        else:
+            x = np.zeros((count, n), dtype)
+        sp = a.get("sparse")
+        if sp:
+            k = int(sp.get("count", 0))
+            ii, vv = sp.get("indices", {}), sp.get("values", {})
+            ict = ii.get("componentType")
+            if ict not in (5121, 5123, 5125):
+                raise self.err(p + "/sparse/indices/componentType", f"unknown index type {ict!r}")
+            idx = self._elements(ii.get("bufferView", -1), int(ii.get("byteOffset", 0)), k,
+                                 COMPONENT_DTYPES[ict], 1, p + "/sparse/indices", "sparse indices")[:, 0]
+            val = self._elements(vv.get("bufferView", -1), int(vv.get("byteOffset", 0)), k, dtype, n,
+                                 p + "/sparse/values", "sparse values")
+            if k and int(idx.max()) >= count:
+                raise self.err(p + "/sparse/indices", f"index {int(idx.max())} out of range (count {count})")
+            x = x.copy()
+            x[idx.astype(np.int64)] = val
+        if a.get("normalized") and dtype is not np.float32:
+            bits = np.dtype(dtype).itemsize * 8
+            if np.issubdtype(dtype, np.signedinteger):
+                x = np.maximum(x.astype(np.float32) / float(2 ** (bits - 1) - 1), -1.0)
+            else:
+                x = x.astype(np.float32) / float(2 ** bits - 1)
+        return x
+
+    def image(self, index: int) -> GltfImage:
+        p = f"/images/{index}"
+        im = self.get("images", index, p)
+        if "uri" in im:
+            data = self._uri_bytes(im["uri"], p, "texture image")
+            source = im["uri"] if not im["uri"].startswith("data:") else "data URI"
+        elif "bufferView" in im:
+            buf, off, length, _ = self.view(im["bufferView"], p + "/bufferView")
+            data = buf[off:off + length]
+            source = f"bufferView {im['bufferView']}"
+        else:
+            raise self.err(p, "an image without uri or bufferView")
+        from PIL import Image as PILImage
+
+        try:
+            with PILImage.open(io.BytesIO(data)) as pim:
+                fmt = pim.format
+                if fmt not in ("PNG", "JPEG"):
+                    raise self.err(p, f"unsupported image format {fmt} (PNG and JPEG are)")
+                if pim.mode in ("P", "PA"):
+                    pim = pim.convert("RGBA")
+                elif pim.mode == "CMYK":
+                    pim = pim.convert("RGB")
+                elif pim.mode in ("I;16", "I;16B", "I;16L", "I"):
+                    arr = np.asarray(pim).astype(np.uint16)
+                    return GltfImage(im.get("name", f"image{index}"), source, "image/png", arr)
+                pixels = np.asarray(pim)
+        except AssetError:
+            raise
+        except Exception as e:  # noqa: BLE001 - Pillow raises many types on corrupt data
+            raise self.err(p, f"unreadable texture image {source!r} ({type(e).__name__}: {e})") from None
+        if pixels.dtype == bool:
+            pixels = pixels.astype(np.uint8) * 255
+        mime = "image/png" if fmt == "PNG" else "image/jpeg"
+        return GltfImage(im.get("name", source if not source.startswith("data") else f"image{index}"), source, mime,
+                         np.ascontiguousarray(pixels))
+
+
+# ------------------------------------------------------------------------------------------------
+# Geometry helpers
+# ------------------------------------------------------------------------------------------------
+
+def _quat_matrix(q) -> np.ndarray:
+    x, y, z, w = (float(c) for c in q)
+    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def node_matrix(node: dict) -> np.ndarray:
+    """A node's local 4x4: ``matrix`` (column-major in the file) or T * R * S."""
+    if "matrix" in node:
+        return np.asarray(node["matrix"], float).reshape(4, 4).T
+    m = np.eye(4)
+    m[:3, :3] = _quat_matrix(node.get("rotation", (0, 0, 0, 1))) * np.asarray(node.get("scale", (1, 1, 1)), float)
+    m[:3, 3] = node.get("translation", (0, 0, 0))
+    return m
+
+
+def face_normals(pos: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Unit normals (T, 3) of counter-clockwise triangles."""
+    n = np.cross(pos[tri[:, 1]] - pos[tri[:, 0]], pos[tri[:, 2]] - pos[tri[:, 0]])
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(ln > 0, n / np.maximum(ln, 1e-30), np.array([0.0, 0.0, 1.0]))
+
+
+def _any_orthogonal(n: np.ndarray) -> np.ndarray:
+    h = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    t = np.cross(h, n)
+    return t / np.linalg.norm(t, axis=1, keepdims=True)
+
+
+def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(N, 4) tangents with handedness: MikkTSpace's construction on a welded mesh -- per triangle
+    the tangent and bitangent from the UV derivatives (Mikkelsen 2008), accumulated at each vertex
+    weighted by the triangle's angle there, orthogonalised against the vertex normal (Gram-Schmidt);
+    ``w = -sign(dot(cross(N, T), B))`` (glTF's bitangent points to decreasing v). Triangles with degenerate UVs do not contribute."""
+    p = pos.astype(np.float64)
+    t = uv.astype(np.float64)
+    v0, v1, v2 = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    w0, w1, w2 = t[tri[:, 0]], t[tri[:, 1]], t[tri[:, 2]]
+    e1, e2 = v1 - v0, v2 - v0
+    d1, d2 = w1 - w0, w2 - w0
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(det) > UV_AREA_EPS
+    r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+    # B follows +v as stored; glTF's v points down the image and its bitangent (w (N x T)) points up
+    # the image, so w is MikkTSpace's sign negated (as three.js's computeMikkTSpaceTangents negateSign).
+    T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r
+    B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r
+    acc_t = np.zeros_like(p)
+    acc_b = np.zeros_like(p)
+    corners = [(0, 1, 2), (1, 2, 0), (2, 0, 1)]
+    for a, b, c in corners:
+        pa, pb, pc = p[tri[:, a]], p[tri[:, b]], p[tri[:, c]]
+        u1, u2 = pb - pa, pc - pa
+        cosang = np.einsum("ij,ij->i", u1, u2) / np.maximum(
+            np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1), 1e-30)
+        ang = np.arccos(np.clip(cosang, -1.0, 1.0))[:, None] * ok[:, None]
+        np.add.at(acc_t, tri[:, a], T * ang)
+        np.add.at(acc_b, tri[:, a], B * ang)
+    n = nrm.astype(np.float64)
+    tt = acc_t - n * np.einsum("ij,ij->i", acc_t, n)[:, None]
+    ln = np.linalg.norm(tt, axis=1, keepdims=True)
+    bad = ln[:, 0] < TANGENT_EPS
+    tt = np.where(bad[:, None], _any_orthogonal(n), tt / np.maximum(ln, 1e-30))
+    w = np.where(np.einsum("ij,ij->i", np.cross(n, tt), acc_b) < 0, 1.0, -1.0)
+    return np.concatenate([tt, w[:, None]], axis=1).astype(np.float32)
+
+
+# ------------------------------------------------------------------------------------------------
+# Materials
+# ------------------------------------------------------------------------------------------------
+
+def _texture_ref(r: _Reader, t: dict, pointer: str, *, scale_key: str | None = None) -> TextureRef:
+    if not isinstance(t, dict) or "index" not in t:
+        raise r.err(pointer, "a textureInfo with an index")
+    tex = r.get("textures", t["index"], pointer + "/index")
+    tp = f"/textures/{t['index']}"
+    if "source" not in tex:
+        raise r.err(tp, "a texture without source (only PNG and JPEG sources are supported)")
+    image = tex["source"]
+    r.get("images", image, tp + "/source")
+    wrap = (WRAP_REPEAT, WRAP_REPEAT)
+    mag = mn = None
+    if "sampler" in tex:
+        s = r.get("samplers", tex["sampler"], tp + "/sampler")
+        wrap = (int(s.get("wrapS", WRAP_REPEAT)), int(s.get("wrapT", WRAP_REPEAT)))
+        for k, w in zip(("wrapS", "wrapT"), wrap):
+            if w not in (WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR):
+                raise r.err(f"/samplers/{tex['sampler']}/{k}", f"unknown wrap mode {w}")
+        mag, mn = s.get("magFilter"), s.get("minFilter")
+    texcoord = int(t.get("texCoord", 0))
+    transform = None
+    ext = t.get("extensions", {}).get("KHR_texture_transform")
+    if ext is not None:
+        m = texture_transform_matrix(ext.get("offset", (0.0, 0.0)), float(ext.get("rotation", 0.0)),
+                                     ext.get("scale", (1.0, 1.0)))
+        transform = tuple(float(v) for v in m.reshape(-1))
+        texcoord = int(ext.get("texCoord", texcoord))
+    if texcoord not in (0, 1):
+        raise r.err(pointer + "/texCoord", f"TEXCOORD_{texcoord} (TEXCOORD_0 and TEXCOORD_1 are supported)")
+    scale = float(t.get(scale_key, 1.0)) if scale_key else 1.0
+    return TextureRef(image=int(image), texcoord=texcoord, wrap=wrap, mag_filter=mag, min_filter=mn,
+                      transform=transform, scale=scale, pointer=pointer)
+
+
+def _material(r: _Reader, index: int) -> GltfMaterial:
+    p = f"/materials/{index}"
+    m = r.doc["materials"][index]
+    pbr = m.get("pbrMetallicRoughness", {})
+    ext = m.get("extensions", {})
+    bc = tuple(float(x) for x in pbr.get("baseColorFactor", (1, 1, 1, 1)))
+    if len(bc) != 4:
+        raise r.err(p + "/pbrMetallicRoughness/baseColorFactor", "4 numbers")
+    strength = float(ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0))
+    em = tuple(float(x) * strength for x in m.get("emissiveFactor", (0, 0, 0)))
+    mode = m.get("alphaMode", "OPAQUE")
+    if mode not in ALPHA_MODES:
+        raise r.err(p + "/alphaMode", f"one of {', '.join(ALPHA_MODES)}, found {mode!r}")
+
+    def tex(d, key, ptr, scale_key=None):
+        return _texture_ref(r, d[key], f"{ptr}/{key}", scale_key=scale_key) if key in d else None
+
+    return GltfMaterial(
+        name=str(m.get("name", f"material{index}")),
+        base_color=bc, metallic=float(pbr.get("metallicFactor", 1.0)), roughness=float(pbr.get("roughnessFactor", 1.0)),
+        base_color_texture=tex(pbr, "baseColorTexture", p + "/pbrMetallicRoughness"),
+        metallic_roughness_texture=tex(pbr, "metallicRoughnessTexture", p + "/pbrMetallicRoughness"),
+        normal_texture=tex(m, "normalTexture", p, "scale"),
+        occlusion_texture=tex(m, "occlusionTexture", p, "strength"),
+        emissive=em, emissive_texture=tex(m, "emissiveTexture", p),
+        alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
+        ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
+    )
+
+
+# ------------------------------------------------------------------------------------------------
+# Primitives
+# ------------------------------------------------------------------------------------------------
+
+def _draco(r: _Reader, prim: dict, pp: str) -> dict[str, np.ndarray]:
+    """Decoded attributes (and "indices") of a Draco-compressed primitive."""
+    import DracoPy
+
+    ext = prim["extensions"]["KHR_draco_mesh_compression"]
+    ep = pp + "/extensions/KHR_draco_mesh_compression"
+    data, off, length, _ = r.view(ext.get("bufferView", -1), ep + "/bufferView")
+    try:
+        mesh = DracoPy.decode(bytes(data[off:off + length]))
+    except Exception as e:  # noqa: BLE001
+        raise r.err(ep, f"undecodable Draco data ({e})") from None
+    out: dict[str, np.ndarray] = {"indices": np.asarray(mesh.faces, np.uint32).reshape(-1)}
+    for name, uid in ext.get("attributes", {}).items():
+        att = mesh.get_attribute_by_unique_id(uid)
+        if att is None:
+            raise r.err(f"{ep}/attributes/{name}", f"no Draco attribute with id {uid}")
+        arr = np.asarray(att["data"])
+        out[name] = arr.reshape(arr.shape[0], -1).astype(np.float32)
+    return out
+
+
+def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, prim_i: int, prim: dict,
+               world: np.ndarray, materials: tuple[GltfMaterial, ...]) -> Primitive:
+    pp = f"/meshes/{mesh_i}/primitives/{prim_i}"
+    mode = prim.get("mode", 4)
+    if mode != 4:
+        names = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 5: "TRIANGLE_STRIP", 6: "TRIANGLE_FAN"}
+        raise r.err(pp + "/mode", f"a non-triangle primitive ({names.get(mode, mode)}; only TRIANGLES (4) is supported)")
+    attrs = prim.get("attributes", {})
+    if "POSITION" not in attrs and "KHR_draco_mesh_compression" not in prim.get("extensions", {}):
+        raise r.err(pp + "/attributes", "no POSITION attribute")
+    if "KHR_draco_mesh_compression" in prim.get("extensions", {}):
+        dec = _draco(r, prim, pp)
+        data = {k: v for k, v in dec.items() if k in ATTRIBUTES}
+        idx = dec["indices"]
+    else:
+        data = {k: r.accessor(attrs[k], f"{pp}/attributes/{k}") for k in ATTRIBUTES if k in attrs}
+        idx = None
+        if "indices" in prim:
+            idx = r.accessor(prim["indices"], pp + "/indices")[:, 0]
+    pos = data["POSITION"].astype(np.float32)
+    n = pos.shape[0]
+    if pos.shape[1] != 3:
+        raise r.err(pp + "/attributes/POSITION", "VEC3 positions")
+    bad = ~np.isfinite(pos).all(axis=1)
+    if bad.any():
+        raise r.err(pp + "/attributes/POSITION", f"{int(bad.sum())} non-finite (NaN or infinite) position(s), "
+                    f"first at vertex {int(np.argmax(bad))}")
+    for k, v in data.items():
+        if v.shape[0] != n:
+            raise r.err(f"{pp}/attributes/{k}", f"count {v.shape[0]} differs from POSITION's {n}")
+    if idx is None:
+        idx = np.arange(n, dtype=np.uint32)
+    idx = idx.astype(np.int64)
+    if idx.size % 3:
+        raise r.err(pp + "/indices", f"{idx.size} indices, not a multiple of 3")
+    if idx.size and (idx.min() < 0 or idx.max() >= n):
+        raise r.err(pp + "/indices", f"index {int(idx.max())} out of range ({n} vertices)")
+    tri = idx.reshape(-1, 3)
+    if tri.shape[0] > MAX_TRIANGLES:
+        raise r.err(pp + "/indices", f"{tri.shape[0]} triangles (more than {MAX_TRIANGLES})")
+    mat_i = int(prim.get("material", -1))
+    if mat_i >= 0:
+        r.get("materials", mat_i, pp + "/material")
+    mat = DEFAULT_MATERIAL if mat_i < 0 else materials[mat_i]
+    for k, width in (("NORMAL", 3), ("TANGENT", 4), ("TEXCOORD_0", 2), ("TEXCOORD_1", 2)):
+        if k in data and data[k].shape[1] != width:
+            raise r.err(f"{pp}/attributes/{k}", f"expected {width} components, found {data[k].shape[1]}")
+        if k in data and not np.isfinite(data[k]).all():
+            raise r.err(f"{pp}/attributes/{k}", "non-finite values")
+    for t in mat.textures().values():
+        if f"TEXCOORD_{t.texcoord}" not in data:
+            raise r.err(pp + "/attributes", f"no TEXCOORD_{t.texcoord}, which the material's {t.pointer} reads")
+
+    flat = "NORMAL" not in data
+    if flat:  # spec 3.7.2.1: flat normals; unweld so that every corner has its face's normal
+        fn = face_normals(pos, tri)
+        data = {k: v[tri.reshape(-1)] for k, v in data.items()}
+        pos = data["POSITION"]
+        data["NORMAL"] = np.repeat(fn, 3, axis=0).astype(np.float32)
+        tri = np.arange(pos.shape[0], dtype=np.int64).reshape(-1, 3)
+    nrm = data["NORMAL"].astype(np.float64)
+    ln = np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm = np.where(ln > 0, nrm / np.maximum(ln, 1e-30), np.array([0.0, 0.0, 1.0]))
+    tan = data.get("TANGENT")
+    generated = False
+    if tan is None and mat.normal_texture is not None:
+        tan = generate_tangents(pos, nrm, data[f"TEXCOORD_{mat.normal_texture.texcoord}"], tri)
+        generated = True
+
+    # to world
+    M = world[:3, :3]
+    det = float(np.linalg.det(M))
+    if abs(det) < 1e-30:
+        raise r.err(f"/nodes/{node_i}", "a singular world transform (zero scale)")
+    wpos = (pos.astype(np.float64) @ M.T + world[:3, 3]).astype(np.float32)
+    wn = nrm @ np.linalg.inv(M)
+    wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
+    wt = None
+    if tan is not None:
+        t3 = tan[:, :3].astype(np.float64) @ M.T
+        t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
+        w = np.where(tan[:, 3] < 0, -1.0, 1.0) * (1.0 if det > 0 else -1.0)
+        wt = np.concatenate([t3, w[:, None]], axis=1).astype(np.float32)
+    if det < 0:
+        tri = tri[:, [0, 2, 1]]
+    color = data.get("COLOR_0")
+    if color is not None:
+        color = color.astype(np.float32)
+        if color.shape[1] == 3:
+            color = np.concatenate([color, np.ones((color.shape[0], 1), np.float32)], axis=1)
+    nname = node.get("name") or str(node_i)
+    mname = mesh.get("name") or str(mesh_i)
+    return Primitive(
+        name=f"{nname}/{mname}/{prim_i}", node=node_i, mesh=mesh_i, primitive=prim_i, material=mat_i,
+        positions=wpos, normals=wn.astype(np.float32), indices=np.ascontiguousarray(tri, dtype=np.uint32),
+        tangents=wt, texcoords=(data.get("TEXCOORD_0"), data.get("TEXCOORD_1")), color=color,
+        flat_normals=flat, generated_tangents=generated)
+
+
+def _light(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfLight:
+    lights = r.doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
+    p = f"/nodes/{node_i}/extensions/KHR_lights_punctual/light"
+    if not isinstance(index, int) or not 0 <= index < len(lights):
+        raise r.err(p, f"light {index!r} out of range ({len(lights)} lights)")
+    L = lights[index]
+    typ = L.get("type")
+    if typ not in ("point", "spot", "directional"):
+        raise r.err(f"/extensions/KHR_lights_punctual/lights/{index}/type", f"unknown light type {typ!r}")
+    d = -world[:3, 2]
+    d = d / (np.linalg.norm(d) or 1.0)
+    spot = L.get("spot", {})
+    return GltfLight(name=str(L.get("name", f"light{index}")), type=typ,
+                     color=tuple(float(c) for c in L.get("color", (1, 1, 1))), intensity=float(L.get("intensity", 1.0)),
+                     position=tuple(float(c) for c in world[:3, 3]), direction=tuple(float(c) for c in d),
+                     range=L.get("range"), inner_cone=float(spot.get("innerConeAngle", 0.0)),
+                     outer_cone=float(spot.get("outerConeAngle", math.pi / 4)))
+
+
+def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamera | None:
+    cam = r.get("cameras", index, f"/nodes/{node_i}/camera")
+    if cam.get("type") != "perspective":
+        return None
+    per = cam.get("perspective", {})
+    R = world[:3, :3]
+    f = -R[:, 2] / (np.linalg.norm(R[:, 2]) or 1.0)
+    u = R[:, 1] / (np.linalg.norm(R[:, 1]) or 1.0)
+    return GltfCamera(name=str(cam.get("name", f"camera{index}")), origin=tuple(float(c) for c in world[:3, 3]),
+                      forward=tuple(float(c) for c in f), up=tuple(float(c) for c in u),
+                      yfov=float(per.get("yfov", math.radians(45))), aspect=per.get("aspectRatio"),
+                      znear=float(per.get("znear", 0.01)))
+
+
+_CACHE: dict[tuple[str, str, int], Asset] = {}
+
+
+def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
+    """Read ``path`` (.gltf or .glb) and resolve glTF scene ``scene`` (default: the file's ``scene``,
+    else 0) into an :class:`Asset`. Raises :class:`AssetError`. Cached by content in this process."""
+    p = Path(path)
+    raw = _file_bytes(p)
+    h = content_hash(p)
+    key = (str(p.resolve()), h, -1 if scene is None else int(scene))
+    if key in _CACHE:
+        return _CACHE[key]
+    doc, blob = _parse(p, raw)
+    r = _Reader(p, doc, blob)
+    used = tuple(doc.get("extensionsUsed", []))
+    required = doc.get("extensionsRequired", [])
+    for k, e in enumerate(required):
+        if e not in SUPPORTED_EXTENSIONS:
+            raise r.err(f"/extensionsRequired/{k}", f"required extension {e} is not supported by pbrcheck "
+                        f"(supported: {', '.join(SUPPORTED_EXTENSIONS)})")
+    ignored = tuple(e for e in used if e not in SUPPORTED_EXTENSIONS)
+    materials = tuple(_material(r, i) for i in range(len(doc.get("materials", []))))
+    images = tuple(r.image(i) for i in range(len(doc.get("images", []))))
+    scenes = doc.get("scenes", [])
+    si = int(scene if scene is not None else doc.get("scene", 0))
+    if scenes:
+        sc = r.get("scenes", si, "/scene")
+        roots = sc.get("nodes", [])
+    elif scene is not None:
+        raise r.err("/scenes", f"scene {scene} asked for, the file has none")
+    else:  # no scenes: every root node
+        children = {c for n in doc.get("nodes", []) for c in n.get("children", [])}
+        roots = [i for i in range(len(doc.get("nodes", []))) if i not in children]
+    prims: list[Primitive] = []
+    lights: list[GltfLight] = []
+    cameras: list[GltfCamera] = []
+    stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes") for n in roots]
+    while stack:
+        ni, parent, seen, ptr = stack.pop(0)
+        node = r.get("nodes", ni, ptr)
+        if ni in seen:
+            raise r.err(f"/nodes/{ni}/children", "a cycle in the node hierarchy")
+        world = parent @ node_matrix(node)
+        if not np.isfinite(world).all():
+            raise r.err(f"/nodes/{ni}", "a non-finite transform")
+        if "mesh" in node:
+            mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
+            for pi, prim in enumerate(mesh.get("primitives", [])):
+                prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials))
+        if "camera" in node:
+            c = _camera(r, node["camera"], world, ni)
+            if c is not None:
+                cameras.append(c)
+        le = node.get("extensions", {}).get("KHR_lights_punctual")
+        if le is not None:
+            lights.append(_light(r, le.get("light"), world, ni))
+        for c in node.get("children", []):
+            stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children"))
+    if not prims:
+        raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render")
+    asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
+                  lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
+                  content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si)
+    _CACHE[key] = asset
+    return asset

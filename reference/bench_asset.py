@@ -1,0 +1,149 @@
+"""``pbrcheck bench reference``'s asset row: a textured glTF asset of ~50k triangles against the spheres
+scene, same camera, environment, size and spp.
+
+The asset is made here (a fresh clone has no shared assets): a UV sphere of :data:`ASSET_SEGMENTS`
+segments and half as many rings (~50k triangles, normals, tangents, UVs) with
+:data:`ASSET_TEXTURE_SIZE`-square base-colour, metallic-roughness and normal PNG textures (a
+checker, a gradient, a bumpy normal map), written to a temporary ``.glb``-free ``.gltf`` with data
+URIs. Figures: ``load_seconds`` (:func:`pbrcheck.gltf.load_asset`: parse, decode, tangents),
+``build_seconds`` (the Mitsuba scene: meshes, textures, BVH), ``msamples_per_s`` (the ``local``
+render, warm, median of repeats) and ``vs_spheres`` = its throughput over the spheres scene's
+(goal >= :data:`ASSET_THROUGHPUT_GOAL`); ``vs_spheres_per_covered_pixel`` divides each render's time
+by the fraction of pixels that see geometry (the asset covers more of the image than the spheres).
+
+API: :func:`make_asset`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pbrcheck.environment import load_environment
+from pbrcheck.gltf import load_asset
+from pbrcheck.scene import scene_from_dict
+
+#: Segments around the bench sphere (rings: half): 2 x 224 x 112 = 50176 triangles, less the poles'.
+ASSET_SEGMENTS = 224
+ASSET_TEXTURE_SIZE = 1024
+#: The asset's local samples/s over the spheres scene's (the issue's goal).
+ASSET_THROUGHPUT_GOAL = 0.7
+
+
+def _png(pixels: np.ndarray) -> str:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="PNG")
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
+
+
+def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE) -> Path:
+    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it."""
+    rings = segments // 2
+    th = np.linspace(0, np.pi, rings + 1)
+    ph = np.linspace(0, 2 * np.pi, segments + 1)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    pos = np.stack([np.sin(T) * np.sin(P), np.cos(T), np.sin(T) * np.cos(P)], -1).reshape(-1, 3)
+    uv = np.stack([P / (2 * np.pi), T / np.pi], -1).reshape(-1, 2)
+    tan = np.stack([np.cos(P), np.zeros_like(P), -np.sin(P), np.ones_like(P)], -1).reshape(-1, 4)
+    idx = []
+    for r in range(rings):
+        for s in range(segments):
+            a, b = r * (segments + 1) + s, (r + 1) * (segments + 1) + s
+            idx += [[a, b, a + 1], [a + 1, b, b + 1]]
+    idx = np.asarray(idx, np.uint32)
+    y, x = np.mgrid[0:tex, 0:tex] / tex
+    checker = ((np.floor(x * 16) + np.floor(y * 16)) % 2)[..., None]
+    bc = (np.where(checker > 0, [200, 60, 40], [230, 220, 200])).astype(np.uint8)
+    mr = np.stack([np.zeros_like(x), 40 + 200 * x, (y > 0.5) * 255.0], -1).astype(np.uint8)
+    bump = np.sin(x * 2 * np.pi * 32) * 0.4
+    n = np.stack([bump, np.zeros_like(bump), np.ones_like(bump)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8)
+    blob = bytearray()
+    views, accs = [], []
+
+    def add(arr, ct, typ, minmax=False):
+        while len(blob) % 4:
+            blob.append(0)
+        raw = np.ascontiguousarray(arr).tobytes()
+        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(raw)})
+        blob.extend(raw)
+        a = {"bufferView": len(views) - 1, "componentType": ct, "count": int(arr.shape[0]), "type": typ}
+        if minmax:
+            a["min"], a["max"] = arr.min(0).tolist(), arr.max(0).tolist()
+        accs.append(a)
+        return len(accs) - 1
+
+    attrs = {"POSITION": add(pos.astype(np.float32), 5126, "VEC3", True),
+             "NORMAL": add(pos.astype(np.float32), 5126, "VEC3"),
+             "TANGENT": add(tan.astype(np.float32), 5126, "VEC4"),
+             "TEXCOORD_0": add(uv.astype(np.float32), 5126, "VEC2")}
+    ind = add(idx.reshape(-1), 5125, "SCALAR")
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"name": "bench", "mesh": 0}],
+           "meshes": [{"name": "sphere", "primitives": [{"attributes": attrs, "indices": ind, "material": 0}]}],
+           "materials": [{"name": "textured", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                                      "metallicRoughnessTexture": {"index": 1}},
+                          "normalTexture": {"index": 2}}],
+           "textures": [{"source": i} for i in range(3)],
+           "images": [{"uri": _png(p)} for p in (bc, mr, nm)],
+           "accessors": accs, "bufferViews": views,
+           "buffers": [{"byteLength": len(blob),
+                        "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()}]}
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def bench_asset(spheres_scene, spp: int, spheres_seconds: float, repeats: int, quick: bool = False) -> dict:
+    """The asset row (module docstring); ``spheres_seconds``: the spheres scene's warm local render."""
+    from .render import _mi, load_mitsuba_scene, render_uncached
+
+    _mi()
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-asset-") as tmp:
+        path = make_asset(Path(tmp) / "bench.gltf", segments=64 if quick else ASSET_SEGMENTS,
+                          tex=128 if quick else ASSET_TEXTURE_SIZE)
+        t0 = time.perf_counter()
+        asset = load_asset(path)
+        load_s = time.perf_counter() - t0
+        cam = spheres_scene.camera
+        env = spheres_scene.environment
+        data = {"name": "bench-asset", "objects": [{"type": "gltf", "path": str(path)}],
+                "camera": {"origin": [0.0, 0.0, 3.2], "target": [0.0, 0.0, 0.0], "fov": cam.fov,
+                           "width": cam.width, "height": cam.height},
+                "environment": {"type": env.type, **({"path": env.path} if env.path else {}),
+                                **({"radiance": list(env.radiance)} if env.type == "constant" else {})}}
+        scene = scene_from_dict(data, file=str(path), base_dir=Path(tmp))
+        envmap = load_environment(scene)
+        t0 = time.perf_counter()
+        mscene = load_mitsuba_scene(scene, envmap)
+        build_s = time.perf_counter() - t0
+        render_uncached(scene, spp=spp, progress=False, env=envmap, mscene=mscene)  # compiles
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            render_uncached(scene, spp=spp, progress=False, env=envmap, mscene=mscene)
+            times.append(time.perf_counter() - t0)
+        t = statistics.median(times)
+    samples = cam.width * cam.height * spp
+    img = render_uncached(scene, spp=2, progress=False, env=envmap, mscene=mscene)
+    cov_asset = float((img.channels["coverage"] > 0).mean())
+    img = render_uncached(spheres_scene, spp=2, progress=False)
+    cov_spheres = float((img.channels["coverage"] > 0).mean())
+    return {"coverage": cov_asset, "spheres_coverage": cov_spheres,
+            "vs_spheres_per_covered_pixel": (spheres_seconds / cov_spheres) / (t / cov_asset),"triangles": asset.triangles, "texture_size": 128 if quick else ASSET_TEXTURE_SIZE,
+            "load_seconds": load_s, "build_seconds": build_s, "render_seconds": t,
+            "msamples_per_s": samples / t / 1e6, "spheres_msamples_per_s": samples / spheres_seconds / 1e6,
+            "vs_spheres": spheres_seconds / t, "vs_spheres_goal": ASSET_THROUGHPUT_GOAL,
+            "goal_met": spheres_seconds / t >= ASSET_THROUGHPUT_GOAL,
+            "note": "same camera fov, size, environment and spp as spheres; the sphere asset fills the "
+                    "image's centre (its frame: 3.2 units away); render_uncached includes the AOV pass, "
+                    "as the spheres figure does"}

@@ -1,0 +1,361 @@
+"""glTF assets in the reference: Mitsuba meshes from the decoded buffers and the textured material
+``pbr_textured`` (the scene's BRDF model, :class:`reference.bsdf.PBRLobes`, with glTF's textures).
+
+``{"type": "pbr_textured", "base_color": [r, g, b], "metallic", "roughness", "specular", "ndf",
+"geometry", "fresnel", "base_color_texture": <texture>, "metallic_roughness_texture": <texture>,
+"normal_texture": <texture>, "normal_scale", "double_sided"}`` where each ``<texture>`` is a Mitsuba
+``bitmap`` (float32 linear pixels: colour textures sRGB-decoded on load, :meth:`GltfImage.linear`;
+``filter_type = "bilinear"`` (``"nearest"`` where the sampler's magFilter is NEAREST), the
+sampler's wrapS for both axes (Mitsuba's bitmap has one wrap mode), no mip filtering: the pixel's box-filter
+samples integrate the texture's footprint, the truth a mip chain approximates; ``to_uv`` =
+``KHR_texture_transform``'s matrix). Per lane (glTF 2.0 specification, section 3.9 and Appendix B)::
+
+    base_color = base_color_factor * texture.rgb
+    roughness  = roughness_factor * metallic_roughness.g,   metallic = metallic_factor * metallic_roughness.b
+    n          = normalize(T x' + B y' + N z'),   (x', y', z') = ((2 t.rg - 1) * scale, 2 t.b - 1)
+    T = normalize(t - N (N.t)), B = w (N x T)   (the interpolated vertex tangent, its sign w)
+
+then :class:`reference.bsdf.PBRLobes` evaluates the model in the normal-mapped frame (directions are
+re-expressed in it, as Mitsuba's ``normalmap`` does). ``double_sided``: a back-facing hit uses the
+flipped frame (glTF: the back face's normal is the negated one); single-sided back faces are black
+(as every pbrcheck surface). The occlusion texture is not applied: ``local`` has no visibility (the
+texture approximates it) and ``path`` computes it. Emission: an ``area`` emitter whose radiance is
+the emissive texture (sRGB-decoded) times ``emissiveFactor`` times ``KHR_materials_emissive_strength``,
+on the primitive's mesh: ``local`` adds it at the first hit, ``path`` lights the scene with it.
+
+Alpha (glTF ``alphaMode``): ``MASK`` has opacity ``alpha >= alphaCutoff`` (0 or 1), ``BLEND`` opacity
+``alpha`` (``baseColorFactor.a`` times the base colour texture's alpha), exactly: a Null component
+(``eval_null_transmission = 1 - opacity``; ``sample`` passes through with that probability, weight
+1; ``eval``/``pdf`` scale by the opacity). ``local`` continues camera rays through each surface with
+that probability (:meth:`reference.integrator.ReferenceIntegrator._first_opaque_hit`) and shades the
+surface where a ray stopped as opaque (its ``BSDFContext.type_mask`` leaves Null out); ``path``
+renders such scenes with Mitsuba's ``volpath``, whose shadow rays pass null interfaces (``path``'s do
+not).
+
+``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
+
+UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
+0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
+
+API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets),
+:func:`texture_dict`, :data:`PLUGIN_NAME`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
+
+import drjit as dr
+import mitsuba as mi
+
+from .bsdf import MaterialView, is_mirror_limit
+
+PLUGIN_NAME = "pbr_textured"
+WRAP_MODES = {WRAP_CLAMP: "clamp", WRAP_MIRROR: "mirror"}   # else repeat
+#: glTF's magFilter NEAREST (9728): the texel itself; LINEAR or unset: bilinear.
+MAG_NEAREST = 9728
+#: Shading-frame tangents shorter than this after Gram-Schmidt fall back to Mitsuba's frame.
+FRAME_EPS = 1e-8
+
+
+def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
+    """A Mitsuba ``bitmap`` texture of float32 linear ``pixels`` (H, W, C) read as glTF ``ref`` reads it."""
+    d = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.float32)), "raw": True,
+         "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear",
+         "wrap_mode": WRAP_MODES.get(ref.wrap[0], "repeat")}
+    if ref.transform is not None:
+        m = np.asarray(ref.transform, float).reshape(3, 3)
+        d["to_uv"] = mi.ScalarTransform3f(m)
+    return d
+
+
+class TexturedMaterial(mi.BSDF):
+    """``pbr_textured`` (module docstring)."""
+
+    def __init__(self, props):
+        mi.BSDF.__init__(self, props)
+        self.base_color = mi.Color3f(*[float(x) for x in props.get("base_color", [1.0, 1.0, 1.0])])
+        self.metallic = mi.Float(float(props.get("metallic", 1.0)))
+        self.roughness = mi.Float(float(props.get("roughness", 1.0)))
+        self.specular = mi.Float(float(props.get("specular", 0.04)))
+        self.model = (str(props.get("ndf", "ggx")), str(props.get("geometry", "smith_ggx_correlated")),
+                      str(props.get("fresnel", "schlick")), "none", 0)
+        self.normal_scale = float(props.get("normal_scale", 1.0))
+        self.vertex_color = bool(props.get("vertex_color", False))   # COLOR_0 multiplies the base colour
+        self.double_sided = bool(props.get("double_sided", False))
+        # glTF alphaMode: 0 OPAQUE, 1 MASK (opacity = alpha >= cutoff), 2 BLEND (opacity = alpha)
+        self.alpha_mode = int(props.get("alpha_mode", 0))
+        self.alpha_cutoff = float(props.get("alpha_cutoff", 0.5))
+        self.alpha = float(props.get("alpha", 1.0))
+        self.tex = {}
+        self.uvset = {}
+        for slot in ("base_color", "metallic_roughness", "normal", "alpha"):
+            if f"{slot}_texture" in props:
+                self.tex[slot] = props.get(f"{slot}_texture")
+                self.uvset[slot] = int(props.get(f"{slot}_texcoord", 0))
+        flags = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+        if self.double_sided:
+            flags = flags | mi.BSDFFlags.BackSide
+        if self.tex:
+            flags = flags | mi.BSDFFlags.SpatiallyVarying
+        comps = [flags]
+        if self.alpha_mode:
+            comps.append(mi.BSDFFlags.Null | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide)
+            flags = flags | mi.BSDFFlags.Null | mi.BSDFFlags.BackSide
+        self.m_components = comps
+        self.m_flags = flags
+
+    def traverse(self, callback):
+        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
+        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
+        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
+        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=None):
+        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
+
+    def to_string(self):
+        return f"TexturedMaterial[textures={sorted(self.tex)}, double_sided={self.double_sided}]"
+
+    # ---- per-lane material and frame --------------------------------------------------------
+    def _lookup(self, slot, si, active):
+        t = self.tex[slot]
+        if self.uvset[slot] == 1:
+            s2 = mi.SurfaceInteraction3f(si)
+            uv1 = si.shape.eval_attribute_3("vertex_uv1", si, active)
+            s2.uv = mi.Point2f(uv1.x, uv1.y)
+            return t.eval(s2, active)
+        return t.eval(si, active)
+
+    def _view(self, si, active):
+        """(MaterialView of the lanes, shading frame in Mitsuba's local coordinates)."""
+        bc = mi.Color3f(self.base_color)
+        met, rough = mi.Float(self.metallic), mi.Float(self.roughness)
+        if "base_color" in self.tex:
+            bc = bc * self._lookup("base_color", si, active)
+        if self.vertex_color:
+            bc = bc * si.shape.eval_attribute_3("vertex_color", si, active)
+        if "metallic_roughness" in self.tex:
+            mr = self._lookup("metallic_roughness", si, active)
+            rough = rough * mr.y
+            met = met * mr.z
+        n_local = mi.Vector3f(0.0, 0.0, 1.0)
+        flip = mi.Bool(False)
+        if self.double_sided:
+            flip = mi.Frame3f.cos_theta(si.wi) < 0
+        if "normal" in self.tex:
+            t = self._lookup("normal", si, active)
+            x = (2.0 * t.x - 1.0) * self.normal_scale
+            y = (2.0 * t.y - 1.0) * self.normal_scale
+            z = 2.0 * t.z - 1.0
+            tan = si.shape.eval_attribute_x("vertex_tangent", si, active)
+            tw = mi.Vector3f(tan[0], tan[1], tan[2])
+            w = dr.select(tan[3] < 0, -1.0, 1.0)
+            N = si.sh_frame.n
+            T = tw - N * dr.dot(N, tw)
+            ok = dr.squared_norm(T) > FRAME_EPS
+            T = dr.select(ok, dr.normalize(T), si.sh_frame.s)
+            B = dr.cross(N, T) * w
+            n_world = dr.normalize(T * x + B * y + N * z)
+            n_local = dr.normalize(si.sh_frame.to_local(n_world))
+        n_local = dr.select(flip, -n_local, n_local)
+        frame = mi.Frame3f(n_local)
+        view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular))
+        return view, frame
+
+    def opacity(self, si, active=True):
+        """glTF's coverage at the hit: 1 (OPAQUE), alpha >= cutoff (MASK) or alpha (BLEND), with
+        alpha = baseColorFactor.a * baseColorTexture.a."""
+        if not self.alpha_mode:
+            return mi.Float(1.0)
+        a = mi.Float(self.alpha)
+        if "alpha" in self.tex:
+            a = a * self._lookup("alpha", si, active).x
+        if self.alpha_mode == 1:
+            return dr.select(a >= self.alpha_cutoff, 1.0, 0.0)
+        return dr.clip(a, 0.0, 1.0)
+
+    @staticmethod
+    def _null_enabled(ctx) -> bool:
+        """Whether the context asks for the null component: no when the caller (the ``local``
+        estimator) has already decided that the surface is there (``type_mask`` without Null); then
+        the surface is shaded as opaque."""
+        return bool(int(ctx.type_mask) & int(mi.BSDFFlags.Null))
+
+    def eval_null_transmission(self, si, active=True):
+        """The fraction that passes through (1 - opacity): Mitsuba's null interface."""
+        return mi.Spectrum(1.0 - self.opacity(si, active))
+
+    def _local_si(self, si, frame):
+        s2 = mi.SurfaceInteraction3f(si)
+        s2.wi = frame.to_local(si.wi)
+        return s2
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        view, frame = self._view(si, active)
+        s2 = self._local_si(si, frame)
+        wo2 = frame.to_local(wo)
+        # the geometric side: light and viewer on the same side of the surface
+        same = mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(wo) > 0
+        front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
+        f, pdf = view.eval_pdf(ctx, s2, wo2, active & same & front)
+        if self.alpha_mode and self._null_enabled(ctx):  # the surface is there with probability opacity
+            op = self.opacity(si, active)
+            f, pdf = f * op, pdf * op
+        return dr.select(same & front, f, 0.0), dr.select(same & front, pdf, 0.0)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        view, frame = self._view(si, active)
+        s2 = self._local_si(si, frame)
+        front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
+        lanes = mi.Bool(active) & front
+        mixed = bool(self.alpha_mode) and self._null_enabled(ctx)
+        if mixed:
+            # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
+            # value and pdf both scale by the opacity); sample1, rescaled, still chooses the lobe
+            op = self.opacity(si, active)
+            through = sample1 >= op
+            sample1 = dr.select(through, 0.0, sample1 / dr.maximum(op, 1e-20))
+            lanes &= ~through
+        bs, w = view.sample(ctx, s2, sample1, sample2, lanes)
+        bs.wo = frame.to_world(bs.wo)
+        ok = front & (mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(bs.wo) > 0)
+        w = dr.select(ok, w, 0.0)
+        if mixed:
+            bs.pdf = dr.select(through, 1.0 - op, bs.pdf * op)
+            bs.wo = dr.select(through, -si.wi, bs.wo)
+            bs.eta = 1.0
+            bs.sampled_type = dr.select(through, mi.UInt32(+mi.BSDFFlags.Null), bs.sampled_type)
+            bs.sampled_component = dr.select(through, mi.UInt32(1), bs.sampled_component)
+            w = dr.select(through, 1.0, w)
+        return bs, w
+
+    def eval_diffuse_reflectance(self, si, active=True):
+        view, _ = self._view(si, active)
+        return (1.0 - view.metallic) * view.base_color
+
+
+_REGISTERED: set[str] = set()
+
+
+def register() -> None:
+    """Register ``pbr_textured`` for the current Mitsuba variant (idempotent)."""
+    v = mi.variant()
+    if v not in _REGISTERED:
+        mi.register_bsdf(PLUGIN_NAME, lambda props: TexturedMaterial(props))
+        _REGISTERED.add(v)
+
+
+# ------------------------------------------------------------------------------------------------
+# Shapes
+# ------------------------------------------------------------------------------------------------
+
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False) -> dict:
+    m = asset.material(index)
+    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
+         "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
+         "geometry": brdf.geometry, "fresnel": brdf.fresnel, "normal_scale": float(m.normal_texture.scale)
+         if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
+    for slot, ref, srgb in (("base_color", m.base_color_texture, True),
+                            ("metallic_roughness", m.metallic_roughness_texture, False),
+                            ("normal", m.normal_texture, False)):
+        if ref is None:
+            continue
+        key = (ref.image, srgb)
+        if key not in cache:
+            cache[key] = asset.images[ref.image].linear(srgb)[..., :3]
+        d[f"{slot}_texture"] = texture_dict(cache[key], ref)
+        d[f"{slot}_texcoord"] = ref.texcoord
+    if m.alpha_mode != "OPAQUE":
+        d.update(alpha_mode=1 if m.alpha_mode == "MASK" else 2, alpha_cutoff=float(m.alpha_cutoff),
+                 alpha=float(m.base_color[3]))
+        ref = m.base_color_texture
+        if ref is not None:
+            key = (ref.image, "alpha")
+            if key not in cache:
+                cache[key] = asset.images[ref.image].linear(False)[..., 3:4]
+            d["alpha_texture"] = texture_dict(cache[key], ref)
+            d["alpha_texcoord"] = ref.texcoord
+    return d
+
+
+def _emitter_dict(asset, index: int, cache: dict) -> dict | None:
+    m = asset.material(index)
+    if max(m.emissive) <= 0:
+        return None
+    if m.emissive_texture is None:
+        return {"type": "area", "radiance": {"type": "rgb", "value": [float(c) for c in m.emissive]}}
+    key = ("emissive", m.emissive_texture.image, m.emissive)
+    if key not in cache:
+        cache[key] = asset.images[m.emissive_texture.image].linear(True)[..., :3] * np.asarray(m.emissive, np.float32)
+    return {"type": "area", "radiance": texture_dict(cache[key], m.emissive_texture)}
+
+
+def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
+    """{shape id: Mitsuba mesh} for every :class:`pbrcheck.gltf_objects.Mesh` of ``scene``, built from
+    the decoded buffers (placed by their instance's matrix); ``shape_id(index)`` names a shape
+    (:func:`reference.render.shape_id`); ``bsdf_for(obj)`` overrides the material."""
+    from pbrcheck.gltf_objects import Mesh
+
+    register()
+    out = {}
+    textures: dict = {}
+    mats: dict = {}
+    for obj in scene.objects:
+        if not isinstance(obj, Mesh):
+            continue
+        inst = scene.assets[obj.instance]
+        prim = inst.asset.primitives[obj.primitive]
+        M = inst.matrix()
+        pos = prim.positions.astype(np.float64) @ M[:3, :3].T + M[:3, 3]
+        nrm = prim.normals.astype(np.float64) @ np.linalg.inv(M[:3, :3])
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
+        tri = prim.indices
+        det = np.linalg.det(M[:3, :3])
+        if det < 0:
+            tri = tri[:, [0, 2, 1]]
+        uv0 = prim.texcoords[0]
+        props = mi.Properties()
+        if bsdf_for is not None:
+            bsdf = mi.load_dict(bsdf_for(obj))
+        else:
+            key = (obj.instance, obj.gltf_material, prim.color is not None)
+            if key not in mats:
+                mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
+                                                        vertex_color=prim.color is not None))
+            bsdf = mats[key]
+        props["bsdf"] = bsdf
+        em = _emitter_dict(inst.asset, obj.gltf_material, textures)
+        if em is not None:
+            props["emitter"] = mi.load_dict(em)
+        mesh = mi.Mesh(shape_id(obj.id), int(pos.shape[0]), int(tri.shape[0]), props,
+                       has_vertex_normals=True, has_vertex_texcoords=uv0 is not None)
+        params = mi.traverse(mesh)
+        params["vertex_positions"] = mi.Float(pos.astype(np.float32).reshape(-1))
+        params["faces"] = mi.UInt32(np.ascontiguousarray(tri, np.uint32).reshape(-1))
+        params["vertex_normals"] = mi.Float(nrm.astype(np.float32).reshape(-1))
+        if uv0 is not None:
+            params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(uv0, np.float32).reshape(-1))
+        params.update()
+        if prim.tangents is not None:
+            t = prim.tangents.astype(np.float64)
+            t3 = t[:, :3] @ M[:3, :3].T
+            t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
+            w = t[:, 3] * (1.0 if det > 0 else -1.0)
+            mesh.add_attribute("vertex_tangent", 4, mi.Float(np.concatenate([t3, w[:, None]], 1).astype(np.float32).reshape(-1)))
+        if prim.color is not None:
+            mesh.add_attribute("vertex_color", 3, mi.Float(np.ascontiguousarray(prim.color[:, :3], np.float32).reshape(-1)))
+        if prim.texcoords[1] is not None:
+            uv1 = np.concatenate([prim.texcoords[1], np.zeros((prim.texcoords[1].shape[0], 1))], 1)
+            mesh.add_attribute("vertex_uv1", 3, mi.Float(uv1.astype(np.float32).reshape(-1)))
+        out[shape_id(obj.id)] = mesh
+    return out

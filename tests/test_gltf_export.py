@@ -1,0 +1,191 @@
+"""glTF assets through export, import-scenario and the external engines (three.js: the asymmetric
+texture lands in the same pixels as in the reference; skipped without node, three or Chromium)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbrcheck import cli
+from pbrcheck.export import export_scene
+from pbrcheck.scenario_import import scenario_scene
+from pbrcheck.scene import load_scene
+
+from gltf_build import quad_asset, quad_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+THREEJS = ROOT / "clients" / "threejs"
+
+
+def _quadrants():
+    """2 x 2 texels: red top-left, green top-right, blue bottom-left, white bottom-right."""
+    img = np.zeros((2, 2, 3), np.uint8)
+    img[0, 0], img[0, 1], img[1, 0], img[1, 1] = (255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 255)
+    return img
+
+
+def _asset_scene(tmp_path):
+    p = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                                    "metallicFactor": 0.0, "roughnessFactor": 1.0}},
+                   [(_quadrants(), {"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071})])
+    s = quad_scene(tmp_path, p, size=(32, 32), fov=40.0)
+    text = s.read_text().replace('path = "q.gltf"', 'path = "q.gltf"\ntranslation = [0.0, 0.25, 0.0]\nrotation = [0.0, 0.0, 10.0]')
+    s.write_text(text)
+    return load_scene(s)
+
+
+def test_export_writes_the_asset_with_its_placement_and_camera(tmp_path):
+    sc = _asset_scene(tmp_path)
+    exp = export_scene(sc, tmp_path / "out")
+    doc = json.loads((tmp_path / "out" / "scene.gltf").read_text())
+    root = next(n for n in doc["nodes"] if n["name"] == "pbrcheck_root")
+    m = np.asarray(root["matrix"]).reshape(4, 4).T
+    assert np.allclose(m, sc.assets[0].matrix())
+    assert doc["cameras"][0]["name"] == "camera" and len(doc["scenes"]) == 1
+    assert doc["images"][0]["uri"].startswith("data:")          # resources as in the asset
+    assert exp.scenario["model_viewer"]["model"] == "scene.gltf"
+    # reading the export back gives the scene's meshes at the same world positions
+    from pbrcheck.gltf import load_asset
+    back = load_asset(tmp_path / "out" / "scene.gltf")
+    ours = sc.assets[0]
+    M = ours.matrix()
+    want = ours.asset.primitives[0].positions @ M[:3, :3].T + M[:3, 3]
+    assert np.allclose(back.primitives[0].positions, want, atol=1e-6)
+
+
+def test_import_scenario_round_trips_the_export(tmp_path):
+    sc = _asset_scene(tmp_path)
+    # model-viewer orbits need up = +Y and a target: the scene's camera already is such a camera
+    export_scene(sc, tmp_path / "out")
+    table = scenario_scene(tmp_path / "out" / "scenario.json")
+    c = table["camera"]
+    assert (c["width"], c["height"]) == (sc.camera.width, sc.camera.height)
+    assert np.allclose(c["origin"], sc.camera.origin, atol=1e-5) and np.allclose(c["target"], sc.camera.target)
+    assert c["fov"] == pytest.approx(sc.camera.fov, abs=1e-5)
+    out = tmp_path / "imported.toml"
+    assert cli.main(["import-scenario", str(tmp_path / "out" / "scenario.json"), "--out", str(out)]) == 0
+    back = load_scene(out)
+    assert back.objects[0].type == "mesh" and back.environment.type == "file"
+
+
+def test_import_scenario_bad_input_is_one_line_exit_2(tmp_path, capsys):
+    p = tmp_path / "s.json"
+    p.write_text(json.dumps({"model": "nothing.glb", "orbit": {"theta": 0}}))
+    out = tmp_path / "x.toml"
+    assert cli.main(["import-scenario", str(p), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "model" in err and not out.exists()
+
+
+def test_realtime_preset_on_an_asset_scene_is_one_line(tmp_path, capsys):
+    p = quad_asset(tmp_path / "q.gltf", {})
+    assert cli.main(["realtime", str(p), "--out", str(tmp_path / "r.exr")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "raster pipeline" in err and not (tmp_path / "r.exr").exists()
+
+
+@pytest.mark.slow
+def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_cache):
+    if shutil.which("node") is None or not (THREEJS / "node_modules" / "three").is_dir() \
+            or not any(shutil.which(c) for c in ("chromium", "chromium-browser")):
+        pytest.skip("three.js client not installed (node, three, Chromium: make setup)")
+    import compare.renderers as renderers
+    from reference.render import render_reference
+
+    sc = _asset_scene(tmp_path)
+    ext = renderers.render_under_test(sc, "ext:threejs")
+    ref = render_reference(sc, spp=16, use_cache=False, progress=False)
+    assert np.array_equal(np.rint(ext.channels["object"]), np.rint(ref.channels["object"])) or \
+        (np.rint(ext.channels["object"]) != np.rint(ref.channels["object"])).mean() < 0.02
+    cov = ref.channels["coverage"] >= 0.999
+    a = np.argmax(ref.rgb, -1)
+    b = np.argmax(ext.rgb, -1)
+    chroma = cov & (ref.rgb.max(-1) > 2 * np.sort(ref.rgb, -1)[..., 1])   # red, green or blue texels
+    assert chroma.sum() > 100
+    assert (a[chroma] == b[chroma]).mean() > 0.97
+
+
+def test_gate_skips_realtime_presets_on_asset_scenes_and_says_why(tmp_path, capsys):
+    quad_asset(tmp_path / "q.gltf", {})
+    b = tmp_path / "budget.toml"
+    b.write_text('[[check]]\nname = "asset-default"\nscene = "q.gltf"\npreset = "default"\n'
+                 'reference = "auto"\n[check.max]\nrelmse = 0.1\n')
+    junit = tmp_path / "junit.xml"
+    assert cli.main(["gate", str(b), "--junit", str(junit)]) == 0
+    out = capsys.readouterr().out
+    assert "skip asset-default" in out and "raster pipeline" in out and "1 skipped" in out
+    assert "<skipped" in junit.read_text()
+
+
+# Relative difference allowed between the analytic reference and its exported-and-read-back
+# tessellation (interpolated vertex normals of a UV sphere within 0.25 px of the silhouette), on
+# top of the noise.
+TESSELLATION_RTOL = 0.02
+
+
+@pytest.mark.slow
+def test_analytic_scene_exported_and_read_back_renders_the_same_reference(tmp_path, tmp_cache):
+    from pbrcheck.scene import asset_scene, scene_from_dict
+    from reference.render import render_reference
+
+    sc = scene_from_dict({
+        "camera": {"origin": [0.0, 1.0, 5.0], "target": [0.0, 0.0, 0.0], "fov": 40.0, "width": 40, "height": 32},
+        "environment": {"type": "constant", "radiance": [0.6, 0.7, 0.8]},
+        "lights": [{"position": [2.0, 3.0, 2.0], "intensity": [8.0, 8.0, 8.0]}],
+        "objects": [{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.3, 0.2], "metallic": 0.0, "roughness": 0.4, "specular": 0.05}},
+                    {"type": "plane", "center": [0.0, -1.0, 0.0], "size": [6.0, 6.0],
+                     "material": {"base_color": [0.9, 0.9, 0.9], "metallic": 1.0, "roughness": 0.6}}]})
+    export_scene(sc, tmp_path / "out")
+    back = asset_scene(tmp_path / "out" / "scene.gltf", size=(40, 32))
+    back = back.__class__(**{**back.__dict__, "environment": sc.environment})
+    assert [o.type for o in back.objects] == ["mesh", "mesh"] and len(back.lights) == 1
+    assert np.allclose(back.camera.origin, sc.camera.origin) and back.camera.fov == pytest.approx(sc.camera.fov)
+    a = render_reference(sc, spp=64, use_cache=False, progress=False)
+    b = render_reference(back, spp=64, use_cache=False, progress=False)
+    m = (a.channels["coverage"] == 1) & (b.channels["coverage"] == 1) & (a.channels["object"] == b.channels["object"])
+    assert m.mean() > 0.5
+    sd = np.sqrt(a.variance + b.variance)
+    assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])
+
+
+def test_corpus_with_only_realtime_presets_on_an_asset_scene_is_one_line(tmp_path, capsys):
+    p = quad_asset(tmp_path / "q.gltf", {})
+    env = tmp_path / "envs"
+    env.mkdir()
+    out = tmp_path / "corpus"
+    assert cli.main(["corpus", str(env), "--scene", str(p), "--presets", "default", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "skipping default" in err and err.strip().splitlines()[-1].count("raster pipeline") == 1
+    assert not out.exists()
+
+
+def test_sweep_on_an_asset_scene_is_one_line_nothing_written(tmp_path, capsys):
+    p = quad_asset(tmp_path / "q.gltf", {})
+    out = tmp_path / "sweep"
+    assert cli.main(["sweep", str(p), "--vary", "cube_size=32,64", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "raster pipeline" in err and not out.exists()
+
+
+def test_per_material_metrics_of_an_asset_scene(tmp_path):
+    from compare.metrics import compare_images
+    from pbrcheck.exr import Image
+
+    doc_path = quad_asset(tmp_path / "q.gltf", {"name": "matte"})
+    sc = load_scene(quad_scene(tmp_path, doc_path, size=(8, 8)))
+    rgb = np.full((8, 8, 3), 0.5, np.float32)
+    ids = np.zeros((8, 8), np.float32)
+    ref = Image.from_rgb(rgb)
+    ref.channels["object"] = ids
+    test = Image.from_rgb(rgb * 1.1)
+    test.channels["object"] = ids
+    cmp = compare_images(ref, test, scene=sc, noise=False, flip=False, itp=False)
+    mats = cmp.summary["materials"]
+    assert [m["material"] for m in mats] == ["q.gltf: matte"] and mats[0]["pixels"] == 64
+    assert mats[0]["metrics"] == cmp.summary["objects"][0]["metrics"]   # one object: the same pixels
+    assert mats[0]["metrics"]["relmse"] > 0
