@@ -27,7 +27,7 @@ const ss = supersampling();
 /** HDRCubeTexture's face size: the prefiltered cube's level 0 (Babylon's examples use 256 to 512). */
 const CUBE_SIZE = 256;
 /** The texture rotation that makes Babylon's lookup of the panorama the export's (section 1 of
- * docs/renderers.md): measured with the orientation probe (tests/test_babylon.py). */
+ * docs/renderers.md): measured with the orientation probe (tests/test_engines.py). */
 const ENV_ROTATION_Y = Math.PI / 2;
 
 async function main() {
