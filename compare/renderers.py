@@ -115,7 +115,7 @@ DIRECT = RenderContext()
 
 
 def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False,
-                      context: RenderContext = DIRECT) -> Image:
+                      context: RenderContext = DIRECT, use_cache: bool = True) -> Image:
     """Render ``scene`` with the renderer under test ``name``.
 
     Parameters
@@ -130,6 +130,9 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
         Show progress on stderr.
     context : RenderContext, optional
         The cache and the background renders to use (default :data:`DIRECT`: render).
+    use_cache : bool, optional
+        False: render afresh even where a cache would serve the image (an external renderer's
+        render cache, the context's real-time cache): the gate's run-to-run spread.
 
     Returns
     -------
@@ -146,8 +149,8 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
         fut = context.prefetch.take(scene, name) if context.prefetch is not None else None
         if fut is not None:  # rendered (or being rendered) in the background: its result or error
             return fut.result()
-        return _clients.render_external(scene, name, progress=progress)
-    if context.cache:
+        return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
+    if context.cache and use_cache:
         img = _realtime_cache.render_cached(scene, name, options, progress=progress)
         CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
         return img
