@@ -33,7 +33,7 @@ API
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
 :func:`glsl_generated`.
 """
 
@@ -237,6 +237,12 @@ ENERGY_COMPENSATIONS = _switch(
     filament="Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
     fdez_aguera="Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
     kulla_conty="Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table")
+#: Specular occlusion of the image-based specular from the ambient occlusion (pbrcheck/occlusion.py,
+#: realtime/shaders/occlusion.glsl).
+SPECULAR_OCCLUSIONS = _switch(
+    "SPECULAR_OCCLUSION", none="the specular image-based term is not occluded",
+    lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
+            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
 MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
@@ -249,7 +255,7 @@ MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckm
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
                                      IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS,
-                                     ENERGY_COMPENSATIONS)}
+                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS)}
 
 
 def glsl_defines() -> dict[str, int]:

@@ -35,6 +35,7 @@ from pbrcheck.registry import (
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_OCCLUSIONS,
 )
 
 
@@ -110,6 +111,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes, else raycast) | "
            "raycast (the compute pass's exact analytic shapes) | raster (meshes; analytic shapes tessellated)",
            ("auto", "raycast", "raster")),
+    Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "
+           "(glTF 2.0 3.9.4) and feeds specular_occlusion"),
+    Option("specular_occlusion", "choice", "occlusion of the split-sum specular from the ambient occlusion: none | "
+           "lagarde (Lagarde & de Rousiers 2014, listing 26)", SPECULAR_OCCLUSIONS.names),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
            lo=1.0, hi=16.0),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
@@ -157,6 +162,8 @@ DEFAULT = {
     "supersample": 4,
     "pipeline": "auto",
     "anisotropy": 1.0,
+    "occlusion_texture": True,
+    "specular_occlusion": "none",
     "tonemap": "none",
     "exposure": 1.0,
     "shader": "",

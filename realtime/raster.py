@@ -24,7 +24,9 @@ Conventions (the same at both ends as :mod:`realtime.render`)
   and emissive sRGB-decoded before upload (:meth:`pbrcheck.gltf.GltfImage.linear`), the others
   linear; trilinear filtering, anisotropy the option ``anisotropy`` (1: off); REPEAT and
   CLAMP_TO_EDGE by the texture, MIRRORED_REPEAT folded in the shader; glTF samplers' min/mag
-  filters are not followed (always trilinear). The occlusion texture is not read yet.
+  filters are not followed (always trilinear). The occlusion texture (R, ``strength``) scales the
+  image-based diffuse light and feeds the specular occlusion (``occlusion_texture``,
+  ``specular_occlusion`` options; ``shaders/occlusion.glsl``).
 * Alpha: OPAQUE, MASK (discard below ``alphaCutoff``), BLEND (after the opaque primitives, sorted
   back to front by the distance of each primitive's bounding-box centre, depth test without depth
   writes, ``src alpha, 1 - src alpha``).
@@ -167,7 +169,7 @@ def draw_items(scene: Scene) -> list[DrawItem]:
             tri = prim.indices if det >= 0 else prim.indices[:, ::-1]
             tex = {}
             refs = m.textures()
-            for slot, srgb in TEXTURE_SLOTS:
+            for slot, srgb in (*TEXTURE_SLOTS, ("occlusion", False)):
                 ref = refs.get(slot)
                 if ref is not None:
                     tex[slot] = (inst.asset.images[ref.image], ref, srgb)
@@ -258,7 +260,14 @@ def _set_camera(prog, scene: Scene, near: float, far: float):
     _set(prog, "depth_ab", ((far + near) / (far - near), -2.0 * far * near / (far - near)))
 
 
-def _set_material(prog, it: DrawItem, anisotropy: float):
+def _slot_state(ref) -> tuple[int, int, np.ndarray]:
+    """(TEXCOORD set, mirror bits, 3x3 UV transform) of a texture reference."""
+    mirror = int(ref.wrap[0] == WRAP_MIRROR) | 2 * int(ref.wrap[1] == WRAP_MIRROR)
+    xf = np.asarray(ref.transform, float).reshape(3, 3) if ref.transform else np.eye(3)
+    return int(ref.texcoord), mirror, xf
+
+
+def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True):
     _set(prog, "base_factor", tuple(float(x) for x in it.base_color))
     _set(prog, "metallic_factor", float(it.metallic))
     _set(prog, "roughness_factor", float(it.roughness))
@@ -279,10 +288,24 @@ def _set_material(prog, it: DrawItem, anisotropy: float):
         else:
             image, ref, srgb = entry
             _texture(image, ref, srgb, anisotropy).use(unit)
-            has.append(1), sets.append(int(ref.texcoord))
-            mirror.append(int(ref.wrap[0] == WRAP_MIRROR) | 2 * int(ref.wrap[1] == WRAP_MIRROR))
-            xf.append(np.asarray(ref.transform, float).reshape(3, 3) if ref.transform else np.eye(3))
+            st, mi, x = _slot_state(ref)
+            has.append(1), sets.append(st), mirror.append(mi), xf.append(x)
         _set(prog, name, unit)
+    ao = it.textures.get("occlusion") if occlusion else None
+    unit = MATERIAL_UNIT0 + TEXTURE_SLOTS_N
+    if ao is None:
+        _white().use(unit)
+        _set(prog, "ao_has", 0)
+    else:
+        image, ref, srgb = ao
+        _texture(image, ref, srgb, anisotropy).use(unit)
+        st, mi, x = _slot_state(ref)
+        _set(prog, "ao_has", 1)
+        _set(prog, "ao_set", st)
+        _set(prog, "ao_mirror", mi)
+        _set(prog, "ao_xf", tuple(float(v) for v in x.T.reshape(-1)))
+        _set(prog, "ao_strength", float(ref.scale))
+    _set(prog, "tex_occlusion", unit)
     _set(prog, "tex_has", tuple(has))
     _set(prog, "tex_set", tuple(sets))
     _set(prog, "tex_mirror", tuple(mirror))
@@ -303,7 +326,7 @@ def _vaos(prog, items: list[DrawItem]):
 
 
 def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
-                 anisotropy: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 anisotropy: float = 1.0, occlusion: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Draw one frame: ``(color (H, W, 4) = radiance, coverage; aov (H, W, 4) = N, NdotV; object (H, W))``.
 
     ``color_prog`` has the shading inputs bound by the caller; the background program its
@@ -351,7 +374,7 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
                 ctx.enable(moderngl.CULL_FACE)
             else:
                 ctx.disable(moderngl.CULL_FACE)
-            _set_material(color_prog, it, anisotropy)
+            _set_material(color_prog, it, anisotropy, occlusion)
             vao.render(moderngl.TRIANGLES)
         fbo.depth_mask = True
         ctx.disable(moderngl.BLEND)

@@ -61,6 +61,7 @@ from pbrcheck.registry import (
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_OCCLUSIONS,
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
@@ -444,6 +445,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **LOD_MAPPINGS.select("fitted" if fm is not None else o.lod_mapping), "SHADOWS": int(o.shadows),
         **RUNTIME_SAMPLINGS.select(o.runtime_sampling),
         **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
+        **SPECULAR_OCCLUSIONS.select(o.specular_occlusion),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
     }
@@ -672,7 +674,8 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         ctx.finish()
         timings["textures"] = time.perf_counter() - t0
         (color, aov, obj), timings["frame"] = _timed(
-            ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy))
+            ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
+                                      o.occlusion_texture))
     finally:
         lbuf.release()
     return color, aov, obj

@@ -4,6 +4,7 @@
 // decoded at upload) x COLOR_0; metallic = factor x texture.B, roughness = factor x texture.G;
 // normal = normalize(TBN ((2 t - 1) (scale, scale, 1))) with B = w cross(N, T) (MikkTSpace frame,
 // the loader's tangents); emissive = factor x texture (sRGB), added to the outgoing radiance;
+// occlusion = 1 + strength (texture.R - 1) on the image-based light (occlusion.glsl);
 // alpha = base colour's alpha: MASK discards below alpha_cutoff, BLEND writes (radiance, alpha)
 // for the host's blending. Double-sided back faces flip N, T and B (spec 3.9.5).
 // AOV_PASS (a #define): writes the interpolated geometric normal, its n.v and the object id at
@@ -39,6 +40,13 @@ uniform ivec4 tex_has;            // per slot: 1 when the material has the textu
 uniform ivec4 tex_set;            // per slot: TEXCOORD_n
 uniform mat3 tex_xf[4];           // per slot: KHR_texture_transform (identity when absent)
 uniform ivec4 tex_mirror;         // per slot: bit 0 S, bit 1 T mirrored repeat (folded here)
+// The occlusion texture (R channel, glTF occlusionTexture; has 0 where option occlusion_texture is off).
+uniform sampler2D tex_occlusion;
+uniform int ao_has;
+uniform int ao_set;
+uniform mat3 ao_xf;
+uniform int ao_mirror;
+uniform float ao_strength;
 
 #if AOV_PASS
 layout(location = 0) out vec4 out_aov;     // N.xyz, NdotV
@@ -54,14 +62,18 @@ float fold(float x) { return 1.0 - abs(mod(x, 2.0) - 1.0); }
 
 // Trilinear (and anisotropic where the texture has it) lookup of slot k, derivatives of the
 // unfolded coordinates so the mip level does not jump at a mirror fold.
-vec4 slot(sampler2D t, int k, vec4 fallback) {
-    if (tex_has[k] == 0) return fallback;
-    vec2 uv = tex_set[k] == 0 ? v_uv0 : v_uv1;
-    uv = (tex_xf[k] * vec3(uv, 1.0)).xy;
+vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback) {
+    if (has == 0) return fallback;
+    vec2 uv = set == 0 ? v_uv0 : v_uv1;
+    uv = (xf * vec3(uv, 1.0)).xy;
     vec2 dx = dFdx(uv), dy = dFdy(uv);
-    if ((tex_mirror[k] & 1) != 0) uv.x = fold(uv.x);
-    if ((tex_mirror[k] & 2) != 0) uv.y = fold(uv.y);
+    if ((mirror & 1) != 0) uv.x = fold(uv.x);
+    if ((mirror & 2) != 0) uv.y = fold(uv.y);
     return textureGrad(t, uv, dx, dy);
+}
+
+vec4 slot(sampler2D t, int k, vec4 fallback) {
+    return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback);
 }
 
 void main() {
@@ -93,7 +105,9 @@ void main() {
     float roughness = clamp(roughness_factor * mr.g, 0.0, 1.0);
     uvec2 px = uvec2(gl_FragCoord.xy);
     uint seed = px.y * 65536u + px.x;
-    vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0), seed);
+    float ao = occlusion_from_texture(lookup(tex_occlusion, ao_has, ao_set, ao_xf, ao_mirror, vec4(1.0)).r,
+                                      ao_strength);
+    vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao), seed);
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;
     out_color = vec4(radiance, alpha_mode == 2 ? base.a : 1.0);
 #endif

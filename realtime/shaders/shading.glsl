@@ -7,6 +7,8 @@
 //   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights. With
 //   IBL_RUNTIME the specular is runtime importance sampling of the environment instead (the same
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
+//   The surface's occlusion scales the diffuse image-based term (glTF 2.0 3.9.4) and
+//   specular_occlusion() (occlusion.glsl) the split-sum specular; the article compositions ignore it.
 // shade_article000:: article 000's PBR.frag (listings 1 and 4, with their mistakes).
 // shade_article001:: runtime importance sampling of the environment (article 001).
 // shade_article002:: article 002's lerp composition with EnvBRDFApprox.
@@ -17,6 +19,7 @@
 // rays, a shadow map, or always false) and binds the Lights buffer and the uniforms below.
 #include "environment_light.glsl"
 #include "energy.glsl"
+#include "occlusion.glsl"
 
 layout(std430, binding = 1) readonly buffer Lights { vec4 lights[]; };  // position, intensity pairs
 uniform int n_lights;
@@ -35,6 +38,7 @@ struct Surface {
     float metallic;
     float roughness;
     float specular;
+    float occlusion;   // ambient occlusion of the image-based light, 1: none (glTF occlusionTexture)
 };
 
 // What a composition's image-based term leaves to its point-light BRDF.
@@ -152,15 +156,18 @@ vec3 shade_material(Shading c, uint pixel_seed) {
 #endif
     // Multiple-scattering energy compensation (energy.glsl): a scale of the split sum's specular
     // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
+    // Specular occlusion (occlusion.glsl) of the image-based specular from the ambient occlusion.
+    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness);
 #ifdef HOOK_ENERGY_COMPENSATION
     color += prefiltered_radiance(c.r, c.roughness) * spec_albedo
-             * hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness);
+             * hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) * so;
 #else
-    color += prefiltered_radiance(c.r, c.roughness) * spec_albedo * energy_scale(c.F0e, c.AB.x, c.AB.y);
-    color += irradiance_over_pi(s.n) * energy_ms(c.F0e, c.AB.x, c.AB.y, c.roughness);
+    color += prefiltered_radiance(c.r, c.roughness) * spec_albedo * energy_scale(c.F0e, c.AB.x, c.AB.y) * so;
+    color += irradiance_over_pi(s.n) * energy_ms(c.F0e, c.AB.x, c.AB.y, c.roughness) * so;
 #endif
 #endif
-    color += (1.0 - s.metallic) * s.base_color * kd * irradiance_over_pi(s.n);
+    // glTF 2.0 (3.9.4): the occlusion texture scales the indirect diffuse light.
+    color += (1.0 - s.metallic) * s.base_color * kd * irradiance_over_pi(s.n) * s.occlusion;
     return add_point_lights(color, c);
 }
 
