@@ -61,15 +61,23 @@ def _cmd_lut(args) -> int:
     return 0
 
 
-def bench(size: int = 512, scene_name: str = "spheres", presets=None) -> dict:
+def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str | None = None) -> dict:
     """Wall time of each precompute pass and of one frame, per preset, after a warm-up render
-    (shader compilation and llvmpipe's JIT), with ctx.finish() around each pass."""
+    (shader compilation and llvmpipe's JIT), with ctx.finish() around each pass. ``scene_name`` may
+    be a glTF asset (``env`` its environment file): the raster pipeline then also reports its
+    ``textures`` (upload and mip generation, re-done warm) and ``geometry`` passes."""
+    from pbrcheck.gltf_objects import is_asset_path, set_asset_options
+    from . import raster
+    if is_asset_path(scene_name):
+        set_asset_options(env=env, size=(size, size))
     scene = load_scene(scene_name).with_camera(width=size, height=size)
     out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "presets": {}}
     for p in presets or PRESETS:
         R.render_realtime(scene, p, progress=False)            # warm-up: compile, JIT, load env
         for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in ("env_cube", "irr", "sh9", "pre", "lut", "kd")]:
             R._cache.pop(k)                                     # re-bake every pass, now warm
+        for k in [k for k in raster._textures if k != ("white",)]:
+            raster._textures.pop(k)[1].release()               # re-upload the material textures
         t0 = time.perf_counter()
         img = R.render_realtime(scene, p, progress=False)
         total = time.perf_counter() - t0
@@ -77,12 +85,13 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None) -> dict:
         t.pop("compile_frame", None)
         out["presets"][p] = {"passes_s": {k: round(v, 4) for k, v in t.items() if k != "frame"},
                              "frame_s": round(t["frame"], 4), "total_s": round(total, 4),
-                             "supersample": json.loads(img.meta["options"])["supersample"]}
+                             "supersample": json.loads(img.meta["options"])["supersample"],
+                             "pipeline": img.meta.get("pipeline", "raycast")}
     return out
 
 
 def _cmd_bench(args) -> int:
-    print(json.dumps(bench(args.size, args.scene), indent=2))
+    print(json.dumps(bench(args.size, args.scene, env=args.env), indent=2))
     return 0
 
 
@@ -110,5 +119,6 @@ def register(sub, bench_sub) -> None:
 
     b = bench_sub.add_parser("realtime", help="JSON: wall time of each precompute pass and one frame per preset")
     b.add_argument("--size", type=int, default=512)
-    b.add_argument("--scene", default="spheres")
+    b.add_argument("--scene", default="spheres", help="built-in scene, TOML file or glTF asset")
+    b.add_argument("--env", default=None, help="environment file of a glTF asset scene")
     b.set_defaults(func=_cmd_bench)
