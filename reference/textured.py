@@ -80,6 +80,8 @@ class TexturedMaterial(mi.BSDF):
         self.base_color = mi.Color3f(*[float(x) for x in props.get("base_color", [1.0, 1.0, 1.0])])
         self.metallic = mi.Float(float(props.get("metallic", 1.0)))
         self.roughness = mi.Float(float(props.get("roughness", 1.0)))
+        # [brdf] roughness_floor: shaded roughness = max(factor * texture.g, floor) (0: none)
+        self.roughness_floor = float(props.get("roughness_floor", 0.0))
         self.specular = mi.Float(float(props.get("specular", 0.04)))
         self.model = (str(props.get("ndf", "ggx")), str(props.get("geometry", "smith_ggx_correlated")),
                       str(props.get("fresnel", "schlick")), "none", 0)
@@ -142,6 +144,8 @@ class TexturedMaterial(mi.BSDF):
             mr = self._lookup("metallic_roughness", si, active)
             rough = rough * mr.y
             met = met * mr.z
+        if self.roughness_floor > 0.0:
+            rough = dr.maximum(rough, self.roughness_floor)
         n_local = mi.Vector3f(0.0, 0.0, 1.0)
         flip = mi.Bool(False)
         if self.double_sided:
@@ -263,7 +267,8 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
-         "geometry": brdf.geometry, "fresnel": brdf.fresnel, "normal_scale": float(m.normal_texture.scale)
+         "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
+         "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),
