@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import jinja2
@@ -242,6 +242,10 @@ is computed on linear radiance, before any display transform.</p>
 {% for r in s.presets %}<tr><td class="l">{{ r.preset }}</td>{% for m in metric_names %}<td{% if r.within[m] %} class="noise" title="within reference noise"{% endif %}>{% if r.within[m] %}&asymp;{% endif %}{{ fmt(r.metrics[m]) }}</td>{% endfor %}
 <td>{{ fmt(r.precompute) }}</td><td>{{ fmt(r.frame) }}</td><td>{{ r.pixels.valid }} / {{ r.pixels.edge }} / {{ r.pixels.background }}</td></tr>{% endfor %}
 </table>
+{% if s.material_rows %}<h3>Metrics per glTF material</h3>
+<table><tr><th class="l">renderer</th><th class="l">material</th>{% for m in material_metrics %}<th>{{ m }}</th>{% endfor %}<th>pixels</th></tr>
+{% for r in s.material_rows %}<tr><td class="l">{{ r.preset }}</td><td class="l">{{ r.material }}</td>{% for m in material_metrics %}<td>{{ fmt(r.metrics[m]) }}</td>{% endfor %}<td>{{ r.pixels }}</td></tr>{% endfor %}
+</table><p>bias: sum(test - reference) / sum(reference) over the material's pixels (signed).</p>{% endif %}
 {% if s.noise_floor is not none %}<p>Reference noise floor (mean variance over valid pixels): {{ fmt(s.noise_floor) }}.</p>{% endif %}
 {% if s.verdict %}<p>Reference spp for a trusted verdict (noise floor &ge; {{ s.verdict.factor }}x below the smallest error): {{ s.verdict.provenance() }}{% if s.verdict.noise_limited %} <strong>noise-limited</strong>{% endif %}.</p>{% endif %}
 {% for p in s.plots %}<h3>{{ p.title }}</h3><img class="plot" src="{{ p.src }}" alt="{{ p.title }}">{% if p.get("note") %}<p>{{ p.note }}</p>{% endif %}
@@ -261,8 +265,17 @@ def _fmt(v) -> str:
     return format_value(v, TABLE_DIGITS)
 
 
-#: The metrics the report lists per glTF material (the summary's ``materials``).
-MATERIAL_METRICS = ("relmse", "flip_mean", "delta_e_itp_mean")
+#: The metrics the report's per-material table lists (the summary's ``materials``; ``bias`` is
+#: compare.metrics.material_bias, the relative signed bias).
+MATERIAL_METRICS = ("relmse", "flip_mean", "bias")
+
+
+def material_rows(preset: str, summary: dict) -> list[dict]:
+    """The per-material table's rows of one renderer (glTF asset scenes; empty otherwise):
+    ``{"preset", "material", "pixels", "metrics": {MATERIAL_METRICS}}``."""
+    return [{"preset": preset, "material": m["material"], "pixels": m["pixels"],
+             "metrics": {k: m["metrics"].get(k) for k in MATERIAL_METRICS}}
+            for m in summary.get("materials", [])]
 
 
 @dataclass(frozen=True)
@@ -317,6 +330,7 @@ class SceneSection:
     noise_floor: float | None
     sweep_rows: list[dict]
     verdict: VerdictSpp | None = None
+    material_rows: list[dict] = field(default_factory=list)   # glTF assets: renderer x material
 
 
 def _provenance(scene, ref) -> list[tuple[str, str]]:
@@ -399,7 +413,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         ref, verdict = reference_for_verdict(scene, list(images.values()), spp=st.spp, cap=st.spp_cap)
     prog.update(1, f"{scene.name}: reference ({verdict.spp} spp)")
     write_tonemapped(sd / "reference.png", ref.rgb)
-    results, objs, bins, speed_rows, dump = [], {}, {}, [], {}
+    results, objs, bins, speed_rows, dump, mat_rows = [], {}, {}, [], {}, []
     provenance = _provenance(scene, ref)
     provenance.append(("reference spp rule", verdict.provenance()))
     if skipped:
@@ -422,10 +436,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
         dump[preset] = {**cmp.summary, "options": img.meta_json("options", None) if "options" in img.meta else None,
                         "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         provenance.append((f"{preset} options", img.meta.get("options", "")))
-        for mrow in cmp.summary.get("materials", []):  # glTF assets: per material
-            provenance.append((f"{preset}: material {mrow['material']}", ", ".join(
-                f"{k} {format_value(mrow['metrics'].get(k), TABLE_DIGITS)}" for k in MATERIAL_METRICS)
-                + f" ({mrow['pixels']} px)"))
+        mat_rows += material_rows(preset, cmp.summary)   # glTF assets: per material
         if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
             provenance.append((f"{preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
@@ -463,7 +474,7 @@ def _scene_section(scene_arg, out_dir: Path, st: ReportSettings, prog) -> SceneS
     write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": dump, "convergence": conv,
                                             "sweep": sweep_table, "reference_spp": verdict.to_dict()}, indent=1)
     return SceneSection(sid, scene.name, scene.description, ref.meta.get("spp", st.spp), f"{sid}/reference.png",
-                        results, plots, provenance, noise_floor, sweep_table, verdict)
+                        results, plots, provenance, noise_floor, sweep_table, verdict, mat_rows)
 
 
 def hardcases_section(out_dir: Path, presets: list[str] | None = None, progress: bool = False) -> Section:
@@ -572,7 +583,8 @@ def build_report(scenes: list[str], *, presets: list[str] | None = None, out_dir
     extras.append(run_section(run))
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     page = env.from_string(TEMPLATE).render(
-        scenes=sections, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=sections, top=top, extras=extras, metric_names=METRICS, material_metrics=MATERIAL_METRICS,
+        fmt=_fmt, version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
     index = out_dir / "index.html"
     write_text_atomic(index, page)
