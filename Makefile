@@ -22,8 +22,8 @@ setup: system-packages client-packages $(STAMP)
 system-packages:
 	@bash tools/ensure-system-packages.sh --python $(PYTHON) $(SYSTEM_PACKAGES)
 
-# The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in
-# clients/threejs; without root it prints the commands and goes on (their tests skip).
+# The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in every
+# clients/*/ with a package-lock.json; without root it prints the commands and goes on (their tests skip).
 client-packages:
 	@bash tools/ensure-clients.sh
 
@@ -46,12 +46,16 @@ test: setup test-packages
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer).
+# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF
+# Sample Viewer, Babylon.js, PlayCanvas, Filament): accuracy against the references and change against
+# the accepted baselines (compare/budgets/baselines/; accept an intended change with
+# `pbrcheck gate BUDGET.toml --accept --reason "..."`).
 gate: setup
 	@rc=0; \
-	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md || rc=$$?; \
+	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md \
+		--html out/ci/gate-html || rc=$$?; \
 	$(VENV)/bin/pbrcheck gate compare/budgets/clients.toml --junit out/ci/gate-clients-junit.xml \
-		--summary out/ci/gate-clients-summary.md || { r=$$?; [ $$r -gt $$rc ] && rc=$$r; }; \
+		--summary out/ci/gate-clients-summary.md --html out/ci/gate-clients-html || { r=$$?; [ $$r -gt $$rc ] && rc=$$r; }; \
 	exit $$rc
 
 bench: setup

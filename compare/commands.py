@@ -12,7 +12,7 @@ from pbrcheck.fmt import format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.scene import load_scene
 
-from .gate import run_gate
+from .gate import BudgetError, run_gate
 from .maps import write_maps
 from .metrics import compare_images
 
@@ -66,8 +66,12 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_gate(args) -> int:
-    return run_gate(args.budget, junit=args.junit, summary=args.summary, maps_dir=args.maps,
-                    progress=not args.quiet)
+    if args.accept and not (args.reason or "").strip():
+        raise BudgetError(f"{args.budget}: --accept needs --reason \"...\" (it goes into the budget's history)")
+    if args.reason is not None and not args.accept:
+        raise BudgetError(f"{args.budget}: --reason only together with --accept")
+    return run_gate(args.budget, junit=args.junit, summary=args.summary, maps_dir=args.maps, html=args.html,
+                    accept_reason=args.reason if args.accept else None, progress=not args.quiet)
 
 
 def register(sub, bench_sub) -> None:
@@ -88,6 +92,11 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--junit", metavar="FILE", help="write JUnit XML")
     s.add_argument("--summary", metavar="FILE.md", help="write a Markdown summary")
     s.add_argument("--maps", metavar="DIR", default="out/gate",
-                   help="error maps of failing checks go to DIR/<check> (default out/gate)")
+                   help="error maps of checks that are not pass go to DIR/<check> (default out/gate)")
+    s.add_argument("--html", metavar="DIR", help="write DIR/index.html: a baseline / current slider for every "
+                   "check that is not pass")
+    s.add_argument("--accept", action="store_true", help="accept the current renders as the baselines "
+                   "(baselines/ beside the budget; needs --reason)")
+    s.add_argument("--reason", metavar="TEXT", help="why the baselines change (appended to the budget's [[history]])")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_gate)

@@ -9,7 +9,8 @@ API
 ---
 :func:`write_maps`, :func:`write_rel_png`, :func:`write_flip_png`, :func:`write_diff_exr`,
 :func:`write_tonemapped`, :func:`display_rgb`, :func:`tonemap`, :func:`tonemap_aces`,
-:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`.
+:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`, :func:`safe_name` (a
+renderer's, scene's or check's name as a file or folder name: the gate's and the report's).
 """
 
 from __future__ import annotations
@@ -43,6 +44,14 @@ def _mpl():
 def pyplot():
     """``matplotlib.pyplot`` on the Agg backend (no display needed)."""
     return _mpl()[1]
+
+
+def safe_name(name: str) -> str:
+    """``name`` as a file or folder name: every character but letters, digits and ``-_.`` becomes
+    ``_``, and ``.`` or ``..`` all ``_`` (the gate's :func:`~compare.gate.load_budget` refuses two
+    checks whose folders would be one)."""
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    return "_" * len(safe) if safe in (".", "..") else safe
 
 
 def save_figure(fig, path: Path, dpi: int = 80) -> str:

@@ -27,8 +27,8 @@ Display-referred images (an external renderer that can only give 8-bit sRGB, ``o
 reference clamped to [0, 1] and sRGB-encoded as the engine did, without the noise floor;
 ``summary["space"]`` is ``display-referred`` (else ``linear``).
 
-FLIP maps are memoized per process by content (:data:`MAP_MEMO_SIZE`) and, inside
-:func:`map_cache` (the report), kept on disk by content.
+FLIP maps are memoized per process by content (:data:`MAP_MEMO_SIZE`) and, where the caller asks
+(``compare_images(..., flip_cache=True)``: the report), kept on disk by content.
 
 Noise floor (when the reference has ``variance.R/G/B``, the variance of its pixel estimate):
 ``mean_variance`` = mean of the variance channels over valid pixels; ``mse_corrected`` =
@@ -43,7 +43,6 @@ value (for ``psnr``, higher is better: no lower than the simulated value less
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.metadata
 import json
@@ -178,33 +177,15 @@ def _flip_exposures(ref_rgb: np.ndarray) -> tuple[float, float]:
 #: the reference-spp rule and the final comparison, a preset and its research section).
 MAP_MEMO_SIZE = 48
 _map_memo: dict = {}
-#: Cache namespace of HDR-FLIP maps on disk (``$PBRCHECK_CACHE/flip``), used inside :func:`map_cache`.
+#: Cache namespace of HDR-FLIP maps on disk (``$PBRCHECK_CACHE/flip``), used with ``flip_cache=True``.
 FLIP_NAMESPACE = "flip"
 #: Part of every FLIP cache key: bump when the way a map is computed here changes (the exposure
 #: range of :func:`_flip_exposures`, the clipping of :func:`flip_map`); flip-evaluator's own
 #: version is in the key too.
 FLIP_CODE_VERSION = 1
-#: The disk store of FLIP maps while :func:`map_cache` is active (None: compute every map).
-_MAP_STORE: list = [None]
 #: FLIP maps this process read from the disk store (``hit``), computed and stored (``miss``) and
-#: computed outside :func:`map_cache` (``off``); per-process memo hits are not counted.
+#: computed without it (``off``); per-process memo hits are not counted.
 FLIP_STORE_COUNTS: Counter = Counter()
-
-
-@contextlib.contextmanager
-def map_cache(enabled: bool = True):
-    """Within the ``with`` block, HDR-FLIP maps are also kept on disk by content
-    (:class:`pbrcheck.cache.Cache` namespace :data:`FLIP_NAMESPACE`): the key is the SHA-256 of both
-    images' bytes, shape and dtype, the exposure range, flip-evaluator's version and
-    :data:`FLIP_CODE_VERSION`, so a re-run of a report whose images did not change reads its maps
-    (a FLIP map is ~0.3-0.6 s of both cores at 360 x 300, ~180 per report). Outside the block, or
-    with ``enabled=False``, every map is computed (tests measure the metric, not a file)."""
-    old = _MAP_STORE[0]
-    _MAP_STORE[0] = Cache(FLIP_NAMESPACE) if enabled else None
-    try:
-        yield
-    finally:
-        _MAP_STORE[0] = old
 
 
 def _digest(kind: str, a: np.ndarray, b: np.ndarray) -> str:
@@ -230,10 +211,15 @@ def _memo(kind: str, a: np.ndarray, b: np.ndarray, fn, key: str | None = None):
     return hit.copy()
 
 
-def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
+def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, cache: bool = False) -> np.ndarray:
     """HDR-FLIP error map (H, W) in [0, 1]. Inputs are validated here because flip-evaluator calls
     ``sys.exit`` on bad input: (H, W, 3), finite; passed as contiguous float32, clipped to >= 0.
-    Memoized by content (:data:`MAP_MEMO_SIZE`)."""
+    Memoized by content (:data:`MAP_MEMO_SIZE`). ``cache``: also kept on disk by content
+    (:class:`pbrcheck.cache.Cache` namespace :data:`FLIP_NAMESPACE`): the key is the SHA-256 of both
+    images' bytes, shape and dtype, the exposure range, flip-evaluator's version and
+    :data:`FLIP_CODE_VERSION`, so a re-run of a report whose images did not change reads its maps
+    (a FLIP map is ~0.3-0.6 s of both cores at 360 x 300, ~180 per report); without it every map is
+    computed (tests measure the metric, not a file)."""
     if ref_rgb.shape != test_rgb.shape or ref_rgb.ndim != 3 or ref_rgb.shape[2] != 3:
         raise ComparisonError(f"FLIP needs two (H, W, 3) images, got {ref_rgb.shape} and {test_rgb.shape}")
     if not (np.all(np.isfinite(ref_rgb)) and np.all(np.isfinite(test_rgb))):
@@ -241,7 +227,8 @@ def flip_map(ref_rgb: np.ndarray, test_rgb: np.ndarray) -> np.ndarray:
     r = np.ascontiguousarray(np.clip(ref_rgb, 0.0, None), dtype=np.float32)
     t = np.ascontiguousarray(np.clip(test_rgb, 0.0, None), dtype=np.float32)
     digest = _digest("flip", r, t)
-    return _memo("flip", r, t, lambda: _stored_flip_map(r, t, digest), key=digest)
+    store = Cache(FLIP_NAMESPACE) if cache else None
+    return _memo("flip", r, t, lambda: _stored_flip_map(r, t, digest, store), key=digest)
 
 
 def _flip_version() -> str:
@@ -253,10 +240,9 @@ def _flip_version() -> str:
         return str(getattr(flip_evaluator, "__file__", "unknown"))
 
 
-def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str) -> np.ndarray:
-    """:func:`_flip_map`, read from / written to the disk store of :func:`map_cache` when active.
-    A store that cannot be written is not an error (the map is returned; the next run computes it)."""
-    store = _MAP_STORE[0]
+def _stored_flip_map(r: np.ndarray, t: np.ndarray, digest: str, store: Cache | None) -> np.ndarray:
+    """:func:`_flip_map`, read from / written to the disk ``store`` when there is one. A store that
+    cannot be written is not an error (the map is returned; the next run computes it)."""
     if store is None:
         FLIP_STORE_COUNTS["off"] += 1
         return _flip_map(r, t)
@@ -318,16 +304,17 @@ class PixelMaps:
         self.y_ref = self.ref @ LUMA.astype(np.float32)
 
 
-def pixel_maps(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, flip: bool = True, itp: bool = True) -> PixelMaps:
+def pixel_maps(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, flip: bool = True, itp: bool = True,
+               flip_cache: bool = False) -> PixelMaps:
     """Per-pixel maps of two (H, W, 3) linear images: the signed difference ``t - r``, the relative
-    error ``|t - r| / (r + REL_EPS)``, the reference luminance and (optionally) HDR-FLIP and
-    Delta E ITP."""
+    error ``|t - r| / (r + REL_EPS)``, the reference luminance and (optionally) HDR-FLIP (kept on
+    disk with ``flip_cache``: :func:`flip_map`) and Delta E ITP."""
     r = ref_rgb.astype(np.float64)
     t = test_rgb.astype(np.float64)
     d = t - r
     rel = np.abs(d) / (r + REL_EPS)
     return PixelMaps(ref=r, test=t, diff=d, rel=rel,
-                     flip=flip_map(ref_rgb, test_rgb) if flip else None,
+                     flip=flip_map(ref_rgb, test_rgb, cache=flip_cache) if flip else None,
                      dE=delta_e_itp_map(ref_rgb, test_rgb) if itp else None)
 
 
@@ -472,7 +459,7 @@ def _material_metrics(scene, ids, valid, m, peak) -> list[dict]:
 
 def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
                    ref_name: str = "reference", test_name: str = "test", flip: bool = True,
-                   itp: bool = True) -> Comparison:
+                   itp: bool = True, flip_cache: bool = False) -> Comparison:
     """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be.
 
     When either image is display-referred (an 8-bit ``png-srgb`` engine), both are compared in
@@ -480,6 +467,8 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     without the noise floor, and ``summary["space"]`` says ``display-referred`` (else ``linear``).
     ``flip=False`` / ``itp=False``: a caller that reads neither ``flip_mean`` nor ``delta_e_itp_*``
     skips those maps (the costly part of a comparison); those metrics are then None.
+    ``flip_cache``: the FLIP maps (the pair's and the noise simulation's) are also kept on disk by
+    content (:func:`flip_map`; the report).
     """
     space = "linear"
     if is_display_referred(ref) or is_display_referred(test):
@@ -489,7 +478,7 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     if not valid.any():
         raise ComparisonError(f"no valid pixel: {int(edge.sum())} edge and {int(background.sum())} "
                               "background pixel(s), no fully covered object pixel in both images")
-    m = pixel_maps(ref.rgb, test.rgb, flip=flip, itp=itp)
+    m = pixel_maps(ref.rgb, test.rgb, flip=flip, itp=itp, flip_cache=flip_cache)
     peak = psnr_peak(m, valid)
     summary: dict = {
         "space": space,
@@ -524,12 +513,13 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
                          "metrics": {k: s[k] for k in ("mean_abs", "relmse", "smape", "flip_mean",
                                                         "delta_e_itp_mean")}})
     summary["ndotv"] = bins
-    summary["noise"] = (noise_floor(ref, m, valid, peak, summary["metrics"])
+    summary["noise"] = (noise_floor(ref, m, valid, peak, summary["metrics"], flip_cache=flip_cache)
                         if noise and ref.variance is not None else None)
     return Comparison(summary, m, valid, edge, background)
 
 
-def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metrics: dict) -> dict:
+def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metrics: dict, *,
+                flip_cache: bool = False) -> dict:
     """Noise floor of the reference and a ``within_noise`` flag per metric (module docstring)."""
     var = np.clip(ref.variance.astype(np.float64), 0.0, None)
     mean_var = _f(var[valid].mean())
@@ -537,7 +527,7 @@ def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metric
     rng = np.random.default_rng(NOISE_SEED)
     sim_t = m.ref + np.sqrt(2.0 * var) * rng.standard_normal(m.ref.shape)
     sim = pixel_maps(m.ref.astype(np.float32), sim_t.astype(np.float32), flip=m.flip is not None,
-                     itp=m.dE is not None)
+                     itp=m.dE is not None, flip_cache=flip_cache)
     sim_metrics = summarize(sim, valid, peak=peak)
     flags = {}
     for k in METRICS:

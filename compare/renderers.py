@@ -10,10 +10,14 @@ API
 - :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
   (:func:`realtime.render.render_realtime`) or ``ext:NAME``, an external renderer of
   ``renderers.toml`` (:func:`clients.run.render_external`).
+- :class:`RenderContext` -- how :func:`render_under_test` renders, passed to it explicitly
+  (``context=``): whether real-time renders come from the content-addressed cache
+  (:mod:`realtime.cache`; the report) and the external renders started in the background
+  (:class:`Prefetch`); and whether their comparisons keep FLIP maps on disk. :data:`DIRECT` (the
+  default) renders every call.
 - :func:`prefetch_external` -- a context that renders some external renderers' images in a
-  background thread while this process renders the rest (the report).
-- :func:`realtime_cache` -- a context in which :func:`render_under_test` serves real-time renders
-  from the content-addressed cache (:mod:`realtime.cache`; the report).
+  background thread while this process renders the rest; yields the :class:`Prefetch` to put in a
+  :class:`RenderContext` (the report).
 - :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
@@ -32,7 +36,8 @@ from __future__ import annotations
 import contextlib
 import json
 from collections import Counter
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
 
 from clients import config as _clients_config
 from clients import run as _clients
@@ -59,7 +64,58 @@ def render_reference(scene: Scene, **kwargs) -> Image:
     return img
 
 
-def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False) -> Image:
+class Prefetch:
+    """External renderers' images being rendered in the background (:func:`prefetch_external`), by
+    (scene content, renderer name); :meth:`take` hands each one out once."""
+
+    def __init__(self):
+        self._futures: dict[str, Future] = {}
+
+    def submit(self, pool: ThreadPoolExecutor, scene: Scene, name: str) -> None:
+        k = _prefetch_key(scene, name)
+        if k not in self._futures:
+            self._futures[k] = pool.submit(_clients.render_external, scene, name, progress=False)
+
+    def take(self, scene: Scene, name: str) -> Future | None:
+        """The future of ``(scene, name)``, removed (a second call renders again), or None."""
+        return self._futures.pop(_prefetch_key(scene, name), None)
+
+    def close(self) -> None:
+        """Cancel the renders not yet started (running ones finish) and forget them all: a later
+        :meth:`take` finds nothing, so its caller renders."""
+        for f in self._futures.values():
+            f.cancel()
+        self._futures.clear()
+
+
+@dataclass(frozen=True)
+class RenderContext:
+    """How :func:`render_under_test` renders; passed to it (``context=``), never held in a module.
+
+    ``cache``: real-time presets render through :func:`realtime.cache.render_cached` (keyed by
+    scene, options, shader and code content and the GL renderer; ``meta["cache"]`` says ``hit`` or
+    ``miss``); otherwise every call renders, so the renderer's own tests and benchmarks always measure
+    a render. External renderers have their own cache (:mod:`clients.run`). ``prefetch``: external
+    renders started in the background (:func:`prefetch_external`); one of them is taken from there
+    (waiting if needed; a failed render raises its own error there, as it would have).
+    ``flip_cache``: the comparisons of these renders keep their HDR-FLIP maps on disk by content
+    (callers pass it on as ``compare.metrics.compare_images(..., flip_cache=...)``)."""
+
+    cache: bool = False
+    prefetch: Prefetch | None = field(default=None, compare=False)
+    flip_cache: bool = False
+
+    def local(self) -> "RenderContext":
+        """This context without its prefetch (what a render in another process can use)."""
+        return replace(self, prefetch=None)
+
+
+#: Render every call: no cache, nothing prefetched (the default of :func:`render_under_test`).
+DIRECT = RenderContext()
+
+
+def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False,
+                      context: RenderContext = DIRECT, use_cache: bool = True) -> Image:
     """Render ``scene`` with the renderer under test ``name``.
 
     Parameters
@@ -72,6 +128,11 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
         Option overrides (``--set key=value``), validated by the renderer.
     progress : bool, optional
         Show progress on stderr.
+    context : RenderContext, optional
+        The cache and the background renders to use (default :data:`DIRECT`: render).
+    use_cache : bool, optional
+        False: render afresh even where a cache would serve the image (an external renderer's
+        render cache, the context's real-time cache): the gate's run-to-run spread.
 
     Returns
     -------
@@ -85,12 +146,11 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     """
     if is_external(name):
         _no_options(name, options)
-        for futures in _PREFETCH:
-            fut = futures.pop(_prefetch_key(scene, name), None)
-            if fut is not None:  # rendered (or being rendered) in the background: its result or error
-                return fut.result()
-        return _clients.render_external(scene, name, progress=progress)
-    if _CACHE_REALTIME[0]:
+        fut = context.prefetch.take(scene, name) if context.prefetch is not None else None
+        if fut is not None:  # rendered (or being rendered) in the background: its result or error
+            return fut.result()
+        return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
+    if context.cache and use_cache:
         img = _realtime_cache.render_cached(scene, name, options, progress=progress)
         CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
         return img
@@ -108,10 +168,6 @@ def backends() -> dict:
             "reference_variant": _variant.chosen_variant()}
 
 
-#: The futures of :func:`prefetch_external` contexts, by (scene content, renderer name).
-_PREFETCH: list[dict] = []
-
-
 def _prefetch_key(scene: Scene, name: str) -> str:
     return json.dumps([scene.content_dict(), name], sort_keys=True, default=str)
 
@@ -121,44 +177,19 @@ def prefetch_external(jobs, workers: int = 1):
     """Render the external renderers' images of ``jobs`` (``(scene, "ext:NAME")`` pairs) in
     ``workers`` background threads while this process renders the rest: an external renderer is a
     process of its own (a browser on SwiftShader) that this one would otherwise only wait for.
-    :func:`render_under_test` of one of them takes its result (waiting if needed; a failed render
-    raises its own error there, as it would have). On exit, renders not yet started are cancelled and
-    running ones finish (their results stay in the external renderers' cache)."""
-    futures: dict = {}
+    Yields the :class:`Prefetch`: :func:`render_under_test` with a :class:`RenderContext` holding it
+    takes its result. On exit, renders not yet started are cancelled and running ones finish (their
+    results stay in the external renderers' cache)."""
+    pre = Prefetch()
     pool = ThreadPoolExecutor(max_workers=max(1, int(workers)), thread_name_prefix="pbrcheck-prefetch")
     try:
         for scene, name in jobs:
             if is_external(name):
-                k = _prefetch_key(scene, name)
-                if k not in futures:
-                    futures[k] = pool.submit(_clients.render_external, scene, name, progress=False)
-        _PREFETCH.append(futures)
-        yield
+                pre.submit(pool, scene, name)
+        yield pre
     finally:
-        if futures in _PREFETCH:
-            _PREFETCH.remove(futures)
-        for f in futures.values():
-            f.cancel()
+        pre.close()
         pool.shutdown(wait=True)
-
-
-#: Whether :func:`render_under_test` serves real-time renders from the cache (see :func:`realtime_cache`).
-_CACHE_REALTIME = [False]
-
-
-@contextlib.contextmanager
-def realtime_cache(enabled: bool = True):
-    """Within the ``with`` block, :func:`render_under_test` renders real-time presets through
-    :func:`realtime.cache.render_cached` (keyed by scene, options, shader and code content and the GL
-    renderer; ``meta["cache"]`` says ``hit`` or ``miss``). Outside it every call renders, so the
-    renderer's own tests and benchmarks always measure a render. External renderers have their own
-    cache (:mod:`clients.run`)."""
-    old = _CACHE_REALTIME[0]
-    _CACHE_REALTIME[0] = bool(enabled)
-    try:
-        yield
-    finally:
-        _CACHE_REALTIME[0] = old
 
 
 def is_external(name: str) -> bool:

@@ -9,17 +9,28 @@ image). The floor falls as 1 / spp, so from a render at ``spp`` the spp needed i
     spp_needed = spp x NOISE_FLOOR_FACTOR x mean_variance / min(mse_corrected)
 
 rounded up to a power of two (the cache then reuses the renders of other runs) and capped at
-``cap``; at the cap the verdict is flagged **noise-limited**. Without a ``cap`` it follows from a time
+``cap``. **Pilot / final** (:func:`reference_for_verdict`; Kirk & Arvo 1991): that spp is chosen
+on *pilot* renders (seed :func:`pilot_seed`, from the least ``spp`` up), and the reference returned
+is a *final* render at it on the caller's seed, always accepted. Re-checking the floor on the
+render that is returned and re-rendering when it falls short would keep the renders whose floor
+came out low by chance (the floor and the error are estimates): the returned floor would be
+biased low and the image selected on its own noise. With the decision a function of the pilots
+only, the final is an ordinary render at a fixed spp. Its own ratio is reported; below the factor
+(at the cap, or short of the pilot's prediction) the verdict is flagged **noise-limited**. Without a ``cap`` it follows from a time
 budget: the largest power of two whose render, at the seconds per spp of the first render
 (:func:`seconds_per_spp`: on a CPU its CPU time over its threads, so the load of other processes
 does not move it), fits in ``time_budget_s`` (at most :data:`HARD_SPP_CAP`). So a GPU, ~50x
-faster, reaches the floor where a CPU stops at the cap (spheres at 360 x 300 needs ~10^4 spp: the
-default preset's corrected MSE is 1.8e-4, the local estimator's per-sample variance 0.17). Renders go through the seam
-``compare.renderers.render_reference`` (cached by spp), so a re-run costs nothing.
+faster, reaches the floor where a CPU stops at the cap (spheres at 360 x 300 needs ~10^4 spp
+with independent samples: the default preset's corrected MSE is 1.8e-4, the local estimator's
+per-sample variance 0.17). Renders go through the seam ``compare.renderers.render_reference``
+(cached by spp and seed), so a re-run costs nothing.
 
 API: :data:`NOISE_FLOOR_FACTOR`, :data:`DEFAULT_SPP_CAP`, :class:`VerdictSpp`, :func:`spp_needed`,
-:func:`noise_and_error`, :func:`reference_for_verdict`, :func:`verdict_of`, :func:`cap_for_time`,
-:func:`seconds_per_spp`.
+:func:`noise_and_error`, :func:`reference_for_verdict`, :func:`pilot_seed`, :func:`verdict_of`,
+:func:`cap_for_time`, :func:`seconds_per_spp`, :data:`MIN_REFERENCE_SPP`.
+Reference: Kirk & Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH): a
+sample size chosen from the samples being averaged biases the estimate; a pilot whose samples are
+not reused does not.
 """
 
 from __future__ import annotations
@@ -34,6 +45,9 @@ from pbrcheck.exr import Image
 from . import renderers
 from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
 
+#: The least reference spp anything may ask for: the reference renderer needs two samples per pixel
+#: for its variance channels (the gate's and the report's floor).
+MIN_REFERENCE_SPP = 2
 #: The reference's noise floor must sit this far below the smallest error reported against it.
 NOISE_FLOOR_FACTOR = 10.0
 #: Default largest reference spp a verdict may ask for (beyond it: "noise-limited"). 4096 spp of
@@ -52,8 +66,15 @@ MIN_TRUSTED_MSE = 1e-9
 #: An error sets the spp only when its corrected MSE exceeds this many standard errors of the MSE
 #: estimate (else it is 0 within the noise: a one-sided 3-sigma test, 0.1 % false alarms).
 ERROR_Z = 3.0
-#: Refinement steps at most (each re-renders at the spp the last one asked for).
+#: Renders at most per verdict, pilots and the final (:func:`reference_for_verdict`).
 MAX_STEPS = 3
+#: Added (mod 2^32) to the seed for the pilot renders (:func:`pilot_seed`): they never share
+#: random numbers with the returned (final) render.
+PILOT_SEED_OFFSET = 1 << 31
+#: A further pilot when the final spp the pilot asks for is at least this many times its own ...
+PILOT_REFINE = 32
+#: ... rendered at the final spp over this (an eighth: a pilot costs ~1/8 of the final).
+PILOT_RATIO = 8
 #: The research commands' ``probe`` (:func:`reference_for_verdict`): an unresolved error is looked
 #: for once more at 16x the spp (a quarter of the noise's standard deviation) before "within noise".
 RESEARCH_PROBE = 16
@@ -71,7 +92,7 @@ class VerdictSpp:
     noise_limited: bool
     cap: int
     factor: float = NOISE_FLOOR_FACTOR
-    steps: list = field(default_factory=list)  # [[spp, noise floor, smallest error], ...]
+    steps: list = field(default_factory=list)  # [[spp, noise floor, smallest error, "pilot" or "final"], ...]
     metric: str = "mse"  # the error measure of floor and error (noise_and_error)
 
     def to_dict(self) -> dict:
@@ -86,7 +107,11 @@ class VerdictSpp:
         s = (f"{self.spp} spp: noise floor {self.noise_floor:.3g} = smallest error "
              f"{self.smallest_error:.3g} / {r} (goal >= {self.factor:g}"
              + (f"; {self.metric}" if self.metric != "mse" else "") + ")")
-        return s + (f"; NOISE-LIMITED at the cap of {self.cap} spp" if self.noise_limited else "")
+        if not self.noise_limited:
+            return s
+        if self.spp >= self.cap:
+            return s + f"; NOISE-LIMITED at the cap of {self.cap} spp"
+        return s + "; NOISE-LIMITED: the final render fell short of the pilot's prediction"
 
 
 def spp_needed(spp: int, floor: float, error: float, factor: float = NOISE_FLOOR_FACTOR) -> float:
@@ -189,50 +214,81 @@ def cap_for_time(ref: Image, spp: int, time_budget_s: float) -> int:
     return int(min(max(n, spp), max(HARD_SPP_CAP, spp)))
 
 
+def pilot_seed(seed: int) -> int:
+    """The seed of the verdict rule's pilot renders for a reference of ``seed``: ``seed +``
+    :data:`PILOT_SEED_OFFSET` modulo 2^32 (the renderer's seeds are 32-bit), so a pilot never shares
+    random numbers with the returned render and repeated runs hit the cache with the same pilots."""
+    return (int(seed) + PILOT_SEED_OFFSET) & 0xFFFFFFFF
+
+
+def _pow2_at_least(x: float) -> int:
+    return 1 << max(0, math.ceil(math.log2(max(x, 1.0))))
+
+
 def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | None = DEFAULT_SPP_CAP,
                           factor: float = NOISE_FLOOR_FACTOR, time_budget_s: float = DEFAULT_TIME_BUDGET_S,
                           metric: str = "mse", probe: int | None = None, **kwargs) -> tuple[Image, VerdictSpp]:
     """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``; None:
-    :func:`cap_for_time` of ``time_budget_s``) whose noise floor is ``factor`` times below the
-    smallest error of ``tests`` against it.
+    :func:`cap_for_time` of ``time_budget_s``) whose noise floor a pilot predicts to lie ``factor``
+    times below the smallest error of ``tests``: a **pilot / final** scheme (Kirk & Arvo 1991).
+
+    Pilot: renders on :func:`pilot_seed` ``(seed)``, from ``spp`` up, measure floor and error and
+    choose the final spp (``spp_needed`` with 10 % headroom, a power of two, at most ``cap``); a
+    further pilot at ``final / PILOT_RATIO`` when the extrapolation spans more than
+    :data:`PILOT_REFINE` times the last pilot's spp (at most :data:`MAX_STEPS` renders in all).
+    Final: one render at that spp on ``seed`` itself (the render ``pbrcheck reference --spp N --seed
+    seed`` makes, shared through the cache), **always returned**: no decision is made on it, so
+    it is an ordinary render at a spp chosen independently of its own samples (unbiased, its
+    variance channels unbiased). Its own floor and error are what the :class:`VerdictSpp` reports;
+    ``noise_limited`` when its ratio falls short of ``factor`` (at the cap, or, rarely, short of
+    the pilot's prediction).
 
     ``metric``: the error the floor is compared with (:func:`noise_and_error`: ``"mse"`` or ``"relmse"``).
-    ``probe``: when no error is resolved above the noise, render once more at ``probe`` times the spp
-    (at most ``cap``) before concluding so: an error below a coarse reference's noise then gets its
-    trusted spp instead of none (the research commands, whose small images start noisy), while an
-    exact renderer costs one render more. None: conclude at once (the report and the gate).
-    ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
-    Returns the reference and a :class:`VerdictSpp` (``noise_limited`` when the cap stopped it).
+    ``probe``: when the pilot resolves no error above the noise, pilot once more at ``probe`` times
+    the spp (at most ``cap``); when that one resolves none either, the final is rendered at the probe's
+    spp (the research commands, whose small images start noisy). None: conclude at once (the report
+    and the gate). ``kwargs`` go to ``renderers.render_reference`` (``mode``, ``seed``, ``use_cache``, ...).
+    ``steps``: ``[spp, floor, error, "pilot" | "final"]`` per render, in order.
     """
     kwargs.setdefault("use_cache", True)
     kwargs.setdefault("progress", False)
+    seed = int(kwargs.pop("seed", 0))
+    pseed = pilot_seed(seed)
     cur = int(spp)
-    steps = []
+    steps: list = []
     probed = False
-    while True:
-        ref = renderers.render_reference(scene, spp=cur, **kwargs)
+    while True:  # the pilot: decides the final spp, never returned
+        pil = renderers.render_reference(scene, spp=cur, seed=pseed, **kwargs)
         if cap is None:
-            cap = cap_for_time(ref, cur, time_budget_s)
+            cap = cap_for_time(pil, cur, time_budget_s)
         cap = max(int(cap), int(spp))
-        floor, err = noise_and_error(ref, tests, scene=scene, metric=metric) if tests else (None, None)
-        steps.append([cur, floor, err])
+        floor, err = noise_and_error(pil, tests, scene=scene, metric=metric) if tests else (None, None)
+        steps.append([cur, floor, err, "pilot"])
         if (probe and not probed and err is None and floor is not None and math.isfinite(floor) and floor > 0
-                and cur < cap and len(steps) < MAX_STEPS):
+                and cur < cap and len(steps) < MAX_STEPS - 1):
             probed = True
             cur = int(min(cur * int(probe), cap))
             continue
         if floor is None or err is None or not (math.isfinite(floor) and math.isfinite(err)):
-            # nothing to set the spp by (a non-finite image is the hard cases' finding, not noise)
-            return ref, VerdictSpp(cur, floor, err, None, False, cap, factor, steps, metric)
-        ratio = err / floor if floor > 0 else math.inf
+            final = cur  # nothing to set the spp by (a non-finite image is the hard cases' finding)
+            break
         need = spp_needed(cur, floor, err, factor)
         if need <= cur:
-            return ref, VerdictSpp(cur, floor, err, ratio, False, cap, factor, steps, metric)
-        if cur >= cap or len(steps) >= MAX_STEPS:
-            return ref, VerdictSpp(cur, floor, err, ratio, True, cap, factor, steps, metric)
+            final = cur
+            break
         # 10 % headroom: the floor and the error are themselves estimates.
-        nxt = 1 << max(0, math.ceil(math.log2(min(need * 1.1, float(cap)))))
-        cur = int(min(max(nxt, cur * 2), cap))
+        final = int(min(max(_pow2_at_least(min(need * 1.1, float(cap))), cur * 2), cap))
+        if final >= PILOT_REFINE * cur and len(steps) < MAX_STEPS - 1:
+            cur = final // PILOT_RATIO  # a long extrapolation: pilot again nearer the final
+            continue
+        break
+    ref = renderers.render_reference(scene, spp=final, seed=seed, **kwargs)
+    floor, err = noise_and_error(ref, tests, scene=scene, metric=metric) if tests else (None, None)
+    steps.append([final, floor, err, "final"])
+    if floor is None or err is None or not (math.isfinite(floor) and math.isfinite(err)):
+        return ref, VerdictSpp(final, floor, err, None, False, cap, factor, steps, metric)
+    ratio = err / floor if floor > 0 else math.inf
+    return ref, VerdictSpp(final, floor, err, ratio, bool(ratio < factor), cap, factor, steps, metric)
 
 
 def noise_floor_of(ref: Image) -> float | None:

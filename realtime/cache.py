@@ -20,7 +20,7 @@ entry is a miss):
 A hit is the stored image with its stored timings (the frame and bakes as measured when it was
 rendered, on the ``gl_renderer`` of its metadata) and ``meta["cache"] = "hit"``; the warnings the
 render printed are printed again. Callers choose: :func:`compare.renderers.render_under_test` uses
-it only inside :func:`compare.renderers.realtime_cache` (the report), so a test or a
+it only with a caching :class:`compare.renderers.RenderContext` (the report), so a test or a
 benchmark of the renderer always renders.
 
 API: :data:`NAMESPACE`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`.

@@ -49,6 +49,14 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   preset error is known here (this layer cannot render the real-time image), so its target is
   independent's floor at ``FLOOR_SPP`` / ``HDR_TARGET_FACTOR``, and the speedups, ratios of seconds
   at a common target, do not depend on it.
+* ``variance_reduction``: candidate variance reductions of the ``local`` estimator against its
+  default, same scenes, each a **variance ratio** at equal spp (the default's floor over the
+  candidate's; ``efficiency_ratio`` = that x the default's CPU seconds over the candidate's) from
+  the ``independent`` sampler (per-sample moments: the variance channels are exact in expectation,
+  no replicate noise), uniform spp, ``VR_SPP`` spp (quick: ``VR_SPP_QUICK``) at the bench resolution,
+  ``VR_SEEDS`` seeds: ``mis_balance`` (the balance heuristic for the env and BSDF samples instead of
+  the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`). Adopted only when the ratio is
+  clearly above 1 on both scenes (docs/reference.md records the measurements).
 """
 
 from __future__ import annotations
@@ -101,6 +109,11 @@ ENVMAPS = Path(__file__).resolve().parents[1].parent / "shared" / "envmaps"
 ENVMAP_NAMES = ("royal_esplanade_1k.hdr", "venice_sunset_1k.hdr", "chinese_garden_1k.hdr")
 #: The real-HDR scene's target: independent's floor at FLOOR_SPP over this (about 10^4 spp).
 HDR_TARGET_FACTOR = 8.0
+#: ``variance_reduction``: spp and seeds per candidate (independent sampler, uniform spp), and the
+#: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
+VR_SPP, VR_SPP_QUICK = 128, 32
+VR_SEEDS = 3
+VR_CANDIDATES = (("default", {"mis": "power"}), ("mis_balance", {"mis": "balance"}))
 
 
 def _timed_render(fn):
@@ -275,6 +288,37 @@ def _samplers(scene, spp: int, seeds: int, target: float | None, full_pixels: in
             "environment": scene.environment.path or scene.environment.type, **out}
 
 
+def _variance_reduction(scene, spp: int, seeds: int) -> dict:
+    """The ``variance_reduction`` figures of one scene (module docstring)."""
+    env = load_environment(scene)
+    mscene = load_mitsuba_scene(scene, env)
+    tiny = scene.with_camera(width=16, height=12)
+    out, imgs = {}, {}
+    for label, kw in VR_CANDIDATES:
+        def render(sc, seed):
+            return render_uncached(sc, spp=spp, seed=seed, sampler="independent", adaptive=False,
+                                   mscene=mscene, env=env, progress=False, **kw)
+        render(tiny, 0)  # compiles the same kernels
+        runs = [_timed_render(lambda: render(scene, 1 + k)) for k in range(seeds)]
+        imgs[label] = [r[0] for r in runs]
+        out[label] = {**kw, "noise_floor": float(np.mean([_floor_of(r[0]) for r in runs])),
+                      "cpu_seconds": statistics.median(r[2] for r in runs),
+                      "seconds": statistics.median(r[1] for r in runs)}
+    first = VR_CANDIDATES[0][0]
+    base = out[first]
+    a_m = np.mean([i.rgb for i in imgs[first]], axis=0, dtype=np.float64)
+    a_v = np.mean([i.variance for i in imgs[first]], axis=0, dtype=np.float64) / seeds
+    for label, r in out.items():
+        r["variance_ratio"] = base["noise_floor"] / r["noise_floor"]
+        r["efficiency_ratio"] = r["variance_ratio"] * base["cpu_seconds"] / r["cpu_seconds"]
+        if label != first:
+            d = np.mean([i.rgb for i in imgs[label]], axis=0, dtype=np.float64) - a_m
+            v = np.mean([i.variance for i in imgs[label]], axis=0, dtype=np.float64) / seeds + a_v
+            r["mean_z"] = float(d.sum() / math.sqrt(max(v.sum(), 1e-300)))
+    return {"spp": spp, "seeds": seeds, "sampler": "independent",
+            "resolution": [scene.camera.width, scene.camera.height], **out}
+
+
 def _hdr_envmap(envmap: str | None) -> Path | None:
     if envmap:
         return Path(envmap)
@@ -317,11 +361,15 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     fseeds = FLOOR_SEEDS_QUICK if quick else FLOOR_SEEDS
     samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
     hdr = _hdr_envmap(envmap)
+    vspp = VR_SPP_QUICK if quick else VR_SPP
+    vr = {"spheres": _variance_reduction(scene, vspp, VR_SEEDS)}
     if hdr is not None and hdr.is_file():
         hscene = replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
         samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full)
+        vr["spheres_hdr"] = _variance_reduction(hscene, vspp, VR_SEEDS)
     else:
         samplers["spheres_hdr"] = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
+        vr["spheres_hdr"] = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
 
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
@@ -381,6 +429,10 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "material_gather": gather,
         "asset": asset,
         "samplers": samplers,
+        "variance_reduction": vr,
+        "variance_reduction_note": "variance ratio = the default estimator's floor over the candidate's at equal "
+                                   "spp (independent sampler, load-independent); efficiency_ratio also weighs "
+                                   "their CPU seconds",
         "samplers_note": "each sampler at the same spp, its floor from its own variance channels; spp to the "
                          "floor extrapolated as 1/spp (exact for independent, an upper bound for qmc); seconds "
                          "are wall time under the machine's load: spp_ratio and variance_ratio do not depend on it",

@@ -46,8 +46,8 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
 :func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :data:`SAMPLERS`,
-:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`.
-References: Veach 1997 ch. 9 (MIS, power heuristic); Vicini et al. 2021, "Path Replay
+:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`.
+References: Veach 1997 ch. 9 (MIS, power and balance heuristics); Vicini et al. 2021, "Path Replay
 Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
 Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Owen 2013, *Monte Carlo
 theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates).
@@ -214,6 +214,20 @@ def _power(a, b):
     return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
 
 
+def _balance(a, b):
+    """Balance heuristic weight of a sample with density a against b (Veach 1997 eq. 9.10)."""
+    return dr.select(a + b > 0, a / (a + b), 0.0)
+
+
+#: The MIS heuristics of the local estimator (property ``mis``), name -> weight function of the
+#: two densities. Measured (docs/reference.md, ``pbrcheck bench reference`` ``variance_reduction``):
+#: the balance heuristic's floor is 0-3 % below the power heuristic's on spheres and on a real HDR
+#: environment (1.5-8 % on a 48 x 40 crop), within the CPU-time noise per second and not worth a new
+#: REFERENCE_CODE_VERSION (every cached and committed reference), so the default stays the power heuristic.
+MIS_HEURISTICS = {"power": _power, "balance": _balance}
+DEFAULT_MIS = "power"
+
+
 class ReferenceIntegrator(RBIntegrator):
     """The ``local`` and ``path`` estimators with per-pixel moments (see the module docstring)."""
 
@@ -223,6 +237,9 @@ class ReferenceIntegrator(RBIntegrator):
         if self.mode not in MODES:
             raise ValueError(f"{INTEGRATOR_NAME}: mode must be one of {MODES}, not {self.mode!r}")
         self.moments = bool(props.get("moments", False))
+        self.mis = str(props.get("mis", DEFAULT_MIS))
+        if self.mis not in MIS_HEURISTICS:
+            raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {self.mis!r}")
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
@@ -239,7 +256,7 @@ class ReferenceIntegrator(RBIntegrator):
 
     def to_string(self):
         return (f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}, "
-                f"replicates={self.replicates}]")
+                f"replicates={self.replicates}, mis={self.mis}]")
 
     # ---- estimators ------------------------------------------------------------------------------
     def _bsdf(self, scene, si, ray, hit):
@@ -302,6 +319,7 @@ class ReferenceIntegrator(RBIntegrator):
         if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
             L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
+        mis = MIS_HEURISTICS[self.mis]
         if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque
             ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
@@ -313,7 +331,7 @@ class ReferenceIntegrator(RBIntegrator):
             wo = si.to_local(ds.d)
             with dr.resume_grad(when=grad):
                 f, bpdf = bsdf.eval_pdf(ctx, si, wo, ok)
-                w = _power(ds.pdf, dr.detach(bpdf))
+                w = mis(ds.pdf, dr.detach(bpdf))
                 L += dr.select(ok, f * em_w * w, 0.0)
             # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
             u1, u2 = sampler.next_1d(hit), sampler.next_2d(hit)
@@ -326,7 +344,7 @@ class ReferenceIntegrator(RBIntegrator):
             ds2 = dr.zeros(mi.DirectionSample3f)
             ds2.d = wo_w
             epdf = env.pdf_direction(si, ds2, hit & ~delta)
-            w = dr.select(delta, 1.0, _power(bs.pdf, epdf))
+            w = dr.select(delta, 1.0, mis(bs.pdf, epdf))
             ok = hit & (bs.pdf > 0)
             if grad:
                 with dr.resume_grad():

@@ -237,7 +237,7 @@ def test_malformed_renderers_file_names_file_and_field(tmp_path, body, msg):
 
 
 def test_unknown_renderer_lists_the_known_ones(tmp_path):
-    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:sample-viewer, .*ext:threejs"):
+    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:babylon, ext:filament, ext:playcanvas, ext:sample-viewer, .*ext:threejs"):
         renderers.resolve_options("ext:nope")
     assert renderers.resolve_options("ext:threejs") == {}
     with pytest.raises(Exception, match="takes no options"):
@@ -265,7 +265,11 @@ def test_committed_clients_budget_is_well_formed():
     from compare.gate import _scene_arg, load_budget
 
     checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
-    assert {c.preset for c in checks} == {"ext:threejs", "ext:sample-viewer"} and len(checks) >= 4
+    # Every built-in client is gated on both CI scenes (sample-viewer-full: the same client as
+    # sample-viewer with slower settings, minutes per run).
+    clients = {f"ext:{n}" for n, cfg in C.load_renderers().items() if cfg.builtin} - {"ext:sample-viewer-full"}
+    assert clients >= {"ext:threejs", "ext:sample-viewer", "ext:babylon", "ext:playcanvas", "ext:filament"}
+    assert {(c.preset, c.scene) for c in checks} == {(p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml")}
     for c in checks:
         assert c.max and (base / c.reference).is_file()
         scene = _scene_arg(base, c.scene)
@@ -275,7 +279,7 @@ def test_committed_clients_budget_is_well_formed():
 def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_difference(fake, tmp_path, monkeypatch):
     """An external renderer that keeps a white furnace at 1.0 where the (here: faked) single-scattering
     reference loses energy is named a model difference in the report, and appears in the summary."""
-    from compare.report.build import build_report
+    from compare.report.build import ReportConfig, build_report
     from tests.test_compare_report import fake_reference
 
     (fake / "fake.py").write_text(FAKE.replace("img = np.full((H, W, 3), 0.5, np.float32)",
@@ -290,8 +294,8 @@ def test_report_summary_and_furnace_call_a_compensating_renderer_a_model_differe
 
     monkeypatch.setattr(renderers, "render_reference", lossy_reference)
     (tmp_path / "tiny.toml").write_text(__import__("pbrcheck.scene", fromlist=["dump_toml"]).dump_toml(SCENE))
-    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm"], out_dir=tmp_path / "r", spp=4,
-                         convergence=False, sweep=False, progress=False)
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm"], spp=4, convergence=False, sweep=False, progress=False))
     html = index.read_text()
     assert "ext:pfm keeps the energy at every roughness" in html and "model difference" in html
     summary = html[html.index('id="summary"'):html.index('id="furnace-per-renderer"')]

@@ -96,11 +96,9 @@ def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progr
                           **var, **aovs)
 
 
-def fake_realtime(scene, preset="default", options=None, *, progress=True):
-    import compare.renderers as renderers
-
+def fake_realtime(scene, preset="default", options=None, *, progress=True, context=None):
     CALLS["realtime"].append((preset, dict(options or {})))
-    CALLS["cached"].append(renderers._CACHE_REALTIME[0])
+    CALLS["cached"].append(bool(context and context.cache))
     rgb, aovs = raycast(scene)
     opts = dict(options or {})
     n = opts.get("prefilter_samples", 64)
@@ -346,8 +344,8 @@ def test_report_cli_with_and_shader_add_renderers_after_the_presets(monkeypatch,
 
     seen = {}
 
-    def fake_build(scenes, *, presets, out_dir, **kw):
-        seen["presets"] = presets
+    def fake_build(scenes, out_dir, config, **kw):
+        seen["presets"] = config.presets
         return out_dir / "index.html"
 
     monkeypatch.setattr(rc, "build_report", fake_build)
@@ -358,3 +356,47 @@ def test_report_cli_with_and_shader_add_renderers_after_the_presets(monkeypatch,
     assert seen["presets"] == ["default", "ext:threejs", "ext:sample-viewer", f"default+{hook}"]
     assert main(["report", "--with", "ext:threejs", "--out", str(tmp_path / "r")]) == 0
     assert seen["presets"][-1] == "ext:threejs" and "filament" in seen["presets"]
+
+
+def test_the_stage_list_sizes_the_progress_bar_and_each_stage_advances_its_steps(monkeypatch):
+    """One list of stages runs the work and drives the bar: the total is the stages' steps; a stage
+    that reports more than its steps is held to them, one that reports fewer is completed."""
+    import compare.report.stages as stages
+
+    seen = {}
+
+    class Bar:
+        def __init__(self, label, total, **kw):
+            seen["total"], seen["updates"] = total, []
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def update(self, n=1.0, note=""):
+            seen["updates"].append((n, note))
+
+    monkeypatch.setattr(stages, "Progress", Bar)
+    ran = []
+    work = [stages.ReportStage("a", 2, lambda p: [p.update(1, "a") for _ in range(5)] and ran.append("a")),
+            stages.ReportStage("b", 3, lambda p: (p.update(1, "b"), ran.append("b"))),
+            stages.ReportStage("c", 0, lambda p: ran.append("c"), record=False)]
+    stages.run_stages(work, "t")
+    assert ran == ["a", "b", "c"] and seen["total"] == stages.total_steps(work) == 5
+    assert sum(n for n, _ in seen["updates"]) == 5
+    assert seen["updates"] == [(1, "a"), (1, "a"), (1, "b"), (2, "b")]
+
+
+def test_report_config_replaces_the_keywords_and_its_stages_match_the_run_log(fakes, scene_file, tmp_path, tmp_cache):
+    from compare.report import build
+
+    cfg = build.ReportConfig(presets=["default"], spp=4, convergence=False, sweep=False, furnace=False,
+                             progress=False)
+    index = build.build_report([str(scene_file)], tmp_path / "r", cfg)
+    run = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert [s["name"] for s in run["stages"]] == ["tiny: renderers under test", "tiny: reference",
+                                                  "tiny: comparisons and diagnose", "summary and furnace",
+                                                  "both references"]
+    assert 'id="tiny"' in index.read_text()

@@ -75,7 +75,7 @@ class FakeRenderers:
         ch.update({f"variance.{c}": np.full((8, 8), 1e-6, np.float32) for c in "RGB"})
         return Image(ch, {"seconds": "0.5"})
 
-    def under_test(self, scene, name, options=None, *, progress=False):
+    def under_test(self, scene, name, options=None, *, progress=False, context=None):
         self.calls.append((name, scene.environment.path))
         if name == "broken":
             raise PbrcheckError(f"renderer broken failed on {scene.environment.path}")
@@ -94,7 +94,7 @@ def fake(monkeypatch, tmp_cache):
     monkeypatch.setattr(compare.renderers, "render_reference", f.reference)
     monkeypatch.setattr(compare.renderers, "render_under_test", f.under_test)
     # FLIP costs ~0.4 s per call whatever the image size; these tests check plumbing, not FLIP.
-    monkeypatch.setattr(compare.metrics, "flip_map", lambda r, t: np.abs(t - r).mean(axis=-1))
+    monkeypatch.setattr(compare.metrics, "flip_map", lambda r, t, cache=False: np.abs(t - r).mean(axis=-1))
     monkeypatch.setattr(compare.renderers, "resolve_options",
                         lambda n, o=None: {} if n in ("broken", "crash") else real_resolve(n, o))
     return f
@@ -362,7 +362,7 @@ radius = 1.0
 
 def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
     from compare.corpus.scheduler import SerialExecutor
-    from compare.report.build import build_report
+    from compare.report.build import ReportConfig, build_report
     from compare.report.sweep import sweep_rows
 
     scene = scene_from_dict(TINY)
@@ -372,15 +372,16 @@ def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
     assert sweep_rows(scene, ref, combos, preset="default", executor=SerialExecutor()) == plain
     outs = {}
     for name, sched in (("plain", None), ("serial", "serial")):
-        build_report([str(_scene_file(tmp_path))], presets=["default", "splitsum_basic"], out_dir=tmp_path / name,
-                     spp=4, convergence=False, sweep=False, furnace=False, progress=False, scheduler=sched)
+        build_report([str(_scene_file(tmp_path))], tmp_path / name,
+                     ReportConfig(presets=["default", "splitsum_basic"], spp=4, convergence=False, sweep=False,
+                                  furnace=False, progress=False, scheduler=sched))
         outs[name] = json.loads((tmp_path / name / "tiny" / "metrics.json").read_text())
     for d in outs.values():
         for p in d["presets"].values():
             p.pop("timings", None)
     assert outs["plain"] == outs["serial"]
     with pytest.raises(SchedulerError):
-        build_report(["spheres"], presets=["default"], out_dir=tmp_path / "bad", scheduler="local:zero")
+        build_report(["spheres"], tmp_path / "bad", ReportConfig(presets=["default"], scheduler="local:zero"))
     assert not (tmp_path / "bad").exists()
 
 

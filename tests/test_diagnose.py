@@ -67,8 +67,23 @@ def test_an_image_within_noise_says_so(ref):
     assert d.likely is None and "within the reference's noise" in d.line
 
 
-@pytest.mark.parametrize("name", [h for h in dg.IMAGE_HYPOTHESES if h not in ("exposure", "hdr_clamp",
-                                                                             "premultiplied_alpha")])
+IMAGE_NAMES = [h.name for h in dg.HYPOTHESES if h.kind == "image"]
+SCENE_NAMES = [h.name for h in dg.HYPOTHESES if h.kind == "scene"]
+
+
+def test_hypotheses_are_one_list_of_unique_names_each_found_by_name():
+    names = [h.name for h in dg.HYPOTHESES]
+    assert len(names) == len(set(names)) and {h.kind for h in dg.HYPOTHESES} == {"image", "scene"}
+    assert all(dg.hypothesis(n).name == n for n in names)
+    with pytest.raises(dg.DiagnoseError, match="unknown scene hypothesis 'flip_vertical'"):
+        dg.hypothesis_scene("flip_vertical", load_scene("furnace"), Path("."))
+
+
+def test_an_image_only_diagnosis_has_one_row_per_image_hypothesis(ref, correct):
+    assert sorted(r.hypothesis for r in dg.diagnose(ref, correct).rows) == sorted(IMAGE_NAMES)
+
+
+@pytest.mark.parametrize("name", [h for h in IMAGE_NAMES if h not in ("exposure", "hdr_clamp", "premultiplied_alpha")])
 def test_planted_image_mismatch_is_named(name, ref, correct):
     t = correct.rgb
     planted = {"flip_vertical": t[::-1], "flip_horizontal": t[:, ::-1], "swap_rb": t[..., ::-1],
@@ -142,12 +157,12 @@ def _planted_scene_image(name: str, scene, tmp: Path) -> np.ndarray:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", dg.SCENE_HYPOTHESES)
+@pytest.mark.parametrize("name", SCENE_NAMES)
 def test_planted_scene_mismatch_is_named(name, scene, ref, tmp_path):
     test = _with_rgb(ref, _planted_scene_image(name, scene, tmp_path))
     d = dg.diagnose(ref, test, scene, spp=SPP)
     assert d.likely == name, dg.table_markdown(d)
-    assert ("a model difference" in d.line) == (name in dg.MODEL_HYPOTHESES)
+    assert ("a model difference" in d.line) == dg.hypothesis(name).model
 
 
 def test_mirrored_environment_is_the_mirror(scene, tmp_path):

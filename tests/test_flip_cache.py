@@ -1,6 +1,7 @@
-"""HDR-FLIP maps on disk (compare.metrics.map_cache): inside the context a map whose two images are
-unchanged is read back, equal to the computed one; any change of either image is a miss; a corrupt
-entry is recomputed; outside the context (or disabled) nothing is read or written. And
+"""HDR-FLIP maps on disk (``compare.metrics.flip_map(..., cache=True)``, ``compare_images(...,
+flip_cache=True)``): a map whose two images are unchanged is read back, equal to the computed one;
+any change of either image is a miss; a corrupt entry is recomputed; without the flag nothing is
+read or written. And
 ``compare_images(flip=False, itp=False)`` skips both maps (their metrics None, the rest unchanged)."""
 
 from __future__ import annotations
@@ -35,12 +36,10 @@ def _entries(root):
 
 def test_a_stored_map_is_read_back_equal(tmp_cache, pair, counted, monkeypatch):
     a, b = pair
-    with metrics.map_cache():
-        m1 = metrics.flip_map(a, b)
+    m1 = metrics.flip_map(a, b, cache=True)
     assert len(counted) == 1 and len(_entries(tmp_cache)) == 1
     monkeypatch.setattr(metrics, "_map_memo", {})        # a new process: only the disk has it
-    with metrics.map_cache():
-        m2 = metrics.flip_map(a.copy(), b.copy())
+    m2 = metrics.flip_map(a.copy(), b.copy(), cache=True)
     assert len(counted) == 1                             # read, not computed
     np.testing.assert_array_equal(m1, m2)
     assert m2.dtype == np.float32 and m2.shape == a.shape[:2]
@@ -48,50 +47,43 @@ def test_a_stored_map_is_read_back_equal(tmp_cache, pair, counted, monkeypatch):
 
 def test_either_image_changed_is_a_miss(tmp_cache, pair, counted, monkeypatch):
     a, b = pair
-    with metrics.map_cache():
-        metrics.flip_map(a, b)
-        b2 = b.copy()
-        b2[3, 4, 1] += 0.5
-        metrics.flip_map(a, b2)
-        a2 = a.copy()
-        a2[0, 0, 0] *= 2.0
-        metrics.flip_map(a2, b)
+    metrics.flip_map(a, b, cache=True)
+    b2 = b.copy()
+    b2[3, 4, 1] += 0.5
+    metrics.flip_map(a, b2, cache=True)
+    a2 = a.copy()
+    a2[0, 0, 0] *= 2.0
+    metrics.flip_map(a2, b, cache=True)
     assert len(counted) == 3 and len(_entries(tmp_cache)) == 3
 
 
 def test_a_corrupt_entry_is_recomputed(tmp_cache, pair, counted, monkeypatch):
     a, b = pair
-    with metrics.map_cache():
-        m1 = metrics.flip_map(a, b)
+    m1 = metrics.flip_map(a, b, cache=True)
     (entry,) = _entries(tmp_cache)
     entry.write_bytes(b"not an exr")
     monkeypatch.setattr(metrics, "_map_memo", {})
-    with metrics.map_cache():
-        m2 = metrics.flip_map(a, b)
+    m2 = metrics.flip_map(a, b, cache=True)
     assert len(counted) == 2
     np.testing.assert_array_equal(m1, m2)
 
 
-def test_outside_the_context_or_disabled_nothing_is_stored(tmp_cache, pair, counted):
+def test_without_the_flag_nothing_is_stored(tmp_cache, pair, counted):
     a, b = pair
     metrics.flip_map(a, b)
-    with metrics.map_cache(False):
-        metrics.flip_map(a, b * 1.5)
+    metrics.flip_map(a, b * 1.5)
     assert _entries(tmp_cache) == [] and len(counted) == 2
 
 
 def test_the_key_has_the_flip_version_and_code_version(tmp_cache, pair, counted, monkeypatch):
     a, b = pair
-    with metrics.map_cache():
-        metrics.flip_map(a, b)
+    metrics.flip_map(a, b, cache=True)
     monkeypatch.setattr(metrics, "_map_memo", {})
     monkeypatch.setattr(metrics, "FLIP_CODE_VERSION", metrics.FLIP_CODE_VERSION + 1)
-    with metrics.map_cache():
-        metrics.flip_map(a, b)
+    metrics.flip_map(a, b, cache=True)
     monkeypatch.setattr(metrics, "_map_memo", {})
     monkeypatch.setattr(metrics, "_flip_version", lambda: "0.0-other")
-    with metrics.map_cache():
-        metrics.flip_map(a, b)
+    metrics.flip_map(a, b, cache=True)
     assert len(counted) == 3
 
 
@@ -107,3 +99,12 @@ def test_compare_without_flip_and_itp(pair, counted):
         else:
             assert v == pytest.approx(full.metrics[k], rel=1e-12), k
     assert lean.maps.flip is None and lean.maps.dE is None
+
+
+def test_compare_images_stores_its_maps_only_when_asked(tmp_cache, pair, counted):
+    a, b = pair
+    ref, test = Image.from_rgb(a), Image.from_rgb(b)
+    metrics.compare_images(ref, test, noise=False)
+    assert _entries(tmp_cache) == []
+    metrics.compare_images(ref, Image.from_rgb(b * 1.2), noise=False, flip_cache=True)
+    assert len(_entries(tmp_cache)) == 1

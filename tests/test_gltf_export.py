@@ -195,10 +195,10 @@ def test_per_material_metrics_of_an_asset_scene(tmp_path):
 def test_material_bias_and_the_report_table(tmp_path):
     """compare's per-material ``bias`` (relative, signed), ``compare --json`` with an asset scene, and
     the report's per-material table (renderer x material: relmse, FLIP mean, bias)."""
-    import jinja2
-
-    from compare.report.build import MATERIAL_METRICS, TEMPLATE, SceneSection, _fmt, material_rows
-    from compare.metrics import METRICS, REL_EPS
+    from compare.metrics import REL_EPS
+    from compare.report.build import _fmt, render_page
+    from compare.report.results import SceneSection
+    from compare.report.scene import MATERIAL_METRICS, material_rows
     from pbrcheck.exr import Image, write_exr
 
     doc_path = quad_asset(tmp_path / "q.gltf", {"name": "matte"})
@@ -223,9 +223,7 @@ def test_material_bias_and_the_report_table(tmp_path):
     assert rows == [{"preset": "ext:threejs", "material": "q.gltf: matte", "pixels": 64,
                      "metrics": {k: mat["metrics"][k] for k in MATERIAL_METRICS}}]
     section = SceneSection("s0", "q", "", 4, "s0/reference.png", [], [], [], None, [], None, rows)
-    html = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(TEMPLATE).render(
-        scenes=[section], top=[], extras=[], metric_names=METRICS, material_metrics=MATERIAL_METRICS, fmt=_fmt,
-        version="test", generated="now")
+    html = render_page([section], [], [])
     table = html.split("<h3>Metrics per glTF material</h3>")[1].split("</table>")[0]
     assert "<th>relmse</th><th>flip_mean</th><th>bias</th>" in table
     assert "ext:threejs" in table and "q.gltf: matte" in table and _fmt(-0.2) in table

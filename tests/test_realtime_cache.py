@@ -1,7 +1,7 @@
 """The content-addressed cache of real-time renders (realtime/cache.py) and where it is used: a hit is
 the stored render; every input that changes the pixels (scene, preset, options, shader hooks, a fitted
 mapping's file, the code) changes the key; a corrupt entry is re-rendered; outside
-``compare.renderers.realtime_cache`` every call renders."""
+a ``compare.renderers.RenderContext(cache=True)`` every call renders."""
 
 from __future__ import annotations
 
@@ -117,18 +117,16 @@ def test_a_corrupt_entry_is_rendered_again(scene, counted, tmp_cache):
     assert rc.render_cached(scene, "default", SMALL).meta["cache"] == "hit"
 
 
-def test_the_seam_caches_only_inside_realtime_cache(scene, counted, tmp_cache):
+def test_the_seam_caches_only_with_a_caching_context(scene, counted, tmp_cache):
     renderers.render_under_test(scene, "default", SMALL)
-    renderers.render_under_test(scene, "default", SMALL)
-    assert len(counted) == 0  # outside the context: render_realtime itself, never the cache
-    with renderers.realtime_cache():
-        a = renderers.render_under_test(scene, "default", SMALL)
-        b = renderers.render_under_test(scene, "default", SMALL)
-        with renderers.realtime_cache(False):
-            c = renderers.render_under_test(scene, "default", SMALL)
+    renderers.render_under_test(scene, "default", SMALL, context=renderers.DIRECT)
+    assert len(counted) == 0  # the default context: render_realtime itself, never the cache
+    cached = renderers.RenderContext(cache=True)
+    a = renderers.render_under_test(scene, "default", SMALL, context=cached)
+    b = renderers.render_under_test(scene, "default", SMALL, context=cached)
+    c = renderers.render_under_test(scene, "default", SMALL, context=renderers.RenderContext(cache=False))
     assert (a.meta["cache"], b.meta["cache"]) == ("miss", "hit") and "cache" not in c.meta
     assert len(counted) == 1
-    assert not renderers._CACHE_REALTIME[0]  # restored
 
 
 def test_a_hit_prints_the_renders_warnings_again(scene, tmp_cache, capsys, monkeypatch):

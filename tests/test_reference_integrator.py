@@ -289,3 +289,18 @@ def test_cache_key_names_the_sampler_and_adaptive():
     assert k(sampler="independent", adaptive=True) == k(sampler="independent", adaptive=False)
     with pytest.raises(ValueError, match="sampler"):
         k(sampler="sobol")
+
+
+@pytest.mark.parametrize("rough", [0.4, 0.05])
+def test_balance_heuristic_estimates_the_same_pixels(rough):
+    """``mis = "balance"`` (a measured candidate, not the default): another weighting of the same two
+    samples, so the same image within noise; an unknown heuristic is refused by name."""
+    scene = _scene(roughness=rough)
+    a = render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent", adaptive=False)
+    b = render_uncached(scene, spp=64, seed=6, progress=False, sampler="independent", adaptive=False, mis="balance")
+    _z_agree(a.rgb, a.variance, b.rgb, b.variance)
+    assert 0.5 < b.variance.mean() / a.variance.mean() < 2.0
+    assert not np.array_equal(a.rgb, render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent",
+                                                     adaptive=False, mis="balance").rgb)  # the switch is live
+    with pytest.raises(ValueError, match="mis must be one of"):
+        rr.load_integrator("local", mis="cutoff")

@@ -76,11 +76,12 @@ def test_no_external_renderer_no_section(tmp_path):
 
 
 def test_report_shows_both_references_for_every_external_renderer(compensating, tmp_path):
-    from compare.report.build import build_report
+    from compare.report.build import ReportConfig, build_report
 
     (tmp_path / "tiny.toml").write_text(dump_toml(SCENE))
-    index = build_report([str(tmp_path / "tiny.toml")], presets=["ext:pfm", "ext:exr"], out_dir=tmp_path / "r",
-                         spp=4, convergence=False, sweep=False, furnace=False, progress=False)
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm", "ext:exr"], spp=4, convergence=False, sweep=False,
+                                      furnace=False, progress=False))
     html = index.read_text()
     sec = html[html.index('id="references"'):]
     assert "External renderers against both references" in sec

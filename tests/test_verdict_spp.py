@@ -27,6 +27,7 @@ def fake_reference(scene, *, spp, seed=0, **kw):
     var = np.full((H, W, 3), SIGMA2 / spp)
     rgb = TRUTH + np.sqrt(var) * rng.standard_normal((H, W, 3))
     calls.append(spp)
+    seeds.append(seed)
     return Image.from_rgb(rgb.astype(np.float32), {"spp": str(spp)},
                           **{f"variance.{c}": var[..., i] for i, c in enumerate("RGB")}, **_aovs())
 
@@ -37,11 +38,13 @@ def _test_image(mse):
 
 
 calls: list = []
+seeds: list = []
 
 
 @pytest.fixture(autouse=True)
 def fake(monkeypatch):
     calls.clear()
+    seeds.clear()
     monkeypatch.setattr(renderers, "render_reference", fake_reference)
 
 
@@ -65,9 +68,13 @@ def test_chooses_the_spp_that_puts_the_floor_10x_below_the_smallest_error():
     assert [s[0] for s in v.steps] == calls
 
 
-def test_enough_already_renders_once():
-    ref, v = vs.reference_for_verdict(None, [_test_image(0.05)], spp=64)
-    assert calls == [64] and v.spp == 64 and not v.noise_limited
+def test_enough_already_renders_the_pilot_and_then_the_final_at_the_least_spp():
+    """The pilot (its own seed) decides; the final, on the caller's seed, is returned unexamined."""
+    ref, v = vs.reference_for_verdict(None, [_test_image(0.05)], spp=64, seed=5)
+    assert calls == [64, 64] and v.spp == 64 and not v.noise_limited
+    assert seeds == [vs.pilot_seed(5), 5] and vs.pilot_seed(5) != 5
+    assert [s[3] for s in v.steps] == ["pilot", "final"]
+    assert vs.pilot_seed(2 ** 32 - 1) == (2 ** 32 - 1 + vs.PILOT_SEED_OFFSET) % 2 ** 32  # 32-bit seeds
 
 
 def test_stops_at_the_cap_and_says_noise_limited():
@@ -158,10 +165,10 @@ def test_errors_within_the_noise_do_not_set_the_spp():
     smallest *resolved* error sets the spp; with none at all the first render stands."""
     exact = Image.from_rgb(TRUTH.copy(), {}, **_aovs())
     ref, v = vs.reference_for_verdict(None, [exact, _test_image(0.05)], spp=64, cap=4096)
-    assert calls == [64] and not v.noise_limited and v.smallest_error == pytest.approx(0.05, rel=0.2)
+    assert calls == [64, 64] and not v.noise_limited and v.smallest_error == pytest.approx(0.05, rel=0.2)
     calls.clear()
     ref, v = vs.reference_for_verdict(None, [exact], spp=64, cap=4096)
-    assert calls == [64] and v.smallest_error is None and not v.noise_limited
+    assert calls == [64, 64] and v.smallest_error is None and not v.noise_limited
     assert "no error above it" in v.provenance()
 
 
@@ -226,7 +233,7 @@ def test_a_probe_looks_for_an_unresolved_error_once_more():
     gets its trusted spp; an exact renderer costs that one render and is "within noise"."""
     hidden = _test_image(2e-5)  # under 3 standard errors (~2e-5 each) of the 64-spp MSE estimate
     _, v0 = vs.reference_for_verdict(None, [hidden], spp=64, cap=1 << 14)
-    assert v0.smallest_error is None and calls == [64]
+    assert v0.smallest_error is None and calls == [64, 64]
     calls.clear()
     _, v = vs.reference_for_verdict(None, [hidden], spp=64, cap=1 << 14, probe=16)
     assert calls[:2] == [64, 1024] and v.smallest_error is not None
@@ -234,7 +241,41 @@ def test_a_probe_looks_for_an_unresolved_error_once_more():
     calls.clear()
     exact = Image.from_rgb(TRUTH.copy(), {}, **_aovs())
     _, ve = vs.reference_for_verdict(None, [exact], spp=64, cap=1 << 14, probe=16)
-    assert calls == [64, 1024] and ve.smallest_error is None and not ve.noise_limited
+    assert calls == [64, 1024, 1024] and ve.smallest_error is None and not ve.noise_limited
     calls.clear()
     _, vc = vs.reference_for_verdict(None, [exact], spp=64, cap=256, probe=16)
-    assert calls == [64, 256]  # the probe stops at the cap
+    assert calls == [64, 256, 256]  # the probe stops at the cap; the final at the probe's spp
+
+
+def test_the_returned_reference_is_not_selected_on_its_own_noise():
+    """Kirk & Arvo's bias, made visible: each render's variance channel is itself an estimate
+    (scaled by a random u, median 1, the image's noise scaled with it), and the error sits where one
+    render in two says "10x reached". Stopping on a render keeps those whose floor came out low: the
+    pilots that stopped at 64 spp have floors well below the true one. The final, rendered after the
+    decision on a seed of its own, has the true floor on average."""
+    sigma_u = 0.3
+
+    def noisy_floor(scene, *, spp, seed=0, **kw):
+        rng = np.random.default_rng([spp, seed])
+        u = math.exp(sigma_u * rng.standard_normal())
+        var = np.full((H, W, 3), u * SIGMA2 / spp)
+        rgb = TRUTH + np.sqrt(var) * rng.standard_normal((H, W, 3))
+        return Image.from_rgb(rgb.astype(np.float32), {"spp": str(spp)},
+                              **{f"variance.{c}": var[..., i] for i, c in enumerate("RGB")}, **_aovs())
+
+    renderers.render_reference = noisy_floor  # restored by the autouse fixture's monkeypatch
+    true64 = SIGMA2 / 64
+    err = _test_image(vs.NOISE_FLOOR_FACTOR * true64)  # 10x the true floor at 64 spp: borderline
+    stopped_pilots, finals = [], []
+    for seed in range(300):
+        _, v = vs.reference_for_verdict(None, [err], spp=64, cap=4096, seed=seed)
+        assert v.steps[-1][3] == "final" and v.steps[-1][0] == v.spp
+        if v.spp == 64:
+            stopped_pilots.append(v.steps[0][1] / true64)
+            finals.append(v.noise_floor / true64)
+    n = len(finals)
+    assert 80 < n < 220  # about one seed in two stops at 64 spp
+    # selected: E[u | u <= ~1] ~ 0.79 for log-normal u with sigma 0.3
+    assert np.mean(stopped_pilots) < 0.9
+    # not selected: E[u] = exp(sigma^2 / 2) = 1.046, standard error ~0.32 / sqrt(n)
+    assert abs(np.mean(finals) - math.exp(sigma_u ** 2 / 2)) < 4 * 0.32 / math.sqrt(n)

@@ -19,6 +19,7 @@ from pbrcheck.cache import cache_key
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene
 
+from .. import renderers
 from ..metrics import compare_images
 from ..timings import image_timings, timed_on
 from . import tasks as T
@@ -39,20 +40,24 @@ def _raise(value):
     return value
 
 
-def _render_tasks(scene: Scene, jobs: list[tuple[str, dict | None]]) -> list[Task]:
+def _render_tasks(scene: Scene, jobs: list[tuple[str, dict | None]],
+                  context: renderers.RenderContext) -> list[Task]:
     base = cache_key(scene=scene.content_dict(), environment=scene.environment.path)
+    local = context.local()  # a worker process cannot reach this process's background renders
     return [Task(f"render-{cache_key(base=base, renderer=n, options=o or {})}", T.render_task,
-                 (_ENV_OK, scene, n, o or None), "render", deliver=True) for n, o in jobs]
+                 (_ENV_OK, scene, n, o or None, local), "render", deliver=True) for n, o in jobs]
 
 
-def render_images(executor, scene: Scene, jobs: list[tuple[str, dict | None]], progress=None) -> list:
-    """The images of ``scene`` for each (renderer name, options) of ``jobs``, rendered by ``executor``.
+def render_images(executor, scene: Scene, jobs: list[tuple[str, dict | None]], progress=None, *,
+                  context: renderers.RenderContext = renderers.DIRECT) -> list:
+    """The images of ``scene`` for each (renderer name, options) of ``jobs``, rendered by ``executor``
+    (with ``context``'s cache setting: :class:`compare.renderers.RenderContext`).
 
     Raises
     ------
     PbrcheckError
         A render failed (the first failure, with its message)."""
-    tasks = _render_tasks(scene, jobs)
+    tasks = _render_tasks(scene, jobs, context)
     out: dict[str, object] = {}
     executor.run(tasks, lambda t, v: out.__setitem__(t.key, v), _StageProgress(progress, "render"))
     return [_raise(out[t.key]) for t in tasks]
@@ -69,18 +74,19 @@ class _StageProgress:
             self.progress.update(n, note)
 
 
-def _sweep_row(ref, img, scene):
+def _sweep_row(ref, img, scene, flip_cache: bool = False):
     if isinstance(img, Failed):
         return img
     try:
-        cmp = compare_images(ref, img, scene=scene, noise=False)
+        cmp = compare_images(ref, img, scene=scene, noise=False, flip_cache=flip_cache)
     except PbrcheckError as e:
         return Failed("compare", str(e))
     pre, frame = image_timings(img)
     return {"metrics": dict(cmp.metrics), "precompute_s": pre, "frame_s": frame, "timed_on": timed_on(img)}
 
 
-def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None]], progress=None) -> list[dict]:
+def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None]], progress=None, *,
+                  context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
     """Per (renderer, options) of ``jobs``: ``{"metrics", "precompute_s", "frame_s", "timed_on"}`` of its render
     against ``ref`` (no noise simulation, as the sweep), computed by ``executor``.
 
@@ -88,10 +94,10 @@ def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None
     ------
     PbrcheckError
         A render or comparison failed."""
-    renders = [replace_deliver(t) for t in _render_tasks(scene, jobs)]
+    renders = [replace_deliver(t) for t in _render_tasks(scene, jobs, context)]
     ref_key = f"sweep-reference-{cache_key(renders=[t.key for t in renders])}"
     tasks = [Task(ref_key, _identity, (ref,), "reference"), *renders]
-    rows = [Task(f"sweep-compare-{t.key}", _sweep_row, (Dep(ref_key), Dep(t.key), scene), "compare", deliver=True)
+    rows = [Task(f"sweep-compare-{t.key}", _sweep_row, (Dep(ref_key), Dep(t.key), scene, context.flip_cache), "compare", deliver=True)
             for t in renders]
     out: dict[str, object] = {}
     executor.run(tasks + rows, lambda t, v: out.__setitem__(t.key, v), _StageProgress(progress, "compare"))

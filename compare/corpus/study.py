@@ -53,6 +53,7 @@ from pbrcheck.scene import Environment, Scene
 
 from .. import renderers
 from ..metrics import METRICS
+from ..verdict_spp import MIN_REFERENCE_SPP
 from .envstats import STAT_COLUMNS
 from .outputs import summarize, write_outputs, write_thumbnail
 from .scheduler import Dep, Failed, SchedulerSpec, Task, open_executor, parse_scheduler, unique_tasks
@@ -63,7 +64,7 @@ SUFFIXES = (".exr", ".hdr")
 #: Reference integrator of a corpus (the integral real-time image-based lighting approximates).
 REFERENCE_MODE = "local"
 #: Minimum reference spp (the variance channels need two samples).
-MIN_SPP = 2
+MIN_SPP = MIN_REFERENCE_SPP
 
 TIMING_COLUMNS = ("reference_s", "render_s", "precompute_s", "frame_s", "compare_s")
 ROW_COLUMNS = ("environment", "renderer", "status", "stage", "error", *STAT_COLUMNS, *METRICS,

@@ -1,4 +1,6 @@
-"""The report layer: the static HTML accuracy report (:mod:`compare.report.build`), the
+"""The report layer: the static HTML accuracy report (:mod:`compare.report.build`: configuration, stage
+list, page; :mod:`compare.report.scene` one scene's measurement, :mod:`compare.report.plots`,
+:mod:`compare.report.results`, :mod:`compare.report.stages`, ``templates/report.html``), the
 speed-against-error sweep (:mod:`compare.report.sweep`), the research sections of the report
 (:mod:`compare.report.research_sections`) and the main job (:mod:`compare.report.demo`).
 

@@ -17,7 +17,7 @@ from .. import renderers
 
 from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
-from .build import build_report
+from .build import ReportConfig, build_report
 from .corpus_section import corpus_section
 from .runlog import RUN_FILE, bench_report, summary_line
 from .sweep import parse_vary, run_sweep
@@ -33,16 +33,14 @@ def _cmd_report(args) -> int:
     # Sections of finished corpora (read before anything is written); images linked relative to OUT.
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
+    config = ReportConfig(presets=presets, spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
+                          convergence=not args.no_convergence, sweep=not args.no_sweep, furnace=not args.no_furnace,
+                          hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
+                          cache=not args.no_cache, progress=not args.quiet)
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
     # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
     with staged_folder(args.out) as stage:
-        built = build_report(args.scenes or [DEFAULT_SCENE], presets=presets, out_dir=stage,
-                             extras=extras,
-                             spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                             convergence=not args.no_convergence,
-                             sweep=not args.no_sweep, progress=not args.quiet,
-                             hardcases=args.hardcases, research=args.research, furnace=not args.no_furnace,
-                             scheduler=args.scheduler, cache=not args.no_cache)
+        built = build_report(args.scenes or [DEFAULT_SCENE], stage, config, extras=extras)
     out = Path(args.out) / Path(built).relative_to(stage)
     print(f"report: {out}")
     run = Path(out).parent / RUN_FILE

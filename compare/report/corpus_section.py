@@ -13,20 +13,16 @@ Image paths in the section are relative to ``prefix`` (the corpus folder as seen
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 from pathlib import Path
 
-import jinja2
-
-from pbrcheck import __version__
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 
 from ..corpus.outputs import WORST_COUNT
 from ..metrics import METRICS
-from .build import TEMPLATE
+from .build import render_page
 from .section import Section, Table
 
 
@@ -90,8 +86,4 @@ def write_corpus_page(result_or_dir) -> Path:
     """Write ``index.html`` into the corpus folder (the corpus section alone); returns its path."""
     out_dir, _ = _load(result_or_dir)
     section = corpus_section(result_or_dir)
-    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
-    page = env.from_string(TEMPLATE).render(
-        scenes=[], top=[], extras=[section], metric_names=METRICS, fmt=_fmt, version=__version__,
-        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
-    return write_text_atomic(out_dir / "index.html", page)
+    return write_text_atomic(out_dir / "index.html", render_page([], [], [section]))

@@ -12,7 +12,7 @@ from pathlib import Path
 from pbrcheck.environment import load_environment, scene_hash
 from pbrcheck.scene import load_scene
 
-from .build import build_report
+from .build import ReportConfig, build_report
 
 
 def run(args) -> int:
@@ -23,6 +23,6 @@ def run(args) -> int:
     print(f"  {len(scene.objects)} objects, {len(scene.lights)} point lights, environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g}), "
           f"hash {scene_hash(scene, env.content_hash)[:16]}")
-    out = build_report([args.scene], out_dir=Path(args.out), spp=args.spp)
+    out = build_report([args.scene], Path(args.out), ReportConfig(spp=args.spp))
     print(f"pbrcheck demo: report written to {out}")
     return 0

@@ -117,7 +117,8 @@ def _within(cmp) -> dict:
     return {m: bool(noise and noise["within_noise"].get(m)) for m in REFERENCE_METRICS}
 
 
-def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None) -> list[ReferencePair]:
+def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None,
+                       context: renderers.RenderContext = renderers.DIRECT) -> list[ReferencePair]:
     """Every renderer of ``externals`` on ``scene`` against the single-scattering reference at
     ``spp`` and the random-walk one at ``min(spp, RANDOM_WALK_MAX_SPP)`` (both through
     :mod:`compare.renderers` with the cache; the external images from the clients' cache)."""
@@ -128,12 +129,14 @@ def measure_references(scene: Scene, externals: list[str], spp: int, *, progress
                                                                   progress=False)
     out = []
     for name in externals:
-        img = renderers.render_under_test(scene, name, None, progress=False)
-        c1 = compare_images(ss, img, scene=scene, ref_name="single-scattering reference", test_name=name)
+        img = renderers.render_under_test(scene, name, None, progress=False, context=context)
+        c1 = compare_images(ss, img, scene=scene, ref_name="single-scattering reference", test_name=name,
+                            flip_cache=context.flip_cache)
         pair = ReferencePair(scene.name, name, {m: c1.metrics.get(m) for m in REFERENCE_METRICS}, _within(c1),
                              spp_single=int(spp), note=why)
         if rw is not None:
-            c2 = compare_images(rw, img, scene=scene, ref_name="random-walk reference", test_name=name)
+            c2 = compare_images(rw, img, scene=scene, ref_name="random-walk reference", test_name=name,
+                                flip_cache=context.flip_cache)
             pair.vs_random_walk = {m: c2.metrics.get(m) for m in REFERENCE_METRICS}
             pair.within_random_walk = _within(c2)
             pair.spp_random_walk = rw_spp
@@ -150,11 +153,11 @@ def _cell(metrics: dict | None, within: dict, m: str) -> str:
 
 
 def references_sections(scene_args: list, scene_sections, presets: list[str], out_dir: Path,
-                        progress=None) -> list:
+                        progress=None, context: renderers.RenderContext = renderers.DIRECT) -> list:
     """The report's "both references" section (``[]`` when ``presets`` name no external renderer).
 
     ``scene_args`` are the report's scene arguments and ``scene_sections`` its
-    :class:`~compare.report.build.SceneSection` s, in the same order (their ``verdict.spp``, else
+    :class:`~compare.report.results.SceneSection` s, in the same order (their ``verdict.spp``, else
     ``spp``, is the single-scattering reference's spp). Writes ``OUT/<section id>/references.json``."""
     externals = [p for p in presets if renderers.is_external(p)]
     if not externals:
@@ -163,7 +166,7 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
     for arg, sec in zip(scene_args, scene_sections):
         scene = load_scene(arg)
         spp = sec.verdict.spp if getattr(sec, "verdict", None) is not None else int(sec.spp)
-        got = measure_references(scene, externals, spp, progress=progress)
+        got = measure_references(scene, externals, spp, progress=progress, context=context)
         write_json_atomic(Path(out_dir) / sec.id / "references.json", [p.to_dict() for p in got], indent=1)
         pairs += got
     headers = ["scene", "renderer"]

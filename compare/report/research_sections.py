@@ -10,6 +10,7 @@ three together take a few minutes on two CPU cores.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,7 +32,6 @@ from ..research.fit_lod import run_fit_lod
 from ..research.fit_roughness import run_fit_roughness
 from ..research.results import ApparentRoughness
 from ..verdict_spp import VerdictSpp
-from .runlog import stage
 from .section import Section, Table
 
 @dataclass(frozen=True)
@@ -76,21 +76,23 @@ def _pct(part, whole) -> str:
 
 
 def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", report_spp: int,
-                    st: ResearchSettings = ResearchSettings(), progress: bool = False) -> Section:
+                    st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                    context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-lod`` on ``scene_name``, then the report scene rendered by ``preset`` before
     (its own mapping) and after (``lod_mapping=fitted:FILE``) against the report's reference."""
     scene = load_scene(scene_name)
     out = out_dir / "fit_lod.json"
     opts = dict(st.options)
     res = run_fit_lod(scene, preset=preset, options=opts, spp=st.fitlod_spp, size=st.fitlod_size, out=out,
-                      progress=progress)
+                      progress=progress, context=context)
     o = renderers.resolve_options(preset, opts)
     own = o["lod_mapping"]
     # Before / after on the report's own render (full size, point lights on, report spp).
     ref = renderers.render_reference(scene, spp=report_spp, use_cache=True, progress=False)
-    before = compare_images(ref, renderers.render_under_test(scene, preset, opts), noise=False).metrics
-    after = compare_images(ref, renderers.render_under_test(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"}),
-                           noise=False).metrics
+    before = compare_images(ref, renderers.render_under_test(scene, preset, opts, context=context), noise=False,
+                            flip_cache=context.flip_cache).metrics
+    after = compare_images(ref, renderers.render_under_test(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"},
+                                                            context=context), noise=False, flip_cache=context.flip_cache).metrics
     m = res.mappings
     keys = ("relmse", "rmse", "flip_mean", "rel_p95")
     t_maps = Table(f"Every mapping on the fit scene ({res.size[0]} x {res.size[1]}, point lights "
@@ -138,12 +140,13 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
 
 
 def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
-                    st: ResearchSettings = ResearchSettings(), progress: bool = False) -> Section:
+                    st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                    context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck explain`` of ``preset`` on ``scene_name`` (with the LOD fit's file when present)."""
     res = run_explain(load_scene(scene_name), preset=preset, options=dict(st.options), spp=st.explain_spp,
                       size=st.explain_size, cube_max=st.cube_max, samples_scale=st.samples_scale,
                       fitted=str(out_dir / "fit_lod.json") if (out_dir / "fit_lod.json").exists() else None,
-                      progress=progress)
+                      progress=progress, context=context)
     write_explain(res, out_dir / f"explain_{preset}.json")
     b = res.baseline[PRIMARY]
     rows = [["(preset as shipped)", "", _fmt(b), "", "", _fmt(res.baseline["flip_mean"])]]
@@ -173,7 +176,8 @@ def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
 
 
 def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
-                          st: ResearchSettings = ResearchSettings(), progress: bool = False) -> Section:
+                          st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                          context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-roughness`` of every preset on ``scene_name``: plot and table of r* against r."""
     scene = load_scene(scene_name)
     results = {}
@@ -181,7 +185,8 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
     with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:
         for p in presets:
             results[p] = run_fit_roughness(scene, preset=p, options=dict(st.options), size=st.fitrough_size,
-                                           iterations=st.fitrough_iterations, scan_cache=scans)
+                                           iterations=st.fitrough_iterations, scan_cache=scans,
+                                           context=context)
             prog.update(1, p)
     write_json_atomic(out_dir / "fit_roughness.json", results)
     plt = pyplot()
@@ -248,12 +253,12 @@ def _r_star(objs: list[ApparentRoughness]) -> str:
 
 
 def energy_section(out_dir: Path, *, preset: str = "default", st: ResearchSettings = ResearchSettings(),
-                   progress: bool = False) -> Section:
+                   progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck energy``: every energy compensation against the reference's random walk (albedo
     grid, furnace and spheres images against both references)."""
     res = _energy.run_energy(samples=st.energy_samples, scenes=st.energy_scenes, preset=preset,
                              options=dict(st.options), spp=st.energy_spp, size=st.energy_size, out_dir=out_dir,
-                             progress=progress)
+                             progress=progress, context=context)
     paths = _energy.write_energy(res, out_dir)
     t_sum = Table(f"Directional albedo (specular, grey F0) against the random walk: {len(res.roughness)} roughness "
                   f"x {len(res.f0)} F0 x {len(res.nov)} n.v, {res.samples} walks each",
@@ -291,19 +296,30 @@ def energy_section(out_dir: Path, *, preset: str = "default", st: ResearchSettin
 
 
 def research_sections(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: int,
-                      st: ResearchSettings = ResearchSettings(), progress: bool = False) -> list[Section]:
-    """The research sections for ``scene_name`` (files under ``out_dir``); ``energy`` is scene-independent."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with stage("research: fit-lod"):
-        secs = [fit_lod_section(scene_name, out_dir, report_spp=report_spp, st=st, progress=progress)]
-    with stage("research: explain"):
-        secs.append(explain_section(scene_name, out_dir, st=st, progress=progress))
-    with stage("research: fit-roughness"):
-        secs.append(fit_roughness_section(scene_name, out_dir, presets, st=st, progress=progress))
-    with stage("research: energy"):
-        secs.append(energy_section(out_dir, st=st, progress=progress))
-    return secs
+                      st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                      context: renderers.RenderContext = renderers.DIRECT) -> list[Section]:
+    """The research sections for ``scene_name`` (files under ``out_dir``; renders in ``context``);
+    ``energy`` is scene-independent."""
+    return [make() for _, make in research_parts(scene_name, out_dir, presets, report_spp=lambda: report_spp,
+                                                 st=st, progress=progress, context=context)]
 
 
-__all__ = ["ResearchSettings", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section",
+def research_parts(scene_name: str, out_dir: Path, presets: list[str], *, report_spp: Callable[[], int],
+                   st: ResearchSettings = ResearchSettings(), progress: bool = False,
+                   context: renderers.RenderContext = renderers.DIRECT) -> list[tuple[str, Callable[[], Section]]]:
+    """The research sections as (stage name, a function that builds the section), in order: the
+    report runs each as a stage of its own (:mod:`compare.report.stages`). ``report_spp()``: the
+    report's reference spp, asked when the LOD fit's section is built. The first creates ``out_dir``."""
+    kw = {"st": st, "progress": progress, "context": context}
+    def fit_lod() -> Section:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return fit_lod_section(scene_name, out_dir, report_spp=report_spp(), **kw)
+
+    return [("research: fit-lod", fit_lod),
+            ("research: explain", lambda: explain_section(scene_name, out_dir, **kw)),
+            ("research: fit-roughness", lambda: fit_roughness_section(scene_name, out_dir, presets, **kw)),
+            ("research: energy", lambda: energy_section(out_dir, **kw))]
+
+
+__all__ = ["ResearchSettings", "research_parts", "research_sections", "fit_lod_section", "explain_section", "fit_roughness_section",
            "energy_section"]

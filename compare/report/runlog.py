@@ -4,7 +4,8 @@ A report is long work on a CPU (minutes on 2 cores, most of it GL compute on llv
 reference's kernels, HDR-FLIP and the browsers of external renderers), so it says where its own time
 went: :func:`build_report <compare.report.build.build_report>` records each stage (a scene's renders,
 its reference, its comparisons, sweep and convergence; the summary and reference sections; each
-research section; the hard cases) with :func:`stage`, counts the hits and misses of the three
+research section; the hard cases: its list of stages, :mod:`compare.report.stages`) with
+:meth:`RunLog.stage`, counts the hits and misses of the three
 caches (real-time renders, references, FLIP maps), writes ``run.json`` beside ``index.html`` and
 shows the table at the end of the page. ``pbrcheck bench report`` (:func:`bench_report`) runs the
 report twice in fresh processes, first with empty caches (a first run on a fresh machine), then
@@ -16,7 +17,7 @@ machine busy. External renderers render in a background thread and in their own 
 browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
 The cache counts are this process's: renders that a ``--scheduler``'s workers run are not in them.
 
-API: :class:`RunLog`, :func:`recording`, :func:`stage`, :func:`run_section`, :func:`summary_line`,
+API: :class:`RunLog` (:meth:`RunLog.stage` records one stage), :func:`run_section`, :func:`summary_line`,
 :func:`cache_line`, :func:`bench_report`,
 :data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
 """
@@ -109,27 +110,6 @@ def _counts() -> dict:
     out = {f"{kind}_{k}": v for kind, d in renderers.CACHE_COUNTS.items() for k, v in d.items()}
     out.update({f"flip_{k}": v for k, v in FLIP_STORE_COUNTS.items()})
     return out
-
-
-_ACTIVE: list = [None]
-
-
-@contextlib.contextmanager
-def recording(log: RunLog):
-    """Within the block, :func:`stage` records into ``log``."""
-    old = _ACTIVE[0]
-    _ACTIVE[0] = log
-    try:
-        yield log
-    finally:
-        _ACTIVE[0] = old
-
-
-def stage(name: str):
-    """A context that records stage ``name`` into the active :class:`RunLog` (a no-op outside
-    :func:`recording`)."""
-    log = _ACTIVE[0]
-    return log.stage(name) if log is not None else contextlib.nullcontext()
 
 
 def cache_line(run: dict) -> str:

@@ -58,7 +58,7 @@ def timed_on(meta: dict) -> str:
 
 def summary_section(scene_sections) -> Section:
     """One row per renderer and scene (``scene_sections``: the report's
-    :class:`~compare.report.build.SceneSection` s, whose results carry ``timed_on``)."""
+    :class:`~compare.report.results.SceneSection` s, whose results carry ``timed_on``)."""
     rows = []
     for s in scene_sections:
         for r in s.presets:
@@ -89,9 +89,10 @@ def furnace_scene():
     return load_scene("furnace").with_camera(width=FURNACE_SIZE[0], height=FURNACE_SIZE[1])
 
 
-def furnace_section(presets: list[str], spp: int, progress=None) -> Section:
-    """The white furnace through the reference and every renderer of ``presets`` (see the module
-    docstring); one row per renderer: the mean radiance of each sphere, roughness 0 to 1."""
+def furnace_section(presets: list[str], spp: int, progress=None, context: renderers.RenderContext = renderers.DIRECT) -> Section:
+    """The white furnace through the reference and every renderer of ``presets`` (rendered in
+    ``context``; see the module docstring); one row per renderer: the mean radiance of each sphere,
+    roughness 0 to 1."""
     scene = furnace_scene()
     ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
     ids = np.rint(ref.channels["object"]).astype(np.int64)
@@ -102,7 +103,7 @@ def furnace_section(presets: list[str], spp: int, progress=None) -> Section:
     rows = [["reference (single scattering)", *[_fmt(v) for v in ref_means]]]
     notes = []
     for p in presets:
-        img = renderers.render_under_test(scene, p, None, progress=False)
+        img = renderers.render_under_test(scene, p, None, progress=False, context=context)
         means = _sphere_means(img, ids, covered, n)
         rows.append([p, *[_fmt(v) for v in means]])
         if progress is not None:

@@ -2,7 +2,8 @@
 reference, tabulate precompute time, frame time and every metric, and plot the Pareto front.
 
 ``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
-seconds), split by :func:`compare.timings.split_timings`.
+seconds), split by :func:`compare.timings.split_timings`. :data:`DEFAULT_SWEEP` and
+:func:`default_sweep`: the report's sweep over the main cost knobs, one at a time.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure
 from ..metrics import METRICS, compare_images
 from ..timings import FRAME_KEYS, TOTAL_KEYS, image_timings, split_timings, timed_on, timed_on_label  # noqa: F401  (re-exported)
+from ..verdict_spp import MIN_REFERENCE_SPP
 
 class SweepError(PbrcheckError):
     """A malformed ``--vary`` argument."""
@@ -109,6 +111,36 @@ def plot_speed_error(path: Path, rows: list[dict], label_key, title: str = "") -
     return path
 
 
+#: The report's default sweep over the main cost knobs: each entry is varied alone around the
+#: first preset (a product of all of them would be hundreds of renders). ``runtime_samples`` only
+#: matters with runtime importance sampling, so it is swept together with ``ibl = "runtime"``.
+DEFAULT_SWEEP = (
+    [{"prefilter_samples": n} for n in (64, 256, 1024)]
+    + [{"cube_size": n} for n in (64, 128, 256)]
+    + [{"lut_size": n} for n in (16, 32, 64)]
+    + [{"lut_format": f} for f in ("f16", "f32")]
+    + [{"irradiance": m} for m in ("convolution", "sh9")]
+    + [{"ibl": "runtime", "runtime_samples": n} for n in (16, 64)]
+)
+
+
+def default_sweep(preset: str = "default") -> list[dict]:
+    """:data:`DEFAULT_SWEEP` less the entries the renderer rejects or that repeat ``preset`` itself."""
+    try:
+        base = renderers.resolve_options(preset, {})
+    except PbrcheckError:  # a renderer without these options: no sweep
+        return []
+    out = []
+    for combo in DEFAULT_SWEEP:
+        try:
+            opts = renderers.resolve_options(preset, combo)
+        except PbrcheckError:  # an option this renderer does not have
+            continue
+        if opts != base and opts not in [renderers.resolve_options(preset, c) for c in out]:
+            out.append(combo)
+    return out
+
+
 def combinations(vary: dict[str, list]) -> list[dict]:
     """Every combination of the varied options (their product), as option dicts."""
     keys = list(vary)
@@ -116,18 +148,19 @@ def combinations(vary: dict[str, list]) -> list[dict]:
 
 
 def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
-               executor=None) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``); one row each. With an
-    ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
+               executor=None, context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
+    """Render and compare each option dict of ``combos`` (over ``preset``, rendered in ``context``);
+    one row each. With an ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
     (:func:`compare.corpus.renderlist.sweep_metrics`)."""
     if executor is not None:
-        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress)
+        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress,
+                                       context=context)
         return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
                  **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
     for options in combos:
-        img = renderers.render_under_test(scene, preset, options, progress=False)
-        cmp = compare_images(ref, img, scene=scene, noise=False)
+        img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
+        cmp = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
                      **timed_on(img), **cmp.metrics})
@@ -166,8 +199,9 @@ def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default",
     SweepError
         ``spp`` below 2; ``OptionError`` for an unknown option or value (before any render).
     """
-    if spp < 2:
-        raise SweepError(f"--spp must be >= 2 (the reference's variance needs two samples), got {spp}")
+    if spp < MIN_REFERENCE_SPP:
+        raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
+                         f"got {spp}")
     scene = load_scene(scene_arg)
     require_analytic(scene, f"sweep of the real-time preset {preset}")  # before any render or write
     for combo in combinations(vary):  # every option and value is checked before rendering

@@ -52,7 +52,9 @@ named, otherwise "no convention mismatch found".
 
 API
 ---
-- :data:`IMAGE_HYPOTHESES`, :data:`SCENE_HYPOTHESES` -- the hypothesis names, in table order.
+- :class:`Hypothesis`, :data:`HYPOTHESES` -- every hypothesis (name, kind, description, the transform or
+  scene edit, where it applies), in table order; :func:`hypothesis` -- one by name. Adding a
+  hypothesis is one entry of :data:`HYPOTHESES`.
 - :func:`diagnose` -- rank the hypotheses for a (reference, test) pair; returns :class:`Diagnosis`.
 - :func:`apply_image_hypothesis` -- the transform of one image-space hypothesis (also used by the
   tests to plant a mismatch).
@@ -64,6 +66,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -93,45 +96,6 @@ DEFAULT_HYPOTHESIS_SPP = 64
 #: Cap on the re-renders' spp when taken from the reference (a 1024-spp reference would make each of
 #: the ~8 re-renders as slow as itself; 256 spp keeps their noise well under a mismatch's error).
 MAX_HYPOTHESIS_SPP = 256
-
-IMAGE_HYPOTHESES = ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linear_as_srgb", "exposure",
-                    "hdr_clamp", "swap_rb", "premultiplied_alpha")
-SCENE_HYPOTHESES = ("env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha",
-                    "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi", "light_units_4pi",
-                    "light_units_over_4pi", "multiple_scattering")
-#: Scene hypotheses that change the materials or the BRDF model: skipped on glTF asset scenes (their
-#: textured material reads the glTF material, not the objects' factor summaries).
-ASSET_MATERIAL_HYPOTHESES = ("roughness_as_alpha", "roughness_squared_twice", "diffuse_times_pi", "diffuse_over_pi",
-                             "multiple_scattering")
-#: Hypotheses that are a difference of physical model, not of convention (named so in the verdict).
-MODEL_HYPOTHESES = ("multiple_scattering",)
-
-DESCRIPTIONS = {
-    "flip_vertical": "image rows reversed (row 0 at the bottom)",
-    "flip_horizontal": "image columns reversed",
-    "srgb_as_linear": "sRGB-encoded values read as linear",
-    "linear_as_srgb": "linear values decoded as sRGB",
-    "exposure": "a global exposure factor",
-    "hdr_clamp": "radiance clamped at a level",
-    "swap_rb": "red and blue channels swapped",
-    "premultiplied_alpha": "colour premultiplied by coverage (transparent background)",
-    "env_rotate_90": "environment rotated 90 degrees about +Y",
-    "env_rotate_180": "environment rotated 180 degrees about +Y",
-    "env_rotate_270": "environment rotated 270 degrees about +Y",
-    "env_mirror_u": "environment mirrored in u",
-    "roughness_as_alpha": "roughness used as alpha (not squared)",
-    "roughness_squared_twice": "roughness squared twice (alpha = r^4)",
-    "diffuse_times_pi": "diffuse multiplied by pi",
-    "diffuse_over_pi": "diffuse divided by pi",
-    "light_units_4pi": "point-light intensity multiplied by 4 pi",
-    "light_units_over_4pi": "point-light intensity divided by 4 pi",
-    "multiple_scattering": "the renderer keeps the energy of multiple scattering (energy compensation)",
-}
-
-
-#: The factor of each scaling scene hypothesis (diffuse lobe or point lights).
-LINEAR_FACTORS = {"diffuse_times_pi": math.pi, "diffuse_over_pi": 1 / math.pi,
-                  "light_units_4pi": 4 * math.pi, "light_units_over_4pi": 1 / (4 * math.pi)}
 
 
 class DiagnoseError(PbrcheckError):
@@ -185,35 +149,6 @@ def _fit_exposure(r: np.ndarray, t: np.ndarray) -> float:
     return float((w * t * r).sum()) / den if den > 0 else 1.0
 
 
-def apply_image_hypothesis(name: str, r: np.ndarray, t: np.ndarray, coverage: np.ndarray | None = None
-                           ) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Undo image-space mismatch ``name``: returns ``(reference', test', fitted)``.
-
-    ``r``, ``t``: ``(H, W, 3)`` linear RGB; ``coverage``: the reference's coverage AOV (needed by
-    ``premultiplied_alpha``). Raises :class:`DiagnoseError` for an unknown name.
-    """
-    if name == "flip_vertical":
-        return r, t[::-1], {}
-    if name == "flip_horizontal":
-        return r, t[:, ::-1], {}
-    if name == "srgb_as_linear":
-        return r, srgb_eotf(t), {}
-    if name == "linear_as_srgb":
-        return r, srgb_oetf(np.clip(t, 0.0, None)), {}
-    if name == "exposure":
-        k = _fit_exposure(r, t)
-        return r, t * k, {"factor": k}
-    if name == "hdr_clamp":
-        c = float(np.max(t))
-        return np.minimum(r, c), t, {"level": c}
-    if name == "swap_rb":
-        return r, t[..., ::-1], {}
-    if name == "premultiplied_alpha":
-        cov = np.ones(r.shape[:2], np.float32) if coverage is None else coverage
-        return r * cov[..., None], t, {}
-    raise DiagnoseError(f"diagnose: unknown image hypothesis {name!r} (known: {', '.join(IMAGE_HYPOTHESES)})")
-
-
 def _mirrored_environment(scene: Scene, directory: Path) -> Environment:
     """The scene's environment mirrored in u, as a file environment (scale and rotation baked in)."""
     env = load_environment(scene)
@@ -232,34 +167,182 @@ def _map_materials(scene: Scene, fn) -> Scene:
     return replace(scene, objects=tuple(replace(o, material=fn(o.material)) for o in scene.objects))
 
 
+def _scale_dielectric_diffuse(k: float):
+    """Scene edit: the base colour of every dielectric scaled by ``k``. A dielectric's F0 is
+    ``specular`` whatever its base colour, so this scales exactly its Lambert lobe (values above 1
+    are fine for the estimator: nothing clamps them); partial metals are left alone."""
+    def edit(scene: Scene, directory: Path) -> tuple[Scene, dict]:
+        return _map_materials(scene, lambda m: replace(m, base_color=tuple(k * c for c in m.base_color))
+                              if m.metallic == 0 else m), {"factor": k}
+    return edit
+
+
+def _scale_lights(k: float):
+    """Scene edit: every point light's intensity scaled by ``k``."""
+    def edit(scene: Scene, directory: Path) -> tuple[Scene, dict]:
+        return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
+                                           for li in scene.lights)), {"factor": k}
+    return edit
+
+
+def _rotate_environment(deg: float):
+    """Scene edit: the environment rotated by ``deg`` more about +Y."""
+    def edit(scene: Scene, directory: Path) -> tuple[Scene, dict]:
+        env = scene.environment
+        return replace(scene, environment=replace(env, rotation=(env.rotation + deg) % 360.0)), {}
+    return edit
+
+
+def _edit_materials(fn):
+    """Scene edit: ``fn`` applied to every object's material."""
+    return lambda scene, directory: (_map_materials(scene, fn), {})
+
+
+def _image(fn):
+    """Image transform ``(r, t) -> (r', t')`` with no fitted parameter."""
+    return lambda r, t, coverage: (*fn(r, t), {})
+
+
+def _exposure(r, t, coverage):
+    k = _fit_exposure(r, t)
+    return r, t * k, {"factor": k}
+
+
+def _hdr_clamp(r, t, coverage):
+    c = float(np.max(t))
+    return np.minimum(r, c), t, {"level": c}
+
+
+def _premultiplied(r, t, coverage):
+    cov = np.ones(r.shape[:2], np.float32) if coverage is None else coverage
+    return r * cov[..., None], t, {}
+
+
+def _always(ref: Image, scene: Scene | None) -> None:
+    return None
+
+
+def _needs_coverage(ref: Image, scene: Scene | None) -> str | None:
+    return None if ref.channels.get("coverage") is not None else "the reference has no coverage AOV"
+
+
+def _needs_lights(ref: Image, scene: Scene) -> str | None:
+    return None if scene.lights else "the scene has no point lights"
+
+
+def _needs_dielectric(ref: Image, scene: Scene) -> str | None:
+    return None if any(o.material.metallic == 0 for o in scene.objects) else "the scene has no dielectric object"
+
+
+def _analytic_materials(ref: Image, scene: Scene) -> str | None:
+    """glTF asset scenes' textured material reads the glTF material, not the objects' factors."""
+    if getattr(scene, "assets", ()):
+        return ("glTF asset materials (textures, the single-scattering pbr_textured) are not changed by this "
+                "hypothesis yet")
+    return None
+
+
+def _both(*rules):
+    """The first reason any of ``rules`` gives to skip (``None`` where all apply)."""
+    def applies(ref: Image, scene: Scene | None) -> str | None:
+        return next((why for why in (rule(ref, scene) for rule in rules) if why is not None), None)
+    return applies
+
+
+def _needs_single_scattering_pair(ref: Image, scene: Scene) -> str | None:
+    if scene.brdf.multiscatter != "none":
+        return "the reference already scatters multiply"
+    if MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != scene.brdf.geometry:
+        return ("the random walk needs ndf = ggx with geometry = smith_ggx_correlated or beckmann with "
+                "smith_beckmann_correlated")
+    return None
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One known mismatch.
+
+    ``kind``: ``"image"`` (``apply(r, t, coverage) -> (r', t', fitted)`` undoes it on the images) or
+    ``"scene"`` (``apply(scene, directory) -> (scene', fitted)``: the scene whose reference is the
+    image a renderer with the mismatch would make; ``directory`` receives any file it needs).
+    ``applies_to(ref, scene)``: ``None`` where it can be tested, else why it is skipped. ``model``: a
+    difference of physical model, not of convention (named so in the verdict). ``names_cause(fitted)``:
+    whether a result with these fitted parameters may be named the likely cause."""
+
+    name: str
+    kind: str
+    description: str
+    apply: Callable
+    applies_to: Callable[[Image, Scene | None], str | None] = _always
+    model: bool = False
+    #: Whether a result with these fitted parameters may be named the likely cause (an exposure
+    #: within EXPOSURE_MIN_DEVIATION of 1 is an approximation's bias, not a convention).
+    names_cause: Callable[[dict], bool] = lambda fitted: True
+
+
+#: Every hypothesis, in table order (image space first; scene space only with a scene).
+HYPOTHESES: tuple[Hypothesis, ...] = (
+    Hypothesis("flip_vertical", "image", "image rows reversed (row 0 at the bottom)",
+               _image(lambda r, t: (r, t[::-1]))),
+    Hypothesis("flip_horizontal", "image", "image columns reversed", _image(lambda r, t: (r, t[:, ::-1]))),
+    Hypothesis("srgb_as_linear", "image", "sRGB-encoded values read as linear",
+               _image(lambda r, t: (r, srgb_eotf(t)))),
+    Hypothesis("linear_as_srgb", "image", "linear values decoded as sRGB",
+               _image(lambda r, t: (r, srgb_oetf(np.clip(t, 0.0, None))))),
+    Hypothesis("exposure", "image", "a global exposure factor", _exposure,
+               names_cause=lambda fitted: abs(fitted["factor"] - 1.0) > EXPOSURE_MIN_DEVIATION),
+    Hypothesis("hdr_clamp", "image", "radiance clamped at a level", _hdr_clamp),
+    Hypothesis("swap_rb", "image", "red and blue channels swapped", _image(lambda r, t: (r, t[..., ::-1]))),
+    Hypothesis("premultiplied_alpha", "image", "colour premultiplied by coverage (transparent background)",
+               _premultiplied, _needs_coverage),
+    *(Hypothesis(f"env_rotate_{deg}", "scene", f"environment rotated {deg} degrees about +Y",
+                 _rotate_environment(float(deg))) for deg in (90, 180, 270)),
+    Hypothesis("env_mirror_u", "scene", "environment mirrored in u",
+               lambda scene, directory: (replace(scene, environment=_mirrored_environment(scene, directory)), {})),
+    Hypothesis("roughness_as_alpha", "scene", "roughness used as alpha (not squared)",
+               _edit_materials(lambda m: replace(m, roughness=math.sqrt(m.roughness))), _analytic_materials),
+    Hypothesis("roughness_squared_twice", "scene", "roughness squared twice (alpha = r^4)",
+               _edit_materials(lambda m: replace(m, roughness=m.roughness ** 2)), _analytic_materials),
+    Hypothesis("diffuse_times_pi", "scene", "diffuse multiplied by pi", _scale_dielectric_diffuse(math.pi),
+               _both(_analytic_materials, _needs_dielectric)),
+    Hypothesis("diffuse_over_pi", "scene", "diffuse divided by pi", _scale_dielectric_diffuse(1 / math.pi),
+               _both(_analytic_materials, _needs_dielectric)),
+    Hypothesis("light_units_4pi", "scene", "point-light intensity multiplied by 4 pi", _scale_lights(4 * math.pi),
+               _needs_lights),
+    Hypothesis("light_units_over_4pi", "scene", "point-light intensity divided by 4 pi",
+               _scale_lights(1 / (4 * math.pi)), _needs_lights),
+    Hypothesis("multiple_scattering", "scene",
+               "the renderer keeps the energy of multiple scattering (energy compensation)",
+               lambda scene, directory: (replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), {}),
+               _both(_analytic_materials, _needs_single_scattering_pair), model=True),
+)
+
+
+def hypothesis(name: str, kind: str | None = None) -> Hypothesis:
+    """The hypothesis ``name`` (of ``kind`` when given); raises :class:`DiagnoseError` otherwise."""
+    for h in HYPOTHESES:
+        if h.name == name and kind in (None, h.kind):
+            return h
+    known = ", ".join(h.name for h in HYPOTHESES if kind in (None, h.kind))
+    raise DiagnoseError(f"diagnose: unknown {kind + ' ' if kind else ''}hypothesis {name!r} (known: {known})")
+
+
+def apply_image_hypothesis(name: str, r: np.ndarray, t: np.ndarray, coverage: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Undo image-space mismatch ``name``: returns ``(reference', test', fitted)``.
+
+    ``r``, ``t``: ``(H, W, 3)`` linear RGB; ``coverage``: the reference's coverage AOV (needed by
+    ``premultiplied_alpha``). Raises :class:`DiagnoseError` for an unknown name.
+    """
+    return hypothesis(name, "image").apply(r, t, coverage)
+
+
 def hypothesis_scene(name: str, scene: Scene, directory: Path) -> Scene:
-    """The scene whose reference is the image a renderer with mismatch ``name`` would make.
+    """The scene whose reference is the image a renderer with scene-space mismatch ``name`` would make.
 
     ``directory`` receives any file the hypothesis needs (the mirrored environment).
     """
-    if name.startswith("env_rotate_"):
-        deg = float(name.rsplit("_", 1)[1])
-        return replace(scene, environment=replace(scene.environment,
-                                                  rotation=(scene.environment.rotation + deg) % 360.0))
-    if name == "env_mirror_u":
-        return replace(scene, environment=_mirrored_environment(scene, directory))
-    if name == "roughness_as_alpha":
-        return _map_materials(scene, lambda m: replace(m, roughness=math.sqrt(m.roughness)))
-    if name == "roughness_squared_twice":
-        return _map_materials(scene, lambda m: replace(m, roughness=m.roughness ** 2))
-    if name.startswith("diffuse_"):
-        # A dielectric's F0 is ``specular`` whatever its base colour, so scaling the base colour scales
-        # exactly its Lambert lobe (values above 1 are fine for the estimator: nothing clamps them).
-        k = LINEAR_FACTORS[name]
-        return _map_materials(scene, lambda m: replace(m, base_color=tuple(k * c for c in m.base_color))
-                              if m.metallic == 0 else m)
-    if name.startswith("light_units"):
-        k = LINEAR_FACTORS[name]
-        return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
-                                           for li in scene.lights))
-    if name == "multiple_scattering":
-        return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk"))
-    raise DiagnoseError(f"diagnose: unknown scene hypothesis {name!r} (known: {', '.join(SCENE_HYPOTHESES)})")
+    return hypothesis(name, "scene").apply(scene, directory)[0]
 
 
 # --- the measure ----------------------------------------------------------------------------------
@@ -333,71 +416,51 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
         The scene's size differs from the images'.
     """
     validate_pair(ref, test)
+    if scene is not None and (scene.camera.height, scene.camera.width) != ref.shape:
+        raise DiagnoseError(f"diagnose: scene {scene.name!r} is {scene.camera.width}x{scene.camera.height}, "
+                            f"the images are {ref.shape[1]}x{ref.shape[0]}")
     r, t = ref.rgb.astype(np.float64), test.rgb.astype(np.float64)
     var = ref.variance
     w = 1.0 / (r * r + REL_EPS)  # the relative-error weight of every row: the reference's
     before = _error(r, t, var, w)
     noise = _noise_error(ref)
     cov = ref.channels.get("coverage")
+    if scene is not None:
+        spp = spp or min(int(ref.meta.get("spp", DEFAULT_HYPOTHESIS_SPP)), MAX_HYPOTHESIS_SPP)
+        seed = int(ref.meta.get("seed", 0)) if seed is None else seed
+        mode = ref.meta.get("mode", "local")
+
+    def undo(h: Hypothesis, directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, dict]:
+        """(reference, test, the reference's variance, fitted) with ``h`` undone: an image transform,
+        or the reference re-rendered from ``h``'s scene."""
+        if h.kind == "image":
+            r2, t2, fitted = h.apply(r, t, cov)
+            return r2, t2, var, fitted
+        s2, fitted = h.apply(scene, directory)
+        img = renderers.render_reference(s2, spp=spp, mode=mode, seed=seed)
+        return img.rgb.astype(np.float64), t, img.variance, fitted
+
+    todo = [h for h in HYPOTHESES if h.kind == "image" or scene is not None]
     rows: list[HypothesisRow] = []
-
-    def row(name, kind, r2, t2, fitted=None, skipped=None, var2=var):
-        if skipped is not None:
-            rows.append(HypothesisRow(name, kind, DESCRIPTIONS[name], None, None, False, fitted or {}, skipped))
-            return
-        err = _error(r2, t2, var2, w)
-        red = 1.0 - err / before if before > 0 else 0.0
-        rows.append(HypothesisRow(name, kind, DESCRIPTIONS[name], err, red, _within(err, noise), fitted or {}))
-
-    scene_names = SCENE_HYPOTHESES if scene is not None else ()
-    with Progress("diagnose", total=len(IMAGE_HYPOTHESES) + len(scene_names), enabled=progress) as bar:
-        for name in IMAGE_HYPOTHESES:
-            if name == "premultiplied_alpha" and cov is None:
-                row(name, "image", None, None, skipped="the reference has no coverage AOV")
+    with Progress("diagnose", total=len(todo), enabled=progress) as bar, \
+            tempfile.TemporaryDirectory(prefix="pbrcheck-diagnose-") as tmp:
+        for h in todo:
+            skipped = h.applies_to(ref, scene)
+            if skipped is not None:
+                rows.append(HypothesisRow(h.name, h.kind, h.description, None, None, False, {}, skipped))
             else:
-                r2, t2, fitted = apply_image_hypothesis(name, r, t, cov)
-                row(name, "image", r2, t2, fitted)
-            bar.update(1, name)
-        if scene is not None:
-            if (scene.camera.height, scene.camera.width) != ref.shape:
-                raise DiagnoseError(f"diagnose: scene {scene.name!r} is {scene.camera.width}x{scene.camera.height}, "
-                                    f"the images are {ref.shape[1]}x{ref.shape[0]}")
-            spp = spp or min(int(ref.meta.get("spp", DEFAULT_HYPOTHESIS_SPP)), MAX_HYPOTHESIS_SPP)
-            seed = int(ref.meta.get("seed", 0)) if seed is None else seed
-            mode = ref.meta.get("mode", "local")
-
-            def render(s: Scene) -> tuple[np.ndarray, np.ndarray | None]:
-                img = renderers.render_reference(s, spp=spp, mode=mode, seed=seed)
-                return img.rgb.astype(np.float64), img.variance
-
-            with tempfile.TemporaryDirectory(prefix="pbrcheck-diagnose-") as tmp:
-                for name in SCENE_HYPOTHESES:
-                    if getattr(scene, "assets", ()) and name in ASSET_MATERIAL_HYPOTHESES:
-                        row(name, "scene", None, None, skipped="glTF asset materials (textures, the single-"
-                            "scattering pbr_textured) are not changed by this hypothesis yet")
-                    elif name.startswith("light_units") and not scene.lights:
-                        row(name, "scene", None, None, skipped="the scene has no point lights")
-                    elif name.startswith("diffuse_") and not any(o.material.metallic == 0 for o in scene.objects):
-                        row(name, "scene", None, None, skipped="the scene has no dielectric object")
-                    elif name == "multiple_scattering" and scene.brdf.multiscatter != "none":
-                        row(name, "scene", None, None, skipped="the reference already scatters multiply")
-                    elif name == "multiple_scattering" and MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != \
-                            scene.brdf.geometry:
-                        row(name, "scene", None, None, skipped="the random walk needs ndf = ggx with geometry = "
-                            "smith_ggx_correlated or beckmann with smith_beckmann_correlated")
-                    else:
-                        img, v2 = render(hypothesis_scene(name, scene, Path(tmp)))
-                        row(name, "scene", img, t, LINEAR_FACTORS.get(name) and {"factor": LINEAR_FACTORS[name]},
-                            var2=v2)
-                    bar.update(1, name)
+                r2, t2, var2, fitted = undo(h, Path(tmp))
+                err = _error(r2, t2, var2, w)
+                red = 1.0 - err / before if before > 0 else 0.0
+                rows.append(HypothesisRow(h.name, h.kind, h.description, err, red, _within(err, noise), fitted))
+            bar.update(1, h.name)
 
     tested = sorted((x for x in rows if x.skipped is None), key=lambda x: x.error_after)
     rows = tested + [x for x in rows if x.skipped is not None]
     likely = None
     if not _within(before, noise):
         for x in tested:
-            if x.error_after <= LIKELY_REMAINING * before and not (
-                    x.hypothesis == "exposure" and abs(x.fitted["factor"] - 1.0) <= EXPOSURE_MIN_DEVIATION):
+            if x.error_after <= LIKELY_REMAINING * before and hypothesis(x.hypothesis).names_cause(x.fitted):
                 likely = x
                 break
     if likely is None:
@@ -406,7 +469,7 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
             line += " (the difference is within the reference's noise)"
     else:
         fit = "".join(f", {k} {format_value(v)}" for k, v in likely.fitted.items())
-        kind = ("a model difference, not a convention: " if likely.hypothesis in MODEL_HYPOTHESES else "")
+        kind = ("a model difference, not a convention: " if hypothesis(likely.hypothesis).model else "")
         line = (f"likely cause: {kind}{likely.hypothesis} ({likely.description}{fit}): undoing it removes "
                 f"{100 * likely.reduction:.0f} % of the error"
                 + (", what is left is within the reference's noise" if likely.within_noise else ""))
@@ -431,5 +494,5 @@ def table_markdown(d: Diagnosis) -> str:
     return "\n".join(out)
 
 
-__all__ = ["IMAGE_HYPOTHESES", "SCENE_HYPOTHESES", "LIKELY_REMAINING", "Diagnosis", "HypothesisRow", "DiagnoseError",
+__all__ = ["HYPOTHESES", "Hypothesis", "hypothesis", "LIKELY_REMAINING", "Diagnosis", "HypothesisRow", "DiagnoseError",
            "diagnose", "apply_image_hypothesis", "hypothesis_scene", "table_markdown", "srgb_eotf"]

@@ -133,7 +133,10 @@ def _sphere_means(img) -> list:
             for k in range(int(obj.max()) + 1)]
 
 
-def _images(scenes, *, preset, options, spp, size, out_dir, progress):
+def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
+    def _metrics(r, t) -> dict:
+        return compare_images(r, t, noise=False, flip_cache=context.flip_cache).metrics
+
     rows: list[ImageRow] = []
     comps = ENERGY_COMPENSATIONS.names
     with Progress("energy images", total=len(scenes) * (2 + len(comps)), enabled=progress) as prog:
@@ -152,20 +155,21 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress):
                 png = f"energy_{name}_reference_random_walk.png"
                 write_tonemapped(out_dir / png, ref_rw.rgb)
                 write_tonemapped(out_dir / f"energy_{name}_reference_single.png", ref_ss.rgb)
-            rows.append(ImageRow(name, "reference: random_walk", {}, compare_images(ref_ss, ref_rw, noise=False).metrics,
+            rows.append(ImageRow(name, "reference: random_walk", {}, _metrics(ref_ss, ref_rw),
                                  _sphere_means(ref_rw) if furnace else None, png))
             rows.append(ImageRow(name, "reference: single scattering",
-                                 compare_images(ref_rw, ref_ss, noise=False).metrics, {},
+                                 _metrics(ref_rw, ref_ss), {},
                                  _sphere_means(ref_ss) if furnace else None,
                                  f"energy_{name}_reference_single.png" if out_dir is not None else None))
             for c in comps:
-                img = renderers.render_under_test(s, preset, {**options, "energy_compensation": c})
+                img = renderers.render_under_test(s, preset, {**options, "energy_compensation": c},
+                                                  context=context)
                 png = None
                 if out_dir is not None:
                     png = f"energy_{name}_{c}.png"
                     write_tonemapped(out_dir / png, img.rgb)
-                rows.append(ImageRow(name, c, compare_images(ref_rw, img, noise=False).metrics,
-                                     compare_images(ref_ss, img, noise=False).metrics,
+                rows.append(ImageRow(name, c, _metrics(ref_rw, img),
+                                     _metrics(ref_ss, img),
                                      _sphere_means(img) if furnace else None, png))
                 prog.update(1, f"{name}: {c}")
     return rows
@@ -174,7 +178,7 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress):
 def run_energy(*, roughness=DEFAULT_ROUGHNESS, f0=DEFAULT_F0, nov=DEFAULT_NOV, samples: int = DEFAULT_SAMPLES,
                seed: int = 0, images: bool = True, scenes=DEFAULT_SCENES, preset: str = "default",
                options: dict | None = None, spp: int = 128, size: int | None = 64, out_dir: Path | None = None,
-               progress: bool = False) -> EnergyResult:
+               progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> EnergyResult:
     """Measure every compensation against the random walk (module docstring).
 
     Parameters
@@ -210,7 +214,8 @@ def run_energy(*, roughness=DEFAULT_ROUGHNESS, f0=DEFAULT_F0, nov=DEFAULT_NOV, s
         albedo[c] = alb.tolist()
         summaries.append(_summary(c, alb - walk, R, F, M, roughness))
     rows = _images(list(scenes), preset=preset, options=dict(options or {}), spp=spp, size=size,
-                   out_dir=Path(out_dir) if out_dir is not None else None, progress=progress) if images else []
+                   out_dir=Path(out_dir) if out_dir is not None else None, progress=progress,
+                   context=context) if images else []
     return EnergyResult(roughness, f0, nov, int(samples), walk.tolist(), se.tolist(), (F * A + B).tolist(), albedo,
                         summaries, rows, {"seed": seed, "preset": preset, "options": dict(options or {}), "spp": spp,
                                            "size": size, "scenes": list(scenes) if images else []})

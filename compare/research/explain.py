@@ -108,7 +108,7 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
 def run_explain(scene: Scene, *, preset: str = "default", options: dict | None = None, spp: int = DEFAULT_SPP,
                 size: int | None = None, fitted: str | None = None, cube_max: int = 512,
                 samples_scale: float = 1.0, spp_cap: int | None = DEFAULT_SPP_CAP,
-                progress: bool = False) -> ExplainResult:
+                progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> ExplainResult:
     """Measure each approximation's contribution to ``preset``'s error on ``scene``.
 
     Parameters
@@ -147,7 +147,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         scene = scene.with_camera(width=max(8, int(round(size * scene.camera.width / scene.camera.height))),
                                   height=int(size))
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
-    base_img = renderers.render_under_test(scene, preset, base, progress=False)
+    base_img = renderers.render_under_test(scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
                                          probe=RESEARCH_PROBE, progress=progress)
     spp = verdict.spp
@@ -156,8 +156,9 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
 
     def measure(over: dict, img=None) -> dict:
         nonlocal valid
-        img = img if img is not None else renderers.render_under_test(scene, preset, {**base, **over}, progress=False)
-        c = compare_images(ref, img, scene=scene, noise=False)
+        img = img if img is not None else renderers.render_under_test(scene, preset, {**base, **over}, progress=False,
+                                                                      context=context)
+        c = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
         if valid is None:
             valid = c.valid  # the baseline's valid pixels, for the noise figure
         return {k: c.metrics[k] for k in KEEP}

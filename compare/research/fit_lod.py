@@ -127,7 +127,7 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> tuple[float, float]:
     return float(x1 + t * h), float(y1 - 0.25 * (y0 - y2) * t)
 
 
-def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tuple[list[LodSample], np.ndarray, dict]:
+def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog, context) -> tuple[list[LodSample], np.ndarray, dict]:
     """Render ``fit_scene`` at every LOD of ``lods`` on the prefiltered chain baked with ``chain``;
     per roughness group the error curve, its refined minimum and the group's pixel count."""
     curves = {r: [] for r in groups}
@@ -135,7 +135,7 @@ def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tupl
     counts = {}
     for L in lods:
         img = renderers.render_under_test(fit_scene, preset,
-                                          {**base, "lod_mapping": chain, "lod_override": float(L)})
+                                          {**base, "lod_mapping": chain, "lod_override": float(L)}, context=context)
         if valid is None:
             valid, _, _ = pixel_classes(ref, img)
             ids = np.rint(ref.channels["object"]).astype(np.int64)
@@ -157,7 +157,8 @@ def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog) -> tupl
 
 def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", options: dict | None = None,
                 spp: int = 64, size: int | None = None, out: Path, lod_step: float = LOD_STEP,
-                chains=BUILTIN, spp_cap: int | None = DEFAULT_SPP_CAP, progress: bool = False) -> FitLodResult:
+                chains=BUILTIN, spp_cap: int | None = DEFAULT_SPP_CAP, progress: bool = False,
+                context: renderers.RenderContext = renderers.DIRECT) -> FitLodResult:
     """Scan, fit and evaluate; writes ``out`` (JSON) and ``out`` with suffix ``.glsl``.
 
     ``chains``: the built-in mappings whose prefiltered chains are scanned and fitted on (default all
@@ -222,7 +223,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     groups = _groups(fit_scene)
     # The reference's spp: its noise floor 10x below the preset's own error on the fit scene (the
     # error every scanned level is measured against; compare.verdict_spp), at most spp_cap.
-    own_img = renderers.render_under_test(fit_scene, preset, base, progress=False)
+    own_img = renderers.render_under_test(fit_scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local",
                                          metric="relmse", probe=RESEARCH_PROBE, progress=progress)
     spp = verdict.spp
@@ -233,7 +234,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     valid = None
     with Progress("fit-lod scan", total=len(chains) * len(lods) + len(BUILTIN) + 1, enabled=progress) as prog:
         for chain in chains:
-            samples, valid, _ = _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog)
+            samples, valid, _ = _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog, context)
             if len(samples) < 2:
                 raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
             rr = np.array([s.roughness for s in samples])
@@ -269,11 +270,12 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
         for name in BUILTIN:
             # the preset's own mapping is the image the spp rule already rendered
             img = own_img if name == o["lod_mapping"] else renderers.render_under_test(
-                fit_scene, preset, {**base, "lod_mapping": name})
+                fit_scene, preset, {**base, "lod_mapping": name}, context=context)
             result.mappings[name] = MappingEval(_scene_relmse(ref, img, valid),
                                                 [float(v) for v in builtin_lod(name, rr, M, cube_log2)])
             prog.update(1, f"evaluate {name}")
-        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"})
+        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": f"fitted:{out}"},
+                                          context=context)
         prog.update(1, "evaluate fitted")
     result.mappings["fitted"].relmse = _scene_relmse(ref, img, valid)
     result.mappings["fitted"].lod = [float(v) for v in fitted(rr)]

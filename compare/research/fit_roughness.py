@@ -256,13 +256,14 @@ def fit_scene(scene: Scene, size: int | None) -> Scene:
 
 def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | None = None,
                       size: int | None = None, iterations: int = ITERATIONS, lr: float = LR, spp: int = SPP,
-                      scan: bool = True, scan_cache: dict | None = None) -> FitRoughnessResult:
+                      scan: bool = True, scan_cache: dict | None = None,
+                      context: renderers.RenderContext = renderers.DIRECT) -> FitRoughnessResult:
     """The preset's real-time image of ``scene`` (height ``size``) as the target of :func:`fit_roughness`:
     per object ``roughness``, ``start``, ``apparent_roughness``, ``loss`` (:func:`fit_loss` over its
     pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``).
     ``scan_cache``: one dict passed to every preset's fit on the same scene shares the scan's renders."""
     scene = fit_scene(scene, size)
-    img = renderers.render_under_test(scene, preset, options, progress=False)
+    img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
     rows, trace = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp,
                                 scan=scan, scan_cache=scan_cache)
     return FitRoughnessResult(scene.name, preset, dict(options or {}), iterations, lr, min(lr, LR_FINAL),

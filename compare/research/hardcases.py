@@ -155,7 +155,8 @@ def small_cube_options(preset: str, cube_size: int) -> dict:
 
 def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: list[str] | None = None,
                   cases: list[str] | None = None, cube_size: int | None = None, options: dict | None = None,
-                  spp_cap: int | None = SPP_CAP, progress: bool = False) -> list[HardcaseRow]:
+                  spp_cap: int | None = SPP_CAP, progress: bool = False,
+                  context: renderers.RenderContext = renderers.DIRECT) -> list[HardcaseRow]:
     """Render every case with the reference and each preset; one row per render.
 
     Parameters
@@ -211,7 +212,7 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 o = dict(small_cube_options(p, cube_size) if cube_size else {})
                 o.update(options or {})
                 try:
-                    img = renderers.render_under_test(sc, p, o, progress=progress)
+                    img = renderers.render_under_test(sc, p, o, progress=progress, context=context)
                 except PbrcheckError as e:
                     prow.append(HardcaseRow(name, "realtime", p, finite=False, nonfinite=None,
                                             error=f"{type(e).__name__}: {e}"))
@@ -231,7 +232,7 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 img = imgs.get(row.preset)
                 if img is not None and ref_ok:
                     try:
-                        c = compare_images(ref, img, scene=sc, noise=False)
+                        c = compare_images(ref, img, scene=sc, noise=False, flip_cache=context.flip_cache)
                         row.metrics = {k: c.metrics[k] for k in TABLE_METRICS}
                     except PbrcheckError as e:
                         row.error = f"{type(e).__name__}: {e}"

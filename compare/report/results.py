@@ -1,0 +1,54 @@
+"""What the report measured, as the page template reads it (``templates/report.html``).
+
+API
+---
+- :class:`PresetResult` -- one renderer under test on one scene.
+- :class:`SceneSection` -- one scene: its reference, every renderer's result, plots, provenance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..verdict_spp import VerdictSpp
+
+
+@dataclass
+class PresetResult:
+    """One renderer under test on one scene: its metrics, noise flags, timings and image files."""
+
+    preset: str
+    metrics: dict
+    pixels: dict
+    within: dict
+    precompute: float | None
+    frame: float | None
+    rt_png: str
+    flip_png: str
+    rel_png: str
+    mse: float
+    timed_on: str = ""
+    space: str = "linear"
+    diagnosis: str = ""       # external renderers: pbrcheck diagnose's verdict line
+    diagnosis_json: str = ""  # ... and its table (JSON, relative to the report)
+
+
+@dataclass
+class SceneSection:
+    """One scene of the report (the template's ``scenes``)."""
+
+    id: str
+    name: str
+    description: str
+    spp: object
+    ref_png: str
+    presets: list[PresetResult]
+    plots: list[dict]
+    provenance: list[tuple[str, str]]
+    noise_floor: float | None
+    sweep_rows: list[dict]
+    verdict: VerdictSpp | None = None
+    material_rows: list[dict] = field(default_factory=list)   # glTF assets: renderer x material
+
+
+__all__ = ["PresetResult", "SceneSection"]
