@@ -9,7 +9,8 @@ STAMP      := $(VENV)/.pbrcheck-installed
 # Minimal Debian packages: EGL + GL dispatch and Mesa's llvmpipe for headless moderngl,
 # LLVM 19 for Dr.Jit's LLVM backend (Mesa's LLVM 15 makes Dr.Jit 1.5 abort).
 # libatomic1: Dr.Jit and Mitsuba link it (absent on a bare Debian; found with a debootstrap minbase).
-SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
+# build-essential: the C compiler that builds the reference MikkTSpace (setup.py, pbrcheck/mikktspace_c).
+SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1 build-essential
 
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
@@ -21,12 +22,12 @@ setup: system-packages client-packages $(STAMP)
 system-packages:
 	@bash tools/ensure-system-packages.sh --python $(PYTHON) $(SYSTEM_PACKAGES)
 
-# The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in
-# clients/threejs; without root it prints the commands and goes on (their tests skip).
+# The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in every
+# clients/*/ with a package-lock.json; without root it prints the commands and goes on (their tests skip).
 client-packages:
 	@bash tools/ensure-clients.sh
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py $(wildcard pbrcheck/mikktspace_c/*.c pbrcheck/mikktspace_c/*.h)
 	@$(PY) -m pip --version >/dev/null 2>&1 || { rm -rf $(VENV); $(PYTHON) -m venv $(VENV); }
 	@$(PY) -m pip install --quiet --upgrade pip >/dev/null
 	$(PY) -m pip install --quiet -e '.[test]'
@@ -45,9 +46,10 @@ test: setup test-packages
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF Sample Viewer):
-# accuracy against the references and change against the accepted baselines (compare/budgets/baselines/;
-# accept an intended change with `pbrcheck gate BUDGET.toml --accept --reason "..."`).
+# The CI error-budget gate of the shipped shaders, then of the external clients (three.js, the glTF
+# Sample Viewer, Babylon.js, PlayCanvas, Filament): accuracy against the references and change against
+# the accepted baselines (compare/budgets/baselines/; accept an intended change with
+# `pbrcheck gate BUDGET.toml --accept --reason "..."`).
 gate: setup
 	@rc=0; \
 	$(VENV)/bin/pbrcheck gate compare/budgets/ci.toml --junit out/ci/gate-junit.xml --summary out/ci/gate-summary.md \

@@ -10,5 +10,7 @@ Modules
 - :mod:`clients.run` -- export, run the command (process group, timeout), validate and cache the
   output, return a pbrcheck :class:`~pbrcheck.exr.Image`.
 - :mod:`clients.commands` -- ``pbrcheck export`` and ``pbrcheck render --renderer``.
-- ``clients/threejs/`` -- the three.js client (node + headless Chromium), docs/renderers.md.
+- ``clients/threejs/``, ``clients/gltf-sample-viewer/``, ``clients/babylon/``,
+  ``clients/playcanvas/``, ``clients/filament/`` -- the browser clients (node + headless Chromium;
+  ``clients/browser/``: their shared harness, runner and page helpers), docs/renderers.md.
 """

@@ -237,7 +237,7 @@ def test_malformed_renderers_file_names_file_and_field(tmp_path, body, msg):
 
 
 def test_unknown_renderer_lists_the_known_ones(tmp_path):
-    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:sample-viewer, .*ext:threejs"):
+    with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:babylon, ext:filament, ext:playcanvas, ext:sample-viewer, .*ext:threejs"):
         renderers.resolve_options("ext:nope")
     assert renderers.resolve_options("ext:threejs") == {}
     with pytest.raises(Exception, match="takes no options"):
@@ -265,7 +265,11 @@ def test_committed_clients_budget_is_well_formed():
     from compare.gate import _scene_arg, load_budget
 
     checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
-    assert {c.preset for c in checks} == {"ext:threejs", "ext:sample-viewer"} and len(checks) >= 4
+    # Every built-in client is gated on both CI scenes (sample-viewer-full: the same client as
+    # sample-viewer with slower settings, minutes per run).
+    clients = {f"ext:{n}" for n, cfg in C.load_renderers().items() if cfg.builtin} - {"ext:sample-viewer-full"}
+    assert clients >= {"ext:threejs", "ext:sample-viewer", "ext:babylon", "ext:playcanvas", "ext:filament"}
+    assert {(c.preset, c.scene) for c in checks} == {(p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml")}
     for c in checks:
         assert c.max and (base / c.reference).is_file()
         scene = _scene_arg(base, c.scene)

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Set up the external clients (clients/*/ with a package-lock.json: threejs, gltf-sample-viewer):
+# Set up the external clients (clients/*/ with a package-lock.json: threejs, gltf-sample-viewer,
+# babylon, playcanvas, filament):
 # Debian's nodejs, npm and chromium, then `npm ci` in each (their packages pinned by
 # package-lock.json; no browser download: Debian's chromium).
 # Installs only what is missing, and only as root; otherwise prints the exact commands and goes on
@@ -17,13 +18,13 @@ if [ ${#missing[@]} -gt 0 ]; then
     export DEBIAN_FRONTEND=noninteractive
     apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null 2>&1 ||
       { apt-get update -qq >/dev/null 2>&1 && apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null 2>&1; } ||
-      echo "pbrcheck: could not install ${missing[*]}; the browser clients (three.js, glTF Sample Viewer) will not run" >&2
+      echo "pbrcheck: could not install ${missing[*]}; the browser clients (three.js, the glTF Sample Viewer, Babylon.js, PlayCanvas, Filament) will not run" >&2
   else
-    echo "pbrcheck: the browser clients (three.js, glTF Sample Viewer) need ${missing[*]}; run as root: apt-get update && apt-get install -y ${missing[*]}" >&2
+    echo "pbrcheck: the browser clients (three.js, the glTF Sample Viewer, Babylon.js, PlayCanvas, Filament) need ${missing[*]}; run as root: apt-get update && apt-get install -y ${missing[*]}" >&2
   fi
 fi
 command -v npm >/dev/null 2>&1 || exit 0
-# Every client with a lockfile (clients/threejs, clients/gltf-sample-viewer, ...).
+# Every client with a lockfile (clients/threejs, clients/gltf-sample-viewer, clients/babylon, ...).
 for lock in "$root"/clients/*/package-lock.json; do
   dir="$(dirname "$lock")"
   stamp="$dir/node_modules/.package-lock.json"
