@@ -9,7 +9,8 @@ STAMP      := $(VENV)/.pbrcheck-installed
 # Minimal Debian packages: EGL + GL dispatch and Mesa's llvmpipe for headless moderngl,
 # LLVM 19 for Dr.Jit's LLVM backend (Mesa's LLVM 15 makes Dr.Jit 1.5 abort).
 # libatomic1: Dr.Jit and Mitsuba link it (absent on a bare Debian; found with a debootstrap minbase).
-SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1
+# build-essential: the C compiler that builds the reference MikkTSpace (setup.py, pbrcheck/mikktspace_c).
+SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1 build-essential
 
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
@@ -26,7 +27,7 @@ system-packages:
 client-packages:
 	@bash tools/ensure-clients.sh
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py $(wildcard pbrcheck/mikktspace_c/*.c pbrcheck/mikktspace_c/*.h)
 	@$(PY) -m pip --version >/dev/null 2>&1 || { rm -rf $(VENV); $(PYTHON) -m venv $(VENV); }
 	@$(PY) -m pip install --quiet --upgrade pip >/dev/null
 	$(PY) -m pip install --quiet -e '.[test]'

@@ -9,6 +9,9 @@ Budget format (TOML; see docs/compare.md)::
     options = { }                    # optional real-time option overrides
     # shader = "hooks/ue4.glsl"      # optional shader hook file (relative to the budget file)
     reference = "refs/spheres.exr"   # stored EXR (relative to the budget file) or "auto"
+    # reference_scene = "spheres_ms.toml"  # optional: the reference's scene, the check's scene but
+                                     # for [brdf] (the model the engine means to render: multiscatter,
+                                     # roughness_floor); the stored EXR must be of it
     spp = 64                         # with reference = "auto": samples per pixel (default 64)
     # test = "engine_out.exr"        # instead of preset: gate an image from any engine (scene
                                      # then only names objects / renders an "auto" reference)
@@ -79,7 +82,7 @@ from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
 from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
-CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "spp", "spp_cap", "test", "max", "min",
+CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "reference_scene", "spp", "spp_cap", "test", "max", "min",
               "mode", "seed", "on_change"}
 #: Top-level keys of a budget file besides [[check]].
 BUDGET_KEYS = {"check", "history", "on_change", "require_baselines"}
@@ -110,6 +113,8 @@ class Check:
     seed: int = 0
     spp_cap: int = DEFAULT_SPP_CAP
     on_change: str = "fail"
+    # The reference's scene (model-matched reference): the check's scene but for [brdf].
+    reference_scene: str | None = None
 
 
 @dataclass
@@ -212,7 +217,7 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
         names.add(name)
         if "on_change" in t and t["on_change"] not in ON_CHANGE:
             raise _err(path, f"{w}.on_change", " or ".join(f'"{x}"' for x in ON_CHANGE), t["on_change"])
-        for k in ("scene", "preset", "reference", "test", "mode", "shader"):
+        for k in ("scene", "preset", "reference", "reference_scene", "test", "mode", "shader"):
             if k in t and not isinstance(t[k], str):
                 raise _err(path, f"{w}.{k}", "a string", t[k])
         if "reference" not in t:
@@ -222,6 +227,9 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
             raise _err(path, w, "scene (rendered with preset) or test (an image path)", "neither")
         if t["reference"] == "auto" and not has_scene:
             raise _err(path, f"{w}.reference", '"auto" only together with scene', "auto")
+        if "reference_scene" in t and not has_scene:
+            raise _err(path, f"{w}.reference_scene", "reference_scene only together with scene",
+                       t["reference_scene"])
         if has_test and ("preset" in t or "options" in t or "shader" in t):
             raise _err(path, w, "preset/options/shader only with scene, not with test", "test")
         if "options" in t and not isinstance(t["options"], dict):
@@ -244,7 +252,8 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
                          preset=t.get("preset", "default"), options=options,
                          test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
                          seed=t.get("seed", 0), spp_cap=t.get("spp_cap", DEFAULT_SPP_CAP),
-                         on_change=t.get("on_change", top_change)))
+                         on_change=t.get("on_change", top_change),
+                         reference_scene=t.get("reference_scene")))
     return out, path.parent
 
 
@@ -253,6 +262,19 @@ def budget_settings(path: str | Path) -> dict:
     data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     return {"require_baselines": bool(data.get("require_baselines", False)),
             "on_change": data.get("on_change", "fail"), "history": len(data.get("history", []))}
+
+
+def _reference_scene(base: Path, check: Check, scene):
+    """The check's ``reference_scene``, refused unless it is the check's scene but for ``[brdf]``
+    (a model-matched reference: the objects, camera, lights and environment must be the same)."""
+    ref_scene = _scene_arg(base, check.reference_scene)
+    a, b = scene.content_dict(), ref_scene.content_dict()
+    a.pop("brdf"), b.pop("brdf")
+    if a != b:
+        diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+        raise BudgetError(f"reference_scene {check.reference_scene} differs from scene {check.scene} in "
+                          f"{', '.join(diff)}: only [brdf] may differ (the reference's model)")
+    return ref_scene
 
 
 def _resolve(base: Path, p: str) -> Path:
@@ -300,8 +322,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
         else:
             test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
             test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
+        ref_scene = _reference_scene(base, check, scene) if check.reference_scene else scene
         if check.reference == "auto":
-            ref, res.verdict = reference_for_verdict(scene, [test], spp=check.spp, cap=check.spp_cap,
+            ref, res.verdict = reference_for_verdict(ref_scene, [test], spp=check.spp, cap=check.spp_cap,
                                                      mode=check.mode, seed=check.seed, use_cache=True,
                                                      progress=progress)
             ref_name = f"auto reference ({check.scene}, {res.verdict.spp} spp)"
@@ -309,13 +332,14 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             ref_path = _resolve(base, check.reference)
             ref = read_exr(ref_path, require=RGB)
             ref_name = str(ref_path)
-            if scene is not None and ref.meta.get("scene_hash"):
+            if ref_scene is not None and ref.meta.get("scene_hash"):
                 # A stored reference of another scene (an edited scene file, a stale EXR) would make
                 # the gate measure a scene mismatch, not the shaders: refuse it.
-                want = scene_hash(scene)
+                want = scene_hash(ref_scene)
                 if ref.meta["scene_hash"] != want:
+                    which = check.reference_scene or check.scene
                     raise BudgetError(f"{ref_path}: reference was rendered for scene hash "
-                                      f"{ref.meta['scene_hash'][:16]}, but {check.scene} hashes to {want[:16]}; "
+                                      f"{ref.meta['scene_hash'][:16]}, but {which} hashes to {want[:16]}; "
                                       f"re-render it (pbrcheck reference ... --out {check.reference})")
         cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
         if res.verdict is None:

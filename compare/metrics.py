@@ -430,9 +430,18 @@ def display_referred(img: Image) -> Image:
     return Image.from_rgb(rgb, {**img.meta, "display_referred": "1"}, **extra)
 
 
+def material_bias(m: PixelMaps, mask: np.ndarray) -> float | None:
+    """Relative signed bias over ``mask``: ``sum(t - r) / sum(r)`` (every channel; 0 unbiased, > 0 the
+    test brighter); None over no pixels or a black reference."""
+    if not mask.any():
+        return None
+    r = float(m.ref[mask].sum())
+    return _f(float(m.diff[mask].sum()) / r) if r > REL_EPS else None
+
+
 def _material_metrics(scene, ids, valid, m, peak) -> list[dict]:
     """Metrics over the pixels of each glTF material (``asset file: material name``; the objects of
-    one material pooled)."""
+    one material pooled): :func:`summarize`'s and ``bias`` (:func:`material_bias`)."""
     groups: dict[str, list[int]] = {}
     for o in scene.objects:
         if o.type == "mesh":
@@ -444,7 +453,7 @@ def _material_metrics(scene, ids, valid, m, peak) -> list[dict]:
         mask = valid & np.isin(ids, oids)
         if mask.any():
             out.append({"material": name, "objects": oids, "pixels": int(mask.sum()),
-                        "metrics": summarize(m, mask, peak=peak)})
+                        "metrics": {**summarize(m, mask, peak=peak), "bias": material_bias(m, mask)}})
     return out
 
 

@@ -24,9 +24,9 @@ sparse accessors replace their indices' elements after the base (or zeros). UVs 
 at the image's top-left, v down), images are stored row 0 at the top, so a UV ``(u, v)`` reads
 pixel ``(v H, u W)`` without a flip. Where ``NORMAL`` is absent every triangle gets its flat normal
 (the vertices are unwelded); where ``TANGENT`` is absent and the material has a normal texture,
-tangents are generated (:func:`generate_tangents`: MikkTSpace's per-triangle tangents from the UV
-derivatives, angle-weighted at each vertex, orthogonalised against the normal, ``w`` from the
-bitangent's handedness, negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
+tangents are generated (:func:`generate_tangents`: the reference MikkTSpace C implementation,
+:mod:`pbrcheck.mikktspace`, per face corner, vertices split where it splits them; ``w`` its sign
+negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
 or their indices where unnamed, and the primitive's index).
 
 The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import PbrcheckError
+from .mikktspace import corner_tangents
 
 #: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
@@ -61,10 +62,6 @@ TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9
 ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0")
 WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR = 10497, 33071, 33648
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
-#: Triangles whose UV-space area is below this are skipped by tangent generation (degenerate UVs).
-UV_AREA_EPS = 1e-20
-#: A tangent shorter than this after orthogonalisation is replaced by any vector orthogonal to N.
-TANGENT_EPS = 1e-12
 #: Largest triangle count accepted in one asset (a corrupt count guard: 2^27).
 MAX_TRIANGLES = 1 << 27
 
@@ -508,48 +505,26 @@ def face_normals(pos: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(ln > 0, n / np.maximum(ln, 1e-30), np.array([0.0, 0.0, 1.0]))
 
 
-def _any_orthogonal(n: np.ndarray) -> np.ndarray:
-    h = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
-    t = np.cross(h, n)
-    return t / np.linalg.norm(t, axis=1, keepdims=True)
-
-
-def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """(N, 4) tangents with handedness: MikkTSpace's construction on a welded mesh -- per triangle
-    the tangent and bitangent from the UV derivatives (Mikkelsen 2008), accumulated at each vertex
-    weighted by the triangle's angle there, orthogonalised against the vertex normal (Gram-Schmidt);
-    ``w = -sign(dot(cross(N, T), B))`` (glTF's bitangent points to decreasing v). Triangles with degenerate UVs do not contribute."""
-    p = pos.astype(np.float64)
-    t = uv.astype(np.float64)
-    v0, v1, v2 = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
-    w0, w1, w2 = t[tri[:, 0]], t[tri[:, 1]], t[tri[:, 2]]
-    e1, e2 = v1 - v0, v2 - v0
-    d1, d2 = w1 - w0, w2 - w0
-    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-    ok = np.abs(det) > UV_AREA_EPS
-    r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
-    # B follows +v as stored; glTF's v points down the image and its bitangent (w (N x T)) points up
-    # the image, so w is MikkTSpace's sign negated (as three.js's computeMikkTSpaceTangents negateSign).
-    T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r
-    B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r
-    acc_t = np.zeros_like(p)
-    acc_b = np.zeros_like(p)
-    corners = [(0, 1, 2), (1, 2, 0), (2, 0, 1)]
-    for a, b, c in corners:
-        pa, pb, pc = p[tri[:, a]], p[tri[:, b]], p[tri[:, c]]
-        u1, u2 = pb - pa, pc - pa
-        cosang = np.einsum("ij,ij->i", u1, u2) / np.maximum(
-            np.linalg.norm(u1, axis=1) * np.linalg.norm(u2, axis=1), 1e-30)
-        ang = np.arccos(np.clip(cosang, -1.0, 1.0))[:, None] * ok[:, None]
-        np.add.at(acc_t, tri[:, a], T * ang)
-        np.add.at(acc_b, tri[:, a], B * ang)
-    n = nrm.astype(np.float64)
-    tt = acc_t - n * np.einsum("ij,ij->i", acc_t, n)[:, None]
-    ln = np.linalg.norm(tt, axis=1, keepdims=True)
-    bad = ln[:, 0] < TANGENT_EPS
-    tt = np.where(bad[:, None], _any_orthogonal(n), tt / np.maximum(ln, 1e-30))
-    w = np.where(np.einsum("ij,ij->i", np.cross(n, tt), acc_b) < 0, 1.0, -1.0)
-    return np.concatenate([tt, w[:, None]], axis=1).astype(np.float32)
+def generate_tangents(pos: np.ndarray, nrm: np.ndarray, uv: np.ndarray, tri: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """MikkTSpace tangents (the reference C implementation, :mod:`pbrcheck.mikktspace`) as glTF
+    3.7.2.1 asks: computed per face corner, then the corners rewelded where vertex and tangent agree.
+    Returns ``(tangents (M, 4), source (M,), tri (T, 3))``: ``source`` the input vertex of each output
+    vertex (a vertex MikkTSpace splits, e.g. on a mirrored-UV seam, appears once per tangent), ``tri``
+    the triangles over the output vertices. ``w = -fSign``: MikkTSpace's bitangent follows +v as
+    stored, glTF's v points down the image and its bitangent ``w (N x T)`` up the image (as three.js's
+    computeMikkTSpaceTangents with negateSign)."""
+    tri = np.asarray(tri, dtype=np.int64)
+    ct = corner_tangents(pos, nrm, uv, tri)
+    ct[:, 3] = np.where(ct[:, 3] < 0, 1.0, -1.0)
+    vid = tri.reshape(-1)
+    key = np.concatenate([vid.astype(np.int64)[:, None],
+                          np.ascontiguousarray(ct).view(np.int32).astype(np.int64)], axis=1)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)                  # output vertices in first-use order
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return ct[first[order]], vid[first[order]], rank[inverse.reshape(-1)].reshape(-1, 3)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -710,7 +685,9 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     tan = data.get("TANGENT")
     generated = False
     if tan is None and mat.normal_texture is not None:
-        tan = generate_tangents(pos, nrm, data[f"TEXCOORD_{mat.normal_texture.texcoord}"], tri)
+        tan, src, tri = generate_tangents(pos, nrm, data[f"TEXCOORD_{mat.normal_texture.texcoord}"], tri)
+        data = {k: v[src] for k, v in data.items()}
+        pos, nrm = data["POSITION"], nrm[src]
         generated = True
 
     # to world

@@ -102,6 +102,12 @@ class BRDFModel:
     # "none" | "random_walk" (reference only: reference/multiscatter.py; needs ndf = "ggx" with
     # geometry = "smith_ggx_correlated" or ndf = "beckmann" with "smith_beckmann_correlated").
     multiscatter: str = "none"
+    # Perceptual roughness floor of the reference's material (reference only, like multiscatter):
+    # the reference shades max(roughness, roughness_floor), the model of an engine that clamps
+    # roughness (three.js r187 lights_physical_fragment: max(roughnessFactor, 0.045), Filament's
+    # MIN_PERCEPTUAL_ROUGHNESS on desktop). 0 (default): no floor. The real-time renderer and the
+    # external clients render the scene's roughness as written (the clients apply their own floor).
+    roughness_floor: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -193,6 +199,8 @@ class Scene:
         d["environment"].pop("path", None)
         if d["brdf"].get("multiscatter") == "none":
             d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
+        if d["brdf"].get("roughness_floor") == 0.0:
+            d["brdf"].pop("roughness_floor")  # likewise
         for o in d["objects"]:
             o.pop("name", None)
             if o["type"] == "gltf":
@@ -405,12 +413,13 @@ def _lights(ctx, lst) -> tuple[PointLight, ...]:
 
 
 def _brdf(ctx, t) -> BRDFModel:
-    _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter"}, "brdf")
+    _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter", "roughness_floor"}, "brdf")
     model = BRDFModel(
         ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDF_NAMES),
         geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRY_NAMES),
         fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNEL_NAMES),
         multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTER_NAMES),
+        roughness_floor=float(_num(ctx, t, "roughness_floor", "brdf", 0.0, lo=0.0, hi=1.0)),
     )
     if model.multiscatter != "none":
         # The random walk's first bounce is the NDF's height-correlated Smith term.

@@ -529,7 +529,8 @@ def register() -> None:
 
 def material_dict(material, brdf) -> dict:
     """Mitsuba dict of a :class:`pbrcheck.scene.Material` under a :class:`pbrcheck.scene.BRDFModel`."""
+    # [brdf] roughness_floor: the material shades max(roughness, floor) (pbrcheck.scene.BRDFModel)
     return {"type": PLUGIN_NAME, "base_color": list(material.base_color), "metallic": material.metallic,
-            "roughness": material.roughness, "specular": material.specular,
+            "roughness": max(material.roughness, brdf.roughness_floor), "specular": material.specular,
             "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
             "multiscatter": brdf.multiscatter}

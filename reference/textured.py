@@ -3,12 +3,11 @@
 
 ``{"type": "pbr_textured", "base_color": [r, g, b], "metallic", "roughness", "specular", "ndf",
 "geometry", "fresnel", "base_color_texture": <texture>, "metallic_roughness_texture": <texture>,
-"normal_texture": <texture>, "normal_scale", "double_sided"}`` where each ``<texture>`` is a Mitsuba
-``bitmap`` (float32 linear pixels: colour textures sRGB-decoded on load, :meth:`GltfImage.linear`;
-``filter_type = "bilinear"`` (``"nearest"`` where the sampler's magFilter is NEAREST), the
-sampler's wrapS for both axes (Mitsuba's bitmap has one wrap mode), no mip filtering: the pixel's box-filter
-samples integrate the texture's footprint, the truth a mip chain approximates; ``to_uv`` =
-``KHR_texture_transform``'s matrix). Per lane (glTF 2.0 specification, section 3.9 and Appendix B)::
+"normal_texture": <texture>, "normal_scale", "double_sided"}`` where each ``<texture>`` is a
+``gltf_texture`` (:class:`GltfTexture`: float32 linear pixels, colour textures sRGB-decoded on load,
+:meth:`GltfImage.linear`; bilinear, nearest where the sampler's magFilter is NEAREST; the sampler's
+wrapS and wrapT each on its own axis; ``KHR_texture_transform``'s matrix; no mip filtering: the
+pixel's box-filter samples integrate the texture's footprint, the truth a mip chain approximates). Per lane (glTF 2.0 specification, section 3.9 and Appendix B)::
 
     base_color = base_color_factor * texture.rgb
     roughness  = roughness_factor * metallic_roughness.g,   metallic = metallic_factor * metallic_roughness.b
@@ -38,7 +37,7 @@ UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap l
 0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
 
 API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets),
-:func:`texture_dict`, :data:`PLUGIN_NAME`.
+:func:`texture_dict`, :class:`GltfTexture`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
 """
 
 from __future__ import annotations
@@ -54,6 +53,7 @@ import mitsuba as mi
 from .bsdf import MaterialView, is_mirror_limit
 
 PLUGIN_NAME = "pbr_textured"
+TEXTURE_PLUGIN = "gltf_texture"
 WRAP_MODES = {WRAP_CLAMP: "clamp", WRAP_MIRROR: "mirror"}   # else repeat
 #: glTF's magFilter NEAREST (9728): the texel itself; LINEAR or unset: bilinear.
 MAG_NEAREST = 9728
@@ -61,15 +61,84 @@ MAG_NEAREST = 9728
 FRAME_EPS = 1e-8
 
 
+def _pad_axis(px: np.ndarray, axis: int, wrap: int) -> np.ndarray:
+    """One texel more on each side of ``axis``: the neighbour that axis's wrap mode puts there
+    (REPEAT: the opposite edge; CLAMP_TO_EDGE and MIRRORED_REPEAT, which reflects about the edge:
+    the edge texel itself)."""
+    widths = [(0, 0)] * px.ndim
+    widths[axis] = (1, 1)
+    return np.pad(px, widths, mode="wrap" if wrap not in WRAP_MODES else "edge")
+
+
 def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
-    """A Mitsuba ``bitmap`` texture of float32 linear ``pixels`` (H, W, C) read as glTF ``ref`` reads it."""
-    d = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.float32)), "raw": True,
-         "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear",
-         "wrap_mode": WRAP_MODES.get(ref.wrap[0], "repeat")}
-    if ref.transform is not None:
-        m = np.asarray(ref.transform, float).reshape(3, 3)
-        d["to_uv"] = mi.ScalarTransform3f(m)
-    return d
+    """A ``gltf_texture`` (:class:`GltfTexture`) of float32 linear ``pixels`` (H, W, C) read as glTF
+    ``ref`` reads it: its own wrapS and wrapT, transform and magFilter."""
+    px = np.ascontiguousarray(pixels, dtype=np.float32)
+    h, w = px.shape[:2]
+    padded = _pad_axis(_pad_axis(px, 1, ref.wrap[0]), 0, ref.wrap[1])
+    inner = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(padded)), "raw": True,
+             "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp"}
+    m = np.eye(3) if ref.transform is None else np.asarray(ref.transform, float).reshape(3, 3)
+    return {"type": TEXTURE_PLUGIN, "inner": inner, "wrap_s": int(ref.wrap[0]), "wrap_t": int(ref.wrap[1]),
+            "width": int(w), "height": int(h), **{f"m{k}": float(x) for k, x in enumerate(m.reshape(-1)[:6])}}
+
+
+def _wrap(x, mode: int):
+    """glTF's wrap of one texture coordinate into [0, 1] (specification 3.8.4.3)."""
+    if mode == WRAP_CLAMP:
+        return dr.clip(x, 0.0, 1.0)
+    if mode == WRAP_MIRROR:
+        y = x - 2.0 * dr.floor(0.5 * x)            # [0, 2)
+        return dr.select(y > 1.0, 2.0 - y, y)
+    return x - dr.floor(x)
+
+
+class GltfTexture(mi.Texture):
+    """``gltf_texture``: a glTF texture with a sampler whose wrapS and wrapT may differ (Mitsuba's
+    ``bitmap`` has one ``wrap_mode``). ``{"type": "gltf_texture", "inner": <bitmap of the image padded
+    by one texel per side, each axis's padding its wrap mode's neighbour, wrap_mode clamp>, "wrap_s",
+    "wrap_t", "width", "height", "m0" .. "m5": the top two rows of KHR_texture_transform's matrix}``.
+    Per lookup: ``(u, v) = transform (u, v, 1)``, each axis wrapped by its own mode into [0, 1], then
+    read at ``((u W + 1) / (W + 2), (v H + 1) / (H + 2))`` in the padded image. Exact for bilinear and
+    nearest filtering: a lookup within half a texel of an edge blends with the padding, which is the
+    texel that axis's wrap mode puts beyond the edge."""
+
+    def __init__(self, props):
+        mi.Texture.__init__(self, props)
+        self.inner = props.get("inner")
+        self.wrap_s = int(props.get("wrap_s", 10497))
+        self.wrap_t = int(props.get("wrap_t", 10497))
+        self.width = int(props.get("width"))
+        self.height = int(props.get("height"))
+        self.m = [float(props.get(f"m{k}", float(k in (0, 4)))) for k in range(6)]
+
+    def _si(self, si):
+        m = self.m
+        u = m[0] * si.uv.x + m[1] * si.uv.y + m[2]
+        v = m[3] * si.uv.x + m[4] * si.uv.y + m[5]
+        u = (_wrap(u, self.wrap_s) * self.width + 1.0) / (self.width + 2.0)
+        v = (_wrap(v, self.wrap_t) * self.height + 1.0) / (self.height + 2.0)
+        s2 = mi.SurfaceInteraction3f(si)
+        s2.uv = mi.Point2f(u, v)
+        return s2
+
+    def eval(self, si, active=True):
+        return self.inner.eval(self._si(si), active)
+
+    def eval_1(self, si, active=True):
+        return self.inner.eval_1(self._si(si), active)
+
+    def eval_3(self, si, active=True):
+        return self.inner.eval_3(self._si(si), active)
+
+    def mean(self):
+        return self.inner.mean()
+
+    def is_spatially_varying(self):
+        return True
+
+    def to_string(self):
+        return f"GltfTexture[{self.width}x{self.height}, wrap=({self.wrap_s}, {self.wrap_t})]"
 
 
 class TexturedMaterial(mi.BSDF):
@@ -80,6 +149,8 @@ class TexturedMaterial(mi.BSDF):
         self.base_color = mi.Color3f(*[float(x) for x in props.get("base_color", [1.0, 1.0, 1.0])])
         self.metallic = mi.Float(float(props.get("metallic", 1.0)))
         self.roughness = mi.Float(float(props.get("roughness", 1.0)))
+        # [brdf] roughness_floor: shaded roughness = max(factor * texture.g, floor) (0: none)
+        self.roughness_floor = float(props.get("roughness_floor", 0.0))
         self.specular = mi.Float(float(props.get("specular", 0.04)))
         self.model = (str(props.get("ndf", "ggx")), str(props.get("geometry", "smith_ggx_correlated")),
                       str(props.get("fresnel", "schlick")), "none", 0)
@@ -142,6 +213,8 @@ class TexturedMaterial(mi.BSDF):
             mr = self._lookup("metallic_roughness", si, active)
             rough = rough * mr.y
             met = met * mr.z
+        if self.roughness_floor > 0.0:
+            rough = dr.maximum(rough, self.roughness_floor)
         n_local = mi.Vector3f(0.0, 0.0, 1.0)
         flip = mi.Bool(False)
         if self.double_sided:
@@ -252,6 +325,7 @@ def register() -> None:
     v = mi.variant()
     if v not in _REGISTERED:
         mi.register_bsdf(PLUGIN_NAME, lambda props: TexturedMaterial(props))
+        mi.register_texture(TEXTURE_PLUGIN, lambda props: GltfTexture(props))
         _REGISTERED.add(v)
 
 
@@ -263,7 +337,8 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
-         "geometry": brdf.geometry, "fresnel": brdf.fresnel, "normal_scale": float(m.normal_texture.scale)
+         "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
+         "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),

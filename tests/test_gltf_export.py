@@ -163,5 +163,43 @@ def test_per_material_metrics_of_an_asset_scene(tmp_path):
     cmp = compare_images(ref, test, scene=sc, noise=False, flip=False, itp=False)
     mats = cmp.summary["materials"]
     assert [m["material"] for m in mats] == ["q.gltf: matte"] and mats[0]["pixels"] == 64
-    assert mats[0]["metrics"] == cmp.summary["objects"][0]["metrics"]   # one object: the same pixels
+    obj = cmp.summary["objects"][0]["metrics"]      # one object: the same pixels
+    assert {k: v for k, v in mats[0]["metrics"].items() if k != "bias"} == obj
     assert mats[0]["metrics"]["relmse"] > 0
+
+
+def test_material_bias_and_the_report_table(tmp_path):
+    """compare's per-material ``bias`` (relative, signed), ``compare --json`` with an asset scene, and
+    the report's per-material table (renderer x material: relmse, FLIP mean, bias)."""
+    from compare.metrics import REL_EPS
+    from compare.report.build import _fmt, render_page
+    from compare.report.results import SceneSection
+    from compare.report.scene import MATERIAL_METRICS, material_rows
+    from pbrcheck.exr import Image, write_exr
+
+    doc_path = quad_asset(tmp_path / "q.gltf", {"name": "matte"})
+    scene_path = quad_scene(tmp_path, doc_path, size=(8, 8))
+    rgb = np.full((8, 8, 3), 0.5, np.float32)
+    ids = np.zeros((8, 8), np.float32)
+    ref = Image.from_rgb(rgb)
+    ref.channels["object"] = ids
+    test = Image.from_rgb(rgb * 0.8)                # 20 % too dark everywhere
+    test.channels["object"] = ids
+    write_exr(tmp_path / "ref.exr", ref)
+    write_exr(tmp_path / "test.exr", test)
+    assert cli.main(["compare", str(tmp_path / "ref.exr"), str(tmp_path / "test.exr"), "--scene", str(scene_path),
+                     "--json", str(tmp_path / "c.json")]) == 0
+    summary = json.loads((tmp_path / "c.json").read_text())
+    (mat,) = summary["materials"]
+    assert mat["material"] == "q.gltf: matte" and mat["pixels"] == 64
+    assert mat["metrics"]["bias"] == pytest.approx(-0.2, abs=1e-6)
+    assert mat["metrics"]["flip_mean"] > 0 and mat["metrics"]["relmse"] == pytest.approx(0.01 / (0.25 + REL_EPS), rel=1e-3)
+
+    rows = material_rows("ext:threejs", summary) + material_rows("ext:sample-viewer", {"materials": []})
+    assert rows == [{"preset": "ext:threejs", "material": "q.gltf: matte", "pixels": 64,
+                     "metrics": {k: mat["metrics"][k] for k in MATERIAL_METRICS}}]
+    section = SceneSection("s0", "q", "", 4, "s0/reference.png", [], [], [], None, [], None, rows)
+    html = render_page([section], [], [])
+    table = html.split("<h3>Metrics per glTF material</h3>")[1].split("</table>")[0]
+    assert "<th>relmse</th><th>flip_mean</th><th>bias</th>" in table
+    assert "ext:threejs" in table and "q.gltf: matte" in table and _fmt(-0.2) in table

@@ -42,7 +42,7 @@ from .references import references_sections
 from .research_sections import ResearchSettings, research_parts
 from .results import SceneSection
 from .runlog import RUN_FILE, RunLog, run_section
-from .scene import ReportSettings, SceneWork
+from .scene import MATERIAL_METRICS, ReportSettings, SceneWork
 from .section import Section, Table
 from .stages import ReportStage, run_stages
 from .summary import furnace_scene, furnace_section, summary_section
@@ -158,7 +158,8 @@ def render_page(scenes: list[SceneSection], top: list[Section], extras: list[Sec
     env = jinja2.Environment(loader=jinja2.PackageLoader(TEMPLATE_PACKAGE, TEMPLATE_DIR), autoescape=True,
                              undefined=jinja2.StrictUndefined)
     return env.get_template(TEMPLATE_NAME).render(
-        scenes=scenes, top=top, extras=extras, metric_names=METRICS, fmt=_fmt, version=__version__,
+        scenes=scenes, top=top, extras=extras, metric_names=METRICS, material_metrics=MATERIAL_METRICS, fmt=_fmt,
+        version=__version__,
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
 
 

@@ -8,7 +8,7 @@ API
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..verdict_spp import VerdictSpp
 
@@ -48,6 +48,7 @@ class SceneSection:
     noise_floor: float | None
     sweep_rows: list[dict]
     verdict: VerdictSpp | None = None
+    material_rows: list[dict] = field(default_factory=list)   # glTF assets: renderer x material
 
 
 __all__ = ["PresetResult", "SceneSection"]

@@ -18,7 +18,6 @@ from functools import partial
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
@@ -48,8 +47,17 @@ CONVERGENCE_SEED = 1
 PROVENANCE_SKIP = {"cache_key", "cache"}
 
 
-#: The metrics the report lists per glTF material (the summary's ``materials``).
-MATERIAL_METRICS = ("relmse", "flip_mean", "delta_e_itp_mean")
+#: The metrics the report's per-material table lists (the summary's ``materials``; ``bias`` is
+#: compare.metrics.material_bias, the relative signed bias).
+MATERIAL_METRICS = ("relmse", "flip_mean", "bias")
+
+
+def material_rows(preset: str, summary: dict) -> list[dict]:
+    """The per-material table's rows of one renderer (glTF asset scenes; empty otherwise):
+    ``{"preset", "material", "pixels", "metrics": {MATERIAL_METRICS}}``."""
+    return [{"preset": preset, "material": m["material"], "pixels": m["pixels"],
+             "metrics": {k: m["metrics"].get(k) for k in MATERIAL_METRICS}}
+            for m in summary.get("materials", [])]
 
 
 def convergence_spps(spp: int) -> list[int]:
@@ -102,6 +110,7 @@ class SceneWork:
         self.speed_rows: list[dict] = []
         self.dump: dict = {}
         self.provenance: list[tuple[str, str]] = []
+        self.material_rows: list[dict] = []
         self.sweep_table: list[dict] = []
         self.conv: list[dict] = []
         self.section: SceneSection | None = None
@@ -174,10 +183,7 @@ class SceneWork:
         self.dump[preset] = {**cmp.summary, "options": options,
                              "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         self.provenance.append((f"{preset} options", img.meta.get("options", "")))
-        for mrow in cmp.summary.get("materials", []):  # glTF assets: per material
-            self.provenance.append((f"{preset}: material {mrow['material']}", ", ".join(
-                f"{k} {format_value(mrow['metrics'].get(k), TABLE_DIGITS)}" for k in MATERIAL_METRICS)
-                + f" ({mrow['pixels']} px)"))
+        self.material_rows += material_rows(preset, cmp.summary)   # glTF assets: per material
         if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
             self.provenance.append((f"{preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
@@ -244,7 +250,7 @@ class SceneWork:
                           indent=1)
         self.section = SceneSection(sid, scene.name, scene.description, self.ref.meta.get("spp", self.st.spp),
                                     f"{sid}/reference.png", self.results, plots, self.provenance, self.noise_floor,
-                                    self.sweep_table, verdict)
+                                    self.sweep_table, verdict, self.material_rows)
 
 
 def _provenance(scene, ref) -> list[tuple[str, str]]:

@@ -1,0 +1,98 @@
+"""A gate check's ``reference_scene``: the model-matched reference (the check's scene but for
+``[brdf]``: multiscatter, roughness_floor) that an external engine is gated against."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from compare.gate import BudgetError, load_budget, run_check
+from pbrcheck.environment import scene_hash
+from pbrcheck.exr import Image, write_exr
+from pbrcheck.scene import load_scene
+
+SCENE = """name = "{name}"
+[camera]
+origin = [0.0, 0.0, 5.0]
+target = [0.0, 0.0, 0.0]
+width = {width}
+height = 8
+[environment]
+type = "constant"
+radiance = [1.0, 1.0, 1.0]
+{brdf}
+[[objects]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+"""
+
+BUDGET = """[[check]]
+name = "model-matched"
+scene = "s.toml"
+test = "test.exr"
+reference = "ref.exr"
+reference_scene = "{ref_scene}"
+[check.max]
+relmse = 1
+"""
+
+
+def _write(d: Path, ref_scene_text: str, hash_of: str) -> Path:
+    (d / "s.toml").write_text(SCENE.format(name="s", width=8, brdf=""))
+    (d / "s_ms.toml").write_text(ref_scene_text)
+    h = scene_hash(load_scene(d / hash_of))
+    rgb = np.full((8, 8, 3), 0.5, np.float32)
+    write_exr(d / "ref.exr", Image.from_rgb(rgb, meta={"scene_hash": h}))
+    write_exr(d / "test.exr", Image.from_rgb(rgb * 1.01))
+    (d / "b.toml").write_text(BUDGET.format(ref_scene="s_ms.toml"))
+    return d / "b.toml"
+
+
+MS = SCENE.format(name="s_ms", width=8, brdf='[brdf]\nmultiscatter = "random_walk"\nroughness_floor = 0.045\n')
+
+
+def test_the_reference_is_checked_against_the_reference_scene(tmp_path):
+    checks, base = load_budget(_write(tmp_path, MS, "s_ms.toml"))
+    assert checks[0].reference_scene == "s_ms.toml"
+    r = run_check(checks[0], base, progress=False)
+    assert r.status == "pass", r.error
+
+
+def test_a_reference_of_the_checks_own_scene_is_refused(tmp_path):
+    checks, base = load_budget(_write(tmp_path, MS, "s.toml"))  # a single-scattering EXR
+    r = run_check(checks[0], base, progress=False)
+    assert r.status == "error" and "s_ms.toml hashes to" in r.error
+
+
+def test_a_reference_scene_that_differs_outside_brdf_is_refused(tmp_path):
+    other = SCENE.format(name="s_ms", width=9, brdf='[brdf]\nmultiscatter = "random_walk"\n')
+    checks, base = load_budget(_write(tmp_path, other, "s_ms.toml"))
+    r = run_check(checks[0], base, progress=False)
+    assert r.status == "error" and "only [brdf] may differ" in r.error and "camera" in r.error
+
+
+def test_reference_scene_needs_scene(tmp_path):
+    (tmp_path / "b.toml").write_text('[[check]]\nname = "x"\ntest = "t.exr"\nreference = "r.exr"\n'
+                                     'reference_scene = "s.toml"\n[check.max]\nrelmse = 1\n')
+    with pytest.raises(BudgetError, match="reference_scene"):
+        load_budget(tmp_path / "b.toml")
+
+
+def test_shipped_client_checks_name_model_matched_references():
+    """clients.toml's existing checks gate three.js and the Sample Viewer against the random-walk
+    reference (three.js's with its roughness floor), each stored EXR of its reference_scene."""
+    from pbrcheck.exr import read_exr
+
+    path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml"
+    checks, base = load_budget(path)
+    for c in checks:
+        if c.preset not in ("ext:threejs", "ext:sample-viewer"):
+            continue  # other clients' checks choose their own reference
+        assert c.reference_scene, c.name
+        s = load_scene(base / c.reference_scene)
+        assert s.brdf.multiscatter == "random_walk", c.name
+        assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(s), c.name
+        if c.preset == "ext:threejs" and c.scene.startswith("spheres"):
+            assert s.brdf.roughness_floor == 0.045

@@ -1,0 +1,78 @@
+"""glTF samplers whose wrapS and wrapT differ, in the reference (reference.textured.GltfTexture):
+each axis wrapped by its own mode, exactly, bilinear and nearest."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, load_asset
+
+from gltf_build import quad_asset
+
+# A 3 x 4 (H x W) single-channel ramp: texel (row i, column j) = 10 i + j.
+PX = (10.0 * np.arange(3)[:, None] + np.arange(4)[None, :]).astype(np.float32)
+
+
+def _wrap_index(i: np.ndarray, n: int, mode: int) -> np.ndarray:
+    """Texel index i (any integer) of an n-texel axis under glTF's wrap mode."""
+    if mode == WRAP_CLAMP:
+        return np.clip(i, 0, n - 1)
+    if mode == WRAP_MIRROR:
+        j = np.mod(i, 2 * n)
+        return np.where(j < n, j, 2 * n - 1 - j)
+    return np.mod(i, n)
+
+
+def _expected(u: float, v: float, ws: int, wt: int, nearest: bool) -> float:
+    """glTF / OpenGL texture lookup of PX at (u, v): wrap per axis, then filter."""
+    h, w = PX.shape
+    if nearest:
+        def wrap1(x, n, mode):       # coordinate wrap, then the texel
+            if mode == WRAP_CLAMP:
+                x = min(max(x, 0.0), 1.0)
+            elif mode == WRAP_MIRROR:
+                y = x - 2.0 * np.floor(0.5 * x)
+                x = 2.0 - y if y > 1.0 else y
+            else:
+                x = x - np.floor(x)
+            return min(int(np.floor(x * n)), n - 1)
+        return float(PX[wrap1(v, h, wt), wrap1(u, w, ws)])
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = int(np.floor(x)), int(np.floor(y))
+    fx, fy = x - x0, y - y0
+    cols = _wrap_index(np.array([x0, x0 + 1]), w, ws)
+    rows = _wrap_index(np.array([y0, y0 + 1]), h, wt)
+    q = PX[np.ix_(rows, cols)]
+    return float((1 - fy) * ((1 - fx) * q[0, 0] + fx * q[0, 1]) + fy * ((1 - fx) * q[1, 0] + fx * q[1, 1]))
+
+
+@pytest.mark.parametrize("ws,wt", [(WRAP_REPEAT, WRAP_CLAMP), (WRAP_CLAMP, WRAP_MIRROR), (WRAP_MIRROR, WRAP_REPEAT)])
+@pytest.mark.parametrize("nearest", [False, True])
+def test_wrap_s_and_t_apply_to_their_own_axis(tmp_path, ws, wt, nearest):
+    from reference.variant import ensure_variant
+    ensure_variant()
+    import drjit as dr
+    import mitsuba as mi
+    from reference import textured
+    textured.register()
+
+    sampler = {"wrapS": ws, "wrapT": wt}
+    if nearest:
+        sampler["magFilter"] = 9728
+    img = np.zeros((3, 4, 3), np.uint8)          # the asset's image: only its sampler is used here
+    asset = load_asset(quad_asset(tmp_path / "w.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                  [(img, sampler)]))
+    ref = asset.material(0).base_color_texture
+    assert ref.wrap == (ws, wt)
+    tex = mi.load_dict(textured.texture_dict(np.repeat(PX[..., None], 3, axis=2), ref))
+    # UVs across every edge, beyond [0, 1] on both sides, and within half a texel of the edges
+    us = np.array([-1.3, -0.6, -0.05, 0.02, 0.3, 0.51, 0.97, 1.0, 1.04, 1.6, 2.2], np.float32)
+    uu, vv = np.meshgrid(us, us + 0.013)
+    si = dr.zeros(mi.SurfaceInteraction3f, uu.size)
+    si.uv = mi.Point2f(uu.reshape(-1), vv.reshape(-1))
+    got = np.array(tex.eval(si))[0]                 # Color3f: (3, N), the channels equal
+    want = np.array([_expected(float(u), float(v), ws, wt, nearest) for u, v in zip(uu.reshape(-1), vv.reshape(-1))])
+    assert np.allclose(got, want, atol=1e-4), np.c_[uu.reshape(-1), vv.reshape(-1), got, want][~np.isclose(got, want, atol=1e-4)]
+    # the two modes really differ on this grid (the test would catch one mode used for both axes)
+    same = np.array([_expected(float(u), float(v), ws, ws, nearest) for u, v in zip(uu.reshape(-1), vv.reshape(-1))])
+    assert not np.allclose(want, same, atol=1e-3)
