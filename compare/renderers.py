@@ -21,7 +21,8 @@ API
 - :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
 - :func:`resolve_options` -- a preset's complete, validated options
-  (:func:`realtime.presets.resolve_options`); ``{}`` for an external renderer (which takes none),
+  (:func:`realtime.presets.resolve_options`: a ``RealtimeOptions``, read as a mapping too); ``{}``
+  for an external renderer (which takes none),
   after checking that it exists.
 - :func:`multiscatter_albedo` -- the reference random walk's directional albedo
   (:func:`reference.multiscatter_measure.directional_albedo`).
@@ -36,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import json
 from collections import Counter
+from collections.abc import Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
@@ -208,7 +210,7 @@ def preset_names() -> list[str]:
     return list(_presets.PRESETS)
 
 
-def resolve_options(name: str, overrides: dict | None = None) -> dict:
+def resolve_options(name: str, overrides: dict | None = None) -> Mapping:
     """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``);
     ``{}`` for an external renderer that exists (raises ``RendererConfigError`` otherwise)."""
     if is_external(name):
