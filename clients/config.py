@@ -230,6 +230,11 @@ def set_renderers_file(path: str | Path | None) -> None:
     _user_file = Path(path) if path is not None else None
 
 
+def user_renderers_file() -> Path | None:
+    """The file :func:`set_renderers_file` named (``None``: none), so a caller can restore it."""
+    return _user_file
+
+
 def default_renderers_file() -> tuple[Path | None, bool]:
     """(the user renderers file, whether it was named explicitly): :func:`set_renderers_file`, else
     ``$PBRCHECK_RENDERERS``, else ``./renderers.toml`` (only when it exists)."""

@@ -236,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pbrcheck: error: {e}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    # --renderers names the file of this call only: an in-process caller (tests, scripts calling
+    # main() again) must not inherit it, so the previous choice is restored on the way out.
+    prev_renderers = clients.config.user_renderers_file()
     if getattr(args, "renderers", None):
         clients.config.set_renderers_file(args.renderers)
     stdout = sys.stdout
@@ -249,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
         sys.stdout = stdout
+        clients.config.set_renderers_file(prev_renderers)
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
 

@@ -57,8 +57,12 @@ def test_bench_report_runs_the_report_twice(capsys):
     res = json.loads(capsys.readouterr().out)
     first, again = res["first"], res["again"]
     assert res["args"] == TINY and res["first_wall_s"] == first["wall_s"] > 0
-    assert first["caches"]["realtime_miss"] == 1 and first["caches"]["reference_miss"] == 1
-    assert again["caches"]["realtime_hit"] == 1 and again["caches"]["reference_hit"] == 1
+    # The verdict rule renders a pilot (its own seed) and the returned reference (compare.verdict_spp):
+    # the first run misses both, the second hits every one of them and misses none.
+    assert first["caches"]["realtime_miss"] == 1 and first["caches"]["reference_miss"] in (1, 2, 3)
+    assert again["caches"]["realtime_hit"] == 1
+    assert again["caches"]["reference_hit"] == first["caches"]["reference_miss"]
+    assert not again["caches"].get("reference_miss")
     assert again["caches"].get("flip_hit", 0) >= 1 and not again["caches"].get("flip_miss")
     assert first["backends"]["reference_variant"] and first["backends"]["gl_renderer"]
     assert [s["name"] for s in first["stages"]][:3] == ["furnace: renderers under test", "furnace: reference",

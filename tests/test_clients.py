@@ -352,3 +352,16 @@ def test_threejs_client_without_a_browser_fails_in_one_line(scene, monkeypatch, 
     with pytest.raises(R.RendererError, match=r"ext:threejs: exited with status 1; stderr: .*cannot start Chromium "
                                               r"\(/nonexistent/chromium\)"):
         renderers.render_under_test(scene, "ext:threejs")
+
+
+def test_renderers_option_does_not_outlive_its_call(tmp_path):
+    """``--renderers FILE`` names the file of one ``main()`` call: a later in-process call (a test, a
+    script) must not read it (it once leaked a broken file into every later external render)."""
+    from clients.config import user_renderers_file
+    from pbrcheck.cli import main
+
+    bad = tmp_path / "renderers.toml"
+    bad.write_bytes(b"[renderer.x]\ncommand = '\xe9'\n")
+    assert user_renderers_file() is None
+    assert main(["--renderers", str(bad), "renderers"]) == 2
+    assert user_renderers_file() is None

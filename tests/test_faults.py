@@ -462,17 +462,27 @@ def test_signal_during_report_leaves_nothing(work, tmp_path, sig):
     assert not out.exists() and not list(tmp_path.glob(".report.*")), list(tmp_path.iterdir())
 
 
+#: Environments of the interrupted corpus (each a reference and a real-time render on one worker).
+CORPUS_SIGNAL_ENVS = 16
+
+
 @pytest.mark.parametrize("sig", SIGNALS)
 def test_signal_during_corpus_leaves_nothing(work, tmp_path, sig):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     marker = uuid.uuid4().hex
     out = tmp_path / "corpus"
-    argv = ["corpus", str(work / "envs"), "--scene", str(work / "tiny.toml"), "--presets", "default",
-            *RT_FAST, "--spp", "4", "--scheduler", "local:1", "--out", str(out)]
+    # Enough work that the run is still going when the worker is up and the signal comes (one
+    # environment at 4 spp once finished before the signal; CORPUS_SIGNAL_ENVS of them at 1024 spp).
+    envs = tmp_path / "envs"
+    envs.mkdir()
+    for i in range(CORPUS_SIGNAL_ENVS):
+        write_hdr(envs / f"grey{i:02d}.hdr", np.full((8, 16, 3), 0.1 + 0.05 * i, np.float32))
+    argv = ["corpus", str(envs), "--scene", str(work / "tiny.toml"), "--presets", "default",
+            *RT_FAST, "--spp", "1024", "--scheduler", "local:1", "--out", str(out)]
 
     def ready():  # the Dask worker runs (a process of the run besides pbrcheck itself)
-        return len(_marked(marker)) >= 2 and time.time() - t0 > 6
+        return len(_marked(marker)) >= 2 and time.time() - t0 > 1
 
     t0 = time.time()
     rc, err = _run_and_signal(argv, sig, ready, tmp, marker)
