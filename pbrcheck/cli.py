@@ -267,11 +267,33 @@ def _run(args) -> int:
         print(f"pbrcheck: error: {_describe_os_error(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
-        if isinstance(e, Terminated):
-            print("pbrcheck: terminated", file=sys.stderr)
-            return 128 + e.signum
-        print("pbrcheck: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted(e)
+    except Exception as e:
+        # A signal inside a C extension's import (Mitsuba's set_variant) surfaces as a SystemError whose
+        # context is the KeyboardInterrupt: still an interrupt, not a crash.
+        cause = _interrupt_in_chain(e)
+        if cause is None:
+            raise
+        return _interrupted(cause)
+
+
+def _interrupt_in_chain(e: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (or Terminated) among ``e``'s causes and contexts, if any."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _interrupted(e: KeyboardInterrupt) -> int:
+    if isinstance(e, Terminated):
+        print("pbrcheck: terminated", file=sys.stderr)
+        return 128 + e.signum
+    print("pbrcheck: interrupted", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":  # pragma: no cover
