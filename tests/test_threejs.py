@@ -136,3 +136,35 @@ def assert_one_candela_is_one_watt_per_steradian(renderer: str) -> None:
 
 def test_point_light_one_candela_is_one_watt_per_steradian():
     assert_one_candela_is_one_watt_per_steradian("ext:threejs")
+
+
+def _crashing_chromium(tmp_path: Path, crashes: int) -> Path:
+    """A Chromium stand-in that exits 1 on its first ``crashes`` page launches, then runs the real one."""
+    real = shutil.which("chromium") or shutil.which("chromium-browser")
+    count = tmp_path / "launches"
+    script = tmp_path / "chromium"
+    script.write_text(f"""#!/bin/sh
+case "$1" in --version) exec {real} "$@";; esac
+n=$(cat {count} 2>/dev/null || echo 0); echo $((n + 1)) > {count}
+if [ "$n" -lt {crashes} ]; then echo "simulated crash" >&2; exit 1; fi
+exec {real} "$@"
+""")
+    script.chmod(0o755)
+    return script
+
+
+def test_a_browser_that_dies_before_the_page_is_started_once_more(tmp_path, monkeypatch):
+    """Chromium exiting before the page ran is retried once with a fresh profile (a crash seen once in
+    ~40 gate renders); a second death is the error, naming both launches."""
+    from clients.run import RendererError
+
+    scene = load_scene("furnace")
+    (tmp_path / "once").mkdir()
+    monkeypatch.setenv("PBRCHECK_CHROMIUM", str(_crashing_chromium(tmp_path / "once", 1)))
+    img = renderers.render_under_test(scene, "ext:threejs", use_cache=False)
+    assert np.isfinite(img.rgb).all() and (tmp_path / "once" / "launches").read_text().strip() == "2"
+
+    (tmp_path / "always").mkdir()
+    monkeypatch.setenv("PBRCHECK_CHROMIUM", str(_crashing_chromium(tmp_path / "always", 99)))
+    with pytest.raises(RendererError, match="2 launches"):
+        renderers.render_under_test(scene, "ext:threejs", use_cache=False)

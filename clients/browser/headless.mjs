@@ -74,6 +74,9 @@ export function fail(label, msg) {
  * @param {number} o.timeoutS seconds before giving up
  * @param {function(object): object} o.describe  request headers -> the JSON line printed on success
  */
+/** Chromium starts at most this many times for one page (a browser that dies before the page ran). */
+const CHROMIUM_LAUNCHES = 2;
+
 export function runPage(o) {
   const bad = (msg) => fail(o.label, msg);
   const roots = [...o.roots, ['/browser/', BROWSER_DIR]].map(([prefix, dir]) => [prefix, path.resolve(dir)]);
@@ -153,12 +156,34 @@ export function runPage(o) {
       '--mute-audio', `--user-data-dir=${userDir}`, '--remote-debugging-port=0',
     ];
     if (process.getuid && process.getuid() === 0) flags.push('--no-sandbox');
-    chrome = spawn(chromiumPath(), [...flags, `http://127.0.0.1:${port}${o.page}`],
-      { stdio: ['ignore', 'ignore', 'pipe'] });
-    let stderrTail = '';
-    chrome.stderr.on('data', (d) => { stderrTail = (stderrTail + d.toString()).slice(-2000); });
-    chrome.on('error', (e) => bad(`cannot start Chromium (${chromiumPath()}): ${e.message}`));
-    chrome.on('exit', (code) => bad(`Chromium exited (${code}) before the page returned pixels: ${stderrTail.trim().split('\n').slice(-3).join(' | ')}`));
+    // Chromium on SwiftShader now and then exits within its first seconds, before the page runs
+    // (seen once in ~40 gate renders, the same render passing 6 times after): the browser, not the
+    // page, failed, so it is started once more with a fresh profile before that is an error. A page
+    // error (POST /error), a wrong size and the timeout are never retried.
+    let launches = 0;
+    function launch() {
+      launches += 1;
+      let stderrTail = '';
+      if (launches > 1) {  // a fresh profile: the dead browser's may hold its lock
+        try { rmSync(userDir, { recursive: true, force: true }); } catch { /* best effort */ }
+        userDir = mkdtempSync(path.join(tmpdir(), 'pbrcheck-chromium-'));
+      }
+      const args = [...flags.filter((f) => !f.startsWith('--user-data-dir=')), `--user-data-dir=${userDir}`];
+      chrome = spawn(chromiumPath(), [...args, `http://127.0.0.1:${port}${o.page}`],
+        { stdio: ['ignore', 'ignore', 'pipe'] });
+      chrome.stderr.on('data', (d) => { stderrTail = (stderrTail + d.toString()).slice(-2000); });
+      chrome.on('error', (e) => bad(`cannot start Chromium (${chromiumPath()}): ${e.message}`));
+      chrome.on('exit', (code) => {
+        const why = `Chromium exited (${code}) before the page returned pixels`;
+        if (launches < CHROMIUM_LAUNCHES) {
+          process.stderr.write(`${o.label}: ${why}; starting it once more\n`);
+          launch();
+          return;
+        }
+        bad(`${why} (${launches} launches): ${stderrTail.trim().split('\n').slice(-3).join(' | ')}`);
+      });
+    }
+    launch();
     timer = setTimeout(() => bad(`no pixels after ${o.timeoutS} s`), o.timeoutS * 1000);
   });
 }
