@@ -244,10 +244,11 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
 
 
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
-                    sampler: str = "independent", mis: str = "power"):
+                    sampler: str = "independent", mis: str = "power", env_sampling: str = "envmap"):
     """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
     ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``); ``mis``: the
-    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``)."""
+    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
+    its environment proposal (``reference.env_sampling.ENV_SAMPLING``)."""
     mi, _ = _mi()
     from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
 
@@ -256,7 +257,8 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
 
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
-                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis})
+                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis,
+                         "env_sampling": env_sampling})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
@@ -282,10 +284,11 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power") -> Image:
+                    mis: str = "power", env_sampling: str = "envmap") -> Image:
     """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
-    heuristic, for measurements only (not part of the cache key: :func:`render_reference` always
-    renders the default, ``reference.integrator.DEFAULT_MIS``)."""
+    heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``), both for
+    measurements only (not part of the cache key: :func:`render_reference` always renders the
+    defaults, ``reference.integrator.DEFAULT_MIS`` and ``reference.env_sampling.DEFAULT_ENV_SAMPLING``)."""
     check_sampler(sampler)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
@@ -303,7 +306,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     from .integrator import MIN_REPLICATES, MOMENT_CHANNELS, pass_sizes, replicate_plan, sensor_dict  # variant set
 
-    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis)
+    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis, env_sampling=env_sampling)
     sensor = mi.load_dict(sensor_dict(scene.camera, spp, sampler))
     W, H = scene.camera.width, scene.camera.height
     adaptive = bool(adaptive) and sampler == "qmc" and spp >= ADAPTIVE_MIN_SPP
