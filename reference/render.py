@@ -64,7 +64,9 @@ from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
-REFERENCE_CODE_VERSION = "3"  # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive
+# 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive; 4: the
+# environment sampled by MIS compensation (reference.env_sampling)
+REFERENCE_CODE_VERSION = "4"
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
@@ -244,12 +246,13 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
 
 
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
-                    sampler: str = "independent", mis: str = "power", env_sampling: str = "envmap"):
+                    sampler: str = "independent", mis: str = "power", env_sampling: str | None = None):
     """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
     ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``); ``mis``: the
     local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
-    its environment proposal (``reference.env_sampling.ENV_SAMPLING``)."""
+    its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default)."""
     mi, _ = _mi()
+    from .env_sampling import DEFAULT_ENV_SAMPLING  # local: imports Mitsuba
     from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
 
     if mis not in MIS_HEURISTICS:
@@ -258,7 +261,7 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
                          "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis,
-                         "env_sampling": env_sampling})
+                         "env_sampling": env_sampling or DEFAULT_ENV_SAMPLING})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
@@ -284,7 +287,7 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power", env_sampling: str = "envmap") -> Image:
+                    mis: str = "power", env_sampling: str | None = None) -> Image:
     """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
     heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``), both for
     measurements only (not part of the cache key: :func:`render_reference` always renders the

@@ -291,16 +291,21 @@ def test_cache_key_names_the_sampler_and_adaptive():
         k(sampler="sobol")
 
 
-@pytest.mark.parametrize("rough", [0.4, 0.05])
-def test_balance_heuristic_estimates_the_same_pixels(rough):
-    """``mis = "balance"`` (a measured candidate, not the default): another weighting of the same two
-    samples, so the same image within noise; an unknown heuristic is refused by name."""
+@pytest.mark.parametrize("rough,option", [(0.4, {"mis": "balance"}), (0.05, {"mis": "balance"}),
+                                          (0.4, {"env_sampling": "envmap"}), (0.05, {"env_sampling": "envmap"})])
+def test_measured_candidates_estimate_the_same_pixels(rough, option):
+    """``mis = "balance"`` (a measured candidate, not the default) and ``env_sampling = "envmap"``
+    (Mitsuba's environment sampling, the default's predecessor against MIS compensation): other
+    weightings or proposals of the same integral, so the same image within noise; an unknown name
+    is refused."""
     scene = _scene(roughness=rough)
     a = render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent", adaptive=False)
-    b = render_uncached(scene, spp=64, seed=6, progress=False, sampler="independent", adaptive=False, mis="balance")
+    b = render_uncached(scene, spp=64, seed=6, progress=False, sampler="independent", adaptive=False, **option)
     _z_agree(a.rgb, a.variance, b.rgb, b.variance)
     assert 0.5 < b.variance.mean() / a.variance.mean() < 2.0
     assert not np.array_equal(a.rgb, render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent",
-                                                     adaptive=False, mis="balance").rgb)  # the switch is live
+                                                     adaptive=False, **option).rgb)  # the switch is live
     with pytest.raises(ValueError, match="mis must be one of"):
         rr.load_integrator("local", mis="cutoff")
+    with pytest.raises(ValueError, match="env_sampling must be one of"):
+        rr.load_integrator("local", env_sampling="product")
