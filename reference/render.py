@@ -252,11 +252,13 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
     local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
     its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default)."""
     mi, _ = _mi()
-    from .env_sampling import DEFAULT_ENV_SAMPLING  # local: imports Mitsuba
+    from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING  # local: imports Mitsuba
     from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
 
     if mis not in MIS_HEURISTICS:
         raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {mis!r}")
+    if env_sampling is not None and env_sampling not in ENV_SAMPLING:
+        raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, not {env_sampling!r}")
 
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
