@@ -4,8 +4,9 @@
 "gather_materials": bool}``; a
 subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, params, ...)`` differentiates it.
 
-* ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
-  sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
+* ``mode = "local"``: the first hit only. One environment sample (``env_sampling``, default
+  ``"compensated"``: MIS compensation, :mod:`reference.env_sampling`; ``"envmap"``: Mitsuba's envmap
+  importance sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
   lobe takes weight 1), **no visibility tests**; every delta-position emitter (point light) is added
   exactly through its deterministic ``sample_direction`` (``f cos I / d^2``), without a shadow ray.
   Camera rays that miss see the environment. This is the integral real-time IBL approximates.

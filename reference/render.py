@@ -7,7 +7,7 @@ reproduces :mod:`pbrcheck.camera` (:func:`reference.integrator.sensor_dict`).
 Integrators (``mode``)
 ----------------------
 * ``local`` (default): the first hit only. Per camera sample it takes one environment sample
-  (Mitsuba's envmap importance sampling) and one BSDF sample, combined with multiple importance
+  (MIS compensation, :mod:`reference.env_sampling`) and one BSDF sample, combined with multiple importance
   sampling (power heuristic; a delta lobe takes weight 1), with **no visibility tests**, plus every
   point light without a shadow ray (``f cos * I / d^2``, exact, no noise). Camera rays that miss see
   the environment. This is the integral real-time image-based lighting approximates.
