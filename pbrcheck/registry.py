@@ -87,6 +87,14 @@ class Entry:
         The term's functions (NDFs, geometry and Fresnel terms): the numpy, Dr.Jit and GLSL
         dispatch loop over these (:func:`pbrcheck.brdf.geometry_term`,
         :func:`reference.terms.geometry_term`, :func:`glsl_generated`).
+    roles : dict of str to Impl
+        For a list whose members each implement several dispatch functions (:data:`ROLE_REGISTRIES`:
+        energy compensations, DFG LUT sampling strategies): the member's functions by the dispatch
+        function's name (``"energy_scale"``), each named alike in the three languages
+        (``energy_scale_filament``). A role the member has not is its list's identity there.
+    applies_to : str
+        Where the member applies, and why a role has no function (``fdez_aguera``: image-based
+        lighting only); ``tests/test_registry.py`` requires it of a member missing a role.
     """
 
     name: str
@@ -94,6 +102,8 @@ class Entry:
     scene: bool = True
     extra: dict = field(default_factory=dict)
     impl: Impl | None = None
+    roles: dict = field(default_factory=dict)
+    applies_to: str = ""
 
 
 class Registry:
@@ -228,15 +238,67 @@ IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", texel_sum="sum over every sour
                              polar_steps="article 000's uniform polar / azimuth steps")
 DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013",
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
-LUT_SAMPLINGS = _switch("LUT_SAMPLING", vndf="GGX visible normals, Heitz 2018 (GGX NDF only)",
-                        ndf="half vectors drawn from the NDF, Walter et al. 2007")
-#: Multiple-scattering energy compensation of the real-time specular lobe (pbrcheck/energy.py,
-#: realtime/shaders/energy.glsl).
-ENERGY_COMPENSATIONS = _switch(
-    "ENERGY_COMPENSATION", none="single scattering only",
-    filament="Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
-    fdez_aguera="Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
-    kulla_conty="Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table")
+
+
+def _roles(member: str, *roles: str) -> dict[str, Impl]:
+    """``{role: Impl}`` of a member whose role functions are named ``<role>_<member>`` in the three
+    languages (``energy_scale_filament``)."""
+    return {r: Impl(f"{r}_{member}", f"{r}_{member}", f"{r}_{member}") for r in roles}
+
+
+#: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
+#: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
+#: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
+#: :mod:`reference.dfg`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
+#: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
+LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
+    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
+          roles=_roles("vndf", "lut_half_vector", "lut_weight"),
+          applies_to="the GGX NDF only (its visible normals); other NDFs bake with ndf"),
+    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007", extra={"ndfs": None},
+          roles=_roles("ndf", "lut_half_vector", "lut_weight"), applies_to="every NDF (its own D (n.h) sampler)"),
+])
+
+
+def lut_sampling_for(sampling: str, ndf: str) -> str:
+    """The LUT sampling strategy used for ``ndf``: ``sampling`` where it is defined for that NDF,
+    else ``ndf`` (KeyError for an unknown strategy)."""
+    ndfs = LUT_SAMPLINGS[sampling].extra["ndfs"]
+    return sampling if ndfs is None or ndf in ndfs else "ndf"
+
+
+_IBL_ONLY = "image-based lighting only"
+#: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
+#: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
+#: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
+#: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy`,
+#: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
+#: ``ibl = splitsum`` only (they need the split sum's DFG terms).
+ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
+    Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
+    Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
+          roles=_roles("filament", "energy_scale", "energy_direct"),
+          applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
+    Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
+          roles=_roles("fdez_aguera", "energy_ms"),
+          applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
+    Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
+          roles=_roles("kulla_conty", "energy_ms", "energy_direct"),
+          applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
+])
+
+#: The registries whose members implement roles (:attr:`Entry.roles`), by GLSL switch: the generated
+#: include, each role's GLSL dispatch signature and the identity a member without the role returns.
+ROLE_REGISTRIES = {
+    "ENERGY_COMPENSATION": (ENERGY_COMPENSATIONS, "energy_dispatch.glsl", {
+        "energy_scale": ("vec3 energy_scale(vec3 F0, float A, float B)", "vec3(1.0)"),
+        "energy_ms": ("vec3 energy_ms(vec3 F0, float A, float B, float roughness)", "vec3(0.0)"),
+        "energy_direct": ("vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness)",
+                          "vec3(0.0)")}),
+    "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", {
+        "lut_half_vector": ("vec3 lut_half_vector(vec2 u, vec3 v, float alpha)", ""),
+        "lut_weight": ("float lut_weight(float G, vec3 v, vec3 h, float alpha)", "")}),
+}
 #: Specular occlusion of the image-based specular from the ambient occlusion (pbrcheck/occlusion.py,
 #: realtime/shaders/occlusion.glsl).
 SPECULAR_OCCLUSIONS = _switch(
@@ -337,9 +399,29 @@ def _sampling_dispatch() -> str:
     return "\n".join(lines)
 
 
+def _roles_dispatch(define: str) -> str:
+    """Each role's dispatch function of the role registry ``define`` (:data:`ROLE_REGISTRIES`): the
+    selected member's ``<role>_<name>`` called with the dispatch's parameters, or the identity for a
+    member without that role; the registry's first member is the default switch value."""
+    registry, _, roles = ROLE_REGISTRIES[define]
+    lines = [f"// Generated from pbrcheck.registry.{define}S (ROLE_REGISTRIES): do not edit.",
+             f"#ifndef {define}", f"#define {define} {registry.constant(registry.names[0])}", "#endif"]
+    for role, (signature, identity) in roles.items():
+        params = ", ".join(p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(","))
+
+        def body(e, role=role, identity=identity, params=params):
+            return [f"    return {e.roles[role].glsl}({params});" if role in e.roles else f"    return {identity};"]
+
+        lines += ["", signature + " {", *_switch_lines(registry, body), "}"]
+    return "\n".join(lines) + "\n"
+
+
 def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
-    (:func:`_sampling_dispatch`)."""
-    return {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
-            "sampling_dispatch.glsl": _sampling_dispatch()}
+    (:func:`_sampling_dispatch`), and each role registry's (:func:`_roles_dispatch`):
+    ``energy_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
+    out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
+           "sampling_dispatch.glsl": _sampling_dispatch()}
+    out.update({include: _roles_dispatch(define) for define, (_, include, _) in ROLE_REGISTRIES.items()})
+    return out
