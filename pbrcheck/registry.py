@@ -115,11 +115,16 @@ class Registry:
         The GLSL switch (``"GEOMETRY"``); each member's constant is ``DEFINE_NAME`` upper-cased.
     entries : sequence of Entry
         The members, in a fixed order (their GLSL constant is their index).
+    applies_to : str
+        For a list whose members carry no implementations in the three languages (neither
+        :attr:`Entry.impl` nor :attr:`Entry.roles`): where it applies and why (a switch of one
+        renderer's own code); ``tests/test_registry.py`` requires it of such a list.
     """
 
-    def __init__(self, define: str, entries):
+    def __init__(self, define: str, entries, applies_to: str = ""):
         self.define = define
         self.entries = tuple(entries)
+        self.applies_to = applies_to
         self._by_name = {e.name: e for e in self.entries}
         if len(self._by_name) != len(self.entries):
             raise ValueError(f"registry {define}: duplicate member names")
@@ -198,7 +203,9 @@ TERM_REGISTRIES = {"NDF": (NDFS, "float ndf_term(float NoH, float roughness)", "
 #: Roughness -> prefiltered mip level. ``extra["basis"]``: the mapping as coefficients of
 #: :data:`pbrcheck.lodmap.BASIS_NAMES` times the last level ``M`` (None: not a member of the fit's
 #: family); ``extra["builtin"]``: bakes a prefiltered chain (``fitted`` reads a built-in chain).
-LOD_MAPPINGS = Registry("LOD_MAPPING", [
+LOD_MAPPINGS = Registry("LOD_MAPPING", applies_to=(
+    "the real-time renderer's prefiltered chain only (the reference has none): GLSL lod_<name> / roughness_<name> "
+    "(lod.glsl) and numpy twins of the same names (pbrcheck.lodmap)"), entries=[
     Entry("linear", "article 000: lod = r M", extra={"builtin": True, "basis": (1, 0, 0, 0, 0, 0)}),
     Entry("quadratic", "Filament's perceptualRoughnessToLod: lod = M r (2 - r)",
           extra={"builtin": True, "basis": (0, 0, 0, 0, 0, 1)}),
@@ -211,7 +218,9 @@ LOD_MAPPINGS = Registry("LOD_MAPPING", [
 #: The built-in mappings (each bakes its own prefiltered chain).
 BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
 
-SHADINGS = Registry("SHADING", [
+SHADINGS = Registry("SHADING", applies_to=(
+    "the real-time renderer's compositions (shading.glsl, one shade function each); the reference renders "
+    "one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
     Entry("material", "README's material model"),
     Entry("article000", "article 000 (Drevicky 2018)"),
     Entry("article001", "article 001 (runtime importance sampling)"),
@@ -220,23 +229,29 @@ SHADINGS = Registry("SHADING", [
 
 #: ``extra["glsl"]``: the half vector's expression in tangent space (``u`` the 2-D point, ``vt`` the
 #: view direction in tangent space), generated into ``runtime_half_vector`` (sampling_dispatch.glsl).
-RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
+RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", applies_to=(
+    "the real-time renderer's runtime importance sampling only (environment_light.glsl); its GLSL samplers "
+    "have numpy twins in pbrcheck.sampling"), entries=[
     Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
           extra={"glsl": "sample_Beckmann(u, alpha)"}),
     Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36", extra={"glsl": "sample_GGX(u, alpha)"}),
     Entry("vndf", "GGX visible normals, Heitz 2018", extra={"glsl": "sample_GGX_VNDF(u.yx, vt, alpha)"}),
 ])
 
-def _switch(define: str, **members: str) -> Registry:
-    """A registry of scene-independent switch values: ``member=source`` keyword pairs, in order."""
-    return Registry(define, [Entry(name, source) for name, source in members.items()])
+def _switch(define: str, applies_to: str, **members: str) -> Registry:
+    """A registry of switch values of one renderer's own code (``applies_to`` says which):
+    ``member=source`` keyword pairs, in order."""
+    return Registry(define, [Entry(name, source) for name, source in members.items()], applies_to)
 
 
-IRRADIANCES = _switch("IRRADIANCE", convolution="cube convolution of the environment (E(n) / pi per texel)",
+_REALTIME_ONLY = "a switch of the real-time renderer's own passes ({}); no numpy or Dr.Jit counterpart"
+
+
+IRRADIANCES = _switch("IRRADIANCE", _REALTIME_ONLY.format("irradiance.comp, sh9.comp"), convolution="cube convolution of the environment (E(n) / pi per texel)",
                       sh9="9 spherical-harmonic coefficients, Ramamoorthi & Hanrahan 2001 (article 002)")
-IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", texel_sum="sum over every source texel, weighted by its solid angle",
+IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", _REALTIME_ONLY.format("irradiance.comp"), texel_sum="sum over every source texel, weighted by its solid angle",
                              polar_steps="article 000's uniform polar / azimuth steps")
-DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013",
+DFGS = _switch("DFG", _REALTIME_ONLY.format("ibl.glsl"), lut="baked DFG LUT (split sum's second factor), Karis 2013",
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
 
 
@@ -302,12 +317,14 @@ ROLE_REGISTRIES = {
 #: Specular occlusion of the image-based specular from the ambient occlusion (pbrcheck/occlusion.py,
 #: realtime/shaders/occlusion.glsl).
 SPECULAR_OCCLUSIONS = _switch(
-    "SPECULAR_OCCLUSION", none="the specular image-based term is not occluded",
+    "SPECULAR_OCCLUSION", "the real-time renderer's image-based specular (occlusion.glsl, numpy twin "
+                          "pbrcheck.occlusion); the reference traces occlusion", none="the specular image-based term is not occluded",
     lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
             "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
-MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
+MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (reference.multiscatter); the "
+                        "real-time renderer approximates it by ENERGY_COMPENSATIONS", none="single scattering (Smith microfacet BRDF)",
                         random_walk="multiple-scattering random walk on the Smith microsurface, "
                                     "Heitz, Hanika, d'Eon, Dachsbacher 2016")
 #: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
