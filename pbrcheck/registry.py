@@ -161,6 +161,15 @@ class Registry:
         return {self.constant(e.name): i for i, e in enumerate(self.entries)}
 
 
+def _roles(member: str, *roles: str, **shared: str) -> dict[str, Impl]:
+    """``{role: Impl}`` of a member whose role functions are named ``<role>_<member>`` in the three
+    languages (``energy_scale_filament``); ``shared``: ``role="<role>_<other>"`` for a function
+    several members share (``runtime_estimate_ndf``)."""
+    out = {r: Impl(f"{r}_{member}", f"{r}_{member}", f"{r}_{member}") for r in roles}
+    out.update({r: Impl(fn, fn, fn) for r, fn in shared.items()})
+    return out
+
+
 _ALPHA = "alpha_from_roughness"
 
 NDFS = Registry("NDF", [
@@ -227,15 +236,20 @@ SHADINGS = Registry("SHADING", applies_to=(
     Entry("article002", "article 002 (EnvBRDFApprox, SH9)"),
 ])
 
-#: ``extra["glsl"]``: the half vector's expression in tangent space (``u`` the 2-D point, ``vt`` the
-#: view direction in tangent space), generated into ``runtime_half_vector`` (sampling_dispatch.glsl).
-RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", applies_to=(
-    "the real-time renderer's runtime importance sampling only (environment_light.glsl); its GLSL samplers "
-    "have numpy twins in pbrcheck.sampling"), entries=[
+#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
+#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
+#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
+#: for pdf = D_GGX (n.h) only, is the article's, shared by beckmann and ggx); numpy in
+#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
+RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
     Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
-          extra={"glsl": "sample_Beckmann(u, alpha)"}),
-    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36", extra={"glsl": "sample_GGX(u, alpha)"}),
-    Entry("vndf", "GGX visible normals, Heitz 2018", extra={"glsl": "sample_GGX_VNDF(u.yx, vt, alpha)"}),
+          roles=_roles("beckmann", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
+          applies_to="the article's estimator, exact for pdf = D_GGX (n.h) only: biased for the GGX D it shades"),
+    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
+          roles=_roles("ggx", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
+          applies_to="every NDF's shading; exact for the GGX D"),
+    Entry("vndf", "GGX visible normals, Heitz 2018", roles=_roles("vndf", "runtime_half_vector", "runtime_estimate"),
+          applies_to="every NDF's shading; exact for the GGX D with the Smith GGX G1"),
 ])
 
 def _switch(define: str, applies_to: str, **members: str) -> Registry:
@@ -255,16 +269,11 @@ DFGS = _switch("DFG", _REALTIME_ONLY.format("ibl.glsl"), lut="baked DFG LUT (spl
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
 
 
-def _roles(member: str, *roles: str) -> dict[str, Impl]:
-    """``{role: Impl}`` of a member whose role functions are named ``<role>_<member>`` in the three
-    languages (``energy_scale_filament``)."""
-    return {r: Impl(f"{r}_{member}", f"{r}_{member}", f"{r}_{member}") for r in roles}
-
 
 #: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
 #: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
 #: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
-#: :mod:`reference.dfg`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
+#: :mod:`reference.sampling`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
 #: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
 LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
     Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
@@ -303,14 +312,19 @@ ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
 ])
 
 #: The registries whose members implement roles (:attr:`Entry.roles`), by GLSL switch: the generated
-#: include, each role's GLSL dispatch signature and the identity a member without the role returns.
+#: include, the member selected where a shader leaves the switch undefined, and each role's GLSL
+#: dispatch signature and the identity a member without the role returns ("": every member has it).
 ROLE_REGISTRIES = {
-    "ENERGY_COMPENSATION": (ENERGY_COMPENSATIONS, "energy_dispatch.glsl", {
+    "ENERGY_COMPENSATION": (ENERGY_COMPENSATIONS, "energy_dispatch.glsl", "none", {
         "energy_scale": ("vec3 energy_scale(vec3 F0, float A, float B)", "vec3(1.0)"),
         "energy_ms": ("vec3 energy_ms(vec3 F0, float A, float B, float roughness)", "vec3(0.0)"),
         "energy_direct": ("vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness)",
                           "vec3(0.0)")}),
-    "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", {
+    "RUNTIME_SAMPLING": (RUNTIME_SAMPLINGS, "runtime_sampling_dispatch.glsl", "vndf", {
+        "runtime_half_vector": ("vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha)", ""),
+        "runtime_estimate": ("vec3 runtime_estimate(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha)",
+                             "")}),
+    "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", "vndf", {
         "lut_half_vector": ("vec3 lut_half_vector(vec2 u, vec3 v, float alpha)", ""),
         "lut_weight": ("float lut_weight(float G, vec3 v, vec3 h, float alpha)", "")}),
 }
@@ -406,23 +420,20 @@ def _terms_dispatch() -> str:
 
 def _sampling_dispatch() -> str:
     """``sample_ndf(u, alpha)``: a half vector drawn from the selected NDF's ``D (n.h)`` (its entry's
-    ``extra["sample"]``); ``runtime_half_vector(u, vt, alpha)``: RUNTIME_SAMPLING's draw."""
-    lines = ["// Generated from pbrcheck.registry (NDFS, RUNTIME_SAMPLINGS): do not edit.",
-             "#ifndef RUNTIME_SAMPLING", f"#define RUNTIME_SAMPLING {RUNTIME_SAMPLINGS.constant('vndf')}", "#endif",
+    ``extra["sample"]``)."""
+    lines = ["// Generated from pbrcheck.registry.NDFS: do not edit.",
              "vec3 sample_ndf(vec2 u, float alpha) {",
-             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", "",
-             "vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha) {",
-             *_switch_lines(RUNTIME_SAMPLINGS, lambda e: [f"    return {e.extra['glsl']};"]), "}", ""]
+             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", ""]
     return "\n".join(lines)
 
 
 def _roles_dispatch(define: str) -> str:
     """Each role's dispatch function of the role registry ``define`` (:data:`ROLE_REGISTRIES`): the
-    selected member's ``<role>_<name>`` called with the dispatch's parameters, or the identity for a
-    member without that role; the registry's first member is the default switch value."""
-    registry, _, roles = ROLE_REGISTRIES[define]
+    selected member's role function called with the dispatch's parameters, or the identity for a
+    member without that role."""
+    registry, _, default, roles = ROLE_REGISTRIES[define]
     lines = [f"// Generated from pbrcheck.registry.{define}S (ROLE_REGISTRIES): do not edit.",
-             f"#ifndef {define}", f"#define {define} {registry.constant(registry.names[0])}", "#endif"]
+             f"#ifndef {define}", f"#define {define} {registry.constant(default)}", "#endif"]
     for role, (signature, identity) in roles.items():
         params = ", ".join(p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(","))
 
@@ -437,8 +448,8 @@ def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
     (:func:`_sampling_dispatch`), and each role registry's (:func:`_roles_dispatch`):
-    ``energy_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
+    ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
     out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
            "sampling_dispatch.glsl": _sampling_dispatch()}
-    out.update({include: _roles_dispatch(define) for define, (_, include, _) in ROLE_REGISTRIES.items()})
+    out.update({include: _roles_dispatch(define) for define, (_, include, _, _) in ROLE_REGISTRIES.items()})
     return out

@@ -3,7 +3,10 @@
 Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
 plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
 
-The DFG LUT's sampling strategies (:data:`pbrcheck.registry.LUT_SAMPLINGS`): each member's
+The runtime importance sampling's strategies (:data:`pbrcheck.registry.RUNTIME_SAMPLINGS`): each
+member's ``runtime_half_vector_<name>`` and its ``runtime_estimate_*``, dispatched by
+:func:`runtime_half_vector` / :func:`runtime_estimate`. The DFG LUT's sampling strategies
+(:data:`pbrcheck.registry.LUT_SAMPLINGS`): each member's
 ``lut_half_vector_<name>`` and ``lut_weight_<name>`` (the GLSL NDF switch is the ``ndf`` argument
 here), the dispatch :func:`lut_half_vector` / :func:`lut_weight` looping the registry, and
 :func:`dfg_lut_texel`, the numpy twin of ``dfg_lut.comp``'s texel (same points, same estimator).
@@ -13,7 +16,10 @@ API
 :func:`radical_inverse`, :func:`hammersley`, :func:`sample_GGX`, :func:`sample_Beckmann`,
 :func:`sample_BlinnPhong`, :func:`sample_GGX_VNDF`, :func:`pdf_GGX_VNDF`, :func:`sample_cosine`,
 :func:`sample_ndf`, :func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
-:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`.
+:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`,
+:func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
+:func:`runtime_estimate`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, blinn_phong_exponent, geometry_term
-from .registry import LUT_SAMPLINGS, NDFS, lut_sampling_for
+from .registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
 
 
 def radical_inverse(i):
@@ -166,3 +172,40 @@ def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf
     w = lut_weight(G, v, h[ok], alpha, sampling)
     Fc = (1.0 - VoH[ok]) ** 5
     return float(np.sum(w * (1.0 - Fc)) / samples), float(np.sum(w * Fc) / samples)
+
+
+# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+
+def runtime_half_vector_beckmann(u, vt, alpha):
+    """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
+    return sample_Beckmann(u, alpha)
+
+
+def runtime_half_vector_ggx(u, vt, alpha):
+    """[Walter07] eq. 35-36: GGX half vectors."""
+    return sample_GGX(u, alpha)
+
+
+def runtime_half_vector_vndf(u, vt, alpha):
+    """[Heitz18]: GGX visible normals seen from ``vt`` (the GLSL passes ``u.yx``)."""
+    return sample_GGX_VNDF(np.asarray(u, dtype=np.float64)[..., ::-1], vt, alpha)
+
+
+def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
+    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact for pdf = D_GGX (n.h) only)."""
+    return np.asarray(F) * G * np.asarray(L) * VoH / (np.asarray(NoH) * NoV)
+
+
+def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
+    """[Heitz18] eq. 17: ``F G L / G1(v)``."""
+    return np.asarray(F) * G / np.maximum(G1_SmithGGX(NoV, alpha), COS_EPS) * np.asarray(L)
+
+
+def runtime_half_vector(u, vt, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s half vector (KeyError for an unknown one)."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy](u, vt, alpha)
+
+
+def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s estimate of one sample."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy](F, G, L, NoV, NoH, VoH, alpha)

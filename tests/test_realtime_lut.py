@@ -1,6 +1,6 @@
-"""The DFG LUT against the exact quadrature (pbrcheck.brdf), its sampling strategies (GLSL,
-numpy and Dr.Jit twins of pbrcheck.registry.LUT_SAMPLINGS) and the whole bake against its numpy and
-Dr.Jit twins, the Kd LUT, and the `lut` command."""
+"""The DFG LUT against the exact quadrature (pbrcheck.brdf) and the whole bake against its numpy
+and Dr.Jit twins for every sampling strategy (the strategies' functions: tests/test_realtime_sampling.py),
+the Kd LUT, and the `lut` command."""
 
 from __future__ import annotations
 
@@ -35,68 +35,17 @@ def _rows(N):
     return list(range(N))
 
 
-# Sampled directions: float32 GLSL / Dr.Jit against float64 numpy through sqrt of a cancellation
-# (as tests/test_realtime_glsl.SQRT_ULP_DIR); weights and texels: float32 sums of <= 64 terms.
-DIR_ATOL = 5e-4
-DIR_RTOL = 1e-4
-WEIGHT_RTOL = 2e-5
+# The bake's texels: float32 sums of <= 32 terms (GLSL, Dr.Jit) against float64 numpy.
 TEXEL_ATOL = 2e-6
-STRATEGY_PAIRS = [(e.name, r) for e in registry.LUT_SAMPLINGS for r in e.roles]
-
-
-def _strategy_grid():
-    """u (incl. 0 and 0.999), view cosines 1e-4 .. 1, alpha MIN_ALPHA .. 1, broadcast flat."""
-    rng = np.random.default_rng(5)
-    u = rng.random((24, 2))
-    u[0], u[1] = (0.0, 0.0), (0.999, 0.999)
-    nov = np.array([1e-4, 0.05, 0.5, 0.9, 1.0])
-    alpha = np.array([1e-7, 1e-3, 0.1, 0.5, 1.0])
-    U, NV, AL = np.broadcast_arrays(u[:, None, None, :], nov[None, :, None, None], alpha[None, None, :, None])
-    u, nov, alpha = U.reshape(-1, 2), NV[..., 0].ravel(), AL[..., 0].ravel()
-    v = np.stack([np.sqrt(1.0 - nov * nov), np.zeros_like(nov), nov], -1)
-    return u, v, alpha
-
-
-@pytest.mark.parametrize("name, role", STRATEGY_PAIRS)
-def test_strategy_twins(name, role):
-    """Each strategy's half vector and weight: GLSL and Dr.Jit against the numpy twin of the same
-    name, for every NDF the strategy applies to (the GLSL NDF switch, numpy / Dr.Jit's argument)."""
-    from reference.variant import ensure_variant
-    ensure_variant()
-    import mitsuba as mi
-
-    from realtime.glsl_harness import run_glsl
-    from reference import dfg
-    fn = registry.LUT_SAMPLINGS[name].roles[role].glsl
-    u, v, alpha = _strategy_grid()
-    mv = mi.Vector3f(*[mi.Float(v[:, k]) for k in range(3)])
-    for ndf in registry.LUT_SAMPLINGS[name].extra["ndfs"] or registry.NDFS.names:
-        if role == "lut_half_vector":
-            want = getattr(sampling, fn)(u, v, alpha, ndf)
-            got = run_glsl(f"{fn}(vec2(x0, x1), vec3(x2, 0.0, x3), x4)", u[:, 0], u[:, 1], v[:, 0], v[:, 2], alpha,
-                           components=3, defines=registry.NDFS.select(ndf))
-            np.testing.assert_allclose(got, want, rtol=DIR_RTOL, atol=DIR_ATOL, err_msg=f"{fn} {ndf} GLSL")
-            h = getattr(dfg, fn)(mi.Point2f(mi.Float(u[:, 0]), mi.Float(u[:, 1])), mv, mi.Float(alpha), ndf)
-            np.testing.assert_allclose(np.array(h).T, want, rtol=DIR_RTOL, atol=DIR_ATOL, err_msg=f"{fn} {ndf} Dr.Jit")
-        else:
-            h = sampling.lut_half_vector(u, v, alpha, name, ndf)
-            G = brdf.G_SmithGGXCorrelated(v[:, 2], np.clip(2.0 * np.sum(v * h, -1) * h[:, 2] - v[:, 2], 0.0, 1.0), alpha)
-            want = getattr(sampling, fn)(G, v, h, alpha)
-            got = run_glsl(f"{fn}(x0, vec3(x1, 0.0, x2), vec3(x3, x4, x5), x6)", G, v[:, 0], v[:, 2], h[:, 0], h[:, 1],
-                           h[:, 2], alpha)
-            np.testing.assert_allclose(got, want, rtol=WEIGHT_RTOL, atol=TEXEL_ATOL, err_msg=f"{fn} GLSL")
-            mh = mi.Vector3f(*[mi.Float(h[:, k]) for k in range(3)])
-            got = getattr(dfg, fn)(mi.Float(G), mv, mh, mi.Float(alpha))
-            np.testing.assert_allclose(np.array(got), want, rtol=WEIGHT_RTOL, atol=TEXEL_ATOL, err_msg=f"{fn} Dr.Jit")
 
 
 @pytest.mark.parametrize("ndf", registry.NDFS.names)
 def test_bake_is_its_numpy_and_drjit_twins(ndf):
-    """dfg_lut.comp's texels equal pbrcheck.sampling.dfg_lut_texel and reference.dfg.dfg_lut (same
+    """dfg_lut.comp's texels equal pbrcheck.sampling.dfg_lut_texel and reference.sampling.dfg_lut (same
     points, same strategy, same estimator) for every strategy, incl. the smoothest and roughest rows."""
     from reference.variant import ensure_variant
     ensure_variant()
-    from reference import dfg
+    from reference import sampling as dfg
     N, S, geometry = 6, 32, "schlick_ggx_direct" if ndf == "ggx" else "smith_ggx_correlated"
     for strategy in registry.LUT_SAMPLINGS.names:
         lut = read_lut(dfg_lut(N, S, "f32", geometry, ndf, strategy))

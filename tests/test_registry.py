@@ -166,7 +166,8 @@ def test_term_dispatch_matches_the_registry_in_numpy():
 
 # The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
 ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
-              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.dfg", "sampling.glsl")}
+              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
+              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl")}
 
 
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
@@ -187,14 +188,14 @@ def test_every_role_member_has_its_three_implementations(define):
     """Each role of each member names a numpy, a Dr.Jit and a GLSL function of one name that exist,
     and the generated GLSL dispatch calls it; a member without a role states where it applies; the
     GLSL harness twins every (member, role) (tests/test_energy.py's test_role_twins and
-    tests/test_realtime_lut.py's test_strategy_twins are parametrized by these)."""
+    tests/test_realtime_sampling.py's test_strategy_twins are parametrized by these)."""
     import importlib
 
     import test_energy
-    import test_realtime_lut
+    import test_realtime_sampling
     from reference.variant import ensure_variant
     ensure_variant()
-    reg, include, roles = registry.ROLE_REGISTRIES[define]
+    reg, include, _, roles = registry.ROLE_REGISTRIES[define]
     np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
     numpy_mod, drjit_mod = importlib.import_module(np_mod), importlib.import_module(dr_mod)
     glsl = (SHADER_DIR / glsl_file).read_text()
@@ -208,15 +209,15 @@ def test_every_role_member_has_its_three_implementations(define):
         missing = set(roles) - set(e.roles)
         assert not missing or (e.applies_to and all(roles[r][1] for r in missing)), (e.name, missing)
         for role, impl in e.roles.items():
-            assert impl.numpy == impl.drjit == impl.glsl == f"{role}_{e.name}", impl
+            assert impl.numpy == impl.drjit == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
             assert callable(getattr(numpy_mod, impl.numpy, None)), impl.numpy
             assert callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
             assert re.search(rf"^\w+ {impl.glsl}\(", glsl, re.M), impl.glsl
             assert f"{reg.constant(e.name)}\n    return {impl.glsl}(" in dispatch
-    twins = {"ENERGY_COMPENSATION": test_energy.test_role_twins,
-             "LUT_SAMPLING": test_realtime_lut.test_strategy_twins}[define]
+    twins = test_energy.test_role_twins if define == "ENERGY_COMPENSATION" else test_realtime_sampling.test_strategy_twins
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
-    assert set(params) == {(e.name, r) for e in reg for r in e.roles}
+    covered = {p if len(p) == 2 else p[1:] for p in params if len(p) == 2 or p[0] == define}
+    assert covered == {(e.name, r) for e in reg for r in e.roles}
 
 
 @pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
@@ -225,5 +226,7 @@ def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
     ``#if SWITCH == MEMBER`` ladder; shading.glsl's ``!= ENERGY_COMPENSATION_NONE`` guard remains)."""
     for p in SHADER_DIR.iterdir():
         assert not re.search(rf"^\s*#\s*(el)?if\b.*\b{define}\s*==", p.read_text(), re.M), p.name
-    text = registry.glsl_generated()[registry.ROLE_REGISTRIES[define][1]]
-    assert text.count(f"== {define}_") == len(registry.ROLE_REGISTRIES[define][0].names) * len(registry.ROLE_REGISTRIES[define][2])
+    reg, include, default, roles = registry.ROLE_REGISTRIES[define]
+    text = registry.glsl_generated()[include]
+    assert text.count(f"== {define}_") == len(reg.names) * len(roles)
+    assert f"#define {define} {reg.constant(default)}\n" in text

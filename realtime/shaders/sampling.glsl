@@ -77,8 +77,7 @@ vec3 sample_cosine(vec2 u) {
     return vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u.y, 0.0)));
 }
 
-// sample_ndf (the selected NDF's sampler) and runtime_half_vector (RUNTIME_SAMPLING's), generated
-// from pbrcheck.registry.
+// sample_ndf (the selected NDF's sampler), generated from pbrcheck.registry.
 #include "sampling_dispatch.glsl"
 
 // The DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS, dfg_lut.comp): each member's
@@ -101,3 +100,29 @@ float lut_weight_ndf(float G, vec3 v, vec3 h, float alpha) {
 
 // lut_half_vector and lut_weight: LUT_SAMPLING's, generated from pbrcheck.registry.
 #include "dfg_sampling_dispatch.glsl"
+
+// Runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS,
+// environment_light.glsl): each member's half vector (tangent space, vt the view there) and its
+// estimator of one sample's F G L term (L the environment's radiance along l).
+// Source: [Walter07] eq. 28 (article 001 draws Beckmann half vectors for the GGX D).
+vec3 runtime_half_vector_beckmann(vec2 u, vec3 vt, float alpha) { return sample_Beckmann(u, alpha); }
+
+// Source: [Walter07] eq. 35-36.
+vec3 runtime_half_vector_ggx(vec2 u, vec3 vt, float alpha) { return sample_GGX(u, alpha); }
+
+// Source: [Heitz18] listing 1.
+vec3 runtime_half_vector_vndf(vec2 u, vec3 vt, float alpha) { return sample_GGX_VNDF(u.yx, vt, alpha); }
+
+// Source: article 001 (beckmann, ggx). Equation: F G L (v.h) / ((n.h)(n.v)), exact only for
+// pdf_h = D_GGX (n.h).
+vec3 runtime_estimate_ndf(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha) {
+    return F * G * L * VoH / (NoH * NoV);
+}
+
+// Source: [Heitz18] eq. 17. Equation: F G L / G1(v).
+vec3 runtime_estimate_vndf(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha) {
+    return F * G / max(G1_SmithGGX(NoV, alpha), COS_EPS) * L;
+}
+
+// runtime_half_vector and runtime_estimate: RUNTIME_SAMPLING's, generated from pbrcheck.registry.
+#include "runtime_sampling_dispatch.glsl"

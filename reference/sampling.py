@@ -1,7 +1,9 @@
-"""The DFG LUT's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
-``lut_half_vector_<name>`` / ``lut_weight_<name>`` (same names, same formulas; the GLSL ones are in
-``realtime/shaders/sampling.glsl``), resolved here from the names that
-:data:`pbrcheck.registry.LUT_SAMPLINGS` holds, and :func:`dfg_lut`, the Dr.Jit bake of
+"""The real-time renderer's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
+runtime importance sampling (``runtime_half_vector_<name>``, ``runtime_estimate_*``) and DFG LUT
+strategies (``lut_half_vector_<name>`` / ``lut_weight_<name>``), same names, same formulas (the GLSL
+ones are in ``realtime/shaders/sampling.glsl``), resolved here from the names that
+:data:`pbrcheck.registry.RUNTIME_SAMPLINGS` and :data:`pbrcheck.registry.LUT_SAMPLINGS` hold, and
+:func:`dfg_lut`, the Dr.Jit bake of
 ``dfg_lut.comp`` (same points, same estimator) that the reference can use to separate the split
 sum's LUT error from its own.
 
@@ -17,7 +19,10 @@ API
 ---
 :func:`sample_GGX`, :func:`sample_Beckmann`, :func:`sample_BlinnPhong`, :func:`sample_ndf`,
 :func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
-:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut`.
+:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut`,
+:func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
+:func:`runtime_estimate`.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, MIN_ALPHA
-from pbrcheck.registry import LUT_SAMPLINGS, NDFS, lut_sampling_for
+from pbrcheck.registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
 from pbrcheck.sampling import hammersley
 
 import drjit as dr
@@ -113,3 +118,40 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     A = np.asarray(w * (1.0 - Fc), dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
     B = np.asarray(w * Fc, dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
     return np.stack([A, B], axis=-1)
+
+
+# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+
+def runtime_half_vector_beckmann(u, vt, alpha):
+    """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
+    return sample_Beckmann(u, alpha)
+
+
+def runtime_half_vector_ggx(u, vt, alpha):
+    """[Walter07] eq. 35-36: GGX half vectors."""
+    return sample_GGX(u, alpha)
+
+
+def runtime_half_vector_vndf(u, vt, alpha):
+    """[Heitz18] listing 1: GGX visible normals seen from ``vt`` (``u.yx``)."""
+    return lut_half_vector_vndf(u, vt, alpha)
+
+
+def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
+    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact for pdf = D_GGX (n.h) only)."""
+    return F * G * L * VoH / (NoH * NoV)
+
+
+def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
+    """[Heitz18] eq. 17: ``F G L / G1(v)``."""
+    return F * G / dr.maximum(bsdf.G1_SmithGGX(NoV, alpha), COS_EPS) * L
+
+
+def runtime_half_vector(u, vt, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s half vector (the registry's name, resolved here)."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].drjit](u, vt, alpha)
+
+
+def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s estimate of one sample."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].drjit](F, G, L, NoV, NoH, VoH, alpha)
