@@ -230,3 +230,12 @@ def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
     text = registry.glsl_generated()[include]
     assert text.count(f"== {define}_") == len(reg.names) * len(roles)
     assert f"#define {define} {reg.constant(default)}\n" in text
+
+
+def test_docs_role_table_lists_every_member_and_its_functions():
+    """docs/realtime.md's role table: one row per member of a role registry, naming its functions."""
+    for define, (reg, *_rest) in registry.ROLE_REGISTRIES.items():
+        for e in reg:
+            cells = _doc_row(f"{define}: {e.name}")
+            listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
+            assert listed == list(dict.fromkeys(i.glsl for i in e.roles.values())), (define, e.name, listed)
