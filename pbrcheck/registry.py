@@ -239,17 +239,17 @@ SHADINGS = Registry("SHADING", applies_to=(
 #: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
 #: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
 #: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
-#: for pdf = D_GGX (n.h) only, is the article's, shared by beckmann and ggx); numpy in
+#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
 #: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
 RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
     Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
           roles=_roles("beckmann", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
-          applies_to="the article's estimator, exact for pdf = D_GGX (n.h) only: biased for the GGX D it shades"),
+          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
     Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
           roles=_roles("ggx", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
-          applies_to="every NDF's shading; exact for the GGX D"),
+          applies_to="any NDF's shading; exact for the GGX D it samples"),
     Entry("vndf", "GGX visible normals, Heitz 2018", roles=_roles("vndf", "runtime_half_vector", "runtime_estimate"),
-          applies_to="every NDF's shading; exact for the GGX D with the Smith GGX G1"),
+          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
 ])
 
 def _switch(define: str, applies_to: str, **members: str) -> Registry:

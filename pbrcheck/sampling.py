@@ -192,7 +192,7 @@ def runtime_half_vector_vndf(u, vt, alpha):
 
 
 def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
-    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact for pdf = D_GGX (n.h) only)."""
+    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact when ``h`` follows the shaded NDF's ``D (n.h)``)."""
     return np.asarray(F) * G * np.asarray(L) * VoH / (np.asarray(NoH) * NoV)
 
 

@@ -113,8 +113,8 @@ vec3 runtime_half_vector_ggx(vec2 u, vec3 vt, float alpha) { return sample_GGX(u
 // Source: [Heitz18] listing 1.
 vec3 runtime_half_vector_vndf(vec2 u, vec3 vt, float alpha) { return sample_GGX_VNDF(u.yx, vt, alpha); }
 
-// Source: article 001 (beckmann, ggx). Equation: F G L (v.h) / ((n.h)(n.v)), exact only for
-// pdf_h = D_GGX (n.h).
+// Source: article 001 (beckmann, ggx). Equation: F G L (v.h) / ((n.h)(n.v)), exact only when h
+// follows the shaded NDF's D (n.h) (article 001 draws Beckmann half vectors for the GGX D).
 vec3 runtime_estimate_ndf(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha) {
     return F * G * L * VoH / (NoH * NoV);
 }
