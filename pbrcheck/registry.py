@@ -14,8 +14,9 @@ Everything else is derived from it:
 * generated GLSL dispatch functions where a list maps to one function per member
   (:func:`glsl_generated`: ``lod_from_roughness`` / ``roughness_from_lod`` call the mapping's own
   ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``; ``ndf_term`` /
-  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` and
-  ``runtime_half_vector`` the samplers');
+  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` the NDF's
+  sampler; each role registry's dispatch (``energy_scale``, ``runtime_estimate``, ``lut_weight``, ...)
+  the member's role function);
 * the docs' tables, checked against it by ``tests/test_registry.py``.
 
 Adding a LOD mapping is one :data:`LOD_MAPPINGS` entry, its two GLSL functions in
@@ -28,13 +29,21 @@ has the worked example). An NDF also names its GLSL sampler (``extra["sample"]``
 :mod:`pbrcheck.brdf` (``_theta_h_<D>``, ``_cdf_theta_h_<D>``) and a Dr.Jit sampler pair in
 :mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``).
 
+The role registries (:data:`ROLE_REGISTRIES`: energy compensations, runtime and DFG LUT sampling
+strategies) own theirs one function per role (:attr:`Entry.roles`, one name in numpy, Dr.Jit and
+GLSL; :attr:`Entry.applies_to` says where a member applies and why a role is missing); adding a
+compensation or a strategy is one entry and its role functions in :mod:`pbrcheck.energy` /
+:mod:`pbrcheck.sampling`, :mod:`reference.energy` / :mod:`reference.sampling` and ``energy.glsl`` /
+``sampling.glsl``. A list whose members have no implementations says where it applies
+(:attr:`Registry.applies_to`).
+
 API
 ---
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
-:func:`glsl_generated`.
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
+:data:`ROLE_REGISTRIES`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
 from __future__ import annotations
@@ -49,14 +58,17 @@ class Impl:
     Attributes
     ----------
     numpy : str
-        The ground truth's function in :mod:`pbrcheck.brdf`.
+        The ground truth's function in :mod:`pbrcheck.brdf` (a role's: in its list's numpy module,
+        :mod:`pbrcheck.energy` or :mod:`pbrcheck.sampling`).
     drjit : str
         The reference BSDF's function, looked up by name in :mod:`reference.bsdf` (which holds
-        :mod:`reference.terms`' too) when the reference dispatches: the core does not import the
-        renderers; ``tests/test_registry.py`` checks that it exists.
+        :mod:`reference.terms`' too; a role's in :mod:`reference.energy` or :mod:`reference.sampling`)
+        when the reference dispatches: the core does not import the renderers;
+        ``tests/test_registry.py`` checks that it exists.
     glsl : str
-        The shader function (``realtime/shaders/brdf.glsl``), twin of ``numpy`` of the same name
-        and called by the generated dispatch (:func:`glsl_generated`).
+        The shader function (``realtime/shaders/brdf.glsl``; a role's in ``energy.glsl`` or
+        ``sampling.glsl``), twin of ``numpy`` of the same name and called by the generated dispatch
+        (:func:`glsl_generated`).
     width : str
         The term's width argument as a function of the perceptual roughness, named alike in the
         three languages: ``alpha_from_roughness``, ``k_schlick_ibl``, ``k_schlick_direct``; empty
