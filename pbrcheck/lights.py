@@ -4,6 +4,8 @@ API
 ---
 - :data:`LIGHT_TYPES` -- the closed list (``point``, ``spot``, ``directional``).
 - :class:`PointLight`, :class:`SpotLight`, :class:`DirectionalLight` -- the scene's lights (frozen).
+- :func:`glsl_light_constants` -- ``LIGHT_POINT`` ... as GLSL constants (the type's index).
+- :func:`pack_lights` -- the real-time renderer's lights buffer (``realtime/shaders/lights.glsl``).
 - :func:`spot_attenuation` -- glTF's angular attenuation of a spot light (the numpy twin of the GLSL
   term of the same name in ``realtime/shaders/lights.glsl``; the reference evaluates it too).
 
@@ -86,3 +88,22 @@ def spot_attenuation(cd, cos_outer, cos_inner, *, clip=np.clip):
     offset = -cos_outer * scale
     a = clip(cd * scale + offset, 0.0, 1.0)
     return a * a
+
+
+def glsl_light_constants() -> dict[str, int]:
+    """``{"LIGHT_POINT": 0, "LIGHT_SPOT": 1, "LIGHT_DIRECTIONAL": 2}``: the index in :data:`LIGHT_TYPES`."""
+    return {f"LIGHT_{t.upper()}": i for i, t in enumerate(LIGHT_TYPES)}
+
+
+def pack_lights(lights) -> np.ndarray:
+    """float32 ``(max(n, 1), 12)``: per light ``position, type; intensity, cos(outer); direction,
+    cos(inner)`` (``realtime/shaders/lights.glsl``); one zero row for no light."""
+    rows = []
+    for L in lights:
+        code = float(LIGHT_TYPES.index(L.type))
+        pos = getattr(L, "position", (0.0, 0.0, 0.0))
+        d = getattr(L, "direction", (0.0, 0.0, 0.0))
+        co = math.cos(L.outer_cone_angle) if L.type == "spot" else 0.0
+        ci = math.cos(L.inner_cone_angle) if L.type == "spot" else 0.0
+        rows.append([*pos, code, *L.intensity, co, *d, ci])
+    return np.asarray(rows or [[0.0] * 12], np.float32)
