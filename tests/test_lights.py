@@ -229,3 +229,30 @@ def test_reference_and_realtime_agree_on_spot_and_directional_lights():
         both = (ref.channels["coverage"] == 1) & (rt.channels["coverage"] == 1)
         err = np.abs(ref.rgb[both] - rt.rgb[both]).mean() / ref.rgb[both].mean()
         assert err < LIGHT_AGREEMENT, (name, err)
+
+
+# ---- export ------------------------------------------------------------------------------------
+
+def test_export_writes_spot_and_directional_lights_that_read_back(tmp_path):
+    """pbrcheck export: KHR_lights_punctual spot (cones) and directional lights whose nodes' -Z is
+    the light's direction; the glTF reader gives the scene's lights back."""
+    from pbrcheck.export import export_scene
+    from pbrcheck.gltf import load_asset
+    sun = {"type": "directional", "direction": [0.3, -1.0, 0.2], "intensity": [2.0, 1.0, 0.5]}
+    down = {**SPOT, "direction": [0.0, -1.0, 0.0]}  # parallel to the rotation's hint axis
+    scene = _sphere_scene([SPOT, sun, down], size=8)
+    export_scene(scene, tmp_path / "out")
+    doc = json.loads((tmp_path / "out" / "scene.gltf").read_text())
+    kinds = [L["type"] for L in doc["extensions"]["KHR_lights_punctual"]["lights"]]
+    assert kinds == ["spot", "directional", "spot"] and "KHR_lights_punctual" in doc["extensionsUsed"]
+    back = load_asset(tmp_path / "out" / "scene.gltf").lights
+    for want, got in zip(scene.lights, back):
+        assert got.type == want.type
+        np.testing.assert_allclose(np.multiply(got.color, got.intensity), want.intensity, rtol=1e-12)
+        np.testing.assert_allclose(got.direction, want.direction, atol=1e-9)
+        if want.type == "spot":
+            np.testing.assert_allclose(got.position, want.position, atol=1e-12)
+            assert (got.inner_cone, got.outer_cone) == (want.inner_cone_angle, want.outer_cone_angle)
+    sc = json.loads((tmp_path / "out" / "scenario.json").read_text())
+    assert sc["lights"][1] == {"type": "directional", "gltf_node": "light_1", "direction": list(scene.lights[1].direction),
+                               "irradiance_w_per_m2": [2.0, 1.0, 0.5]}
