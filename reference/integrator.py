@@ -68,7 +68,7 @@ import mitsuba as mi
 # Needs a variant set (reference.variant.ensure_variant imports this module after setting it).
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
-from .bsdf import MaterialView
+from .bsdf import MaterialView, SceneCalls
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -246,6 +246,7 @@ class ReferenceIntegrator(RBIntegrator):
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
+        self._switch = None  # (the scene's shapes, {kind: SceneCalls.table(scene, kind)})
         self.path = None
         self._volpath = None
         self.max_depth_value = int(props.get("max_depth", 8))
@@ -272,7 +273,18 @@ class ReferenceIntegrator(RBIntegrator):
                 self._table = (tuple(shapes), MaterialView.table(scene))
             if self._table[1] is not None:
                 return MaterialView.gather(self._table[1], si, hit)
-        return si.bsdf(ray)
+        return SceneCalls(self._dispatch(scene), si, hit)
+
+    def _dispatch(self, scene, kind: str = "bsdf"):
+        """:meth:`reference.bsdf.SceneCalls.table` of ``scene`` for ``kind``, kept while its shapes
+        are the same (keyed by them, as ``_table``)."""
+        shapes = scene.shapes()
+        if (self._switch is None or len(self._switch[0]) != len(shapes)
+                or any(a is not b for a, b in zip(self._switch[0], shapes))):
+            self._switch = (tuple(shapes), {})
+        if kind not in self._switch[1]:
+            self._switch[1][kind] = SceneCalls.table(scene, kind)
+        return self._switch[1][kind]
 
     #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
     MAX_NULL_LAYERS = 8
@@ -288,13 +300,12 @@ class ReferenceIntegrator(RBIntegrator):
         a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
         going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
         for _ in range(self.MAX_NULL_LAYERS):
-            bsdf = si.bsdf(ray)
-            t = mi.Float(bsdf.eval_null_transmission(si, going).x)
+            t = mi.Float(SceneCalls(self._dispatch(scene), si, going).eval_null_transmission(si, going).x)
             u = sampler.next_1d(going)
             through = going & (u < t)
             going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
-            si2 = scene.ray_intersect(ray, through)
+            si2 = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
             going &= hit
@@ -308,7 +319,7 @@ class ReferenceIntegrator(RBIntegrator):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
         ray = mi.Ray3f(ray)
-        si = scene.ray_intersect(ray, active)
+        si = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), active)  # coherent: COHERENT_CAMERA_RAYS
         hit = active & si.is_valid()
         if self.has_null_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic)
             si, hit = self._first_opaque_hit(scene, sampler, ray, si, hit)
@@ -317,7 +328,7 @@ class ReferenceIntegrator(RBIntegrator):
         if env is not None:
             L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
         if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
-            L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
+            L += dr.select(hit, SceneCalls(self._dispatch(scene, "emitter"), si, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
         mis = MIS_HEURISTICS[self.mis]
         if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque

@@ -268,7 +268,24 @@ class TexturedMaterial(mi.BSDF):
         return s2
 
     def eval_pdf(self, ctx, si, wo, active=True):
-        view, frame = self._view(si, active)
+        return self._eval_pdf_at(self._view(si, active), ctx, si, wo, active)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        return self._sample_at(self._view(si, active), ctx, si, sample1, sample2, active)
+
+    def bind(self, si, active=True):
+        """The material at one interaction ``si``, its textures read once for all the caller's calls
+        there (:class:`BoundTextured`; ``reference.bsdf.SceneBSDFs`` uses it)."""
+        return BoundTextured(self, si, active)
+
+    def _eval_pdf_at(self, view_frame, ctx, si, wo, active):
+        view, frame = view_frame
         s2 = self._local_si(si, frame)
         wo2 = frame.to_local(wo)
         # the geometric side: light and viewer on the same side of the surface
@@ -280,14 +297,8 @@ class TexturedMaterial(mi.BSDF):
             f, pdf = f * op, pdf * op
         return dr.select(same & front, f, 0.0), dr.select(same & front, pdf, 0.0)
 
-    def eval(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[0]
-
-    def pdf(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[1]
-
-    def sample(self, ctx, si, sample1, sample2, active=True):
-        view, frame = self._view(si, active)
+    def _sample_at(self, view_frame, ctx, si, sample1, sample2, active):
+        view, frame = view_frame
         s2 = self._local_si(si, frame)
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         lanes = mi.Bool(active) & front
@@ -315,6 +326,34 @@ class TexturedMaterial(mi.BSDF):
     def eval_diffuse_reflectance(self, si, active=True):
         view, _ = self._view(si, active)
         return (1.0 - view.metallic) * view.base_color
+
+
+
+class BoundTextured:
+    """A :class:`TexturedMaterial` bound to one interaction: its view (textures, tangent frame) read
+    once with the mask ``active`` and shared by ``eval``, ``pdf``, ``eval_pdf`` and ``sample`` at
+    that interaction (the same functions as the material's own methods, which read the textures per
+    call; the local estimator calls three of them per hit). ``si`` and the calls' masks must lie
+    within the bound ones."""
+
+    def __init__(self, material, si, active):
+        self.material = material
+        self.view_frame = material._view(si, active)
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        return self.material._eval_pdf_at(self.view_frame, ctx, si, wo, active)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        return self.material._sample_at(self.view_frame, ctx, si, sample1, sample2, active)
+
+    def eval_null_transmission(self, si, active=True):
+        return self.material.eval_null_transmission(si, active)
 
 
 _REGISTERED: set[str] = set()
