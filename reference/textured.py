@@ -34,9 +34,12 @@ not).
 ``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
 
 UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
-0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
+0). Each texture slot reads its own ``texCoord`` set: the mesh's texcoords (``si.uv``) hold the
+emissive texture's set (:func:`primary_texcoord`: the area emitter can read no other, also where it
+samples positions on the mesh), the other set is a mesh attribute ``vertex_uv<k>`` (u, v, 0) read
+with ``eval_attribute_3``.
 
-API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets),
+API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
 :func:`texture_dict`, :class:`GltfTexture`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
 """
 
@@ -161,6 +164,9 @@ class TexturedMaterial(mi.BSDF):
         self.alpha_mode = int(props.get("alpha_mode", 0))
         self.alpha_cutoff = float(props.get("alpha_cutoff", 0.5))
         self.alpha = float(props.get("alpha", 1.0))
+        # the TEXCOORD set in the mesh's own texcoords (si.uv); the other set is the mesh attribute
+        # vertex_uv<k> (asset_shapes: the emissive texture's set, which the area emitter reads as si.uv)
+        self.primary_texcoord = int(props.get("primary_texcoord", 0))
         self.tex = {}
         self.uvset = {}
         for slot in ("base_color", "metallic_roughness", "normal", "alpha"):
@@ -194,10 +200,11 @@ class TexturedMaterial(mi.BSDF):
     # ---- per-lane material and frame --------------------------------------------------------
     def _lookup(self, slot, si, active):
         t = self.tex[slot]
-        if self.uvset[slot] == 1:
+        k = self.uvset[slot]
+        if k != self.primary_texcoord:
             s2 = mi.SurfaceInteraction3f(si)
-            uv1 = si.shape.eval_attribute_3("vertex_uv1", si, active)
-            s2.uv = mi.Point2f(uv1.x, uv1.y)
+            uv = si.shape.eval_attribute_3(f"vertex_uv{k}", si, active)
+            s2.uv = mi.Point2f(uv.x, uv.y)
             return t.eval(s2, active)
         return t.eval(si, active)
 
@@ -372,9 +379,9 @@ def register() -> None:
 # Shapes
 # ------------------------------------------------------------------------------------------------
 
-def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False) -> dict:
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
     m = asset.material(index)
-    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
+    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
          "normal_scale": float(m.normal_texture.scale)
@@ -414,6 +421,16 @@ def _emitter_dict(asset, index: int, cache: dict) -> dict | None:
     return {"type": "area", "radiance": texture_dict(cache[key], m.emissive_texture)}
 
 
+def primary_texcoord(asset, material: int, prim) -> int:
+    """The TEXCOORD set a primitive's Mitsuba mesh carries as its texcoords (``si.uv``): the emissive
+    texture's (Mitsuba's area emitter reads its radiance texture at ``si.uv``, also at the positions
+    it samples on the mesh, where no other attribute can be interpolated), else 0; the other set is
+    the mesh attribute ``vertex_uv<k>``."""
+    em = asset.material(material).emissive_texture
+    k = int(em.texcoord) if em is not None else 0
+    return k if k < len(prim.texcoords) and prim.texcoords[k] is not None else 0
+
+
 def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
     """{shape id: Mitsuba mesh} for every :class:`pbrcheck.gltf_objects.Mesh` of ``scene``, built from
     the decoded buffers (placed by their instance's matrix); ``shape_id(index)`` names a shape
@@ -437,15 +454,16 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
         det = np.linalg.det(M[:3, :3])
         if det < 0:
             tri = tri[:, [0, 2, 1]]
-        uv0 = prim.texcoords[0]
+        primary = primary_texcoord(inst.asset, obj.gltf_material, prim)
+        uv0 = prim.texcoords[primary]
         props = mi.Properties()
         if bsdf_for is not None:
             bsdf = mi.load_dict(bsdf_for(obj))
         else:
-            key = (obj.instance, obj.gltf_material, prim.color is not None)
+            key = (obj.instance, obj.gltf_material, prim.color is not None, primary)
             if key not in mats:
                 mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
-                                                        vertex_color=prim.color is not None))
+                                                        vertex_color=prim.color is not None, primary=primary))
             bsdf = mats[key]
         props["bsdf"] = bsdf
         em = _emitter_dict(inst.asset, obj.gltf_material, textures)
@@ -468,8 +486,9 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
             mesh.add_attribute("vertex_tangent", 4, mi.Float(np.concatenate([t3, w[:, None]], 1).astype(np.float32).reshape(-1)))
         if prim.color is not None:
             mesh.add_attribute("vertex_color", 3, mi.Float(np.ascontiguousarray(prim.color[:, :3], np.float32).reshape(-1)))
-        if prim.texcoords[1] is not None:
-            uv1 = np.concatenate([prim.texcoords[1], np.zeros((prim.texcoords[1].shape[0], 1))], 1)
-            mesh.add_attribute("vertex_uv1", 3, mi.Float(uv1.astype(np.float32).reshape(-1)))
+        for k, uv in enumerate(prim.texcoords):
+            if uv is not None and k != primary:  # the other set: read by TexturedMaterial._lookup
+                uvk = np.concatenate([uv, np.zeros((uv.shape[0], 1))], 1)
+                mesh.add_attribute(f"vertex_uv{k}", 3, mi.Float(uvk.astype(np.float32).reshape(-1)))
         out[shape_id(obj.id)] = mesh
     return out
