@@ -228,6 +228,48 @@ MIS_HEURISTICS = {"power": _power, "balance": _balance}
 DEFAULT_MIS = "power"
 
 
+#: Most culled back faces (glTF single-sided) a ray passes before it stops at the last one.
+MAX_CULLED_LAYERS = 16
+
+
+def culling_table(scene):
+    """Lookup shape registry id -> 1 where the shape's BSDF culls back faces
+    (:func:`reference.textured.culls_back_faces`), or None where no shape does."""
+    from .textured import culls_back_faces
+
+    flags = [int(culls_back_faces(s.bsdf())) for s in scene.shapes()]
+    if not any(flags):
+        return None
+    ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
+    lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
+    dr.scatter(lut, mi.UInt32(flags), ids)
+    dr.eval(lut)
+    return lut
+
+
+def past_back_faces(scene, ray, si, hit, lut):
+    """(si, hit) of the first surface along ``ray`` that is not a culled back face (glTF
+    ``doubleSided`` false, :func:`culling_table` ``lut``; None: ``si`` as it is): a symbolic loop
+    (each lane traces on only while it stands on such a face, at most :data:`MAX_CULLED_LAYERS`
+    times; no random numbers)."""
+    if lut is None:
+        return si, hit
+    from .textured import back_face
+
+    def culled(si, hit):
+        return hit & (dr.gather(mi.UInt32, lut, dr.reinterpret_array(mi.UInt32, si.shape), hit) > 0) & back_face(si)
+
+    def body(ray, si, hit, i):
+        go = culled(si, hit)
+        ray = dr.select(go, si.spawn_ray(ray.d), ray)
+        si2 = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), go)
+        return ray, dr.select(go, si2, si), dr.select(go, si2.is_valid(), hit), i + 1
+
+    _, si, hit, _ = dr.while_loop((mi.Ray3f(ray), si, mi.Bool(hit), mi.UInt32(0)),
+                                  lambda ray, si, hit, i: culled(si, hit) & (i < MAX_CULLED_LAYERS), body)
+    return si, hit
+
+
 class ReferenceIntegrator(RBIntegrator):
     """The ``local`` and ``path`` estimators with per-pixel moments (see the module docstring)."""
 
@@ -283,7 +325,7 @@ class ReferenceIntegrator(RBIntegrator):
                 or any(a is not b for a, b in zip(self._switch[0], shapes))):
             self._switch = (tuple(shapes), {})
         if kind not in self._switch[1]:
-            self._switch[1][kind] = SceneCalls.table(scene, kind)
+            self._switch[1][kind] = culling_table(scene) if kind == "cull" else SceneCalls.table(scene, kind)
         return self._switch[1][kind]
 
     #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
@@ -291,8 +333,15 @@ class ReferenceIntegrator(RBIntegrator):
 
     @staticmethod
     def has_null_bsdfs(scene) -> bool:
-        """Whether a shape's BSDF can be passed through (a Null component: glTF MASK / BLEND)."""
+        """Whether a shape's BSDF can be passed through (a Null component: glTF MASK / BLEND, culled
+        back faces)."""
         return any(mi.has_flag(s.bsdf().flags(), mi.BSDFFlags.Null) for s in scene.shapes())
+
+    @staticmethod
+    def has_alpha_bsdfs(scene) -> bool:
+        """Whether a shape's BSDF has a stochastic opacity (glTF MASK / BLEND)."""
+        from .textured import has_alpha
+        return any(has_alpha(s.bsdf()) for s in scene.shapes())
 
     def _first_opaque_hit(self, scene, sampler, ray, si, hit):
         """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
@@ -321,8 +370,10 @@ class ReferenceIntegrator(RBIntegrator):
         ray = mi.Ray3f(ray)
         si = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), active)  # coherent: COHERENT_CAMERA_RAYS
         hit = active & si.is_valid()
-        if self.has_null_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic)
+        if self.has_alpha_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic; culled back faces too)
             si, hit = self._first_opaque_hit(scene, sampler, ray, si, hit)
+        else:  # glTF single-sided back faces: culled (deterministic)
+            si, hit = past_back_faces(scene, ray, si, hit, self._dispatch(scene, "cull"))
         env = scene.environment()
         L = mi.Color3f(0.0)
         if env is not None:
@@ -382,7 +433,16 @@ class ReferenceIntegrator(RBIntegrator):
         """(L, hit) of this integrator's mode (primal)."""
         if self.mode == "local":
             return self.local_radiance(scene, sampler, ray, active)
-        hit = scene.ray_test(mi.Ray3f(ray), active)
+        cull = self._dispatch(scene, "cull")
+        if cull is None:
+            hit = scene.ray_test(mi.Ray3f(ray), active)
+        else:  # coverage: culled back faces are not there
+            si = scene.ray_intersect(mi.Ray3f(ray), +mi.RayFlags.All, mi.Bool(True), active)
+            _, hit = past_back_faces(scene, ray, si, active & si.is_valid(), cull)
+            # a kernel of its own: traced into the path integrator's kernel, the loop's copy of the
+            # shapes' compute_surface_interaction call was emitted twice (Dr.Jit 1.5: LLVM "invalid
+            # redefinition of function")
+            dr.eval(hit)
         path = self.path
         if self.has_null_bsdfs(scene):  # shadow rays through glTF cut-outs: volpath's null interfaces
             if self._volpath is None:

@@ -16,8 +16,11 @@ pixel's box-filter samples integrate the texture's footprint, the truth a mip ch
 
 then :class:`reference.bsdf.PBRLobes` evaluates the model in the normal-mapped frame (directions are
 re-expressed in it, as Mitsuba's ``normalmap`` does). ``double_sided``: a back-facing hit uses the
-flipped frame (glTF: the back face's normal is the negated one); single-sided back faces are black
-(as every pbrcheck surface). The occlusion texture is not applied: ``local`` has no visibility (the
+flipped frame (glTF: the back face's normal is the negated one); a single-sided material's back
+faces are culled, as glTF says and the raster pipeline does: invisible, the ray goes on (a null
+component of opacity 0 there, :func:`back_face`; ``local`` passes them deterministically,
+:func:`reference.integrator.past_back_faces`, ``path`` through Mitsuba's ``volpath``). Analytic
+objects keep their black back sides. The occlusion texture is not applied: ``local`` has no visibility (the
 texture approximates it) and ``path`` computes it. Emission: an ``area`` emitter whose radiance is
 the emissive texture (sRGB-decoded) times ``emissiveFactor`` times ``KHR_materials_emissive_strength``,
 on the primitive's mesh: ``local`` adds it at the first hit, ``path`` lights the scene with it.
@@ -40,7 +43,8 @@ samples positions on the mesh), the other set is a mesh attribute ``vertex_uv<k>
 with ``eval_attribute_3``.
 
 API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
-:func:`texture_dict`, :class:`GltfTexture`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+:func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
+:class:`BoundTextured`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
 """
 
 from __future__ import annotations
@@ -179,7 +183,7 @@ class TexturedMaterial(mi.BSDF):
         if self.tex:
             flags = flags | mi.BSDFFlags.SpatiallyVarying
         comps = [flags]
-        if self.alpha_mode:
+        if self.alpha_mode or not self.double_sided:  # cut-outs, and culled back faces, pass rays through
             comps.append(mi.BSDFFlags.Null | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide)
             flags = flags | mi.BSDFFlags.Null | mi.BSDFFlags.BackSide
         self.m_components = comps
@@ -248,15 +252,17 @@ class TexturedMaterial(mi.BSDF):
 
     def opacity(self, si, active=True):
         """glTF's coverage at the hit: 1 (OPAQUE), alpha >= cutoff (MASK) or alpha (BLEND), with
-        alpha = baseColorFactor.a * baseColorTexture.a."""
-        if not self.alpha_mode:
-            return mi.Float(1.0)
-        a = mi.Float(self.alpha)
-        if "alpha" in self.tex:
-            a = a * self._lookup("alpha", si, active).x
-        if self.alpha_mode == 1:
-            return dr.select(a >= self.alpha_cutoff, 1.0, 0.0)
-        return dr.clip(a, 0.0, 1.0)
+        alpha = baseColorFactor.a * baseColorTexture.a; 0 on the back face of a single-sided
+        material (``doubleSided`` false: culled, :func:`culls_back_faces`)."""
+        a = mi.Float(1.0)
+        if self.alpha_mode:
+            a = mi.Float(self.alpha)
+            if "alpha" in self.tex:
+                a = a * self._lookup("alpha", si, active).x
+            a = dr.select(a >= self.alpha_cutoff, 1.0, 0.0) if self.alpha_mode == 1 else dr.clip(a, 0.0, 1.0)
+        if not self.double_sided:
+            a = dr.select(back_face(si), 0.0, a)
+        return a
 
     @staticmethod
     def _null_enabled(ctx) -> bool:
@@ -309,7 +315,7 @@ class TexturedMaterial(mi.BSDF):
         s2 = self._local_si(si, frame)
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         lanes = mi.Bool(active) & front
-        mixed = bool(self.alpha_mode) and self._null_enabled(ctx)
+        mixed = bool(self.alpha_mode or not self.double_sided) and self._null_enabled(ctx)
         if mixed:
             # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
             # value and pdf both scale by the opacity); sample1, rescaled, still chooses the lobe
@@ -361,6 +367,24 @@ class BoundTextured:
 
     def eval_null_transmission(self, si, active=True):
         return self.material.eval_null_transmission(si, active)
+
+
+def back_face(si):
+    """Whether the hit sees the geometric back of its triangle (the side its winding turns away:
+    ``si.n``, which :func:`asset_shapes` keeps on glTF's counter-clockwise front under mirroring
+    placements)."""
+    return dr.dot(si.n, si.to_world(si.wi)) < 0
+
+
+def culls_back_faces(bsdf) -> bool:
+    """Whether a shape's BSDF is a single-sided glTF material, whose back faces are culled (glTF 2.0,
+    3.9.6: ``doubleSided`` false enables back-face culling): the reference lets rays pass them."""
+    return isinstance(bsdf, TexturedMaterial) and not bsdf.double_sided
+
+
+def has_alpha(bsdf) -> bool:
+    """Whether a shape's BSDF is a glTF material with alphaMode MASK or BLEND (stochastic opacity)."""
+    return isinstance(bsdf, TexturedMaterial) and bool(bsdf.alpha_mode)
 
 
 _REGISTERED: set[str] = set()

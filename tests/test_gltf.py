@@ -338,6 +338,31 @@ def test_every_slot_reads_its_own_texcoord_set(tmp_path, tmp_cache, mode):
         assert rt[0][8, 12, 0] > 0.9 and rt[2][8, 3, 0] > 0.9 and rt[0][8, 3, 0] < 0.5
 
 
+@pytest.mark.parametrize("mode", ["local", "path"])
+def test_single_sided_back_face_is_culled(tmp_path, tmp_cache, mode):
+    """glTF doubleSided false culls back faces: a single-sided quad seen from behind shows the
+    environment, exactly, in the reference (both modes; coverage and object AOV empty) and in the
+    raster pipeline; the double-sided quad stays there."""
+    one = quad_asset(tmp_path / "one.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}})
+    two = quad_asset(tmp_path / "two.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}, "doubleSided": True})
+    scenes = []
+    for q in (one, two):
+        p = quad_scene(tmp_path, q, env="[0.5, 0.5, 0.5]", size=(12, 12), fov=20.0, name=f"{q.stem}.toml")
+        p.write_text(p.read_text() + "rotation = [0.0, 180.0, 0.0]\n")
+        scenes.append(p)
+    a, ia = _render(scenes[0], spp=4, mode=mode)
+    assert np.array_equal(a, np.full_like(a, 0.5))
+    assert ia.channels["coverage"].max() == 0 and ia.channels["object"].max() == -1
+    b, ib = _render(scenes[1], spp=4, mode=mode)
+    assert ib.channels["coverage"].min() == 1 and np.abs(b - 0.5).max() > 0.05
+    if mode == "local":
+        from realtime.render import render_realtime
+        opts = {"cube_size": 16, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 3,
+                "prefilter_samples": 16, "lut_size": 16, "lut_samples": 64, "supersample": 1}
+        rt = render_realtime(load_scene(str(scenes[0])), "default", opts, progress=False)
+        assert rt.channels["coverage"].max() == 0 and np.allclose(rt.rgb, 0.5, atol=2e-3)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", ["local", "path"])
 def test_mask_cutout_shows_the_environment(tmp_path, tmp_cache, mode):
