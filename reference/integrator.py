@@ -228,6 +228,10 @@ MIS_HEURISTICS = {"power": _power, "balance": _balance}
 DEFAULT_MIS = "power"
 
 
+#: What the estimators' ray_intersect computes: Mitsuba's RayFlags.All less the normals' UV
+#: derivatives (dNSdUV, dNGdUV), which nothing here reads (the shading frame, spawned rays and the
+#: BSDFs use p, n, uv, dp_du/dp_dv and sh_frame); a mesh's interaction skips their gathers and solve.
+LOCAL_RAY_FLAGS = int(mi.RayFlags.Minimal | mi.RayFlags.UV | mi.RayFlags.dPdUV | mi.RayFlags.ShadingFrame)
 #: Most culled back faces (glTF single-sided) a ray passes before it stops at the last one.
 MAX_CULLED_LAYERS = 16
 
@@ -262,7 +266,7 @@ def past_back_faces(scene, ray, si, hit, lut):
     def body(ray, si, hit, i):
         go = culled(si, hit)
         ray = dr.select(go, si.spawn_ray(ray.d), ray)
-        si2 = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), go)
+        si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), go)
         return ray, dr.select(go, si2, si), dr.select(go, si2.is_valid(), hit), i + 1
 
     _, si, hit, _ = dr.while_loop((mi.Ray3f(ray), si, mi.Bool(hit), mi.UInt32(0)),
@@ -354,7 +358,7 @@ class ReferenceIntegrator(RBIntegrator):
             through = going & (u < t)
             going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
-            si2 = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), through)
+            si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
             going &= hit
@@ -368,7 +372,7 @@ class ReferenceIntegrator(RBIntegrator):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
         ray = mi.Ray3f(ray)
-        si = scene.ray_intersect(ray, +mi.RayFlags.All, mi.Bool(True), active)  # coherent: COHERENT_CAMERA_RAYS
+        si = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), active)  # coherent: camera rays, pixel-major lanes (Embree packets)
         hit = active & si.is_valid()
         if self.has_alpha_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic; culled back faces too)
             si, hit = self._first_opaque_hit(scene, sampler, ray, si, hit)
@@ -437,7 +441,7 @@ class ReferenceIntegrator(RBIntegrator):
         if cull is None:
             hit = scene.ray_test(mi.Ray3f(ray), active)
         else:  # coverage: culled back faces are not there
-            si = scene.ray_intersect(mi.Ray3f(ray), +mi.RayFlags.All, mi.Bool(True), active)
+            si = scene.ray_intersect(mi.Ray3f(ray), LOCAL_RAY_FLAGS, mi.Bool(True), active)
             _, hit = past_back_faces(scene, ray, si, active & si.is_valid(), cull)
             # a kernel of its own: traced into the path integrator's kernel, the loop's copy of the
             # shapes' compute_surface_interaction call was emitted twice (Dr.Jit 1.5: LLVM "invalid
