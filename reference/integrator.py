@@ -319,7 +319,9 @@ class ReferenceIntegrator(RBIntegrator):
                 self._table = (tuple(shapes), MaterialView.table(scene))
             if self._table[1] is not None:
                 return MaterialView.gather(self._table[1], si, hit)
-        return SceneCalls(self._dispatch(scene), si, hit)
+        table = self._dispatch(scene)
+        # no shapes (an environment alone): every lane missed; Mitsuba's null BSDF pointers give zeros
+        return SceneCalls(table, si, hit) if table[1] else si.bsdf(ray)
 
     def _dispatch(self, scene, kind: str = "bsdf"):
         """:meth:`reference.bsdf.SceneCalls.table` of ``scene`` for ``kind``, kept while its shapes

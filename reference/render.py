@@ -274,7 +274,7 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
     si, hit = past_back_faces(mscene, ray, si, si.is_valid(), culling_table(mscene))
     n = dr.select(hit, si.sh_frame.n, 0.0)
     ndv = dr.select(hit, dr.clip(dr.dot(si.sh_frame.n, -ray.d), 0.0, 1.0), 0.0)
-    obj = mi.Float(-1.0)
+    obj = dr.full(mi.Float, -1.0, W * H)  # a scene without shapes too
     for shape in mscene.shapes():
         idx = shape_index.get(shape.id())
         if idx is not None:
