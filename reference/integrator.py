@@ -12,6 +12,12 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
   With ``gather_materials`` (the default) the BSDF of each lane is a :class:`reference.bsdf.MaterialView`:
   every ``pbr_material``'s parameters gathered by the shape hit, the lobes traced once instead of once
   per material (Mitsuba's virtual call); the same maths and samples as the per-instance dispatch.
+  Other scenes (glTF assets' ``pbr_textured``, or ``gather_materials`` off) call the BSDFs, and the
+  area emitters, through :class:`reference.bsdf.SceneCalls`: a dispatch over the scene's own objects
+  (Mitsuba's pointer call traces every live instance of the process), a single textured material
+  bound once per hit. Camera rays are traced ``coherent`` (Embree's packet traversal; pixel-major
+  lanes) with :data:`LOCAL_RAY_FLAGS`; glTF single-sided back faces are culled
+  (:func:`past_back_faces`), MASK / BLEND surfaces passed stochastically (``_first_opaque_hit``).
 * ``mode = "path"``: Mitsuba's ``path`` integrator (``max_depth``) with the same BSDF and emitters,
   its ``sample`` called on the same camera rays (primal only).
 
@@ -45,7 +51,8 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
-:func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :data:`SAMPLERS`,
+:func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :func:`culling_table`,
+:func:`past_back_faces`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
 :data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`.
 References: Veach 1997 ch. 9 (MIS, power and balance heuristics); Vicini et al. 2021, "Path Replay
 Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
