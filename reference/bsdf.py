@@ -44,6 +44,10 @@ Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``spe
 :data:`MATERIAL_PARAMS`) are exposed by ``traverse`` (:func:`traverse_material`, shared with
 ``pbr_textured``); ``parameters_changed`` makes them opaque (:func:`make_material_opaque`) so a new
 value does not rebuild the kernel.
+
+Calling a scene's BSDFs per lane: :class:`MaterialView` (every ``pbr_material`` gathered, the lobes
+traced once) and :class:`SceneCalls` (any BSDFs or area emitters, ``dr.switch`` over the scene's own
+instead of Mitsuba's process-wide pointer call).
 """
 
 from __future__ import annotations
