@@ -226,11 +226,15 @@ def _texture(image, ref, srgb: bool, anisotropy: float):
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]
-    ctx = get_context()
     px = image.linear(srgb).astype(np.float16)
     h, w = px.shape[:2]
-    tex = ctx.texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
+    tex = get_context().texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
     tex.build_mipmaps()
+    return _sampled(key, image, tex, ref, anisotropy)
+
+
+def _sampled(key, image, tex, ref, anisotropy: float):
+    """Set ``tex``'s trilinear filtering, the wrap of ``ref`` and ``anisotropy``; cache it under ``key``."""
     tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR (trilinear)
     tex.repeat_x = ref.wrap[0] != WRAP_CLAMP
     tex.repeat_y = ref.wrap[1] != WRAP_CLAMP
@@ -248,21 +252,13 @@ def normal_variance_texture(image, ref, anisotropy: float):
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]
-    ctx = get_context()
     h, w = image.pixels.shape[:2]
-    levels = max(w, h).bit_length()
-    mips = slope_variance_mips(image.linear(False), levels)
-    tex = ctx.texture((w, h), 1, np.ascontiguousarray(mips[0]).tobytes(), dtype="f4")
+    mips = slope_variance_mips(image.linear(False), max(w, h).bit_length())
+    tex = get_context().texture((w, h), 1, np.ascontiguousarray(mips[0]).tobytes(), dtype="f4")
     tex.build_mipmaps()   # allocates every level; each is overwritten with its own variance below
     for k, m in enumerate(mips[1:], start=1):
         tex.write(np.ascontiguousarray(m).tobytes(), level=k)
-    tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR (as the normal map)
-    tex.repeat_x = ref.wrap[0] != WRAP_CLAMP
-    tex.repeat_y = ref.wrap[1] != WRAP_CLAMP
-    if anisotropy > 1.0:
-        tex.anisotropy = float(anisotropy)
-    _textures[key] = (image, tex)
-    return tex
+    return _sampled(key, image, tex, ref, anisotropy)
 
 
 def _white():
