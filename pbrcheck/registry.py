@@ -41,6 +41,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .lights import glsl_light_constants
+
 
 @dataclass(frozen=True)
 class Impl:
@@ -276,10 +278,11 @@ REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SH
 
 
 def glsl_defines() -> dict[str, int]:
-    """Every registry's named constants (prepended to every shader by :func:`realtime.gl.assemble`)."""
+    """Every registry's named constants and the light types' (prepended to every shader by :func:`realtime.gl.assemble`)."""
     out: dict[str, int] = {}
     for r in REGISTRIES.values():
         out.update(r.constants())
+    out.update(glsl_light_constants())  # the light types (pbrcheck.lights.LIGHT_TYPES)
     return out
 
 

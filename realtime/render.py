@@ -47,6 +47,7 @@ from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
+from pbrcheck.lights import pack_lights
 from pbrcheck.energy import SCENE_COMPENSATION
 from pbrcheck.progress import Progress
 from pbrcheck.registry import (
@@ -498,8 +499,7 @@ def _bind_shading(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, s
     buffer, LOD and roughness uniforms) for ``prog`` (the compute frame pass or the raster
     fragment program); returns the lights buffer to release after the frame."""
     ctx = get_context()
-    lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
-    lbuf = ctx.buffer(lights.tobytes())
+    lbuf = ctx.buffer(pack_lights(scene.lights).tobytes())  # 3 vec4 per light (shaders/lights.glsl)
     lbuf.bind_to_storage_buffer(1)
     _bind_env(prog, env_texture(env), env, 0, optional=raster)
     for name, unit, kind in FRAME_TEXTURE_UNITS:

@@ -5,6 +5,7 @@ layout(local_size_x = 64) in;
 #include "ibl.glsl"
 #include "env.glsl"
 #include "energy.glsl"
+#include "lights.glsl"
 #include "occlusion.glsl"
 #include "specular_aa.glsl"
 #include "coverage.glsl"
