@@ -69,7 +69,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import RealtimeOptions, resolve_options
+from .presets import RealtimeOptions, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -426,9 +426,9 @@ def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
     v = o.energy_compensation
     if v != "scene":
         return v
-    if o.shading != "material" or o.ibl != "splitsum":
-        return "none"  # only the material composition's split sum has the DFG terms it scales
-    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+    v = SCENE_COMPENSATION[scene.brdf.multiscatter]
+    # none where the options do not meet its requirements (the material composition's split sum)
+    return "none" if unmet_requirements(ENERGY_COMPENSATIONS[v], o) else v
 
 
 def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
