@@ -222,7 +222,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
 def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
     src_lod = math.log2(o.cube_size / o.irradiance_source_size)
-    method = 0 if o.irradiance_method == "texel_sum" else 1
+    method = IRRADIANCE_METHODS.names.index(o.irradiance_method)  # its GLSL constant; 0: texel_sum, no step
     key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
            o.irradiance_step if method else None)
     ctx = get_context()
