@@ -45,8 +45,10 @@ def _png(pixels: np.ndarray) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
 
 
-def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE) -> Path:
-    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it."""
+def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE,
+               normal_map: np.ndarray | None = None) -> Path:
+    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it. ``normal_map``
+    (uint8 (h, w, 3), tangent space): replaces the bumpy normal map (tools/approximation_errors.py)."""
     rings = segments // 2
     th = np.linspace(0, np.pi, rings + 1)
     ph = np.linspace(0, 2 * np.pi, segments + 1)
@@ -67,7 +69,7 @@ def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXT
     bump = np.sin(x * 2 * np.pi * 32) * 0.4
     n = np.stack([bump, np.zeros_like(bump), np.ones_like(bump)], -1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8)
+    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8) if normal_map is None else normal_map
     blob = bytearray()
     views, accs = [], []
 
