@@ -448,6 +448,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **SPECULAR_OCCLUSIONS.select(o.specular_occlusion),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
+        "TEXTURE_LOD0": int(o.texture_sampling == "lod0"), "NORMAL_LOD0": int(o.normal_sampling == "lod0"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
