@@ -668,12 +668,11 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     _bind_env(bg_prog, env_texture(env), env, 0)
     try:
-        t0 = time.perf_counter()
-        for it in items:  # upload the material textures (and their mips) before the timed frame
+        # upload the material textures and generate their mips before the timed frame, each timed
+        timings.update(texture_upload=0.0, texture_mips=0.0)
+        for it in items:
             for image, ref, srgb in it.textures.values():
-                raster._texture(image, ref, srgb, o.anisotropy)
-        ctx.finish()
-        timings["textures"] = time.perf_counter() - t0
+                raster._texture(image, ref, srgb, o.anisotropy, timings)
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
                                       o.occlusion_texture))
