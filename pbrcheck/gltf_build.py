@@ -58,7 +58,11 @@ def png_bytes(pixels: np.ndarray) -> bytes:
 
 def png_uri(pixels: np.ndarray) -> str:
     """A data URI of :func:`png_bytes`."""
-    return "data:image/png;base64," + base64.b64encode(png_bytes(pixels)).decode()
+    return _data_uri(png_bytes(pixels))
+
+
+def _data_uri(raw: bytes, mime: str = "image/png") -> str:
+    return f"data:{mime};base64," + base64.b64encode(raw).decode()
 
 
 class Doc:
@@ -92,8 +96,9 @@ class Doc:
 
     def image(self, pixels: np.ndarray, sampler: dict | None = None) -> int:
         """A texture of ``pixels`` (PNG) with an optional sampler; the texture's index."""
-        self._pngs.append(png_bytes(pixels))
-        self.d.setdefault("images", []).append({"uri": png_uri(pixels)})
+        raw = png_bytes(pixels)
+        self._pngs.append(raw)
+        self.d.setdefault("images", []).append({"uri": _data_uri(raw)})
         tex = {"source": len(self.d["images"]) - 1}
         if sampler is not None:
             self.d.setdefault("samplers", []).append(sampler)
@@ -120,7 +125,7 @@ class Doc:
     def write(self, path: Path) -> Path:
         """Write ``path`` (.gltf: the buffer and the images as data URIs), atomically."""
         self.d["buffers"] = [{"byteLength": len(self.bin),
-                              "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(self.bin)).decode()}]
+                              "uri": _data_uri(bytes(self.bin), "application/octet-stream")}]
         write_text_atomic(Path(path), json.dumps(self.d))
         return Path(path)
 

@@ -163,3 +163,14 @@ def test_explain_on_an_asset_decomposes_the_asset_approximations(asset_dir):
         run_explain(load_scene("spheres"), options=CHEAP, size=8, spp=4, spp_cap=4, only=("texture_filtering",))
     text = table_markdown(res)
     assert "| texture_filtering |" in text and "path reference" in text and "horizon" in text
+
+
+def test_raster_times_texture_upload_and_mips_apart(asset_dir):
+    """``bench realtime``'s asset figures: the upload and the mip generation are separate passes."""
+    from realtime.render import render_realtime
+    from pbrcheck.scene import load_scene
+
+    img = render_realtime(load_scene(str(asset_dir / "scene.toml")), "default", {"texture_sampling": "lod0"},
+                          progress=False)
+    t = json.loads(img.meta["timings"])
+    assert t["texture_upload"] > 0 and t["texture_mips"] > 0 and "textures" not in t
