@@ -42,7 +42,7 @@ API
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
 :data:`ROLE_REGISTRIES`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
@@ -348,7 +348,26 @@ SPECULAR_OCCLUSIONS = _switch(
     "SPECULAR_OCCLUSION", "the real-time renderer's image-based specular (occlusion.glsl, numpy twin "
                           "pbrcheck.occlusion); the reference traces occlusion", none="the specular image-based term is not occluded",
     lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
-            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)")
+            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
+    gtso="Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
+         "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 alpha^2)), "
+         "Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's")
+#: Horizon occlusion of normal-mapped reflections (pbrcheck/occlusion.py, realtime/shaders/occlusion.glsl).
+HORIZON_OCCLUSIONS = _switch(
+    "HORIZON_OCCLUSION", "the real-time renderer's image-based specular of normal-mapped materials (occlusion.glsl, "
+                         "numpy twin pbrcheck.occlusion); the reference traces occlusion", none="reflections below the geometric normal's horizon are not faded",
+    marmoset="Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et al. "
+             "2016): saturate(1 + 1.3 r.n_g)^2")
+#: Specular anti-aliasing / normal-map filtering: roughness widened by the normals' variance
+#: (pbrcheck/specular_aa.py, realtime/shaders/specular_aa.glsl).
+SPECULAR_AAS = _switch(
+    "SPECULAR_AA", "the raster pipeline's roughness (specular_aa.glsl, numpy twin pbrcheck.specular_aa); the "
+                   "reference integrates each pixel's normals", none="no filtering of the normals' variance into the roughness",
+    toksvig="Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered normal's length",
+    screen_space="Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
+                 "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
+    prefiltered="LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
+                "the mip chain: alpha^2 + var(s_x) + var(s_y)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
 MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (reference.multiscatter); the "
@@ -362,7 +381,7 @@ MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckm
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
                                      IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS,
-                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS)}
+                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS, HORIZON_OCCLUSIONS, SPECULAR_AAS)}
 
 
 def glsl_defines() -> dict[str, int]:

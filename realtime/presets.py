@@ -29,12 +29,14 @@ from pbrcheck.registry import (
     ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
+    HORIZON_OCCLUSIONS,
     IRRADIANCE_METHODS,
     IRRADIANCES,
     LUT_SAMPLINGS,
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
 )
 
@@ -117,7 +119,19 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "
            "(glTF 2.0 3.9.4) and feeds specular_occlusion"),
     Option("specular_occlusion", "choice", "occlusion of the split-sum specular from the ambient occlusion: none | "
-           "lagarde (Lagarde & de Rousiers 2014, listing 26)", SPECULAR_OCCLUSIONS.names),
+           "lagarde (Lagarde & de Rousiers 2014, listing 26) | gtso (Jimenez et al. 2016, cone/cone intersection)",
+           SPECULAR_OCCLUSIONS.names),
+    Option("horizon_occlusion", "choice", "fade of normal-mapped reflections below the geometric normal's horizon: "
+           "none | marmoset (Russell 2015, Jimenez et al. 2016); no normal map (the ray-cast shapes): no change",
+           HORIZON_OCCLUSIONS.names),
+    Option("specular_aa", "choice", "specular anti-aliasing / normal-map filtering, the roughness widened by the "
+           "normals' variance: none | toksvig (Toksvig 2005) | screen_space (Kaplanyan 2016, Tokuyoshi & Kaplanyan "
+           "2019, as Filament; raster only) | prefiltered (slope variance baked per normal-map mip); toksvig and "
+           "prefiltered change only normal-mapped materials", SPECULAR_AAS.names),
+    Option("msaa", "int", "raster: samples per colour-pass pixel (1: off), on top of supersample's s x s",
+           lo=1, hi=8, power_of_two=True),
+    Option("alpha_to_coverage", "bool", "raster: MASK materials write a sharpened alpha to coverage (Golus 2017) "
+           "instead of discarding below alphaCutoff; needs msaa > 1"),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
            lo=1.0, hi=16.0),
     Option("texture_sampling", "choice", "raster: material textures other than the normal map (base colour, "
@@ -175,6 +189,10 @@ DEFAULT = {
     "normal_sampling": "mip",
     "occlusion_texture": True,
     "specular_occlusion": "none",
+    "horizon_occlusion": "none",
+    "specular_aa": "none",
+    "msaa": 1,
+    "alpha_to_coverage": False,
     "tonemap": "none",
     "exposure": 1.0,
     "shader": "",
@@ -376,6 +394,19 @@ def overrides_from_args(sets, shader: str | None = None) -> dict:
     return out
 
 
+def raycast_refusal(specular_aa: str, msaa: int, alpha_to_coverage: bool) -> str | None:
+    """The one-line reason the ray-cast pipeline refuses these raster-only option values, or None:
+    ``specular_aa=screen_space`` needs screen derivatives of the normal (the compute pass runs one
+    invocation per pixel, without neighbours), ``msaa`` and ``alpha_to_coverage`` multisampling."""
+    if specular_aa == "screen_space":
+        return ("option specular_aa: screen_space needs the screen derivatives of the normal, which the ray-cast "
+                "compute pass does not have; use pipeline=raster")
+    if msaa > 1 or alpha_to_coverage:
+        return ("option msaa / alpha_to_coverage: multisampling is the raster pipeline's; the ray-cast compute "
+                "pass supersamples (use pipeline=raster, or supersample)")
+    return None
+
+
 def resolve_options(preset: str = "default", overrides: dict | None = None) -> RealtimeOptions:
     """The complete options of ``preset`` with ``overrides`` applied and validated.
 
@@ -417,4 +448,10 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
                           f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
     if d["pipeline"] == "raster" and d["shadows"]:
         raise OptionError("option shadows: the raster pipeline has no shadow rays (use pipeline=raycast)")
+    # The ray-cast compute pass has no screen-space derivatives and no multisampling
+    # (realtime.render refuses the same where auto resolves to it).
+    if d["pipeline"] == "raycast" and raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]):
+        raise OptionError(raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]))
+    if d["alpha_to_coverage"] and d["msaa"] < 2:
+        raise OptionError("option alpha_to_coverage: needs msaa >= 2 (one sample has no coverage to dither)")
     return RealtimeOptions(**d)

@@ -55,6 +55,7 @@ from pbrcheck.registry import (
     ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
+    HORIZON_OCCLUSIONS,
     IRRADIANCE_METHODS,
     IRRADIANCES,
     LOD_MAPPINGS,
@@ -62,6 +63,7 @@ from pbrcheck.registry import (
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
     lut_sampling_for,
 )
@@ -69,7 +71,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import RealtimeOptions, resolve_options
+from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -446,7 +448,8 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **LOD_MAPPINGS.select("fitted" if fm is not None else o.lod_mapping), "SHADOWS": int(o.shadows),
         **RUNTIME_SAMPLINGS.select(o.runtime_sampling),
         **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
-        **SPECULAR_OCCLUSIONS.select(o.specular_occlusion),
+        **SPECULAR_OCCLUSIONS.select(o.specular_occlusion), **HORIZON_OCCLUSIONS.select(o.horizon_occlusion),
+        **SPECULAR_AAS.select(o.specular_aa),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
         "TEXTURE_LOD0": int(o.texture_sampling == "lod0"), "NORMAL_LOD0": int(o.normal_sampling == "lod0"),
@@ -559,6 +562,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     """
     o = resolve_options(preset, options)
     pipeline = resolved_pipeline(scene, o)
+    check_pipeline_options(pipeline, o)
     ctx = get_context()
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
@@ -652,13 +656,25 @@ def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
     return o.pipeline
 
 
+def check_pipeline_options(pipeline: str, o: RealtimeOptions) -> None:
+    """Raise :class:`~realtime.presets.OptionError` for the raster-only options on a render that
+    ``auto`` resolved to the ray-cast pipeline (``resolve_options`` refuses them with an explicit
+    ``pipeline=raycast``)."""
+    if pipeline != "raycast":
+        return
+    why = raycast_refusal(o.specular_aa, o.msaa, o.alpha_to_coverage)
+    if why:
+        raise OptionError(why)
+
+
 def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dict, hooks, timings: dict):
     """One frame of the raster pipeline (:mod:`realtime.raster`): (color, aov, object) arrays."""
     from . import raster
     ctx = get_context()
     user = (hooks.path, hooks.text) if hooks else None
     t0 = time.perf_counter()
-    prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 0}, user)
+    prog = raster.graphics_program("raster.vert", "raster.frag",
+                                   {**defines, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)}, user)
     aov_prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 1}, user)
     bg_prog = raster.graphics_program("fullscreen.vert", "raster_background.frag")
     timings["compile_frame"] = time.perf_counter() - t0
@@ -673,9 +689,15 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         for it in items:
             for image, ref, srgb in it.textures.values():
                 raster._texture(image, ref, srgb, o.anisotropy, timings)
+            if o.specular_aa == "prefiltered" and "normal" in it.textures:  # and its slope-variance mips
+                t0 = time.perf_counter()
+                raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
+                ctx.finish()
+                timings["texture_mips"] += time.perf_counter() - t0
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
-                                      o.occlusion_texture))
+                                             o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
+                                             normal_variance=o.specular_aa == "prefiltered"))
     finally:
         lbuf.release()
     return color, aov, obj

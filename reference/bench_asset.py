@@ -35,8 +35,10 @@ ASSET_TEXTURE_SIZE = 1024
 ASSET_THROUGHPUT_GOAL = 0.7
 
 
-def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE) -> Path:
-    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it."""
+def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE,
+               normal_map: np.ndarray | None = None) -> Path:
+    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it. ``normal_map``
+    (uint8 (h, w, 3), tangent space): replaces the bumpy normal map (tools/approximation_errors.py)."""
     rings = segments // 2
     th = np.linspace(0, np.pi, rings + 1)
     ph = np.linspace(0, 2 * np.pi, segments + 1)
@@ -57,7 +59,7 @@ def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXT
     bump = np.sin(x * 2 * np.pi * 32) * 0.4
     n = np.stack([bump, np.zeros_like(bump), np.ones_like(bump)], -1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8)
+    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8) if normal_map is None else normal_map
     doc = Doc()
     textures = [doc.image(px) for px in (bc, mr, nm)]
     attrs = {"POSITION": doc.accessor(pos.astype(np.float32), "VEC3", minmax=True),

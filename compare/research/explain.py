@@ -38,8 +38,9 @@ glTF asset scenes (the raster pipeline) add the approximations engines make on a
 * ``texture_filtering``: base colour, metallic-roughness, emissive and occlusion textures read
   bilinearly at level 0 (``texture_sampling=lod0``, as the reference; the supersampling then
   filters) instead of trilinearly through the mip chain.
-* ``normal_filtering``: the normal map likewise (``normal_sampling=lod0``): unfiltered normals
-  instead of mip-averaged ones (whose shortening loses the roughness they imply).
+* ``normal_filtering``: the normal map likewise (``normal_sampling=lod0``, and ``specular_aa=none``):
+  unfiltered normals instead of mip-averaged ones (whose shortening loses the roughness they imply)
+  and no roughness widened to stand for them.
 * ``occlusion``: the occlusion texture off (``occlusion_texture=false``, ``specular_occlusion=none``):
   exact against the ``local`` reference, which has no visibility. Its own truth is the ``path``
   reference: :attr:`ExplainResult.path_truth` measures the preset and the row's options against a
@@ -50,7 +51,7 @@ glTF asset scenes (the raster pipeline) add the approximations engines make on a
 
 What every fix leaves on an asset includes the horizon: the reference cuts light arriving from
 below the geometric surface (a normal-mapped normal tilts its hemisphere under it), the real-time
-shading integrates it.
+shading integrates it (``horizon_occlusion=marmoset`` approximates the cut; no option makes it exact).
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ RUNTIME_SAMPLES = 4096
 #: The asset sources (module docstring): option overrides that make each exact against ``local``.
 ASSET_SOURCES = {
     "texture_filtering": {"texture_sampling": "lod0"},
-    "normal_filtering": {"normal_sampling": "lod0"},
+    "normal_filtering": {"normal_sampling": "lod0", "specular_aa": "none"},
     "occlusion": {"occlusion_texture": False, "specular_occlusion": "none"},
 }
 #: The asset sources whose truth is the ``path`` reference (:attr:`ExplainResult.path_truth`).
