@@ -71,7 +71,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options
+from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -224,7 +224,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
 def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
     src_lod = math.log2(o.cube_size / o.irradiance_source_size)
-    method = 0 if o.irradiance_method == "texel_sum" else 1
+    method = IRRADIANCE_METHODS.names.index(o.irradiance_method)  # its GLSL constant; 0: texel_sum, no step
     key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
            o.irradiance_step if method else None)
     ctx = get_context()
@@ -428,9 +428,9 @@ def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
     v = o.energy_compensation
     if v != "scene":
         return v
-    if o.shading != "material" or o.ibl != "splitsum":
-        return "none"  # only the material composition's split sum has the DFG terms it scales
-    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+    v = SCENE_COMPENSATION[scene.brdf.multiscatter]
+    # none where the options do not meet its requirements (the material composition's split sum)
+    return "none" if unmet_requirements(ENERGY_COMPENSATIONS[v], o) else v
 
 
 def frame_defines(o: RealtimeOptions, terms: dict) -> dict:

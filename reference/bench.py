@@ -29,8 +29,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
 * ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
-  size, spp and environment: load and Mitsuba-scene (BVH) seconds apart, its local samples/s and
-  ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
+  size, spp, sampler and environment, rendered alternately with spheres in its own loop
+  (``ASSET_REPEATS``; both rows under the same load): load and Mitsuba-scene (BVH) seconds apart,
+  its local samples/s and ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
 * ``samplers``: the same figure for each sampler, side by side in one run (:data:`SAMPLER_CONFIGS`:
   ``independent``, ``qmc`` uniform, ``qmc`` adaptive, the default), each rendered at
   ``FLOOR_SPP`` spp (a warm-up render of a 16 x 12 crop first, which compiles the same kernels,
@@ -81,6 +82,8 @@ FULL_COVERAGE = 0.999
 BENCH_RESOLUTION = (360, 300)   # the spheres scene's own resolution
 BENCH_SPP = 64
 RENDER_REPEATS = 3
+#: The asset row's alternating renders of the asset and spheres (reference.bench_asset).
+ASSET_REPEATS = 5
 BSDF_LANES = 1 << 21
 BSDF_REPEATS = 7
 PEER_ROUGHNESS = 0.5
@@ -328,6 +331,17 @@ def _hdr_envmap(envmap: str | None) -> Path | None:
     return None
 
 
+def run_asset_bench(quick: bool = False) -> dict:
+    """The ``asset`` row alone (``pbrcheck bench reference --asset-only``), at the bench's size and spp."""
+    from .bench_asset import bench_asset
+
+    _mi()
+    W, H = (48, 40) if quick else BENCH_RESOLUTION
+    scene = load_scene("spheres").with_camera(width=W, height=H)
+    return {"variant": _mi()[0].variant(), "resolution": [W, H], "spp": 8 if quick else BENCH_SPP,
+            "asset": bench_asset(scene, 8 if quick else BENCH_SPP, 1 if quick else ASSET_REPEATS, quick=quick)}
+
+
 def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
@@ -354,7 +368,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
 
     gather = _time_gather(scene, 2 if quick else 5)
     from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
-    asset = bench_asset(scene, spp, t_local, rep, quick=quick)
+    asset = bench_asset(scene, spp, max(rep, 1 if quick else ASSET_REPEATS), quick=quick)
 
     full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
     fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP

@@ -40,7 +40,7 @@ glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_texture
 
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
-:func:`adaptive_allocation`, :func:`check_sampler`, :data:`REFERENCE_CODE_VERSION`,
+:func:`adaptive_allocation`, :func:`check_sampler`, :data:`REFERENCE_CODE_VERSION`, :data:`ASSET_CODE_VERSION`,
 :data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
 References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
 Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH); Neyman 1934 (optimal
@@ -66,6 +66,10 @@ from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
 REFERENCE_CODE_VERSION = "3"  # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive
+#: Bump when a change of this package changes the pixels of scenes holding glTF assets only: part of
+#: their cache keys alone, so that analytic scenes' cached renders stay valid. 2: single-sided back
+#: faces culled (path: volpath), the emissive texture's texCoord set.
+ASSET_CODE_VERSION = "2"
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
@@ -261,16 +265,17 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
-    from .integrator import pixel_centre_rays  # local: importing it loads Mitsuba (variant set first)
+    from .integrator import culling_table, past_back_faces, pixel_centre_rays  # local: loads Mitsuba (variant set first)
 
     W, H = scene.camera.width, scene.camera.height
     ray, _ = pixel_centre_rays(sensor)
     ray = mi.Ray3f(ray)
     si = mscene.ray_intersect(ray)
-    hit = si.is_valid()
+    # glTF single-sided back faces are culled (the estimators' rule)
+    si, hit = past_back_faces(mscene, ray, si, si.is_valid(), culling_table(mscene))
     n = dr.select(hit, si.sh_frame.n, 0.0)
     ndv = dr.select(hit, dr.clip(dr.dot(si.sh_frame.n, -ray.d), 0.0, 1.0), 0.0)
-    obj = mi.Float(-1.0)
+    obj = dr.full(mi.Float, -1.0, W * H)  # a scene without shapes too
     for shape in mscene.shapes():
         idx = shape_index.get(shape.id())
         if idx is not None:
@@ -353,6 +358,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "mitsuba_version": mitsuba.__version__,
         "drjit_version": drjit.__version__,
         "reference_code_version": REFERENCE_CODE_VERSION,
+        **({"asset_code_version": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}),
         "sampler": sampler,
         "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
@@ -387,9 +393,10 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     env = env if env is not None else load_environment(scene)
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH) if mode == "path" else None
     adaptive = bool(adaptive) and sampler == "qmc" and int(spp) >= ADAPTIVE_MIN_SPP
+    assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
-                     sampler=check_sampler(sampler), adaptive=adaptive)
+                     sampler=check_sampler(sampler), adaptive=adaptive, **assets)
 
 
 def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
