@@ -6,8 +6,10 @@ The written ``scene.gltf`` is the asset's own JSON with: the chosen glTF scene o
 under one node ``pbrcheck_root`` carrying the scene file's placement (``matrix``, column-major;
 omitted when the identity), pbrcheck's camera first in ``cameras`` (the asset's cameras follow,
 their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``scene.bin``; external
-buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
-objects cannot share an exported scene with an asset yet (:class:`~pbrcheck.gltf.AssetError`).
+buffers and images are copied beside it under their own relative URIs; data URIs stay. The scene
+file's own lights are added by :mod:`pbrcheck.export` (root nodes ``light_<k>`` beside
+``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). Analytic objects cannot share
+an exported scene with an asset yet (:class:`~pbrcheck.gltf.AssetError`).
 
 API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).
