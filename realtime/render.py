@@ -63,6 +63,7 @@ from pbrcheck.registry import (
     RUNTIME_SAMPLINGS,
     SHADINGS,
     SPECULAR_OCCLUSIONS,
+    lut_sampling_for,
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
@@ -312,8 +313,7 @@ def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
 def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
             timings: dict | None = None):
     """The DFG LUT texture (RG16F or RG32F), see the module docstring for its axes."""
-    if sampling == "vndf" and ndf != "ggx":
-        sampling = "ndf"  # visible-normal sampling exists for GGX only
+    sampling = lut_sampling_for(sampling, ndf)  # e.g. visible-normal sampling exists for GGX only
     key = ("lut", size, samples, fmt, geometry, ndf, sampling)
     ctx = get_context()
     prog = compute_program("dfg_lut.comp", {
