@@ -4,8 +4,8 @@ An external renderer that disagrees with the reference by 30 % has either an app
 or a *convention* mismatch: a flipped image, sRGB data read as linear, an environment rotated by a
 quarter turn, roughness used as alpha, ... Each hypothesis below is a transform that undoes one such
 mismatch; :func:`diagnose` applies each, measures the error that remains and ranks them by how much
-of the error each one removes, against the reference's own noise. The likely cause must remove most
-of the error over the bulk of the pixels too (all but the worst :data:`BULK_OUTLIERS`): a mismatch
+of the error each one removes, against the reference's own noise. The likely cause must reduce the
+error over the bulk of the pixels too (all but the worst :data:`BULK_OUTLIERS`): a mismatch
 moves every pixel, while a handful of outliers (sun glints an unconverged reference misses) can
 carry most of a relative MSE that a fitted exposure or a compressive transform then "explains".
 
@@ -95,8 +95,9 @@ LIKELY_REMAINING = 0.5
 #: global factor is an approximation's bias, not a convention).
 EXPOSURE_MIN_DEVIATION = 0.02
 #: A convention mismatch moves the bulk of the image, not a handful of pixels: the likely cause must
-#: also leave at most LIKELY_REMAINING of the error over the pixels outside this worst fraction (by
-#: each pixel's share of the error before). A few outliers can carry most of a relative MSE, and a
+#: also reduce the error over the pixels outside this worst fraction (by each pixel's share of the
+#: error before; a model difference such as multiple scattering reduces it less than the whole
+#: image's, only on rough metals). A few outliers can carry most of a relative MSE, and a
 #: fitted exposure or a compressive transform removes it there while making the rest worse
 #: (measured: DamagedHelmet under royal_esplanade_1k at 200 x 150 against a 16-spp reference that
 #: misses sun glints: the 10 worst of 3992 object pixels carry 53-63 % of three engines' absolute
@@ -127,7 +128,8 @@ class HypothesisRow:
     within_noise: bool
     fitted: dict = field(default_factory=dict)
     skipped: str | None = None
-    #: The fraction of the error removed over the bulk (the pixels outside the BULK_OUTLIERS worst).
+    #: The fraction of the error removed over the bulk (the pixels outside the BULK_OUTLIERS worst;
+    #: negative: the bulk got worse).
     bulk_reduction: float | None = None
 
 
@@ -479,7 +481,7 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
     likely = None
     if not _within(before, noise):
         for x in tested:
-            if (x.error_after <= LIKELY_REMAINING * before and x.bulk_reduction >= 1.0 - LIKELY_REMAINING
+            if (x.error_after <= LIKELY_REMAINING * before and x.bulk_reduction > 0.0
                     and hypothesis(x.hypothesis).names_cause(x.fitted)):
                 likely = x
                 break
