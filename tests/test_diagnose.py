@@ -131,6 +131,20 @@ def test_glints_alone_name_no_cause_a_planted_factor_with_them_is_named():
     assert d.rows[0].bulk_reduction > 0.99
 
 
+def test_a_brighter_region_is_not_named_an_exposure():
+    """A tenth of the image 4x brighter in the test (as the Sample Viewer's background under its
+    skybox projection) pulls the exposure fit and even helps the bulk, but the per-pixel ratios'
+    median stays at 1: not a global factor."""
+    ref, test = _glint_pair(glints=False)
+    rgb = test.rgb.copy()
+    rgb[:5] *= 4.0
+    d = dg.diagnose(ref, Image.from_rgb(rgb))
+    row = next(r for r in d.rows if r.hypothesis == "exposure")
+    assert row.reduction > dg.LIKELY_REMAINING and row.bulk_reduction > 0.5 and row.fitted["factor"] < 0.6
+    assert row.fitted["median_ratio"] == pytest.approx(1.0, abs=0.01)
+    assert d.likely != "exposure", dg.table_markdown(d)
+
+
 def test_planted_clamp_is_named_with_its_level(ref, correct):
     d = dg.diagnose(ref, _with_rgb(correct, np.minimum(correct.rgb, 0.2)))
     assert d.likely == "hdr_clamp", dg.table_markdown(d)
