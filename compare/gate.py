@@ -74,6 +74,7 @@ from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, Image, read_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
+from pbrcheck.registry import SHADINGS
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers
@@ -713,7 +714,7 @@ def _takes_hooks(check: Check) -> bool:
         o = renderers.resolve_options(check.preset, {k: v for k, v in check.options.items() if k != "shader"})
     except PbrcheckError:
         return False
-    if o.get("shading") != "material":
+    if not SHADINGS[o["shading"]].extra.get("hooks"):
         return False
     shader = check.options.get("shader")
     return not (shader and "hook_lod" in Path(shader).read_text(encoding="utf-8", errors="replace"))

@@ -68,6 +68,8 @@ OUTPUT_SUFFIX = {"exr": ".exr", "hdr": ".hdr", "pfm": ".pfm", "png-srgb": ".png"
 EXPORT_FORMAT_VERSION = 2  # 2: an asset scene's scene-file lights are exported
 #: The files :func:`export_scene` writes.
 FILES = ("scene.gltf", "scene.bin", "environment.exr", "environment.hdr", "scenario.json")
+#: The buffer of analytic objects exported beside an asset (the asset keeps its own buffers).
+OBJECTS_BIN = "pbrcheck_objects.bin"
 
 ENVIRONMENT_ORIENTATION = (
     "equirectangular, +Y up, row 0 at the top: pixel (row k, column c) of an H x W image holds the "
@@ -355,32 +357,56 @@ def _add_lights(doc: dict, lights) -> list[int]:
 def _asset_document(scene: Scene, bin_name: str):
     """The asset's own document (:func:`pbrcheck.gltf_export.asset_document`) with the scene file's
     lights on extra root nodes ``light_<k>`` beside ``pbrcheck_root`` (world space: the placement
-    does not move them), their ``KHR_lights_punctual`` entries after the asset's own."""
+    does not move them), their ``KHR_lights_punctual`` entries after the asset's own, and the
+    analytic objects beside it."""
     from .gltf_export import asset_document
 
     node, cam = _camera(scene)
     doc, files = asset_document(scene, node, cam, bin_name)
     doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.own_lights()))
-    return doc, files, {}, sum(o.triangles for o in scene.objects)
-
-
-def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
-    """The glTF 2.0 JSON of ``scene`` and its binary buffer.
-
-    Returns
-    -------
-    (dict, bytes, dict, int)
-        The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``), segments around each
-        sphere (object id -> n) and the number of triangles.
-    """
-    if getattr(scene, "assets", ()):  # the user's asset itself (pbrcheck.gltf_export)
-        return _asset_document(scene, bin_name)
+    triangles = sum(o.triangles for o in scene.objects if o.type == "mesh")
+    analytic = [o for o in scene.objects if o.type != "mesh"]
+    if not analytic:
+        return doc, files, {}, triangles
+    # analytic objects beside the asset: tessellated as in an analytic scene, in a buffer of their own
     buf = _Buffer()
+    meshes, nodes, materials, segments, ntri = _analytic_objects(scene, analytic, buf)
+    m0, me0, a0, v0 = (len(doc.setdefault(k, [])) for k in ("materials", "meshes", "accessors", "bufferViews"))
+    for view in buf.views:
+        view["buffer"] = len(doc.setdefault("buffers", []))
+    for acc in buf.accessors:
+        acc["bufferView"] += v0
+    for mesh in meshes:
+        for prim in mesh["primitives"]:
+            prim["attributes"] = {k: a + a0 for k, a in prim["attributes"].items()}
+            prim["indices"] += a0
+            prim["material"] += m0
+    for n in nodes:
+        n["mesh"] += me0
+    while len(buf.data) % 4:
+        buf.data.append(0)
+    doc["buffers"].append({"uri": OBJECTS_BIN, "byteLength": len(buf.data)})
+    files[OBJECTS_BIN] = bytes(buf.data)
+    doc["materials"] += materials
+    doc["meshes"] += meshes
+    doc["accessors"] += buf.accessors
+    doc["bufferViews"] += buf.views
+    first = len(doc["nodes"])
+    doc["nodes"] += nodes
+    doc["scenes"][0]["nodes"] += list(range(first, len(doc["nodes"])))
+    if any("extensions" in m for m in materials):
+        doc["extensionsUsed"] = sorted(set(doc.get("extensionsUsed", [])) | {"KHR_materials_ior"})
+    return doc, files, segments, triangles + ntri
+
+
+def _analytic_objects(scene: Scene, objects, buf: "_Buffer"):
+    """(meshes, nodes, materials, segments around each sphere, triangles) of analytic ``objects``
+    tessellated into ``buf``; each primitive's material and node's mesh index the returned lists."""
     meshes, nodes, materials = [], [], []
     sphere_geo: dict[int, tuple[int, int, int]] = {}
     segments: dict[int, int] = {}
     triangles = 0
-    for obj in scene.objects:
+    for obj in objects:
         materials.append(_material(obj))
         node = {"name": f"object_{obj.id}_{obj.name}", "mesh": len(meshes), "extras": {"pbrcheck_object": obj.id}}
         if isinstance(obj, Sphere):
@@ -401,8 +427,25 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
             raise ExportError(f"{scene.source}: objects[{obj.id}]: cannot export type {type(obj).__name__}")
         triangles += ntri
         meshes.append({"name": f"mesh_{obj.id}", "primitives": [
-            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": obj.id, "mode": 4}]})
+            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": len(materials) - 1, "mode": 4}]})
         nodes.append(node)
+    return meshes, nodes, materials, segments, triangles
+
+
+def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
+    """The glTF 2.0 JSON of ``scene`` and its binary buffer.
+
+    Returns
+    -------
+    (dict, bytes, dict, int)
+        The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``; for a scene holding an
+        asset, ``{relative path: bytes}`` of the files beside the JSON), segments around each
+        sphere (object id -> n) and the number of triangles.
+    """
+    if getattr(scene, "assets", ()):  # the user's asset itself (pbrcheck.gltf_export), analytic objects beside
+        return _asset_document(scene, bin_name)
+    buf = _Buffer()
+    meshes, nodes, materials, segments, triangles = _analytic_objects(scene, scene.objects, buf)
 
     cam_node, cam_dict = _camera(scene)
     nodes.append(cam_node)

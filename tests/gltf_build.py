@@ -94,13 +94,17 @@ class Doc:
 
 
 def quad_asset(path: Path, material: dict, images: list[tuple[np.ndarray, dict | None]] = (), *,
-               tangents: bool = True, scale: float = 1.0) -> Path:
-    """A one-quad asset (module docstring); ``images`` become textures 0, 1, ... in order."""
+               tangents: bool = True, scale: float = 1.0, uv0: np.ndarray = QUAD_UV,
+               uv1: np.ndarray | None = None) -> Path:
+    """A one-quad asset (module docstring); ``images`` become textures 0, 1, ... in order; ``uv0``,
+    ``uv1``: the corners' TEXCOORD_0 (default :data:`QUAD_UV`) and TEXCOORD_1 (default none)."""
     doc = Doc()
     for px, sampler in images:
         doc.image(px, sampler)
     attrs = {"POSITION": doc.accessor(QUAD_POS * scale, "VEC3", minmax=True),
-             "NORMAL": doc.accessor(QUAD_NRM, "VEC3"), "TEXCOORD_0": doc.accessor(QUAD_UV, "VEC2")}
+             "NORMAL": doc.accessor(QUAD_NRM, "VEC3"), "TEXCOORD_0": doc.accessor(np.asarray(uv0, np.float32), "VEC2")}
+    if uv1 is not None:
+        attrs["TEXCOORD_1"] = doc.accessor(np.asarray(uv1, np.float32), "VEC2")
     if tangents:
         attrs["TANGENT"] = doc.accessor(QUAD_TAN, "VEC4")
     doc.d["materials"] = [material]

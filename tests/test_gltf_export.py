@@ -238,3 +238,40 @@ def test_material_bias_and_the_report_table(tmp_path):
     table = html.split("<h3>Metrics per glTF material</h3>")[1].split("</table>")[0]
     assert "<th>relmse</th><th>flip_mean</th><th>bias</th>" in table
     assert "ext:threejs" in table and "q.gltf: matte" in table and _fmt(-0.2) in table
+
+
+def test_asset_and_analytic_objects_export_together_and_read_back(tmp_path, tmp_cache):
+    """An asset beside an analytic sphere exports as one glTF (the asset placed under its root node,
+    the sphere tessellated in a buffer of its own) that reads back to the same objects and renders
+    the same reference within noise and tessellation."""
+    from pbrcheck.export import OBJECTS_BIN
+    from pbrcheck.gltf import load_asset
+    from pbrcheck.scene import asset_scene
+    from reference.render import render_reference
+
+    sc_path = quad_scene(tmp_path, quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {
+        "baseColorFactor": [0.9, 0.5, 0.2, 1.0], "metallicFactor": 0.0}}), size=(24, 20), fov=40.0)
+    sc_path.write_text(sc_path.read_text() + 'translation = [-0.6, 0.0, 0.0]\n\n[[objects]]\ntype = "sphere"\n'
+                       'center = [1.0, 0.2, 0.5]\nradius = 0.5\nmaterial = { base_color = [0.2, 0.4, 0.9], '
+                       'metallic = 1.0, roughness = 0.3, specular = 0.06 }\n')
+    sc = load_scene(sc_path)
+    assert [o.type for o in sc.objects] == ["mesh", "sphere"]
+    exp = export_scene(sc, tmp_path / "out")
+    assert (tmp_path / "out" / OBJECTS_BIN).is_file() and exp.triangles > 2
+    doc = json.loads((tmp_path / "out" / "scene.gltf").read_text())
+    assert doc["extensionsUsed"] == ["KHR_materials_ior"]
+    nodes = {n.get("name"): i for i, n in enumerate(doc["nodes"])}
+    assert {"pbrcheck_root", "camera", "object_1_" + sc.objects[1].name} <= set(nodes)
+    assert [o.get("gltf_node") for o in exp.scenario["objects"]][1] == "object_1_" + sc.objects[1].name
+    back_asset = load_asset(tmp_path / "out" / "scene.gltf")
+    sphere, quad = sorted(back_asset.primitives, key=lambda p: not p.name.startswith("object_1_"))
+    assert np.allclose(quad.positions.mean(0), [-0.6, 0.0, 0.0], atol=1e-6)
+    assert np.allclose(np.linalg.norm(sphere.positions - [1.0, 0.2, 0.5], axis=1), 0.5, atol=1e-5)
+    back = asset_scene(tmp_path / "out" / "scene.gltf", size=(24, 20))
+    back = back.__class__(**{**back.__dict__, "environment": sc.environment})
+    a = render_reference(sc, spp=32, use_cache=False, progress=False)
+    b = render_reference(back, spp=32, use_cache=False, progress=False)
+    m = (a.channels["coverage"] == 1) & (b.channels["coverage"] == 1)   # object ids: the read-back's own order
+    assert m.mean() > 0.3 and len(np.unique(a.channels["object"][m])) == len(np.unique(b.channels["object"][m])) == 2
+    sd = np.sqrt(a.variance + b.variance)
+    assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])

@@ -275,3 +275,28 @@ def test_diagnose_names_a_model_difference_not_a_convention(sample_viewer):
     for name in ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linear_as_srgb", "swap_rb",
                  "env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha"):
         assert rows[name].reduction < 0.0, (name, dg.table_markdown(d))
+
+
+@pytest.mark.slow
+def test_draco_asset_is_decoded_and_drawn(sample_viewer):
+    """A Draco-compressed asset (``../shared/assets/BoxTextured.glb``) through the Sample Viewer:
+    its meshes decoded by the Draco decoder the three.js package vendors (clients/gltf-sample-viewer
+    page.js) and drawn where the reference sees the box: on the box's pixels the image is much
+    closer to the reference than the environment behind the box is."""
+    from pbrcheck.scene import asset_scene
+    from reference.render import render_reference
+
+    box = ROOT.parent / "shared" / "assets" / "BoxTextured.glb"
+    env = ROOT.parent / "shared" / "envmaps" / "royal_esplanade_1k.hdr"
+    if not box.is_file() or not env.is_file():
+        pytest.skip("../shared/assets/BoxTextured.glb or ../shared/envmaps/royal_esplanade_1k.hdr absent")
+    if not (ROOT / "clients" / "threejs" / "node_modules" / "three").is_dir():
+        pytest.skip("the three.js client (its vendored Draco decoder) is not installed: npm ci in clients/threejs")
+    scene = asset_scene(box, size=(32, 24), env=str(env))
+    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    ref = render_reference(scene, spp=16, progress=False)
+    bg = render_reference(dataclasses.replace(scene, objects=(), assets=()), spp=2, progress=False)
+    box_px = ref.channels["coverage"] == 1
+    assert box_px.mean() > 0.2
+    err = lambda a: float(np.abs(a.rgb - ref.rgb)[box_px].mean())
+    assert err(img) < 0.5 * err(bg), (err(img), err(bg))

@@ -470,7 +470,7 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
             r2, t2, fitted = h.apply(r, t, cov)
             return r2, t2, var, fitted
         s2, fitted = h.apply(scene, directory)
-        img = renderers.render_reference(s2, spp=spp, mode=mode, seed=seed)
+        img = renderers.render_reference(s2, spp=spp, mode=mode, seed=seed, progress=False)  # the bar below counts
         return img.rgb.astype(np.float64), t, img.variance, fitted
 
     todo = [h for h in HYPOTHESES if h.kind == "image" or scene is not None]

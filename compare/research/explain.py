@@ -19,8 +19,9 @@ Sources and their exact counterparts:
   importance sampling.
 * ``v=n=r``: the split sum's prefiltered lobe assumes v = n = r and splits the integral of a
   product into a product of integrals; replaced by runtime importance sampling of the same
-  integrand (the scene's D, G, F; GGX visible normals for a GGX NDF, Beckmann half vectors for a
-  Beckmann one; 4096 samples per pixel, mip-filtered lookups) in the material composition. For a
+  integrand (the scene's D, G, F; the runtime strategy exact for the scene's NDF, its registry
+  entry's ``extra["runtime_sampling"]``: GGX visible normals for a GGX NDF, Beckmann half vectors
+  for a Beckmann one; 4096 samples per pixel, mip-filtered lookups) in the material composition. For a
   preset with an article's composition the row also switches to the material composition (only it
   and article 001's have a runtime-sampled specular), so it then includes ``composition``.
 * ``lod_mapping``: the built-in mapping that measures best on this scene (or ``--fitted FILE``'s
@@ -44,7 +45,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
-from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
+from pbrcheck.registry import BUILTIN_LOD_MAPPINGS, NDFS
 from pbrcheck.scene import Scene
 
 from .. import renderers
@@ -73,6 +74,10 @@ EXACT_LUT_SAMPLES = 4096
 #: estimator's noise at 4096 samples is far below the 64..256-spp reference's.
 RUNTIME_SAMPLES = 4096
 
+#: The ``v=n=r`` row's ``runtime_sampling`` for an NDF no runtime strategy is exact for (its NDF
+#: entry has no ``extra["runtime_sampling"]``, :data:`pbrcheck.registry.NDFS`): the row is not rendered.
+NO_RUNTIME_SAMPLING = "none"
+
 
 def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx") -> dict[str, dict]:
     """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests)."""
@@ -85,7 +90,7 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
     # Not scaled by samples_scale: fewer samples mean coarser mip-filtered lookups (GPU Gems 3 ch. 20
     # picks the level from the pdf and the sample count), i.e. a blur bias, not just noise.
     vnr = {"ibl": "runtime", "runtime_samples": RUNTIME_SAMPLES, "runtime_lod": True, "runtime_rotate": True,
-           "runtime_sampling": {"ggx": "vndf", "beckmann": "beckmann"}.get(ndf, "none")}
+           "runtime_sampling": NDFS[ndf].extra.get("runtime_sampling", NO_RUNTIME_SAMPLING)}
     if o["shading"] != "material":
         vnr.update(composition)
     return {
@@ -180,9 +185,10 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         # the material composition (composition is then part of this row).
         srcs.pop("lut")
     for name, over in srcs.items():
-        if over.get("runtime_sampling") == "none":
+        if over.get("runtime_sampling") == NO_RUNTIME_SAMPLING:
+            have = " and ".join(e.name for e in NDFS if "runtime_sampling" in e.extra)
             rows.append(ExplainRow(name, over, None, None,
-                                   f"no runtime sampler for the {scene.brdf.ndf} NDF (GGX and Beckmann have one)"))
+                                   f"no runtime sampler for the {scene.brdf.ndf} NDF ({have} have one)"))
             continue
         try:
             m = measure(over)
