@@ -18,9 +18,11 @@ and Dr.Jit's workers included), so ``cpu / wall`` near the core count means the 
 machine busy. External renderers render in a background thread and in their own processes (a
 browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
 The cache counts are this process's: renders that a ``--scheduler``'s workers run are not in them.
+Across the stages, ``work`` gives the seconds by kind of work (reference renders, real-time renders,
+HDR-FLIP, plots, waiting on external renderers: :mod:`compare.worktime`), whichever stage asked.
 
 API: :class:`RunLog` (:meth:`RunLog.stage` records one stage), :func:`run_section`, :func:`summary_line`,
-:func:`cache_line`, :func:`bench_report`, :func:`bench_report_asset`,
+:func:`cache_line`, :func:`stage_table`, :func:`bench_report`, :func:`bench_report_asset`,
 :data:`RUN_FILE`, :data:`REPORT_GOAL_S`, :data:`ASSET_REPORT_GOAL`, :data:`ASSET_REPORT_SCENES`.
 """
 
@@ -38,7 +40,7 @@ from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
 
-from .. import renderers
+from .. import renderers, worktime
 from ..metrics import FLIP_STORE_COUNTS
 from .section import Section, Table
 
@@ -73,6 +75,7 @@ class RunLog:
     _c0: float = field(default_factory=time.process_time)
     _counts0: dict = field(default_factory=lambda: _counts())
     _children0: float = field(default_factory=lambda: _children_cpu())
+    _work0: dict = field(default_factory=worktime.snapshot)
 
     @contextlib.contextmanager
     def stage(self, name: str):
@@ -93,6 +96,7 @@ class RunLog:
             "backends": renderers.backends(),
             "caches": caches,
             "stages": self.merged(),
+            "work": worktime.since(self._work0),
         }
 
     def merged(self) -> list[dict]:
@@ -150,8 +154,35 @@ def run_section(run: dict) -> Section:
             f"{b.get('gl_renderer') or 'n/a'}, reference variant {b.get('reference_variant') or 'n/a'}. "
             f"Caches: {cache_line(run)}. `pbrcheck bench report` measures a first run (empty "
             f"caches) and a second one. File: {RUN_FILE}.")
-    return Section("run", "Where this report's time went", note,
-                   [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)])
+    tables = [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)]
+    work = run.get("work") or {}
+    if work:
+        tables.append(Table("By kind of work, whichever stage asked for it (exclusive seconds; "
+                            "compare.worktime)", ["kind", "calls", "wall (s)", "CPU (s)"],
+                            [[k, str(v["calls"]), f"{v['wall_s']:.1f}", f"{v['cpu_s']:.1f}"] for k, v in work.items()]))
+    return Section("run", "Where this report's time went", note, tables)
+
+
+def stage_table(run: dict) -> str:
+    """A run log's stages and kinds of work as plain-text lines (wall and CPU seconds each), for the
+    terminal (``pbrcheck bench report`` prints one per run)."""
+    w = max([len(x["name"]) for x in run["stages"]] + [len(k) for k in (run.get("work") or {})] + [24])
+    lines = [f"{'stage':<{w}}  {'wall s':>8}  {'CPU s':>8}  calls"]
+    for x in run["stages"]:
+        lines.append(f"{x['name']:<{w}}  {x['wall_s']:8.1f}  {x['cpu_s']:8.1f}  {x.get('calls', 1):5d}")
+    rest_w = run["wall_s"] - sum(x["wall_s"] for x in run["stages"])
+    rest_c = run["cpu_s"] - sum(x["cpu_s"] for x in run["stages"])
+    lines.append(f"{'(set-up, plots, the page)':<{w}}  {rest_w:8.1f}  {rest_c:8.1f}")
+    lines.append(f"{'total':<{w}}  {run['wall_s']:8.1f}  {run['cpu_s']:8.1f}  (+{run.get('children_cpu_s', 0.0):.1f} s "
+                 f"CPU in child processes)")
+    work = run.get("work") or {}
+    if work:
+        lines.append(f"{'kind of work (exclusive)':<{w}}  {'wall s':>8}  {'CPU s':>8}  calls")
+        for k, v in work.items():
+            lines.append(f"{k:<{w}}  {v['wall_s']:8.1f}  {v['cpu_s']:8.1f}  {v['calls']:5d}")
+        lines.append(f"{'(none of these)':<{w}}  {run['wall_s'] - sum(v['wall_s'] for v in work.values()):8.1f}  "
+                     f"{run['cpu_s'] - sum(v['cpu_s'] for v in work.values()):8.1f}")
+    return "\n".join(lines)
 
 
 class BenchReportError(PbrcheckError):
@@ -192,6 +223,9 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
             if progress:
                 print(f"bench report: {name} run ...", file=sys.stderr, flush=True)
             runs[name] = _run(args, tmp / f"out_{name}", env, progress)
+            if progress:
+                print(f"bench report: {name} run, {summary_line(runs[name])}\n{stage_table(runs[name])}",
+                      file=sys.stderr, flush=True)
     gpu = str(runs["first"]["backends"].get("reference_variant", "")).startswith("cuda")
     goal = REPORT_GOAL_S["gpu" if gpu else "cpu"]
     return {
