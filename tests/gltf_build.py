@@ -94,15 +94,18 @@ class Doc:
 
 
 def quad_asset(path: Path, material: dict, images: list[tuple[np.ndarray, dict | None]] = (), *,
-               tangents: bool = True, scale: float = 1.0) -> Path:
-    """A one-quad asset (module docstring); ``images`` become textures 0, 1, ... in order."""
+               tangents: bool = True, scale: float = 1.0, mirrored_u: bool = False) -> Path:
+    """A one-quad asset (module docstring); ``images`` become textures 0, 1, ... in order.
+    ``mirrored_u``: u runs right to left (u -> 1 - u), as on the mirrored half of a symmetric asset's
+    UV layout: the tangent is -x and, the bitangent staying up the image (+y), its sign w is -1."""
     doc = Doc()
     for px, sampler in images:
         doc.image(px, sampler)
+    uv = QUAD_UV * (-1, 1) + (1, 0) if mirrored_u else QUAD_UV
     attrs = {"POSITION": doc.accessor(QUAD_POS * scale, "VEC3", minmax=True),
-             "NORMAL": doc.accessor(QUAD_NRM, "VEC3"), "TEXCOORD_0": doc.accessor(QUAD_UV, "VEC2")}
+             "NORMAL": doc.accessor(QUAD_NRM, "VEC3"), "TEXCOORD_0": doc.accessor(uv.astype(np.float32), "VEC2")}
     if tangents:
-        attrs["TANGENT"] = doc.accessor(QUAD_TAN, "VEC4")
+        attrs["TANGENT"] = doc.accessor((QUAD_TAN * (-1, 1, 1, -1)).astype(np.float32) if mirrored_u else QUAD_TAN, "VEC4")
     doc.d["materials"] = [material]
     doc.node(doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0))
     return doc.write(path)
