@@ -34,7 +34,8 @@ def _cmd_report(args) -> int:
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
     config = ReportConfig(presets=presets, spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                          convergence=not args.no_convergence, sweep=not args.no_sweep, furnace=not args.no_furnace,
+                          convergence=not args.no_convergence, sweep=not args.no_sweep,
+                          approximations=not args.no_approximations, furnace=not args.no_furnace,
                           hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
                           cache=not args.no_cache, progress=not args.quiet)
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
@@ -95,6 +96,8 @@ def register(sub, bench_sub) -> None:
                         "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
+    s.add_argument("--no-approximations", action="store_true",
+                   help="asset scenes: skip the approximation options against their truths (a path reference)")
     s.add_argument("--no-furnace", action="store_true", help="skip the white furnace per renderer")
     s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
