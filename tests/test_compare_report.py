@@ -433,3 +433,26 @@ def test_report_of_an_asset_scene_shows_the_approximations_against_both_truths(t
     assert by["+ specular_occlusion=lagarde"]["relmse"] != by["occlusion_texture (diffuse)"]["relmse"]
     html = index.read_text()
     assert "Asset approximations" in html and "<td class=\"l\">path</td>" in html and "<td class=\"l\">local</td>" in html
+
+
+def test_sweep_over_the_asset_approximations_against_their_truths(tmp_path, tmp_cache, capsys):
+    # pbrcheck sweep --approximations on a built quad: every option of compare.approximations, each
+    # against its truth's reference (a truth column), one speed-against-error plot per truth
+    from compare.approximations import LOCAL_ROWS, PATH_ROWS
+    from gltf_build import quad_asset, quad_scene
+
+    nm = np.full((4, 4, 3), (128, 128, 255), np.uint8)
+    nm[::2, ::2] = (200, 128, 230)
+    asset = quad_asset(tmp_path / "q.gltf", {"normalTexture": {"index": 0}, "occlusionTexture": {"index": 1},
+                                            "pbrMetallicRoughness": {"roughnessFactor": 0.3}},
+                       [(nm, None), (np.full((4, 4, 3), 128, np.uint8), None)])
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(quad_scene(tmp_path, asset, size=(8, 8))), "--approximations", "--out", str(out),
+                 "--spp", "4", "--quiet"]) == 0
+    rows = json.loads((out / "sweep.json").read_text())
+    assert [r["truth"] for r in rows] == ["local"] * len(LOCAL_ROWS) + ["path"] * len(PATH_ROWS)
+    assert all(r["options"]["pipeline"] == "raster" and r["frame_s"] is not None and np.isfinite(r["relmse"])
+               for r in rows)
+    assert all(r["options"]["occlusion_texture"] is False for r in rows[:len(LOCAL_ROWS)])
+    assert (out / "sweep.csv").read_text().startswith("preset,truth,")
+    assert (out / "pareto_local.png").stat().st_size > 0 and (out / "pareto_path.png").stat().st_size > 0
