@@ -71,7 +71,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options
+from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -224,7 +224,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
 def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
     src_lod = math.log2(o.cube_size / o.irradiance_source_size)
-    method = 0 if o.irradiance_method == "texel_sum" else 1
+    method = IRRADIANCE_METHODS.names.index(o.irradiance_method)  # its GLSL constant; 0: texel_sum, no step
     key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
            o.irradiance_step if method else None)
     ctx = get_context()
@@ -428,9 +428,9 @@ def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
     v = o.energy_compensation
     if v != "scene":
         return v
-    if o.shading != "material" or o.ibl != "splitsum":
-        return "none"  # only the material composition's split sum has the DFG terms it scales
-    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+    v = SCENE_COMPENSATION[scene.brdf.multiscatter]
+    # none where the options do not meet its requirements (the material composition's split sum)
+    return "none" if unmet_requirements(ENERGY_COMPENSATIONS[v], o) else v
 
 
 def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
@@ -452,6 +452,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **SPECULAR_AAS.select(o.specular_aa),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
+        "TEXTURE_LOD0": int(o.texture_sampling == "lod0"), "NORMAL_LOD0": int(o.normal_sampling == "lod0"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
@@ -683,14 +684,16 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     _bind_env(bg_prog, env_texture(env), env, 0)
     try:
-        t0 = time.perf_counter()
-        for it in items:  # upload the material textures (and their mips) before the timed frame
+        # upload the material textures and generate their mips before the timed frame, each timed
+        timings.update(texture_upload=0.0, texture_mips=0.0)
+        for it in items:
             for image, ref, srgb in it.textures.values():
-                raster._texture(image, ref, srgb, o.anisotropy)
+                raster._texture(image, ref, srgb, o.anisotropy, timings)
             if o.specular_aa == "prefiltered" and "normal" in it.textures:  # and its slope-variance mips
+                t0 = time.perf_counter()
                 raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
-        ctx.finish()
-        timings["textures"] = time.perf_counter() - t0
+                ctx.finish()
+                timings["texture_mips"] += time.perf_counter() - t0
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
                                              o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
