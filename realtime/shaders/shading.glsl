@@ -176,7 +176,7 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
     // Specular occlusion (occlusion.glsl) of the image-based specular from the ambient occlusion,
     // and the horizon occlusion of a normal-mapped reflection below the geometric normal's horizon.
-    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness) * horizon_occlusion(c.r, s.ng);
+    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness) * horizon_occlusion(dot(c.r, s.ng));
 #ifdef HOOK_ENERGY_COMPENSATION
     color += prefiltered_radiance(c.r, c.roughness) * spec_albedo
              * hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) * so;
