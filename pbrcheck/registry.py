@@ -266,14 +266,18 @@ BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
 
 #: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
 #: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.
-#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md).
+#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md);
+#: ``extra["seeded"]``: its ``shade_<name>`` takes the pixel seed (it may sample at run time). Each
+#: composition's GLSL functions are ``shade_<name>`` and ``light_brdf_<name>`` (shading.glsl), called
+#: by the generated ``shade_composition`` / ``light_brdf`` (``shading_dispatch.glsl``).
 SHADINGS = Registry("SHADING", applies_to=(
-    "the real-time renderer's compositions (shading.glsl, one shade function each); the reference renders "
-    "one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
-    Entry("material", "README's material model", extra={"hooks": True}),
-    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}),
-    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)}),
-    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}),
+    "the real-time renderer's compositions (shading.glsl: shade_<name> and light_brdf_<name> each, dispatch "
+    "generated); the reference renders one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
+    Entry("material", "README's material model", extra={"hooks": True, "seeded": True}),
+    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
+    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)},
+          extra={"seeded": True}),
+    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
 ])
 
 #: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
@@ -583,12 +587,28 @@ def role_impl(registry: Registry, name: str, role: str, what: str) -> Impl | Non
     return registry[name].roles.get(role)
 
 
+def _shading_dispatch() -> str:
+    """``light_brdf`` (a point light's BRDF) and ``shade_composition`` (the outgoing radiance): the
+    selected composition's ``light_brdf_<name>`` / ``shade_<name>`` (:data:`SHADINGS`; the pixel seed
+    to a composition with ``extra["seeded"]``)."""
+    def shade(e):
+        return [f"    return shade_{e.name}(c{', pixel_seed' if e.extra['seeded'] else ''});"]
+
+    lines = ["// Generated from pbrcheck.registry.SHADINGS: do not edit.",
+             "vec3 light_brdf(Shading c, vec3 l, float NoL) {",
+             *_switch_lines(SHADINGS, lambda e: [f"    return light_brdf_{e.name}(c, l, NoL);"]), "}", "",
+             "vec3 shade_composition(Shading c, uint pixel_seed) {", *_switch_lines(SHADINGS, shade), "}", ""]
+    return "\n".join(lines)
+
+
 def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
-    (:func:`_sampling_dispatch`), and each role registry's (:func:`_roles_dispatch`):
-    ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
+    (:func:`_sampling_dispatch`), ``shading_dispatch.glsl`` (:func:`_shading_dispatch`), and each role
+    registry's (:func:`_roles_dispatch`): ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``,
+    ``dfg_sampling_dispatch.glsl``, ``specular_occlusion_dispatch.glsl``,
+    ``horizon_occlusion_dispatch.glsl``, ``specular_aa_dispatch.glsl``."""
     out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
-           "sampling_dispatch.glsl": _sampling_dispatch()}
+           "sampling_dispatch.glsl": _sampling_dispatch(), "shading_dispatch.glsl": _shading_dispatch()}
     out.update({include: _roles_dispatch(define) for define, (_, include, _, _) in ROLE_REGISTRIES.items()})
     return out

@@ -334,3 +334,20 @@ def test_docs_role_table_lists_every_member_and_its_functions():
             cells = _doc_row(f"{define}: {e.name}")
             listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
             assert listed == list(dict.fromkeys(i.glsl for i in e.roles.values())), (define, e.name, listed)
+
+
+def test_composition_dispatch_is_generated_and_no_shading_ladder_is_left():
+    """shading.glsl defines shade_<name> and light_brdf_<name> for every composition; the generated
+    shade_composition / light_brdf call them (the pixel seed to the seeded ones); no shader holds a
+    hand ``#if SHADING ==`` ladder."""
+    text = registry.glsl_generated()["shading_dispatch.glsl"]
+    shading = (SHADER_DIR / "shading.glsl").read_text()
+    assert '#include "shading_dispatch.glsl"' in shading
+    for e in registry.SHADINGS:
+        seed = ", pixel_seed" if e.extra["seeded"] else ""
+        assert re.search(rf"^vec3 shade_{e.name}\(Shading c{', uint pixel_seed' if seed else ''}\)", shading, re.M)
+        assert re.search(rf"^vec3 light_brdf_{e.name}\(Shading c, vec3 l, float NoL\)", shading, re.M)
+        assert f"{registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
+        assert f"{registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
+    for p in SHADER_DIR.iterdir():
+        assert not re.search(r"^\s*#\s*(el)?if\b.*\bSHADING\s*==", p.read_text(), re.M), p.name
