@@ -32,15 +32,23 @@ strategy exact for it (``extra["runtime_sampling"]``) and the random walk's firs
 (``extra["walk_geometry"]``, :data:`MULTISCATTER_GEOMETRY`) with the walk's Dr.Jit trio in
 :mod:`reference.multiscatter` (``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``). A member that needs
 other real-time options says so (:attr:`Entry.requires`: an energy compensation the material
-composition's split sum, a composition its specular image-based lighting);
-:func:`realtime.presets.resolve_options` enforces it.
+composition's split sum, a composition its specular image-based lighting, ``specular_aa =
+screen_space`` the raster pipeline); :func:`realtime.presets.check_requirements` enforces it.
 
 The role registries (:data:`ROLE_REGISTRIES`: energy compensations, runtime and DFG LUT sampling
 strategies) own theirs one function per role (:attr:`Entry.roles`, one name in numpy, Dr.Jit and
 GLSL; :attr:`Entry.applies_to` says where a member applies and why a role is missing); adding a
 compensation or a strategy is one entry and its role functions in :mod:`pbrcheck.energy` /
 :mod:`pbrcheck.sampling`, :mod:`reference.energy` / :mod:`reference.sampling` and ``energy.glsl`` /
-``sampling.glsl``. A list whose members have no implementations says where it applies
+``sampling.glsl``. The real-time approximations (:data:`SPECULAR_OCCLUSIONS`,
+:data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`) are role registries too, with numpy
+(:mod:`pbrcheck.occlusion`, :mod:`pbrcheck.specular_aa`) and GLSL functions and no Dr.Jit one
+(:attr:`Impl.drjit` empty; the entry's ``applies_to`` says why: the reference traces the occlusion
+and integrates each pixel's normals); a role function reading fewer than all of its dispatch's
+inputs names them (:attr:`Impl.args`), and the generated dispatch defines ``<SWITCH>_READS_<INPUT>``
+for the selected member (:func:`role_reads` in Python). The compositions' GLSL dispatch
+(``shade_composition`` / ``light_brdf`` calling ``shade_<name>`` / ``light_brdf_<name>``) is
+generated from :data:`SHADINGS` (``shading_dispatch.glsl``). A list whose members have no implementations says where it applies
 (:attr:`Registry.applies_to`).
 
 API
