@@ -213,12 +213,13 @@ class TexturedMaterial(mi.BSDF):
         return f"TexturedMaterial[textures={sorted(self.tex)}, double_sided={self.double_sided}]"
 
     # ---- per-lane material and frame --------------------------------------------------------
-    def _uv_si(self, slot, si, active):
-        """``si`` with the uv of ``slot``'s texCoord set."""
+    def _uv_si(self, slot, si, active, shape=None):
+        """``si`` with the uv of ``slot``'s texCoord set (``shape``: the lanes' one shape, read
+        directly, else ``si.shape``)."""
         k = self.uvset[slot]
         if k != self.primary_texcoord:
             s2 = mi.SurfaceInteraction3f(si)
-            uv = si.shape.eval_attribute_3(f"vertex_uv{k}", si, active)
+            uv = (si.shape if shape is None else shape).eval_attribute_3(f"vertex_uv{k}", si, active)
             s2.uv = mi.Point2f(uv.x, uv.y)
             return s2
         return si
@@ -226,14 +227,14 @@ class TexturedMaterial(mi.BSDF):
     def _lookup(self, slot, si, active):
         return self.tex[slot].eval(self._uv_si(slot, si, active), active)
 
-    def _lookups(self, si, active) -> dict:
+    def _lookups(self, si, active, shape=None) -> dict:
         """Each slot of :data:`FUSED_CHANNELS` with a texture: its value at ``si`` (one lookup of
         the packed texture for the slots :func:`fuse_textures` packed, Color3f; the same values)."""
         out = {}
         for group in self.fused:
             texture, gltf, slots = group
             first = slots[0][0]
-            ch = texture.eval(gltf.coords(self._uv_si(first, si, active).uv), active)
+            ch = texture.eval(gltf.coords(self._uv_si(first, si, active, shape).uv), active)
             for slot, offset in slots:
                 used = FUSED_CHANNELS[slot]
                 val = [mi.Float(0.0)] * 3
@@ -242,18 +243,20 @@ class TexturedMaterial(mi.BSDF):
                 out[slot] = mi.Color3f(*val)
         for slot in FUSED_CHANNELS:
             if slot in self.tex and slot not in out:
-                out[slot] = self._lookup(slot, si, active)
+                out[slot] = self.tex[slot].eval(self._uv_si(slot, si, active, shape), active)
         return out
 
-    def _view(self, si, active):
-        """(MaterialView of the lanes, shading frame in Mitsuba's local coordinates)."""
+    def _view(self, si, active, shape=None):
+        """(MaterialView of the lanes, shading frame in Mitsuba's local coordinates); ``shape``:
+        the one shape of every lane (its attributes read directly, not through ``si.shape``)."""
         bc = mi.Color3f(self.base_color)
         met, rough = mi.Float(self.metallic), mi.Float(self.roughness)
-        tex = self._lookups(si, active)
+        tex = self._lookups(si, active, shape)
+        shape = si.shape if shape is None else shape
         if "base_color" in tex:
             bc = bc * tex["base_color"]
         if self.vertex_color:
-            bc = bc * si.shape.eval_attribute_3("vertex_color", si, active)
+            bc = bc * shape.eval_attribute_3("vertex_color", si, active)
         if "metallic_roughness" in tex:
             mr = tex["metallic_roughness"]
             rough = rough * mr.y
@@ -269,7 +272,7 @@ class TexturedMaterial(mi.BSDF):
             x = (2.0 * t.x - 1.0) * self.normal_scale
             y = (2.0 * t.y - 1.0) * self.normal_scale
             z = 2.0 * t.z - 1.0
-            tan = si.shape.eval_attribute_x("vertex_tangent", si, active)
+            tan = shape.eval_attribute_x("vertex_tangent", si, active)
             tw = mi.Vector3f(tan[0], tan[1], tan[2])
             w = dr.select(tan[3] < 0, -1.0, 1.0)
             N = si.sh_frame.n
@@ -326,10 +329,11 @@ class TexturedMaterial(mi.BSDF):
     def sample(self, ctx, si, sample1, sample2, active=True):
         return self._sample_at(self._view(si, active), ctx, si, sample1, sample2, active)
 
-    def bind(self, si, active=True):
+    def bind(self, si, active=True, shape=None):
         """The material at one interaction ``si``, its textures read once for all the caller's calls
-        there (:class:`BoundTextured`; ``reference.bsdf.SceneBSDFs`` uses it)."""
-        return BoundTextured(self, si, active)
+        there (:class:`BoundTextured`; ``reference.bsdf.SceneCalls`` uses it); ``shape``: the one
+        shape of the lanes (:meth:`_view`)."""
+        return BoundTextured(self, si, active, shape)
 
     def _eval_pdf_at(self, view_frame, ctx, si, wo, active):
         view, frame = view_frame
@@ -383,9 +387,9 @@ class BoundTextured:
     call; the local estimator calls three of them per hit). ``si`` and the calls' masks must lie
     within the bound ones."""
 
-    def __init__(self, material, si, active):
+    def __init__(self, material, si, active, shape=None):
         self.material = material
-        self.view_frame = material._view(si, active)
+        self.view_frame = material._view(si, active, shape)
 
     def eval_pdf(self, ctx, si, wo, active=True):
         return self.material._eval_pdf_at(self.view_frame, ctx, si, wo, active)
