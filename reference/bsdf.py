@@ -548,8 +548,9 @@ class SceneCalls:
     registry id; shapes without one, e.g. no emitter, are outside every call) and calls each lane's
     with ``dr.switch``, which traces each of them once; lanes outside ``active`` are not passed and
     return zeros, as through the pointer. One object: no call at all, and an object with ``bind(si,
-    active)`` (:class:`reference.textured.TexturedMaterial`: its textures read once per interaction)
-    is bound to ``si``. The same functions on the same arguments: the values are the virtual
+    active, shape)`` (:class:`reference.textured.TexturedMaterial`: its textures read once per
+    interaction) is bound to ``si`` and, where one shape alone has it, to that shape (its vertex
+    attributes read directly, not through ``si.shape``'s virtual call). The same functions on the same arguments: the values are the virtual
     call's (tested bit-identical). Methods: those of the objects called (``eval``, ``pdf``,
     ``eval_pdf``, ``sample``, ``eval_null_transmission``)."""
 

@@ -44,7 +44,10 @@ with ``eval_attribute_3``.
 
 API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
 :func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
-:class:`BoundTextured`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+:class:`BoundTextured`, :func:`fuse_textures`, :data:`FUSED_CHANNELS`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+
+Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
+texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
 """
 
 from __future__ import annotations
