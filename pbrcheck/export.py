@@ -20,7 +20,9 @@ Conventions (docs/renderers.md has the table): world axes are glTF's (+Y up, rig
 node named ``object_<k>_<name>`` with ``extras.pbrcheck_object = k``; roughness is perceptual
 (glTF's ``roughnessFactor``, alpha = roughness^2, as both); point, spot and directional lights
 are ``KHR_lights_punctual`` with 1 cd taken as 1 W/sr and 1 lux as 1 W/m^2 (radiometric, RGB
-split into a colour with max 1 times a scalar; the node's -Z is the light's ``direction``); planes are one-sided quads (front = the scene's normal;
+split into a colour with max 1 times a scalar; the node's -Z is the light's ``direction``; in an
+asset scene the scene file's lights follow the asset's own, on root nodes ``light_<k>``); planes
+are one-sided quads (front = the scene's normal;
 ``doubleSided`` false; the reference's BSDFs are black from behind).
 
 References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9 (materials);
@@ -63,7 +65,7 @@ ENV_MAX_WIDTH = 4096
 OUTPUT_FORMATS = ("exr", "hdr", "pfm", "png-srgb")
 OUTPUT_SUFFIX = {"exr": ".exr", "hdr": ".hdr", "pfm": ".pfm", "png-srgb": ".png"}
 #: Bumped whenever the exported files change for the same scene (part of the client cache key).
-EXPORT_FORMAT_VERSION = 1
+EXPORT_FORMAT_VERSION = 2  # 2: an asset scene's scene-file lights are exported
 #: The files :func:`export_scene` writes.
 FILES = ("scene.gltf", "scene.bin", "environment.exr", "environment.hdr", "scenario.json")
 #: The buffer of analytic objects exported beside an asset (the asset keeps its own buffers).
@@ -228,9 +230,11 @@ def _light_node(k: int, light) -> dict:
     return node
 
 
-def _scenario_light(k: int, light) -> dict:
-    """``scenario.json``'s entry of light ``k`` (pbrcheck's units, named)."""
-    d: dict = {"type": light.type, "gltf_node": f"light_{k}"}
+def _scenario_light(k: int | None, light) -> dict:
+    """``scenario.json``'s entry of the scene file's light ``k`` (pbrcheck's units, its node named),
+    or with ``k`` None of a light an exported asset carries itself (``"source": "asset"``, no node
+    of pbrcheck's)."""
+    d: dict = {"type": light.type, **({"gltf_node": f"light_{k}"} if k is not None else {"source": "asset"})}
     if light.type != "directional":
         d["position"] = list(light.position)
     if light.type != "point":
@@ -330,11 +334,36 @@ def _camera(scene: Scene) -> tuple[dict, dict]:
                                   "znear": _znear(scene)}}
 
 
+def _add_lights(doc: dict, lights) -> list[int]:
+    """Append ``lights`` to ``doc``'s ``KHR_lights_punctual`` lights (after any the document has)
+    and one node each (``light_<k>``, :func:`_light_node`) to ``doc["nodes"]``; returns the new
+    nodes' indices (for the scene's root nodes)."""
+    if not lights:
+        return []
+    table = doc.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {}).setdefault("lights", [])
+    used = doc.setdefault("extensionsUsed", [])
+    if "KHR_lights_punctual" not in used:
+        used.append("KHR_lights_punctual")
+    nodes = doc.setdefault("nodes", [])
+    first_node = len(nodes)
+    for k, light in enumerate(lights):
+        node = _light_node(k, light)
+        node["extensions"]["KHR_lights_punctual"]["light"] = len(table)
+        table.append(_light(light) | {"name": f"light_{k}"})
+        nodes.append(node)
+    return list(range(first_node, len(nodes)))
+
+
 def _asset_document(scene: Scene, bin_name: str):
+    """The asset's own document (:func:`pbrcheck.gltf_export.asset_document`) with the scene file's
+    lights on extra root nodes ``light_<k>`` beside ``pbrcheck_root`` (world space: the placement
+    does not move them), their ``KHR_lights_punctual`` entries after the asset's own, and the
+    analytic objects beside it."""
     from .gltf_export import asset_document
 
     node, cam = _camera(scene)
     doc, files = asset_document(scene, node, cam, bin_name)
+    doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.own_lights()))
     triangles = sum(o.triangles for o in scene.objects if o.type == "mesh")
     analytic = [o for o in scene.objects if o.type != "mesh"]
     if not analytic:
@@ -421,14 +450,6 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
     cam_node, cam_dict = _camera(scene)
     nodes.append(cam_node)
     cameras = [cam_dict]
-    used = set()
-    if any("extensions" in m for m in materials):
-        used.add("KHR_materials_ior")
-    ext = {}
-    if scene.lights:
-        used.add("KHR_lights_punctual")
-        ext["KHR_lights_punctual"] = {"lights": [_light(l) | {"name": f"light_{k}"} for k, l in enumerate(scene.lights)]}
-        nodes.extend(_light_node(k, light) for k, light in enumerate(scene.lights))
     while len(buf.data) % 4:
         buf.data.append(0)
     doc = {
@@ -439,10 +460,11 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
         "accessors": buf.accessors, "bufferViews": buf.views,
         "buffers": [{"uri": bin_name, "byteLength": len(buf.data)}],
     }
-    if used:
-        doc["extensionsUsed"] = sorted(used)
-    if ext:
-        doc["extensions"] = ext
+    if any("extensions" in m for m in materials):
+        doc["extensionsUsed"] = ["KHR_materials_ior"]
+    doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.lights))
+    if "extensionsUsed" in doc:
+        doc["extensionsUsed"].sort()
     return doc, bytes(buf.data), segments, triangles
 
 
@@ -508,6 +530,7 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         raise ExportError(f"output: expected one of {', '.join(OUTPUT_FORMATS)}, found {output!r}")
     cam = scene.camera
     r, u, f = camera_frame(cam)
+    own = scene.own_lights()
     d = {
         "pbrcheck": __version__, "export_format": EXPORT_FORMAT_VERSION,
         "scene": scene.name, "scene_hash": scene_hash(scene, env.content_hash),
@@ -522,7 +545,7 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         "environment": {"exr": "environment.exr", "hdr": "environment.hdr",
                         "width": env_shape[1], "height": env_shape[0],
                         "orientation": ENVIRONMENT_ORIENTATION, "as_background": True},
-        "lights": [_scenario_light(k, l) for k, l in enumerate(scene.lights)],
+        "lights": [_scenario_light(k if k < len(own) else None, l) for k, l in enumerate(scene.lights)],
         "units": "point and spot light intensity: 1 cd is taken as 1 W/sr (radiometric); directional light: "
                  "1 lux as 1 W/m^2; radiance in W/(sr m^2), linear Rec.709 primaries; light directions: "
                  "where the light shines (the glTF node's -Z)",

@@ -9,7 +9,9 @@ their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``sce
 buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
 objects of the same scene are added by :func:`pbrcheck.export.gltf_document`, tessellated as in an
 analytic scene's export (nodes ``object_<k>_<name>``, a buffer ``pbrcheck_objects.bin`` of their
-own). One asset per exported scene (:class:`~pbrcheck.gltf.AssetError` otherwise).
+own). The scene file's own lights are added there too (root nodes ``light_<k>`` beside
+``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
+(:class:`~pbrcheck.gltf.AssetError` otherwise).
 
 API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).

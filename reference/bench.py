@@ -56,8 +56,10 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   the ``independent`` sampler (per-sample moments: the variance channels are exact in expectation,
   no replicate noise), uniform spp, ``VR_SPP`` spp (quick: ``VR_SPP_QUICK``) at the bench resolution,
   ``VR_SEEDS`` seeds: ``mis_balance`` (the balance heuristic for the env and BSDF samples instead of
-  the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`). Adopted only when the ratio is
-  clearly above 1 on both scenes (docs/reference.md records the measurements).
+  the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`) and ``env_envmap`` (Mitsuba's
+  own environment sampling, the default until version 4, against ``compensated``,
+  :mod:`reference.env_sampling`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
+  the ratio is clearly above 1 (docs/reference.md records the measurements).
 """
 
 from __future__ import annotations
@@ -116,7 +118,9 @@ HDR_TARGET_FACTOR = 8.0
 #: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
 VR_SPP, VR_SPP_QUICK = 128, 32
 VR_SEEDS = 3
-VR_CANDIDATES = (("default", {"mis": "power"}), ("mis_balance", {"mis": "balance"}))
+VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}))
+#: ``variance_reduction``'s scenes besides the real-HDR one (each at the bench resolution).
+VR_SCENES = ("spheres", "furnace", "grazing")
 
 
 def _timed_render(fn):
@@ -376,7 +380,8 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
     hdr = _hdr_envmap(envmap)
     vspp = VR_SPP_QUICK if quick else VR_SPP
-    vr = {"spheres": _variance_reduction(scene, vspp, VR_SEEDS)}
+    vr = {name: _variance_reduction(scene if name == "spheres" else load_scene(name).with_camera(width=W, height=H),
+                                    vspp, VR_SEEDS) for name in VR_SCENES}
     if hdr is not None and hdr.is_file():
         hscene = replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
         samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full)

@@ -4,8 +4,9 @@
 "gather_materials": bool}``; a
 subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, params, ...)`` differentiates it.
 
-* ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
-  sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
+* ``mode = "local"``: the first hit only. One environment sample (``env_sampling``, default
+  ``"compensated"``: MIS compensation, :mod:`reference.env_sampling`; ``"envmap"``: Mitsuba's envmap
+  importance sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
   lobe takes weight 1), **no visibility tests**; every delta emitter (point, spot, directional light:
   :mod:`reference.lights`) is added exactly through its deterministic ``sample_direction`` (``f cos
   I / d^2``, ``f cos E``), without a shadow ray.
@@ -77,6 +78,7 @@ import mitsuba as mi
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
 from .bsdf import MaterialView, SceneCalls
+from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -294,6 +296,12 @@ class ReferenceIntegrator(RBIntegrator):
         self.mis = str(props.get("mis", DEFAULT_MIS))
         if self.mis not in MIS_HEURISTICS:
             raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {self.mis!r}")
+        # the environment's proposal (reference.env_sampling): Mitsuba's envmap sampling or compensated
+        self.env_sampling = str(props.get("env_sampling", DEFAULT_ENV_SAMPLING))
+        if self.env_sampling not in ENV_SAMPLING:
+            raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, "
+                             f"not {self.env_sampling!r}")
+        self._env_proposal = None  # (the emitter, its CompensatedEnvironment)
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
@@ -311,7 +319,7 @@ class ReferenceIntegrator(RBIntegrator):
 
     def to_string(self):
         return (f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}, "
-                f"replicates={self.replicates}, mis={self.mis}]")
+                f"replicates={self.replicates}, mis={self.mis}, env_sampling={self.env_sampling}]")
 
     # ---- estimators ------------------------------------------------------------------------------
     def _bsdf(self, scene, si, ray, hit):
@@ -378,6 +386,15 @@ class ReferenceIntegrator(RBIntegrator):
     def has_area_emitters(scene) -> bool:
         return any(mi.has_flag(e.flags(), mi.EmitterFlags.Surface) for e in scene.emitters())
 
+    def _compensated(self, env):
+        """The ``compensated`` proposal of ``env`` (built once per emitter), or None: Mitsuba's own."""
+        if env is None or self.env_sampling != "compensated":
+            return None
+        if self._env_proposal is None or self._env_proposal[0] is not env:
+            H = int(mi.traverse(env)["data"].shape[0])
+            self._env_proposal = (env, CompensatedEnvironment(env, (H, 2 * H)))
+        return self._env_proposal[1]
+
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
@@ -400,14 +417,19 @@ class ReferenceIntegrator(RBIntegrator):
             ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
             bsdf = self._bsdf(scene, si, ray, hit)
+        proposal = self._compensated(env)
         if env is not None:
             # Environment sample, MIS against the BSDF's density.
-            ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
-            ok = hit & (ds.pdf > 0)
-            wo = si.to_local(ds.d)
+            if proposal is None:
+                ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+                e_d, e_pdf = ds.d, ds.pdf
+            else:
+                e_d, e_pdf, em_w = proposal.sample(sampler.next_2d(hit), hit)
+            ok = hit & (e_pdf > 0)
+            wo = si.to_local(e_d)
             with dr.resume_grad(when=grad):
                 f, bpdf = bsdf.eval_pdf(ctx, si, wo, ok)
-                w = mis(ds.pdf, dr.detach(bpdf))
+                w = mis(e_pdf, dr.detach(bpdf))
                 L += dr.select(ok, f * em_w * w, 0.0)
             # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
             u1, u2 = sampler.next_1d(hit), sampler.next_2d(hit)
@@ -419,7 +441,8 @@ class ReferenceIntegrator(RBIntegrator):
             Le = env.eval(si_e, hit)
             ds2 = dr.zeros(mi.DirectionSample3f)
             ds2.d = wo_w
-            epdf = env.pdf_direction(si, ds2, hit & ~delta)
+            epdf = (env.pdf_direction(si, ds2, hit & ~delta) if proposal is None
+                    else proposal.pdf(wo_w, hit & ~delta))
             w = dr.select(delta, 1.0, mis(bs.pdf, epdf))
             ok = hit & (bs.pdf > 0)
             if grad:

@@ -7,7 +7,7 @@ reproduces :mod:`pbrcheck.camera` (:func:`reference.integrator.sensor_dict`).
 Integrators (``mode``)
 ----------------------
 * ``local`` (default): the first hit only. Per camera sample it takes one environment sample
-  (Mitsuba's envmap importance sampling) and one BSDF sample, combined with multiple importance
+  (MIS compensation, :mod:`reference.env_sampling`) and one BSDF sample, combined with multiple importance
   sampling (power heuristic; a delta lobe takes weight 1), with **no visibility tests**, plus every
   punctual light without a shadow ray (``f cos * I / d^2``, the spot's glTF attenuation, ``f cos E``
   for a directional light: exact, no noise; :mod:`reference.lights`). Camera rays that miss see
@@ -65,7 +65,9 @@ from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
-REFERENCE_CODE_VERSION = "3"  # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive
+# 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive; 4: the
+# environment sampled by MIS compensation (reference.env_sampling)
+REFERENCE_CODE_VERSION = "4"
 #: Bump when a change of this package changes the pixels of scenes holding glTF assets only: part of
 #: their cache keys alone, so that analytic scenes' cached renders stay valid. 2: single-sided back
 #: faces culled (path: volpath), the emissive texture's texCoord set.
@@ -249,19 +251,24 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
 
 
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
-                    sampler: str = "independent", mis: str = "power"):
+                    sampler: str = "independent", mis: str = "power", env_sampling: str | None = None):
     """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
     ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``); ``mis``: the
-    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``)."""
+    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
+    its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default)."""
     mi, _ = _mi()
+    from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING  # local: imports Mitsuba
     from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
 
     if mis not in MIS_HEURISTICS:
         raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {mis!r}")
+    if env_sampling is not None and env_sampling not in ENV_SAMPLING:
+        raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, not {env_sampling!r}")
 
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
-                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis})
+                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis,
+                         "env_sampling": env_sampling or DEFAULT_ENV_SAMPLING})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
@@ -288,10 +295,11 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power") -> Image:
+                    mis: str = "power", env_sampling: str | None = None) -> Image:
     """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
-    heuristic, for measurements only (not part of the cache key: :func:`render_reference` always
-    renders the default, ``reference.integrator.DEFAULT_MIS``)."""
+    heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``), both for
+    measurements only (not part of the cache key: :func:`render_reference` always renders the
+    defaults, ``reference.integrator.DEFAULT_MIS`` and ``reference.env_sampling.DEFAULT_ENV_SAMPLING``)."""
     check_sampler(sampler)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
@@ -309,7 +317,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     from .integrator import MIN_REPLICATES, MOMENT_CHANNELS, pass_sizes, replicate_plan, sensor_dict  # variant set
 
-    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis)
+    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis, env_sampling=env_sampling)
     sensor = mi.load_dict(sensor_dict(scene.camera, spp, sampler))
     W, H = scene.camera.width, scene.camera.height
     adaptive = bool(adaptive) and sampler == "qmc" and spp >= ADAPTIVE_MIN_SPP
