@@ -193,7 +193,8 @@ def panel_arrays(tex: int = PANEL_TEXTURE_SIZE) -> dict[str, np.ndarray]:
     return {"base_color": base, "orm": orm, "normal": normal}
 
 
-def panel_asset(path: Path, *, segments: int = PANEL_SEGMENTS, tex: int = PANEL_TEXTURE_SIZE) -> Path:
+def panel_asset(path: Path, *, segments: int = PANEL_SEGMENTS, tex: int = PANEL_TEXTURE_SIZE,
+                alpha_mode: str = "OPAQUE", alpha: float = 1.0, alpha_cutoff: float = 0.5) -> Path:
     """Write the gate's panel asset (module docstring) to ``path`` (``.glb``, else ``.gltf``).
 
     Geometry: a cylindrical arc of :data:`PANEL_ARC_DEG` degrees either side of +Z about the +Y
@@ -201,7 +202,9 @@ def panel_asset(path: Path, *, segments: int = PANEL_SEGMENTS, tex: int = PANEL_
     in y, facing +Z; exact normals (radial) and tangents (along the arc, ``w = 1``); UV (0, 0) at
     the top-left, :data:`PANEL_TILES` repeats. One material: factors 1, the three textures of
     :func:`panel_arrays` (the ORM texture is both ``occlusionTexture`` and ``metallicRoughnessTexture``,
-    as engines pack them), single-sided, OPAQUE.
+    as engines pack them), single-sided, OPAQUE (the gate's); ``alpha_mode`` ``MASK`` or ``BLEND`` with
+    ``baseColorFactor`` alpha ``alpha`` (and ``alphaCutoff`` ``alpha_cutoff`` for MASK) builds the
+    same panel with that alpha mode (the option cross product's raster test asset).
     """
     a = np.radians(PANEL_ARC_DEG)
     phi = np.linspace(-a, a, segments + 1)
@@ -225,6 +228,11 @@ def panel_asset(path: Path, *, segments: int = PANEL_SEGMENTS, tex: int = PANEL_
     doc.d["materials"] = [{"name": "panel", "pbrMetallicRoughness": {
         "baseColorTexture": {"index": t_base}, "metallicRoughnessTexture": {"index": t_orm}},
         "normalTexture": {"index": t_nrm}, "occlusionTexture": {"index": t_orm}}]
+    if alpha_mode != "OPAQUE":
+        doc.d["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = [1.0, 1.0, 1.0, float(alpha)]
+        doc.d["materials"][0]["alphaMode"] = alpha_mode
+        if alpha_mode == "MASK":
+            doc.d["materials"][0]["alphaCutoff"] = float(alpha_cutoff)
     m = doc.mesh(attrs, doc.accessor(tris.reshape(-1).astype(np.uint16), "SCALAR"), 0)
     doc.d["meshes"][m]["name"] = "panel"
     doc.node(m, name="panel")
