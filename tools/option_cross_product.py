@@ -20,7 +20,9 @@ raster-only SPECULAR_AA, TEXTURE_LOD0, NORMAL_LOD0 do not split ray-cast program
 1. ``raster``: on :func:`mask_panel_scene` (a tiny normal-mapped, textured panel with an occlusion
    texture and a MASK material; pipeline=raster), the full product of the raster options
    (:data:`RASTER_READS` and ``alpha_to_coverage``, ``msaa`` and ``occlusion_texture``, these two
-   host state rather than defines: each program renders with one state, drawn with a fixed seed) for every accepted (shading, ibl,
+   host state rather than defines: each program renders with one state, drawn with a fixed seed,
+   among the msaa values the GL supports; one msaa above GL_MAX_SAMPLES must be a one-line
+   BackendError) for every accepted (shading, ibl,
    energy_compensation) triple with the preset's terms, LUT, irradiance and LOD mapping. The
    reduction is sound because those composition-side defines are read only inside shade()
    (shading.glsl and its includes, identical in both pipelines: stages 2 and 3 render them), while
@@ -163,12 +165,16 @@ def _distinct(scene, entry: str, candidates, extra=lambda o: {}):
             yield over
 
 
-def raster_stage(sw: dict, scene) -> list[dict]:
-    cands = ({**t, "pipeline": "raster", **dict(zip(RASTER_READS, v)), "msaa": MSAA[-1]}
+def raster_stage(sw: dict, scene, max_samples: int) -> list[dict]:
+    """The raster stage's programs, each with a drawn (msaa, occlusion_texture) state among the msaa
+    values this GL supports (``max_samples``: GL_MAX_SAMPLES; llvmpipe has 4, and msaa = 8 is
+    refused there with a one-line BackendError, exit 3, checked once by :func:`main`)."""
+    cands = ({**t, "pipeline": "raster", **dict(zip(RASTER_READS, v)), "msaa": 2}
              for t in _triples(sw, "raster") for v in itertools.product(*(sw[n] for n in RASTER_READS)))
     out = list(_distinct(scene, "raster.frag", cands, lambda o: {"ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)}))
-    a2c_states = [s for s in itertools.product(MSAA[1:], (False, True))]
-    states = [s for s in itertools.product(MSAA, (False, True))]
+    msaa = [m for m in MSAA if m <= max_samples]
+    a2c_states = list(itertools.product(msaa[1:], (False, True)))
+    states = list(itertools.product(msaa, (False, True)))
     pick = np.random.default_rng(0)  # each program one (msaa, occlusion_texture) state, drawn
     for over in out:
         cyc = a2c_states if over["alpha_to_coverage"] else states
@@ -224,7 +230,10 @@ def run(name: str, todo: list, scene, seed: int, budget: float | None, failed: l
 
 
 def main(argv) -> int:
+    from pbrcheck.errors import BackendError
     from pbrcheck.scene import load_scene
+    from realtime.gl import get_context
+    from realtime.render import render_realtime
     budget = float(argv[argv.index("--budget") + 1]) if "--budget" in argv else None
     seed = int(argv[argv.index("--seed") + 1]) if "--seed" in argv else 0
     sw = switches()
@@ -235,7 +244,17 @@ def main(argv) -> int:
     furnace = load_scene("furnace").with_camera(width=16, height=16)
     with tempfile.TemporaryDirectory() as tmp:
         panel = mask_panel_scene(Path(tmp))
-        stages = [("raster", raster_stage(sw, panel), panel), ("raycast", raycast_stage(sw, furnace), furnace),
+        max_samples = get_context().max_samples
+        over = {"pipeline": "raster", "msaa": MSAA[-1]}
+        if MSAA[-1] > max_samples:  # a backend limit: refused with a one-line BackendError (exit 3)
+            try:
+                render_realtime(panel, "default", {**SMALL, **over}, progress=False)
+                failed.append(f"{over}: rendered above GL_MAX_SAMPLES {max_samples}")
+            except BackendError as e:
+                if "\n" in str(e):
+                    failed.append(f"{over}: BackendError of several lines: {e}")
+                print(f"msaa={MSAA[-1]} above this GL's GL_MAX_SAMPLES {max_samples}: BackendError: {e}", flush=True)
+        stages = [("raster", raster_stage(sw, panel, max_samples), panel), ("raycast", raycast_stage(sw, furnace), furnace),
                   ("remainder", remainder_stage(sw, furnace), furnace)]
         print(", ".join(f"{n}: {len(t)} distinct programs" for n, t, _ in stages), flush=True)
         for i, (name, todo, scene) in enumerate(stages):
