@@ -7,7 +7,8 @@ of every choice and bool option of :data:`realtime.presets.OPTIONS` (and ``msaa`
 compiles, renders them at 16 x 16 and reports any combination that neither renders with finite
 pixels nor is refused with a one-line OptionError. Exit status 1 if there is one. Progress lines
 every 250 programs; each stage's programs run in a random order (``--seed``, default 0), so a stage
-stopped by ``--budget`` (seconds for the last stage, the remainder) has rendered a uniform sample.
+stopped by ``--budget`` (seconds for the last stage, the remainder) or by Ctrl-C (which ends the
+stage and reports it) has rendered a uniform sample.
 
 Counting: only the options that take part in a requirement (registry members' and options'
 ``requires``, and resolve_options' raster/shadows check: :func:`coupled`) are enumerated through
@@ -209,9 +210,11 @@ def run(name: str, todo: list, scene, seed: int, budget: float | None, failed: l
     for over in todo:
         if budget is not None and time.perf_counter() - t0 > budget:
             break
-        done += 1
         try:
             img = render_realtime(scene, "default", {**SMALL, **over}, progress=False)
+        except KeyboardInterrupt:  # stopped by hand: report what was rendered
+            print(f"{name}: interrupted", flush=True)
+            break
         except OptionError as e:
             failed.append(f"{name} {over}: refused only at render time: {e}")
         except (PbrcheckError, KeyError) as e:
@@ -219,6 +222,7 @@ def run(name: str, todo: list, scene, seed: int, budget: float | None, failed: l
         else:
             if not all(np.all(np.isfinite(img.channels[c])) for c in ("R", "G", "B")):
                 failed.append(f"{name} {over}: non-finite pixels")
+        done += 1
         if failed and failed[-1].startswith(f"{name} {over}"):
             print("FAILED", failed[-1], flush=True)
         if done % 250 == 0:
