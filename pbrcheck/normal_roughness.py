@@ -103,7 +103,7 @@ class NormalRoughnessTable:
 def level_closed_forms(texels: np.ndarray, levels: int | None = None) -> dict[str, list[float]]:
     """Per mip level, the mean over its texels of Toksvig's ``2 (1 - L) / L`` and of LEAN's slope
     variance, for the normal map ``texels`` (H, W, >=3) in [0, 1] as uploaded (normal ``2 t - 1``).
-    Box mips 2 x 2 (an odd row or column dropped), as :func:`pbrcheck.specular_aa.slope_variance_mips`;
+    Box mips (an odd row or column dropped at each halving), as :func:`pbrcheck.specular_aa.slope_variance_mips`;
     ``levels`` default: the full chain."""
     t = np.asarray(texels, np.float64)[..., :3]
     h, w = t.shape[:2]
@@ -111,13 +111,10 @@ def level_closed_forms(texels: np.ndarray, levels: int | None = None) -> dict[st
     n = 2.0 * t - 1.0
     tok = []
     for k in range(levels):
-        if k:
-            hh, ww = n.shape[:2]
-            if hh > 1:
-                n = 0.5 * (n[0:hh - hh % 2:2] + n[1:hh - hh % 2:2])
-            if ww > 1:
-                n = 0.5 * (n[:, 0:ww - ww % 2:2] + n[:, 1:ww - ww % 2:2])
-        L = np.clip(np.linalg.norm(n, axis=-1), 1e-4, 1.0)
+        # level k's texel: the mean of a bh x bw block of level 0 (GL's box chain, odd edges dropped)
+        bh, bw = 1 << min(k, h.bit_length() - 1), 1 << min(k, w.bit_length() - 1)
+        m = n[:h - h % bh, :w - w % bw].reshape(h // bh, bh, w // bw, bw, 3).mean(axis=(1, 3))
+        L = np.clip(np.linalg.norm(m, axis=-1), 1e-4, 1.0)
         tok.append(float(np.mean(2.0 * (1.0 - L) / L)))
     lean = [float(np.mean(m)) for m in slope_variance_mips(t, levels)]
     return {"toksvig": tok, "lean": lean}
