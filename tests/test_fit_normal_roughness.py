@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from compare import renderers
+from compare.metrics import REL_EPS
 from compare.research.fit_normal_roughness import run_fit_normal_roughness
 from pbrcheck.normal_roughness import NormalRoughnessError, NormalRoughnessTable, level_closed_forms
 from pbrcheck.scene import asset_scene
@@ -96,7 +97,7 @@ def test_written_hook_renders_and_reduces_the_error(stripe_fit):
 
     def rel(img):
         r, t = target.rgb.astype(np.float64), img.rgb.astype(np.float64)
-        return float(((t - r) ** 2 / (r * r + 1e-2)).mean())
+        return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
 
     hooked = renderers.render_under_test(scene, "default", {**SMALL, "shader": res.glsl})
     none = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "none"})

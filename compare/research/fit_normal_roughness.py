@@ -21,14 +21,13 @@ Method (fit-lod's: a dense scan of renders, per-group minima refined by a parabo
 Writes ``out`` (JSON: the table, the closed forms per level, every row's relmse) and ``out`` with suffix
 ``.glsl`` (the ``hook_specular_aa`` file: ``--shader FILE.glsl`` / ``shader=FILE.glsl``).
 
-API: :func:`run_fit_normal_roughness`, :func:`table_markdown`, :class:`FitNormalRoughnessResult`,
-:data:`SCAN_STEP`.
+API: :func:`run_fit_normal_roughness`, :func:`table_markdown`, :data:`SCAN_STEP` (results:
+:class:`compare.research.results.FitNormalRoughnessResult`, :class:`~compare.research.results.LevelFit`).
 """
 
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,37 +44,13 @@ from .. import renderers
 from ..metrics import REL_EPS, pixel_classes
 from ..verdict_spp import DEFAULT_SPP_CAP, RESEARCH_PROBE, reference_for_verdict
 from .fit_lod import _parabola_min
+from .results import FitNormalRoughnessResult, LevelFit
 
 #: Scan step of ``u = sqrt(alpha^2 increment)`` on [0, 1]: 33 renders; with the parabola refinement
 #: the optimum's u within about a hundredth.
 SCAN_STEP = 1.0 / 32.0
-
-
-@dataclass
-class LevelFit:
-    """One normal-map level: its pixels, the fitted increment, the closed forms, the scan's curve."""
-    level: int
-    pixels: int
-    fitted: float
-    toksvig: float
-    lean: float
-    relmse_at_optimum: float | None = None
-    scan: list = field(default_factory=list)
-
-
-@dataclass
-class FitNormalRoughnessResult:
-    scene: str
-    preset: str
-    options: dict
-    size: list
-    target: str
-    metric: str
-    levels: list
-    fitted: dict
-    relmse: dict
-    reference_spp: dict | None = None
-    glsl: str = ""
+#: The written hook's header names its maker.
+FITTED_SOURCE = "pbrcheck fit-normal-roughness"
 
 
 def _hook(tmp: Path, name: str, body: str) -> str:
@@ -212,18 +187,18 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
                 fitted[k] = fitted[min(have, key=lambda j: (abs(j - k), j))]
             rows[k].fitted = float(fitted[k])
         table = NormalRoughnessTable(tuple(float(x) for x in fitted))
-        glsl = out.with_suffix(".glsl")
-        write_text_atomic(glsl, table.glsl())
         evals = {"none": {"specular_aa": "none"}, "toksvig": {"specular_aa": "toksvig"},
                  "toksvig_table": {"shader": _write(tmp, "toksvig_table", NormalRoughnessTable(tuple(tok)))},
                  "lean_table": {"shader": _write(tmp, "lean_table", NormalRoughnessTable(tuple(lean)))},
-                 "prefiltered": {"specular_aa": "prefiltered"}, "fitted": {"shader": str(glsl)}}
+                 "prefiltered": {"specular_aa": "prefiltered"}, "fitted": {"shader": _write(tmp, "fitted", table, FITTED_SOURCE)}}
         rel = {}
         for name, o in evals.items():
             img = none_img if name == "none" else renderers.render_under_test(scene, preset, {**base, **o},
                                                                               context=context)
             rel[name] = float(_rel_map(ref, img)[valid].mean())
             prog.update(1, f"evaluate {name}")
+    glsl = out.with_suffix(".glsl")
+    write_text_atomic(glsl, table.glsl(FITTED_SOURCE))
     result = FitNormalRoughnessResult(
         scene=scene.name, preset=preset, options=base, size=[scene.camera.width, scene.camera.height],
         target=target_name, metric="relmse over valid pixels", levels=rows, fitted=table.to_json(),
@@ -232,9 +207,9 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
     return result
 
 
-def _write(tmp: Path, name: str, table: NormalRoughnessTable) -> str:
+def _write(tmp: Path, name: str, table: NormalRoughnessTable, source: str | None = None) -> str:
     p = tmp / f"{name}.glsl"
-    p.write_text(table.glsl(name))
+    p.write_text(table.glsl(source or f"{name}, pbrcheck fit-normal-roughness's comparison"))
     return str(p)
 
 
