@@ -13,7 +13,13 @@ Method (fit-lod's: a dense scan of renders, per-group minima refined by a parabo
    the minimum on the scan is refined by a parabola through its neighbours (fit-lod's
    ``_parabola_min``) and the table's entry is ``u*^2``. A level without pixels takes its nearest
    fitted neighbour's entry (``pixels`` 0 in the JSON says so).
-4. Evaluation by render: ``none``; ``specular_aa = toksvig`` (per pixel, the closed form);
+4. Stage 2 (fit-lod's second stage: the scene error itself): the per-level optima are a start, not
+   the answer (a level's pixels read fractional levels, the table interpolates between two entries).
+   The table of the lowest rendered scene relmse among the per-level optima, Toksvig's and LEAN's
+   per-level tables (so the fit cannot end worse than either closed form's table) is refined one
+   populated level at a time, steps of :data:`REFINE_STEPS` in ``sqrt(increment)``, keeping a step
+   that lowers the rendered scene relmse.
+5. Evaluation by render: ``none``; ``specular_aa = toksvig`` (per pixel, the closed form);
    ``toksvig_table`` and ``lean_table`` (the closed forms' per-level means over the normal maps'
    texels, :func:`pbrcheck.normal_roughness.level_closed_forms`, as tables through the same hook);
    ``specular_aa = prefiltered``; ``fitted`` (the written hook file).
@@ -51,6 +57,8 @@ from .results import FitNormalRoughnessResult, LevelFit
 SCAN_STEP = 1.0 / 32.0
 #: The written hook's header names its maker.
 FITTED_SOURCE = "pbrcheck fit-normal-roughness"
+#: Stage 2's steps of ``sqrt(increment)`` per level (each level tries +h then -h, keeps an improvement).
+REFINE_STEPS = (1.0 / 16.0, 1.0 / 64.0)
 
 
 def _hook(tmp: Path, name: str, body: str) -> str:
@@ -82,7 +90,7 @@ def _normal_maps(scene: Scene) -> list[np.ndarray]:
 
 
 def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: dict | None = None, spp: int = 64,
-                             size: int | None = None, out: Path, scan_step: float = SCAN_STEP,
+                             size: int | None = None, out: Path, scan_step: float = SCAN_STEP, refine_steps=REFINE_STEPS,
                              target: Image | None = None, spp_cap: int | None = DEFAULT_SPP_CAP,
                              progress: bool = False,
                              context: renderers.RenderContext = renderers.DIRECT) -> FitNormalRoughnessResult:
@@ -102,6 +110,8 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
         The JSON to write (the GLSL goes next to it).
     scan_step : float
         Step of ``sqrt(increment)`` on [0, 1].
+    refine_steps : sequence of float
+        Stage 2's steps of ``sqrt(increment)`` (empty: the best start as is).
     target : Image, optional
         The image to match instead of the reference (same camera).
     progress : bool
@@ -145,7 +155,7 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
     valid, _, _ = pixel_classes(ref, none_img)
     out = Path(out)
     with tempfile.TemporaryDirectory(prefix="pbrcheck-nr-") as tmpd, \
-            Progress("fit-normal-roughness", total=n_levels + 1 + len(us) + 5, enabled=progress) as prog:
+            Progress("fit-normal-roughness", total=n_levels + 1 + len(us) + 3 + 2 * len(refine_steps) * n_levels + 5, enabled=progress) as prog:
         tmp = Path(tmpd)
         plain = renderers.render_under_test(scene, preset, {**base, "shader": _constant_hook(tmp, 0.0)},
                                             context=context)
@@ -183,10 +193,36 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
         if not have:
             raise PbrcheckError(f"fit-normal-roughness: {scene.name}: no valid pixel reads a normal map")
         for k in range(n_levels):
+            rows[k].optimum = fitted[k]
             if fitted[k] is None:
                 fitted[k] = fitted[min(have, key=lambda j: (abs(j - k), j))]
-            rows[k].fitted = float(fitted[k])
-        table = NormalRoughnessTable(tuple(float(x) for x in fitted))
+
+        def scene_error(entries, name):
+            o = {**base, "shader": _write(tmp, name, NormalRoughnessTable(tuple(float(x) for x in entries)))}
+            err = float(_rel_map(ref, renderers.render_under_test(scene, preset, o, context=context))[valid].mean())
+            prog.update(1, name)
+            return err
+
+        # Stage 2 (fit-lod's error objective): from the best of the per-level optima and the closed
+        # forms' tables, by the scene error of renders, one level at a time (steps in sqrt(increment)).
+        starts = {"per_level_optima": list(fitted), "toksvig_table": list(tok), "lean_table": list(lean)}
+        start_err = {n: scene_error(t, f"start {n}") for n, t in starts.items()}
+        start = min(start_err, key=start_err.get)
+        cur, cur_err = list(starts[start]), start_err[start]
+        for h in refine_steps:
+            for k in have:
+                for d in (h, -h):
+                    trial = list(cur)
+                    trial[k] = float(np.clip(np.sqrt(cur[k]) + d, 0.0, 1.0)) ** 2
+                    if trial[k] == cur[k]:
+                        continue
+                    e = scene_error(trial, f"refine level {k}")
+                    if e < cur_err:
+                        cur, cur_err = trial, e
+                        break
+        for k in range(n_levels):
+            rows[k].fitted = float(cur[k])
+        table = NormalRoughnessTable(tuple(float(x) for x in cur))
         evals = {"none": {"specular_aa": "none"}, "toksvig": {"specular_aa": "toksvig"},
                  "toksvig_table": {"shader": _write(tmp, "toksvig_table", NormalRoughnessTable(tuple(tok)))},
                  "lean_table": {"shader": _write(tmp, "lean_table", NormalRoughnessTable(tuple(lean)))},
@@ -202,7 +238,7 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
     result = FitNormalRoughnessResult(
         scene=scene.name, preset=preset, options=base, size=[scene.camera.width, scene.camera.height],
         target=target_name, metric="relmse over valid pixels", levels=rows, fitted=table.to_json(),
-        relmse=rel, reference_spp=verdict.to_dict() if verdict is not None else None, glsl=str(glsl))
+        start=start, start_relmse=start_err, relmse=rel, reference_spp=verdict.to_dict() if verdict is not None else None, glsl=str(glsl))
     write_json_atomic(out, result)
     return result
 
@@ -215,12 +251,13 @@ def _write(tmp: Path, name: str, table: NormalRoughnessTable, source: str | None
 
 def table_markdown(result: FitNormalRoughnessResult) -> str:
     """Per level the fitted increment and the closed forms; every row's relmse."""
-    lines = [f"{result.scene} ({result.size[0]} x {result.size[1]}), target: {result.target}", "",
-             "| level | pixels | fitted alpha^2 increment | Toksvig (mean) | LEAN (mean) | relmse at optimum |",
+    lines = [f"{result.scene} ({result.size[0]} x {result.size[1]}), target: {result.target}; stage 2 from "
+             f"{result.start} (" + ", ".join(f"{k} {v:.5g}" for k, v in result.start_relmse.items()) + ")", "",
+             "| level | pixels | fitted alpha^2 increment | per-level optimum | Toksvig (mean) | LEAN (mean) |",
              "| --- | --- | --- | --- | --- | --- |"]
     for r in result.levels:
-        opt = "-" if r.relmse_at_optimum is None else f"{r.relmse_at_optimum:.4g}"
-        lines.append(f"| {r.level} | {r.pixels} | {r.fitted:.4g} | {r.toksvig:.4g} | {r.lean:.4g} | {opt} |")
+        opt = "-" if r.optimum is None else f"{r.optimum:.4g}"
+        lines.append(f"| {r.level} | {r.pixels} | {r.fitted:.4g} | {opt} | {r.toksvig:.4g} | {r.lean:.4g} |")
     lines += ["", "| normal filtering | relmse |", "| --- | --- |"]
     for k, v in result.relmse.items():
         lines.append(f"| {k} | {v:.5g} |")
