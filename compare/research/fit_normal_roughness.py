@@ -33,6 +33,7 @@ API: :func:`run_fit_normal_roughness`, :func:`table_markdown`, :data:`SCAN_STEP`
 
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from pathlib import Path
 
@@ -198,7 +199,7 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
                 fitted[k] = fitted[min(have, key=lambda j: (abs(j - k), j))]
 
         def scene_error(entries, name):
-            o = {**base, "shader": _write(tmp, name, NormalRoughnessTable(tuple(float(x) for x in entries)))}
+            o = {**base, "shader": _write(tmp, NormalRoughnessTable(tuple(float(x) for x in entries)))}
             err = float(_rel_map(ref, renderers.render_under_test(scene, preset, o, context=context))[valid].mean())
             prog.update(1, name)
             return err
@@ -224,9 +225,9 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
             rows[k].fitted = float(cur[k])
         table = NormalRoughnessTable(tuple(float(x) for x in cur))
         evals = {"none": {"specular_aa": "none"}, "toksvig": {"specular_aa": "toksvig"},
-                 "toksvig_table": {"shader": _write(tmp, "toksvig_table", NormalRoughnessTable(tuple(tok)))},
-                 "lean_table": {"shader": _write(tmp, "lean_table", NormalRoughnessTable(tuple(lean)))},
-                 "prefiltered": {"specular_aa": "prefiltered"}, "fitted": {"shader": _write(tmp, "fitted", table, FITTED_SOURCE)}}
+                 "toksvig_table": {"shader": _write(tmp, NormalRoughnessTable(tuple(tok)))},
+                 "lean_table": {"shader": _write(tmp, NormalRoughnessTable(tuple(lean)))},
+                 "prefiltered": {"specular_aa": "prefiltered"}, "fitted": {"shader": _write(tmp, table)}}
         rel = {}
         for name, o in evals.items():
             img = none_img if name == "none" else renderers.render_under_test(scene, preset, {**base, **o},
@@ -243,9 +244,13 @@ def run_fit_normal_roughness(scene: Scene, *, preset: str = "default", options: 
     return result
 
 
-def _write(tmp: Path, name: str, table: NormalRoughnessTable, source: str | None = None) -> str:
-    p = tmp / f"{name}.glsl"
-    p.write_text(table.glsl(source or f"{name}, pbrcheck fit-normal-roughness's comparison"))
+def _write(tmp: Path, table: NormalRoughnessTable) -> str:
+    """``table``'s hook file, named by its text's hash: every table is written as the final one is, so
+    a table rendered twice (a start, a refinement kept, the evaluation) is one program and one render
+    of the caches."""
+    text = table.glsl(FITTED_SOURCE)
+    p = tmp / f"table_{hashlib.sha256(text.encode()).hexdigest()[:16]}.glsl"
+    p.write_text(text)
     return str(p)
 
 
