@@ -108,3 +108,15 @@ def test_written_hook_renders_and_reduces_the_error(stripe_fit):
     # The hook replaces specular_aa: the option under it changes nothing.
     again = renderers.render_under_test(scene, "default", {**SMALL, "shader": res.glsl, "specular_aa": "toksvig"})
     assert np.array_equal(again.rgb, hooked.rgb)
+
+
+def test_cli_refuses_a_scene_without_normal_map_and_a_hook(tmp_path, capsys):
+    from pbrcheck import cli
+    out = tmp_path / "fit.json"
+    assert cli.main(["fit-normal-roughness", "spheres", "--size", "8", "--out", str(out), "--quiet"]) == 2
+    assert "no object has a normal map" in capsys.readouterr().err
+    g = tmp_path / "h.glsl"
+    g.write_text(NormalRoughnessTable((0.1,)).glsl())
+    assert cli.main(["fit-normal-roughness", "spheres", "--shader", str(g), "--out", str(out), "--quiet"]) == 2
+    assert "shader" in capsys.readouterr().err
+    assert not out.exists() and not out.with_suffix(".glsl").exists()
