@@ -213,13 +213,26 @@ def _close(a, b, rtol=SAME_RENDER_RTOL):
     assert np.all(np.abs(a - b) <= rtol * np.maximum(np.abs(b), 1e-3)), float(np.max(np.abs(a - b)))
 
 
-# Standard deviations two renders of one expectation may differ by (per pixel and channel).
+# Standard deviations two renders of one expectation may differ by (per pixel and channel). The
+# variance channels of the qmc sampler are estimated from K = 16 replicates, so a pixel's z follows
+# Student's t with ~15 degrees of freedom, not a normal: P(|t_15| > 5) = 1.6e-4, about one value in a
+# thousand-pixel RGB test, and a fixed seed that draws one fails forever. So the bulk must lie within
+# NOISE_SIGMAS, at most NOISE_TAIL_SHARE of the values beyond it (30x the t tail), none beyond
+# NOISE_SIGMAS_MAX (P(|t_15| > 12) = 4e-9); a bias of the mean is caught by the tests' own mean checks.
 NOISE_SIGMAS = 5.0
+NOISE_TAIL_SHARE = 5e-3
+NOISE_SIGMAS_MAX = 12.0
+
+
+def _assert_within_noise(diff, sd, floor=1e-6):
+    z = np.abs(diff) / (sd + floor / NOISE_SIGMAS)
+    assert float(np.mean(z > NOISE_SIGMAS)) <= NOISE_TAIL_SHARE and float(z.max()) <= NOISE_SIGMAS_MAX, \
+        (float(np.mean(z > NOISE_SIGMAS)), float(z.max()))
 
 
 def _close_noise(a, b, ia, ib):
     sd = np.sqrt(np.stack([ia.channels[f"variance.{c}"] + ib.channels[f"variance.{c}"] for c in "RGB"], -1))
-    assert np.all(np.abs(a - b) <= NOISE_SIGMAS * sd + 1e-6), float(np.max(np.abs(a - b) / (sd + 1e-9)))
+    _assert_within_noise(a - b, sd)
 
 
 @pytest.mark.slow
@@ -485,7 +498,7 @@ def test_blend_is_exact_opacity(tmp_path, tmp_cache, mode):
     assert c.sum() > 100
     want = 0.75 * 0.5 + 0.25 * lo
     sd = np.sqrt(np.stack([ib.channels[f"variance.{k}"] + 0.25 ** 2 * io.channels[f"variance.{k}"] for k in "RGB"], -1))
-    assert np.all(np.abs(lb - want)[c] <= NOISE_SIGMAS * sd[c] + 1e-5)
+    _assert_within_noise((lb - want)[c], sd[c], floor=1e-5)
     assert abs(float(lb[c].mean() - want[c].mean())) < 0.01 * float(want[c].mean())
 
 
