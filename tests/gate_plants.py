@@ -6,25 +6,37 @@ scene, the reference does not): the gate must call it ``regressed`` or ``changed
 accepted from the unchanged tree on the CI scenes (compare/budgets/spheres_ci.toml, furnace_ci.toml
 with their committed references), and a real improvement (a DFG LUT of twice the resolution) ``improved``.
 
-API: :data:`PLANTS`, :data:`IMPROVEMENT`, :data:`FITTED_LOD`, :func:`base_budget`, :func:`accept_baselines`, :func:`plant_budget`.
+An external client's plants (:data:`CLIENT_PLANTS`: scene edits; for three.js also
+:data:`THREEJS_PLANTS`: page edits of its shader chunks, :func:`planted_threejs`) are rendered by the
+client and gated by clients.toml's own checks (model-matched references, budgets and committed
+baselines).
+
+API: :data:`PLANTS`, :data:`CLIENT_PLANTS`, :data:`THREEJS_PLANTS`, :data:`IMPROVEMENT`,
+:data:`FITTED_LOD`, :func:`base_budget`, :func:`accept_baselines`, :func:`client_checks`,
+:func:`planted_threejs`, :func:`plant_budget`, :func:`detection_table`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
+import shutil
+import tempfile
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from compare.baseline import BASELINE_DIR
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene, scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGETS = ROOT / "compare" / "budgets"
 #: The CI scenes, their committed references and ci.toml's budgets of the default preset.
-#: clients.toml's budgets of three.js (accuracy; the plants are judged against the baselines).
-CLIENT_BUDGETS = {"spheres": {"relmse": 0.30, "flip_mean": 0.41, "delta_e_itp_mean": 24},
-                  "furnace": {"relmse": 0.91, "flip_mean": 0.22, "delta_e_itp_mean": 33}}
+#: An external client's plants are gated by clients.toml's own checks (:func:`client_checks`).
+CLIENTS = BUDGETS / "clients.toml"
+CLIENTS_DIR = ROOT / "clients"
 SCENES = {"spheres": ("spheres_ci.toml", "refs/spheres_ci.exr", {"relmse": 0.0023, "flip_mean": 0.074, "delta_e_itp_mean": 3}),
           "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 0.00031, "flip_mean": 0.0078, "delta_e_itp_mean": 1.1})}
 
@@ -46,6 +58,9 @@ class Plant:
     caught: tuple = ("regressed", "changed")
     preset: str = "default"
     scenes: tuple = ("spheres", "furnace")
+    # three.js page edits: (shader chunk, text, replacement) applied to THREE.ShaderChunk before the
+    # first compile (:func:`planted_threejs`), the client's equivalent of a shader hook
+    page: tuple = ()
 
 
 def _objects(pred, key, f):
@@ -111,6 +126,39 @@ CLIENT_PLANTS = [
     Plant("environment x0.99", "scene edit: environment.scale x0.99", scene_edit=_env_scale(0.99)),
     Plant("environment rotated 1 deg", "scene edit: environment.rotation += 1", scene_edit=_rotate),
 ]
+#: three.js's equivalents of the default preset's hook plants, planted as page edits of its shader
+#: chunks (three.js r187's ``envmap_physical_pars_fragment``: getIBLIrradiance / getIBLRadiance's
+#: PMREM lookup at ``roughnessToMip(roughness)``; ``lights_fragment_begin``: the DFG LUT fetch;
+#: ``lights_physical_fragment``: specularF90), and the scene edits of :data:`CLIENT_PLANTS`. Not
+#: plantable in three.js: the prefilter's and the LUT's sample counts (PMREMGenerator's fixed
+#: blur, a DFG LUT shipped as data).
+_IRR = "return PI * envMapColor.rgb * envMapIntensity;"
+_MIP = "textureLod( envMap, envMapRotation * reflectVec, roughnessToMip( roughness ) )"
+_DFG = "material.dfg = texture2D( dfgLUT, vec2( material.roughness, dotNVms ) ).rg;"
+
+
+def _tjs_lod(shift: float) -> tuple:
+    return (("envmap_physical_pars_fragment", _MIP, _MIP[:-2] + f" + ({shift}) )"),)
+
+
+THREEJS_PLANTS = [
+    Plant("diffuse x0.99", "page: getIBLIrradiance x0.99",
+          page=(("envmap_physical_pars_fragment", _IRR, _IRR.replace("return ", "return 0.99 * ")),)),
+    Plant("diffuse x1.01", "page: getIBLIrradiance x1.01",
+          page=(("envmap_physical_pars_fragment", _IRR, _IRR.replace("return ", "return 1.01 * ")),)),
+    Plant("DFG x0.99", "page: DFG LUT fetch x0.99",
+          page=(("lights_fragment_begin", _DFG, _DFG.replace("= texture2D", "= 0.99 * texture2D")),)),
+    Plant("LOD +0.1 mip", "page: roughnessToMip + 0.1", page=_tjs_lod(0.1)),
+    Plant("LOD -0.1 mip", "page: roughnessToMip - 0.1", page=_tjs_lod(-0.1)),
+    Plant("F90 0.97", "page: specularF90 0.97",
+          page=(("lights_physical_fragment", "material.specularF90 = 1.0;", "material.specularF90 = 0.97;"),
+                ("lights_physical_fragment", "mix( specularIntensityFactor, 1.0, metalnessFactor )",
+                 "mix( specularIntensityFactor, 0.97, metalnessFactor )"))),
+] + CLIENT_PLANTS
+
+#: The unchanged tree rendered afresh (an external client's own render against its committed baseline).
+UNCHANGED = Plant("unchanged tree", "nothing", caught=("pass",))
+
 #: A real improvement: a DFG LUT of twice the resolution (less interpolation error; better on
 #: spheres_ci's smooth objects, nothing worse). On spheres_ci only: furnace_ci's default preset is
 #: already exact within the reference's noise, so there the same change is ``changed``.
@@ -128,8 +176,19 @@ def _check(name, scene, ref, budgets, extra: str) -> str:
     return (f'[[check]]\nname = "{name}"\nscene = "{scene}"\nreference = "{ref}"\n{extra}[check.max]\n{mx}\n\n')
 
 
-def _budgets(scene: str, preset: str) -> dict:
-    return CLIENT_BUDGETS[scene] if preset.startswith("ext:") else SCENES[scene][2]
+def client_checks(preset: str) -> dict:
+    """clients.toml's checks of ``preset`` (an ``ext:`` client) per CI scene: ``{"spheres": Check, ...}``
+    (model-matched references, budgets and committed baselines of the shipped gate)."""
+    from compare.gate import load_budget
+
+    checks, _ = load_budget(CLIENTS)
+    return {s: c for s in SCENES for c in checks if c.preset == preset and c.scene == SCENES[s][0]}
+
+
+def _client_check(c, extra: str) -> str:
+    """``c`` (a clients.toml check) as a check of a budget elsewhere: absolute paths, ``extra`` keys."""
+    extra = f'reference_scene = "{BUDGETS / c.reference_scene}"\n{extra}' if c.reference_scene else extra
+    return _check(c.name, BUDGETS / c.scene, BUDGETS / c.reference, c.max, extra)
 
 
 def _options(options: dict) -> str:
@@ -137,22 +196,75 @@ def _options(options: dict) -> str:
 
 
 def base_budget(folder: Path, preset: str = "default", scenes=("spheres", "furnace"), options=None) -> Path:
-    """The unchanged tree's budget of ``preset`` (with ``options``) on the CI scenes, in ``folder``."""
-    text = "".join(_check(f"{s}-{preset}", BUDGETS / SCENES[s][0], BUDGETS / SCENES[s][1], _budgets(s, preset),
-                          f'preset = "{preset}"\n' + _options(options or {})) for s in scenes)
+    """The unchanged tree's budget of ``preset`` (with ``options``) on the CI scenes, in ``folder``: for
+    a real-time preset ci.toml's references and budgets, for an ``ext:`` client clients.toml's checks."""
+    extra = f'preset = "{preset}"\n' + _options(options or {})
+    if preset.startswith("ext:"):
+        cc = client_checks(preset)
+        text = "".join(_client_check(cc[s], extra) for s in scenes)
+    else:
+        text = "".join(_check(f"{s}-{preset}", BUDGETS / SCENES[s][0], BUDGETS / SCENES[s][1], SCENES[s][2], extra)
+                       for s in scenes)
     p = Path(folder) / "base.toml"
     p.write_text(text)
     return p
 
 
 def accept_baselines(folder: Path, preset: str = "default", scenes=("spheres", "furnace"), options=None) -> Path:
-    """Accept the unchanged tree's baselines into ``folder/baselines``; returns the budget."""
+    """The unchanged tree's baselines in ``folder/baselines``; returns the budget. A real-time preset's
+    are accepted afresh; an ``ext:`` client's are clients.toml's committed ones (copied), so its
+    plants are gated exactly as ``make gate`` gates the client."""
     from compare.gate import run_gate
 
     b = base_budget(folder, preset, scenes, options)
+    if preset.startswith("ext:"):
+        (Path(folder) / BASELINE_DIR).mkdir(exist_ok=True)
+        for s in scenes:
+            for ext in (".exr", ".json"):
+                name = client_checks(preset)[s].name + ext
+                shutil.copyfile(BUDGETS / BASELINE_DIR / name, Path(folder) / BASELINE_DIR / name)
+        return b
     rc = run_gate(b, accept_reason="unchanged tree", progress=False, stream=io.StringIO())
     assert rc == 0
     return b
+
+
+@contextlib.contextmanager
+def planted_threejs(folder: Path, edits: tuple):
+    """A copy of the three.js client (clients/threejs, its node_modules linked) whose page applies
+    ``edits`` ((chunk, text, replacement): every occurrence) to ``THREE.ShaderChunk`` before the
+    first compile, named ``threejs`` in a renderers file made current for the block. A text absent
+    from the installed three.js is a ValueError here, and an error of the page (never a silent no-op)."""
+    from clients import config
+
+    build = (CLIENTS_DIR / "threejs" / "node_modules" / "three" / "build" / "three.module.js").read_text(encoding="utf-8")
+    for chunk, a, _ in edits:
+        if a not in build:
+            raise ValueError(f"three.js plant: {a!r} is not in {chunk} of the installed three.js")
+    d = Path(tempfile.mkdtemp(prefix="threejs-plant-", dir=folder))
+    shutil.copytree(CLIENTS_DIR / "threejs", d / "threejs", ignore=shutil.ignore_patterns("node_modules"))
+    (d / "threejs" / "node_modules").symlink_to(CLIENTS_DIR / "threejs" / "node_modules")
+    (d / "browser").symlink_to(CLIENTS_DIR / "browser")
+    page = d / "threejs" / "page.js"
+    anchor = "async function main() {\n"
+    patch = (anchor + "  // planted (tests/gate_plants.py): edits of three.js's shader chunks\n"
+             f"  for (const [c, a, b] of {json.dumps([list(e) for e in edits])}) {{\n"
+             "    if (!THREE.ShaderChunk[c].includes(a)) throw new Error(`plant: ${a} not in ${c}`);\n"
+             "    THREE.ShaderChunk[c] = THREE.ShaderChunk[c].split(a).join(b);\n  }\n")
+    page.write_text(page.read_text(encoding="utf-8").replace(anchor, patch, 1), encoding="utf-8")
+    cfg = tomllib.loads((CLIENTS_DIR / "renderers.toml").read_text(encoding="utf-8"))["renderer"]["threejs"]
+    lines = ["[renderer.threejs]"]
+    for k, v in cfg.items():
+        v = json.loads(json.dumps(v).replace("{clients}", "{config_dir}"))
+        lines.append(f"{k} = {json.dumps(v)}")
+    toml = d / "renderers.toml"
+    toml.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    prev = config.user_renderers_file()
+    config.set_renderers_file(toml)
+    try:
+        yield toml
+    finally:
+        config.set_renderers_file(prev)
 
 
 def plant_budget(folder: Path, plant: Plant, scenes=None) -> Path:
@@ -163,16 +275,20 @@ def plant_budget(folder: Path, plant: Plant, scenes=None) -> Path:
     scenes = scenes or plant.scenes
     folder = Path(folder)
     safe = "".join(c if c.isalnum() else "_" for c in plant.name)
+    external = plant.preset.startswith("ext:")
     text = ""
     for s in scenes:
-        scene_file, ref, _ = SCENES[s]
-        budgets = _budgets(s, plant.preset)
-        if plant.scene_edit is not None:
+        scene_file, ref, budgets = SCENES[s]
+        if external or plant.scene_edit is not None:
             d = json.loads(json.dumps(load_scene(BUDGETS / scene_file).to_dict()))
-            edited = scene_from_dict(plant.scene_edit(d))
-            img = renderers.render_under_test(edited, plant.preset, plant.options or None)
+            edited = scene_from_dict(plant.scene_edit(d) if plant.scene_edit else d)
+            with (planted_threejs(folder, plant.page) if plant.page else contextlib.nullcontext()):
+                img = renderers.render_under_test(edited, plant.preset, plant.options or None)
             test = write_exr(folder / f"{safe}-{s}.exr", img)
-            text += _check(f"{s}-{plant.preset}", BUDGETS / scene_file, BUDGETS / ref, budgets, f'test = "{test}"\n')
+            if external:
+                text += _client_check(client_checks(plant.preset)[s], f'test = "{test}"\n')
+            else:
+                text += _check(f"{s}-{plant.preset}", BUDGETS / scene_file, BUDGETS / ref, budgets, f'test = "{test}"\n')
             continue
         extra = f'preset = "{plant.preset}"\n'
         if plant.shader:
@@ -195,7 +311,8 @@ def detection_table(folder: Path, preset: str = "default") -> str:
 
     accept_baselines(folder, preset)
     plants = (PLANTS + CLIENT_PLANTS[:4] + [IMPROVEMENT, FITTED_LOD] if preset == "default"
-              else [dataclasses.replace(p, preset=preset) for p in CLIENT_PLANTS])
+              else [dataclasses.replace(p, preset=preset)
+                    for p in [UNCHANGED] + (THREEJS_PLANTS if preset == "ext:threejs" else CLIENT_PLANTS)])
     rows = ["| planted change | made by | spheres_ci | furnace_ci | caught by (most significant region) | likely term |",
             "|---|---|---|---|---|---|"]
     for p in plants:
@@ -206,6 +323,9 @@ def detection_table(folder: Path, preset: str = "default") -> str:
             r = res.get(s)
             if r is None:
                 cells.append("(not run)")
+                continue
+            if r.status == "error" or r.change is None:
+                cells.append(f"**error**: {r.error}" if r.status == "error" else "(no baseline)")
                 continue
             ch = r.change
             n = {k: len(ch.by_state(k)) for k in ("worse", "better", "changed")}
