@@ -33,7 +33,7 @@ API
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
 :func:`glsl_generated`.
 """
 
@@ -251,6 +251,14 @@ MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microface
 #: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
 #: height-correlated Smith term of that NDF [Heitz16 sec. 5; Heitz 2014 eq. 99].
 MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckmann_correlated"}
+
+#: A screen-space geometric roughness an engine adds to its roughness, as a reference-only ``[brdf]``
+#: option (``geometric_roughness``; not a real-time switch, so not in :data:`REGISTRIES`); the
+#: implementation is ``reference.integrator.GEOMETRIC_ROUGHNESS``.
+GEOMETRIC_ROUGHNESSES = _switch(
+    "GEOMETRIC_ROUGHNESS", none="no geometric roughness",
+    threejs="three.js r187 lights_physical_fragment: roughness = min(max(r, floor) + max(max |dFdx n|, "
+            "max |dFdy n|), 1), n the view-space normal, derivatives per sample of the engine's raster")
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,

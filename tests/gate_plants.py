@@ -13,7 +13,7 @@ baselines).
 
 API: :data:`PLANTS`, :data:`CLIENT_PLANTS`, :data:`THREEJS_PLANTS`, :data:`IMPROVEMENT`,
 :data:`FITTED_LOD`, :func:`base_budget`, :func:`accept_baselines`, :func:`client_checks`,
-:func:`planted_threejs`, :func:`plant_budget`, :func:`detection_table`.
+:func:`planted_threejs`, :func:`plant_budget`, :func:`detection_table`, :func:`rerun_checks`.
 """
 
 from __future__ import annotations
@@ -300,6 +300,44 @@ def plant_budget(folder: Path, plant: Plant, scenes=None) -> Path:
     p = folder / f"{safe}.toml"
     p.write_text(text)
     return p
+
+
+def rerun_checks(budget: Path, names, runs: int, workdir: Path, stream=None) -> list[dict]:
+    """Run the checks ``names`` of ``budget`` ``runs`` times, each time with a fresh, empty
+    ``$PBRCHECK_CACHE`` (under ``workdir``, removed after the run) and the process's environment
+    bakes freed, so every run exports, bakes and (for a client) starts its browser afresh. Returns
+    per run ``{"run", "outcomes": {name: outcome}, "seconds"}``; prints a line per run to ``stream``."""
+    import os
+    import time
+
+    from compare import renderers
+    from compare.gate import load_budget, run_check
+    from pbrcheck.cache import CACHE_ENV
+
+    checks, base = load_budget(budget)
+    checks = [c for c in checks if c.name in set(names)]
+    old = os.environ.get(CACHE_ENV)
+    out = []
+    try:
+        for i in range(runs):
+            cache = Path(workdir) / f"cache-{i}"
+            os.environ[CACHE_ENV] = str(cache)
+            renderers.trim_caches(0)
+            t = time.perf_counter()
+            res = {c.name: run_check(c, base, progress=False) for c in checks}
+            out.append({"run": i, "outcomes": {n: r.outcome for n, r in res.items()},
+                        "errors": {n: r.error for n, r in res.items() if r.error},
+                        "seconds": time.perf_counter() - t})
+            shutil.rmtree(cache, ignore_errors=True)
+            if stream is not None:
+                print(f"run {i + 1}/{runs}: " + ", ".join(f"{n} {o}" for n, o in out[-1]["outcomes"].items())
+                      + f" ({out[-1]['seconds']:.1f} s)", file=stream, flush=True)
+    finally:
+        if old is None:
+            os.environ.pop(CACHE_ENV, None)
+        else:
+            os.environ[CACHE_ENV] = old
+    return out
 
 
 def detection_table(folder: Path, preset: str = "default") -> str:

@@ -13,8 +13,8 @@ import pytest
 
 from compare import renderers
 from compare.gate import load_budget, run_check, run_gate
-from gate_plants import (FITTED_LOD, IMPROVEMENT, PLANTS, THREEJS_PLANTS, accept_baselines, plant_budget,
-                         planted_threejs)
+from gate_plants import (CLIENTS, FITTED_LOD, IMPROVEMENT, PLANTS, THREEJS_PLANTS, accept_baselines, client_checks,
+                         plant_budget, planted_threejs, rerun_checks)
 
 pytestmark = pytest.mark.slow
 
@@ -105,13 +105,11 @@ def test_planted_threejs_page_edit_must_apply(tmp_path):
 THREEJS_RERUNS = 3
 
 
-def test_reruns_of_threejs_unchanged_pass(tmp_path, monkeypatch):
+def test_reruns_of_threejs_unchanged_pass(tmp_path):
     """clients.toml's three.js checks, rendered afresh (fresh cache, fresh Chromium) each time,
     all pass against their committed baselines."""
     _threejs_installed()
-    budget = accept_baselines(tmp_path, "ext:threejs")
-    for i in range(THREEJS_RERUNS):
-        monkeypatch.setenv("PBRCHECK_CACHE", str(tmp_path / f"cache{i}"))
-        out = io.StringIO()
-        assert run_gate(budget, progress=False, stream=out) == 0, (i, out.getvalue())
-        assert out.getvalue().count("pass ") >= 2 and "gate: 2 pass" in out.getvalue(), out.getvalue()
+    names = [c.name for c in client_checks("ext:threejs").values()]
+    runs = rerun_checks(CLIENTS, names, THREEJS_RERUNS, tmp_path)
+    assert len(runs) == THREEJS_RERUNS and all(len(r["outcomes"]) == 2 for r in runs)
+    assert all(set(r["outcomes"].values()) == {"pass"} for r in runs), runs
