@@ -1,6 +1,8 @@
 """The gate's own test suite: planted regressions (tests/gate_plants.py) on the CI scenes are
-``regressed`` or ``changed``, a real improvement ``improved``, and 20 reruns of the unchanged tree
-(environments baked afresh each time) all ``pass``. Slow: every plant renders both CI scenes."""
+``regressed`` or ``changed``, real improvements (a finer DFG LUT, a LOD mapping fitted on the CI
+scene) ``improved``, and 20 reruns of the unchanged tree (environments baked afresh each time) all
+``pass``; for three.js a reduced set of its plants against clients.toml's own checks, and reruns of
+its checks with a fresh cache and browser each. Slow: every plant renders."""
 
 from __future__ import annotations
 
@@ -13,8 +15,8 @@ import pytest
 
 from compare import renderers
 from compare.gate import load_budget, run_check, run_gate
-from gate_plants import (CLIENTS, FITTED_LOD, IMPROVEMENT, PLANTS, THREEJS_PLANTS, accept_baselines, client_checks,
-                         plant_budget, planted_threejs, rerun_checks)
+from gate_plants import (CLIENTS, FITTED_LOD, FITTED_LOD_CI, IMPROVEMENT, PLANTS, THREEJS_PLANTS, accept_baselines,
+                         client_checks, plant_budget, planted_threejs, rerun_checks)
 
 pytestmark = pytest.mark.slow
 
@@ -35,7 +37,7 @@ def verdicts(budget):
     return {c.name: run_check(c, base, progress=False) for c in checks}
 
 
-@pytest.mark.parametrize("plant", PLANTS + [IMPROVEMENT, FITTED_LOD], ids=lambda p: p.name)
+@pytest.mark.parametrize("plant", PLANTS + [IMPROVEMENT, FITTED_LOD, FITTED_LOD_CI], ids=lambda p: p.name)
 def test_planted_change_is_caught(accepted, plant):
     results = verdicts(plant_budget(accepted, plant))
     got = {name: r.change.verdict for name, r in results.items()}
