@@ -46,11 +46,15 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
 :func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :data:`SAMPLERS`,
-:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`.
+:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`,
+:data:`GEOMETRIC_ROUGHNESS`, :func:`threejs_geometric_roughness` (``[brdf] geometric_roughness``: the
+local estimator adds it to each lane's roughness at the first hit, from the camera ray's
+differentials and the sensor's world-to-camera transform that ``render`` records).
 References: Veach 1997 ch. 9 (MIS, power and balance heuristics); Vicini et al. 2021, "Path Replay
 Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
 Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Owen 2013, *Monte Carlo
-theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates).
+theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates); Igehy
+1999, "Tracing ray differentials" (the geometric roughness's normal derivative).
 """
 
 from __future__ import annotations
