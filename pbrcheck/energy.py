@@ -28,6 +28,10 @@ Heitz et al. 2016 (``[brdf] multiscatter = "random_walk"`` in the reference).
   irradiance (``int (1 - E(mu_i)) L cos dw_i ~ (1 - E_avg) E(n)``), so the multiply scattered
   radiance is ``F_ms (1 - E(mu_o)) E(n) / pi``: :func:`ms_kulla_conty`.
 
+Each member of the registry names its role functions (``energy_scale_<name>``, ``energy_ms_<name>``,
+``energy_direct_<name>``; a member without a role is the identity there) and the dispatch here, in
+Dr.Jit and in the generated GLSL loops over it.
+
 Point lights (:func:`energy_direct`): Filament scales its direct specular lobe by the same factor;
 Kulla-Conty add their lobe ``f_ms`` (:func:`f_ms_kulla_conty`, ``E(mu_i)`` from the DFG terms at
 n.l); Fdez-Agüera's paper covers image-based lighting only (nothing added). The compensation needs
@@ -43,8 +47,12 @@ Gauss-Legendre nodes in ``mu``. The same numbers are in ``energy.glsl`` (tested 
 API
 ---
 :func:`F_avg_Schlick`, :func:`energy_filament`, :func:`ms_fdez_aguera`, :func:`ms_kulla_conty`,
-:func:`f_ms_kulla_conty`, :func:`kc_eavg`, :func:`energy_scale`, :func:`energy_ms`, :func:`energy_direct`, :func:`specular_albedo_compensated`,
-:func:`bake_kc_eavg`, :data:`KC_EAVG`, :data:`KC_EAVG_SIZE`.
+:func:`f_ms_kulla_conty`, :func:`kc_eavg`; the registry members' role functions
+:func:`energy_scale_filament`, :func:`energy_direct_filament`, :func:`energy_ms_fdez_aguera`,
+:func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty`; the dispatch looping
+:data:`pbrcheck.registry.ENERGY_COMPENSATIONS` :func:`energy_scale`, :func:`energy_ms`,
+:func:`energy_direct`; :func:`specular_albedo_compensated`, :func:`bake_kc_eavg`, :data:`KC_EAVG`,
+:data:`KC_EAVG_SIZE`. Dr.Jit twins of the same names: :mod:`reference.energy`.
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import brdf as _brdf
+from .registry import ENERGY_COMPENSATIONS
 
 #: Entries of the E_avg table, at roughness j / (KC_EAVG_SIZE - 1).
 KC_EAVG_SIZE = 17
@@ -63,8 +72,6 @@ KC_EAVG = (
     1.0000000, 0.9999079, 0.9988651, 0.9952562, 0.9872503, 0.9731154, 0.9514348, 0.9212760, 0.8823234,
     0.8349606, 0.7802779, 0.7199813, 0.6562014, 0.5912315, 0.5272513, 0.4660994, 0.4091371,
 )
-
-COMPENSATIONS = ("none", "filament", "fdez_aguera", "kulla_conty")
 
 #: ``energy_compensation = "scene"`` (the default preset): the compensation matching the scene's
 #: ``[brdf] multiscatter``. For ``random_walk`` the best by measurement (``pbrcheck energy``,
@@ -122,36 +129,70 @@ def f_ms_kulla_conty(F0, Ev, El, Eavg):
     return Fms * (1.0 - np.asarray(Ev)) * (1.0 - np.asarray(El)) / (np.pi * np.maximum(1.0 - Eavg, 1e-6))
 
 
-def energy_direct(f_spec, F0, A, B, El, roughness, compensation: str):
-    """What the compensation adds to the single-scattering BRDF for a point light: Filament's
-    ``(scale - 1) f_spec``, Kulla-Conty's lobe, 0 for ``fdez_aguera`` (IBL only) and ``none``."""
-    if compensation == "filament":
-        return (energy_filament(F0, np.asarray(A) + np.asarray(B)) - 1.0) * np.asarray(f_spec)
-    if compensation == "kulla_conty":
-        return f_ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), El, kc_eavg(roughness))
-    return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A), np.shape(f_spec)))
-
-
 def kc_eavg(roughness):
     """E_avg(roughness) from :data:`KC_EAVG`: linear between its entries at ``j / (size - 1)``."""
     r = np.clip(np.asarray(roughness, dtype=np.float64), 0.0, 1.0)
     return np.interp(r, np.linspace(0.0, 1.0, KC_EAVG_SIZE), np.asarray(KC_EAVG))
 
 
+# ---- the registry members' role functions (pbrcheck.registry.ENERGY_COMPENSATIONS) --------------
+
+def energy_scale_filament(F0, A, B):
+    """Filament: the split sum's specular factor ``1 + F0 (1 / (A + B) - 1)``."""
+    return energy_filament(F0, np.asarray(A) + np.asarray(B))
+
+
+def energy_direct_filament(f_spec, F0, A, B, El, roughness):
+    """Filament's direct lobe: adds ``(scale - 1) f_spec`` to a point light's BRDF."""
+    return (energy_filament(F0, np.asarray(A) + np.asarray(B)) - 1.0) * np.asarray(f_spec)
+
+
+def energy_ms_fdez_aguera(F0, A, B, roughness):
+    """Fdez-Agüera: adds ``Fms Ems`` times ``E(n) / pi`` (:func:`ms_fdez_aguera`)."""
+    return ms_fdez_aguera(F0, A, B)
+
+
+def energy_ms_kulla_conty(F0, A, B, roughness):
+    """Kulla-Conty: adds ``F_ms (1 - (A + B))`` times ``E(n) / pi``, ``E_avg`` from :func:`kc_eavg`."""
+    return ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), kc_eavg(roughness))
+
+
+def energy_direct_kulla_conty(f_spec, F0, A, B, El, roughness):
+    """Kulla-Conty: adds the lobe :func:`f_ms_kulla_conty` (``E(mu_o) = A + B``, ``E(mu_i) = El``)."""
+    return f_ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), El, kc_eavg(roughness))
+
+
+def _role(role: str, compensation: str):
+    """The member's numpy function for ``role``, None where the member has not that role (its
+    identity); ValueError naming an unknown compensation."""
+    if compensation not in ENERGY_COMPENSATIONS:
+        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})")
+    impl = ENERGY_COMPENSATIONS[compensation].roles.get(role)
+    return None if impl is None else globals()[impl.numpy]
+
+
 def energy_scale(F0, A, B, compensation: str):
-    """Factor of the split sum's specular term ``prefiltered (F0 A + B)``: Filament's scale, 1 else."""
-    if compensation == "filament":
-        return energy_filament(F0, np.asarray(A) + np.asarray(B))
-    return np.ones(np.broadcast_shapes(np.shape(F0), np.shape(A)))
+    """Factor of the split sum's specular term ``prefiltered (F0 A + B)``: the member's
+    ``energy_scale_<name>``, 1 for a member without one."""
+    f = _role("energy_scale", compensation)
+    return np.ones(np.broadcast_shapes(np.shape(F0), np.shape(A))) if f is None else f(F0, A, B)
 
 
 def energy_ms(F0, A, B, roughness, compensation: str):
-    """Multiply scattered albedo added times ``E(n) / pi``: Fdez-Agüera's or Kulla-Conty's, 0 else."""
-    if compensation == "fdez_aguera":
-        return ms_fdez_aguera(F0, A, B)
-    if compensation == "kulla_conty":
-        return ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), kc_eavg(roughness))
-    return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A)))
+    """Multiply scattered albedo added times ``E(n) / pi``: the member's ``energy_ms_<name>``, 0 for a
+    member without one."""
+    f = _role("energy_ms", compensation)
+    return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A))) if f is None else f(F0, A, B, roughness)
+
+
+def energy_direct(f_spec, F0, A, B, El, roughness, compensation: str):
+    """What the compensation adds to the single-scattering BRDF for a point light: the member's
+    ``energy_direct_<name>`` (Filament's ``(scale - 1) f_spec``, Kulla-Conty's lobe), 0 for a member
+    without one (``fdez_aguera``: image-based lighting only; ``none``)."""
+    f = _role("energy_direct", compensation)
+    if f is None:
+        return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A), np.shape(f_spec)))
+    return f(f_spec, F0, A, B, El, roughness)
 
 
 def specular_albedo_compensated(F0, A, B, roughness, compensation: str):

@@ -18,9 +18,9 @@ API
 Conventions (docs/renderers.md has the table): world axes are glTF's (+Y up, right-handed, metres
 = scene units); object ``k`` (index after sphere grids are expanded, the ``object`` AOV) is the
 node named ``object_<k>_<name>`` with ``extras.pbrcheck_object = k``; roughness is perceptual
-(glTF's ``roughnessFactor``, alpha = roughness^2, as both); point lights are
-``KHR_lights_punctual`` with 1 cd taken as 1 W/sr (radiometric intensity, RGB split into a
-colour with max 1 times a scalar); planes are one-sided quads (front = the scene's normal;
+(glTF's ``roughnessFactor``, alpha = roughness^2, as both); point, spot and directional lights
+are ``KHR_lights_punctual`` with 1 cd taken as 1 W/sr and 1 lux as 1 W/m^2 (radiometric, RGB
+split into a colour with max 1 times a scalar; the node's -Z is the light's ``direction``); planes are one-sided quads (front = the scene's normal;
 ``doubleSided`` false; the reference's BSDFs are black from behind).
 
 References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9 (materials);
@@ -199,10 +199,45 @@ def _material(obj) -> dict:
 
 
 def _light(light) -> dict:
+    """``KHR_lights_punctual`` light of a :mod:`pbrcheck.lights` light: RGB split into ``color``
+    (max 1) times ``intensity`` (cd = W/sr; lux = W/m^2 for a directional light); no ``range``."""
     i = [float(x) for x in light.intensity]
     peak = max(i)
     color = [x / peak for x in i] if peak > 0 else [1.0, 1.0, 1.0]
-    return {"type": "point", "color": color, "intensity": peak}
+    d = {"type": light.type, "color": color, "intensity": peak}
+    if light.type == "spot":
+        d["spot"] = {"innerConeAngle": float(light.inner_cone_angle), "outerConeAngle": float(light.outer_cone_angle)}
+    return d
+
+
+def _light_node(k: int, light) -> dict:
+    """The node of light ``k``: translation (point, spot), rotation taking the node's -Z to the
+    light's ``direction`` (spot, directional)."""
+    node: dict = {"name": f"light_{k}"}
+    if light.type != "directional":
+        node["translation"] = [float(c) for c in light.position]
+    if light.type != "point":
+        z = -np.asarray(light.direction, float)
+        hint = np.array([0.0, 1.0, 0.0]) if abs(z[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        x = np.cross(hint, z)
+        x /= np.linalg.norm(x)
+        node["rotation"] = _quaternion(np.stack([x, np.cross(z, x), z], axis=1))
+    node["extensions"] = {"KHR_lights_punctual": {"light": k}}
+    return node
+
+
+def _scenario_light(k: int, light) -> dict:
+    """``scenario.json``'s entry of light ``k`` (pbrcheck's units, named)."""
+    d: dict = {"type": light.type, "gltf_node": f"light_{k}"}
+    if light.type != "directional":
+        d["position"] = list(light.position)
+    if light.type != "point":
+        d["direction"] = list(light.direction)
+    if light.type == "spot":
+        d["inner_cone_angle_rad"] = light.inner_cone_angle
+        d["outer_cone_angle_rad"] = light.outer_cone_angle
+    key = "irradiance_w_per_m2" if light.type == "directional" else "intensity_w_per_sr"
+    return {**d, key: list(light.intensity)}
 
 
 def _quaternion(m: np.ndarray) -> list[float]:
@@ -351,9 +386,7 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
     if scene.lights:
         used.add("KHR_lights_punctual")
         ext["KHR_lights_punctual"] = {"lights": [_light(l) | {"name": f"light_{k}"} for k, l in enumerate(scene.lights)]}
-        for k, light in enumerate(scene.lights):
-            nodes.append({"name": f"light_{k}", "translation": [float(c) for c in light.position],
-                          "extensions": {"KHR_lights_punctual": {"light": k}}})
+        nodes.extend(_light_node(k, light) for k, light in enumerate(scene.lights))
     while len(buf.data) % 4:
         buf.data.append(0)
     doc = {
@@ -447,10 +480,10 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         "environment": {"exr": "environment.exr", "hdr": "environment.hdr",
                         "width": env_shape[1], "height": env_shape[0],
                         "orientation": ENVIRONMENT_ORIENTATION, "as_background": True},
-        "lights": [{"type": "point", "position": list(l.position), "intensity_w_per_sr": list(l.intensity),
-                    "gltf_node": f"light_{k}"} for k, l in enumerate(scene.lights)],
-        "units": "point light intensity: 1 cd is taken as 1 W/sr (radiometric); radiance in W/(sr m^2), "
-                 "linear Rec.709 primaries",
+        "lights": [_scenario_light(k, l) for k, l in enumerate(scene.lights)],
+        "units": "point and spot light intensity: 1 cd is taken as 1 W/sr (radiometric); directional light: "
+                 "1 lux as 1 W/m^2; radiance in W/(sr m^2), linear Rec.709 primaries; light directions: "
+                 "where the light shines (the glTF node's -Z)",
         "objects": [{"id": o.id, "name": o.name, "type": o.type,
                      **({"gltf_node": f"object_{o.id}_{o.name}"} if o.type != "mesh" else
                         {"gltf_node_index": scene.assets[o.instance].asset.primitives[o.primitive].node,

@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import PbrcheckError
+from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
 
 #: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
@@ -190,8 +191,8 @@ class GltfLight:
     position: tuple[float, float, float]
     direction: tuple[float, float, float]
     range: float | None = None
-    inner_cone: float = 0.0
-    outer_cone: float = math.pi / 4
+    inner_cone: float = DEFAULT_INNER_CONE
+    outer_cone: float = DEFAULT_OUTER_CONE
 
 
 @dataclass(frozen=True)
@@ -726,17 +727,38 @@ def _light(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfLight:
     if not isinstance(index, int) or not 0 <= index < len(lights):
         raise r.err(p, f"light {index!r} out of range ({len(lights)} lights)")
     L = lights[index]
+    lp = f"/extensions/KHR_lights_punctual/lights/{index}"
+    if not isinstance(L, dict):
+        raise r.err(lp, "a light object")
     typ = L.get("type")
-    if typ not in ("point", "spot", "directional"):
-        raise r.err(f"/extensions/KHR_lights_punctual/lights/{index}/type", f"unknown light type {typ!r}")
-    d = -world[:3, 2]
-    d = d / (np.linalg.norm(d) or 1.0)
-    spot = L.get("spot", {})
-    return GltfLight(name=str(L.get("name", f"light{index}")), type=typ,
-                     color=tuple(float(c) for c in L.get("color", (1, 1, 1))), intensity=float(L.get("intensity", 1.0)),
-                     position=tuple(float(c) for c in world[:3, 3]), direction=tuple(float(c) for c in d),
-                     range=L.get("range"), inner_cone=float(spot.get("innerConeAngle", 0.0)),
-                     outer_cone=float(spot.get("outerConeAngle", math.pi / 4)))
+    if typ not in LIGHT_TYPES:
+        raise r.err(f"{lp}/type", f"unknown light type {typ!r} (one of {', '.join(LIGHT_TYPES)})")
+    color = L.get("color", [1.0, 1.0, 1.0])
+    if (not isinstance(color, list) or len(color) != 3 or not all(_finite_number(c) and c >= 0 for c in color)):
+        raise r.err(f"{lp}/color", f"3 finite numbers >= 0, found {color!r}")
+    intensity = L.get("intensity", 1.0)
+    if not (_finite_number(intensity) and intensity >= 0):
+        raise r.err(f"{lp}/intensity", f"a finite number >= 0, found {intensity!r}")
+    spot = L.get("spot", {}) if typ == "spot" else {}
+    inner = spot.get("innerConeAngle", DEFAULT_INNER_CONE)
+    outer = spot.get("outerConeAngle", DEFAULT_OUTER_CONE)
+    if not (_finite_number(outer) and 0 < outer <= math.pi / 2):
+        raise r.err(f"{lp}/spot/outerConeAngle", f"an angle in (0, pi/2] radians, found {outer!r}")
+    if not (_finite_number(inner) and 0 <= inner < outer):
+        raise r.err(f"{lp}/spot/innerConeAngle", f"an angle in [0, outerConeAngle) radians, found {inner!r}")
+    d = -world[:3, 2]  # the node's -Z in world space
+    n = float(np.linalg.norm(d))
+    if typ != "point" and not n > 1e-12:
+        raise r.err(f"/nodes/{node_i}", f"a transform that keeps the {typ} light's -Z axis (a zero scale)")
+    d = d / (n or 1.0)
+    return GltfLight(name=str(L.get("name", f"light{index}")), type=typ, color=tuple(float(c) for c in color),
+                     intensity=float(intensity), position=tuple(float(c) for c in world[:3, 3]),
+                     direction=tuple(float(c) for c in d), range=L.get("range"), inner_cone=float(inner),
+                     outer_cone=float(outer))
+
+
+def _finite_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamera | None:

@@ -7,7 +7,7 @@ API
 ---
 - :class:`AssetInstance` -- one ``gltf`` object of a scene: the file, its placement, the loaded asset.
 - :class:`Mesh` -- one (node, primitive) of an instance as a scene object (id, ``node/mesh/primitive``).
-- :func:`expand_gltf_object` -- a scene file's ``gltf`` table -> (instance, meshes, point lights).
+- :func:`expand_gltf_object` -- a scene file's ``gltf`` table -> (instance, meshes, lights).
 - :func:`set_asset_options` / :func:`asset_options` -- ``--env`` and ``--size`` for asset paths (the CLI).
 - :func:`framing` -- model-viewer's default framing of a bounding box (origin, target, horizontal fov).
 - :func:`is_asset_path`, :func:`parse_size`.
@@ -23,8 +23,10 @@ the camera sits at ``1.05 * r / sin(fov / 2)`` (``fov`` the smaller of the verti
 horizontal field of view) on the orbit ``theta = 0`` (azimuth from +Z about +Y), ``phi = 75 deg``
 (from +Y).
 
-Lights: ``KHR_lights_punctual`` point lights become scene point lights (1 cd taken as 1 W/sr, the
-export's convention, times ``color``); spot and directional lights are refused (:class:`AssetError`).
+Lights: ``KHR_lights_punctual`` point, spot and directional lights become scene lights
+(:mod:`pbrcheck.lights`: 1 cd taken as 1 W/sr and 1 lux as 1 W/m^2, the export's convention, times
+``color``; position and direction, the node's -Z, through the node's world transform and then the
+placement; ``range`` is not modelled).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .gltf import Asset, AssetError, load_asset
+from .lights import DirectionalLight, PointLight, SpotLight
 
 #: model-viewer's default vertical field of view (degrees), orbit (degrees) and radius factor.
 FRAMING_FOV_DEG = 45.0
@@ -137,10 +140,10 @@ class Mesh:
 
 
 def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: int, *, check_keys, num, vec3,
-                       material_cls, light_cls):
-    """A scene file's ``gltf`` table -> (AssetInstance, [Mesh], [point light]); ``ctx`` is the scene
+                       material_cls):
+    """A scene file's ``gltf`` table -> (AssetInstance, [Mesh], [light]); ``ctx`` is the scene
     loader's context (file, base directory), ``check_keys``, ``num``, ``vec3`` its validators,
-    ``material_cls`` and ``light_cls`` its Material and PointLight."""
+    ``material_cls`` its Material."""
     _check_keys, _num, _vec3 = check_keys, num, vec3
 
     _check_keys(ctx, t, {"type", "name", "path", "translation", "rotation", "scale", "scene", "content_hash"}, where)
@@ -174,13 +177,23 @@ def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: 
     m = inst.matrix()
     inst = replace(inst, lights=len(asset.lights))
     for L in asset.lights:
-        if L.type != "point":
-            raise AssetError(asset.path, "/extensions/KHR_lights_punctual/lights",
-                             f"{L.type} light {L.name!r}: only point lights are supported (spot and directional: not yet)")
-        pos = np.asarray(L.position) @ m[:3, :3].T + m[:3, 3]
-        lights.append(light_cls(position=tuple(float(x) for x in pos),
-                                 intensity=tuple(float(c) * L.intensity for c in L.color)))
+        lights.append(scene_light(L, m))
     return inst, meshes, lights
+
+
+def scene_light(L, m: np.ndarray):
+    """A glTF light (world space) placed by the instance matrix ``m`` -> the scene's light."""
+    intensity = tuple(float(c) * L.intensity for c in L.color)
+    pos = tuple(float(x) for x in np.asarray(L.position) @ m[:3, :3].T + m[:3, 3])
+    if L.type == "point":
+        return PointLight(position=pos, intensity=intensity)
+    # a direction: the placement's linear part (non-singular: scale is non-zero), renormalized
+    d = np.asarray(L.direction) @ m[:3, :3].T
+    d = tuple(float(x) for x in d / np.linalg.norm(d))
+    if L.type == "directional":
+        return DirectionalLight(direction=d, intensity=intensity)
+    return SpotLight(position=pos, direction=d, intensity=intensity, inner_cone_angle=L.inner_cone,
+                     outer_cone_angle=L.outer_cone)
 
 
 def _summary(material_cls, asset: Asset, index: int):

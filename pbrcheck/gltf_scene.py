@@ -68,7 +68,7 @@ def describe(scene: Scene) -> list[str]:
             space = "sRGB and linear" if srgb and lin else "sRGB" if srgb else "linear" if lin else "unused"
             out.append(f"#     image{i} {im.source} ({im.mime}): {im.size[0]}x{im.size[1]}, {im.pixels.shape[2] if im.pixels.ndim == 3 else 1} "
                        f"channel(s), {space}; slots {', '.join(used) or 'none'}")
-        out.append(f"#   lights: {len(a.lights)}" + "".join(f"; {L.name} {L.type} {L.intensity} x {list(L.color)}" for L in a.lights))
+        out.append(f"#   lights: {len(a.lights)}" + "".join(f"; {_light_line(L)}" for L in a.lights))
         out.append(f"#   cameras: {len(a.cameras)}" + (f" (the first, {a.cameras[0].name!r}, is the scene's camera "
                                                        "when the asset is the scene)" if a.cameras else ""))
         out.append(f"#   extensions used: {', '.join(a.extensions_used) or 'none'}; ignored: "
@@ -98,3 +98,15 @@ def split_presets(scene: Scene, presets) -> tuple[list[str], list[str]]:
     """(usable, skipped) presets for ``scene``: every preset is usable (real-time presets draw asset
     scenes with the raster pipeline); kept for callers that report skipped presets."""
     return list(presets), []
+
+
+def _light_line(L) -> str:
+    """One glTF light of ``check-scene``: type, intensity (cd or lux) x colour, where it is and points
+    (the asset's world space, before the scene's placement), the spot's cone."""
+    r = lambda v: [round(x, 6) for x in v]  # noqa: E731
+    unit = "lux" if L.type == "directional" else "cd"
+    where = "" if L.type == "directional" else f" at {r(L.position)}"
+    aim = "" if L.type == "point" else f" towards {r(L.direction)}"
+    cone = (f", cone {L.inner_cone:.6g}..{L.outer_cone:.6g} rad" if L.type == "spot" else "")
+    rng = f", range {L.range} ignored" if L.range is not None and L.type != "directional" else ""
+    return f"{L.name} {L.type} {L.intensity:.6g} {unit} x {list(L.color)}{where}{aim}{cone}{rng}"

@@ -14,8 +14,9 @@ Everything else is derived from it:
 * generated GLSL dispatch functions where a list maps to one function per member
   (:func:`glsl_generated`: ``lod_from_roughness`` / ``roughness_from_lod`` call the mapping's own
   ``lod_<name>`` / ``roughness_<name>``, :mod:`realtime.shaders` ``lod.glsl``; ``ndf_term`` /
-  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` and
-  ``runtime_half_vector`` the samplers');
+  ``geometry_term`` / ``fresnel_term`` call the term's GLSL function; ``sample_ndf`` the NDF's
+  sampler; each role registry's dispatch (``energy_scale``, ``runtime_estimate``, ``lut_weight``, ...)
+  the member's role function);
 * the docs' tables, checked against it by ``tests/test_registry.py``.
 
 Adding a LOD mapping is one :data:`LOD_MAPPINGS` entry, its two GLSL functions in
@@ -28,18 +29,28 @@ has the worked example). An NDF also names its GLSL sampler (``extra["sample"]``
 :mod:`pbrcheck.brdf` (``_theta_h_<D>``, ``_cdf_theta_h_<D>``) and a Dr.Jit sampler pair in
 :mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``).
 
+The role registries (:data:`ROLE_REGISTRIES`: energy compensations, runtime and DFG LUT sampling
+strategies) own theirs one function per role (:attr:`Entry.roles`, one name in numpy, Dr.Jit and
+GLSL; :attr:`Entry.applies_to` says where a member applies and why a role is missing); adding a
+compensation or a strategy is one entry and its role functions in :mod:`pbrcheck.energy` /
+:mod:`pbrcheck.sampling`, :mod:`reference.energy` / :mod:`reference.sampling` and ``energy.glsl`` /
+``sampling.glsl``. A list whose members have no implementations says where it applies
+(:attr:`Registry.applies_to`).
+
 API
 ---
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`, :func:`glsl_defines`,
-:func:`glsl_generated`.
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
+:data:`ROLE_REGISTRIES`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from .lights import glsl_light_constants
 
 
 @dataclass(frozen=True)
@@ -49,14 +60,17 @@ class Impl:
     Attributes
     ----------
     numpy : str
-        The ground truth's function in :mod:`pbrcheck.brdf`.
+        The ground truth's function in :mod:`pbrcheck.brdf` (a role's: in its list's numpy module,
+        :mod:`pbrcheck.energy` or :mod:`pbrcheck.sampling`).
     drjit : str
         The reference BSDF's function, looked up by name in :mod:`reference.bsdf` (which holds
-        :mod:`reference.terms`' too) when the reference dispatches: the core does not import the
-        renderers; ``tests/test_registry.py`` checks that it exists.
+        :mod:`reference.terms`' too; a role's in :mod:`reference.energy` or :mod:`reference.sampling`)
+        when the reference dispatches: the core does not import the renderers;
+        ``tests/test_registry.py`` checks that it exists.
     glsl : str
-        The shader function (``realtime/shaders/brdf.glsl``), twin of ``numpy`` of the same name
-        and called by the generated dispatch (:func:`glsl_generated`).
+        The shader function (``realtime/shaders/brdf.glsl``; a role's in ``energy.glsl`` or
+        ``sampling.glsl``), twin of ``numpy`` of the same name and called by the generated dispatch
+        (:func:`glsl_generated`).
     width : str
         The term's width argument as a function of the perceptual roughness, named alike in the
         three languages: ``alpha_from_roughness``, ``k_schlick_ibl``, ``k_schlick_direct``; empty
@@ -87,6 +101,14 @@ class Entry:
         The term's functions (NDFs, geometry and Fresnel terms): the numpy, Dr.Jit and GLSL
         dispatch loop over these (:func:`pbrcheck.brdf.geometry_term`,
         :func:`reference.terms.geometry_term`, :func:`glsl_generated`).
+    roles : dict of str to Impl
+        For a list whose members each implement several dispatch functions (:data:`ROLE_REGISTRIES`:
+        energy compensations, DFG LUT sampling strategies): the member's functions by the dispatch
+        function's name (``"energy_scale"``), each named alike in the three languages
+        (``energy_scale_filament``). A role the member has not is its list's identity there.
+    applies_to : str
+        Where the member applies, and why a role has no function (``fdez_aguera``: image-based
+        lighting only); ``tests/test_registry.py`` requires it of a member missing a role.
     """
 
     name: str
@@ -94,6 +116,8 @@ class Entry:
     scene: bool = True
     extra: dict = field(default_factory=dict)
     impl: Impl | None = None
+    roles: dict = field(default_factory=dict)
+    applies_to: str = ""
 
 
 class Registry:
@@ -105,11 +129,16 @@ class Registry:
         The GLSL switch (``"GEOMETRY"``); each member's constant is ``DEFINE_NAME`` upper-cased.
     entries : sequence of Entry
         The members, in a fixed order (their GLSL constant is their index).
+    applies_to : str
+        For a list whose members carry no implementations in the three languages (neither
+        :attr:`Entry.impl` nor :attr:`Entry.roles`): where it applies and why (a switch of one
+        renderer's own code); ``tests/test_registry.py`` requires it of such a list.
     """
 
-    def __init__(self, define: str, entries):
+    def __init__(self, define: str, entries, applies_to: str = ""):
         self.define = define
         self.entries = tuple(entries)
+        self.applies_to = applies_to
         self._by_name = {e.name: e for e in self.entries}
         if len(self._by_name) != len(self.entries):
             raise ValueError(f"registry {define}: duplicate member names")
@@ -144,6 +173,15 @@ class Registry:
     def constants(self) -> dict[str, int]:
         """Every member's GLSL constant and its value (the member's index)."""
         return {self.constant(e.name): i for i, e in enumerate(self.entries)}
+
+
+def _roles(member: str, *roles: str, **shared: str) -> dict[str, Impl]:
+    """``{role: Impl}`` of a member whose role functions are named ``<role>_<member>`` in the three
+    languages (``energy_scale_filament``); ``shared``: ``role="<role>_<other>"`` for a function
+    several members share (``runtime_estimate_ndf``)."""
+    out = {r: Impl(f"{r}_{member}", f"{r}_{member}", f"{r}_{member}") for r in roles}
+    out.update({r: Impl(fn, fn, fn) for r, fn in shared.items()})
+    return out
 
 
 _ALPHA = "alpha_from_roughness"
@@ -188,7 +226,9 @@ TERM_REGISTRIES = {"NDF": (NDFS, "float ndf_term(float NoH, float roughness)", "
 #: Roughness -> prefiltered mip level. ``extra["basis"]``: the mapping as coefficients of
 #: :data:`pbrcheck.lodmap.BASIS_NAMES` times the last level ``M`` (None: not a member of the fit's
 #: family); ``extra["builtin"]``: bakes a prefiltered chain (``fitted`` reads a built-in chain).
-LOD_MAPPINGS = Registry("LOD_MAPPING", [
+LOD_MAPPINGS = Registry("LOD_MAPPING", applies_to=(
+    "the real-time renderer's prefiltered chain only (the reference has none): GLSL lod_<name> / roughness_<name> "
+    "(lod.glsl) and numpy twins of the same names (pbrcheck.lodmap)"), entries=[
     Entry("linear", "article 000: lod = r M", extra={"builtin": True, "basis": (1, 0, 0, 0, 0, 0)}),
     Entry("quadratic", "Filament's perceptualRoughnessToLod: lod = M r (2 - r)",
           extra={"builtin": True, "basis": (0, 0, 0, 0, 0, 1)}),
@@ -201,51 +241,118 @@ LOD_MAPPINGS = Registry("LOD_MAPPING", [
 #: The built-in mappings (each bakes its own prefiltered chain).
 BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
 
-SHADINGS = Registry("SHADING", [
+SHADINGS = Registry("SHADING", applies_to=(
+    "the real-time renderer's compositions (shading.glsl, one shade function each); the reference renders "
+    "one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
     Entry("material", "README's material model"),
     Entry("article000", "article 000 (Drevicky 2018)"),
     Entry("article001", "article 001 (runtime importance sampling)"),
     Entry("article002", "article 002 (EnvBRDFApprox, SH9)"),
 ])
 
-#: ``extra["glsl"]``: the half vector's expression in tangent space (``u`` the 2-D point, ``vt`` the
-#: view direction in tangent space), generated into ``runtime_half_vector`` (sampling_dispatch.glsl).
+#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
+#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
+#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
+#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
+#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
 RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
     Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
-          extra={"glsl": "sample_Beckmann(u, alpha)"}),
-    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36", extra={"glsl": "sample_GGX(u, alpha)"}),
-    Entry("vndf", "GGX visible normals, Heitz 2018", extra={"glsl": "sample_GGX_VNDF(u.yx, vt, alpha)"}),
+          roles=_roles("beckmann", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
+          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
+    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
+          roles=_roles("ggx", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
+          applies_to="any NDF's shading; exact for the GGX D it samples"),
+    Entry("vndf", "GGX visible normals, Heitz 2018", roles=_roles("vndf", "runtime_half_vector", "runtime_estimate"),
+          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
 ])
 
-def _switch(define: str, **members: str) -> Registry:
-    """A registry of scene-independent switch values: ``member=source`` keyword pairs, in order."""
-    return Registry(define, [Entry(name, source) for name, source in members.items()])
+def _switch(define: str, applies_to: str, **members: str) -> Registry:
+    """A registry of switch values of one renderer's own code (``applies_to`` says which):
+    ``member=source`` keyword pairs, in order."""
+    return Registry(define, [Entry(name, source) for name, source in members.items()], applies_to)
 
 
-IRRADIANCES = _switch("IRRADIANCE", convolution="cube convolution of the environment (E(n) / pi per texel)",
+_REALTIME_ONLY = "a switch of the real-time renderer's own passes ({}); no numpy or Dr.Jit counterpart"
+
+
+IRRADIANCES = _switch("IRRADIANCE", _REALTIME_ONLY.format("irradiance.comp, sh9.comp"), convolution="cube convolution of the environment (E(n) / pi per texel)",
                       sh9="9 spherical-harmonic coefficients, Ramamoorthi & Hanrahan 2001 (article 002)")
-IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", texel_sum="sum over every source texel, weighted by its solid angle",
+IRRADIANCE_METHODS = _switch("IRRADIANCE_METHOD", _REALTIME_ONLY.format("irradiance.comp"), texel_sum="sum over every source texel, weighted by its solid angle",
                              polar_steps="article 000's uniform polar / azimuth steps")
-DFGS = _switch("DFG", lut="baked DFG LUT (split sum's second factor), Karis 2013",
+DFGS = _switch("DFG", _REALTIME_ONLY.format("ibl.glsl"), lut="baked DFG LUT (split sum's second factor), Karis 2013",
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
-LUT_SAMPLINGS = _switch("LUT_SAMPLING", vndf="GGX visible normals, Heitz 2018 (GGX NDF only)",
-                        ndf="half vectors drawn from the NDF, Walter et al. 2007")
-#: Multiple-scattering energy compensation of the real-time specular lobe (pbrcheck/energy.py,
-#: realtime/shaders/energy.glsl).
-ENERGY_COMPENSATIONS = _switch(
-    "ENERGY_COMPENSATION", none="single scattering only",
-    filament="Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
-    fdez_aguera="Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
-    kulla_conty="Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table")
+
+
+
+#: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
+#: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
+#: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
+#: :mod:`reference.sampling`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
+#: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
+LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
+    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
+          roles=_roles("vndf", "lut_half_vector", "lut_weight"),
+          applies_to="the GGX NDF only (its visible normals); other NDFs bake with ndf"),
+    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007", extra={"ndfs": None},
+          roles=_roles("ndf", "lut_half_vector", "lut_weight"), applies_to="every NDF (its own D (n.h) sampler)"),
+])
+
+
+def lut_sampling_for(sampling: str, ndf: str) -> str:
+    """The LUT sampling strategy used for ``ndf``: ``sampling`` where it is defined for that NDF,
+    else ``ndf`` (KeyError for an unknown strategy)."""
+    ndfs = LUT_SAMPLINGS[sampling].extra["ndfs"]
+    return sampling if ndfs is None or ndf in ndfs else "ndf"
+
+
+_IBL_ONLY = "image-based lighting only"
+#: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
+#: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
+#: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
+#: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy`,
+#: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
+#: ``ibl = splitsum`` only (they need the split sum's DFG terms).
+ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
+    Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
+    Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
+          roles=_roles("filament", "energy_scale", "energy_direct"),
+          applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
+    Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
+          roles=_roles("fdez_aguera", "energy_ms"),
+          applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
+    Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
+          roles=_roles("kulla_conty", "energy_ms", "energy_direct"),
+          applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
+])
+
+#: The registries whose members implement roles (:attr:`Entry.roles`), by GLSL switch: the generated
+#: include, the member selected where a shader leaves the switch undefined, and each role's GLSL
+#: dispatch signature and the identity a member without the role returns ("": every member has it).
+ROLE_REGISTRIES = {
+    "ENERGY_COMPENSATION": (ENERGY_COMPENSATIONS, "energy_dispatch.glsl", "none", {
+        "energy_scale": ("vec3 energy_scale(vec3 F0, float A, float B)", "vec3(1.0)"),
+        "energy_ms": ("vec3 energy_ms(vec3 F0, float A, float B, float roughness)", "vec3(0.0)"),
+        "energy_direct": ("vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness)",
+                          "vec3(0.0)")}),
+    "RUNTIME_SAMPLING": (RUNTIME_SAMPLINGS, "runtime_sampling_dispatch.glsl", "vndf", {
+        "runtime_half_vector": ("vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha)", ""),
+        "runtime_estimate": ("vec3 runtime_estimate(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha)",
+                             "")}),
+    "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", "vndf", {
+        "lut_half_vector": ("vec3 lut_half_vector(vec2 u, vec3 v, float alpha)", ""),
+        "lut_weight": ("float lut_weight(float G, vec3 v, vec3 h, float alpha)", "")}),
+}
 #: Specular occlusion of the image-based specular from the ambient occlusion (pbrcheck/occlusion.py,
 #: realtime/shaders/occlusion.glsl).
 SPECULAR_OCCLUSIONS = _switch(
-    "SPECULAR_OCCLUSION", none="the specular image-based term is not occluded",
+    "SPECULAR_OCCLUSION", "the real-time renderer's image-based specular (occlusion.glsl, numpy twin "
+                          "pbrcheck.occlusion); the reference traces occlusion", none="the specular image-based term is not occluded",
     lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
             "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
-MULTISCATTERS = _switch("MULTISCATTER", none="single scattering (Smith microfacet BRDF)",
+MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (reference.multiscatter); the "
+                        "real-time renderer approximates it by ENERGY_COMPENSATIONS", none="single scattering (Smith microfacet BRDF)",
                         random_walk="multiple-scattering random walk on the Smith microsurface, "
                                     "Heitz, Hanika, d'Eon, Dachsbacher 2016")
 #: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
@@ -256,7 +363,8 @@ MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckm
 #: option (``geometric_roughness``; not a real-time switch, so not in :data:`REGISTRIES`); the
 #: implementation is ``reference.integrator.GEOMETRIC_ROUGHNESS``.
 GEOMETRIC_ROUGHNESSES = _switch(
-    "GEOMETRIC_ROUGHNESS", none="no geometric roughness",
+    "GEOMETRIC_ROUGHNESS", "the reference's first hit only (reference.integrator.GEOMETRIC_ROUGHNESS: Dr.Jit, "
+    "from the camera rays' differentials); the engines apply their own", none="no geometric roughness",
     threejs="three.js r187 lights_physical_fragment: roughness = min(max(r, floor) + max(max |dFdx n|, "
             "max |dFdy n|), 1), n the view-space normal, derivatives per sample of the engine's raster")
 
@@ -267,10 +375,11 @@ REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SH
 
 
 def glsl_defines() -> dict[str, int]:
-    """Every registry's named constants (prepended to every shader by :func:`realtime.gl.assemble`)."""
+    """Every registry's named constants and the light types' (prepended to every shader by :func:`realtime.gl.assemble`)."""
     out: dict[str, int] = {}
     for r in REGISTRIES.values():
         out.update(r.constants())
+    out.update(glsl_light_constants())  # the light types (pbrcheck.lights.LIGHT_TYPES)
     return out
 
 
@@ -335,19 +444,36 @@ def _terms_dispatch() -> str:
 
 def _sampling_dispatch() -> str:
     """``sample_ndf(u, alpha)``: a half vector drawn from the selected NDF's ``D (n.h)`` (its entry's
-    ``extra["sample"]``); ``runtime_half_vector(u, vt, alpha)``: RUNTIME_SAMPLING's draw."""
-    lines = ["// Generated from pbrcheck.registry (NDFS, RUNTIME_SAMPLINGS): do not edit.",
-             "#ifndef RUNTIME_SAMPLING", f"#define RUNTIME_SAMPLING {RUNTIME_SAMPLINGS.constant('vndf')}", "#endif",
+    ``extra["sample"]``)."""
+    lines = ["// Generated from pbrcheck.registry.NDFS: do not edit.",
              "vec3 sample_ndf(vec2 u, float alpha) {",
-             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", "",
-             "vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha) {",
-             *_switch_lines(RUNTIME_SAMPLINGS, lambda e: [f"    return {e.extra['glsl']};"]), "}", ""]
+             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", ""]
     return "\n".join(lines)
+
+
+def _roles_dispatch(define: str) -> str:
+    """Each role's dispatch function of the role registry ``define`` (:data:`ROLE_REGISTRIES`): the
+    selected member's role function called with the dispatch's parameters, or the identity for a
+    member without that role."""
+    registry, _, default, roles = ROLE_REGISTRIES[define]
+    lines = [f"// Generated from pbrcheck.registry.{define}S (ROLE_REGISTRIES): do not edit.",
+             f"#ifndef {define}", f"#define {define} {registry.constant(default)}", "#endif"]
+    for role, (signature, identity) in roles.items():
+        params = ", ".join(p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(","))
+
+        def body(e, role=role, identity=identity, params=params):
+            return [f"    return {e.roles[role].glsl}({params});" if role in e.roles else f"    return {identity};"]
+
+        lines += ["", signature + " {", *_switch_lines(registry, body), "}"]
+    return "\n".join(lines) + "\n"
 
 
 def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
-    (:func:`_sampling_dispatch`)."""
-    return {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
-            "sampling_dispatch.glsl": _sampling_dispatch()}
+    (:func:`_sampling_dispatch`), and each role registry's (:func:`_roles_dispatch`):
+    ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
+    out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
+           "sampling_dispatch.glsl": _sampling_dispatch()}
+    out.update({include: _roles_dispatch(define) for define, (_, include, _, _) in ROLE_REGISTRIES.items()})
+    return out

@@ -2,13 +2,32 @@
 
 Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
 plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
+
+The runtime importance sampling's strategies (:data:`pbrcheck.registry.RUNTIME_SAMPLINGS`): each
+member's ``runtime_half_vector_<name>`` and its ``runtime_estimate_*``, dispatched by
+:func:`runtime_half_vector` / :func:`runtime_estimate`. The DFG LUT's sampling strategies
+(:data:`pbrcheck.registry.LUT_SAMPLINGS`): each member's
+``lut_half_vector_<name>`` and ``lut_weight_<name>`` (the GLSL NDF switch is the ``ndf`` argument
+here), the dispatch :func:`lut_half_vector` / :func:`lut_weight` looping the registry, and
+:func:`dfg_lut_texel`, the numpy twin of ``dfg_lut.comp``'s texel (same points, same estimator).
+
+API
+---
+:func:`radical_inverse`, :func:`hammersley`, :func:`sample_GGX`, :func:`sample_Beckmann`,
+:func:`sample_BlinnPhong`, :func:`sample_GGX_VNDF`, :func:`pdf_GGX_VNDF`, :func:`sample_cosine`,
+:func:`sample_ndf`, :func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
+:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`,
+:func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
+:func:`runtime_estimate`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, blinn_phong_exponent
+from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, blinn_phong_exponent, geometry_term
+from .registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
 
 
 def radical_inverse(i):
@@ -94,3 +113,99 @@ def sample_cosine(u):
     r = np.sqrt(u[..., 1])
     phi = 2 * np.pi * u[..., 0]
     return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u[..., 1], 0.0))], -1)
+
+
+def sample_ndf(u, alpha, ndf: str = "ggx"):
+    """A half vector drawn from ``D (n.h)`` of the NDF ``ndf`` (its registry entry's ``sample``)."""
+    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+
+
+# ---- the DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS) --------------------------
+
+def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
+    """[Heitz18]: GGX visible normals seen from ``v`` (the GLSL passes ``u.yx``)."""
+    u = np.asarray(u, dtype=np.float64)
+    return sample_GGX_VNDF(u[..., ::-1], v, alpha)
+
+
+def lut_weight_vndf(G, v, h, alpha):
+    """[Heitz18] eq. 17: the weight ``G2 / G1(v)``."""
+    return np.asarray(G) / np.maximum(G1_SmithGGX(np.asarray(v)[..., 2], alpha), COS_EPS)
+
+
+def lut_half_vector_ndf(u, v, alpha, ndf: str = "ggx"):
+    """[Walter07]: a half vector from ``D (n.h)`` of ``ndf`` (:func:`sample_ndf`)."""
+    return sample_ndf(u, alpha, ndf)
+
+
+def lut_weight_ndf(G, v, h, alpha):
+    """[Walter07] eq. 38: the weight ``G (v.h) / ((n.h)(n.v))``."""
+    v, h = np.asarray(v, dtype=np.float64), np.asarray(h, dtype=np.float64)
+    return np.asarray(G) * np.sum(v * h, -1) / np.maximum(h[..., 2] * v[..., 2], COS_EPS)
+
+
+def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
+    """The strategy ``sampling``'s half vector (KeyError for an unknown one)."""
+    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].numpy](u, v, alpha, ndf)
+
+
+def lut_weight(G, v, h, alpha, sampling: str):
+    """The strategy ``sampling``'s weight of the sample ``h``."""
+    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].numpy](G, v, h, alpha)
+
+
+def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf: str = "ggx",
+                  sampling: str = "vndf") -> tuple[float, float]:
+    """``(A, B)`` of ``dfg_lut.comp``'s texel at ``(n.v, roughness)``: the same Hammersley points with
+    the half-cell offset, the same strategy and estimator (``sampling`` as the bake uses it for
+    ``ndf``, :func:`pbrcheck.registry.lut_sampling_for`)."""
+    sampling = lut_sampling_for(sampling, ndf)
+    alpha = alpha_from_roughness(roughness)
+    v = np.array([np.sqrt(1.0 - NoV * NoV), 0.0, NoV])
+    u = hammersley(np.arange(samples), samples)
+    u[:, 0] += 0.5 / samples
+    h = lut_half_vector(u, v, alpha, sampling, ndf)
+    VoH = h @ v
+    NoL = 2.0 * VoH * h[:, 2] - NoV
+    ok = (NoL > 0.0) & (VoH > 0.0)
+    G = geometry_term(geometry, np.full(ok.sum(), NoV), NoL[ok], roughness)
+    w = lut_weight(G, v, h[ok], alpha, sampling)
+    Fc = (1.0 - VoH[ok]) ** 5
+    return float(np.sum(w * (1.0 - Fc)) / samples), float(np.sum(w * Fc) / samples)
+
+
+# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+
+def runtime_half_vector_beckmann(u, vt, alpha):
+    """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
+    return sample_Beckmann(u, alpha)
+
+
+def runtime_half_vector_ggx(u, vt, alpha):
+    """[Walter07] eq. 35-36: GGX half vectors."""
+    return sample_GGX(u, alpha)
+
+
+def runtime_half_vector_vndf(u, vt, alpha):
+    """[Heitz18]: GGX visible normals seen from ``vt`` (the GLSL passes ``u.yx``)."""
+    return sample_GGX_VNDF(np.asarray(u, dtype=np.float64)[..., ::-1], vt, alpha)
+
+
+def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
+    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact when ``h`` follows the shaded NDF's ``D (n.h)``)."""
+    return np.asarray(F) * G * np.asarray(L) * VoH / (np.asarray(NoH) * NoV)
+
+
+def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
+    """[Heitz18] eq. 17: ``F G L / G1(v)``."""
+    return np.asarray(F) * G / np.maximum(G1_SmithGGX(NoV, alpha), COS_EPS) * np.asarray(L)
+
+
+def runtime_half_vector(u, vt, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s half vector (KeyError for an unknown one)."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy](u, vt, alpha)
+
+
+def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s estimate of one sample."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy](F, G, L, NoV, NoH, VoH, alpha)

@@ -1,6 +1,7 @@
 """The scene model both renderers read, and its TOML loader.
 
-A scene file names a camera, exactly one environment, optional point lights, the ground-truth BRDF
+A scene file names a camera, exactly one environment, optional punctual lights (point, spot,
+directional: :mod:`pbrcheck.lights`, glTF's ``KHR_lights_punctual`` semantics), the ground-truth BRDF
 model and a list of objects (spheres, planes, sphere grids and glTF assets, the latter two expanded
 here into one sphere object each and one mesh object per (node, primitive):
 :mod:`pbrcheck.gltf_objects`). A ``.gltf`` / ``.glb`` path is a scene too (:func:`asset_scene`). The
@@ -25,6 +26,7 @@ from typing import Any
 
 from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
+from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIC_ROUGHNESSES as _GEOMETRIC_ROUGHNESSES
 from .registry import GEOMETRIES as _GEOMETRIES
@@ -85,14 +87,6 @@ class Environment:
     horizon_radiance: Vec3 = (0.9, 0.9, 0.95)
     ground_radiance: Vec3 = (0.2, 0.18, 0.15)
     resolution: tuple[int, int] = (1024, 512)  # sky raster (width, height)
-
-
-@dataclass(frozen=True)
-class PointLight:
-    """A point light: position (world units) and radiant intensity (W/sr, RGB)."""
-    position: Vec3
-    intensity: Vec3  # radiant intensity, W/sr: irradiance at distance d is I cos / d^2
-    type: str = "point"
 
 
 @dataclass(frozen=True)
@@ -165,13 +159,13 @@ class Plane:
 
 @dataclass(frozen=True)
 class Scene:
-    """A resolved scene: camera, environment, point lights, BRDF model and objects (sphere grids
+    """A resolved scene: camera, environment, punctual lights, BRDF model and objects (sphere grids
     expanded; ``grids`` keeps their layout); immutable."""
     name: str
     description: str
     camera: Camera
     environment: Environment
-    lights: tuple[PointLight, ...]
+    lights: tuple[PointLight | SpotLight | DirectionalLight, ...]
     brdf: BRDFModel
     objects: tuple[Sphere | Plane, ...]
     source: str = "<dict>"
@@ -412,16 +406,33 @@ def _environment(ctx, t) -> Environment:
     return Environment(**kw)
 
 
-def _lights(ctx, lst) -> tuple[PointLight, ...]:
+def _lights(ctx, lst) -> tuple[PointLight | SpotLight | DirectionalLight, ...]:
+    """``[[lights]]``: pbrcheck.lights has the types and their conventions (glTF's semantics)."""
     if not isinstance(lst, list):
         raise ctx.err("lights", "an array of tables [[lights]]", lst)
+    keys = {"point": {"position"}, "spot": {"position", "direction", "inner_cone_angle", "outer_cone_angle"},
+            "directional": {"direction"}}
     out = []
     for i, t in enumerate(lst):
         w = f"lights[{i}]"
-        _check_keys(ctx, t, {"type", "position", "intensity"}, w)
-        _str(ctx, t, "type", w, "point", choices=("point",))
-        out.append(PointLight(position=_vec3(ctx, t, "position", w),
-                              intensity=_vec3(ctx, t, "intensity", w, nonneg=True)))
+        if not isinstance(t, dict):
+            raise ctx.err(w, "a table", t)
+        typ = _str(ctx, t, "type", w, "point", choices=LIGHT_TYPES)
+        _check_keys(ctx, t, {"type", "intensity"} | keys[typ], w)
+        intensity = _vec3(ctx, t, "intensity", w, nonneg=True)
+        if typ == "point":
+            out.append(PointLight(position=_vec3(ctx, t, "position", w), intensity=intensity))
+            continue
+        direction = _normalize(_vec3(ctx, t, "direction", w, nonzero=True))
+        if typ == "directional":
+            out.append(DirectionalLight(direction=direction, intensity=intensity))
+            continue
+        outer = _num(ctx, t, "outer_cone_angle", w, SpotLight.outer_cone_angle, lo=0.0, lo_open=True, hi=math.pi / 2)
+        inner = _num(ctx, t, "inner_cone_angle", w, SpotLight.inner_cone_angle, lo=0.0)
+        if not inner < outer:
+            raise ctx.err(f"{w}.inner_cone_angle", f"an angle in radians >= 0 and < outer_cone_angle ({outer!r})", inner)
+        out.append(SpotLight(position=_vec3(ctx, t, "position", w), direction=direction, intensity=intensity,
+                             inner_cone_angle=inner, outer_cone_angle=outer))
     return tuple(out)
 
 
@@ -468,7 +479,7 @@ def _objects(ctx, lst):
     objects: list[Sphere | Plane] = []
     grids: list[dict] = []
     assets: list = []
-    asset_lights: list[PointLight] = []
+    asset_lights: list = []
     for i, t in enumerate(lst):
         w = f"objects[{i}]"
         if not isinstance(t, dict):
@@ -482,8 +493,7 @@ def _objects(ctx, lst):
             raise ctx.err(f"{w}.id", f"{len(objects)} (the object's index after sphere grids are expanded)", t["id"])
         if typ == "gltf":  # pbrcheck.gltf_objects: one Mesh object per (node, primitive)
             inst, meshes, lights = expand_gltf_object(ctx, t, w, len(objects), len(assets), check_keys=_check_keys,
-                                                      num=_num, vec3=_vec3, material_cls=Material,
-                                                      light_cls=PointLight)
+                                                      num=_num, vec3=_vec3, material_cls=Material)
             assets.append(inst)
             objects.extend(meshes)
             asset_lights.extend(lights)

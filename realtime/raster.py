@@ -30,7 +30,7 @@ Conventions (the same at both ends as :mod:`realtime.render`)
 * Alpha: OPAQUE, MASK (discard below ``alphaCutoff``), BLEND (after the opaque primitives, sorted
   back to front by the distance of each primitive's bounding-box centre, depth test without depth
   writes, ``src alpha, 1 - src alpha``).
-* Point lights: unshadowed (``shadows`` is refused with this pipeline).
+* Point, spot and directional lights: unshadowed (``shadows`` is refused with this pipeline).
 
 API
 ---

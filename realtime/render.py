@@ -47,6 +47,7 @@ from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
+from pbrcheck.lights import pack_lights
 from pbrcheck.energy import SCENE_COMPENSATION
 from pbrcheck.progress import Progress
 from pbrcheck.registry import (
@@ -62,6 +63,7 @@ from pbrcheck.registry import (
     RUNTIME_SAMPLINGS,
     SHADINGS,
     SPECULAR_OCCLUSIONS,
+    lut_sampling_for,
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
@@ -311,8 +313,7 @@ def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
 def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
             timings: dict | None = None):
     """The DFG LUT texture (RG16F or RG32F), see the module docstring for its axes."""
-    if sampling == "vndf" and ndf != "ggx":
-        sampling = "ndf"  # visible-normal sampling exists for GGX only
+    sampling = lut_sampling_for(sampling, ndf)  # e.g. visible-normal sampling exists for GGX only
     key = ("lut", size, samples, fmt, geometry, ndf, sampling)
     ctx = get_context()
     prog = compute_program("dfg_lut.comp", {
@@ -495,8 +496,7 @@ def _bind_shading(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, s
     buffer, LOD and roughness uniforms) for ``prog`` (the compute frame pass or the raster
     fragment program); returns the lights buffer to release after the frame."""
     ctx = get_context()
-    lights = np.asarray([[*l.position, 0.0, *l.intensity, 0.0] for l in scene.lights] or [[0.0] * 8], np.float32)
-    lbuf = ctx.buffer(lights.tobytes())
+    lbuf = ctx.buffer(pack_lights(scene.lights).tobytes())  # 3 vec4 per light (shaders/lights.glsl)
     lbuf.bind_to_storage_buffer(1)
     _bind_env(prog, env_texture(env), env, 0, optional=raster)
     for name, unit, kind in FRAME_TEXTURE_UNITS:

@@ -40,9 +40,10 @@ Multiple scattering: ``multiscatter = "random_walk"`` (props ``multiscatter``, `
 routes the non-delta specular lobe through :mod:`reference.multiscatter` (two hooks: ``_eval_pdf``
 adds the walk's orders >= 2 and its approximate pdf, ``sample`` samples the walk).
 
-Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``) are exposed
-by ``traverse``; ``parameters_changed`` makes them opaque (``dr.make_opaque``) so a new value does not
-rebuild the kernel.
+Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``,
+:data:`MATERIAL_PARAMS`) are exposed by ``traverse`` (:func:`traverse_material`, shared with
+``pbr_textured``); ``parameters_changed`` makes them opaque (:func:`make_material_opaque`) so a new
+value does not rebuild the kernel.
 """
 
 from __future__ import annotations
@@ -384,6 +385,23 @@ class PBRLobes:
         return bs, dr.select(active, weight, 0.0)
 
 
+#: The differentiable parameters of a material BSDF (``pbr_material``, and ``pbr_textured`` of
+#: :mod:`reference.textured`): the factors, whatever textures multiply them.
+MATERIAL_PARAMS = ("base_color", "metallic", "roughness", "specular")
+
+
+def traverse_material(bsdf, callback) -> None:
+    """``traverse`` of a material BSDF: each of :data:`MATERIAL_PARAMS` as a differentiable parameter."""
+    for name in MATERIAL_PARAMS:
+        callback.put(name, getattr(bsdf, name), mi.ParamFlags.Differentiable)
+
+
+def make_material_opaque(bsdf) -> None:
+    """``parameters_changed``'s part common to the material BSDFs: :data:`MATERIAL_PARAMS` made
+    opaque (``dr.make_opaque``), so a new value does not rebuild the kernel."""
+    dr.make_opaque(*[getattr(bsdf, name) for name in MATERIAL_PARAMS])
+
+
 class PBRMaterial(mi.BSDF):
     """``{"type": "pbr_material", "base_color": [r,g,b], "metallic", "roughness", "specular",
     "ndf", "geometry", "fresnel"}``."""
@@ -433,14 +451,11 @@ class PBRMaterial(mi.BSDF):
         self.m_flags = flags
 
     def traverse(self, callback):
-        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
-        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
-        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
-        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
+        traverse_material(self, callback)
 
     def parameters_changed(self, keys=None):
         self._update()
-        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
+        make_material_opaque(self)
 
     def to_string(self):
         return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "

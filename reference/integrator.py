@@ -6,8 +6,9 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
 
 * ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
   sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
-  lobe takes weight 1), **no visibility tests**; every delta-position emitter (point light) is added
-  exactly through its deterministic ``sample_direction`` (``f cos I / d^2``), without a shadow ray.
+  lobe takes weight 1), **no visibility tests**; every delta emitter (point, spot, directional light:
+  :mod:`reference.lights`) is added exactly through its deterministic ``sample_direction`` (``f cos
+  I / d^2``, ``f cos E``), without a shadow ray.
   Camera rays that miss see the environment. This is the integral real-time IBL approximates.
   With ``gather_materials`` (the default) the BSDF of each lane is a :class:`reference.bsdf.MaterialView`:
   every ``pbr_material``'s parameters gathered by the shape hit, the lobes traced once instead of once
@@ -416,9 +417,10 @@ class ReferenceIntegrator(RBIntegrator):
             else:
                 L += dr.select(ok, bw * Le * w, 0.0)
         for emitter in scene.emitters():
-            if not mi.has_flag(emitter.flags(), mi.EmitterFlags.DeltaPosition):
+            if not mi.has_flag(emitter.flags(), mi.EmitterFlags.Delta):
                 continue
-            # A point light: deterministic direction, weight I / d^2, no shadow ray.
+            # A punctual light (reference.lights): deterministic direction, weight I / d^2 (a spot's
+            # times its glTF attenuation) or E (directional), no shadow ray.
             ds, Li = emitter.sample_direction(si, mi.Point2f(0.5), hit)
             with dr.resume_grad(when=grad):
                 f = bsdf.eval(ctx, si, si.to_local(ds.d), hit)

@@ -9,7 +9,8 @@ Integrators (``mode``)
 * ``local`` (default): the first hit only. Per camera sample it takes one environment sample
   (Mitsuba's envmap importance sampling) and one BSDF sample, combined with multiple importance
   sampling (power heuristic; a delta lobe takes weight 1), with **no visibility tests**, plus every
-  point light without a shadow ray (``f cos * I / d^2``, exact, no noise). Camera rays that miss see
+  punctual light without a shadow ray (``f cos * I / d^2``, the spot's glTF attenuation, ``f cos E``
+  for a directional light: exact, no noise; :mod:`reference.lights`). Camera rays that miss see
   the environment. This is the integral real-time image-based lighting approximates.
 * ``path``: Mitsuba's ``path`` integrator (``max_depth``, shadows and interreflections) with the same
   BSDF and emitters, called from the same integrator on the same camera rays.
@@ -135,9 +136,9 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
     e = environment_emitter_dict(env)
     if e is not None:
         d["environment"] = e
+    from .lights import emitter_dict  # local: reference.lights subclasses mi.Emitter (variant set)
     for k, light in enumerate(scene.lights):
-        d[f"light{k}"] = {"type": "point", "position": list(light.position),
-                          "intensity": {"type": "rgb", "value": list(light.intensity)}}
+        d[f"light{k}"] = emitter_dict(light)
     if getattr(scene, "assets", ()):  # glTF primitives: meshes from the decoded buffers (reference.textured)
         from .textured import asset_shapes
         d.update(asset_shapes(scene, shape_id, None if bsdf_override is None else (lambda obj: bsdf_override)))

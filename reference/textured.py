@@ -51,7 +51,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 import drjit as dr
 import mitsuba as mi
 
-from .bsdf import MaterialView, is_mirror_limit
+from .bsdf import MaterialView, is_mirror_limit, make_material_opaque, traverse_material
 
 PLUGIN_NAME = "pbr_textured"
 TEXTURE_PLUGIN = "gltf_texture"
@@ -181,13 +181,10 @@ class TexturedMaterial(mi.BSDF):
         self.m_flags = flags
 
     def traverse(self, callback):
-        callback.put("base_color", self.base_color, mi.ParamFlags.Differentiable)
-        callback.put("metallic", self.metallic, mi.ParamFlags.Differentiable)
-        callback.put("roughness", self.roughness, mi.ParamFlags.Differentiable)
-        callback.put("specular", self.specular, mi.ParamFlags.Differentiable)
+        traverse_material(self, callback)
 
     def parameters_changed(self, keys=None):
-        dr.make_opaque(self.base_color, self.metallic, self.roughness, self.specular)
+        make_material_opaque(self)
 
     def to_string(self):
         return f"TexturedMaterial[textures={sorted(self.tex)}, double_sided={self.double_sided}]"

@@ -32,8 +32,8 @@ def chosen_variant() -> str | None:
 
 
 def ensure_variant() -> str:
-    """Set (once per process) and return the variant the reference renders with; registers the BSDF
-    and the integrator."""
+    """Set (once per process) and return the variant the reference renders with; registers the BSDF,
+    the integrator and the spot light."""
     global _chosen
     if _chosen is None:
         for v in PREFERENCE:
@@ -49,7 +49,9 @@ def ensure_variant() -> str:
         mi.set_variant(_chosen)
     from .bsdf import register  # local: reference.bsdf subclasses mi.BSDF, which needs the variant set
     from .integrator import register as register_integrator
+    from .lights import register as register_lights
 
     register()
     register_integrator()
+    register_lights()
     return _chosen

@@ -1,5 +1,6 @@
 """Energy compensation of the real-time specular lobe: GLSL terms (realtime/shaders/energy.glsl)
-against their numpy twins (pbrcheck/energy.py), the Kulla-Conty E_avg table, the white furnace."""
+and Dr.Jit terms (reference/energy.py) against their numpy twins (pbrcheck/energy.py), each registry
+member's role functions and the dispatch, the Kulla-Conty E_avg table, the white furnace."""
 
 from __future__ import annotations
 
@@ -64,6 +65,70 @@ def test_dispatch_twins(name):
     np.testing.assert_allclose(
         run_glsl("energy_direct(vec3(x4), vec3(x0), x1, x2, x5, x3).x", F0, A, B, r, fs, El, defines=d),
         energy.energy_direct(fs, F0, A, B, El, r, name), rtol=RTOL_F32, atol=FMS_ATOL_F32)
+
+
+ROLE_PAIRS = [(e.name, r) for e in registry.ENERGY_COMPENSATIONS for r in e.roles]
+
+
+def _role_args(role):
+    """The role's arguments on GRID (F0 0..1, roughness 0..1, n.v 1e-4..1): El is E at another n.v
+    of the same roughness, f_spec spans 0..3."""
+    F0, r, mu, A, B = GRID
+    El = (A + B).reshape(-1, NOV.size)[:, ::-1].ravel()
+    fs = np.linspace(0.0, 3.0, F0.size)
+    return {"energy_scale": (F0, A, B), "energy_ms": (F0, A, B, r),
+            "energy_direct": (fs, F0, A, B, El, r)}[role]
+
+
+def _glsl_call(fn, role):
+    vec = {"energy_scale": (0,), "energy_ms": (0,), "energy_direct": (0, 1)}[role]
+    n = len(_role_args(role))
+    return f"{fn}({', '.join(f'vec3(x{k})' if k in vec else f'x{k}' for k in range(n))}).x"
+
+
+@pytest.mark.parametrize("name, role", ROLE_PAIRS)
+def test_role_twins(name, role):
+    """Each member's role function: GLSL and Dr.Jit against the numpy twin of the same name."""
+    from reference.variant import ensure_variant
+    ensure_variant()
+    import mitsuba as mi
+
+    from reference import energy as drjit_energy
+    fn = registry.ENERGY_COMPENSATIONS[name].roles[role].glsl
+    args = _role_args(role)
+    want = getattr(energy, fn)(*args)
+    atol = FMS_ATOL_F32 if role == "energy_direct" else ATOL_F32  # f_ms's float32 cancellations
+    np.testing.assert_allclose(run_glsl(_glsl_call(fn, role), *args), want, rtol=RTOL_F32, atol=atol)
+    got = getattr(drjit_energy, fn)(*[mi.Float(a) for a in args])
+    np.testing.assert_allclose(np.array(got), want, rtol=RTOL_F32, atol=atol)
+
+
+@pytest.mark.parametrize("name", registry.ENERGY_COMPENSATIONS.names)
+def test_drjit_dispatch_matches_numpy(name):
+    """reference.energy's dispatch loops the registry as pbrcheck.energy's does (identity included),
+    on Color3f F0 as the reference would pass it."""
+    from reference.variant import ensure_variant
+    ensure_variant()
+    import mitsuba as mi
+
+    from reference import energy as drjit_energy
+    F0, r, mu, A, B = GRID
+    El = (A + B).reshape(-1, NOV.size)[:, ::-1].ravel()
+    c3 = mi.Color3f(mi.Float(F0), mi.Float(F0), mi.Float(F0))
+    f = [mi.Float(x) for x in (A, B, r, El)]
+    close = dict(rtol=RTOL_F32, atol=FMS_ATOL_F32)
+    np.testing.assert_allclose(np.array(drjit_energy.energy_scale(c3, f[0], f[1], name))[0],
+                               energy.energy_scale(F0, A, B, name), **close)
+    np.testing.assert_allclose(np.array(drjit_energy.energy_ms(c3, f[0], f[1], f[2], name))[0],
+                               energy.energy_ms(F0, A, B, r, name), **close)
+    np.testing.assert_allclose(np.array(drjit_energy.energy_direct(c3, c3, f[0], f[1], f[3], f[2], name))[0],
+                               energy.energy_direct(F0, F0, A, B, El, r, name), **close)
+    np.testing.assert_allclose(np.array(drjit_energy.specular_albedo_compensated(c3, f[0], f[1], f[2], name))[0],
+                               energy.specular_albedo_compensated(F0, A, B, r, name), **close)
+    with pytest.raises(ValueError, match="unknown energy compensation 'nope'"):
+        drjit_energy.energy_scale(c3, f[0], f[1], "nope")
+    with pytest.raises(ValueError, match="unknown energy compensation 'nope'"):
+        energy.energy_ms(F0, A, B, r, "nope")
 
 
 def test_glsl_table_is_the_numpy_table():

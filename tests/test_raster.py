@@ -119,7 +119,10 @@ def test_tessellated_sphere_matches_the_ray_cast_sphere():
     sc = scene_from_dict({
         "camera": {"origin": [0.0, 0.5, 4.0], "target": [0.0, 0.0, 0.0], "fov": 35.0, "width": 40, "height": 32},
         "environment": {"type": "constant", "radiance": [0.6, 0.7, 0.8]},
-        "lights": [{"position": [2.0, 3.0, 2.0], "intensity": [8.0, 8.0, 8.0]}],
+        "lights": [{"position": [2.0, 3.0, 2.0], "intensity": [8.0, 8.0, 8.0]},   # the one light loop's types
+                   {"type": "spot", "position": [-2.0, 1.0, 3.0], "direction": [2.0, -1.0, -3.0],
+                    "intensity": [6.0, 6.0, 6.0], "inner_cone_angle": 0.05, "outer_cone_angle": 0.3},
+                   {"type": "directional", "direction": [0.0, -0.3, -1.0], "intensity": [1.0, 0.5, 0.25]}],
         "objects": [{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0,
                      "material": {"base_color": [0.8, 0.3, 0.2], "metallic": 0.0, "roughness": 0.4}}]})
     ray = render_realtime(sc, "default", SMALL, progress=False)

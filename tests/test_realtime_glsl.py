@@ -201,3 +201,22 @@ def test_env_radiance_twin():
     grad = env.scale * jump * max(env.width / (2 * np.pi), (env.height - 1) / np.pi)
     close(g, env.radiance(d), rtol=0, atol=TRIG_RAD * grad)
 
+
+
+def test_spot_attenuation_twin():
+    """glTF's spot attenuation (lights.glsl) against pbrcheck.lights.spot_attenuation: cosines at the
+    inner and the outer cone, beyond both, between, and cones whose span hits the spec's 0.001 floor."""
+    from pbrcheck.lights import spot_attenuation
+    cones = [(0.0, np.pi / 4), (0.2, 0.5), (0.0, np.pi / 2), (np.pi / 2 - 0.01, np.pi / 2), (0.3, 0.3005)]
+    for inner, outer in cones:
+        ci, co = f32(np.cos(inner)), f32(np.cos(outer))
+        cd = f32(np.concatenate([[-1.0, 0.0, co, ci, 1.0, co - 1e-3, ci + 1e-3, np.nextafter(np.float32(co), 2)],
+                                 np.linspace(co, ci, 9)]))
+        got = run_glsl("spot_attenuation(x0, x1, x2)", cd, co, ci)
+        ref = spot_attenuation(cd, co, ci)
+        # cd scale + offset cancels: float32 rounding of ~scale ulp(1) (scale <= 1 / 0.001)
+        scale = 1.0 / max(1e-3, ci - co)
+        close(got, ref, atol=ATOL_F32 * scale)
+        assert ref[cd <= co].max() == 0.0
+        if ci - co >= 1e-3:  # a narrower span is floored: the falloff then reaches 1 past the inner cone
+            assert ref[cd >= ci].min() == 1.0

@@ -1,11 +1,13 @@
-"""The DFG LUT against the exact quadrature (pbrcheck.brdf), the Kd LUT, and the `lut` command."""
+"""The DFG LUT against the exact quadrature (pbrcheck.brdf) and the whole bake against its numpy
+and Dr.Jit twins for every sampling strategy (the strategies' functions: tests/test_realtime_sampling.py),
+the Kd LUT, and the `lut` command."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pbrcheck import brdf
+from pbrcheck import brdf, registry, sampling
 from pbrcheck.exr import read_exr
 from realtime.presets import resolve_options
 from realtime.render import dfg_lut, read_lut
@@ -31,6 +33,27 @@ def _reference(geometry, N, rows):
 
 def _rows(N):
     return list(range(N))
+
+
+# The bake's texels: float32 sums of <= 32 terms (GLSL, Dr.Jit) against float64 numpy.
+TEXEL_ATOL = 2e-6
+
+
+@pytest.mark.parametrize("ndf", registry.NDFS.names)
+def test_bake_is_its_numpy_and_drjit_twins(ndf):
+    """dfg_lut.comp's texels equal pbrcheck.sampling.dfg_lut_texel and reference.sampling.dfg_lut (same
+    points, same strategy, same estimator) for every strategy, incl. the smoothest and roughest rows."""
+    from reference.variant import ensure_variant
+    ensure_variant()
+    from reference import sampling as dfg
+    N, S, geometry = 6, 32, "schlick_ggx_direct" if ndf == "ggx" else "smith_ggx_correlated"
+    for strategy in registry.LUT_SAMPLINGS.names:
+        lut = read_lut(dfg_lut(N, S, "f32", geometry, ndf, strategy))
+        want = np.array([[sampling.dfg_lut_texel((i + 0.5) / N, (j + 0.5) / N, S, geometry, ndf, strategy)
+                          for i in range(N)] for j in range(N)])
+        np.testing.assert_allclose(lut, want, rtol=0, atol=TEXEL_ATOL, err_msg=f"GLSL {strategy}")
+        np.testing.assert_allclose(dfg.dfg_lut(N, S, geometry, ndf, strategy), want, rtol=0, atol=TEXEL_ATOL,
+                                   err_msg=f"Dr.Jit {strategy}")
 
 
 @pytest.mark.slow

@@ -162,3 +162,80 @@ def test_term_dispatch_matches_the_registry_in_numpy():
         np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), getattr(brdf, e.impl.numpy)(c, brdf.alpha_from_roughness(r)))
     with pytest.raises(ValueError, match="unknown geometry term 'nope'"):
         brdf.geometry_term("nope", c, c, r)
+
+
+# The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
+ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
+              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
+              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl")}
+
+
+def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
+    """Each member of every registry carries its functions (an Impl, or roles) or its list states
+    where it applies and why it has none (a switch of one renderer's own code)."""
+    assert set(ROLE_HOMES) == set(registry.ROLE_REGISTRIES)
+    for define, reg in registry.REGISTRIES.items():
+        owned = [e.name for e in reg if e.impl is not None or e.roles]
+        if define in registry.TERM_REGISTRIES or define in registry.ROLE_REGISTRIES:
+            assert not reg.applies_to, define
+            assert all(e.name in owned or e.applies_to for e in reg), (define, owned)
+        else:
+            assert not owned and len(reg.applies_to) > 20, (define, reg.applies_to)
+
+
+@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+def test_every_role_member_has_its_three_implementations(define):
+    """Each role of each member names a numpy, a Dr.Jit and a GLSL function of one name that exist,
+    and the generated GLSL dispatch calls it; a member without a role states where it applies; the
+    GLSL harness twins every (member, role) (tests/test_energy.py's test_role_twins and
+    tests/test_realtime_sampling.py's test_strategy_twins are parametrized by these)."""
+    import importlib
+
+    import test_energy
+    import test_realtime_sampling
+    from reference.variant import ensure_variant
+    ensure_variant()
+    reg, include, _, roles = registry.ROLE_REGISTRIES[define]
+    np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
+    numpy_mod, drjit_mod = importlib.import_module(np_mod), importlib.import_module(dr_mod)
+    glsl = (SHADER_DIR / glsl_file).read_text()
+    dispatch = registry.glsl_generated()[include]
+    assert f'#include "{include}"' in glsl
+    for role, (signature, identity) in roles.items():
+        assert signature + " {" in dispatch
+        assert callable(getattr(numpy_mod, role)) and callable(getattr(drjit_mod, role)), role
+    for e in reg:
+        assert set(e.roles) <= set(roles), e.name
+        missing = set(roles) - set(e.roles)
+        assert not missing or (e.applies_to and all(roles[r][1] for r in missing)), (e.name, missing)
+        for role, impl in e.roles.items():
+            assert impl.numpy == impl.drjit == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
+            assert callable(getattr(numpy_mod, impl.numpy, None)), impl.numpy
+            assert callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
+            assert re.search(rf"^\w+ {impl.glsl}\(", glsl, re.M), impl.glsl
+            assert f"{reg.constant(e.name)}\n    return {impl.glsl}(" in dispatch
+    twins = test_energy.test_role_twins if define == "ENERGY_COMPENSATION" else test_realtime_sampling.test_strategy_twins
+    params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
+    covered = {p if len(p) == 2 else p[1:] for p in params if len(p) == 2 or p[0] == define}
+    assert covered == {(e.name, r) for e in reg for r in e.roles}
+
+
+@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
+    """The shaders select a role registry's member only in its generated dispatch (no hand
+    ``#if SWITCH == MEMBER`` ladder; shading.glsl's ``!= ENERGY_COMPENSATION_NONE`` guard remains)."""
+    for p in SHADER_DIR.iterdir():
+        assert not re.search(rf"^\s*#\s*(el)?if\b.*\b{define}\s*==", p.read_text(), re.M), p.name
+    reg, include, default, roles = registry.ROLE_REGISTRIES[define]
+    text = registry.glsl_generated()[include]
+    assert text.count(f"== {define}_") == len(reg.names) * len(roles)
+    assert f"#define {define} {reg.constant(default)}\n" in text
+
+
+def test_docs_role_table_lists_every_member_and_its_functions():
+    """docs/realtime.md's role table: one row per member of a role registry, naming its functions."""
+    for define, (reg, *_rest) in registry.ROLE_REGISTRIES.items():
+        for e in reg:
+            cells = _doc_row(f"{define}: {e.name}")
+            listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
+            assert listed == list(dict.fromkeys(i.glsl for i in e.roles.values())), (define, e.name, listed)

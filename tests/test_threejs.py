@@ -9,7 +9,10 @@ absent (``make setup`` installs them).
   same pixels in three.js and the reference, in the background and in a mirror sphere's
   reflection (the image-based lighting's orientation);
 - a point light on a diffuse sphere: 1 cd = 1 W/sr (the radiometric convention) within the
-  models' difference.
+  models' difference;
+- a spot light (the sphere inside its inner cone: three.js's penumbra is smoothstep(cos outer,
+  cos inner), not the spec's squared ramp) and a directional light (1 lux = 1 W/m^2) exported as
+  ``KHR_lights_punctual``, within the same tolerance.
 """
 
 from __future__ import annotations
@@ -136,6 +139,30 @@ def assert_one_candela_is_one_watt_per_steradian(renderer: str) -> None:
 
 def test_point_light_one_candela_is_one_watt_per_steradian():
     assert_one_candela_is_one_watt_per_steradian("ext:threejs")
+
+
+def test_spot_and_directional_lights_match_the_reference():
+    """A diffuse sphere under a spot from the front (inside its inner cone) and a directional light
+    from the left: three.js and the reference agree within the point light's 10 % on the pixels each
+    light alone reaches."""
+    scene = scene_from_dict({
+        "name": "spot-sun", "camera": {"origin": [0, 0, 5.0], "fov": 30.0, "width": 32, "height": 32},
+        "environment": {"type": "none"},
+        "lights": [{"type": "spot", "position": [0.0, 0.0, 5.0], "direction": [0.0, 0.0, -1.0],
+                    "intensity": [10.0, 10.0, 10.0], "inner_cone_angle": 0.3, "outer_cone_angle": 0.5},
+                   {"type": "directional", "direction": [1.0, 0.0, 0.0], "intensity": [2.0, 2.0, 2.0]}],
+        "objects": [{"type": "sphere", "radius": 1.0,
+                     "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
+    })
+    engine = renderers.render_under_test(scene, "ext:threejs")
+    ref = renderers.render_reference(scene, spp=16, use_cache=False)
+    for crop in ((slice(14, 18), slice(14, 18)),    # the centre: the spot alone (the sun at 90 degrees)
+                 (slice(14, 18), slice(7, 10))):     # the left limb: the sun's E cos and the spot's
+        r = float(ref.rgb[crop].mean())
+        assert r > 0.05
+        assert float(engine.rgb[crop].mean()) == pytest.approx(r, rel=0.1), crop
+    spot_only = 0.8 / np.pi * 10.0 / 16.0                   # n.l = 1 at distance 4 on the axis
+    assert float(ref.rgb[15:17, 15:17].mean()) == pytest.approx(spot_only, rel=0.05)
 
 
 def _crashing_chromium(tmp_path: Path, crashes: int) -> Path:

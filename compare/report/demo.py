@@ -20,7 +20,7 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     env = load_environment(scene)
     print(f"pbrcheck demo: scene {scene.name!r}: {scene.description}")
-    print(f"  {len(scene.objects)} objects, {len(scene.lights)} point lights, environment "
+    print(f"  {len(scene.objects)} objects, {len(scene.lights)} lights, environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g}), "
           f"hash {scene_hash(scene, env.content_hash)[:16]}")
     out = build_report([args.scene], Path(args.out), ReportConfig(spp=args.spp))

@@ -178,7 +178,7 @@ def _scale_dielectric_diffuse(k: float):
 
 
 def _scale_lights(k: float):
-    """Scene edit: every point light's intensity scaled by ``k``."""
+    """Scene edit: every light's intensity (point, spot, directional) scaled by ``k``."""
     def edit(scene: Scene, directory: Path) -> tuple[Scene, dict]:
         return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
                                            for li in scene.lights)), {"factor": k}

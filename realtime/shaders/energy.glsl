@@ -1,10 +1,9 @@
 // energy.glsl: multiple-scattering energy compensation of the split sum's specular lobe.
-// ENERGY_COMPENSATION: a constant of pbrcheck.registry.ENERGY_COMPENSATIONS. Numpy twins of the same
-// names in pbrcheck/energy.py (tests/test_energy.py runs both on the same grids).
-// Ess = A + B: the single-scattering directional albedo at F0 = 1 (the DFG terms).
-#ifndef ENERGY_COMPENSATION
-#define ENERGY_COMPENSATION ENERGY_COMPENSATION_NONE
-#endif
+// ENERGY_COMPENSATION: a constant of pbrcheck.registry.ENERGY_COMPENSATIONS, whose members name their
+// role functions here (energy_scale_<name>, energy_ms_<name>, energy_direct_<name>); the dispatch
+// energy_scale / energy_ms / energy_direct is generated from it (energy_dispatch.glsl). Numpy twins
+// of the same names in pbrcheck/energy.py, Dr.Jit twins in reference/energy.py (tests/test_energy.py
+// runs them on the same grids). Ess = A + B: the single-scattering directional albedo at F0 = 1.
 
 // Source: Kulla & Conty 2017 slide 20, Fdez-Aguera 2019 eq. 11.
 // Equation: Favg = 2 int F(mu) mu dmu = F0 + (1 - F0) / 21 for Schlick's F.
@@ -59,35 +58,36 @@ vec3 f_ms_kulla_conty(vec3 F0, float Ev, float El, float Eavg) {
     return Fms * (1.0 - Ev) * (1.0 - El) / (PI * max(1.0 - Eavg, 1e-6));
 }
 
-// Point lights: what the compensation adds to the single-scattering BRDF f (without the cosine).
-// filament: Filament scales its direct specular lobe f_spec too (energyCompensation): (scale - 1) f_spec;
-// kulla_conty: its lobe f_ms_kulla_conty (El = A + B at n.l); fdez_aguera: 0 (the paper is IBL only).
-vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness) {
-#if ENERGY_COMPENSATION == ENERGY_COMPENSATION_FILAMENT
-    return (energy_filament(F0, A + B) - 1.0) * f_spec;
-#elif ENERGY_COMPENSATION == ENERGY_COMPENSATION_KULLA_CONTY
-    return f_ms_kulla_conty(F0, A + B, El, kc_eavg(roughness));
-#else
-    return vec3(0.0);
-#endif
-}
-
-// The split sum's specular factor: Filament's scale, or 1.
-vec3 energy_scale(vec3 F0, float A, float B) {
-#if ENERGY_COMPENSATION == ENERGY_COMPENSATION_FILAMENT
+// The members' role functions (pbrcheck.registry.ENERGY_COMPENSATIONS): a member without a role is
+// the identity there (scale 1, nothing added).
+// Source: Filament sec. 4.7.2. Equation: the split sum's specular factor 1 + F0 (1 / (A + B) - 1).
+vec3 energy_scale_filament(vec3 F0, float A, float B) {
     return energy_filament(F0, A + B);
-#else
-    return vec3(1.0);
-#endif
 }
 
-// The multiply scattered albedo added times E(n) / pi: Fdez-Aguera's, Kulla-Conty's, or 0.
-vec3 energy_ms(vec3 F0, float A, float B, float roughness) {
-#if ENERGY_COMPENSATION == ENERGY_COMPENSATION_FDEZ_AGUERA
-    return ms_fdez_aguera(F0, A, B);
-#elif ENERGY_COMPENSATION == ENERGY_COMPENSATION_KULLA_CONTY
-    return ms_kulla_conty(F0, A + B, kc_eavg(roughness));
-#else
-    return vec3(0.0);
-#endif
+// Source: Filament's direct lobe (energyCompensation). Equation: adds (scale - 1) f_spec to the
+// single-scattering BRDF of a point light.
+vec3 energy_direct_filament(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness) {
+    return (energy_filament(F0, A + B) - 1.0) * f_spec;
 }
+
+// Source: Fdez-Aguera 2019 eq. 9-13. Equation: adds Fms Ems times E(n) / pi (image-based light only).
+vec3 energy_ms_fdez_aguera(vec3 F0, float A, float B, float roughness) {
+    return ms_fdez_aguera(F0, A, B);
+}
+
+// Source: Kulla & Conty 2017 slides 16-22. Equation: adds F_ms (1 - (A + B)) times E(n) / pi,
+// E_avg = kc_eavg(roughness).
+vec3 energy_ms_kulla_conty(vec3 F0, float A, float B, float roughness) {
+    return ms_kulla_conty(F0, A + B, kc_eavg(roughness));
+}
+
+// Source: Kulla & Conty 2017 slide 18. Equation: adds the lobe f_ms (E(mu_o) = A + B, E(mu_i) = El)
+// to a point light's BRDF.
+vec3 energy_direct_kulla_conty(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness) {
+    return f_ms_kulla_conty(F0, A + B, El, kc_eavg(roughness));
+}
+
+// energy_scale (the split sum's specular factor), energy_ms (the multiply scattered albedo added
+// times E(n) / pi) and energy_direct (added to a point light's BRDF), generated from the registry.
+#include "energy_dispatch.glsl"

@@ -59,7 +59,8 @@ uint hash_u(uint x) {
 
 // Source: article 001 (runtime importance sampling of the environment); GPU Gems 3 ch. 20 for the
 // mip-filtered lookups. Equation: (1/N) sum F G L (v.h) / ((n.h)(n.v)) over half vectors drawn by
-// RUNTIME_SAMPLING: _BECKMANN (the article: Beckmann half vectors for the GGX D), _GGX, or _VNDF
+// RUNTIME_SAMPLING (pbrcheck.registry.RUNTIME_SAMPLINGS, sampling.glsl: runtime_half_vector and
+// runtime_estimate): _BECKMANN (the article: Beckmann half vectors for the GGX D), _GGX, or _VNDF
 // (GGX visible normals, estimator F G / G1(v) L).
 vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed) {
     float alpha = alpha_from_roughness(roughness);
@@ -94,12 +95,7 @@ vec3 runtime_specular(vec3 n, vec3 v, float roughness, vec3 F0, uint pixel_seed)
         float lod = 0.0;
 #endif
         vec3 L = textureLod(env_cube, l, lod).rgb;
-#if RUNTIME_SAMPLING == RUNTIME_SAMPLING_VNDF
-        acc += F * G / max(G1_SmithGGX(NoV, alpha), COS_EPS) * L;
-#else
-        // The article's estimator: F G L (v.h) / ((n.h)(n.v)), correct only for pdf = D_GGX (n.h).
-        acc += F * G * L * VoH / (NoH * NoV);
-#endif
+        acc += runtime_estimate(F, G, L, NoV, NoH, VoH, alpha);
     }
     return acc / float(ns);
 }

@@ -5,6 +5,7 @@ layout(local_size_x = 64) in;
 #include "ibl.glsl"
 #include "env.glsl"
 #include "energy.glsl"
+#include "lights.glsl"
 #include "occlusion.glsl"
 layout(std430, binding = 0) readonly buffer InA { vec4 a_in[]; };
 layout(std430, binding = 1) readonly buffer InB { vec4 b_in[]; };

@@ -77,6 +77,52 @@ vec3 sample_cosine(vec2 u) {
     return vec3(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u.y, 0.0)));
 }
 
-// sample_ndf (the selected NDF's sampler) and runtime_half_vector (RUNTIME_SAMPLING's), generated
-// from pbrcheck.registry.
+// sample_ndf (the selected NDF's sampler), generated from pbrcheck.registry.
 #include "sampling_dispatch.glsl"
+
+// The DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS, dfg_lut.comp): each member's
+// half vector for the view v (tangent space) and its sample's weight, the estimator of
+// f_s cos / pdf divided by the Fresnel factor, (D G / (4 n.l n.v)) n.l / pdf_l.
+// Source: [Heitz18] listing 1 and eq. 17. Equation: h ~ D_v(h); weight G2 / G1(v).
+vec3 lut_half_vector_vndf(vec2 u, vec3 v, float alpha) { return sample_GGX_VNDF(u.yx, v, alpha); }
+
+float lut_weight_vndf(float G, vec3 v, vec3 h, float alpha) {
+    return G / max(G1_SmithGGX(v.z, alpha), COS_EPS);
+}
+
+// Source: [Walter07] eq. 38 (pdf_l = D (n.h) / (4 v.h)); article 000's ImportanceSampleGGX for ggx.
+// Equation: h ~ D(h) (n.h) (sample_ndf); weight G (v.h) / ((n.h)(n.v)).
+vec3 lut_half_vector_ndf(vec2 u, vec3 v, float alpha) { return sample_ndf(u, alpha); }
+
+float lut_weight_ndf(float G, vec3 v, vec3 h, float alpha) {
+    return G * dot(v, h) / max(h.z * v.z, COS_EPS);
+}
+
+// lut_half_vector and lut_weight: LUT_SAMPLING's, generated from pbrcheck.registry.
+#include "dfg_sampling_dispatch.glsl"
+
+// Runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS,
+// environment_light.glsl): each member's half vector (tangent space, vt the view there) and its
+// estimator of one sample's F G L term (L the environment's radiance along l).
+// Source: [Walter07] eq. 28 (article 001 draws Beckmann half vectors for the GGX D).
+vec3 runtime_half_vector_beckmann(vec2 u, vec3 vt, float alpha) { return sample_Beckmann(u, alpha); }
+
+// Source: [Walter07] eq. 35-36.
+vec3 runtime_half_vector_ggx(vec2 u, vec3 vt, float alpha) { return sample_GGX(u, alpha); }
+
+// Source: [Heitz18] listing 1.
+vec3 runtime_half_vector_vndf(vec2 u, vec3 vt, float alpha) { return sample_GGX_VNDF(u.yx, vt, alpha); }
+
+// Source: article 001 (beckmann, ggx). Equation: F G L (v.h) / ((n.h)(n.v)), exact only when h
+// follows the shaded NDF's D (n.h) (article 001 draws Beckmann half vectors for the GGX D).
+vec3 runtime_estimate_ndf(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha) {
+    return F * G * L * VoH / (NoH * NoV);
+}
+
+// Source: [Heitz18] eq. 17. Equation: F G L / G1(v).
+vec3 runtime_estimate_vndf(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha) {
+    return F * G / max(G1_SmithGGX(NoV, alpha), COS_EPS) * L;
+}
+
+// runtime_half_vector and runtime_estimate: RUNTIME_SAMPLING's, generated from pbrcheck.registry.
+#include "runtime_sampling_dispatch.glsl"

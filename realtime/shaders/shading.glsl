@@ -13,15 +13,17 @@
 // shade_article001:: runtime importance sampling of the environment (article 001).
 // shade_article002:: article 002's lerp composition with EnvBRDFApprox.
 //
-// Each composition adds its image-based term and the point lights of add_point_lights, the one light
-// loop, which weights the composition's point-light BRDF (light_brdf_<composition>) by the light's
-// irradiance. The including pipeline provides `bool occluded(vec3 p, vec3 l, float dist)` (shadow
-// rays, a shadow map, or always false) and binds the Lights buffer and the uniforms below.
+// Each composition adds its image-based term and the lights of add_point_lights, the one light loop
+// (point, spot and directional lights: lights.glsl), which weights the composition's point-light
+// BRDF (light_brdf_<composition>) by the light's irradiance. The including pipeline provides
+// `bool occluded(vec3 p, vec3 l, float dist)` (shadow rays, a shadow map, or always false) and
+// binds the Lights buffer and the uniforms below.
 #include "environment_light.glsl"
 #include "energy.glsl"
+#include "lights.glsl"
 #include "occlusion.glsl"
 
-layout(std430, binding = 1) readonly buffer Lights { vec4 lights[]; };  // position, intensity pairs
+layout(std430, binding = 1) readonly buffer Lights { vec4 lights[]; };  // 3 vec4 per light (lights.glsl)
 uniform int n_lights;
 uniform sampler2D kd_lut;
 uniform float min_roughness;
@@ -109,15 +111,29 @@ vec3 light_brdf_article002(Shading c, vec3 l, float NoL) {
     return (1.0 - s.metallic) * s.base_color / PI + c.t * Dap / PI;
 }
 
-// The one light loop: color + sum over the unoccluded point lights above the horizon of
-// f(l) I (n.l) / d^2, f the composition's point-light BRDF.
+// The one light loop: color + sum over the unoccluded lights above the horizon of f(l) I (n.l) / d^2
+// (point), the same times spot_attenuation (spot), f(l) E (n.l) with l = -direction (directional);
+// f the composition's point-light BRDF. A directional light's shadow ray is unbounded.
 vec3 add_point_lights(vec3 color, Shading c) {
     for (int i = 0; i < n_lights; ++i) {
-        vec3 ld = lights[2 * i].xyz - c.s.p;
-        float d2 = dot(ld, ld);
-        vec3 l = ld * inversesqrt(d2);
+        vec4 pos_type = lights[3 * i];
+        vec4 intensity = lights[3 * i + 1];
+        vec4 dir = lights[3 * i + 2];
+        vec3 l;
+        float d2;
+        if (int(pos_type.w) == LIGHT_DIRECTIONAL) {
+            l = -dir.xyz;
+            d2 = 1.0;
+        } else {
+            vec3 ld = pos_type.xyz - c.s.p;
+            d2 = dot(ld, ld);
+            l = ld * inversesqrt(d2);
+        }
         float NoL = dot(c.s.n, l);
-        if (NoL <= 0.0 || occluded(c.s.p, l, sqrt(d2))) continue;
+        bool far = int(pos_type.w) == LIGHT_DIRECTIONAL;
+        if (NoL <= 0.0 || occluded(c.s.p, l, far ? LIGHT_FAR : sqrt(d2))) continue;
+        vec3 I = intensity.rgb;
+        if (int(pos_type.w) == LIGHT_SPOT) I *= spot_attenuation(dot(dir.xyz, -l), intensity.w, dir.w);
 #if SHADING == SHADING_MATERIAL
         vec3 f = light_brdf_material(c, l, NoL);
 #elif SHADING == SHADING_ARTICLE000
@@ -127,7 +143,7 @@ vec3 add_point_lights(vec3 color, Shading c) {
 #else
         vec3 f = light_brdf_article002(c, l, NoL);
 #endif
-        color += f * lights[2 * i + 1].rgb * (NoL / d2);
+        color += f * I * (NoL / d2);
     }
     return color;
 }

@@ -1,0 +1,157 @@
+"""The real-time renderer's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
+runtime importance sampling (``runtime_half_vector_<name>``, ``runtime_estimate_*``) and DFG LUT
+strategies (``lut_half_vector_<name>`` / ``lut_weight_<name>``), same names, same formulas (the GLSL
+ones are in ``realtime/shaders/sampling.glsl``), resolved here from the names that
+:data:`pbrcheck.registry.RUNTIME_SAMPLINGS` and :data:`pbrcheck.registry.LUT_SAMPLINGS` hold, and
+:func:`dfg_lut`, the Dr.Jit bake of
+``dfg_lut.comp`` (same points, same estimator) that the reference can use to separate the split
+sum's LUT error from its own.
+
+Tangent space, ``z`` = the normal; ``u`` is a ``mi.Point2f`` with GLSL's convention (``u.x`` the
+azimuth of an NDF sample). The ``ndf`` strategy draws ``D (n.h)`` by the NDF's sampler, named by its
+registry entry (``extra["sample"]``): :func:`sample_GGX` here, Beckmann and Blinn-Phong through
+:mod:`reference.bsdf`'s samplers. References: [Heitz18] E. Heitz, "Sampling the GGX Distribution of
+Visible Normals", JCGT 7(4) 2018 (listing 1, eq. 17); [Walter07] Walter et al., "Microfacet Models
+for Refraction through Rough Surfaces", EGSR 2007 (eq. 35-38); [Karis13] B. Karis, "Real Shading in
+Unreal Engine 4", 2013 (eq. 8).
+
+API
+---
+:func:`sample_GGX`, :func:`sample_Beckmann`, :func:`sample_BlinnPhong`, :func:`sample_ndf`,
+:func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
+:func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut`,
+:func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
+:func:`runtime_estimate`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+from pbrcheck.brdf import COS_EPS, MIN_ALPHA
+from pbrcheck.registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
+from pbrcheck.sampling import hammersley
+
+import drjit as dr
+import mitsuba as mi
+
+from . import bsdf
+
+
+def sample_GGX(u, alpha):
+    """[Walter07] eq. 35-36 in Karis's form: ``cos theta_h = sqrt((1 - u.y) / (1 + (a^2 - 1) u.y))``."""
+    a2 = dr.square(dr.maximum(alpha, MIN_ALPHA))
+    den = dr.maximum(1.0 + (a2 - 1.0) * u.y, COS_EPS)
+    ct = dr.sqrt(dr.clip((1.0 - u.y) / den, 0.0, 1.0))
+    st = dr.sqrt(dr.clip(a2 * u.y / den, 0.0, 1.0))
+    phi = 2.0 * dr.pi * u.x
+    return mi.Vector3f(st * dr.cos(phi), st * dr.sin(phi), ct)
+
+
+def sample_Beckmann(u, alpha):
+    """[Walter07] eq. 28 (:func:`reference.bsdf.sample_h_Beckmann`, GLSL's ``u`` order)."""
+    return bsdf.sample_h_Beckmann(None, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
+
+
+def sample_BlinnPhong(u, alpha):
+    """[Walter07] sec. 5.2 (:func:`reference.bsdf.sample_h_BlinnPhong`, GLSL's ``u`` order)."""
+    return bsdf.sample_h_BlinnPhong(None, mi.Point2f(u.y, u.x), alpha)
+
+
+def sample_ndf(u, alpha, ndf: str = "ggx"):
+    """A half vector from ``D (n.h)`` of ``ndf`` (its registry entry's ``extra["sample"]``)."""
+    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+
+
+# ---- the registry members' role functions (pbrcheck.registry.LUT_SAMPLINGS) ----------------------
+
+def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
+    """[Heitz18] listing 1: GGX visible normals (:func:`reference.bsdf.sample_h_GGX`, ``u.yx``)."""
+    return bsdf.sample_h_GGX(v, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
+
+
+def lut_weight_vndf(G, v, h, alpha):
+    """[Heitz18] eq. 17: ``G2 / G1(v)``."""
+    return G / dr.maximum(bsdf.G1_SmithGGX(v.z, alpha), COS_EPS)
+
+
+def lut_half_vector_ndf(u, v, alpha, ndf: str = "ggx"):
+    """[Walter07]: a half vector from ``D (n.h)`` (:func:`sample_ndf`)."""
+    return sample_ndf(u, alpha, ndf)
+
+
+def lut_weight_ndf(G, v, h, alpha):
+    """[Walter07] eq. 38: ``G (v.h) / ((n.h)(n.v))``."""
+    return G * dr.dot(v, h) / dr.maximum(h.z * v.z, COS_EPS)
+
+
+def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
+    """The strategy ``sampling``'s half vector (the registry's name, resolved here)."""
+    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].drjit](u, v, alpha, ndf)
+
+
+def lut_weight(G, v, h, alpha, sampling: str):
+    """The strategy ``sampling``'s weight of the sample ``h``."""
+    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].drjit](G, v, h, alpha)
+
+
+def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: str = "vndf") -> np.ndarray:
+    """``(size, size, 2)`` float64 array of ``dfg_lut.comp``'s ``(A, B)`` (row j at roughness
+    ``(j + 0.5) / size``, column i at n.v ``(i + 0.5) / size``; [Karis13] eq. 8), one lane per texel
+    and sample: the same Hammersley points with the half-cell offset and the same estimator."""
+    sampling = lut_sampling_for(sampling, ndf)
+    j, i, k = np.meshgrid(np.arange(size), np.arange(size), np.arange(samples), indexing="ij")
+    pts = hammersley(k.ravel(), samples)
+    u = mi.Point2f(mi.Float(pts[:, 0] + 0.5 / samples), mi.Float(pts[:, 1]))
+    NoV = mi.Float((i.ravel() + 0.5) / size)
+    roughness = mi.Float((j.ravel() + 0.5) / size)
+    alpha = dr.maximum(roughness * roughness, MIN_ALPHA)  # pbrcheck.brdf.alpha_from_roughness
+    v = mi.Vector3f(dr.sqrt(1.0 - NoV * NoV), 0.0, NoV)
+    h = lut_half_vector(u, v, alpha, sampling, ndf)
+    VoH = dr.dot(v, h)
+    NoL = 2.0 * VoH * h.z - NoV
+    G = bsdf.geometry_term(geometry, NoV, NoL, roughness, alpha)
+    w = dr.select((NoL > 0.0) & (VoH > 0.0), lut_weight(G, v, h, alpha, sampling), 0.0)
+    Fc = dr.power(1.0 - VoH, 5)
+    A = np.asarray(w * (1.0 - Fc), dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
+    B = np.asarray(w * Fc, dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
+    return np.stack([A, B], axis=-1)
+
+
+# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+
+def runtime_half_vector_beckmann(u, vt, alpha):
+    """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
+    return sample_Beckmann(u, alpha)
+
+
+def runtime_half_vector_ggx(u, vt, alpha):
+    """[Walter07] eq. 35-36: GGX half vectors."""
+    return sample_GGX(u, alpha)
+
+
+def runtime_half_vector_vndf(u, vt, alpha):
+    """[Heitz18] listing 1: GGX visible normals seen from ``vt`` (``u.yx``)."""
+    return lut_half_vector_vndf(u, vt, alpha)
+
+
+def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
+    """Article 001's estimator ``F G L (v.h) / ((n.h)(n.v))`` (exact when ``h`` follows the shaded NDF's ``D (n.h)``)."""
+    return F * G * L * VoH / (NoH * NoV)
+
+
+def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
+    """[Heitz18] eq. 17: ``F G L / G1(v)``."""
+    return F * G / dr.maximum(bsdf.G1_SmithGGX(NoV, alpha), COS_EPS) * L
+
+
+def runtime_half_vector(u, vt, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s half vector (the registry's name, resolved here)."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].drjit](u, vt, alpha)
+
+
+def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
+    """The runtime strategy ``sampling``'s estimate of one sample."""
+    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].drjit](F, G, L, NoV, NoH, VoH, alpha)
