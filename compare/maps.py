@@ -23,6 +23,8 @@ import numpy as np
 from pbrcheck.atomic import staged_folder, write_bytes_atomic
 from pbrcheck.exr import Image, write_exr
 
+from .worktime import work
+
 #: Relative error |t - r| / (r + 0.01) mapped to the full colour range (values above saturate).
 REL_MAP_MAX = 1.0
 #: Grey (sRGB, 0..1) for pixels outside the valid mask.
@@ -57,22 +59,24 @@ def safe_name(name: str) -> str:
 def save_figure(fig, path: Path, dpi: int = 80) -> str:
     """Lay out ``fig``, write it to ``path`` (PNG, atomically), close it; returns the file name."""
     plt = pyplot()
-    fig.tight_layout()
-    buf = io.BytesIO()
-    try:
-        fig.savefig(buf, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue())
+    with work("plots"):
+        fig.tight_layout()
+        buf = io.BytesIO()
+        try:
+            fig.savefig(buf, dpi=dpi, format="png")
+        finally:
+            plt.close(fig)
+        write_bytes_atomic(path, buf.getvalue())
     return Path(path).name
 
 
 def _save_rgb(path: Path, rgb: np.ndarray) -> Path:
     """``rgb`` in [0, 1] as a PNG at ``path``, encoded in memory and written atomically."""
     _, plt = _mpl()
-    buf = io.BytesIO()
-    plt.imsave(buf, np.clip(rgb, 0.0, 1.0), format="png")
-    return write_bytes_atomic(path, buf.getvalue())
+    with work("plots"):
+        buf = io.BytesIO()
+        plt.imsave(buf, np.clip(rgb, 0.0, 1.0), format="png")
+        return write_bytes_atomic(path, buf.getvalue())
 
 
 def false_colour(values: np.ndarray, vmax: float, cmap: str, mask: np.ndarray | None = None) -> np.ndarray:

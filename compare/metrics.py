@@ -58,6 +58,7 @@ from pbrcheck.errors import CacheError, PbrcheckError
 from pbrcheck.exr import RGB, VARIANCE, Image
 
 from .maps import srgb_oetf
+from .worktime import work
 
 # --- tolerances and constants (each with its reason) -------------------------------------------
 
@@ -265,8 +266,9 @@ def _flip_map(r: np.ndarray, t: np.ndarray) -> np.ndarray:
     import flip_evaluator  # local: only the FLIP map needs it (a heavy native module)
 
     start, stop = _flip_exposures(r)
-    err, _, _ = flip_evaluator.evaluate(r, t, "HDR", applyMagma=False, computeMeanError=False,
-                                        parameters={"startExposure": start, "stopExposure": stop})
+    with work("flip"):
+        err, _, _ = flip_evaluator.evaluate(r, t, "HDR", applyMagma=False, computeMeanError=False,
+                                            parameters={"startExposure": start, "stopExposure": stop})
     return np.asarray(err, dtype=np.float32).reshape(r.shape[:2])
 
 

@@ -52,6 +52,8 @@ from realtime import presets as _presets
 from realtime import render as _realtime
 from reference import render as _reference
 
+from .worktime import work
+
 
 #: Hits, misses and uncached renders (``off``) of the renderers' caches in this process, by renderer
 #: kind (:mod:`compare.report.runlog` reports a run's share).
@@ -61,7 +63,8 @@ CACHE_COUNTS: dict[str, Counter] = {"realtime": Counter(), "reference": Counter(
 def render_reference(scene: Scene, **kwargs) -> Image:
     """The reference image of ``scene``; keyword arguments as :func:`reference.render.render_reference`
     (``spp``, ``mode``, ``seed``, ``use_cache``, ``progress``)."""
-    img = _reference.render_reference(scene, **kwargs)
+    with work("reference"):
+        img = _reference.render_reference(scene, **kwargs)
     CACHE_COUNTS["reference"][img.meta.get("cache", "off")] += 1
     return img
 
@@ -149,15 +152,17 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     if is_external(name):
         _no_options(name, options)
         fut = context.prefetch.take(scene, name) if context.prefetch is not None else None
-        if fut is not None:  # rendered (or being rendered) in the background: its result or error
-            return fut.result()
-        return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
-    if context.cache and use_cache:
-        img = _realtime_cache.render_cached(scene, name, options, progress=progress)
-        CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
-        return img
-    CACHE_COUNTS["realtime"]["off"] += 1
-    return _realtime.render_realtime(scene, name, options, progress=progress)
+        with work("clients"):  # the wait for a background render, or the render itself
+            if fut is not None:  # rendered (or being rendered) in the background: its result or error
+                return fut.result()
+            return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
+    with work("realtime"):
+        if context.cache and use_cache:
+            img = _realtime_cache.render_cached(scene, name, options, progress=progress)
+            CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
+            return img
+        CACHE_COUNTS["realtime"]["off"] += 1
+        return _realtime.render_realtime(scene, name, options, progress=progress)
 
 
 def backends() -> dict:

@@ -20,7 +20,9 @@ Conventions (docs/renderers.md has the table): world axes are glTF's (+Y up, rig
 node named ``object_<k>_<name>`` with ``extras.pbrcheck_object = k``; roughness is perceptual
 (glTF's ``roughnessFactor``, alpha = roughness^2, as both); point, spot and directional lights
 are ``KHR_lights_punctual`` with 1 cd taken as 1 W/sr and 1 lux as 1 W/m^2 (radiometric, RGB
-split into a colour with max 1 times a scalar; the node's -Z is the light's ``direction``); planes are one-sided quads (front = the scene's normal;
+split into a colour with max 1 times a scalar; the node's -Z is the light's ``direction``; in an
+asset scene the scene file's lights follow the asset's own, on root nodes ``light_<k>``); planes
+are one-sided quads (front = the scene's normal;
 ``doubleSided`` false; the reference's BSDFs are black from behind).
 
 References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9 (materials);
@@ -63,9 +65,11 @@ ENV_MAX_WIDTH = 4096
 OUTPUT_FORMATS = ("exr", "hdr", "pfm", "png-srgb")
 OUTPUT_SUFFIX = {"exr": ".exr", "hdr": ".hdr", "pfm": ".pfm", "png-srgb": ".png"}
 #: Bumped whenever the exported files change for the same scene (part of the client cache key).
-EXPORT_FORMAT_VERSION = 1
+EXPORT_FORMAT_VERSION = 2  # 2: an asset scene's scene-file lights are exported
 #: The files :func:`export_scene` writes.
 FILES = ("scene.gltf", "scene.bin", "environment.exr", "environment.hdr", "scenario.json")
+#: The buffer of analytic objects exported beside an asset (the asset keeps its own buffers).
+OBJECTS_BIN = "pbrcheck_objects.bin"
 
 ENVIRONMENT_ORIENTATION = (
     "equirectangular, +Y up, row 0 at the top: pixel (row k, column c) of an H x W image holds the "
@@ -226,9 +230,11 @@ def _light_node(k: int, light) -> dict:
     return node
 
 
-def _scenario_light(k: int, light) -> dict:
-    """``scenario.json``'s entry of light ``k`` (pbrcheck's units, named)."""
-    d: dict = {"type": light.type, "gltf_node": f"light_{k}"}
+def _scenario_light(k: int | None, light) -> dict:
+    """``scenario.json``'s entry of the scene file's light ``k`` (pbrcheck's units, its node named),
+    or with ``k`` None of a light an exported asset carries itself (``"source": "asset"``, no node
+    of pbrcheck's)."""
+    d: dict = {"type": light.type, **({"gltf_node": f"light_{k}"} if k is not None else {"source": "asset"})}
     if light.type != "directional":
         d["position"] = list(light.position)
     if light.type != "point":
@@ -328,31 +334,79 @@ def _camera(scene: Scene) -> tuple[dict, dict]:
                                   "znear": _znear(scene)}}
 
 
+def _add_lights(doc: dict, lights) -> list[int]:
+    """Append ``lights`` to ``doc``'s ``KHR_lights_punctual`` lights (after any the document has)
+    and one node each (``light_<k>``, :func:`_light_node`) to ``doc["nodes"]``; returns the new
+    nodes' indices (for the scene's root nodes)."""
+    if not lights:
+        return []
+    table = doc.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {}).setdefault("lights", [])
+    used = doc.setdefault("extensionsUsed", [])
+    if "KHR_lights_punctual" not in used:
+        used.append("KHR_lights_punctual")
+    nodes = doc.setdefault("nodes", [])
+    first_node = len(nodes)
+    for k, light in enumerate(lights):
+        node = _light_node(k, light)
+        node["extensions"]["KHR_lights_punctual"]["light"] = len(table)
+        table.append(_light(light) | {"name": f"light_{k}"})
+        nodes.append(node)
+    return list(range(first_node, len(nodes)))
+
+
 def _asset_document(scene: Scene, bin_name: str):
+    """The asset's own document (:func:`pbrcheck.gltf_export.asset_document`) with the scene file's
+    lights on extra root nodes ``light_<k>`` beside ``pbrcheck_root`` (world space: the placement
+    does not move them), their ``KHR_lights_punctual`` entries after the asset's own, and the
+    analytic objects beside it."""
     from .gltf_export import asset_document
 
     node, cam = _camera(scene)
     doc, files = asset_document(scene, node, cam, bin_name)
-    return doc, files, {}, sum(o.triangles for o in scene.objects)
-
-
-def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
-    """The glTF 2.0 JSON of ``scene`` and its binary buffer.
-
-    Returns
-    -------
-    (dict, bytes, dict, int)
-        The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``), segments around each
-        sphere (object id -> n) and the number of triangles.
-    """
-    if getattr(scene, "assets", ()):  # the user's asset itself (pbrcheck.gltf_export)
-        return _asset_document(scene, bin_name)
+    doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.own_lights()))
+    triangles = sum(o.triangles for o in scene.objects if o.type == "mesh")
+    analytic = [o for o in scene.objects if o.type != "mesh"]
+    if not analytic:
+        return doc, files, {}, triangles
+    # analytic objects beside the asset: tessellated as in an analytic scene, in a buffer of their own
     buf = _Buffer()
+    meshes, nodes, materials, segments, ntri = _analytic_objects(scene, analytic, buf)
+    m0, me0, a0, v0 = (len(doc.setdefault(k, [])) for k in ("materials", "meshes", "accessors", "bufferViews"))
+    for view in buf.views:
+        view["buffer"] = len(doc.setdefault("buffers", []))
+    for acc in buf.accessors:
+        acc["bufferView"] += v0
+    for mesh in meshes:
+        for prim in mesh["primitives"]:
+            prim["attributes"] = {k: a + a0 for k, a in prim["attributes"].items()}
+            prim["indices"] += a0
+            prim["material"] += m0
+    for n in nodes:
+        n["mesh"] += me0
+    while len(buf.data) % 4:
+        buf.data.append(0)
+    doc["buffers"].append({"uri": OBJECTS_BIN, "byteLength": len(buf.data)})
+    files[OBJECTS_BIN] = bytes(buf.data)
+    doc["materials"] += materials
+    doc["meshes"] += meshes
+    doc["accessors"] += buf.accessors
+    doc["bufferViews"] += buf.views
+    first = len(doc["nodes"])
+    doc["nodes"] += nodes
+    doc["scenes"][0]["nodes"] += list(range(first, len(doc["nodes"])))
+    if any("extensions" in m for m in materials):
+        doc["extensionsUsed"] = sorted(set(doc.get("extensionsUsed", [])) | {"KHR_materials_ior"})
+    return doc, files, segments, triangles + ntri
+
+
+def _analytic_objects(scene: Scene, objects, buf: "_Buffer"):
+    """(meshes, nodes, materials, segments around each sphere, triangles) of analytic ``objects``
+    tessellated into ``buf``; each primitive's material and node's mesh index the returned lists."""
     meshes, nodes, materials = [], [], []
     sphere_geo: dict[int, tuple[int, int, int]] = {}
     segments: dict[int, int] = {}
     triangles = 0
-    for obj in scene.objects:
+    for obj in objects:
         materials.append(_material(obj))
         node = {"name": f"object_{obj.id}_{obj.name}", "mesh": len(meshes), "extras": {"pbrcheck_object": obj.id}}
         if isinstance(obj, Sphere):
@@ -373,20 +427,29 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
             raise ExportError(f"{scene.source}: objects[{obj.id}]: cannot export type {type(obj).__name__}")
         triangles += ntri
         meshes.append({"name": f"mesh_{obj.id}", "primitives": [
-            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": obj.id, "mode": 4}]})
+            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": len(materials) - 1, "mode": 4}]})
         nodes.append(node)
+    return meshes, nodes, materials, segments, triangles
+
+
+def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, bytes, dict[int, int], int]:
+    """The glTF 2.0 JSON of ``scene`` and its binary buffer.
+
+    Returns
+    -------
+    (dict, bytes, dict, int)
+        The glTF JSON, the buffer bytes (``buffers[0].uri = bin_name``; for a scene holding an
+        asset, ``{relative path: bytes}`` of the files beside the JSON), segments around each
+        sphere (object id -> n) and the number of triangles.
+    """
+    if getattr(scene, "assets", ()):  # the user's asset itself (pbrcheck.gltf_export), analytic objects beside
+        return _asset_document(scene, bin_name)
+    buf = _Buffer()
+    meshes, nodes, materials, segments, triangles = _analytic_objects(scene, scene.objects, buf)
 
     cam_node, cam_dict = _camera(scene)
     nodes.append(cam_node)
     cameras = [cam_dict]
-    used = set()
-    if any("extensions" in m for m in materials):
-        used.add("KHR_materials_ior")
-    ext = {}
-    if scene.lights:
-        used.add("KHR_lights_punctual")
-        ext["KHR_lights_punctual"] = {"lights": [_light(l) | {"name": f"light_{k}"} for k, l in enumerate(scene.lights)]}
-        nodes.extend(_light_node(k, light) for k, light in enumerate(scene.lights))
     while len(buf.data) % 4:
         buf.data.append(0)
     doc = {
@@ -397,10 +460,11 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
         "accessors": buf.accessors, "bufferViews": buf.views,
         "buffers": [{"uri": bin_name, "byteLength": len(buf.data)}],
     }
-    if used:
-        doc["extensionsUsed"] = sorted(used)
-    if ext:
-        doc["extensions"] = ext
+    if any("extensions" in m for m in materials):
+        doc["extensionsUsed"] = ["KHR_materials_ior"]
+    doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.lights))
+    if "extensionsUsed" in doc:
+        doc["extensionsUsed"].sort()
     return doc, bytes(buf.data), segments, triangles
 
 
@@ -466,6 +530,7 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         raise ExportError(f"output: expected one of {', '.join(OUTPUT_FORMATS)}, found {output!r}")
     cam = scene.camera
     r, u, f = camera_frame(cam)
+    own = scene.own_lights()
     d = {
         "pbrcheck": __version__, "export_format": EXPORT_FORMAT_VERSION,
         "scene": scene.name, "scene_hash": scene_hash(scene, env.content_hash),
@@ -480,7 +545,7 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         "environment": {"exr": "environment.exr", "hdr": "environment.hdr",
                         "width": env_shape[1], "height": env_shape[0],
                         "orientation": ENVIRONMENT_ORIENTATION, "as_background": True},
-        "lights": [_scenario_light(k, l) for k, l in enumerate(scene.lights)],
+        "lights": [_scenario_light(k if k < len(own) else None, l) for k, l in enumerate(scene.lights)],
         "units": "point and spot light intensity: 1 cd is taken as 1 W/sr (radiometric); directional light: "
                  "1 lux as 1 W/m^2; radiance in W/(sr m^2), linear Rec.709 primaries; light directions: "
                  "where the light shines (the glTF node's -Z)",

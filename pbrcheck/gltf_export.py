@@ -7,7 +7,11 @@ under one node ``pbrcheck_root`` carrying the scene file's placement (``matrix``
 omitted when the identity), pbrcheck's camera first in ``cameras`` (the asset's cameras follow,
 their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``scene.bin``; external
 buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
-objects cannot share an exported scene with an asset yet (:class:`~pbrcheck.gltf.AssetError`).
+objects of the same scene are added by :func:`pbrcheck.export.gltf_document`, tessellated as in an
+analytic scene's export (nodes ``object_<k>_<name>``, a buffer ``pbrcheck_objects.bin`` of their
+own). The scene file's own lights are added there too (root nodes ``light_<k>`` beside
+``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
+(:class:`~pbrcheck.gltf.AssetError` otherwise).
 
 API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).
@@ -44,10 +48,11 @@ def _read_doc(path: Path) -> tuple[dict, bytes | None]:
 
 
 def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scene.bin") -> tuple[dict, dict[str, bytes]]:
-    """(glTF JSON, {relative path: bytes}) of a scene whose objects all come from one asset."""
-    if len(scene.assets) != 1 or any(o.type != "mesh" for o in scene.objects):
-        raise AssetError(scene.source, "objects", "an exported scene holds one glTF asset and no analytic "
-                         "objects (mixing them is not supported by export yet)")
+    """(glTF JSON, {relative path: bytes}) of the scene's one asset (its analytic objects, if any, are
+    :func:`pbrcheck.export.gltf_document`'s to add)."""
+    if len(scene.assets) != 1:
+        raise AssetError(scene.source, "objects", "an exported scene holds at most one glTF asset "
+                         f"(this one has {len(scene.assets)})")
     inst = scene.assets[0]
     src = Path(inst.path)
     doc, blob = _read_doc(src)

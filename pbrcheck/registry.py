@@ -27,7 +27,13 @@ width; adding a G term is one :data:`GEOMETRIES` entry and its three functions (
 has the worked example). An NDF also names its GLSL sampler (``extra["sample"]``, numpy twin in
 :mod:`pbrcheck.sampling`) and has, under its D function's name without ``D_``, a quadrature pair in
 :mod:`pbrcheck.brdf` (``_theta_h_<D>``, ``_cdf_theta_h_<D>``) and a Dr.Jit sampler pair in
-:mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``).
+:mod:`reference.bsdf` (``sample_h_<D>``, ``pdf_h_<D>``); where they exist, the runtime sampling
+strategy exact for it (``extra["runtime_sampling"]``) and the random walk's first-bounce G term
+(``extra["walk_geometry"]``, :data:`MULTISCATTER_GEOMETRY`) with the walk's Dr.Jit trio in
+:mod:`reference.multiscatter` (``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``). A member that needs
+other real-time options says so (:attr:`Entry.requires`: an energy compensation the material
+composition's split sum, a composition its specular image-based lighting);
+:func:`realtime.presets.resolve_options` enforces it.
 
 The role registries (:data:`ROLE_REGISTRIES`: energy compensations, runtime and DFG LUT sampling
 strategies) own theirs one function per role (:attr:`Entry.roles`, one name in numpy, Dr.Jit and
@@ -42,7 +48,7 @@ API
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
 :data:`ROLE_REGISTRIES`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
@@ -109,6 +115,10 @@ class Entry:
     applies_to : str
         Where the member applies, and why a role has no function (``fdez_aguera``: image-based
         lighting only); ``tests/test_registry.py`` requires it of a member missing a role.
+    requires : dict of str to tuple of str
+        The real-time options the member needs, each with the values it accepts
+        (``{"ibl": ("splitsum",)}``); :func:`realtime.presets.resolve_options` refuses any other
+        combination with a one-line error naming them.
     """
 
     name: str
@@ -118,6 +128,7 @@ class Entry:
     impl: Impl | None = None
     roles: dict = field(default_factory=dict)
     applies_to: str = ""
+    requires: dict = field(default_factory=dict)
 
 
 class Registry:
@@ -186,10 +197,17 @@ def _roles(member: str, *roles: str, **shared: str) -> dict[str, Impl]:
 
 _ALPHA = "alpha_from_roughness"
 
+#: ``extra["sample"]``: the NDF's GLSL sampler; ``extra["runtime_sampling"]``: the runtime sampling
+#: strategy (:data:`RUNTIME_SAMPLINGS`) exact for its D (``pbrcheck explain``'s ``v=n=r`` row; absent:
+#: none is); ``extra["walk_geometry"]``: the height-correlated Smith term of the multiple-scattering
+#: random walk's first bounce (:data:`MULTISCATTER_GEOMETRY`; absent: no walk for this NDF).
 NDFS = Registry("NDF", [
-    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33", extra={"sample": "sample_GGX"},
+    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33",
+          extra={"sample": "sample_GGX", "runtime_sampling": "vndf", "walk_geometry": "smith_ggx_correlated"},
           impl=Impl("D_GGX", "D_GGX", "D_GGX", _ALPHA)),
-    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25", extra={"sample": "sample_Beckmann"},
+    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25",
+          extra={"sample": "sample_Beckmann", "runtime_sampling": "beckmann",
+                 "walk_geometry": "smith_beckmann_correlated"},
           impl=Impl("D_Beckmann", "D_Beckmann", "D_Beckmann", _ALPHA)),
     Entry("blinn_phong", "normalized Blinn-Phong, Walter et al. 2007 eq. 30 with n = 2/alpha^2 - 2",
           extra={"sample": "sample_BlinnPhong"}, impl=Impl("D_BlinnPhong", "D_BlinnPhong", "D_BlinnPhong", _ALPHA)),
@@ -241,13 +259,16 @@ LOD_MAPPINGS = Registry("LOD_MAPPING", applies_to=(
 #: The built-in mappings (each bakes its own prefiltered chain).
 BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
 
+#: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
+#: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.
+#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md).
 SHADINGS = Registry("SHADING", applies_to=(
     "the real-time renderer's compositions (shading.glsl, one shade function each); the reference renders "
     "one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
-    Entry("material", "README's material model"),
-    Entry("article000", "article 000 (Drevicky 2018)"),
-    Entry("article001", "article 001 (runtime importance sampling)"),
-    Entry("article002", "article 002 (EnvBRDFApprox, SH9)"),
+    Entry("material", "README's material model", extra={"hooks": True}),
+    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}),
+    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)}),
+    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}),
 ])
 
 #: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
@@ -306,22 +327,25 @@ def lut_sampling_for(sampling: str, ndf: str) -> str:
 
 
 _IBL_ONLY = "image-based lighting only"
+#: The real-time options a compensation needs: the material composition's split sum.
+_SPLIT_SUM_MATERIAL = {"shading": ("material",), "ibl": ("splitsum",)}
 #: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
 #: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
 #: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
 #: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy`,
 #: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
-#: ``ibl = splitsum`` only (they need the split sum's DFG terms).
+#: ``ibl = splitsum`` only (they need the split sum's DFG terms, which runtime sampling and the
+#: article compositions do not have): each member but ``none`` requires them (:attr:`Entry.requires`).
 ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
     Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
     Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
-          roles=_roles("filament", "energy_scale", "energy_direct"),
+          roles=_roles("filament", "energy_scale", "energy_direct"), requires=_SPLIT_SUM_MATERIAL,
           applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
     Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
-          roles=_roles("fdez_aguera", "energy_ms"),
+          roles=_roles("fdez_aguera", "energy_ms"), requires=_SPLIT_SUM_MATERIAL,
           applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
     Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
-          roles=_roles("kulla_conty", "energy_ms", "energy_direct"),
+          roles=_roles("kulla_conty", "energy_ms", "energy_direct"), requires=_SPLIT_SUM_MATERIAL,
           applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
 ])
 
@@ -348,16 +372,36 @@ SPECULAR_OCCLUSIONS = _switch(
     "SPECULAR_OCCLUSION", "the real-time renderer's image-based specular (occlusion.glsl, numpy twin "
                           "pbrcheck.occlusion); the reference traces occlusion", none="the specular image-based term is not occluded",
     lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
-            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)")
+            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
+    gtso="Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
+         "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 alpha^2)), "
+         "Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's")
+#: Horizon occlusion of normal-mapped reflections (pbrcheck/occlusion.py, realtime/shaders/occlusion.glsl).
+HORIZON_OCCLUSIONS = _switch(
+    "HORIZON_OCCLUSION", "the real-time renderer's image-based specular of normal-mapped materials (occlusion.glsl, "
+                         "numpy twin pbrcheck.occlusion); the reference traces occlusion", none="reflections below the geometric normal's horizon are not faded",
+    marmoset="Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et al. "
+             "2016): saturate(1 + 1.3 r.n_g)^2")
+#: Specular anti-aliasing / normal-map filtering: roughness widened by the normals' variance
+#: (pbrcheck/specular_aa.py, realtime/shaders/specular_aa.glsl).
+SPECULAR_AAS = _switch(
+    "SPECULAR_AA", "the raster pipeline's roughness (specular_aa.glsl, numpy twin pbrcheck.specular_aa); the "
+                   "reference integrates each pixel's normals", none="no filtering of the normals' variance into the roughness",
+    toksvig="Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered normal's length",
+    screen_space="Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
+                 "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
+    prefiltered="LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
+                "the mip chain: alpha^2 + var(s_x) + var(s_y)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
 MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (reference.multiscatter); the "
                         "real-time renderer approximates it by ENERGY_COMPENSATIONS", none="single scattering (Smith microfacet BRDF)",
                         random_walk="multiple-scattering random walk on the Smith microsurface, "
                                     "Heitz, Hanika, d'Eon, Dachsbacher 2016")
-#: The geometry term the random walk needs for each NDF it is defined for: its first bounce is the
-#: height-correlated Smith term of that NDF [Heitz16 sec. 5; Heitz 2014 eq. 99].
-MULTISCATTER_GEOMETRY = {"ggx": "smith_ggx_correlated", "beckmann": "smith_beckmann_correlated"}
+#: The geometry term the random walk needs for each NDF it is defined for (the NDF entry's
+#: ``extra["walk_geometry"]``): its first bounce is the height-correlated Smith term of that NDF
+#: [Heitz16 sec. 5; Heitz 2014 eq. 99].
+MULTISCATTER_GEOMETRY = {e.name: e.extra["walk_geometry"] for e in NDFS if "walk_geometry" in e.extra}
 
 #: A screen-space geometric roughness an engine adds to its roughness, as a reference-only ``[brdf]``
 #: option (``geometric_roughness``; not a real-time switch, so not in :data:`REGISTRIES`); the
@@ -371,7 +415,7 @@ GEOMETRIC_ROUGHNESSES = _switch(
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
                                      IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS,
-                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS)}
+                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS, HORIZON_OCCLUSIONS, SPECULAR_AAS)}
 
 
 def glsl_defines() -> dict[str, int]:

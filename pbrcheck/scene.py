@@ -175,6 +175,11 @@ class Scene:
     # glTF assets (pbrcheck.gltf_objects.AssetInstance), their primitives in ``objects`` as Mesh.
     assets: tuple = field(default_factory=tuple)
 
+    def own_lights(self) -> tuple:
+        """The scene file's own lights: :attr:`lights` less those its glTF assets brought (loaded
+        after the scene file's, in the assets' order)."""
+        return self.lights[:len(self.lights) - sum(a.lights for a in self.assets)]
+
     def to_dict(self) -> dict[str, Any]:
         """Resolved scene as plain data (objects expanded, defaults filled)."""
         # glTF assets: their ``gltf`` table in place of their mesh objects, their lights left out
@@ -182,13 +187,12 @@ class Scene:
         objects = [a.to_dict() if o.type == "mesh" else asdict(o) for o in self.objects
                    for a in ([self.assets[o.instance]] if o.type == "mesh" else [None])
                    if o.type != "mesh" or o.id == a.first_id]
-        own_lights = self.lights[:len(self.lights) - sum(a.lights for a in self.assets)]
         d = {
             "name": self.name,
             "description": self.description,
             "camera": asdict(self.camera),
             "environment": _environment_dict(self.environment),
-            "lights": [asdict(l) for l in own_lights],
+            "lights": [asdict(l) for l in self.own_lights()],
             "brdf": asdict(self.brdf),
             "objects": objects,
         }

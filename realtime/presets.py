@@ -10,7 +10,7 @@ API
 :class:`Option`, :data:`OPTIONS`, :data:`DEFAULT`, :data:`PRESETS`, :class:`RealtimeOptions` (the
 typed, frozen, validated options of one render), :func:`resolve_options`, :func:`parse_value`,
 :func:`parse_sets`, :func:`overrides_from_args`, :func:`fitted_mapping`, :class:`OptionError`,
-:data:`SHADER_SEP`.
+:data:`SHADER_SEP`, :data:`OPTION_REGISTRIES`, :func:`unmet_requirements`.
 """
 
 from __future__ import annotations
@@ -27,14 +27,18 @@ from pbrcheck.registry import (
     BUILTIN_LOD_MAPPINGS,
     DFGS,
     ENERGY_COMPENSATIONS,
+    Entry,
     FRESNELS,
     GEOMETRIES,
+    HORIZON_OCCLUSIONS,
     IRRADIANCE_METHODS,
     IRRADIANCES,
+    LOD_MAPPINGS,
     LUT_SAMPLINGS,
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
 )
 
@@ -58,6 +62,9 @@ class Option:
     hi: float | None = None
     power_of_two: bool = False
 
+
+#: Choices of texture_sampling and normal_sampling (raster pipeline): the mip chain, or level 0 only.
+TEXTURE_SAMPLINGS = ("mip", "lod0")
 
 #: Choices of the G-term options: the scene's own, or any registered term.
 GEOMETRY_CHOICES = ("scene", *GEOMETRIES.names)
@@ -114,9 +121,27 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "
            "(glTF 2.0 3.9.4) and feeds specular_occlusion"),
     Option("specular_occlusion", "choice", "occlusion of the split-sum specular from the ambient occlusion: none | "
-           "lagarde (Lagarde & de Rousiers 2014, listing 26)", SPECULAR_OCCLUSIONS.names),
+           "lagarde (Lagarde & de Rousiers 2014, listing 26) | gtso (Jimenez et al. 2016, cone/cone intersection)",
+           SPECULAR_OCCLUSIONS.names),
+    Option("horizon_occlusion", "choice", "fade of normal-mapped reflections below the geometric normal's horizon: "
+           "none | marmoset (Russell 2015, Jimenez et al. 2016); no normal map (the ray-cast shapes): no change",
+           HORIZON_OCCLUSIONS.names),
+    Option("specular_aa", "choice", "specular anti-aliasing / normal-map filtering, the roughness widened by the "
+           "normals' variance: none | toksvig (Toksvig 2005) | screen_space (Kaplanyan 2016, Tokuyoshi & Kaplanyan "
+           "2019, as Filament; raster only) | prefiltered (slope variance baked per normal-map mip); toksvig and "
+           "prefiltered change only normal-mapped materials", SPECULAR_AAS.names),
+    Option("msaa", "int", "raster: samples per colour-pass pixel (1: off), on top of supersample's s x s",
+           lo=1, hi=8, power_of_two=True),
+    Option("alpha_to_coverage", "bool", "raster: MASK materials write a sharpened alpha to coverage (Golus 2017) "
+           "instead of discarding below alphaCutoff; needs msaa > 1"),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
            lo=1.0, hi=16.0),
+    Option("texture_sampling", "choice", "raster: material textures other than the normal map (base colour, "
+           "metallic-roughness, emissive, occlusion): mip (trilinear through the mip chain, as engines) | lod0 "
+           "(bilinear at level 0 only, as the reference reads them; with supersampling, its filtering)",
+           TEXTURE_SAMPLINGS),
+    Option("normal_sampling", "choice", "raster: the normal map: mip (trilinear, averaged normals renormalized, as "
+           "engines) | lod0 (bilinear at level 0 only, as the reference)", TEXTURE_SAMPLINGS),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces")),
     Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
@@ -162,8 +187,14 @@ DEFAULT = {
     "supersample": 4,
     "pipeline": "auto",
     "anisotropy": 1.0,
+    "texture_sampling": "mip",
+    "normal_sampling": "mip",
     "occlusion_texture": True,
     "specular_occlusion": "none",
+    "horizon_occlusion": "none",
+    "specular_aa": "none",
+    "msaa": 1,
+    "alpha_to_coverage": False,
     "tonemap": "none",
     "exposure": 1.0,
     "shader": "",
@@ -365,6 +396,35 @@ def overrides_from_args(sets, shader: str | None = None) -> dict:
     return out
 
 
+#: The options whose values are members of a registry, by option name (``scene`` and ``fitted:FILE``
+#: values are not members): :func:`resolve_options` checks each chosen member's requirements.
+OPTION_REGISTRIES = {"shading": SHADINGS, "irradiance": IRRADIANCES, "irradiance_method": IRRADIANCE_METHODS,
+                     "lod_mapping": LOD_MAPPINGS, "dfg": DFGS, "lut_geometry": GEOMETRIES,
+                     "lut_sampling": LUT_SAMPLINGS, "runtime_sampling": RUNTIME_SAMPLINGS,
+                     "energy_compensation": ENERGY_COMPENSATIONS, "ndf": NDFS, "geometry": GEOMETRIES,
+                     "fresnel": FRESNELS, "specular_occlusion": SPECULAR_OCCLUSIONS,
+                     "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS}
+
+
+def unmet_requirements(entry: Entry, values) -> dict[str, tuple[str, ...]]:
+    """The requirements of registry member ``entry`` (:attr:`pbrcheck.registry.Entry.requires`) that
+    the options ``values`` (a dict or :class:`RealtimeOptions`) do not meet: option -> accepted values."""
+    return {k: accepted for k, accepted in entry.requires.items() if values[k] not in accepted}
+
+
+def raycast_refusal(specular_aa: str, msaa: int, alpha_to_coverage: bool) -> str | None:
+    """The one-line reason the ray-cast pipeline refuses these raster-only option values, or None:
+    ``specular_aa=screen_space`` needs screen derivatives of the normal (the compute pass runs one
+    invocation per pixel, without neighbours), ``msaa`` and ``alpha_to_coverage`` multisampling."""
+    if specular_aa == "screen_space":
+        return ("option specular_aa: screen_space needs the screen derivatives of the normal, which the ray-cast "
+                "compute pass does not have; use pipeline=raster")
+    if msaa > 1 or alpha_to_coverage:
+        return ("option msaa / alpha_to_coverage: multisampling is the raster pipeline's; the ray-cast compute "
+                "pass supersamples (use pipeline=raster, or supersample)")
+    return None
+
+
 def resolve_options(preset: str = "default", overrides: dict | None = None) -> RealtimeOptions:
     """The complete options of ``preset`` with ``overrides`` applied and validated.
 
@@ -387,23 +447,26 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
         raise OptionError(f"option lod_mapping: {what} was fitted for a "
                           f"{fm.cube_size}^2 cube with {fm.mip_count} mips; this render has cube_size "
                           f"{d['cube_size']} and prefilter_levels {d['prefilter_levels']}")
-    # Which compositions have which specular IBL (realtime/shaders/shading.glsl): article 001 is
-    # runtime sampling only, articles 000 and 002 are split sum only, the material model has both.
-    ibl_of = {"article001": ("runtime",), "article000": ("splitsum",), "article002": ("splitsum",)}
-    if d["ibl"] not in ibl_of.get(d["shading"], ("splitsum", "runtime")):
-        raise OptionError(f"option ibl: shading={d['shading']} has no ibl={d['ibl']} "
-                          f"(it needs ibl={ibl_of[d['shading']][0]})")
-    if d["shader"] and d["shading"] != "material":
-        raise OptionError(f"option shader: hooks replace pieces of shading=material; this preset has "
+    # What each chosen registry member requires of the other options (Entry.requires: a composition
+    # its specular IBL, an energy compensation the material composition's split sum).
+    for name, reg in OPTION_REGISTRIES.items():
+        if d[name] in reg and unmet_requirements(entry := reg[d[name]], d):
+            needs = " and ".join(k + "=" + "|".join(v) for k, v in entry.requires.items())
+            raise OptionError(f"option {name}: {d[name]} needs {needs}, found "
+                              f"{', '.join(f'{k}={d[k]}' for k in entry.requires)}")
+    if d["shader"] and not SHADINGS[d["shading"]].extra.get("hooks"):
+        hooked = "|".join(e.name for e in SHADINGS if e.extra.get("hooks"))
+        raise OptionError(f"option shader: hooks replace pieces of shading={hooked}; this preset has "
                           f"shading={d['shading']}")
     if d["irradiance_source_size"] > d["cube_size"]:
         raise OptionError(f"option irradiance_source_size: at most cube_size ({d['cube_size']}), "
                           f"found {d['irradiance_source_size']}")
-    # Energy compensation (energy.glsl) scales the split sum of the material composition: it needs
-    # the DFG terms, which runtime sampling and the article compositions do not have.
-    if d["energy_compensation"] not in ("none", "scene") and (d["shading"] != "material" or d["ibl"] != "splitsum"):
-        raise OptionError(f"option energy_compensation: {d['energy_compensation']} needs shading=material and "
-                          f"ibl=splitsum, found shading={d['shading']}, ibl={d['ibl']}")
     if d["pipeline"] == "raster" and d["shadows"]:
         raise OptionError("option shadows: the raster pipeline has no shadow rays (use pipeline=raycast)")
+    # The ray-cast compute pass has no screen-space derivatives and no multisampling
+    # (realtime.render refuses the same where auto resolves to it).
+    if d["pipeline"] == "raycast" and raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]):
+        raise OptionError(raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]))
+    if d["alpha_to_coverage"] and d["msaa"] < 2:
+        raise OptionError("option alpha_to_coverage: needs msaa >= 2 (one sample has no coverage to dither)")
     return RealtimeOptions(**d)

@@ -31,12 +31,27 @@ Conventions (the same at both ends as :mod:`realtime.render`)
   back to front by the distance of each primitive's bounding-box centre, depth test without depth
   writes, ``src alpha, 1 - src alpha``).
 * Point, spot and directional lights: unshadowed (``shadows`` is refused with this pipeline).
+* Specular anti-aliasing (``specular_aa``, ``shaders/specular_aa.glsl``): ``prefiltered`` reads a
+  companion R32F texture per normal map, :func:`normal_variance_texture`, whose level k holds the
+  slope variance of the level-0 normals under each texel of the normal map's level k
+  (:func:`pbrcheck.specular_aa.slope_variance_mips`), sampled trilinearly with the normal map's
+  coordinates; ``toksvig`` reads the mip-filtered normal's length; ``screen_space`` the geometric
+  normal's ``dFdx``/``dFdy`` in the colour pass (at its s W x s H resolution).
+* MSAA (``msaa``): the colour pass renders into ``msaa``-sample colour and depth renderbuffers (one
+  shading per fragment, coverage and depth per sample) resolved by ``glBlitFramebuffer`` (the
+  average of the samples) before the s x s box filter: on top of supersampling, so ``supersample = 1,
+  msaa = 4`` is MSAA alone and ``supersample = 2, msaa = 4`` 16 coverage samples per pixel, 4 shaded.
+  ``msaa`` above the context's ``GL_MAX_SAMPLES`` raises :class:`pbrcheck.errors.BackendError`
+  (llvmpipe: 4). The AOV pass stays single-sampled at the pixel centres.
+* Alpha-to-coverage (``alpha_to_coverage``, needs ``msaa > 1``): MASK primitives are drawn with
+  ``GL_SAMPLE_ALPHA_TO_COVERAGE`` and ``GL_SAMPLE_ALPHA_TO_ONE``, writing the sharpened alpha
+  (``shaders/coverage.glsl``) instead of discarding below ``alphaCutoff``.
 
 API
 ---
 :func:`draw_items` (the scene's primitives as vertex arrays and materials), :func:`raster_frame`
 (one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
-:data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`.
+:data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`.
 
 References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
 specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
@@ -45,13 +60,16 @@ specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from pbrcheck.camera import camera_frame, tan_half_fov
+from pbrcheck.errors import BackendError
 from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
 from pbrcheck.scene import Plane, Scene, plane_frame
+from pbrcheck.specular_aa import slope_variance_mips
 
 from .gl import ShaderCompileError, assemble, get_context, map_errors
 
@@ -67,6 +85,11 @@ TEXTURE_SLOTS = (("baseColor", True), ("metallicRoughness", False), ("normal", F
 #: First texture unit of the material textures (units 0-5 are the shading module's).
 MATERIAL_UNIT0 = 6
 TEXTURE_SLOTS_N = 4
+#: Texture unit of the normal map's slope-variance companion (after the occlusion texture's).
+NORMAL_VAR_UNIT = MATERIAL_UNIT0 + TEXTURE_SLOTS_N + 1
+#: GL enums moderngl has no flag for (OpenGL 4.5 core, 14.9.3 multisample fragment operations).
+GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
+GL_SAMPLE_ALPHA_TO_ONE = 0x809F
 ALPHA_CODES = {"OPAQUE": 0, "MASK": 1, "BLEND": 2}
 
 _programs: dict = {}
@@ -198,17 +221,31 @@ def draw_items(scene: Scene) -> list[DrawItem]:
     return out
 
 
-def _texture(image, ref, srgb: bool, anisotropy: float):
-    """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap)."""
+def _texture(image, ref, srgb: bool, anisotropy: float, times: dict | None = None):
+    """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap).
+    ``times``: adds the seconds of the upload (decode to linear half floats, the level-0 upload) to
+    ``texture_upload`` and of the mip generation to ``texture_mips`` (each up to ``ctx.finish()``)."""
     key = (id(image), srgb, ref.wrap, anisotropy)
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]
     ctx = get_context()
+    t0 = time.perf_counter()
     px = image.linear(srgb).astype(np.float16)
     h, w = px.shape[:2]
     tex = ctx.texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
+    ctx.finish()
+    t1 = time.perf_counter()
     tex.build_mipmaps()
+    ctx.finish()
+    if times is not None:
+        times["texture_upload"] = times.get("texture_upload", 0.0) + t1 - t0
+        times["texture_mips"] = times.get("texture_mips", 0.0) + time.perf_counter() - t1
+    return _sampled(key, image, tex, ref, anisotropy)
+
+
+def _sampled(key, image, tex, ref, anisotropy: float):
+    """Set ``tex``'s trilinear filtering, the wrap of ``ref`` and ``anisotropy``; cache it under ``key``."""
     tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR (trilinear)
     tex.repeat_x = ref.wrap[0] != WRAP_CLAMP
     tex.repeat_y = ref.wrap[1] != WRAP_CLAMP
@@ -216,6 +253,23 @@ def _texture(image, ref, srgb: bool, anisotropy: float):
         tex.anisotropy = float(anisotropy)
     _textures[key] = (image, tex)
     return tex
+
+
+def normal_variance_texture(image, ref, anisotropy: float):
+    """The ``prefiltered`` companion of normal map ``image``: an R32F texture with the normal map's
+    mip sizes, level k = :func:`pbrcheck.specular_aa.slope_variance_mips`'s level k, the same wrap
+    and filtering (cached per image, wrap and anisotropy)."""
+    key = ("normal_var", id(image), ref.wrap, anisotropy)
+    hit = _textures.get(key)
+    if hit is not None and hit[0] is image:
+        return hit[1]
+    h, w = image.pixels.shape[:2]
+    mips = slope_variance_mips(image.linear(False), max(w, h).bit_length())
+    tex = get_context().texture((w, h), 1, np.ascontiguousarray(mips[0]).tobytes(), dtype="f4")
+    tex.build_mipmaps()   # allocates every level; each is overwritten with its own variance below
+    for k, m in enumerate(mips[1:], start=1):
+        tex.write(np.ascontiguousarray(m).tobytes(), level=k)
+    return _sampled(key, image, tex, ref, anisotropy)
 
 
 def _white():
@@ -267,7 +321,7 @@ def _slot_state(ref) -> tuple[int, int, np.ndarray]:
     return int(ref.texcoord), mirror, xf
 
 
-def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True):
+def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True, normal_variance: bool = False):
     _set(prog, "base_factor", tuple(float(x) for x in it.base_color))
     _set(prog, "metallic_factor", float(it.metallic))
     _set(prog, "roughness_factor", float(it.roughness))
@@ -306,6 +360,9 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True)
         _set(prog, "ao_xf", tuple(float(v) for v in x.T.reshape(-1)))
         _set(prog, "ao_strength", float(ref.scale))
     _set(prog, "tex_occlusion", unit)
+    nm = it.textures.get("normal") if normal_variance else None
+    (normal_variance_texture(nm[0], nm[1], anisotropy) if nm is not None else _white()).use(NORMAL_VAR_UNIT)
+    _set(prog, "tex_normal_var", NORMAL_VAR_UNIT)
     _set(prog, "tex_has", tuple(has))
     _set(prog, "tex_set", tuple(sets))
     _set(prog, "tex_mirror", tuple(mirror))
@@ -326,13 +383,20 @@ def _vaos(prog, items: list[DrawItem]):
 
 
 def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
-                 anisotropy: float = 1.0, occlusion: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 anisotropy: float = 1.0, occlusion: bool = True, *, msaa: int = 1,
+                 alpha_to_coverage: bool = False, normal_variance: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Draw one frame: ``(color (H, W, 4) = radiance, coverage; aov (H, W, 4) = N, NdotV; object (H, W))``.
 
     ``color_prog`` has the shading inputs bound by the caller; the background program its
-    environment. The colour pass runs at (ss W, ss H) and is box-filtered to (W, H)."""
+    environment. The colour pass runs at (ss W, ss H), with ``msaa`` samples per fragment (resolved),
+    and is box-filtered to (W, H); ``alpha_to_coverage`` draws MASK primitives with
+    GL_SAMPLE_ALPHA_TO_COVERAGE; ``normal_variance`` binds each normal map's slope-variance companion."""
     import moderngl
     ctx = get_context()
+    if msaa > 1 and msaa > ctx.max_samples:
+        raise BackendError(f"option msaa: {msaa} samples asked, this GL ({ctx.info['GL_RENDERER']}) has at most "
+                           f"{ctx.max_samples} (GL_MAX_SAMPLES)")
     W, H = scene.camera.width, scene.camera.height
     r, u, f = camera_frame(scene.camera)
     origin = np.asarray(scene.camera.origin, float)
@@ -345,9 +409,17 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
         # colour pass
         sw, sh = W * ss, H * ss
         col = ctx.texture((sw, sh), 4, dtype="f4")
-        depth = ctx.depth_renderbuffer((sw, sh))
-        fbo = ctx.framebuffer(color_attachments=[col], depth_attachment=depth)
-        released += [fbo, col, depth]
+        resolved = None
+        if msaa > 1:  # multisampled colour and depth, resolved into col after the draws
+            col_ms = ctx.renderbuffer((sw, sh), 4, samples=msaa, dtype="f4")
+            depth = ctx.depth_renderbuffer((sw, sh), samples=msaa)
+            fbo = ctx.framebuffer(color_attachments=[col_ms], depth_attachment=depth)
+            resolved = ctx.framebuffer(color_attachments=[col])
+            released += [fbo, resolved, col, col_ms, depth]
+        else:
+            depth = ctx.depth_renderbuffer((sw, sh))
+            fbo = ctx.framebuffer(color_attachments=[col], depth_attachment=depth)
+            released += [fbo, col, depth]
         fbo.use()
         fbo.viewport = (0, 0, sw, sh)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -374,11 +446,20 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
                 ctx.enable(moderngl.CULL_FACE)
             else:
                 ctx.disable(moderngl.CULL_FACE)
-            _set_material(color_prog, it, anisotropy, occlusion)
+            _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
+            a2c = alpha_to_coverage and it.alpha_mode == "MASK"
+            if a2c:
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
             vao.render(moderngl.TRIANGLES)
+            if a2c:
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
         fbo.depth_mask = True
         ctx.disable(moderngl.BLEND)
-        color = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]
+        if resolved is not None:
+            ctx.copy_framebuffer(resolved, fbo)
+        color = np.frombuffer((resolved or fbo).read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]
         color = color.reshape(H, ss, W, ss, 4).mean(axis=(1, 3))
         # AOV pass at the pixel centres
         aov_t = ctx.texture((W, H), 4, dtype="f4")

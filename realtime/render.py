@@ -55,6 +55,7 @@ from pbrcheck.registry import (
     ENERGY_COMPENSATIONS,
     FRESNELS,
     GEOMETRIES,
+    HORIZON_OCCLUSIONS,
     IRRADIANCE_METHODS,
     IRRADIANCES,
     LOD_MAPPINGS,
@@ -62,6 +63,7 @@ from pbrcheck.registry import (
     NDFS,
     RUNTIME_SAMPLINGS,
     SHADINGS,
+    SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
     lut_sampling_for,
 )
@@ -69,7 +71,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import RealtimeOptions, resolve_options
+from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -222,7 +224,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
 def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
     src_lod = math.log2(o.cube_size / o.irradiance_source_size)
-    method = 0 if o.irradiance_method == "texel_sum" else 1
+    method = IRRADIANCE_METHODS.names.index(o.irradiance_method)  # its GLSL constant; 0: texel_sum, no step
     key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
            o.irradiance_step if method else None)
     ctx = get_context()
@@ -426,9 +428,9 @@ def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
     v = o.energy_compensation
     if v != "scene":
         return v
-    if o.shading != "material" or o.ibl != "splitsum":
-        return "none"  # only the material composition's split sum has the DFG terms it scales
-    return SCENE_COMPENSATION[scene.brdf.multiscatter]
+    v = SCENE_COMPENSATION[scene.brdf.multiscatter]
+    # none where the options do not meet its requirements (the material composition's split sum)
+    return "none" if unmet_requirements(ENERGY_COMPENSATIONS[v], o) else v
 
 
 def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
@@ -446,9 +448,11 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **LOD_MAPPINGS.select("fitted" if fm is not None else o.lod_mapping), "SHADOWS": int(o.shadows),
         **RUNTIME_SAMPLINGS.select(o.runtime_sampling),
         **ENERGY_COMPENSATIONS.select(terms["energy_compensation"]),
-        **SPECULAR_OCCLUSIONS.select(o.specular_occlusion),
+        **SPECULAR_OCCLUSIONS.select(o.specular_occlusion), **HORIZON_OCCLUSIONS.select(o.horizon_occlusion),
+        **SPECULAR_AAS.select(o.specular_aa),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
+        "TEXTURE_LOD0": int(o.texture_sampling == "lod0"), "NORMAL_LOD0": int(o.normal_sampling == "lod0"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
@@ -558,6 +562,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     """
     o = resolve_options(preset, options)
     pipeline = resolved_pipeline(scene, o)
+    check_pipeline_options(pipeline, o)
     ctx = get_context()
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
@@ -651,13 +656,25 @@ def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
     return o.pipeline
 
 
+def check_pipeline_options(pipeline: str, o: RealtimeOptions) -> None:
+    """Raise :class:`~realtime.presets.OptionError` for the raster-only options on a render that
+    ``auto`` resolved to the ray-cast pipeline (``resolve_options`` refuses them with an explicit
+    ``pipeline=raycast``)."""
+    if pipeline != "raycast":
+        return
+    why = raycast_refusal(o.specular_aa, o.msaa, o.alpha_to_coverage)
+    if why:
+        raise OptionError(why)
+
+
 def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dict, hooks, timings: dict):
     """One frame of the raster pipeline (:mod:`realtime.raster`): (color, aov, object) arrays."""
     from . import raster
     ctx = get_context()
     user = (hooks.path, hooks.text) if hooks else None
     t0 = time.perf_counter()
-    prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 0}, user)
+    prog = raster.graphics_program("raster.vert", "raster.frag",
+                                   {**defines, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)}, user)
     aov_prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 1}, user)
     bg_prog = raster.graphics_program("fullscreen.vert", "raster_background.frag")
     timings["compile_frame"] = time.perf_counter() - t0
@@ -667,15 +684,20 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     _bind_env(bg_prog, env_texture(env), env, 0)
     try:
-        t0 = time.perf_counter()
-        for it in items:  # upload the material textures (and their mips) before the timed frame
+        # upload the material textures and generate their mips before the timed frame, each timed
+        timings.update(texture_upload=0.0, texture_mips=0.0)
+        for it in items:
             for image, ref, srgb in it.textures.values():
-                raster._texture(image, ref, srgb, o.anisotropy)
-        ctx.finish()
-        timings["textures"] = time.perf_counter() - t0
+                raster._texture(image, ref, srgb, o.anisotropy, timings)
+            if o.specular_aa == "prefiltered" and "normal" in it.textures:  # and its slope-variance mips
+                t0 = time.perf_counter()
+                raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
+                ctx.finish()
+                timings["texture_mips"] += time.perf_counter() - t0
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
-                                      o.occlusion_texture))
+                                             o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
+                                             normal_variance=o.specular_aa == "prefiltered"))
     finally:
         lbuf.release()
     return color, aov, obj

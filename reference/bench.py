@@ -29,8 +29,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
 * ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
-  size, spp and environment: load and Mitsuba-scene (BVH) seconds apart, its local samples/s and
-  ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
+  size, spp, sampler and environment, rendered alternately with spheres in its own loop
+  (``ASSET_REPEATS``; both rows under the same load): load and Mitsuba-scene (BVH) seconds apart,
+  its local samples/s and ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
 * ``samplers``: the same figure for each sampler, side by side in one run (:data:`SAMPLER_CONFIGS`:
   ``independent``, ``qmc`` uniform, ``qmc`` adaptive, the default), each rendered at
   ``FLOOR_SPP`` spp (a warm-up render of a 16 x 12 crop first, which compiles the same kernels,
@@ -55,8 +56,10 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   the ``independent`` sampler (per-sample moments: the variance channels are exact in expectation,
   no replicate noise), uniform spp, ``VR_SPP`` spp (quick: ``VR_SPP_QUICK``) at the bench resolution,
   ``VR_SEEDS`` seeds: ``mis_balance`` (the balance heuristic for the env and BSDF samples instead of
-  the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`). Adopted only when the ratio is
-  clearly above 1 on both scenes (docs/reference.md records the measurements).
+  the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`) and ``env_envmap`` (Mitsuba's
+  own environment sampling, the default until version 4, against ``compensated``,
+  :mod:`reference.env_sampling`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
+  the ratio is clearly above 1 (docs/reference.md records the measurements).
 """
 
 from __future__ import annotations
@@ -81,6 +84,8 @@ FULL_COVERAGE = 0.999
 BENCH_RESOLUTION = (360, 300)   # the spheres scene's own resolution
 BENCH_SPP = 64
 RENDER_REPEATS = 3
+#: The asset row's alternating renders of the asset and spheres (reference.bench_asset).
+ASSET_REPEATS = 5
 BSDF_LANES = 1 << 21
 BSDF_REPEATS = 7
 PEER_ROUGHNESS = 0.5
@@ -113,7 +118,9 @@ HDR_TARGET_FACTOR = 8.0
 #: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
 VR_SPP, VR_SPP_QUICK = 128, 32
 VR_SEEDS = 3
-VR_CANDIDATES = (("default", {"mis": "power"}), ("mis_balance", {"mis": "balance"}))
+VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}))
+#: ``variance_reduction``'s scenes besides the real-HDR one (each at the bench resolution).
+VR_SCENES = ("spheres", "furnace", "grazing")
 
 
 def _timed_render(fn):
@@ -328,6 +335,17 @@ def _hdr_envmap(envmap: str | None) -> Path | None:
     return None
 
 
+def run_asset_bench(quick: bool = False) -> dict:
+    """The ``asset`` row alone (``pbrcheck bench reference --asset-only``), at the bench's size and spp."""
+    from .bench_asset import bench_asset
+
+    _mi()
+    W, H = (48, 40) if quick else BENCH_RESOLUTION
+    scene = load_scene("spheres").with_camera(width=W, height=H)
+    return {"variant": _mi()[0].variant(), "resolution": [W, H], "spp": 8 if quick else BENCH_SPP,
+            "asset": bench_asset(scene, 8 if quick else BENCH_SPP, 1 if quick else ASSET_REPEATS, quick=quick)}
+
+
 def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
@@ -354,7 +372,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
 
     gather = _time_gather(scene, 2 if quick else 5)
     from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
-    asset = bench_asset(scene, spp, t_local, rep, quick=quick)
+    asset = bench_asset(scene, spp, max(rep, 1 if quick else ASSET_REPEATS), quick=quick)
 
     full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
     fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP
@@ -362,7 +380,8 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
     hdr = _hdr_envmap(envmap)
     vspp = VR_SPP_QUICK if quick else VR_SPP
-    vr = {"spheres": _variance_reduction(scene, vspp, VR_SEEDS)}
+    vr = {name: _variance_reduction(scene if name == "spheres" else load_scene(name).with_camera(width=W, height=H),
+                                    vspp, VR_SEEDS) for name in VR_SCENES}
     if hdr is not None and hdr.is_file():
         hscene = replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
         samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full)

@@ -5,20 +5,24 @@ The asset is made here (a fresh clone has no shared assets): a UV sphere of :dat
 segments and half as many rings (~50k triangles, normals, tangents, UVs) with
 :data:`ASSET_TEXTURE_SIZE`-square base-colour, metallic-roughness and normal PNG textures (a
 checker, a gradient, a bumpy normal map), written to a temporary ``.glb``-free ``.gltf`` with data
-URIs. Figures: ``load_seconds`` (:func:`pbrcheck.gltf.load_asset`: parse, decode, tangents),
-``build_seconds`` (the Mitsuba scene: meshes, textures, BVH), ``msamples_per_s`` (the ``local``
-render, warm, median of repeats) and ``vs_spheres`` = its throughput over the spheres scene's
-(goal >= :data:`ASSET_THROUGHPUT_GOAL`); ``vs_spheres_per_covered_pixel`` divides each render's time
-by the fraction of pixels that see geometry (the asset covers more of the image than the spheres).
+URIs (:class:`pbrcheck.gltf_build.Doc`). Both rows, the asset and ``spheres``, are rendered in this one run, alternately (so that the
+machine's load, ``machine_load`` before and after, hits both alike), ``local``, same spp and
+sampler (:data:`BENCH_SAMPLER`), after a compile render each, median of repeats. Figures:
+``load_seconds`` (:func:`pbrcheck.gltf.load_asset`: parse, decode, tangents) and ``build_seconds``
+(the Mitsuba scene: meshes, textures, BVH), apart from the render; ``msamples_per_s`` and
+``spheres_msamples_per_s`` (render seconds: ``mi.render`` alone) and ``vs_spheres`` = their ratio
+(goal >= :data:`ASSET_THROUGHPUT_GOAL`), ``vs_spheres_cpu_seconds`` the same from the process's CPU
+seconds; ``vs_spheres_per_covered_pixel`` divides each render's time by the fraction of pixels that
+see geometry (the asset covers more of the image than the spheres); ``kernel_ops`` and
+``spheres_kernel_ops``: operations of each render's largest kernel (Dr.Jit's kernel history:
+load-independent).
 
-API: :func:`make_asset`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`.
+API: :func:`make_asset`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`, :data:`BENCH_SAMPLER`.
 """
 
 from __future__ import annotations
 
-import base64
-import io
-import json
+import os
 import statistics
 import tempfile
 import time
@@ -28,6 +32,7 @@ import numpy as np
 
 from pbrcheck.environment import load_environment
 from pbrcheck.gltf import load_asset
+from pbrcheck.gltf_build import Doc
 from pbrcheck.scene import scene_from_dict
 
 #: Segments around the bench sphere (rings: half): 2 x 224 x 112 = 50176 triangles, less the poles'.
@@ -35,18 +40,14 @@ ASSET_SEGMENTS = 224
 ASSET_TEXTURE_SIZE = 1024
 #: The asset's local samples/s over the spheres scene's (the issue's goal).
 ASSET_THROUGHPUT_GOAL = 0.7
+#: Both rows' sampler: the spheres row's (``local_msamples_per_s``).
+BENCH_SAMPLER = "independent"
 
 
-def _png(pixels: np.ndarray) -> str:
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(pixels).save(buf, format="PNG")
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
-
-
-def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE) -> Path:
-    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it."""
+def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE,
+               normal_map: np.ndarray | None = None) -> Path:
+    """Write the bench asset (module docstring) to ``path`` (.gltf); returns it. ``normal_map``
+    (uint8 (h, w, 3), tangent space): replaces the bumpy normal map (tools/approximation_errors.py)."""
     rings = segments // 2
     th = np.linspace(0, np.pi, rings + 1)
     ph = np.linspace(0, 2 * np.pi, segments + 1)
@@ -67,47 +68,37 @@ def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXT
     bump = np.sin(x * 2 * np.pi * 32) * 0.4
     n = np.stack([bump, np.zeros_like(bump), np.ones_like(bump)], -1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8)
-    blob = bytearray()
-    views, accs = [], []
-
-    def add(arr, ct, typ, minmax=False):
-        while len(blob) % 4:
-            blob.append(0)
-        raw = np.ascontiguousarray(arr).tobytes()
-        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(raw)})
-        blob.extend(raw)
-        a = {"bufferView": len(views) - 1, "componentType": ct, "count": int(arr.shape[0]), "type": typ}
-        if minmax:
-            a["min"], a["max"] = arr.min(0).tolist(), arr.max(0).tolist()
-        accs.append(a)
-        return len(accs) - 1
-
-    attrs = {"POSITION": add(pos.astype(np.float32), 5126, "VEC3", True),
-             "NORMAL": add(pos.astype(np.float32), 5126, "VEC3"),
-             "TANGENT": add(tan.astype(np.float32), 5126, "VEC4"),
-             "TEXCOORD_0": add(uv.astype(np.float32), 5126, "VEC2")}
-    ind = add(idx.reshape(-1), 5125, "SCALAR")
-    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
-           "nodes": [{"name": "bench", "mesh": 0}],
-           "meshes": [{"name": "sphere", "primitives": [{"attributes": attrs, "indices": ind, "material": 0}]}],
-           "materials": [{"name": "textured", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
-                                                                      "metallicRoughnessTexture": {"index": 1}},
-                          "normalTexture": {"index": 2}}],
-           "textures": [{"source": i} for i in range(3)],
-           "images": [{"uri": _png(p)} for p in (bc, mr, nm)],
-           "accessors": accs, "bufferViews": views,
-           "buffers": [{"byteLength": len(blob),
-                        "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()}]}
-    path.write_text(json.dumps(doc))
-    return path
+    nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8) if normal_map is None else normal_map
+    doc = Doc()
+    textures = [doc.image(px) for px in (bc, mr, nm)]
+    attrs = {"POSITION": doc.accessor(pos.astype(np.float32), "VEC3", minmax=True),
+             "NORMAL": doc.accessor(pos.astype(np.float32), "VEC3"),
+             "TANGENT": doc.accessor(tan.astype(np.float32), "VEC4"),
+             "TEXCOORD_0": doc.accessor(uv.astype(np.float32), "VEC2")}
+    doc.d["materials"] = [{"name": "textured", "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": textures[0]}, "metallicRoughnessTexture": {"index": textures[1]}},
+        "normalTexture": {"index": textures[2]}}]
+    m = doc.mesh(attrs, doc.accessor(idx.reshape(-1), "SCALAR"), 0)
+    doc.d["meshes"][m]["name"] = "sphere"
+    doc.node(m, name="bench")
+    return doc.write(path)
 
 
-def bench_asset(spheres_scene, spp: int, spheres_seconds: float, repeats: int, quick: bool = False) -> dict:
-    """The asset row (module docstring); ``spheres_seconds``: the spheres scene's warm local render."""
+def _largest_kernel_ops(dr, fn) -> int | None:
+    """Operations of the largest kernel ``fn`` launches (Dr.Jit's kernel history; load-independent)."""
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+        dr.kernel_history()
+        fn()
+        ops = [h.get("operation_count") or 0 for h in dr.kernel_history()]
+    return max(ops) if ops else None
+
+
+def bench_asset(spheres_scene, spp: int, repeats: int, quick: bool = False) -> dict:
+    """The asset row (module docstring): the asset and ``spheres_scene`` rendered alternately in one
+    run (same load, same sampler, same spp)."""
     from .render import _mi, load_mitsuba_scene, render_uncached
 
-    _mi()
+    mi, dr = _mi()
     with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-asset-") as tmp:
         path = make_asset(Path(tmp) / "bench.gltf", segments=64 if quick else ASSET_SEGMENTS,
                           tex=128 if quick else ASSET_TEXTURE_SIZE)
@@ -126,24 +117,48 @@ def bench_asset(spheres_scene, spp: int, spheres_seconds: float, repeats: int, q
         t0 = time.perf_counter()
         mscene = load_mitsuba_scene(scene, envmap)
         build_s = time.perf_counter() - t0
-        render_uncached(scene, spp=spp, progress=False, env=envmap, mscene=mscene)  # compiles
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            render_uncached(scene, spp=spp, progress=False, env=envmap, mscene=mscene)
-            times.append(time.perf_counter() - t0)
-        t = statistics.median(times)
+        senv = load_environment(spheres_scene)
+        smscene = load_mitsuba_scene(spheres_scene, senv)
+        rows = {"asset": (scene, envmap, mscene), "spheres": (spheres_scene, senv, smscene)}
+
+        def render(name, seed):
+            sc, e, ms = rows[name]
+            return render_uncached(sc, spp=spp, progress=False, env=e, mscene=ms, seed=seed, sampler=BENCH_SAMPLER)
+
+        ops = {name: _largest_kernel_ops(dr, lambda: render(name, 0)) for name in rows}  # compiles
+        runs = {name: [] for name in rows}
+        load0 = _load()
+        for k in range(repeats):
+            for name in rows:  # alternating: other processes' load hits both alike
+                img = render(name, k + 1)
+                runs[name].append((float(img.meta["render_seconds"]), float(img.meta["render_cpu_seconds"]),
+                                   float((img.channels["coverage"] > 0).mean())))
+        load1 = _load()
+    med = {name: [statistics.median(r[i] for r in runs[name]) for i in range(3)] for name in rows}
+    (t_a, c_a, cov_a), (t_s, c_s, cov_s) = med["asset"], med["spheres"]
     samples = cam.width * cam.height * spp
-    img = render_uncached(scene, spp=2, progress=False, env=envmap, mscene=mscene)
-    cov_asset = float((img.channels["coverage"] > 0).mean())
-    img = render_uncached(spheres_scene, spp=2, progress=False)
-    cov_spheres = float((img.channels["coverage"] > 0).mean())
-    return {"coverage": cov_asset, "spheres_coverage": cov_spheres,
-            "vs_spheres_per_covered_pixel": (spheres_seconds / cov_spheres) / (t / cov_asset),"triangles": asset.triangles, "texture_size": 128 if quick else ASSET_TEXTURE_SIZE,
-            "load_seconds": load_s, "build_seconds": build_s, "render_seconds": t,
-            "msamples_per_s": samples / t / 1e6, "spheres_msamples_per_s": samples / spheres_seconds / 1e6,
-            "vs_spheres": spheres_seconds / t, "vs_spheres_goal": ASSET_THROUGHPUT_GOAL,
-            "goal_met": spheres_seconds / t >= ASSET_THROUGHPUT_GOAL,
-            "note": "same camera fov, size, environment and spp as spheres; the sphere asset fills the "
-                    "image's centre (its frame: 3.2 units away); render_uncached includes the AOV pass, "
-                    "as the spheres figure does"}
+    return {"triangles": asset.triangles, "texture_size": 128 if quick else ASSET_TEXTURE_SIZE,
+            "load_seconds": load_s, "build_seconds": build_s,
+            "render_seconds": t_a, "render_cpu_seconds": c_a,
+            "spheres_render_seconds": t_s, "spheres_render_cpu_seconds": c_s,
+            "msamples_per_s": samples / t_a / 1e6, "spheres_msamples_per_s": samples / t_s / 1e6,
+            "vs_spheres": t_s / t_a, "vs_spheres_cpu_seconds": c_s / c_a,
+            "vs_spheres_goal": ASSET_THROUGHPUT_GOAL, "goal_met": t_s / t_a >= ASSET_THROUGHPUT_GOAL,
+            "coverage": cov_a, "spheres_coverage": cov_s,
+            "vs_spheres_per_covered_pixel": (t_s / cov_s) / (t_a / cov_a),
+            "kernel_ops": ops["asset"], "spheres_kernel_ops": ops["spheres"],
+            "machine_load": [load0, load1], "repeats": repeats, "sampler": BENCH_SAMPLER,
+            "timed": "both rows rendered alternately in this run after a compile render each, median of "
+                     "repeats; render seconds: mi.render alone (no scene load, no AOV pass); CPU seconds: "
+                     "this process's threads over the render",
+            "note": "same camera fov, size, environment, spp and sampler as spheres; the sphere asset fills "
+                    "the image's centre (its frame: 3.2 units away); load_seconds (parse, decode, tangents) "
+                    "and build_seconds (Mitsuba scene: meshes, textures, BVH) are apart from the render"}
+
+
+def _load() -> float | None:
+    """The machine's 1-minute load average (None where the platform has none)."""
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        return None

@@ -44,6 +44,10 @@ Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``spe
 :data:`MATERIAL_PARAMS`) are exposed by ``traverse`` (:func:`traverse_material`, shared with
 ``pbr_textured``); ``parameters_changed`` makes them opaque (:func:`make_material_opaque`) so a new
 value does not rebuild the kernel.
+
+Calling a scene's BSDFs per lane: :class:`MaterialView` (every ``pbr_material`` gathered, the lobes
+traced once) and :class:`SceneCalls` (any BSDFs or area emitters, ``dr.switch`` over the scene's own
+instead of Mitsuba's process-wide pointer call).
 """
 
 from __future__ import annotations
@@ -541,6 +545,78 @@ class MaterialView(PBRLobes):
 
         return cls(model, column(mi.Color3f, "base_color"), column(mi.Float, "metallic"),
                    column(mi.Float, "roughness"), column(mi.Float, "specular"))
+
+
+
+class SceneCalls:
+    """The BSDFs (or area emitters) of one scene's shapes, each lane's called through ``dr.switch``
+    over the scene's own.
+
+    A call through Mitsuba's ``BSDFPtr`` / ``EmitterPtr`` (``si.bsdf(ray).eval(...)``) is a Dr.Jit
+    virtual call that traces the method of every live instance of the variant's registry, not only
+    the scene's: with ``spheres`` loaded in the same process (30 materials, as in the bench) a
+    one-material glTF asset's local kernel grew from 3.2k to 17.7k operations (docs/reference.md).
+    This dispatcher indexes the scene's distinct objects by shape (a lookup table from the shape's
+    registry id; shapes without one, e.g. no emitter, are outside every call) and calls each lane's
+    with ``dr.switch``, which traces each of them once; lanes outside ``active`` are not passed and
+    return zeros, as through the pointer. One object: no call at all, and an object with ``bind(si,
+    active)`` (:class:`reference.textured.TexturedMaterial`: its textures read once per interaction)
+    is bound to ``si``. The same functions on the same arguments: the values are the virtual
+    call's (tested bit-identical). Methods: those of the objects called (``eval``, ``pdf``,
+    ``eval_pdf``, ``sample``, ``eval_null_transmission``)."""
+
+    def __init__(self, table, si, active):
+        lut, self.objects = table
+        index = dr.gather(mi.UInt32, lut, dr.reinterpret_array(mi.UInt32, si.shape), mi.Bool(active))
+        self.active = mi.Bool(active) & (index > 0)   # 0: the shape has none
+        self.index = index - 1
+        self.one = None
+        if len(self.objects) == 1:  # no call: the object itself, bound to si where it can be
+            o = self.objects[0]
+            self.one = o.bind(si, self.active) if hasattr(o, "bind") else o
+
+    @staticmethod
+    def table(scene, kind: str = "bsdf"):
+        """``(shape registry id -> 1 + index lookup, the scene's distinct objects)`` of ``kind``
+        (``"bsdf"`` or ``"emitter"``: the shape's method of that name)."""
+        objects, index = [], []
+        for s in scene.shapes():
+            o = getattr(s, kind)()
+            k = -1 if o is None else next((i for i, x in enumerate(objects) if x is o), None)
+            if k is None:
+                k = len(objects)
+                objects.append(o)
+            index.append(k + 1)
+        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
+        lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
+        dr.scatter(lut, mi.UInt32(index), ids)
+        dr.eval(lut)
+        return lut, objects
+
+    def _call(self, name, args):
+        *args, mask = args  # the mask: always the last argument
+        mask = self.active & mask
+        if self.one is not None:  # lanes outside the mask: zeros, as dr.switch returns them
+            out = getattr(self.one, name)(*args, mask)
+            zero = (lambda x: dr.select(mask, x, dr.zeros(type(x))))
+            return tuple(zero(x) for x in out) if isinstance(out, tuple) else zero(out)
+        return dr.switch(self.index, [getattr(o, name) for o in self.objects], *args, mask)
+
+    def eval(self, *args):
+        """BSDF ``eval(ctx, si, wo, active)`` or emitter ``eval(si, active)``."""
+        return self._call("eval", args)
+
+    def pdf(self, ctx, si, wo, active):
+        return self._call("pdf", (ctx, si, wo, active))
+
+    def eval_pdf(self, ctx, si, wo, active):
+        return self._call("eval_pdf", (ctx, si, wo, active))
+
+    def sample(self, ctx, si, sample1, sample2, active):
+        return self._call("sample", (ctx, si, sample1, sample2, active))
+
+    def eval_null_transmission(self, si, active):
+        return self._call("eval_null_transmission", (si, active))
 
 
 _REGISTERED: set[str] = set()

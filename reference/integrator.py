@@ -4,8 +4,9 @@
 "gather_materials": bool}``; a
 subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, params, ...)`` differentiates it.
 
-* ``mode = "local"``: the first hit only. One environment sample (Mitsuba's envmap importance
-  sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
+* ``mode = "local"``: the first hit only. One environment sample (``env_sampling``, default
+  ``"compensated"``: MIS compensation, :mod:`reference.env_sampling`; ``"envmap"``: Mitsuba's envmap
+  importance sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
   lobe takes weight 1), **no visibility tests**; every delta emitter (point, spot, directional light:
   :mod:`reference.lights`) is added exactly through its deterministic ``sample_direction`` (``f cos
   I / d^2``, ``f cos E``), without a shadow ray.
@@ -13,6 +14,12 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
   With ``gather_materials`` (the default) the BSDF of each lane is a :class:`reference.bsdf.MaterialView`:
   every ``pbr_material``'s parameters gathered by the shape hit, the lobes traced once instead of once
   per material (Mitsuba's virtual call); the same maths and samples as the per-instance dispatch.
+  Other scenes (glTF assets' ``pbr_textured``, or ``gather_materials`` off) call the BSDFs, and the
+  area emitters, through :class:`reference.bsdf.SceneCalls`: a dispatch over the scene's own objects
+  (Mitsuba's pointer call traces every live instance of the process), a single textured material
+  bound once per hit. Camera rays are traced ``coherent`` (Embree's packet traversal; pixel-major
+  lanes) with :data:`LOCAL_RAY_FLAGS`; glTF single-sided back faces are culled
+  (:func:`past_back_faces`), MASK / BLEND surfaces passed stochastically (``_first_opaque_hit``).
 * ``mode = "path"``: Mitsuba's ``path`` integrator (``max_depth``) with the same BSDF and emitters,
   its ``sample`` called on the same camera rays (primal only).
 
@@ -46,7 +53,8 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
-:func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :data:`SAMPLERS`,
+:func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :func:`culling_table`,
+:func:`past_back_faces`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
 :data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`,
 :data:`GEOMETRIC_ROUGHNESS`, :func:`threejs_geometric_roughness` (``[brdf] geometric_roughness``: the
 local estimator adds it to each lane's roughness at the first hit, from the camera ray's
@@ -73,7 +81,8 @@ import mitsuba as mi
 # Needs a variant set (reference.variant.ensure_variant imports this module after setting it).
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
-from .bsdf import MaterialView
+from .bsdf import MaterialView, SceneCalls
+from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -270,6 +279,52 @@ def threejs_geometric_roughness(si, ray, supersample: int, to_view):
 GEOMETRIC_ROUGHNESS = {"threejs": threejs_geometric_roughness}
 
 
+#: What the estimators' ray_intersect computes: Mitsuba's RayFlags.All less the normals' UV
+#: derivatives (dNSdUV, dNGdUV), which nothing here reads (the shading frame, spawned rays and the
+#: BSDFs use p, n, uv, dp_du/dp_dv and sh_frame); a mesh's interaction skips their gathers and solve.
+LOCAL_RAY_FLAGS = int(mi.RayFlags.Minimal | mi.RayFlags.UV | mi.RayFlags.dPdUV | mi.RayFlags.ShadingFrame)
+#: Most culled back faces (glTF single-sided) a ray passes before it stops at the last one.
+MAX_CULLED_LAYERS = 16
+
+
+def culling_table(scene):
+    """Lookup shape registry id -> 1 where the shape's BSDF culls back faces
+    (:func:`reference.textured.culls_back_faces`), or None where no shape does."""
+    from .textured import culls_back_faces
+
+    flags = [int(culls_back_faces(s.bsdf())) for s in scene.shapes()]
+    if not any(flags):
+        return None
+    ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
+    lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
+    dr.scatter(lut, mi.UInt32(flags), ids)
+    dr.eval(lut)
+    return lut
+
+
+def past_back_faces(scene, ray, si, hit, lut):
+    """(si, hit) of the first surface along ``ray`` that is not a culled back face (glTF
+    ``doubleSided`` false, :func:`culling_table` ``lut``; None: ``si`` as it is): a symbolic loop
+    (each lane traces on only while it stands on such a face, at most :data:`MAX_CULLED_LAYERS`
+    times; no random numbers)."""
+    if lut is None:
+        return si, hit
+    from .textured import back_face
+
+    def culled(si, hit):
+        return hit & (dr.gather(mi.UInt32, lut, dr.reinterpret_array(mi.UInt32, si.shape), hit) > 0) & back_face(si)
+
+    def body(ray, si, hit, i):
+        go = culled(si, hit)
+        ray = dr.select(go, si.spawn_ray(ray.d), ray)
+        si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), go)
+        return ray, dr.select(go, si2, si), dr.select(go, si2.is_valid(), hit), i + 1
+
+    _, si, hit, _ = dr.while_loop((mi.Ray3f(ray), si, mi.Bool(hit), mi.UInt32(0)),
+                                  lambda ray, si, hit, i: culled(si, hit) & (i < MAX_CULLED_LAYERS), body)
+    return si, hit
+
+
 class ReferenceIntegrator(RBIntegrator):
     """The ``local`` and ``path`` estimators with per-pixel moments (see the module docstring)."""
 
@@ -282,12 +337,19 @@ class ReferenceIntegrator(RBIntegrator):
         self.mis = str(props.get("mis", DEFAULT_MIS))
         if self.mis not in MIS_HEURISTICS:
             raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {self.mis!r}")
+        # the environment's proposal (reference.env_sampling): Mitsuba's envmap sampling or compensated
+        self.env_sampling = str(props.get("env_sampling", DEFAULT_ENV_SAMPLING))
+        if self.env_sampling not in ENV_SAMPLING:
+            raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, "
+                             f"not {self.env_sampling!r}")
+        self._env_proposal = None  # (the emitter, its CompensatedEnvironment)
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
+        self._switch = None  # (the scene's shapes, {kind: SceneCalls.table(scene, kind)})
         self.path = None
         self._volpath = None
         self.max_depth_value = int(props.get("max_depth", 8))
@@ -300,7 +362,7 @@ class ReferenceIntegrator(RBIntegrator):
 
     def to_string(self):
         return (f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}, "
-                f"replicates={self.replicates}, mis={self.mis}]")
+                f"replicates={self.replicates}, mis={self.mis}, env_sampling={self.env_sampling}]")
 
     # ---- estimators ------------------------------------------------------------------------------
     def _bsdf(self, scene, si, ray, hit):
@@ -316,15 +378,35 @@ class ReferenceIntegrator(RBIntegrator):
                 self._table = (tuple(shapes), MaterialView.table(scene))
             if self._table[1] is not None:
                 return MaterialView.gather(self._table[1], si, hit)
-        return si.bsdf(ray)
+        table = self._dispatch(scene)
+        # no shapes (an environment alone): every lane missed; Mitsuba's null BSDF pointers give zeros
+        return SceneCalls(table, si, hit) if table[1] else si.bsdf(ray)
+
+    def _dispatch(self, scene, kind: str = "bsdf"):
+        """:meth:`reference.bsdf.SceneCalls.table` of ``scene`` for ``kind``, kept while its shapes
+        are the same (keyed by them, as ``_table``)."""
+        shapes = scene.shapes()
+        if (self._switch is None or len(self._switch[0]) != len(shapes)
+                or any(a is not b for a, b in zip(self._switch[0], shapes))):
+            self._switch = (tuple(shapes), {})
+        if kind not in self._switch[1]:
+            self._switch[1][kind] = culling_table(scene) if kind == "cull" else SceneCalls.table(scene, kind)
+        return self._switch[1][kind]
 
     #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
     MAX_NULL_LAYERS = 8
 
     @staticmethod
     def has_null_bsdfs(scene) -> bool:
-        """Whether a shape's BSDF can be passed through (a Null component: glTF MASK / BLEND)."""
+        """Whether a shape's BSDF can be passed through (a Null component: glTF MASK / BLEND, culled
+        back faces)."""
         return any(mi.has_flag(s.bsdf().flags(), mi.BSDFFlags.Null) for s in scene.shapes())
+
+    @staticmethod
+    def has_alpha_bsdfs(scene) -> bool:
+        """Whether a shape's BSDF has a stochastic opacity (glTF MASK / BLEND)."""
+        from .textured import has_alpha
+        return any(has_alpha(s.bsdf()) for s in scene.shapes())
 
     def _first_opaque_hit(self, scene, sampler, ray, si, hit):
         """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
@@ -332,13 +414,12 @@ class ReferenceIntegrator(RBIntegrator):
         a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
         going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
         for _ in range(self.MAX_NULL_LAYERS):
-            bsdf = si.bsdf(ray)
-            t = mi.Float(bsdf.eval_null_transmission(si, going).x)
+            t = mi.Float(SceneCalls(self._dispatch(scene), si, going).eval_null_transmission(si, going).x)
             u = sampler.next_1d(going)
             through = going & (u < t)
             going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
-            si2 = scene.ray_intersect(ray, through)
+            si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
             going &= hit
@@ -358,39 +439,55 @@ class ReferenceIntegrator(RBIntegrator):
             raise ValueError(f"{INTEGRATOR_NAME}: [brdf] geometric_roughness needs the camera's ray "
                              "differentials (render through the integrator's render())")
         # the normal's derivatives (dNSdUV) only where asked: the same hit, intersected again
-        si_n = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.All | mi.RayFlags.dNSdUV, hit)
+        si_n = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.All | mi.RayFlags.dNSdUV, mi.Bool(True), hit)
         g = GEOMETRIC_ROUGHNESS[geo[0]](si_n, ray, geo[1], self._to_view)
         return bsdf.with_roughness(dr.minimum(bsdf.roughness + dr.detach(g), 1.0))
+
+    def _compensated(self, env):
+        """The ``compensated`` proposal of ``env`` (built once per emitter), or None: Mitsuba's own."""
+        if env is None or self.env_sampling != "compensated":
+            return None
+        if self._env_proposal is None or self._env_proposal[0] is not env:
+            H = int(mi.traverse(env)["data"].shape[0])
+            self._env_proposal = (env, CompensatedEnvironment(env, (H, 2 * H)))
+        return self._env_proposal[1]
 
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
         camera_ray = ray
         ray = mi.Ray3f(ray)
-        si = scene.ray_intersect(ray, active)
+        si = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), active)  # coherent: camera rays, pixel-major lanes (Embree packets)
         hit = active & si.is_valid()
-        if self.has_null_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic)
+        if self.has_alpha_bsdfs(scene):  # glTF MASK / BLEND: the first hit that is there (stochastic; culled back faces too)
             si, hit = self._first_opaque_hit(scene, sampler, ray, si, hit)
+        else:  # glTF single-sided back faces: culled (deterministic)
+            si, hit = past_back_faces(scene, ray, si, hit, self._dispatch(scene, "cull"))
         env = scene.environment()
         L = mi.Color3f(0.0)
         if env is not None:
             L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
         if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
-            L += dr.select(hit, si.emitter(scene, hit).eval(si, hit), 0.0)
+            L += dr.select(hit, SceneCalls(self._dispatch(scene, "emitter"), si, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
         mis = MIS_HEURISTICS[self.mis]
         if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque
             ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
             bsdf = self._geometric(scene, self._bsdf(scene, si, ray, hit), camera_ray, hit)
+        proposal = self._compensated(env)
         if env is not None:
             # Environment sample, MIS against the BSDF's density.
-            ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
-            ok = hit & (ds.pdf > 0)
-            wo = si.to_local(ds.d)
+            if proposal is None:
+                ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+                e_d, e_pdf = ds.d, ds.pdf
+            else:
+                e_d, e_pdf, em_w = proposal.sample(sampler.next_2d(hit), hit)
+            ok = hit & (e_pdf > 0)
+            wo = si.to_local(e_d)
             with dr.resume_grad(when=grad):
                 f, bpdf = bsdf.eval_pdf(ctx, si, wo, ok)
-                w = mis(ds.pdf, dr.detach(bpdf))
+                w = mis(e_pdf, dr.detach(bpdf))
                 L += dr.select(ok, f * em_w * w, 0.0)
             # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
             u1, u2 = sampler.next_1d(hit), sampler.next_2d(hit)
@@ -402,7 +499,8 @@ class ReferenceIntegrator(RBIntegrator):
             Le = env.eval(si_e, hit)
             ds2 = dr.zeros(mi.DirectionSample3f)
             ds2.d = wo_w
-            epdf = env.pdf_direction(si, ds2, hit & ~delta)
+            epdf = (env.pdf_direction(si, ds2, hit & ~delta) if proposal is None
+                    else proposal.pdf(wo_w, hit & ~delta))
             w = dr.select(delta, 1.0, mis(bs.pdf, epdf))
             ok = hit & (bs.pdf > 0)
             if grad:
@@ -431,7 +529,16 @@ class ReferenceIntegrator(RBIntegrator):
         """(L, hit) of this integrator's mode (primal)."""
         if self.mode == "local":
             return self.local_radiance(scene, sampler, ray, active)
-        hit = scene.ray_test(mi.Ray3f(ray), active)
+        cull = self._dispatch(scene, "cull")
+        if cull is None:
+            hit = scene.ray_test(mi.Ray3f(ray), active)
+        else:  # coverage: culled back faces are not there
+            si = scene.ray_intersect(mi.Ray3f(ray), LOCAL_RAY_FLAGS, mi.Bool(True), active)
+            _, hit = past_back_faces(scene, ray, si, active & si.is_valid(), cull)
+            # a kernel of its own: traced into the path integrator's kernel, the loop's copy of the
+            # shapes' compute_surface_interaction call was emitted twice (Dr.Jit 1.5: LLVM "invalid
+            # redefinition of function")
+            dr.eval(hit)
         path = self.path
         if self.has_null_bsdfs(scene):  # shadow rays through glTF cut-outs: volpath's null interfaces
             if self._volpath is None:

@@ -12,7 +12,8 @@ The walk [Heitz16, sec. 4 and 5, algorithms 1-3]
 NDFs: GGX and Beckmann, each with its own height-correlated Smith term as the first bounce
 (:data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`: ``smith_ggx_correlated``,
 ``smith_beckmann_correlated``). The walk only needs the NDF's ``Lambda`` (both signs of ``w.z``),
-``D`` and a sampler of visible normals for any direction; everything else is shared.
+``D`` and a sampler of visible normals for any direction (:data:`WALK_NDFS`, named after the NDF's
+registry entry: ``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``); everything else is shared.
 
 Heights: any height distribution gives the same BSDF [Heitz16 sec. 4.2]; we take the uniform one on
 [-1, 1] and track ``L = log C1(h)`` (``C1`` its CDF, ``L`` in (-inf, 0], 0 above the surface) so
@@ -41,7 +42,7 @@ which also holds for directions below the horizon: the visible region of the hem
 is then the half-disk minus a half-ellipse, still a column-wise linear image of the disk], and the
 path throughput is multiplied by the Fresnel of that bounce ``F(w_in . m)``.
 
-Beckmann's visible normals (:func:`sample_vndf_beckmann`; Heitz and d'Eon 2014, "Importance Sampling
+Beckmann's visible normals (:func:`sample_vndf_Beckmann`; Heitz and d'Eon 2014, "Importance Sampling
 Microfacet-Based BSDFs using the Distribution of Visible Normals", sec. 4 and appendix): stretch
 ``v`` by alpha to the alpha = 1 configuration, rotate it into the xz-plane at angle ``theta``, draw
 the slopes ``(x, y)``: ``y`` is independent of ``v`` (a Gaussian, ``y = erfinv(2 u - 1)``) and ``x``
@@ -104,8 +105,9 @@ dropped (at alpha = 1, F0 = 1 and n.v = 0.05 it is below 1e-4 of the albedo: mea
 
 API
 ---
-:func:`lambda_ggx`, :func:`lambda_beckmann`, :func:`lambda_ndf`, :func:`D_ndf`, :func:`sample_vndf`
-(GGX), :func:`sample_vndf_beckmann`, :func:`sample_vndf_ndf`, :func:`erfcx_pos`, :func:`walk_sample`,
+:func:`lambda_GGX`, :func:`lambda_Beckmann`, :func:`D_Beckmann`, :func:`sample_vndf_GGX`,
+:func:`sample_vndf_Beckmann`, :data:`WALK_NDFS`, :data:`WALK_GEOMETRY`, :func:`lambda_ndf`, :func:`D_ndf`,
+:func:`sample_vndf_ndf`, :func:`erfcx_pos`, :func:`walk_sample`,
 :func:`walk_eval`, :func:`query_key`, :func:`approx_spec_pdf`, :func:`eval_pdf_hook`,
 :func:`sample_hook`, :func:`check_model`.
 
@@ -130,7 +132,7 @@ import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
-from pbrcheck.registry import MULTISCATTER_GEOMETRY
+from pbrcheck.registry import MULTISCATTER_GEOMETRY, NDFS
 
 import drjit as dr
 import mitsuba as mi
@@ -214,7 +216,7 @@ def _uniforms(state):
 
 # ---- Smith GGX microsurface ------------------------------------------------------------------
 
-def lambda_ggx(w, alpha):
+def lambda_GGX(w, alpha):
     """Signed Smith Lambda of GGX for any direction ``w`` (unit, local frame) [Heitz16 eq. 12]:
     ``(-1 + sign(z) sqrt(z^2 + alpha^2 (x^2 + y^2)) / |z|) / 2``; huge (+-) near the horizon."""
     z = w.z
@@ -241,7 +243,7 @@ def lambda_beckmann_a(a):
     return dr.select(a >= 0, up, -1.0 - up)
 
 
-def lambda_beckmann(w, alpha):
+def lambda_Beckmann(w, alpha):
     """Signed Smith Lambda of Beckmann for any direction ``w`` (unit, local frame) [Heitz14 eq. 80
     extended by Heitz16 eq. 12]; 0 straight up, -1 straight down, huge (+-) near the horizon."""
     s = dr.sqrt(dr.maximum(w.x * w.x + w.y * w.y, 0.0))
@@ -258,13 +260,13 @@ def D_Beckmann(m, alpha):
 
 
 def lambda_ndf(w, alpha, ndf):
-    """The signed Lambda of ``ndf`` (``ggx`` or ``beckmann``)."""
-    return lambda_beckmann(w, alpha) if ndf == "beckmann" else lambda_ggx(w, alpha)
+    """The signed Lambda of the walk's NDF ``ndf`` (:data:`WALK_NDFS`: ``lambda_<D>``)."""
+    return WALK_NDFS[ndf][0](w, alpha)
 
 
 def D_ndf(m, alpha, ndf):
-    """The NDF ``ndf`` (``ggx`` or ``beckmann``) on the local normal ``m``."""
-    return D_Beckmann(m, alpha) if ndf == "beckmann" else D_GGX(m, alpha)
+    """The walk's NDF ``ndf`` on the local normal ``m`` (:data:`WALK_NDFS`: ``D_<D>``)."""
+    return WALK_NDFS[ndf][1](m, alpha)
 
 
 def _log_slope_cdf(x, c, s):
@@ -274,7 +276,7 @@ def _log_slope_cdf(x, c, s):
     return dr.select(x < 0, neg, pos)
 
 
-def sample_vndf_beckmann(v, u1, u2, alpha):
+def sample_vndf_Beckmann(v, u1, u2, alpha):
     """A Beckmann normal visible from direction ``v`` (any sign of ``v.z``) [HdE14]; see the
     module docstring for the slope inversion."""
     vs = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
@@ -301,11 +303,12 @@ def sample_vndf_beckmann(v, u1, u2, alpha):
 
 
 def sample_vndf_ndf(v, u1, u2, alpha, ndf):
-    """A normal of ``ndf`` (``ggx`` or ``beckmann``) visible from ``v`` (any sign of ``v.z``)."""
-    return sample_vndf_beckmann(v, u1, u2, alpha) if ndf == "beckmann" else sample_vndf(v, u1, u2, alpha)
+    """A normal of the walk's NDF ``ndf`` visible from ``v`` (any sign of ``v.z``; :data:`WALK_NDFS`:
+    ``sample_vndf_<D>``)."""
+    return WALK_NDFS[ndf][2](v, u1, u2, alpha)
 
 
-def sample_vndf(v, u1, u2, alpha):
+def sample_vndf_GGX(v, u1, u2, alpha):
     """A GGX normal visible from direction ``v`` (any sign of ``v.z``) [Heitz18 listing 1]."""
     vh = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
     lensq = vh.x * vh.x + vh.y * vh.y
@@ -320,6 +323,14 @@ def sample_vndf(v, u1, u2, alpha):
     t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
     nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
     return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 1e-7)))
+
+
+#: Each NDF the walk is defined for (:data:`WALK_GEOMETRY`) with its signed Lambda, its D and its
+#: sampler of visible normals for any direction: ``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``,
+#: ``<D>`` the NDF's registry function name without ``D_`` (:data:`pbrcheck.registry.NDFS`, as
+#: :data:`reference.bsdf.NDF_SAMPLERS`); a new NDF's walk adds its three under that name.
+WALK_NDFS = {name: tuple(globals()[f"{fn}_{NDFS[name].impl.drjit[2:]}"] for fn in ("lambda", "D", "sample_vndf"))
+             for name in WALK_GEOMETRY}
 
 
 def _next_height(w, L, u, alpha, ndf="ggx"):

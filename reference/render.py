@@ -7,7 +7,7 @@ reproduces :mod:`pbrcheck.camera` (:func:`reference.integrator.sensor_dict`).
 Integrators (``mode``)
 ----------------------
 * ``local`` (default): the first hit only. Per camera sample it takes one environment sample
-  (Mitsuba's envmap importance sampling) and one BSDF sample, combined with multiple importance
+  (MIS compensation, :mod:`reference.env_sampling`) and one BSDF sample, combined with multiple importance
   sampling (power heuristic; a delta lobe takes weight 1), with **no visibility tests**, plus every
   punctual light without a shadow ray (``f cos * I / d^2``, the spot's glTF attenuation, ``f cos E``
   for a directional light: exact, no noise; :mod:`reference.lights`). Camera rays that miss see
@@ -41,6 +41,7 @@ glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_texture
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
 :func:`adaptive_allocation`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
+:data:`ASSET_CODE_VERSION`,
 :data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
 References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
 Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH); Neyman 1934 (optimal
@@ -65,7 +66,13 @@ from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 from .variant import ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
-REFERENCE_CODE_VERSION = "3"  # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive
+# 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive; 4: the
+# environment sampled by MIS compensation (reference.env_sampling)
+REFERENCE_CODE_VERSION = "4"
+#: Bump when a change of this package changes the pixels of scenes holding glTF assets only: part of
+#: their cache keys alone, so that analytic scenes' cached renders stay valid. 2: single-sided back
+#: faces culled (path: volpath), the emissive texture's texCoord set.
+ASSET_CODE_VERSION = "2"
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
@@ -245,32 +252,38 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
 
 
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
-                    sampler: str = "independent", mis: str = "power"):
+                    sampler: str = "independent", mis: str = "power", env_sampling: str | None = None):
     """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
     ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``); ``mis``: the
-    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``)."""
+    local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
+    its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default)."""
     mi, _ = _mi()
+    from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING  # local: imports Mitsuba
     from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
 
     if mis not in MIS_HEURISTICS:
         raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {mis!r}")
+    if env_sampling is not None and env_sampling not in ENV_SAMPLING:
+        raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, not {env_sampling!r}")
 
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
-                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis})
+                         "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis,
+                         "env_sampling": env_sampling or DEFAULT_ENV_SAMPLING})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
-    from .integrator import pixel_centre_rays  # local: importing it loads Mitsuba (variant set first)
+    from .integrator import culling_table, past_back_faces, pixel_centre_rays  # local: loads Mitsuba (variant set first)
 
     W, H = scene.camera.width, scene.camera.height
     ray, _ = pixel_centre_rays(sensor)
     ray = mi.Ray3f(ray)
     si = mscene.ray_intersect(ray)
-    hit = si.is_valid()
+    # glTF single-sided back faces are culled (the estimators' rule)
+    si, hit = past_back_faces(mscene, ray, si, si.is_valid(), culling_table(mscene))
     n = dr.select(hit, si.sh_frame.n, 0.0)
     ndv = dr.select(hit, dr.clip(dr.dot(si.sh_frame.n, -ray.d), 0.0, 1.0), 0.0)
-    obj = mi.Float(-1.0)
+    obj = dr.full(mi.Float, -1.0, W * H)  # a scene without shapes too
     for shape in mscene.shapes():
         idx = shape_index.get(shape.id())
         if idx is not None:
@@ -306,10 +319,11 @@ def geometric_roughness_image(scene: Scene) -> np.ndarray:
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power") -> Image:
+                    mis: str = "power", env_sampling: str | None = None) -> Image:
     """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
-    heuristic, for measurements only (not part of the cache key: :func:`render_reference` always
-    renders the default, ``reference.integrator.DEFAULT_MIS``)."""
+    heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``), both for
+    measurements only (not part of the cache key: :func:`render_reference` always renders the
+    defaults, ``reference.integrator.DEFAULT_MIS`` and ``reference.env_sampling.DEFAULT_ENV_SAMPLING``)."""
     check_sampler(sampler)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
@@ -327,7 +341,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     from .integrator import MIN_REPLICATES, MOMENT_CHANNELS, pass_sizes, replicate_plan, sensor_dict  # variant set
 
-    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis)
+    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis, env_sampling=env_sampling)
     sensor = mi.load_dict(sensor_dict(scene.camera, spp, sampler))
     W, H = scene.camera.width, scene.camera.height
     adaptive = bool(adaptive) and sampler == "qmc" and spp >= ADAPTIVE_MIN_SPP
@@ -376,6 +390,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "mitsuba_version": mitsuba.__version__,
         "drjit_version": drjit.__version__,
         "reference_code_version": REFERENCE_CODE_VERSION,
+        **({"asset_code_version": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}),
         "sampler": sampler,
         "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
@@ -410,9 +425,10 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     env = env if env is not None else load_environment(scene)
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH) if mode == "path" else None
     adaptive = bool(adaptive) and sampler == "qmc" and int(spp) >= ADAPTIVE_MIN_SPP
+    assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
-                     sampler=check_sampler(sampler), adaptive=adaptive)
+                     sampler=check_sampler(sampler), adaptive=adaptive, **assets)
 
 
 def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,

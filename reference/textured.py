@@ -16,8 +16,11 @@ pixel's box-filter samples integrate the texture's footprint, the truth a mip ch
 
 then :class:`reference.bsdf.PBRLobes` evaluates the model in the normal-mapped frame (directions are
 re-expressed in it, as Mitsuba's ``normalmap`` does). ``double_sided``: a back-facing hit uses the
-flipped frame (glTF: the back face's normal is the negated one); single-sided back faces are black
-(as every pbrcheck surface). The occlusion texture is not applied: ``local`` has no visibility (the
+flipped frame (glTF: the back face's normal is the negated one); a single-sided material's back
+faces are culled, as glTF says and the raster pipeline does: invisible, the ray goes on (a null
+component of opacity 0 there, :func:`back_face`; ``local`` passes them deterministically,
+:func:`reference.integrator.past_back_faces`, ``path`` through Mitsuba's ``volpath``). Analytic
+objects keep their black back sides. The occlusion texture is not applied: ``local`` has no visibility (the
 texture approximates it) and ``path`` computes it. Emission: an ``area`` emitter whose radiance is
 the emissive texture (sRGB-decoded) times ``emissiveFactor`` times ``KHR_materials_emissive_strength``,
 on the primitive's mesh: ``local`` adds it at the first hit, ``path`` lights the scene with it.
@@ -34,10 +37,14 @@ not).
 ``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
 
 UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
-0). ``TEXCOORD_1`` is a mesh attribute ``vertex_uv1`` (u, v, 0) read with ``eval_attribute_3``.
+0). Each texture slot reads its own ``texCoord`` set: the mesh's texcoords (``si.uv``) hold the
+emissive texture's set (:func:`primary_texcoord`: the area emitter can read no other, also where it
+samples positions on the mesh), the other set is a mesh attribute ``vertex_uv<k>`` (u, v, 0) read
+with ``eval_attribute_3``.
 
-API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets),
-:func:`texture_dict`, :class:`GltfTexture`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
+:func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
+:class:`BoundTextured`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
 """
 
 from __future__ import annotations
@@ -162,6 +169,9 @@ class TexturedMaterial(mi.BSDF):
         self.alpha_mode = int(props.get("alpha_mode", 0))
         self.alpha_cutoff = float(props.get("alpha_cutoff", 0.5))
         self.alpha = float(props.get("alpha", 1.0))
+        # the TEXCOORD set in the mesh's own texcoords (si.uv); the other set is the mesh attribute
+        # vertex_uv<k> (asset_shapes: the emissive texture's set, which the area emitter reads as si.uv)
+        self.primary_texcoord = int(props.get("primary_texcoord", 0))
         self.tex = {}
         self.uvset = {}
         for slot in ("base_color", "metallic_roughness", "normal", "alpha"):
@@ -174,7 +184,7 @@ class TexturedMaterial(mi.BSDF):
         if self.tex:
             flags = flags | mi.BSDFFlags.SpatiallyVarying
         comps = [flags]
-        if self.alpha_mode:
+        if self.alpha_mode or not self.double_sided:  # cut-outs, and culled back faces, pass rays through
             comps.append(mi.BSDFFlags.Null | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide)
             flags = flags | mi.BSDFFlags.Null | mi.BSDFFlags.BackSide
         self.m_components = comps
@@ -192,10 +202,11 @@ class TexturedMaterial(mi.BSDF):
     # ---- per-lane material and frame --------------------------------------------------------
     def _lookup(self, slot, si, active):
         t = self.tex[slot]
-        if self.uvset[slot] == 1:
+        k = self.uvset[slot]
+        if k != self.primary_texcoord:
             s2 = mi.SurfaceInteraction3f(si)
-            uv1 = si.shape.eval_attribute_3("vertex_uv1", si, active)
-            s2.uv = mi.Point2f(uv1.x, uv1.y)
+            uv = si.shape.eval_attribute_3(f"vertex_uv{k}", si, active)
+            s2.uv = mi.Point2f(uv.x, uv.y)
             return t.eval(s2, active)
         return t.eval(si, active)
 
@@ -239,15 +250,17 @@ class TexturedMaterial(mi.BSDF):
 
     def opacity(self, si, active=True):
         """glTF's coverage at the hit: 1 (OPAQUE), alpha >= cutoff (MASK) or alpha (BLEND), with
-        alpha = baseColorFactor.a * baseColorTexture.a."""
-        if not self.alpha_mode:
-            return mi.Float(1.0)
-        a = mi.Float(self.alpha)
-        if "alpha" in self.tex:
-            a = a * self._lookup("alpha", si, active).x
-        if self.alpha_mode == 1:
-            return dr.select(a >= self.alpha_cutoff, 1.0, 0.0)
-        return dr.clip(a, 0.0, 1.0)
+        alpha = baseColorFactor.a * baseColorTexture.a; 0 on the back face of a single-sided
+        material (``doubleSided`` false: culled, :func:`culls_back_faces`)."""
+        a = mi.Float(1.0)
+        if self.alpha_mode:
+            a = mi.Float(self.alpha)
+            if "alpha" in self.tex:
+                a = a * self._lookup("alpha", si, active).x
+            a = dr.select(a >= self.alpha_cutoff, 1.0, 0.0) if self.alpha_mode == 1 else dr.clip(a, 0.0, 1.0)
+        if not self.double_sided:
+            a = dr.select(back_face(si), 0.0, a)
+        return a
 
     @staticmethod
     def _null_enabled(ctx) -> bool:
@@ -266,7 +279,24 @@ class TexturedMaterial(mi.BSDF):
         return s2
 
     def eval_pdf(self, ctx, si, wo, active=True):
-        view, frame = self._view(si, active)
+        return self._eval_pdf_at(self._view(si, active), ctx, si, wo, active)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        return self._sample_at(self._view(si, active), ctx, si, sample1, sample2, active)
+
+    def bind(self, si, active=True):
+        """The material at one interaction ``si``, its textures read once for all the caller's calls
+        there (:class:`BoundTextured`; ``reference.bsdf.SceneBSDFs`` uses it)."""
+        return BoundTextured(self, si, active)
+
+    def _eval_pdf_at(self, view_frame, ctx, si, wo, active):
+        view, frame = view_frame
         s2 = self._local_si(si, frame)
         wo2 = frame.to_local(wo)
         # the geometric side: light and viewer on the same side of the surface
@@ -278,18 +308,12 @@ class TexturedMaterial(mi.BSDF):
             f, pdf = f * op, pdf * op
         return dr.select(same & front, f, 0.0), dr.select(same & front, pdf, 0.0)
 
-    def eval(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[0]
-
-    def pdf(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[1]
-
-    def sample(self, ctx, si, sample1, sample2, active=True):
-        view, frame = self._view(si, active)
+    def _sample_at(self, view_frame, ctx, si, sample1, sample2, active):
+        view, frame = view_frame
         s2 = self._local_si(si, frame)
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         lanes = mi.Bool(active) & front
-        mixed = bool(self.alpha_mode) and self._null_enabled(ctx)
+        mixed = bool(self.alpha_mode or not self.double_sided) and self._null_enabled(ctx)
         if mixed:
             # pass through with probability 1 - opacity (weight 1), else the lobes (weight unchanged:
             # value and pdf both scale by the opacity); sample1, rescaled, still chooses the lobe
@@ -315,6 +339,52 @@ class TexturedMaterial(mi.BSDF):
         return (1.0 - view.metallic) * view.base_color
 
 
+
+class BoundTextured:
+    """A :class:`TexturedMaterial` bound to one interaction: its view (textures, tangent frame) read
+    once with the mask ``active`` and shared by ``eval``, ``pdf``, ``eval_pdf`` and ``sample`` at
+    that interaction (the same functions as the material's own methods, which read the textures per
+    call; the local estimator calls three of them per hit). ``si`` and the calls' masks must lie
+    within the bound ones."""
+
+    def __init__(self, material, si, active):
+        self.material = material
+        self.view_frame = material._view(si, active)
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        return self.material._eval_pdf_at(self.view_frame, ctx, si, wo, active)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        return self.material._sample_at(self.view_frame, ctx, si, sample1, sample2, active)
+
+    def eval_null_transmission(self, si, active=True):
+        return self.material.eval_null_transmission(si, active)
+
+
+def back_face(si):
+    """Whether the hit sees the geometric back of its triangle (the side its winding turns away:
+    ``si.n``, which :func:`asset_shapes` keeps on glTF's counter-clockwise front under mirroring
+    placements)."""
+    return dr.dot(si.n, si.to_world(si.wi)) < 0
+
+
+def culls_back_faces(bsdf) -> bool:
+    """Whether a shape's BSDF is a single-sided glTF material, whose back faces are culled (glTF 2.0,
+    3.9.6: ``doubleSided`` false enables back-face culling): the reference lets rays pass them."""
+    return isinstance(bsdf, TexturedMaterial) and not bsdf.double_sided
+
+
+def has_alpha(bsdf) -> bool:
+    """Whether a shape's BSDF is a glTF material with alphaMode MASK or BLEND (stochastic opacity)."""
+    return isinstance(bsdf, TexturedMaterial) and bool(bsdf.alpha_mode)
+
+
 _REGISTERED: set[str] = set()
 
 
@@ -331,12 +401,12 @@ def register() -> None:
 # Shapes
 # ------------------------------------------------------------------------------------------------
 
-def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False) -> dict:
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
     if brdf.geometric_roughness != "none":
         raise SceneError(f"[brdf] geometric_roughness = {brdf.geometric_roughness!r} is not implemented for "
                          "glTF assets (the textured material); only for the built-in objects")
     m = asset.material(index)
-    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
+    d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
          "normal_scale": float(m.normal_texture.scale)
@@ -376,6 +446,16 @@ def _emitter_dict(asset, index: int, cache: dict) -> dict | None:
     return {"type": "area", "radiance": texture_dict(cache[key], m.emissive_texture)}
 
 
+def primary_texcoord(asset, material: int, prim) -> int:
+    """The TEXCOORD set a primitive's Mitsuba mesh carries as its texcoords (``si.uv``): the emissive
+    texture's (Mitsuba's area emitter reads its radiance texture at ``si.uv``, also at the positions
+    it samples on the mesh, where no other attribute can be interpolated), else 0; the other set is
+    the mesh attribute ``vertex_uv<k>``."""
+    em = asset.material(material).emissive_texture
+    k = int(em.texcoord) if em is not None else 0
+    return k if k < len(prim.texcoords) and prim.texcoords[k] is not None else 0
+
+
 def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
     """{shape id: Mitsuba mesh} for every :class:`pbrcheck.gltf_objects.Mesh` of ``scene``, built from
     the decoded buffers (placed by their instance's matrix); ``shape_id(index)`` names a shape
@@ -399,15 +479,16 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
         det = np.linalg.det(M[:3, :3])
         if det < 0:
             tri = tri[:, [0, 2, 1]]
-        uv0 = prim.texcoords[0]
+        primary = primary_texcoord(inst.asset, obj.gltf_material, prim)
+        uv0 = prim.texcoords[primary]
         props = mi.Properties()
         if bsdf_for is not None:
             bsdf = mi.load_dict(bsdf_for(obj))
         else:
-            key = (obj.instance, obj.gltf_material, prim.color is not None)
+            key = (obj.instance, obj.gltf_material, prim.color is not None, primary)
             if key not in mats:
                 mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
-                                                        vertex_color=prim.color is not None))
+                                                        vertex_color=prim.color is not None, primary=primary))
             bsdf = mats[key]
         props["bsdf"] = bsdf
         em = _emitter_dict(inst.asset, obj.gltf_material, textures)
@@ -430,8 +511,9 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
             mesh.add_attribute("vertex_tangent", 4, mi.Float(np.concatenate([t3, w[:, None]], 1).astype(np.float32).reshape(-1)))
         if prim.color is not None:
             mesh.add_attribute("vertex_color", 3, mi.Float(np.ascontiguousarray(prim.color[:, :3], np.float32).reshape(-1)))
-        if prim.texcoords[1] is not None:
-            uv1 = np.concatenate([prim.texcoords[1], np.zeros((prim.texcoords[1].shape[0], 1))], 1)
-            mesh.add_attribute("vertex_uv1", 3, mi.Float(uv1.astype(np.float32).reshape(-1)))
+        for k, uv in enumerate(prim.texcoords):
+            if uv is not None and k != primary:  # the other set: read by TexturedMaterial._lookup
+                uvk = np.concatenate([uv, np.zeros((uv.shape[0], 1))], 1)
+                mesh.add_attribute(f"vertex_uv{k}", 3, mi.Float(uvk.astype(np.float32).reshape(-1)))
         out[shape_id(obj.id)] = mesh
     return out

@@ -68,3 +68,42 @@ def test_bench_report_runs_the_report_twice(capsys):
     assert [s["name"] for s in first["stages"]][:3] == ["furnace: renderers under test", "furnace: reference",
                                                        "furnace: comparisons and diagnose"]
     assert first["process_wall_s"] >= first["wall_s"]
+    # the kinds of work (compare.worktime): the first run renders and computes FLIP, the second reads caches
+    assert {"reference", "realtime", "flip"} <= set(first["work"])
+    assert sum(v["wall_s"] for v in first["work"].values()) <= first["wall_s"]
+    assert "flip" not in again["work"]
+
+
+def test_work_is_counted_by_kind_exclusive_of_nested_kinds():
+    import time
+
+    from compare import worktime
+
+    before = worktime.snapshot()
+    with worktime.work("plots"):
+        time.sleep(0.05)
+        with worktime.work("reference"):
+            time.sleep(0.1)
+    got = worktime.since(before)
+    assert set(got) == {"plots", "reference"} and got["plots"]["calls"] == got["reference"]["calls"] == 1
+    assert 0.09 <= got["reference"]["wall_s"] < 0.5
+    assert 0.04 <= got["plots"]["wall_s"] < got["reference"]["wall_s"]  # the nested 0.1 s is not the plot's
+    with pytest.raises(ValueError, match="unknown kind"):
+        with worktime.work("lunch"):
+            pass
+
+
+def test_stage_table_prints_wall_and_cpu_per_stage_and_kind():
+    run = {"wall_s": 10.0, "cpu_s": 15.0, "children_cpu_s": 1.0, "cores": 2,
+           "stages": [{"name": "spheres: reference", "wall_s": 4.0, "cpu_s": 7.5, "calls": 1},
+                      {"name": "research: explain", "wall_s": 5.0, "cpu_s": 6.0, "calls": 1}],
+           "work": {"reference": {"wall_s": 6.0, "cpu_s": 11.0, "calls": 3}}}
+    lines = runlog.stage_table(run).splitlines()
+    row = {ln.split("  ")[0].strip(): ln.split() for ln in lines}
+    assert row["spheres: reference"][-3:] == ["4.0", "7.5", "1"]
+    assert row["research: explain"][-3:] == ["5.0", "6.0", "1"]
+    assert row["(set-up, plots, the page)"][-2:] == ["1.0", "1.5"]
+    assert row["reference"][-3:] == ["6.0", "11.0", "3"]
+    assert row["(none of these)"][-2:] == ["4.0", "4.0"]
+    section = runlog.run_section({**run, "backends": {}, "caches": {}})
+    assert [r[0] for r in section.tables[1].rows] == ["reference"]

@@ -98,6 +98,53 @@ def test_planted_exposure_is_named_with_its_factor(ref, correct):
     assert d.rows[0].fitted["factor"] == pytest.approx(2.0, rel=0.02)
 
 
+def _glint_pair(factor: float = 1.0, glints: bool = True):
+    """A smooth reference (variance channels of 1e-6) and a test 3 % off it in a pattern, times
+    ``factor``, with six glints (radiance 300) where the reference has 5: the sun glints an
+    unconverged reference misses (DamagedHelmet under royal_esplanade_1k at 16 spp)."""
+    yy, xx = np.mgrid[0:48, 0:64]
+    base = 0.2 + 0.8 * (xx / 63.0)[..., None] * np.array([1.0, 0.8, 0.6])
+    var = {f"variance.{c}": np.full((48, 64), 1e-6, np.float32) for c in "RGB"}
+    ref = Image.from_rgb(base.astype(np.float32), **var)
+    t = base * (1.0 + 0.03 * np.sin(xx / 5.0 + yy / 7.0))[..., None]
+    if glints:
+        px = (np.array([5, 12, 20, 30, 38, 44]), np.array([7, 50, 22, 33, 14, 60]))
+        ref.channels["R"][px] = ref.channels["G"][px] = ref.channels["B"][px] = 5.0
+        t[px] = 300.0
+    return ref, Image.from_rgb((t * factor).astype(np.float32))
+
+
+def test_glints_alone_name_no_cause_a_planted_factor_with_them_is_named():
+    """A few outlier pixels carry most of the relative MSE: a fitted exposure and the sRGB transfer
+    remove most of it (there) while making the other pixels worse, so neither is named. A true
+    factor moves every pixel: the bulk's error goes with it, and it is named."""
+    ref, test = _glint_pair()
+    d = dg.diagnose(ref, test)
+    rows = {r.hypothesis: r for r in d.rows}
+    for name in ("exposure", "linear_as_srgb"):                  # what misled it before
+        assert rows[name].reduction > dg.LIKELY_REMAINING and rows[name].bulk_reduction < 0, name
+    assert rows["exposure"].fitted["factor"] < 0.5
+    assert d.likely is None and d.line.startswith("no convention mismatch found"), dg.table_markdown(d)
+    ref, test = _glint_pair(factor=0.1, glints=False)
+    d = dg.diagnose(ref, test)
+    assert d.likely == "exposure", dg.table_markdown(d)
+    assert d.rows[0].bulk_reduction > 0.99
+
+
+def test_a_brighter_region_is_not_named_an_exposure():
+    """A tenth of the image 4x brighter in the test (as the Sample Viewer's background under its
+    skybox projection) pulls the exposure fit and even helps the bulk, but the per-pixel ratios'
+    median stays at 1: not a global factor."""
+    ref, test = _glint_pair(glints=False)
+    rgb = test.rgb.copy()
+    rgb[:5] *= 4.0
+    d = dg.diagnose(ref, Image.from_rgb(rgb))
+    row = next(r for r in d.rows if r.hypothesis == "exposure")
+    assert row.reduction > dg.LIKELY_REMAINING and row.bulk_reduction > 0.5 and row.fitted["factor"] < 0.6
+    assert row.fitted["median_ratio"] == pytest.approx(1.0, abs=0.01)
+    assert d.likely != "exposure", dg.table_markdown(d)
+
+
 def test_planted_clamp_is_named_with_its_level(ref, correct):
     d = dg.diagnose(ref, _with_rgb(correct, np.minimum(correct.rgb, 0.2)))
     assert d.likely == "hdr_clamp", dg.table_markdown(d)

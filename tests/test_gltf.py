@@ -291,6 +291,78 @@ def test_emissive_texture_seen_at_the_hit(tmp_path, tmp_cache):
     assert np.allclose(a[c], 4.0, rtol=1e-5)
 
 
+def _two_set_assets(tmp_path):
+    """Three quads with a left/right-asymmetric emissive texture and a top/bottom-asymmetric base
+    colour: ``a`` reads emission from TEXCOORD_1 (u mirrored) and base colour from TEXCOORD_0; ``b``
+    the same with the two sets swapped in the mesh and in the material (the same pixels); ``c``
+    reads both from TEXCOORD_0 (the emission mirrored: what ignoring texCoord would render)."""
+    em = np.zeros((4, 4, 3), np.uint8)
+    em[:, :2] = (255, 0, 0)
+    bc = np.full((4, 4, 3), 40, np.uint8)
+    bc[:2] = (40, 220, 40)
+    mirrored = QUAD_UV.copy()
+    mirrored[:, 0] = 1.0 - mirrored[:, 0]
+    nearest = {"magFilter": 9728, "wrapS": 33071, "wrapT": 33071}
+
+    def asset(name, em_set, bc_set, uv0, uv1):
+        return quad_asset(tmp_path / f"{name}.gltf", {
+            "emissiveTexture": {"index": 0, "texCoord": em_set}, "emissiveFactor": [1.0, 1.0, 1.0],
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 1, "texCoord": bc_set}, "metallicFactor": 0.0}},
+            [(em, nearest), (bc, nearest)], uv0=uv0, uv1=uv1)
+
+    return (asset("a", 1, 0, QUAD_UV, mirrored), asset("b", 0, 1, mirrored, QUAD_UV),
+            asset("c", 0, 0, QUAD_UV, mirrored))
+
+
+@pytest.mark.parametrize("mode", ["local", "path"])
+def test_every_slot_reads_its_own_texcoord_set(tmp_path, tmp_cache, mode):
+    """Emission on TEXCOORD_1 (the issue: it read TEXCOORD_0) and base colour on TEXCOORD_0 render as
+    the same material with the sets swapped, in the reference (both modes) and the raster pipeline;
+    the emission on the wrong set is mirrored."""
+    a, b, c = _two_set_assets(tmp_path)
+    env = "[0.3, 0.3, 0.3]"
+    ra, ia = _render(quad_scene(tmp_path, a, env=env, size=(16, 16), fov=20.0, name="a.toml"), spp=8, mode=mode)
+    rb, _ = _render(quad_scene(tmp_path, b, env=env, size=(16, 16), fov=20.0, name="b.toml"), spp=8, mode=mode)
+    rc, _ = _render(quad_scene(tmp_path, c, env=env, size=(16, 16), fov=20.0, name="c.toml"), spp=8, mode=mode)
+    _close(ra, rb)
+    assert ra[8, 12, 0] > 0.9 and ra[8, 3, 0] < 0.5, (ra[8, 12], ra[8, 3])   # red emission on the right
+    assert rc[8, 3, 0] > 0.9 and rc[8, 12, 0] < 0.5                          # mirrored when ignored
+    assert ra[3, 8, 1] > 2 * ra[12, 8, 1]                                     # green base colour at the top
+    if mode == "local":
+        from realtime.render import render_realtime
+        opts = {"cube_size": 16, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 3,
+                "prefilter_samples": 16, "lut_size": 16, "lut_samples": 64, "supersample": 1}
+        rt = [render_realtime(load_scene(str(tmp_path / f"{n}.toml")), "default", opts, progress=False).rgb
+              for n in "abc"]
+        assert np.allclose(rt[0], rt[1], atol=1e-3)
+        assert rt[0][8, 12, 0] > 0.9 and rt[2][8, 3, 0] > 0.9 and rt[0][8, 3, 0] < 0.5
+
+
+@pytest.mark.parametrize("mode", ["local", "path"])
+def test_single_sided_back_face_is_culled(tmp_path, tmp_cache, mode):
+    """glTF doubleSided false culls back faces: a single-sided quad seen from behind shows the
+    environment, exactly, in the reference (both modes; coverage and object AOV empty) and in the
+    raster pipeline; the double-sided quad stays there."""
+    one = quad_asset(tmp_path / "one.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}})
+    two = quad_asset(tmp_path / "two.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}, "doubleSided": True})
+    scenes = []
+    for q in (one, two):
+        p = quad_scene(tmp_path, q, env="[0.5, 0.5, 0.5]", size=(12, 12), fov=20.0, name=f"{q.stem}.toml")
+        p.write_text(p.read_text() + "rotation = [0.0, 180.0, 0.0]\n")
+        scenes.append(p)
+    a, ia = _render(scenes[0], spp=4, mode=mode)
+    assert np.array_equal(a, np.full_like(a, 0.5))
+    assert ia.channels["coverage"].max() == 0 and ia.channels["object"].max() == -1
+    b, ib = _render(scenes[1], spp=4, mode=mode)
+    assert ib.channels["coverage"].min() == 1 and np.abs(b - 0.5).max() > 0.05
+    if mode == "local":
+        from realtime.render import render_realtime
+        opts = {"cube_size": 16, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 3,
+                "prefilter_samples": 16, "lut_size": 16, "lut_samples": 64, "supersample": 1}
+        rt = render_realtime(load_scene(str(scenes[0])), "default", opts, progress=False)
+        assert rt.channels["coverage"].max() == 0 and np.allclose(rt.rgb, 0.5, atol=2e-3)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", ["local", "path"])
 def test_mask_cutout_shows_the_environment(tmp_path, tmp_cache, mode):

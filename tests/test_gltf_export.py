@@ -57,6 +57,41 @@ def test_export_writes_the_asset_with_its_placement_and_camera(tmp_path):
     assert np.allclose(back.primitives[0].positions, want, atol=1e-6)
 
 
+def test_export_adds_the_scene_files_lights_beside_the_assets_own(tmp_path):
+    """A scene-file spot light next to a placed asset that carries a directional light of its own:
+    the export writes both (the scene's on a root node beside ``pbrcheck_root``, unmoved by the
+    placement), and the file read back gives the scene's lights in the scene's order."""
+    from pbrcheck.gltf import load_asset
+    f = quad_asset(tmp_path / "q.gltf", {})
+    doc = json.loads(f.read_text())
+    doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}}
+    doc["nodes"].append({"name": "sun", "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    doc["scenes"][0]["nodes"].append(len(doc["nodes"]) - 1)
+    f.write_text(json.dumps(doc))
+    s = quad_scene(tmp_path, f)
+    s.write_text(s.read_text().replace('path = "q.gltf"', 'path = "q.gltf"\nrotation = [0.0, 90.0, 0.0]') +
+                 '[[lights]]\ntype = "spot"\nposition = [0.5, 1.0, 3.0]\ndirection = [0.0, -0.2, -1.0]\n'
+                 'intensity = [8.0, 4.0, 2.0]\ninner_cone_angle = 0.2\nouter_cone_angle = 0.5\n')
+    sc = load_scene(s)
+    assert [L.type for L in sc.lights] == ["spot", "directional"] and len(sc.own_lights()) == 1
+    exp = export_scene(sc, tmp_path / "out")
+    out = json.loads((tmp_path / "out" / "scene.gltf").read_text())
+    assert [L["type"] for L in out["extensions"]["KHR_lights_punctual"]["lights"]] == ["directional", "spot"]
+    assert out["extensionsUsed"].count("KHR_lights_punctual") == 1
+    roots = [out["nodes"][i]["name"] for i in out["scenes"][0]["nodes"]]
+    assert roots == ["pbrcheck_root", "camera", "light_0"]
+    back = load_asset(tmp_path / "out" / "scene.gltf").lights
+    assert [L.type for L in back] == ["spot", "directional"]
+    for want, got in zip(sc.lights, back):
+        np.testing.assert_allclose(np.multiply(got.color, got.intensity), want.intensity, rtol=1e-12)
+        np.testing.assert_allclose(got.direction, want.direction, atol=1e-9)
+    np.testing.assert_allclose(back[0].position, sc.lights[0].position, atol=1e-12)
+    assert (back[0].inner_cone, back[0].outer_cone) == (0.2, 0.5)
+    np.testing.assert_allclose(back[1].direction, (-1.0, 0.0, 0.0), atol=1e-12)   # the asset's, placed
+    assert [L.get("gltf_node", L.get("source")) for L in exp.scenario["lights"]] == ["light_0", "asset"]
+
+
 def test_import_scenario_round_trips_the_export(tmp_path):
     sc = _asset_scene(tmp_path)
     # model-viewer orbits need up = +Y and a target: the scene's camera already is such a camera
@@ -107,13 +142,6 @@ def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_c
     chroma = cov & (ref.rgb.max(-1) > 2 * np.sort(ref.rgb, -1)[..., 1])   # red, green or blue texels
     assert chroma.sum() > 100
     assert (a[chroma] == b[chroma]).mean() > 0.97
-
-
-def test_realtime_presets_are_kept_on_asset_scenes(tmp_path):
-    """Report, gate and corpus keep every preset on an asset scene (the raster pipeline draws it)."""
-    from pbrcheck.gltf_scene import split_presets
-    sc = load_scene(str(quad_asset(tmp_path / "q.gltf", {})))
-    assert split_presets(sc, ["default", "filament", "ext:threejs"]) == (["default", "filament", "ext:threejs"], [])
 
 
 # Relative difference allowed between the analytic reference and its exported-and-read-back
@@ -203,3 +231,40 @@ def test_material_bias_and_the_report_table(tmp_path):
     table = html.split("<h3>Metrics per glTF material</h3>")[1].split("</table>")[0]
     assert "<th>relmse</th><th>flip_mean</th><th>bias</th>" in table
     assert "ext:threejs" in table and "q.gltf: matte" in table and _fmt(-0.2) in table
+
+
+def test_asset_and_analytic_objects_export_together_and_read_back(tmp_path, tmp_cache):
+    """An asset beside an analytic sphere exports as one glTF (the asset placed under its root node,
+    the sphere tessellated in a buffer of its own) that reads back to the same objects and renders
+    the same reference within noise and tessellation."""
+    from pbrcheck.export import OBJECTS_BIN
+    from pbrcheck.gltf import load_asset
+    from pbrcheck.scene import asset_scene
+    from reference.render import render_reference
+
+    sc_path = quad_scene(tmp_path, quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {
+        "baseColorFactor": [0.9, 0.5, 0.2, 1.0], "metallicFactor": 0.0}}), size=(24, 20), fov=40.0)
+    sc_path.write_text(sc_path.read_text() + 'translation = [-0.6, 0.0, 0.0]\n\n[[objects]]\ntype = "sphere"\n'
+                       'center = [1.0, 0.2, 0.5]\nradius = 0.5\nmaterial = { base_color = [0.2, 0.4, 0.9], '
+                       'metallic = 1.0, roughness = 0.3, specular = 0.06 }\n')
+    sc = load_scene(sc_path)
+    assert [o.type for o in sc.objects] == ["mesh", "sphere"]
+    exp = export_scene(sc, tmp_path / "out")
+    assert (tmp_path / "out" / OBJECTS_BIN).is_file() and exp.triangles > 2
+    doc = json.loads((tmp_path / "out" / "scene.gltf").read_text())
+    assert doc["extensionsUsed"] == ["KHR_materials_ior"]
+    nodes = {n.get("name"): i for i, n in enumerate(doc["nodes"])}
+    assert {"pbrcheck_root", "camera", "object_1_" + sc.objects[1].name} <= set(nodes)
+    assert [o.get("gltf_node") for o in exp.scenario["objects"]][1] == "object_1_" + sc.objects[1].name
+    back_asset = load_asset(tmp_path / "out" / "scene.gltf")
+    sphere, quad = sorted(back_asset.primitives, key=lambda p: not p.name.startswith("object_1_"))
+    assert np.allclose(quad.positions.mean(0), [-0.6, 0.0, 0.0], atol=1e-6)
+    assert np.allclose(np.linalg.norm(sphere.positions - [1.0, 0.2, 0.5], axis=1), 0.5, atol=1e-5)
+    back = asset_scene(tmp_path / "out" / "scene.gltf", size=(24, 20))
+    back = back.__class__(**{**back.__dict__, "environment": sc.environment})
+    a = render_reference(sc, spp=32, use_cache=False, progress=False)
+    b = render_reference(back, spp=32, use_cache=False, progress=False)
+    m = (a.channels["coverage"] == 1) & (b.channels["coverage"] == 1)   # object ids: the read-back's own order
+    assert m.mean() > 0.3 and len(np.unique(a.channels["object"][m])) == len(np.unique(b.channels["object"][m])) == 2
+    sd = np.sqrt(a.variance + b.variance)
+    assert np.all(np.abs(a.rgb - b.rgb)[m] <= (5 * sd + TESSELLATION_RTOL * a.rgb)[m])

@@ -332,8 +332,8 @@ def test_beckmann_lambda_matches_numpy_and_extends_below_the_horizon():
     mu = np.array([1e-3, 0.05, 0.2, 0.5, 0.8, 0.99, 1.0])
     s = np.sqrt(1 - mu * mu)
     for alpha in (0.01, 0.3, 1.0):
-        up = np.array(ms.lambda_beckmann(mi.Vector3f(s, 0 * s, mu), alpha), dtype=np.float64)
-        down = np.array(ms.lambda_beckmann(mi.Vector3f(s, 0 * s, -mu), alpha), dtype=np.float64)
+        up = np.array(ms.lambda_Beckmann(mi.Vector3f(s, 0 * s, mu), alpha), dtype=np.float64)
+        down = np.array(ms.lambda_Beckmann(mi.Vector3f(s, 0 * s, -mu), alpha), dtype=np.float64)
         ref = nb.Lambda_Beckmann(mu, alpha)
         assert np.allclose(up, ref, rtol=2e-5, atol=1e-7), (alpha, up, ref)
         assert np.allclose(down, -1.0 - ref, rtol=2e-5, atol=1e-6)
@@ -349,7 +349,7 @@ def test_beckmann_visible_normals_have_the_vndf_density(mu):
     u = rng.random((2, n)).astype(np.float32)
     for alpha in (0.2, 0.7):
         wi = _wi(mu)
-        m = ms.sample_vndf_beckmann(wi, mi.Float(u[0]), mi.Float(u[1]), alpha)
+        m = ms.sample_vndf_Beckmann(wi, mi.Float(u[0]), mi.Float(u[1]), alpha)
         vm = np.array(dr.dot(wi, m), dtype=np.float64)
         assert np.all(vm > -1e-6) and np.all(np.isfinite(vm))
         mz = np.array(m.z, dtype=np.float64)

@@ -7,12 +7,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrcheck.occlusion import occlusion_from_texture, specular_occlusion, specular_occlusion_lagarde
-from pbrcheck.registry import SPECULAR_OCCLUSIONS
+from pbrcheck.occlusion import (
+    HORIZON_FADE,
+    cone_cone_intersection,
+    horizon_occlusion,
+    horizon_occlusion_marmoset,
+    occlusion_from_texture,
+    specular_occlusion,
+    specular_occlusion_gtso,
+    specular_occlusion_lagarde,
+)
+from pbrcheck.registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from realtime.glsl_harness import run_glsl
 
 #: float32 GLSL against the float64 twins.
 GLSL_ATOL = 2e-6
+#: GTSO and its cap intersection: GLSL's acos (llvmpipe: within 1.6e-4 rad of float64, measured) through
+#: the cap fractions (measured 2.4e-4 on the grid).
+GTSO_ATOL = 5e-4
 
 GRID = np.linspace(0.0, 1.0, 11)
 
@@ -23,7 +35,8 @@ def test_lagarde_glsl_matches_numpy_on_a_grid_with_extremes():
     assert np.allclose(g, specular_occlusion_lagarde(NoV, ao, r), atol=GLSL_ATOL, rtol=0)
     for name in SPECULAR_OCCLUSIONS.names:
         d = run_glsl("specular_occlusion(x0, x1, x2)", NoV, ao, r, defines=SPECULAR_OCCLUSIONS.select(name))
-        assert np.allclose(d, specular_occlusion(NoV, ao, r, name), atol=GLSL_ATOL, rtol=0), name
+        atol = GTSO_ATOL if name == "gtso" else GLSL_ATOL
+        assert np.allclose(d, specular_occlusion(NoV, ao, r, name), atol=atol, rtol=0), name
 
 
 def test_lagarde_limits():
@@ -68,3 +81,45 @@ def test_occlusion_texture_scales_the_diffuse_ibl(tmp_path):
     # F0 = 0 leaves only the split sum's bias term B to occlude: lagarde removes a little light, never adds
     assert np.all(lag.rgb[m] <= on.rgb[m]) and np.allclose(lag.rgb[m], on.rgb[m], rtol=1e-3)
     assert np.any(lag.rgb[m] < on.rgb[m])
+
+
+def test_gtso_glsl_matches_numpy_on_a_grid_with_extremes():
+    g = np.concatenate([GRID, [1e-4, 0.999]])
+    NoV, ao, r = np.meshgrid(g, g, g, indexing="ij")
+    d = run_glsl("specular_occlusion_gtso(x0, x1, x2)", NoV, ao, r)
+    assert np.allclose(d, specular_occlusion_gtso(NoV, ao, r), atol=GTSO_ATOL, rtol=0)
+    c1, c2, cd = np.meshgrid(np.linspace(-1, 1, 9), g, g, indexing="ij")
+    d = run_glsl("cone_cone_intersection(x0, x1, x2)", c1, c2, cd)
+    assert np.allclose(d, cone_cone_intersection(c1, c2, cd), atol=GTSO_ATOL, rtol=0)
+    d = run_glsl("specular_occlusion(x0, x1, x2)", NoV, ao, r, defines=SPECULAR_OCCLUSIONS.select("gtso"))
+    assert np.allclose(d, specular_occlusion(NoV, ao, r, "gtso"), atol=GTSO_ATOL, rtol=0)
+
+
+def test_gtso_known_answers():
+    """Full visibility gives exactly 1 (on every n.v and roughness, GLSL too); no visibility 0; the
+    factor falls with ao; a mirror reflection inside the visibility cone is unoccluded, outside it occluded."""
+    NoV, r = np.meshgrid(np.concatenate([GRID, [1e-4]]), GRID, indexing="ij")
+    assert np.array_equal(specular_occlusion_gtso(NoV, 1.0, r), np.ones_like(NoV))
+    assert np.array_equal(run_glsl("specular_occlusion_gtso(x0, 1.0, x1)", NoV, r), np.ones(NoV.shape, np.float32))
+    assert np.allclose(specular_occlusion_gtso(NoV, 0.0, r)[:-1, 1:], 0.0)
+    ao = np.linspace(0, 1, 21)
+    assert np.all(np.diff(specular_occlusion_gtso(0.6, ao, 0.5)) >= 0)
+    # ao = 0.75: visibility cone of 60 degrees; the mirror direction at 0 degrees / 80 degrees from n
+    assert specular_occlusion_gtso(1.0, 0.75, 0.0) == 1.0 and specular_occlusion_gtso(np.cos(1.4), 0.75, 0.0) == 0.0
+    assert np.allclose(cone_cone_intersection(0.5, 0.9, 1.0), 1.0)    # cap 2 inside cap 1
+    assert np.allclose(cone_cone_intersection(0.9, 0.5, 1.0), 0.1 / 0.5)  # cap 1 (smaller) inside cap 2
+
+
+def test_horizon_occlusion_glsl_matches_numpy_and_known_answers():
+    RoNg = np.concatenate([np.linspace(-1.0, 1.0, 41), [-1 / HORIZON_FADE, -1e-6, 0.0, 1e-6]])
+    g = run_glsl("horizon_occlusion_marmoset(x0)", RoNg)
+    assert np.allclose(g, horizon_occlusion_marmoset(RoNg), atol=GLSL_ATOL, rtol=0)
+    for name in HORIZON_OCCLUSIONS.names:
+        # r and n_g as vectors: r = (sqrt(1 - c^2), 0, c), n_g = +z
+        d = run_glsl("horizon_occlusion(vec3(sqrt(1.0 - x0 * x0), 0.0, x0), vec3(0.0, 0.0, 1.0))", RoNg,
+                     defines=HORIZON_OCCLUSIONS.select(name))
+        assert np.allclose(d, horizon_occlusion(RoNg, name), atol=GLSL_ATOL, rtol=0), name
+    above = RoNg >= 0
+    assert np.all(horizon_occlusion_marmoset(RoNg[above]) == 1.0)       # r above the horizon: 1
+    assert np.all(horizon_occlusion_marmoset(RoNg[RoNg <= -1 / HORIZON_FADE]) == 0.0)
+    assert np.all(np.diff(horizon_occlusion_marmoset(np.linspace(-1, 0, 11))) >= 0)

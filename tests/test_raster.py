@@ -165,3 +165,62 @@ def test_cli_realtime_renders_an_asset_with_env_and_emissive(tmp_path, capsys):
     assert cli.main(args[:-2] + ["--out", str(tmp_path / "x.exr"), "--set", "pipeline=raycast"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "pipeline=raycast" in err[-1] and not (tmp_path / "x.exr").exists()
+
+
+def _normal_quad(tmp_path, name, normals, metallic=1.0, roughness=0.3, alpha=None):
+    """A quad with a tangent-space normal map (unit vectors, H x W x 3) and an optional alpha texture."""
+    nm = np.round((np.asarray(normals) * 0.5 + 0.5) * 255).astype(np.uint8)
+    mat = {"pbrMetallicRoughness": {"metallicFactor": metallic, "roughnessFactor": roughness},
+           "normalTexture": {"index": 0}}
+    return quad_asset(tmp_path / name, mat, [(nm, None)])
+
+
+def test_normal_filtering_known_answers(tmp_path):
+    """A flat normal map: toksvig, prefiltered, screen_space (a plane: zero derivatives) and marmoset
+    (r above the horizon) leave the image unchanged to the bit. A checker of two tilted normals, seen
+    minified: toksvig and prefiltered widen the roughness (the image changes), screen_space does not
+    (the plane's geometric normal is constant)."""
+    flat = np.zeros((16, 16, 3))
+    flat[...] = (0.0, 0.0, 1.0)
+    env = "[0.5, 0.8, 1.0]"
+    sc = quad_scene(tmp_path, _normal_quad(tmp_path, "flat.gltf", flat), env=env, name="flat.toml")
+    none = _render(sc).rgb
+    for opts in ({"specular_aa": "toksvig"}, {"specular_aa": "prefiltered"}, {"specular_aa": "screen_space"},
+                 {"horizon_occlusion": "marmoset"}):
+        assert np.array_equal(_render(sc, **opts).rgb, none), opts
+    n = np.array([0.5, 0.0, 1.0]) / np.hypot(0.5, 1.0)
+    check = (np.indices((64, 64)).sum(0) % 2)[..., None]
+    bumpy = np.where(check > 0, n, n * [-1, 1, 1])
+    sc = quad_scene(tmp_path, _normal_quad(tmp_path, "bumpy.gltf", bumpy), env=env, size=(12, 12), name="b.toml")
+    none = _render(sc).rgb
+    assert np.array_equal(_render(sc, specular_aa="screen_space").rgb, none)
+    for method in ("toksvig", "prefiltered"):
+        assert not np.allclose(_render(sc, specular_aa=method).rgb, none, rtol=1e-3), method
+
+
+def test_msaa_interior_equals_no_msaa_and_alpha_to_coverage(tmp_path):
+    """An axis-aligned flat quad: MSAA (one shading per pixel at its centre) changes no interior pixel
+    and only the silhouette's coverage. Alpha-to-coverage on MASK keeps the alpha test's image away
+    from the cut and covers about as much in all (CLAMP_TO_EDGE: a repeating texture's alpha ramps up
+    again at the quad's far edge)."""
+    q = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.4}})
+    sc = quad_scene(tmp_path, q, size=(24, 24), env="[0.5, 0.8, 1.0]", fov=45.0)
+    a, b = _render(sc), _render(sc, msaa=4)
+    inner = a.channels["coverage"] == 1
+    inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
+    assert 0.2 < inner.mean() < 0.9
+    assert np.allclose(b.rgb[inner], a.rgb[inner], rtol=1e-6, atol=0)
+    assert np.all(b.channels["coverage"][a.channels["coverage"] == 0] < 1)
+    px = np.zeros((8, 8, 4), np.uint8)
+    px[:4] = (255, 0, 0, 255)
+    px[4:] = (0, 0, 255, 0)
+    # cutoff 0.3: the alpha-tested edge falls inside a pixel row (alpha 0.25 at its centre is dropped)
+    m = quad_asset(tmp_path / "m.gltf", {"alphaMode": "MASK", "alphaCutoff": 0.3, "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}, [(px, {"wrapS": 33071, "wrapT": 33071})])
+    sc = quad_scene(tmp_path, m, size=(32, 32), fov=60.0, name="m.toml")   # quad rows 9-23, cut at row 16
+    test, a2c = _render(sc, msaa=4), _render(sc, msaa=4, alpha_to_coverage=True)
+    ct, ca = test.channels["coverage"], a2c.channels["coverage"]
+    away = np.r_[0:14, 19:32]
+    assert np.array_equal(ct[away], ca[away]) and np.allclose(test.rgb[away], a2c.rgb[away], rtol=1e-6)
+    assert abs(ca.sum() - ct.sum()) <= 16
+    assert np.any((ca > 0) & (ca < 1) & ((ct == 0) | (ct == 1)))     # a fractional edge where the test was binary

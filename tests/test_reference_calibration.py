@@ -1,6 +1,8 @@
 """The reference's variance channels are calibrated: over many renders with different seeds, each
 pixel's spread matches its variance channel, for every sampler (independent: per-sample moments;
-qmc: K independent replicates; qmc adaptive: replicates of the final passes, the pilot discarded).
+qmc: K independent replicates; qmc adaptive: replicates of the final passes, the pilot discarded),
+each with the default environment proposal (MIS compensation, reference.env_sampling), and Mitsuba's
+own (``envmap``, the default until version 4) with qmc replicates.
 
 Every verdict downstream (the 10x noise-floor rule, "within noise", the gate's significance) rests on
 this. ``S`` renders of a small scene at low spp; for render ``s`` the leave-one-out difference
@@ -62,11 +64,13 @@ def calibration(means: np.ndarray, variances: np.ndarray, heavy_fraction: float 
     return ratio, z_share, int(keep.sum())
 
 
-@pytest.mark.parametrize("sampler,adaptive,spp", [("independent", False, 64), ("qmc", False, 64),
-                                                  ("qmc", True, 256)])
-def test_variance_channels_match_the_spread_over_seeds(sampler, adaptive, spp):
+@pytest.mark.parametrize("sampler,adaptive,spp,env_sampling", [
+    ("independent", False, 64, None), ("qmc", False, 64, None), ("qmc", True, 256, None),
+    ("qmc", False, 64, "envmap")])
+def test_variance_channels_match_the_spread_over_seeds(sampler, adaptive, spp, env_sampling):
     scene = _scene()
-    imgs = [render_uncached(scene, spp=spp, seed=s, sampler=sampler, adaptive=adaptive, progress=False)
+    imgs = [render_uncached(scene, spp=spp, seed=s, sampler=sampler, adaptive=adaptive, progress=False,
+                            env_sampling=env_sampling)
             for s in range(SEEDS)]
     assert imgs[0].meta["sampler"] == sampler
     if adaptive:

@@ -44,14 +44,17 @@ def _z_agree(a_mean, a_var, b_mean, b_var, atol=1e-5):
 @pytest.mark.parametrize("mode,rough", [("local", 0.4), ("local", 0.0), ("path", 0.4)])
 def test_same_pixels_as_the_version_1_renderer(mode, rough):
     scene = _scene(roughness=rough)
-    new = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=1, progress=False, sampler="independent")
+    # Mitsuba's environment sampling, as the version 1 renderer (so the per-sample variances agree)
+    new = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=1, progress=False, sampler="independent",
+                          env_sampling="envmap")
     m, v, c = legacy_render(scene, spp=64, mode=mode, max_depth=3, seed=2)
     _z_agree(new.rgb, new.variance, m, v)
     # the variance estimates agree too (pooled over the image: a few percent at 64 spp)
     ratio = new.variance.mean() / v.mean()
     assert 0.85 < ratio < 1.15, ratio
     assert abs(new.channels["coverage"].mean() - c.mean()) < 0.02
-    # the qmc sampler (replicates): the same pixels within its own noise, and less of it
+    # the qmc sampler (replicates) and MIS compensation (the defaults): the same pixels within its
+    # own noise, and less of it
     q = render_uncached(scene, spp=64, mode=mode, max_depth=3, seed=3, progress=False, sampler="qmc")
     _z_agree(q.rgb, q.variance, m, v)
     assert q.variance.mean() < new.variance.mean()
@@ -291,16 +294,21 @@ def test_cache_key_names_the_sampler_and_adaptive():
         k(sampler="sobol")
 
 
-@pytest.mark.parametrize("rough", [0.4, 0.05])
-def test_balance_heuristic_estimates_the_same_pixels(rough):
-    """``mis = "balance"`` (a measured candidate, not the default): another weighting of the same two
-    samples, so the same image within noise; an unknown heuristic is refused by name."""
+@pytest.mark.parametrize("rough,option", [(0.4, {"mis": "balance"}), (0.05, {"mis": "balance"}),
+                                          (0.4, {"env_sampling": "envmap"}), (0.05, {"env_sampling": "envmap"})])
+def test_measured_candidates_estimate_the_same_pixels(rough, option):
+    """``mis = "balance"`` (a measured candidate, not the default) and ``env_sampling = "envmap"``
+    (Mitsuba's environment sampling, the default's predecessor against MIS compensation): other
+    weightings or proposals of the same integral, so the same image within noise; an unknown name
+    is refused."""
     scene = _scene(roughness=rough)
     a = render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent", adaptive=False)
-    b = render_uncached(scene, spp=64, seed=6, progress=False, sampler="independent", adaptive=False, mis="balance")
+    b = render_uncached(scene, spp=64, seed=6, progress=False, sampler="independent", adaptive=False, **option)
     _z_agree(a.rgb, a.variance, b.rgb, b.variance)
     assert 0.5 < b.variance.mean() / a.variance.mean() < 2.0
     assert not np.array_equal(a.rgb, render_uncached(scene, spp=64, seed=5, progress=False, sampler="independent",
-                                                     adaptive=False, mis="balance").rgb)  # the switch is live
+                                                     adaptive=False, **option).rgb)  # the switch is live
     with pytest.raises(ValueError, match="mis must be one of"):
         rr.load_integrator("local", mis="cutoff")
+    with pytest.raises(ValueError, match="env_sampling must be one of"):
+        rr.load_integrator("local", env_sampling="product")

@@ -145,6 +145,12 @@ def test_every_term_has_its_three_implementations(define):
             assert re.search(rf"^vec3 {e.extra['sample']}\(", (SHADER_DIR / "sampling.glsl").read_text(), re.M)
             assert brdf._ndf_quadrature(e.name, "theta_h") and brdf._ndf_quadrature(e.name, "cdf_theta_h")
             assert e.name in bsdf.NDF_SAMPLERS
+            # explain's exact runtime strategy, the random walk's first bounce and its functions
+            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in registry.RUNTIME_SAMPLINGS
+            if "walk_geometry" in e.extra:
+                from reference import multiscatter
+                assert e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
+                assert all(map(callable, multiscatter.WALK_NDFS[e.name])), e.name
     twins = {"NDF": harness.test_ndf_twins, "GEOMETRY": harness.test_g2_twins,
              "FRESNEL": harness.test_fresnel_twins}[define]
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
@@ -168,6 +174,23 @@ def test_term_dispatch_matches_the_registry_in_numpy():
 ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
               "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
               "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl")}
+
+
+def test_requirements_name_options_and_resolve_options_enforces_them():
+    """A member's requirements (Entry.requires) name real-time options and values they offer;
+    resolve_options accepts the member with them and refuses it, naming it, without them."""
+    checked = 0
+    for name, reg in presets.OPTION_REGISTRIES.items():
+        assert set(presets.OPTIONS[name].choices) - {"scene"} <= set(reg.names), name
+        for e in reg:
+            for k, accepted in e.requires.items():
+                assert accepted and set(accepted) <= set(presets.OPTIONS[k].choices), (e.name, k)
+                presets.resolve_options("default", {name: e.name, **{r: v[0] for r, v in e.requires.items()}})
+                other = next(c for c in presets.OPTIONS[k].choices if c not in accepted)
+                with pytest.raises(presets.OptionError, match=rf"^option {name}: {e.name} needs .*{k}=.*, found .*{k}={other}"):
+                    presets.resolve_options("default", {name: e.name, k: other})
+                checked += 1
+    assert checked >= 5  # the compositions' ibl and the compensations' shading and ibl
 
 
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():

@@ -25,22 +25,34 @@ import { boxFilter, glRendererName, post, runMain, supersampling } from '/browse
 const ss = supersampling();
 
 // The Sample Viewer asks for a Draco decoder and a KTX2 transcoder at start-up (both WASM
-// libraries, Draco from a CDN); the exported scenes hold no Draco meshes and no KTX2 textures, so
-// stubs that report themselves ready stand in for them (no network, no WASM start-up).
+// libraries, Draco from a CDN); scenes without Draco meshes (every analytic export) and without KTX2
+// textures get stubs that report themselves ready (no network, no WASM start-up). A Draco-compressed
+// asset gets Google's Draco decoder (the glTF branch's asm.js build, no WASM file) that the three.js
+// package vendors, served by render.mjs under /draco/ from the three.js client's node_modules.
 const NO_DRACO = (module) => module.onModuleLoaded({});
 const NO_KTX = async () => ({ GL: { createContext: () => 0, makeContextCurrent: () => true } });
+
+async function dracoLib(doc) {
+  const ext = [...(doc.extensionsRequired || []), ...(doc.extensionsUsed || [])];
+  if (!ext.includes('KHR_draco_mesh_compression')) return NO_DRACO;
+  const r = await fetch('/draco/draco_decoder.js');
+  if (!r.ok) {
+    throw new Error('KHR_draco_mesh_compression: no offline Draco decoder (the three.js client\'s ' +
+                    'node_modules/three is not installed: npm ci in clients/threejs)');
+  }
+  const script = document.createElement('script');
+  script.textContent = await r.text();   // defines the global DracoDecoderModule
+  document.head.appendChild(script);
+  if (typeof globalThis.DracoDecoderModule !== 'function') throw new Error('the Draco decoder did not load');
+  return globalThis.DracoDecoderModule;
+}
 
 async function main() {
   const t0 = performance.now();
   const scenario = await (await fetch('/scene/scenario.json')).json();
   const W = scenario.size.width, H = scenario.size.height;
   const SW = W * ss, SH = H * ss;
-  // A user's Draco-compressed asset: the stub above cannot decode it (the Sample Viewer fetches its
-  // decoder from a CDN, which this offline client cannot reach): say so instead of drawing nothing.
-  const doc = await (await fetch('/scene/' + scenario.gltf)).json();
-  if ((doc.extensionsRequired || []).includes('KHR_draco_mesh_compression')) {
-    throw new Error('KHR_draco_mesh_compression: the Sample Viewer client has no offline Draco decoder');
-  }
+  const draco = await dracoLib(await (await fetch('/scene/' + scenario.gltf)).json());
 
   const canvas = document.createElement('canvas');
   canvas.width = SW; canvas.height = SH;
@@ -50,7 +62,8 @@ async function main() {
 
   const view = new GltfView(gl);
   const state = view.createState();
-  const loader = view.createResourceLoader(NO_DRACO, NO_KTX, '/viewer/libs/');
+  const loader = view.createResourceLoader(draco, NO_KTX, '/viewer/libs/');
+  await loader.initDracoLib(draco);   // createResourceLoader starts it; loadGltf needs it ready
   state.gltf = await loader.loadGltf('/scene/' + scenario.gltf);
   const envHdr = await (await fetch('/scene/' + scenario.environment.hdr)).arrayBuffer();
   // The sheen albedo LUT is a PNG the package does not ship; no exported material has sheen, so a

@@ -25,6 +25,9 @@ const HERE = path.dirname(fileURLToPath(import.meta.url));
 const VIEWER_DIR = path.join(HERE, 'node_modules', '@khronosgroup', 'gltf-viewer');
 const viewerVersion = () => packageVersion(path.join(VIEWER_DIR, 'package.json'));
 const MODULE = path.join(VIEWER_DIR, 'dist', 'gltf-viewer.module.js');
+// Google's Draco decoder (glTF branch, asm.js), as vendored by the three.js client's package: served
+// as /draco/draco_decoder.js for Draco-compressed assets (page.js), absent when that client is not installed.
+const DRACO_DIR = path.join(HERE, '..', 'threejs', 'node_modules', 'three', 'examples', 'jsm', 'libs', 'draco', 'gltf');
 
 // iblSampler's constructor constants (package values in `full`). textureSize: the prefiltered cube
 // maps' face size (its GGX mip chain runs from it down to 16 x 16, roughness = level / (levels - 1),
@@ -81,7 +84,8 @@ runPage({
   label: LABEL,
   contents: { '/viewer/gltf-viewer.module.js': viewerModule(ibl) },
   files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
-  roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], ['/scene/', path.dirname(path.resolve(scenarioPath))]],
+  roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], ['/scene/', path.dirname(path.resolve(scenarioPath))],
+          ['/draco/', DRACO_DIR]],
   page: `/page.html?ss=${ss}`,
   width: scenario.size.width,
   height: scenario.size.height,

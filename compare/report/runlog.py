@@ -9,17 +9,21 @@ research section; the hard cases: its list of stages, :mod:`compare.report.stage
 caches (real-time renders, references, FLIP maps), writes ``run.json`` beside ``index.html`` and
 shows the table at the end of the page. ``pbrcheck bench report`` (:func:`bench_report`) runs the
 report twice in fresh processes, first with empty caches (a first run on a fresh machine), then
-again, and prints both runs' figures with the goal.
+again, and prints both runs' figures with the goal. ``pbrcheck bench report-asset``
+(:func:`bench_report_asset`) times the report of one glTF asset scene beside the spheres scene's,
+same size, environment and settings (the goal: at most :data:`ASSET_REPORT_GOAL` times).
 
 Stages are sequential and flat; a stage's CPU seconds are this process's (every thread: llvmpipe's
 and Dr.Jit's workers included), so ``cpu / wall`` near the core count means the stage kept the
 machine busy. External renderers render in a background thread and in their own processes (a
 browser), which ``cpu_s`` does not include; ``children_cpu_s`` adds the processes this one waited for.
 The cache counts are this process's: renders that a ``--scheduler``'s workers run are not in them.
+Across the stages, ``work`` gives the seconds by kind of work (reference renders, real-time renders,
+HDR-FLIP, plots, waiting on external renderers: :mod:`compare.worktime`), whichever stage asked.
 
 API: :class:`RunLog` (:meth:`RunLog.stage` records one stage), :func:`run_section`, :func:`summary_line`,
-:func:`cache_line`, :func:`bench_report`,
-:data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
+:func:`cache_line`, :func:`stage_table`, :func:`bench_report`, :func:`bench_report_asset`,
+:data:`RUN_FILE`, :data:`REPORT_GOAL_S`, :data:`ASSET_REPORT_GOAL`, :data:`ASSET_REPORT_SCENES`.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
 
-from .. import renderers
+from .. import renderers, worktime
 from ..metrics import FLIP_STORE_COUNTS
 from .section import Section, Table
 
@@ -47,6 +51,12 @@ REPORT_GOAL_S = {"cpu": 120.0, "gpu": 30.0}
 #: The report that ``make report`` builds (``pbrcheck bench report``'s default arguments).
 MAKE_REPORT_ARGS = ("spheres", "furnace", "grazing", "--spp", "256", "--with", "ext:threejs,ext:sample-viewer",
                     "--hardcases", "--research")
+#: The asset report's wall time over the spheres scene's (issue 23's goal).
+ASSET_REPORT_GOAL = 2.0
+#: ``bench report-asset``'s scenes (repository paths): the gate's asset check and the CI spheres,
+#: both 120 x 100 under the same sky; and the report arguments both get.
+ASSET_REPORT_SCENES = {"spheres": "compare/budgets/spheres_ci.toml", "asset": "compare/budgets/panel_ci.toml"}
+ASSET_REPORT_ARGS = ("--presets", "default", "--spp", "256", "--no-furnace")
 
 
 @dataclass
@@ -65,6 +75,7 @@ class RunLog:
     _c0: float = field(default_factory=time.process_time)
     _counts0: dict = field(default_factory=lambda: _counts())
     _children0: float = field(default_factory=lambda: _children_cpu())
+    _work0: dict = field(default_factory=worktime.snapshot)
 
     @contextlib.contextmanager
     def stage(self, name: str):
@@ -85,6 +96,7 @@ class RunLog:
             "backends": renderers.backends(),
             "caches": caches,
             "stages": self.merged(),
+            "work": worktime.since(self._work0),
         }
 
     def merged(self) -> list[dict]:
@@ -142,8 +154,35 @@ def run_section(run: dict) -> Section:
             f"{b.get('gl_renderer') or 'n/a'}, reference variant {b.get('reference_variant') or 'n/a'}. "
             f"Caches: {cache_line(run)}. `pbrcheck bench report` measures a first run (empty "
             f"caches) and a second one. File: {RUN_FILE}.")
-    return Section("run", "Where this report's time went", note,
-                   [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)])
+    tables = [Table("", ["stage", "wall (s)", "share", "CPU / wall"], rows)]
+    work = run.get("work") or {}
+    if work:
+        tables.append(Table("By kind of work, whichever stage asked for it (exclusive seconds; "
+                            "compare.worktime)", ["kind", "calls", "wall (s)", "CPU (s)"],
+                            [[k, str(v["calls"]), f"{v['wall_s']:.1f}", f"{v['cpu_s']:.1f}"] for k, v in work.items()]))
+    return Section("run", "Where this report's time went", note, tables)
+
+
+def stage_table(run: dict) -> str:
+    """A run log's stages and kinds of work as plain-text lines (wall and CPU seconds each), for the
+    terminal (``pbrcheck bench report`` prints one per run)."""
+    w = max([len(x["name"]) for x in run["stages"]] + [len(k) for k in (run.get("work") or {})] + [24])
+    lines = [f"{'stage':<{w}}  {'wall s':>8}  {'CPU s':>8}  calls"]
+    for x in run["stages"]:
+        lines.append(f"{x['name']:<{w}}  {x['wall_s']:8.1f}  {x['cpu_s']:8.1f}  {x.get('calls', 1):5d}")
+    rest_w = run["wall_s"] - sum(x["wall_s"] for x in run["stages"])
+    rest_c = run["cpu_s"] - sum(x["cpu_s"] for x in run["stages"])
+    lines.append(f"{'(set-up, plots, the page)':<{w}}  {rest_w:8.1f}  {rest_c:8.1f}")
+    lines.append(f"{'total':<{w}}  {run['wall_s']:8.1f}  {run['cpu_s']:8.1f}  (+{run.get('children_cpu_s', 0.0):.1f} s "
+                 f"CPU in child processes)")
+    work = run.get("work") or {}
+    if work:
+        lines.append(f"{'kind of work (exclusive)':<{w}}  {'wall s':>8}  {'CPU s':>8}  calls")
+        for k, v in work.items():
+            lines.append(f"{k:<{w}}  {v['wall_s']:8.1f}  {v['cpu_s']:8.1f}  {v['calls']:5d}")
+        lines.append(f"{'(none of these)':<{w}}  {run['wall_s'] - sum(v['wall_s'] for v in work.values()):8.1f}  "
+                     f"{run['cpu_s'] - sum(v['cpu_s'] for v in work.values()):8.1f}")
+    return "\n".join(lines)
 
 
 class BenchReportError(PbrcheckError):
@@ -184,6 +223,9 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
             if progress:
                 print(f"bench report: {name} run ...", file=sys.stderr, flush=True)
             runs[name] = _run(args, tmp / f"out_{name}", env, progress)
+            if progress:
+                print(f"bench report: {name} run, {summary_line(runs[name])}\n{stage_table(runs[name])}",
+                      file=sys.stderr, flush=True)
     gpu = str(runs["first"]["backends"].get("reference_variant", "")).startswith("cuda")
     goal = REPORT_GOAL_S["gpu" if gpu else "cpu"]
     return {
@@ -197,3 +239,24 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
         "first": runs["first"],
         "again": runs["again"],
     }
+
+
+def bench_report_asset(args: list[str] | None = None, *, progress: bool = True) -> dict:
+    """The report of the asset scene and of the spheres scene (:data:`ASSET_REPORT_SCENES`), each
+    ``pbrcheck report SCENE ARGS`` (default :data:`ASSET_REPORT_ARGS`) in a new process with an empty
+    ``PBRCHECK_CACHE`` (Dr.Jit's and Mesa's kernel caches as this machine has them), alternately,
+    spheres first. Returns each run's ``run.json`` (plus ``process_wall_s``), ``ratio`` = the asset's
+    wall time over the spheres' and whether it meets :data:`ASSET_REPORT_GOAL`."""
+    root = Path(__file__).resolve().parents[2]
+    args = list(ASSET_REPORT_ARGS if args is None else args)
+    runs = {}
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-report-asset-") as tmp:
+        for name, scene in ASSET_REPORT_SCENES.items():
+            env = {**os.environ, "PBRCHECK_CACHE": str(Path(tmp) / f"cache_{name}")}
+            if progress:
+                print(f"bench report-asset: {name} ({scene}) ...", file=sys.stderr, flush=True)
+            runs[name] = _run([str(root / scene), *args], Path(tmp) / f"out_{name}", env, progress)
+    ratio = runs["asset"]["wall_s"] / runs["spheres"]["wall_s"]
+    return {"args": args, "scenes": ASSET_REPORT_SCENES, "spheres_wall_s": runs["spheres"]["wall_s"],
+            "asset_wall_s": runs["asset"]["wall_s"], "ratio": ratio, "goal": ASSET_REPORT_GOAL,
+            "meets_goal": ratio <= ASSET_REPORT_GOAL, "spheres": runs["spheres"], "asset": runs["asset"]}

@@ -19,6 +19,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
+from pbrcheck.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -118,7 +119,7 @@ DEFAULT_SWEEP = (
     + [{"cube_size": n} for n in (64, 128, 256)]
     + [{"lut_size": n} for n in (16, 32, 64)]
     + [{"lut_format": f} for f in ("f16", "f32")]
-    + [{"irradiance": m} for m in ("convolution", "sh9")]
+    + [{"irradiance": m} for m in IRRADIANCES.names]
     + [{"ibl": "runtime", "runtime_samples": n} for n in (16, 64)]
 )
 

@@ -7,6 +7,8 @@ layout(local_size_x = 64) in;
 #include "energy.glsl"
 #include "lights.glsl"
 #include "occlusion.glsl"
+#include "specular_aa.glsl"
+#include "coverage.glsl"
 layout(std430, binding = 0) readonly buffer InA { vec4 a_in[]; };
 layout(std430, binding = 1) readonly buffer InB { vec4 b_in[]; };
 layout(std430, binding = 2) writeonly buffer Out { vec4 out_v[]; };

@@ -8,9 +8,18 @@
 // alpha = base colour's alpha: MASK discards below alpha_cutoff, BLEND writes (radiance, alpha)
 // for the host's blending. Double-sided back faces flip N, T and B (spec 3.9.5).
 // AOV_PASS (a #define): writes the interpolated geometric normal, its n.v and the object id at
-// the pixel centre instead of shading.
+// the pixel centre instead of shading. SPECULAR_AA (specular_aa.glsl) widens the roughness by the
+// normals' variance: the normal map's mip-filtered length (toksvig), the geometric normal's screen
+// derivatives (screen_space), the slope variance baked beside the normal map's mips, tex_normal_var
+// (prefiltered). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
+// (coverage.glsl) for the host's GL_SAMPLE_ALPHA_TO_COVERAGE instead of discarding.
 #include "env.glsl"
 #include "shading.glsl"
+#include "specular_aa.glsl"
+#include "coverage.glsl"
+#ifndef ALPHA_TO_COVERAGE
+#define ALPHA_TO_COVERAGE 0
+#endif
 
 in vec3 v_pos;
 in vec3 v_nrm;
@@ -47,6 +56,9 @@ uniform int ao_set;
 uniform mat3 ao_xf;
 uniform int ao_mirror;
 uniform float ao_strength;
+// specular_aa = prefiltered: var(s_x) + var(s_y) of the normal map's slopes per mip (R), read with the
+// normal map's coordinates.
+uniform sampler2D tex_normal_var;
 
 #if AOV_PASS
 layout(location = 0) out vec4 out_aov;     // N.xyz, NdotV
@@ -61,27 +73,42 @@ bool occluded(vec3 p, vec3 l, float dist) { return false; }
 float fold(float x) { return 1.0 - abs(mod(x, 2.0) - 1.0); }
 
 // Trilinear (and anisotropic where the texture has it) lookup of slot k, derivatives of the
-// unfolded coordinates so the mip level does not jump at a mirror fold.
-vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback) {
+// unfolded coordinates so the mip level does not jump at a mirror fold. lod0: bilinear at level 0
+// only, as the reference reads textures (TEXTURE_LOD0 for the material textures, NORMAL_LOD0 for
+// the normal map: options texture_sampling, normal_sampling = lod0).
+vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback, bool lod0) {
     if (has == 0) return fallback;
     vec2 uv = set == 0 ? v_uv0 : v_uv1;
     uv = (xf * vec3(uv, 1.0)).xy;
     vec2 dx = dFdx(uv), dy = dFdy(uv);
     if ((mirror & 1) != 0) uv.x = fold(uv.x);
     if ((mirror & 2) != 0) uv.y = fold(uv.y);
-    return textureGrad(t, uv, dx, dy);
+    return lod0 ? textureLod(t, uv, 0.0) : textureGrad(t, uv, dx, dy);
 }
 
 vec4 slot(sampler2D t, int k, vec4 fallback) {
-    return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback);
+    bool lod0 = k == 2 ? NORMAL_LOD0 != 0 : TEXTURE_LOD0 != 0;
+    return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback, lod0);
 }
 
 void main() {
     vec4 base = base_factor * slot(tex_base, 0, vec4(1.0)) * v_col;
+#if ALPHA_TO_COVERAGE && !AOV_PASS
+    float coverage = alpha_to_coverage_sharpen(base.a, alpha_cutoff, fwidth(base.a));
+    if (alpha_mode == 1 && coverage <= 0.0) discard;
+#else
     if (alpha_mode == 1 && base.a < alpha_cutoff) discard;
+#endif
     vec3 N = normalize(v_nrm);
     bool back = !gl_FrontFacing && flip_backface != 0;
     if (back) N = -N;
+#if SPECULAR_AA == SPECULAR_AA_SCREEN_SPACE && !AOV_PASS
+    vec3 dndx = dFdx(N), dndy = dFdy(N);
+    float dn2 = dot(dndx, dndx) + dot(dndy, dndy);
+#else
+    float dn2 = 0.0;
+#endif
+    float normal_length = 1.0, normal_var = 0.0;
     vec3 v = normalize(cam_origin - v_pos);
 #if AOV_PASS
     out_aov = vec4(N, max(dot(N, v), 0.0));
@@ -96,6 +123,11 @@ void main() {
             T /= lt;
             vec3 B = (back ? -v_tan.w : v_tan.w) * cross(N, T);
             vec3 tn = slot(tex_normal, 2, vec4(0.5, 0.5, 1.0, 1.0)).xyz * 2.0 - 1.0;
+#if SPECULAR_AA == SPECULAR_AA_TOKSVIG
+            normal_length = length(tn);
+#elif SPECULAR_AA == SPECULAR_AA_PREFILTERED
+            normal_var = slot(tex_normal_var, 2, vec4(0.0)).r * normal_scale * normal_scale;
+#endif
             tn.xy *= normal_scale;
             n = normalize(mat3(T, B, N) * tn);
         }
@@ -103,12 +135,21 @@ void main() {
     vec4 mr = slot(tex_mr, 1, vec4(1.0));
     float metallic = clamp(metallic_factor * mr.b, 0.0, 1.0);
     float roughness = clamp(roughness_factor * mr.g, 0.0, 1.0);
+#if SPECULAR_AA != SPECULAR_AA_NONE
+    roughness = specular_aa(roughness, normal_length, normal_var, dn2);
+#endif
     uvec2 px = uvec2(gl_FragCoord.xy);
     uint seed = px.y * 65536u + px.x;
-    float ao = occlusion_from_texture(lookup(tex_occlusion, ao_has, ao_set, ao_xf, ao_mirror, vec4(1.0)).r,
+    float ao = occlusion_from_texture(lookup(tex_occlusion, ao_has, ao_set, ao_xf, ao_mirror, vec4(1.0),
+                                             TEXTURE_LOD0 != 0).r,
                                       ao_strength);
-    vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao), seed);
+    vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao, N), seed);
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;
+#if ALPHA_TO_COVERAGE
+    // MASK: the sharpened alpha becomes the sample mask (GL_SAMPLE_ALPHA_TO_ONE then writes alpha 1)
+    out_color = vec4(radiance, alpha_mode == 2 ? base.a : (alpha_mode == 1 ? coverage : 1.0));
+#else
     out_color = vec4(radiance, alpha_mode == 2 ? base.a : 1.0);
+#endif
 #endif
 }

@@ -80,7 +80,8 @@ vec3 normal_at(int k, vec3 p) {
 // The surface of object k at hit point p (its normal and material), v towards the eye.
 Surface surface_at(int k, vec3 p, vec3 v) {
     Obj ob = objs[k];
-    return Surface(p, normal_at(k, p), v, ob.e.rgb, ob.e.a, ob.f.x, ob.f.y, 1.0);  // no occlusion
+    vec3 n = normal_at(k, p);
+    return Surface(p, n, v, ob.e.rgb, ob.e.a, ob.f.x, ob.f.y, 1.0, n);  // no occlusion, no normal map
 }
 
 void main() {

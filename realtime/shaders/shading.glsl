@@ -8,7 +8,8 @@
 //   IBL_RUNTIME the specular is runtime importance sampling of the environment instead (the same
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
 //   The surface's occlusion scales the diffuse image-based term (glTF 2.0 3.9.4) and
-//   specular_occlusion() (occlusion.glsl) the split-sum specular; the article compositions ignore it.
+//   specular_occlusion() and horizon_occlusion() (occlusion.glsl) the split-sum specular; the article
+//   compositions ignore both.
 // shade_article000:: article 000's PBR.frag (listings 1 and 4, with their mistakes).
 // shade_article001:: runtime importance sampling of the environment (article 001).
 // shade_article002:: article 002's lerp composition with EnvBRDFApprox.
@@ -41,6 +42,7 @@ struct Surface {
     float roughness;
     float specular;
     float occlusion;   // ambient occlusion of the image-based light, 1: none (glTF occlusionTexture)
+    vec3 ng;           // geometric normal (interpolated vertex normal; n without a normal map)
 };
 
 // What a composition's image-based term leaves to its point-light BRDF.
@@ -172,8 +174,9 @@ vec3 shade_material(Shading c, uint pixel_seed) {
 #endif
     // Multiple-scattering energy compensation (energy.glsl): a scale of the split sum's specular
     // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
-    // Specular occlusion (occlusion.glsl) of the image-based specular from the ambient occlusion.
-    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness);
+    // Specular occlusion (occlusion.glsl) of the image-based specular from the ambient occlusion,
+    // and the horizon occlusion of a normal-mapped reflection below the geometric normal's horizon.
+    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness) * horizon_occlusion(c.r, s.ng);
 #ifdef HOOK_ENERGY_COMPENSATION
     color += prefiltered_radiance(c.r, c.roughness) * spec_albedo
              * hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) * so;
