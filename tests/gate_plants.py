@@ -11,7 +11,7 @@ An external client's plants (:data:`CLIENT_PLANTS`: scene edits; for three.js al
 client and gated by clients.toml's own checks (model-matched references, budgets and committed
 baselines).
 
-API: :data:`PLANTS`, :data:`CLIENT_PLANTS`, :data:`THREEJS_PLANTS`, :data:`IMPROVEMENT`,
+API: :data:`PLANTS`, :data:`CLIENT_PLANTS`, :data:`THREEJS_PLANTS`, :data:`ASSET_PLANTS`, :data:`IMPROVEMENT`,
 :data:`FITTED_LOD`, :data:`FITTED_LOD_CI`, :func:`base_budget`, :func:`accept_baselines`, :func:`client_checks`,
 :func:`planted_threejs`, :func:`plant_budget`, :func:`detection_table`, :func:`rerun_checks`.
 """
@@ -27,6 +27,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from compare.baseline import BASELINE_DIR
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene, scene_from_dict
@@ -38,7 +40,8 @@ BUDGETS = ROOT / "compare" / "budgets"
 CLIENTS = BUDGETS / "clients.toml"
 CLIENTS_DIR = ROOT / "clients"
 SCENES = {"spheres": ("spheres_ci.toml", "refs/spheres_ci.exr", {"relmse": 0.0023, "flip_mean": 0.074, "delta_e_itp_mean": 3}),
-          "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 0.00031, "flip_mean": 0.0078, "delta_e_itp_mean": 1.1})}
+          "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 0.00031, "flip_mean": 0.0078, "delta_e_itp_mean": 1.1}),
+          "panel": ("panel_ci.toml", "refs/panel_ci.exr", {"relmse": 0.029, "flip_mean": 0.33, "delta_e_itp_mean": 15})}
 
 
 def _lod(shift: float) -> str:
@@ -61,6 +64,9 @@ class Plant:
     # three.js page edits: (shader chunk, text, replacement) applied to THREE.ShaderChunk before the
     # first compile (:func:`planted_threejs`), the client's equivalent of a shader hook
     page: tuple = ()
+    # the panel asset's texture images edited (a function of pbrcheck.gltf_build.panel_arrays' dict):
+    # the asset scene renders a planted copy of compare/budgets/assets/panel.glb (:func:`_planted_panel`)
+    asset_edit: object = None
 
 
 def _objects(pred, key, f):
@@ -156,6 +162,44 @@ THREEJS_PLANTS = [
                  "mix( specularIntensityFactor, 0.97, metalnessFactor )"))),
 ] + CLIENT_PLANTS
 
+def _srgb_encode(p: np.ndarray) -> np.ndarray:
+    """uint8 texels read as linear, stored sRGB-encoded: a renderer that decodes them shades the raw
+    values, as one that forgot to decode the original would (8-bit rounding aside)."""
+    x = p / 255.0
+    e = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(e * 255).astype(np.uint8)
+
+
+def _no_srgb_decode(imgs: dict) -> dict:
+    return {**imgs, "base_color": _srgb_encode(imgs["base_color"])}
+
+
+def _flip_green(imgs: dict) -> dict:
+    n = imgs["normal"].copy()
+    n[..., 1] = 255 - n[..., 1]
+    return {**imgs, "normal": n}
+
+
+#: Asset plants on ci.toml's asset check (panel-default): asset edits the reference does not see.
+ASSET_PLANTS = [
+    Plant("base colour not sRGB-decoded", "asset edit: base-colour texels sRGB-encoded (decoded = the raw values)",
+          asset_edit=_no_srgb_decode, scenes=("panel",)),
+    Plant("normal map green flipped", "asset edit: normal texture G -> 255 - G", asset_edit=_flip_green,
+          scenes=("panel",)),
+]
+
+
+def _planted_panel(folder: Path, edit) -> Path:
+    """The panel asset (pbrcheck.gltf_build.panel_asset) with its texture images ``edit``-ed, in ``folder``."""
+    from unittest import mock
+
+    from pbrcheck import gltf_build
+
+    orig = gltf_build.panel_arrays
+    with mock.patch.object(gltf_build, "panel_arrays", lambda tex=gltf_build.PANEL_TEXTURE_SIZE: edit(orig(tex))):
+        return gltf_build.panel_asset(Path(tempfile.mkdtemp(prefix="panel-plant-", dir=folder)) / "panel.glb")
+
+
 #: The unchanged tree rendered afresh (an external client's own render against its committed baseline).
 UNCHANGED = Plant("unchanged tree", "nothing", caught=("pass",))
 
@@ -229,19 +273,20 @@ def base_budget(folder: Path, preset: str = "default", scenes=("spheres", "furna
     return p
 
 
-def accept_baselines(folder: Path, preset: str = "default", scenes=("spheres", "furnace"), options=None) -> Path:
+def accept_baselines(folder: Path, preset: str = "default", scenes=("spheres", "furnace"), options=None,
+                     committed: bool = False) -> Path:
     """The unchanged tree's baselines in ``folder/baselines``; returns the budget. A real-time preset's
-    are accepted afresh; an ``ext:`` client's are clients.toml's committed ones (copied), so its
-    plants are gated exactly as ``make gate`` gates the client."""
+    are accepted afresh (``committed``: ci.toml's committed ones, copied); an ``ext:`` client's are
+    clients.toml's committed ones (copied), so its plants are gated exactly as ``make gate`` gates it."""
     from compare.gate import run_gate
 
     b = base_budget(folder, preset, scenes, options)
-    if preset.startswith("ext:"):
+    if preset.startswith("ext:") or committed:
         (Path(folder) / BASELINE_DIR).mkdir(exist_ok=True)
         for s in scenes:
+            check = client_checks(preset)[s].name if preset.startswith("ext:") else f"{s}-{preset}"
             for ext in (".exr", ".json"):
-                name = client_checks(preset)[s].name + ext
-                shutil.copyfile(BUDGETS / BASELINE_DIR / name, Path(folder) / BASELINE_DIR / name)
+                shutil.copyfile(BUDGETS / BASELINE_DIR / (check + ext), Path(folder) / BASELINE_DIR / (check + ext))
         return b
     rc = run_gate(b, accept_reason="unchanged tree", progress=False, stream=io.StringIO())
     assert rc == 0
@@ -298,8 +343,13 @@ def plant_budget(folder: Path, plant: Plant, scenes=None) -> Path:
     text = ""
     for s in scenes:
         scene_file, ref, budgets = SCENES[s]
-        if external or plant.scene_edit is not None:
+        if external or plant.scene_edit is not None or plant.asset_edit is not None:
             d = json.loads(json.dumps(load_scene(BUDGETS / scene_file).to_dict()))
+            if plant.asset_edit is not None:
+                glb = _planted_panel(folder, plant.asset_edit)
+                for o in d["objects"]:
+                    o["path"] = str(glb)
+                    o.pop("content_hash", None)
             edited = scene_from_dict(plant.scene_edit(d) if plant.scene_edit else d)
             with (planted_threejs(folder, plant.page) if plant.page else contextlib.nullcontext()):
                 img = renderers.render_under_test(edited, plant.preset, plant.options or None)
@@ -359,24 +409,24 @@ def rerun_checks(budget: Path, names, runs: int, workdir: Path, stream=None) -> 
     return out
 
 
-def detection_table(folder: Path, preset: str = "default") -> str:
+def detection_table(folder: Path, preset: str = "default", *, plants=None, scenes=("spheres", "furnace")) -> str:
     """The measured detection table of docs/compare.md: every plant (and the improvements), the
     verdict per CI scene and the region that caught it (the most significant one)."""
     import dataclasses
 
     from compare.gate import load_budget, run_check
 
-    accept_baselines(folder, preset)
-    plants = (PLANTS + CLIENT_PLANTS[:4] + [IMPROVEMENT, FITTED_LOD, FITTED_LOD_CI] if preset == "default"
+    accept_baselines(folder, preset, scenes)
+    plants = plants or (PLANTS + CLIENT_PLANTS[:4] + [IMPROVEMENT, FITTED_LOD, FITTED_LOD_CI] if preset == "default"
               else [dataclasses.replace(p, preset=preset)
                     for p in [UNCHANGED] + (THREEJS_PLANTS if preset == "ext:threejs" else CLIENT_PLANTS)])
-    rows = ["| planted change | made by | spheres_ci | furnace_ci | caught by (most significant region) | likely term |",
-            "|---|---|---|---|---|---|"]
+    rows = ["| planted change | made by | " + " | ".join(f"{x}_ci" for x in scenes)
+            + " | caught by (most significant region) | likely term |", "|---|---|" + "---|" * len(scenes) + "---|---|"]
     for p in plants:
         checks, base = load_budget(plant_budget(folder, p))
         res = {c.name.split("-")[0]: run_check(c, base, progress=False) for c in checks}
         cells, best, likely = [], "", ""
-        for s in ("spheres", "furnace"):
+        for s in scenes:
             r = res.get(s)
             if r is None:
                 cells.append("(not run)")
@@ -395,11 +445,14 @@ def detection_table(folder: Path, preset: str = "default") -> str:
                 best = (f"{s}: {x.name}, bias {x.bias:+.2%}, relmse {x.relmse_before:.3g} -> {x.relmse_after:.3g}"
                         f" ({z:+.0f} sigma)")
             likely = likely or (r.likely or "")
-        rows.append(f"| {p.name} | {p.how} | {cells[0]} | {cells[1]} | {best} | {likely} |")
+        rows.append(f"| {p.name} | {p.how} | " + " | ".join(cells) + f" | {best} | {likely} |")
     return "\n".join(rows)
 
 
-if __name__ == "__main__":  # python tests/gate_plants.py DIR [PRESET]: print the detection table
+if __name__ == "__main__":  # python tests/gate_plants.py DIR [PRESET | assets]: print the detection table
     import sys
 
-    print(detection_table(Path(sys.argv[1]), *sys.argv[2:3]))
+    if sys.argv[2:3] == ["assets"]:
+        print(detection_table(Path(sys.argv[1]), plants=ASSET_PLANTS, scenes=("panel",)))
+    else:
+        print(detection_table(Path(sys.argv[1]), *sys.argv[2:3]))

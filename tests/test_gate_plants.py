@@ -15,8 +15,8 @@ import pytest
 
 from compare import renderers
 from compare.gate import load_budget, run_check, run_gate
-from gate_plants import (CLIENTS, FITTED_LOD, FITTED_LOD_CI, IMPROVEMENT, PLANTS, THREEJS_PLANTS, accept_baselines,
-                         client_checks, plant_budget, planted_threejs, rerun_checks)
+from gate_plants import (ASSET_PLANTS, CLIENTS, FITTED_LOD, FITTED_LOD_CI, IMPROVEMENT, PLANTS, THREEJS_PLANTS,
+                         accept_baselines, client_checks, plant_budget, planted_threejs, rerun_checks)
 
 pytestmark = pytest.mark.slow
 
@@ -60,6 +60,16 @@ def test_twenty_reruns_of_the_unchanged_tree_pass(tmp_path):
         out = io.StringIO()
         assert run_gate(budget, progress=False, stream=out) == 0, (i, out.getvalue())
         assert out.getvalue().count("\npass ") + out.getvalue().startswith("pass ") == 2, out.getvalue()
+
+
+@pytest.mark.parametrize("plant", ASSET_PLANTS, ids=lambda p: p.name)
+def test_asset_plant_is_caught(tmp_path, plant):
+    """On ci.toml's asset check panel-default (its committed reference and baseline): a base colour
+    read without sRGB decoding and a normal map with its green channel flipped are regressed."""
+    accept_baselines(tmp_path, scenes=("panel",), committed=True)
+    results = verdicts(plant_budget(tmp_path, plant))
+    assert all(r.status != "error" for r in results.values()), {n: r.error for n, r in results.items()}
+    assert [r.change.verdict for r in results.values()] == ["regressed"], results
 
 
 def _threejs_installed():
