@@ -560,38 +560,45 @@ class SceneCalls:
     registry id; shapes without one, e.g. no emitter, are outside every call) and calls each lane's
     with ``dr.switch``, which traces each of them once; lanes outside ``active`` are not passed and
     return zeros, as through the pointer. One object: no call at all, and an object with ``bind(si,
-    active)`` (:class:`reference.textured.TexturedMaterial`: its textures read once per interaction)
-    is bound to ``si``. The same functions on the same arguments: the values are the virtual
+    active, shape)`` (:class:`reference.textured.TexturedMaterial`: its textures read once per
+    interaction) is bound to ``si`` and, where one shape alone has it, to that shape (its vertex
+    attributes read directly, not through ``si.shape``'s virtual call). The same functions on the same arguments: the values are the virtual
     call's (tested bit-identical). Methods: those of the objects called (``eval``, ``pdf``,
     ``eval_pdf``, ``sample``, ``eval_null_transmission``)."""
 
     def __init__(self, table, si, active):
-        lut, self.objects = table
+        lut, self.objects, owners = table
         index = dr.gather(mi.UInt32, lut, dr.reinterpret_array(mi.UInt32, si.shape), mi.Bool(active))
         self.active = mi.Bool(active) & (index > 0)   # 0: the shape has none
         self.index = index - 1
         self.one = None
         if len(self.objects) == 1:  # no call: the object itself, bound to si where it can be
             o = self.objects[0]
-            self.one = o.bind(si, self.active) if hasattr(o, "bind") else o
+            self.one = o.bind(si, self.active, owners[0]) if hasattr(o, "bind") else o
 
     @staticmethod
     def table(scene, kind: str = "bsdf"):
-        """``(shape registry id -> 1 + index lookup, the scene's distinct objects)`` of ``kind``
-        (``"bsdf"`` or ``"emitter"``: the shape's method of that name)."""
-        objects, index = [], []
+        """``(shape registry id -> 1 + index lookup, the scene's distinct objects, each object's
+        one shape or None where several shapes share it)`` of ``kind`` (``"bsdf"`` or ``"emitter"``:
+        the shape's method of that name). An object bound with its one shape reads that shape's
+        attributes directly (a call through ``si.shape`` is a virtual call over every live shape of
+        the process: :class:`SceneCalls`)."""
+        objects, index, owners = [], [], []
         for s in scene.shapes():
             o = getattr(s, kind)()
             k = -1 if o is None else next((i for i, x in enumerate(objects) if x is o), None)
             if k is None:
                 k = len(objects)
                 objects.append(o)
+                owners.append(s)
+            elif k >= 0:
+                owners[k] = None
             index.append(k + 1)
         ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
         lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
         dr.scatter(lut, mi.UInt32(index), ids)
         dr.eval(lut)
-        return lut, objects
+        return lut, objects, owners
 
     def _call(self, name, args):
         *args, mask = args  # the mask: always the last argument
