@@ -99,7 +99,7 @@ RESEARCH_PROBE = 16
 #: a final to be trusted (:func:`floor_tail_rse`, a lower bound: the Gaussian value). 0.15: at one
 #: sigma the 10x goal then holds at >= 8.7x. Measured (docs/compare.md): the built-in spheres,
 #: grazing and furnace at their sizes <= 0.070 (33 cached renders, 16-512 spp), spheres_ci at 64 spp
-#: 0.10; DamagedHelmet under royal_esplanade (200 x 150) 0.16-0.33 at 16-512 spp, 0.09 at 1024.
+#: 0.10; DamagedHelmet under royal_esplanade (200 x 150) 0.16-0.33 at 16-512 spp, 0.08-0.31 at 1024.
 FLOOR_RSE_MAX = 0.15
 #: The error measures the rule can put the noise floor below (:func:`noise_and_error`).
 VERDICT_METRICS = ("mse", "relmse")
