@@ -73,7 +73,6 @@ from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, Image, read_exr
 from pbrcheck.fmt import format_value
-from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.registry import SHADINGS
 from pbrcheck.scene import builtin_scene_names, load_scene
 
@@ -124,7 +123,7 @@ class Result:
     objects and whether the reference's noise could explain it) or ``error`` (with the message and
     the exit code it maps to)."""
     check: Check
-    status: str                      # pass | fail | error | skip (a real-time preset on an asset scene)
+    status: str                      # pass | fail | error
     metrics: dict | None = None
     failures: list[dict] = field(default_factory=list)
     error: str | None = None
@@ -144,8 +143,8 @@ class Result:
 
     @property
     def outcome(self) -> str:
-        """pass | fail (accuracy budget) | regressed | improved | changed | error | skip."""
-        if self.status in ("error", "fail", "skip"):
+        """pass | fail (accuracy budget) | regressed | improved | changed | error."""
+        if self.status in ("error", "fail"):
             return self.status
         return self.change.verdict if self.change is not None else "pass"
 
@@ -312,10 +311,6 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
-        if check.test is None and scene is not None and split_presets(scene, [check.preset])[1]:
-            res.status, res.error, res.exit_code = "skip", f"{check.preset} on a glTF asset scene: {RASTER_MISSING}", 0
-            res.seconds = time.perf_counter() - t0
-            return res
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)
@@ -546,8 +541,6 @@ def write_junit(path: Path, results: list[Result]) -> Path:
         lines = failure_lines(r) + change_lines(r)
         if r.status == "error":
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
-        elif r.status == "skip":
-            ET.SubElement(tc, "skipped", message=r.error or "skipped")
         elif r.exit_code:
             ET.SubElement(tc, "failure", message=lines[0] if lines else r.outcome).text = "\n".join(lines)
         if r.metrics:
@@ -615,7 +608,7 @@ def write_summary(path: Path, results: list[Result], budget_path: str = "BUDGET.
     lines = ["# pbrcheck gate", "", "| check | outcome | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:
         budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
-        if r.status in ("error", "skip"):
+        if r.status == "error":
             lines.append(f"| {r.check.name} | {r.status.upper()} | | | {r.error} |")
             continue
         failed = {f["metric"] for f in r.failures}
@@ -784,7 +777,7 @@ def accept(budget: Path, results: list[Result], reason: str, *, progress: bool =
     target.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=target))
     try:
-        lines = [_accept_one(r, base, staging, reason, date, progress) for r in results if r.status != "skip"]
+        lines = [_accept_one(r, base, staging, reason, date, progress) for r in results]
         for p in sorted(staging.iterdir()):
             os.replace(p, target / p.name)
     finally:
@@ -843,15 +836,12 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
-        if r.status not in ("error", "skip") and r.baseline is None and settings["require_baselines"] \
+        if r.status != "error" and r.baseline is None and settings["require_baselines"] \
                 and accept_reason is None:
             r.status, r.exit_code = "error", 2
             r.error = (f"no accepted baseline ({Path(base) / 'baselines' / safe_name(c.name)}.exr) and the budget sets "
                        f"require_baselines = true; accept one: pbrcheck gate {budget} --accept --reason \"...\"")
         results.append(r)
-        if r.status == "skip":
-            print(f"skip {c.name}: {r.error}", file=stream)
-            continue
         if r.status == "error":
             print(f"ERROR {c.name}: {r.error}", file=stream)
             continue
@@ -869,9 +859,8 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     if html:
         print(f"gate: page {write_html(Path(html), results, str(budget))}", file=stream)
     n = {s: sum(r.outcome == s for r in results)
-         for s in ("pass", "fail", "regressed", "improved", "changed", "error", "skip")}
-    label = {"skip": "skipped (real-time presets on glTF asset scenes)"}
-    print("gate: " + ", ".join(f"{v} {label.get(k, k)}" for k, v in n.items() if v or k == "pass"), file=stream)
+         for s in ("pass", "fail", "regressed", "improved", "changed", "error")}
+    print("gate: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k == "pass"), file=stream)
     errors = [r.exit_code for r in results if r.status == "error"]
     if errors:
         if accept_reason is not None:

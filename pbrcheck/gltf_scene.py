@@ -1,5 +1,5 @@
 """glTF assets in resolved scenes: what ``check-scene`` prints about them, the ray-cast pipeline's
-refusal of asset scenes and the presets a report keeps for them.
+refusal of asset scenes.
 
 API
 ---
@@ -7,7 +7,6 @@ API
   extensions used and ignored.
 - :func:`require_analytic`, :class:`UnsupportedSceneError`, :data:`RASTER_MISSING` -- the ray-cast
   pipeline's one-line refusal of meshes (``pipeline=raycast``; ``auto`` rasterizes them).
-- :func:`split_presets` -- (usable, skipped) presets of a scene.
 - :func:`scene_has_assets`, :func:`framing_camera`; re-exported: :class:`~pbrcheck.gltf_objects.Mesh`,
   :class:`~pbrcheck.gltf_objects.AssetInstance`, :func:`~pbrcheck.scene.asset_scene`,
   :func:`~pbrcheck.gltf_objects.set_asset_options`, :func:`~pbrcheck.gltf_objects.parse_size`,
@@ -92,12 +91,6 @@ def require_analytic(scene: Scene, renderer: str) -> None:
     """Raise :class:`UnsupportedSceneError` when ``scene`` holds glTF assets (``renderer`` names who asks)."""
     if scene_has_assets(scene):
         raise UnsupportedSceneError(scene.source, "", f"{renderer}: {RASTER_MISSING}")
-
-
-def split_presets(scene: Scene, presets) -> tuple[list[str], list[str]]:
-    """(usable, skipped) presets for ``scene``: every preset is usable (real-time presets draw asset
-    scenes with the raster pipeline); kept for callers that report skipped presets."""
-    return list(presets), []
 
 
 def _light_line(L) -> str:

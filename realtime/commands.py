@@ -65,7 +65,8 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
     """Wall time of each precompute pass and of one frame, per preset, after a warm-up render
     (shader compilation and llvmpipe's JIT), with ctx.finish() around each pass. ``scene_name`` may
     be a glTF asset (``env`` its environment file): the raster pipeline then also reports its
-    ``textures`` (upload and mip generation, re-done warm) and ``geometry`` passes."""
+    ``texture_upload`` and ``texture_mips`` (upload and mip generation apart, re-done warm) and
+    ``geometry`` passes."""
     from pbrcheck.gltf_objects import is_asset_path, set_asset_options
     from . import raster
     if is_asset_path(scene_name):
@@ -91,7 +92,8 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
 
 
 def _cmd_bench(args) -> int:
-    print(json.dumps(bench(args.size, args.scene, env=args.env), indent=2))
+    presets = [x for x in (args.presets or "").split(",") if x] or None
+    print(json.dumps(bench(args.size, args.scene, presets=presets, env=args.env), indent=2))
     return 0
 
 
@@ -121,4 +123,5 @@ def register(sub, bench_sub) -> None:
     b.add_argument("--size", type=int, default=512)
     b.add_argument("--scene", default="spheres", help="built-in scene, TOML file or glTF asset")
     b.add_argument("--env", default=None, help="environment file of a glTF asset scene")
+    b.add_argument("--presets", default=None, metavar="P,...", help="presets to time (default: every preset)")
     b.set_defaults(func=_cmd_bench)

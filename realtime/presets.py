@@ -63,6 +63,9 @@ class Option:
     power_of_two: bool = False
 
 
+#: Choices of texture_sampling and normal_sampling (raster pipeline): the mip chain, or level 0 only.
+TEXTURE_SAMPLINGS = ("mip", "lod0")
+
 #: Choices of the G-term options: the scene's own, or any registered term.
 GEOMETRY_CHOICES = ("scene", *GEOMETRIES.names)
 
@@ -133,6 +136,12 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "instead of discarding below alphaCutoff; needs msaa > 1"),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
            lo=1.0, hi=16.0),
+    Option("texture_sampling", "choice", "raster: material textures other than the normal map (base colour, "
+           "metallic-roughness, emissive, occlusion): mip (trilinear through the mip chain, as engines) | lod0 "
+           "(bilinear at level 0 only, as the reference reads them; with supersampling, its filtering)",
+           TEXTURE_SAMPLINGS),
+    Option("normal_sampling", "choice", "raster: the normal map: mip (trilinear, averaged normals renormalized, as "
+           "engines) | lod0 (bilinear at level 0 only, as the reference)", TEXTURE_SAMPLINGS),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces")),
     Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
@@ -178,6 +187,8 @@ DEFAULT = {
     "supersample": 4,
     "pipeline": "auto",
     "anisotropy": 1.0,
+    "texture_sampling": "mip",
+    "normal_sampling": "mip",
     "occlusion_texture": True,
     "specular_occlusion": "none",
     "horizon_occlusion": "none",

@@ -60,6 +60,7 @@ specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -220,16 +221,26 @@ def draw_items(scene: Scene) -> list[DrawItem]:
     return out
 
 
-def _texture(image, ref, srgb: bool, anisotropy: float):
-    """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap)."""
+def _texture(image, ref, srgb: bool, anisotropy: float, times: dict | None = None):
+    """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap).
+    ``times``: adds the seconds of the upload (decode to linear half floats, the level-0 upload) to
+    ``texture_upload`` and of the mip generation to ``texture_mips`` (each up to ``ctx.finish()``)."""
     key = (id(image), srgb, ref.wrap, anisotropy)
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]
+    ctx = get_context()
+    t0 = time.perf_counter()
     px = image.linear(srgb).astype(np.float16)
     h, w = px.shape[:2]
-    tex = get_context().texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
+    tex = ctx.texture((w, h), 4, np.ascontiguousarray(px).tobytes(), dtype="f2")
+    ctx.finish()
+    t1 = time.perf_counter()
     tex.build_mipmaps()
+    ctx.finish()
+    if times is not None:
+        times["texture_upload"] = times.get("texture_upload", 0.0) + t1 - t0
+        times["texture_mips"] = times.get("texture_mips", 0.0) + time.perf_counter() - t1
     return _sampled(key, image, tex, ref, anisotropy)
 
 

@@ -452,6 +452,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
         **SPECULAR_AAS.select(o.specular_aa),
         "RUNTIME_LOD": int(o.runtime_lod), "RUNTIME_ROTATE": int(o.runtime_rotate),
         "REFLECT_BUG": int(o.reflect_bug), "IBL_RUNTIME": int(o.ibl == "runtime"),
+        "TEXTURE_LOD0": int(o.texture_sampling == "lod0"), "NORMAL_LOD0": int(o.normal_sampling == "lod0"),
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
@@ -683,14 +684,16 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     _bind_env(bg_prog, env_texture(env), env, 0)
     try:
-        t0 = time.perf_counter()
-        for it in items:  # upload the material textures (and their mips) before the timed frame
+        # upload the material textures and generate their mips before the timed frame, each timed
+        timings.update(texture_upload=0.0, texture_mips=0.0)
+        for it in items:
             for image, ref, srgb in it.textures.values():
-                raster._texture(image, ref, srgb, o.anisotropy)
+                raster._texture(image, ref, srgb, o.anisotropy, timings)
             if o.specular_aa == "prefiltered" and "normal" in it.textures:  # and its slope-variance mips
+                t0 = time.perf_counter()
                 raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
-        ctx.finish()
-        timings["textures"] = time.perf_counter() - t0
+                ctx.finish()
+                timings["texture_mips"] += time.perf_counter() - t0
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
                                              o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,

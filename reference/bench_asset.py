@@ -5,7 +5,7 @@ The asset is made here (a fresh clone has no shared assets): a UV sphere of :dat
 segments and half as many rings (~50k triangles, normals, tangents, UVs) with
 :data:`ASSET_TEXTURE_SIZE`-square base-colour, metallic-roughness and normal PNG textures (a
 checker, a gradient, a bumpy normal map), written to a temporary ``.glb``-free ``.gltf`` with data
-URIs. Both rows, the asset and ``spheres``, are rendered in this one run, alternately (so that the
+URIs (:class:`pbrcheck.gltf_build.Doc`). Both rows, the asset and ``spheres``, are rendered in this one run, alternately (so that the
 machine's load, ``machine_load`` before and after, hits both alike), ``local``, same spp and
 sampler (:data:`BENCH_SAMPLER`), after a compile render each, median of repeats. Figures:
 ``load_seconds`` (:func:`pbrcheck.gltf.load_asset`: parse, decode, tangents) and ``build_seconds``
@@ -22,9 +22,6 @@ API: :func:`make_asset`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`, :da
 
 from __future__ import annotations
 
-import base64
-import io
-import json
 import os
 import statistics
 import tempfile
@@ -35,6 +32,7 @@ import numpy as np
 
 from pbrcheck.environment import load_environment
 from pbrcheck.gltf import load_asset
+from pbrcheck.gltf_build import Doc
 from pbrcheck.scene import scene_from_dict
 
 #: Segments around the bench sphere (rings: half): 2 x 224 x 112 = 50176 triangles, less the poles'.
@@ -44,14 +42,6 @@ ASSET_TEXTURE_SIZE = 1024
 ASSET_THROUGHPUT_GOAL = 0.7
 #: Both rows' sampler: the spheres row's (``local_msamples_per_s``).
 BENCH_SAMPLER = "independent"
-
-
-def _png(pixels: np.ndarray) -> str:
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(pixels).save(buf, format="PNG")
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
 
 
 def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXTURE_SIZE,
@@ -79,39 +69,19 @@ def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXT
     n = np.stack([bump, np.zeros_like(bump), np.ones_like(bump)], -1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     nm = ((n * 0.5 + 0.5) * 255).astype(np.uint8) if normal_map is None else normal_map
-    blob = bytearray()
-    views, accs = [], []
-
-    def add(arr, ct, typ, minmax=False):
-        while len(blob) % 4:
-            blob.append(0)
-        raw = np.ascontiguousarray(arr).tobytes()
-        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(raw)})
-        blob.extend(raw)
-        a = {"bufferView": len(views) - 1, "componentType": ct, "count": int(arr.shape[0]), "type": typ}
-        if minmax:
-            a["min"], a["max"] = arr.min(0).tolist(), arr.max(0).tolist()
-        accs.append(a)
-        return len(accs) - 1
-
-    attrs = {"POSITION": add(pos.astype(np.float32), 5126, "VEC3", True),
-             "NORMAL": add(pos.astype(np.float32), 5126, "VEC3"),
-             "TANGENT": add(tan.astype(np.float32), 5126, "VEC4"),
-             "TEXCOORD_0": add(uv.astype(np.float32), 5126, "VEC2")}
-    ind = add(idx.reshape(-1), 5125, "SCALAR")
-    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
-           "nodes": [{"name": "bench", "mesh": 0}],
-           "meshes": [{"name": "sphere", "primitives": [{"attributes": attrs, "indices": ind, "material": 0}]}],
-           "materials": [{"name": "textured", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
-                                                                      "metallicRoughnessTexture": {"index": 1}},
-                          "normalTexture": {"index": 2}}],
-           "textures": [{"source": i} for i in range(3)],
-           "images": [{"uri": _png(p)} for p in (bc, mr, nm)],
-           "accessors": accs, "bufferViews": views,
-           "buffers": [{"byteLength": len(blob),
-                        "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()}]}
-    path.write_text(json.dumps(doc))
-    return path
+    doc = Doc()
+    textures = [doc.image(px) for px in (bc, mr, nm)]
+    attrs = {"POSITION": doc.accessor(pos.astype(np.float32), "VEC3", minmax=True),
+             "NORMAL": doc.accessor(pos.astype(np.float32), "VEC3"),
+             "TANGENT": doc.accessor(tan.astype(np.float32), "VEC4"),
+             "TEXCOORD_0": doc.accessor(uv.astype(np.float32), "VEC2")}
+    doc.d["materials"] = [{"name": "textured", "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": textures[0]}, "metallicRoughnessTexture": {"index": textures[1]}},
+        "normalTexture": {"index": textures[2]}}]
+    m = doc.mesh(attrs, doc.accessor(idx.reshape(-1), "SCALAR"), 0)
+    doc.d["meshes"][m]["name"] = "sphere"
+    doc.node(m, name="bench")
+    return doc.write(path)
 
 
 def _largest_kernel_ops(dr, fn) -> int | None:

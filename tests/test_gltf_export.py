@@ -144,13 +144,6 @@ def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_c
     assert (a[chroma] == b[chroma]).mean() > 0.97
 
 
-def test_realtime_presets_are_kept_on_asset_scenes(tmp_path):
-    """Report, gate and corpus keep every preset on an asset scene (the raster pipeline draws it)."""
-    from pbrcheck.gltf_scene import split_presets
-    sc = load_scene(str(quad_asset(tmp_path / "q.gltf", {})))
-    assert split_presets(sc, ["default", "filament", "ext:threejs"]) == (["default", "filament", "ext:threejs"], [])
-
-
 # Relative difference allowed between the analytic reference and its exported-and-read-back
 # tessellation (interpolated vertex normals of a UV sphere within 0.25 px of the silhouette), on
 # top of the noise.

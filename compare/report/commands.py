@@ -19,7 +19,7 @@ from . import demo
 from ..corpus.scheduler import SCHEDULER_HELP
 from .build import ReportConfig, build_report
 from .corpus_section import corpus_section
-from .runlog import RUN_FILE, bench_report, summary_line
+from .runlog import RUN_FILE, bench_report, bench_report_asset, summary_line
 from .sweep import parse_vary, run_sweep
 
 
@@ -65,12 +65,21 @@ def _cmd_demo(args) -> int:
     return demo.run(args)
 
 
-def _cmd_bench_report(args) -> int:
+def _report_args(args) -> list[str] | None:
+    """The report arguments after ``--`` (None: the bench's defaults)."""
     rargs = list(args.report_args or [])
     if rargs and rargs[0] == "--":
         rargs = rargs[1:]
-    res = bench_report(rargs or None, fresh_home=not args.keep_home)
-    print(json.dumps(res, indent=2))
+    return rargs or None
+
+
+def _cmd_bench_report(args) -> int:
+    print(json.dumps(bench_report(_report_args(args), fresh_home=not args.keep_home), indent=2))
+    return 0
+
+
+def _cmd_bench_report_asset(args) -> int:
+    print(json.dumps(bench_report_asset(_report_args(args)), indent=2))
     return 0
 
 
@@ -130,6 +139,13 @@ def register(sub, bench_sub) -> None:
     b.add_argument("report_args", nargs=argparse.REMAINDER, metavar="-- REPORT ARGS",
                    help="arguments of pbrcheck report (default: those of `make report`)")
     b.set_defaults(func=_cmd_bench_report)
+
+    b = bench_sub.add_parser("report-asset", help="the report of a glTF asset scene beside the spheres scene's: "
+                             "wall times, their ratio and the goal (JSON)")
+    b.add_argument("report_args", nargs=argparse.REMAINDER, metavar="-- REPORT ARGS",
+                   help="arguments of pbrcheck report after the scene (default: --presets default --spp 256 "
+                        "--no-furnace)")
+    b.set_defaults(func=_cmd_bench_report_asset)
 
     s = sub.add_parser("demo", help="the main job on the default scene (what `make demo` runs)")
     s.add_argument("--scene", default=DEFAULT_SCENE)

@@ -6,13 +6,10 @@ maps them to exit codes."""
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from pbrcheck.args import positive_int, split_list
 from pbrcheck.atomic import check_output_path
-from pbrcheck.errors import PbrcheckError
-from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.scene import DEFAULT_SCENE, load_scene
 from realtime.presets import parse_sets
 
@@ -26,11 +23,6 @@ from .corpus_section import write_corpus_page
 def _cmd_corpus(args) -> int:
     scene = load_scene(args.scene)
     names = split_list(args.presets) or renderers.preset_names()
-    names, skipped = split_presets(scene, names)  # glTF asset scenes: external renderers only
-    if skipped:
-        print(f"corpus: skipping {', '.join(skipped)} on {scene.source}: {RASTER_MISSING}", file=sys.stderr)
-        if not names:
-            raise PbrcheckError(f"corpus: {scene.source}: every renderer skipped: {RASTER_MISSING}")
     options = parse_sets(args.set)
     # --set is for the real-time presets; external renderers take their options from renderers.toml.
     settings = CorpusSettings(scene, tuple(RendererSpec(n, {} if renderers.is_external(n) else dict(options))

@@ -9,7 +9,9 @@ research section; the hard cases: its list of stages, :mod:`compare.report.stage
 caches (real-time renders, references, FLIP maps), writes ``run.json`` beside ``index.html`` and
 shows the table at the end of the page. ``pbrcheck bench report`` (:func:`bench_report`) runs the
 report twice in fresh processes, first with empty caches (a first run on a fresh machine), then
-again, and prints both runs' figures with the goal.
+again, and prints both runs' figures with the goal. ``pbrcheck bench report-asset``
+(:func:`bench_report_asset`) times the report of one glTF asset scene beside the spheres scene's,
+same size, environment and settings (the goal: at most :data:`ASSET_REPORT_GOAL` times).
 
 Stages are sequential and flat; a stage's CPU seconds are this process's (every thread: llvmpipe's
 and Dr.Jit's workers included), so ``cpu / wall`` near the core count means the stage kept the
@@ -20,8 +22,8 @@ Across the stages, ``work`` gives the seconds by kind of work (reference renders
 HDR-FLIP, plots, waiting on external renderers: :mod:`compare.worktime`), whichever stage asked.
 
 API: :class:`RunLog` (:meth:`RunLog.stage` records one stage), :func:`run_section`, :func:`summary_line`,
-:func:`cache_line`, :func:`stage_table`, :func:`bench_report`,
-:data:`RUN_FILE`, :data:`REPORT_GOAL_S`.
+:func:`cache_line`, :func:`stage_table`, :func:`bench_report`, :func:`bench_report_asset`,
+:data:`RUN_FILE`, :data:`REPORT_GOAL_S`, :data:`ASSET_REPORT_GOAL`, :data:`ASSET_REPORT_SCENES`.
 """
 
 from __future__ import annotations
@@ -49,6 +51,12 @@ REPORT_GOAL_S = {"cpu": 120.0, "gpu": 30.0}
 #: The report that ``make report`` builds (``pbrcheck bench report``'s default arguments).
 MAKE_REPORT_ARGS = ("spheres", "furnace", "grazing", "--spp", "256", "--with", "ext:threejs,ext:sample-viewer",
                     "--hardcases", "--research")
+#: The asset report's wall time over the spheres scene's (issue 23's goal).
+ASSET_REPORT_GOAL = 2.0
+#: ``bench report-asset``'s scenes (repository paths): the gate's asset check and the CI spheres,
+#: both 120 x 100 under the same sky; and the report arguments both get.
+ASSET_REPORT_SCENES = {"spheres": "compare/budgets/spheres_ci.toml", "asset": "compare/budgets/panel_ci.toml"}
+ASSET_REPORT_ARGS = ("--presets", "default", "--spp", "256", "--no-furnace")
 
 
 @dataclass
@@ -231,3 +239,24 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
         "first": runs["first"],
         "again": runs["again"],
     }
+
+
+def bench_report_asset(args: list[str] | None = None, *, progress: bool = True) -> dict:
+    """The report of the asset scene and of the spheres scene (:data:`ASSET_REPORT_SCENES`), each
+    ``pbrcheck report SCENE ARGS`` (default :data:`ASSET_REPORT_ARGS`) in a new process with an empty
+    ``PBRCHECK_CACHE`` (Dr.Jit's and Mesa's kernel caches as this machine has them), alternately,
+    spheres first. Returns each run's ``run.json`` (plus ``process_wall_s``), ``ratio`` = the asset's
+    wall time over the spheres' and whether it meets :data:`ASSET_REPORT_GOAL`."""
+    root = Path(__file__).resolve().parents[2]
+    args = list(ASSET_REPORT_ARGS if args is None else args)
+    runs = {}
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-report-asset-") as tmp:
+        for name, scene in ASSET_REPORT_SCENES.items():
+            env = {**os.environ, "PBRCHECK_CACHE": str(Path(tmp) / f"cache_{name}")}
+            if progress:
+                print(f"bench report-asset: {name} ({scene}) ...", file=sys.stderr, flush=True)
+            runs[name] = _run([str(root / scene), *args], Path(tmp) / f"out_{name}", env, progress)
+    ratio = runs["asset"]["wall_s"] / runs["spheres"]["wall_s"]
+    return {"args": args, "scenes": ASSET_REPORT_SCENES, "spheres_wall_s": runs["spheres"]["wall_s"],
+            "asset_wall_s": runs["asset"]["wall_s"], "ratio": ratio, "goal": ASSET_REPORT_GOAL,
+            "meets_goal": ratio <= ASSET_REPORT_GOAL, "spheres": runs["spheres"], "asset": runs["asset"]}

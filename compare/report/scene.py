@@ -13,12 +13,10 @@ API: :class:`ReportSettings`, :class:`SceneWork`, :func:`convergence_spps`, :dat
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from pbrcheck.errors import PbrcheckError
-from pbrcheck.gltf_scene import RASTER_MISSING, split_presets
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
@@ -92,12 +90,6 @@ class SceneWork:
 
     def __init__(self, scene_arg, out_dir: Path, st: ReportSettings):
         self.scene = load_scene(scene_arg)
-        presets, self.skipped = split_presets(self.scene, st.presets)  # asset scenes: external renderers only
-        if self.skipped:
-            if not presets:
-                raise PbrcheckError(f"report: {self.scene.source}: every preset skipped ({', '.join(self.skipped)}): "
-                                    f"{RASTER_MISSING}")
-            st = replace(st, presets=presets, vary=None, sweep=False)
         self.st = st
         self.sid = safe_name(self.scene.name)
         self.sd = Path(out_dir) / self.sid
@@ -147,8 +139,6 @@ class SceneWork:
         write_tonemapped(self.sd / "reference.png", self.ref.rgb)
         self.provenance = _provenance(self.scene, self.ref)
         self.provenance.append(("reference spp rule", self.verdict.provenance()))
-        if self.skipped:
-            self.provenance.append(("presets skipped", f"{', '.join(self.skipped)}: {RASTER_MISSING}"))
         for a in getattr(self.scene, "assets", ()):
             self.provenance.append((f"glTF asset {Path(a.path).name}", f"sha256 {a.content_hash}; extensions used: "
                                     f"{', '.join(a.asset.extensions_used) or 'none'}; ignored: "

@@ -56,7 +56,8 @@ def _cmd_fit_lod(args) -> int:
 
 def _cmd_explain(args) -> int:
     res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
-                      size=args.size or None, fitted=args.fitted, spp_cap=args.spp_cap, progress=not args.quiet)
+                      size=args.size or None, fitted=args.fitted, spp_cap=args.spp_cap,
+                      only=tuple(split_list(args.sources)) if args.sources else None, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
     print(f"json: {out}\ntable: {out.with_suffix('.md')}")
@@ -164,6 +165,8 @@ def register(sub, bench_sub) -> None:
     _renderer_args(s, spp=64, size=64, size_help="image height (default 64; 0: the scene's own)")
     _spp_cap_arg(s, DEFAULT_SPP_CAP)
     s.add_argument("--fitted", metavar="FILE.json", help="also try this fitted LOD mapping (pbrcheck fit-lod)")
+    s.add_argument("--sources", metavar="S,...", help="measure these sources only (default: every one; glTF "
+                   "asset scenes add texture_filtering, normal_filtering, occlusion)")
     s.add_argument("--out", default="out/explain.json", metavar="FILE.json", help="JSON (a .md table next to it)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_explain)

@@ -32,6 +32,27 @@ Sources and their exact counterparts:
 * ``ndf_fresnel``: the scene's own D and F terms.
 * ``composition``: the README material model's composition (``shading=material``, correct
   reflection vector, no roughness clamp) instead of an article's.
+
+glTF asset scenes (the raster pipeline) add the approximations engines make on assets
+(:data:`ASSET_SOURCES`), each made exact as the reference does it:
+
+* ``texture_filtering``: base colour, metallic-roughness, emissive and occlusion textures read
+  bilinearly at level 0 (``texture_sampling=lod0``, as the reference; the supersampling then
+  filters) instead of trilinearly through the mip chain.
+* ``normal_filtering``: the normal map likewise (``normal_sampling=lod0``, and ``specular_aa=none``):
+  unfiltered normals instead of mip-averaged ones (whose shortening loses the roughness they imply)
+  and no roughness widened to stand for them.
+* ``occlusion``: the occlusion texture off (``occlusion_texture=false``, ``specular_occlusion=none``):
+  exact against the ``local`` reference, which has no visibility. Its own truth is the ``path``
+  reference: :attr:`ExplainResult.path_truth` measures the preset and the row's options against a
+  ``path`` reference at the same spp (``contribution < 0``: the texture brings the image nearer
+  what visibility does; the point lights' shadows, which the raster pipeline lacks, are part of
+  both errors).
+* the split sum is the ``v=n=r`` row (runtime importance sampling of the full integral).
+
+What every fix leaves on an asset includes the horizon: the reference cuts light arriving from
+below the geometric surface (a normal-mapped normal tilts its hemisphere under it), the real-time
+shading integrates it (``horizon_occlusion=marmoset`` approximates the cut; no option makes it exact).
 """
 
 from __future__ import annotations
@@ -44,6 +65,7 @@ import numpy as np
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.gltf_scene import scene_has_assets
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.registry import BUILTIN_LOD_MAPPINGS, NDFS
 from pbrcheck.scene import Scene
@@ -51,7 +73,7 @@ from pbrcheck.scene import Scene
 from .. import renderers
 from ..metrics import REL_EPS, compare_images
 from ..verdict_spp import RESEARCH_PROBE, DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
-from .results import ExplainCombined, ExplainResult, ExplainRow
+from .results import ExplainCombined, ExplainPathTruth, ExplainResult, ExplainRow
 
 #: Reference samples per pixel (command default).
 DEFAULT_SPP = 64
@@ -78,9 +100,20 @@ RUNTIME_SAMPLES = 4096
 #: entry has no ``extra["runtime_sampling"]``, :data:`pbrcheck.registry.NDFS`): the row is not rendered.
 NO_RUNTIME_SAMPLING = "none"
 
+#: The asset sources (module docstring): option overrides that make each exact against ``local``.
+ASSET_SOURCES = {
+    "texture_filtering": {"texture_sampling": "lod0"},
+    "normal_filtering": {"normal_sampling": "lod0", "specular_aa": "none"},
+    "occlusion": {"occlusion_texture": False, "specular_occlusion": "none"},
+}
+#: The asset sources whose truth is the ``path`` reference (:attr:`ExplainResult.path_truth`).
+PATH_TRUTH_SOURCES = ("occlusion",)
 
-def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx") -> dict[str, dict]:
-    """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests)."""
+
+def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx",
+            asset: bool = False) -> dict[str, dict]:
+    """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests;
+    ``asset``: also :data:`ASSET_SOURCES`)."""
     cube = min(cube_max, 4096)
     levels = max(1, min(cube.bit_length(), o["prefilter_levels"] + int(math.log2(cube / o["cube_size"]))))
     irr_src = min(64, o["cube_size"])
@@ -107,13 +140,14 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
         "geometry": {"geometry": "scene", "lut_geometry": "scene"},
         "ndf_fresnel": {"ndf": "scene", "fresnel": "scene"},
         "composition": composition,
+        **({k: dict(v) for k, v in ASSET_SOURCES.items()} if asset else {}),
     }
 
 
 def run_explain(scene: Scene, *, preset: str = "default", options: dict | None = None, spp: int = DEFAULT_SPP,
                 size: int | None = None, fitted: str | None = None, cube_max: int = 512,
-                samples_scale: float = 1.0, spp_cap: int | None = DEFAULT_SPP_CAP,
-                progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> ExplainResult:
+                samples_scale: float = 1.0, spp_cap: int | None = DEFAULT_SPP_CAP, path_truth: bool = True,
+                only: tuple[str, ...] | None = None, progress: bool = False, context: renderers.RenderContext = renderers.DIRECT) -> ExplainResult:
     """Measure each approximation's contribution to ``preset``'s error on ``scene``.
 
     Parameters
@@ -138,6 +172,11 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         Scales the exact counterparts' sample counts (< 1 for tests).
     spp_cap : int, optional
         Most reference samples per pixel (None: as many as render in the verdict rule's time budget).
+    path_truth : bool, optional
+        glTF asset scenes: also measure :data:`PATH_TRUTH_SOURCES` against a ``path`` reference
+        (:attr:`ExplainResult.path_truth`).
+    only : tuple of str, optional
+        Measure these sources only (names of :func:`sources`, ``lod_mapping``); None: every one.
     progress : bool, optional
         Show reference render progress.
 
@@ -151,6 +190,16 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     if size is not None:
         scene = scene.with_camera(width=max(8, int(round(size * scene.camera.width / scene.camera.height))),
                                   height=int(size))
+    # The sources first: an unknown name is an error before any render.
+    asset = scene_has_assets(scene)
+    srcs = {} if renderers.is_external(preset) else sources(o, cube_max=cube_max, samples_scale=samples_scale,
+                                                             scene_ndf=scene.brdf.ndf, asset=asset)
+    if only is not None and srcs:
+        unknown = sorted(set(only) - set(srcs) - {"lod_mapping"})
+        if unknown:
+            raise PbrcheckError(f"explain: unknown source(s) {', '.join(unknown)} for {scene.source}; sources are: "
+                                f"{', '.join([*srcs, 'lod_mapping'])}")
+        srcs = {k: v for k, v in srcs.items() if k in only}
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
     base_img = renderers.render_under_test(scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
@@ -179,11 +228,10 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         # error against the reference is the whole result (the baseline).
         return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
                              baseline, noise_relmse, rows, reference_spp=verdict.to_dict())
-    srcs = sources(o, cube_max=cube_max, samples_scale=samples_scale, scene_ndf=scene.brdf.ndf)
     if o["ibl"] == "runtime":
         # Already runtime sampling: its exact counterpart is the same estimator at many samples in
         # the material composition (composition is then part of this row).
-        srcs.pop("lut")
+        srcs.pop("lut", None)
     for name, over in srcs.items():
         if over.get("runtime_sampling") == NO_RUNTIME_SAMPLING:
             have = " and ".join(e.name for e in NDFS if "runtime_sampling" in e.extra)
@@ -197,7 +245,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
             continue
         rows.append(ExplainRow(name, over, m, baseline[PRIMARY] - m[PRIMARY]))
     # LOD mapping: the best measured built-in (or the fitted file).
-    if o["ibl"] == "splitsum":
+    if o["ibl"] == "splitsum" and (only is None or "lod_mapping" in only):
         cands = {n: {"lod_mapping": n} for n in BUILTIN_LOD_MAPPINGS}
         if fitted:
             cands["fitted"] = {"lod_mapping": f"fitted:{fitted}"}
@@ -221,8 +269,30 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
             continue  # a runtime-sampling preset has no split sum to keep
         m = measure(allo)
         combined[label] = ExplainCombined(allo, m, baseline[PRIMARY] - m[PRIMARY])
+    truths = None
+    if asset and path_truth and any(n in srcs for n in PATH_TRUTH_SOURCES):
+        truths = _path_truth(scene, preset, base, base_img, srcs, spp, context, progress)
     return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
-                         baseline, noise_relmse, rows, **combined, reference_spp=verdict.to_dict())
+                         baseline, noise_relmse, rows, **combined, reference_spp=verdict.to_dict(),
+                         path_truth=truths)
+
+
+def _path_truth(scene: Scene, preset: str, base: dict, base_img, srcs: dict, spp: int,
+                context: renderers.RenderContext, progress: bool) -> list[ExplainPathTruth]:
+    """:data:`PATH_TRUTH_SOURCES` against a ``path`` reference of ``spp`` samples per pixel."""
+    ref = renderers.render_reference(scene, spp=spp, mode="path", use_cache=True, progress=progress)
+
+    def measure(img) -> dict:
+        c = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
+        return {k: c.metrics[k] for k in KEEP}
+
+    before = measure(base_img)
+    out = []
+    for name in (n for n in PATH_TRUTH_SOURCES if n in srcs):
+        over = srcs[name]
+        m = measure(renderers.render_under_test(scene, preset, {**base, **over}, progress=False, context=context))
+        out.append(ExplainPathTruth(name, over, spp, before, m, before[PRIMARY] - m[PRIMARY]))
+    return out
 
 
 #: Labels of the combined rows in the tables.
@@ -252,9 +322,16 @@ def table_markdown(res: ExplainResult) -> str:
                       f"(mean variance / (ref^2 + {REL_EPS}) over valid pixels)."]
         if res.all_exact is not None:
             left = res.all_exact.metrics[PRIMARY] - res.noise_relmse
+            rest = ("the diffuse term's split Kd(n.v) E(n), the runtime estimator's own mip filtering, "
+                    + ("the horizon (light from below the geometric surface)" if res.path_truth is not None
+                       else "texel filtering"))
             lines.append(f"Left after every listed source is exact, above that noise: {f(left)} (sources no "
-                         f"option here replaces: the diffuse term's split Kd(n.v) E(n), the runtime "
-                         f"estimator's own mip filtering, texel filtering).")
+                         f"option here replaces: {rest}).")
+    for t in res.path_truth or ():
+        lines += ["", f"Against the {t.spp}-spp path reference (its truth): {t.source} as the preset {PRIMARY} "
+                      f"{f(t.baseline[PRIMARY])}, off ({', '.join(f'{k}={v}' for k, v in t.options.items())}) "
+                      f"{f(t.metrics[PRIMARY])}: contribution {f(t.contribution)} (negative: the approximation "
+                      f"brings the image nearer the path truth)."]
     return "\n".join(lines) + "\n"
 
 

@@ -5,7 +5,7 @@ Each result is a dataclass with one ``to_json()`` giving the command's JSON layo
 
 API
 ---
-:class:`HardcaseRow`; :class:`ExplainRow`, :class:`ExplainResult`; :class:`LodSample`,
+:class:`HardcaseRow`; :class:`ExplainRow`, :class:`ExplainPathTruth`, :class:`ExplainResult`; :class:`LodSample`,
 :class:`ChainFit`, :class:`MappingEval`, :class:`FitLodResult`; :class:`ApparentRoughness`,
 :class:`FitRoughnessResult`.
 """
@@ -76,6 +76,21 @@ class ExplainCombined(_JSON):
 
 
 @dataclass
+class ExplainPathTruth(_JSON):
+    """An approximation whose truth is the ``path`` reference (occlusion: visibility), measured
+    against it: the preset's metrics, the metrics with the approximation off (``options``), and
+    ``contribution = error(preset) - error(off)`` (negative: the approximation brings the image
+    nearer the path truth)."""
+
+    source: str
+    options: dict
+    spp: int
+    baseline: dict
+    metrics: dict
+    contribution: float
+
+
+@dataclass
 class ExplainResult(_JSON):
     """``pbrcheck explain``'s result (:func:`compare.research.explain.run_explain`)."""
 
@@ -92,7 +107,9 @@ class ExplainResult(_JSON):
     all_exact: ExplainCombined | None = None
     #: how the reference spp was chosen (compare.verdict_spp.VerdictSpp.to_dict())
     reference_spp: dict | None = None
-    _omit_none = ("all_but_vnr", "all_exact", "reference_spp")
+    #: glTF asset scenes: the approximations whose truth is the path reference (occlusion)
+    path_truth: list[ExplainPathTruth] | None = None
+    _omit_none = ("all_but_vnr", "all_exact", "reference_spp", "path_truth")
 
 
 # --- fit-lod -------------------------------------------------------------------------------------

@@ -73,19 +73,22 @@ bool occluded(vec3 p, vec3 l, float dist) { return false; }
 float fold(float x) { return 1.0 - abs(mod(x, 2.0) - 1.0); }
 
 // Trilinear (and anisotropic where the texture has it) lookup of slot k, derivatives of the
-// unfolded coordinates so the mip level does not jump at a mirror fold.
-vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback) {
+// unfolded coordinates so the mip level does not jump at a mirror fold. lod0: bilinear at level 0
+// only, as the reference reads textures (TEXTURE_LOD0 for the material textures, NORMAL_LOD0 for
+// the normal map: options texture_sampling, normal_sampling = lod0).
+vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback, bool lod0) {
     if (has == 0) return fallback;
     vec2 uv = set == 0 ? v_uv0 : v_uv1;
     uv = (xf * vec3(uv, 1.0)).xy;
     vec2 dx = dFdx(uv), dy = dFdy(uv);
     if ((mirror & 1) != 0) uv.x = fold(uv.x);
     if ((mirror & 2) != 0) uv.y = fold(uv.y);
-    return textureGrad(t, uv, dx, dy);
+    return lod0 ? textureLod(t, uv, 0.0) : textureGrad(t, uv, dx, dy);
 }
 
 vec4 slot(sampler2D t, int k, vec4 fallback) {
-    return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback);
+    bool lod0 = k == 2 ? NORMAL_LOD0 != 0 : TEXTURE_LOD0 != 0;
+    return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback, lod0);
 }
 
 void main() {
@@ -137,7 +140,8 @@ void main() {
 #endif
     uvec2 px = uvec2(gl_FragCoord.xy);
     uint seed = px.y * 65536u + px.x;
-    float ao = occlusion_from_texture(lookup(tex_occlusion, ao_has, ao_set, ao_xf, ao_mirror, vec4(1.0)).r,
+    float ao = occlusion_from_texture(lookup(tex_occlusion, ao_has, ao_set, ao_xf, ao_mirror, vec4(1.0),
+                                             TEXTURE_LOD0 != 0).r,
                                       ao_strength);
     vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao, N), seed);
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;
