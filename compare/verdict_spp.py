@@ -309,7 +309,8 @@ def _pow2_at_least(x: float) -> int:
 
 def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | None = DEFAULT_SPP_CAP,
                           factor: float = NOISE_FLOOR_FACTOR, time_budget_s: float = DEFAULT_TIME_BUDGET_S,
-                          metric: str = "mse", probe: int | None = None, **kwargs) -> tuple[Image, VerdictSpp]:
+                          metric: str = "mse", probe: int | None = None, tails: bool = True,
+                          **kwargs) -> tuple[Image, VerdictSpp]:
     """The reference of ``scene`` at the lowest power-of-two spp >= ``spp`` (at most ``cap``; None:
     :func:`cap_for_time` of ``time_budget_s``) whose noise floor a pilot predicts to lie ``factor``
     times below the smallest error of ``tests``: a **pilot / final** scheme (Kirk & Arvo 1991).
@@ -327,6 +328,9 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
     :data:`FLOOR_RSE_MAX` decides nothing (not even "no error above the noise"): the next pilot is
     rendered at twice its spp (at most ``cap``; these doublings do not count in :data:`MAX_STEPS`);
     a final above it is ``noise_limited`` with ``heavy_tails`` (its ``floor_rse`` reported).
+    ``tails=False``: no such check (``floor_rse`` None): the research commands, whose images
+    of 16-64 px (hard cases: 16 x 16 at 4 spp, K = 2) put the bound above the goal by their few pixels
+    and one or two degrees of freedom alone, and which have their own ``probe``.
 
     ``metric``: the error the floor is compared with (:func:`noise_and_error`: ``"mse"`` or ``"relmse"``).
     ``probe``: when the pilot resolves no error above the noise, pilot once more at ``probe`` times
@@ -350,7 +354,7 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
         cap = max(int(cap), int(spp))
         floor, err = noise_and_error(pil, tests, scene=scene, metric=metric) if tests else (None, None)
         steps.append([cur, floor, err, "pilot"])
-        rse = floor_tail_rse(pil, tests, metric=metric) if tests and floor is not None else None
+        rse = floor_tail_rse(pil, tests, metric=metric) if tails and tests and floor is not None else None
         if rse is not None and rse > FLOOR_RSE_MAX and cur < cap:
             # Heavy tails: this pilot's floor is too uncertain to choose by (nor its "no error above the
             # noise"); double. Its own budget of renders (doublings up to the cap, ~2x the last pilot's cost).
@@ -378,7 +382,7 @@ def reference_for_verdict(scene, tests: list[Image], *, spp: int, cap: int | Non
     ref = renderers.render_reference(scene, spp=final, seed=seed, **kwargs)
     floor, err = noise_and_error(ref, tests, scene=scene, metric=metric) if tests else (None, None)
     steps.append([final, floor, err, "final"])
-    rse = floor_tail_rse(ref, tests, metric=metric) if tests and floor is not None else None
+    rse = floor_tail_rse(ref, tests, metric=metric) if tails and tests and floor is not None else None
     heavy = bool(rse is not None and rse > FLOOR_RSE_MAX)
     if floor is None or err is None or not (math.isfinite(floor) and math.isfinite(err)):
         return ref, VerdictSpp(final, floor, err, None, heavy, cap, factor, steps, metric, rse, heavy)

@@ -102,6 +102,9 @@ def test_a_tiny_bright_source_is_not_trusted(glints, monkeypatch):
     assert fake_glint_reference.calls == [16, 32, 64, 64] and v.spp == 64
     assert v.heavy_tails and v.noise_limited and v.floor_rse > vs.FLOOR_RSE_MAX
     assert "NOISE-LIMITED (heavy tails)" in v.provenance()
+    # tails=False (the research commands): the old rule, no bound computed.
+    _, v_off = vs.reference_for_verdict(None, [engine], spp=16, cap=64, seed=3, tails=False)
+    assert v_off.spp == 16 and v_off.floor_rse is None and not v_off.heavy_tails
     # With room to grow it goes on until the glints are sampled well enough to trust the floor.
     fake_glint_reference.calls = []
     ref, v = vs.reference_for_verdict(None, [engine], spp=16, cap=1 << 14, seed=3)
