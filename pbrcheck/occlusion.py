@@ -26,7 +26,8 @@ API
   Mapped Reflections", the form Jimenez et al. 2016 also use: ``saturate(1 + HORIZON_FADE r.n_g)^2``
   with ``n_g`` the geometric (interpolated vertex) normal: a normal map's reflection below the
   surface's horizon fades out; 1 wherever r is above it.
-- :func:`horizon_occlusion` -- the dispatch over :data:`pbrcheck.registry.HORIZON_OCCLUSIONS`.
+- :func:`specular_occlusion`, :func:`horizon_occlusion` -- the dispatches: each looks up the member's
+  function in :data:`pbrcheck.registry.SPECULAR_OCCLUSIONS` / :data:`~pbrcheck.registry.HORIZON_OCCLUSIONS`.
 
 Conventions: ``ao`` in [0, 1] (1: unoccluded), ``NoV`` in [0, 1], ``roughness`` perceptual in [0, 1],
 ``alpha = roughness^2``; ``RoNg`` the cosine between the reflection and the geometric normal.
@@ -36,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
+from .registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS, role_impl
 
 #: Marmoset's horizon fade (Russell 2015): the reflection fades out over the 1 / 1.3 of r.n_g below 0.
 HORIZON_FADE = 1.3
@@ -83,14 +84,12 @@ def specular_occlusion_gtso(NoV, ao, roughness):
 
 
 def specular_occlusion(NoV, ao, roughness, method: str):
-    """The specular occlusion factor of ``method`` (a member of ``SPECULAR_OCCLUSIONS``)."""
-    if method not in SPECULAR_OCCLUSIONS:
-        raise KeyError(f"unknown specular occlusion {method!r}; known: {', '.join(SPECULAR_OCCLUSIONS.names)}")
-    if method == "none":
+    """The specular occlusion factor of ``method``: its registry entry's ``specular_occlusion_<name>``
+    (:data:`pbrcheck.registry.SPECULAR_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
+    impl = role_impl(SPECULAR_OCCLUSIONS, method, "specular_occlusion", "specular occlusion")
+    if impl is None:
         return np.ones(np.broadcast(np.asarray(NoV), np.asarray(ao), np.asarray(roughness)).shape)
-    if method == "gtso":
-        return specular_occlusion_gtso(NoV, ao, roughness)
-    return specular_occlusion_lagarde(NoV, ao, roughness)
+    return globals()[impl.numpy](NoV, ao, roughness)
 
 
 def horizon_occlusion_marmoset(RoNg):
@@ -100,9 +99,9 @@ def horizon_occlusion_marmoset(RoNg):
 
 
 def horizon_occlusion(RoNg, method: str):
-    """The horizon occlusion factor of ``method`` (a member of ``HORIZON_OCCLUSIONS``)."""
-    if method not in HORIZON_OCCLUSIONS:
-        raise KeyError(f"unknown horizon occlusion {method!r}; known: {', '.join(HORIZON_OCCLUSIONS.names)}")
-    if method == "none":
+    """The horizon occlusion factor of ``method``: its registry entry's ``horizon_occlusion_<name>``
+    (:data:`pbrcheck.registry.HORIZON_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
+    impl = role_impl(HORIZON_OCCLUSIONS, method, "horizon_occlusion", "horizon occlusion")
+    if impl is None:
         return np.ones(np.shape(RoNg))
-    return horizon_occlusion_marmoset(RoNg)
+    return globals()[impl.numpy](RoNg)

@@ -32,15 +32,23 @@ strategy exact for it (``extra["runtime_sampling"]``) and the random walk's firs
 (``extra["walk_geometry"]``, :data:`MULTISCATTER_GEOMETRY`) with the walk's Dr.Jit trio in
 :mod:`reference.multiscatter` (``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``). A member that needs
 other real-time options says so (:attr:`Entry.requires`: an energy compensation the material
-composition's split sum, a composition its specular image-based lighting);
-:func:`realtime.presets.resolve_options` enforces it.
+composition's split sum, a composition its specular image-based lighting, ``specular_aa =
+screen_space`` the raster pipeline); :func:`realtime.presets.check_requirements` enforces it.
 
 The role registries (:data:`ROLE_REGISTRIES`: energy compensations, runtime and DFG LUT sampling
 strategies) own theirs one function per role (:attr:`Entry.roles`, one name in numpy, Dr.Jit and
 GLSL; :attr:`Entry.applies_to` says where a member applies and why a role is missing); adding a
 compensation or a strategy is one entry and its role functions in :mod:`pbrcheck.energy` /
 :mod:`pbrcheck.sampling`, :mod:`reference.energy` / :mod:`reference.sampling` and ``energy.glsl`` /
-``sampling.glsl``. A list whose members have no implementations says where it applies
+``sampling.glsl``. The real-time approximations (:data:`SPECULAR_OCCLUSIONS`,
+:data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`) are role registries too, with numpy
+(:mod:`pbrcheck.occlusion`, :mod:`pbrcheck.specular_aa`) and GLSL functions and no Dr.Jit one
+(:attr:`Impl.drjit` empty; the entry's ``applies_to`` says why: the reference traces the occlusion
+and integrates each pixel's normals); a role function reading fewer than all of its dispatch's
+inputs names them (:attr:`Impl.args`), and the generated dispatch defines ``<SWITCH>_READS_<INPUT>``
+for the selected member (:func:`role_reads` in Python). The compositions' GLSL dispatch
+(``shade_composition`` / ``light_brdf`` calling ``shade_<name>`` / ``light_brdf_<name>``) is
+generated from :data:`SHADINGS` (``shading_dispatch.glsl``). A list whose members have no implementations says where it applies
 (:attr:`Registry.applies_to`).
 
 API
@@ -49,7 +57,7 @@ API
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
 :data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
-:data:`ROLE_REGISTRIES`, :func:`glsl_defines`, :func:`glsl_generated`.
+:data:`ROLE_REGISTRIES`, :func:`role_impl`, :func:`role_reads`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
 from __future__ import annotations
@@ -72,7 +80,8 @@ class Impl:
         The reference BSDF's function, looked up by name in :mod:`reference.bsdf` (which holds
         :mod:`reference.terms`' too; a role's in :mod:`reference.energy` or :mod:`reference.sampling`)
         when the reference dispatches: the core does not import the renderers;
-        ``tests/test_registry.py`` checks that it exists.
+        ``tests/test_registry.py`` checks that it exists. Empty for a real-time approximation the
+        reference does not make (the entry's :attr:`Entry.applies_to` says so).
     glsl : str
         The shader function (``realtime/shaders/brdf.glsl``; a role's in ``energy.glsl`` or
         ``sampling.glsl``), twin of ``numpy`` of the same name and called by the generated dispatch
@@ -81,12 +90,16 @@ class Impl:
         The term's width argument as a function of the perceptual roughness, named alike in the
         three languages: ``alpha_from_roughness``, ``k_schlick_ibl``, ``k_schlick_direct``; empty
         for a term without one (Fresnel).
+    args : tuple of str
+        A role function's arguments: the dispatch function's parameters it reads, in order (empty:
+        all of them); the numpy dispatch passes them by these names.
     """
 
     numpy: str
     drjit: str
     glsl: str
     width: str = ""
+    args: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -261,14 +274,18 @@ BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
 
 #: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
 #: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.
-#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md).
+#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md);
+#: ``extra["seeded"]``: its ``shade_<name>`` takes the pixel seed (it may sample at run time). Each
+#: composition's GLSL functions are ``shade_<name>`` and ``light_brdf_<name>`` (shading.glsl), called
+#: by the generated ``shade_composition`` / ``light_brdf`` (``shading_dispatch.glsl``).
 SHADINGS = Registry("SHADING", applies_to=(
-    "the real-time renderer's compositions (shading.glsl, one shade function each); the reference renders "
-    "one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
-    Entry("material", "README's material model", extra={"hooks": True}),
-    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}),
-    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)}),
-    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}),
+    "the real-time renderer's compositions (shading.glsl: shade_<name> and light_brdf_<name> each, dispatch "
+    "generated); the reference renders one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
+    Entry("material", "README's material model", extra={"hooks": True, "seeded": True}),
+    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
+    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)},
+          extra={"seeded": True}),
+    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
 ])
 
 #: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
@@ -349,6 +366,65 @@ ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
           applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
 ])
 
+#: Why the real-time approximations below have no Dr.Jit function (:attr:`Impl.drjit` empty): the
+#: reference does not approximate, it traces the occlusion and integrates each pixel's normals.
+_REALTIME_APPROXIMATION = ("a real-time approximation of what the reference computes exactly (it traces the "
+                           "occlusion and integrates each pixel's normals): no Dr.Jit function; ")
+
+
+def _realtime_role(role: str, member: str, *args: str) -> dict[str, Impl]:
+    """``{role: Impl}`` of a real-time-only member: numpy and GLSL ``<role>_<member>`` (no Dr.Jit),
+    called with the dispatch's parameters ``args`` (all of them where empty)."""
+    fn = f"{role}_{member}"
+    return {role: Impl(fn, "", fn, args=args)}
+
+
+#: Specular occlusion of the split sum's image-based specular from the ambient occlusion: each
+#: member's ``specular_occlusion_<name>(NoV, ao, roughness)``, numpy in :mod:`pbrcheck.occlusion`,
+#: GLSL in ``realtime/shaders/occlusion.glsl`` (dispatch ``specular_occlusion_dispatch.glsl``).
+SPECULAR_OCCLUSIONS = Registry("SPECULAR_OCCLUSION", [
+    Entry("none", "the specular image-based term is not occluded", applies_to="nothing is occluded: factor 1"),
+    Entry("lagarde", "Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
+                     "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
+          roles=_realtime_role("specular_occlusion", "lagarde"),
+          applies_to=_REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
+    Entry("gtso", "Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
+                  "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 "
+                  "alpha^2)), Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's",
+          roles=_realtime_role("specular_occlusion", "gtso"),
+          applies_to=_REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
+])
+#: Horizon occlusion of normal-mapped reflections: ``horizon_occlusion_<name>(RoNg)``, numpy in
+#: :mod:`pbrcheck.occlusion`, GLSL in ``occlusion.glsl`` (dispatch ``horizon_occlusion_dispatch.glsl``).
+HORIZON_OCCLUSIONS = Registry("HORIZON_OCCLUSION", [
+    Entry("none", "reflections below the geometric normal's horizon are not faded", applies_to="factor 1"),
+    Entry("marmoset", "Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et "
+                      "al. 2016): saturate(1 + 1.3 r.n_g)^2", roles=_realtime_role("horizon_occlusion", "marmoset"),
+          applies_to=_REALTIME_APPROXIMATION + "the image-based specular of normal-mapped materials"),
+])
+#: Specular anti-aliasing / normal-map filtering, the roughness widened by the normals' variance:
+#: ``specular_aa_<name>`` of the dispatch inputs it reads (:attr:`Impl.args`), numpy in
+#: :mod:`pbrcheck.specular_aa`, GLSL in ``specular_aa.glsl`` (dispatch ``specular_aa_dispatch.glsl``,
+#: which also defines ``SPECULAR_AA_READS_<INPUT>`` for the inputs the selected member reads, so
+#: that the raster pass computes only those). ``screen_space`` needs the screen derivatives of the
+#: normal, which only the raster pipeline has (:attr:`Entry.requires`).
+SPECULAR_AAS = Registry("SPECULAR_AA", [
+    Entry("none", "no filtering of the normals' variance into the roughness", applies_to="roughness unchanged"),
+    Entry("toksvig", "Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered "
+                     "normal's length", roles=_realtime_role("specular_aa", "toksvig", "roughness", "normal_length"),
+          applies_to=_REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
+    Entry("screen_space", "Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
+                          "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
+          roles=_realtime_role("specular_aa", "screen_space", "roughness", "dn2"),
+          requires={"pipeline": ("raster",)},
+          applies_to=_REALTIME_APPROXIMATION + "the raster pipeline only: it needs the screen derivatives of the "
+                     "normal, which the ray-cast compute pass (one invocation per pixel, no neighbours) has not"),
+    Entry("prefiltered", "LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
+                         "the mip chain: alpha^2 + var(s_x) + var(s_y)",
+          roles=_realtime_role("specular_aa", "prefiltered", "roughness", "variance"),
+          applies_to=_REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
+])
+
 #: The registries whose members implement roles (:attr:`Entry.roles`), by GLSL switch: the generated
 #: include, the member selected where a shader leaves the switch undefined, and each role's GLSL
 #: dispatch signature and the identity a member without the role returns ("": every member has it).
@@ -365,33 +441,14 @@ ROLE_REGISTRIES = {
     "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", "vndf", {
         "lut_half_vector": ("vec3 lut_half_vector(vec2 u, vec3 v, float alpha)", ""),
         "lut_weight": ("float lut_weight(float G, vec3 v, vec3 h, float alpha)", "")}),
+    "SPECULAR_OCCLUSION": (SPECULAR_OCCLUSIONS, "specular_occlusion_dispatch.glsl", "none", {
+        "specular_occlusion": ("float specular_occlusion(float NoV, float ao, float roughness)", "1.0")}),
+    "HORIZON_OCCLUSION": (HORIZON_OCCLUSIONS, "horizon_occlusion_dispatch.glsl", "none", {
+        "horizon_occlusion": ("float horizon_occlusion(float RoNg)", "1.0")}),
+    "SPECULAR_AA": (SPECULAR_AAS, "specular_aa_dispatch.glsl", "none", {
+        "specular_aa": ("float specular_aa(float roughness, float normal_length, float variance, float dn2)",
+                        "roughness")}),
 }
-#: Specular occlusion of the image-based specular from the ambient occlusion (pbrcheck/occlusion.py,
-#: realtime/shaders/occlusion.glsl).
-SPECULAR_OCCLUSIONS = _switch(
-    "SPECULAR_OCCLUSION", "the real-time renderer's image-based specular (occlusion.glsl, numpy twin "
-                          "pbrcheck.occlusion); the reference traces occlusion", none="the specular image-based term is not occluded",
-    lagarde="Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
-            "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
-    gtso="Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
-         "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 alpha^2)), "
-         "Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's")
-#: Horizon occlusion of normal-mapped reflections (pbrcheck/occlusion.py, realtime/shaders/occlusion.glsl).
-HORIZON_OCCLUSIONS = _switch(
-    "HORIZON_OCCLUSION", "the real-time renderer's image-based specular of normal-mapped materials (occlusion.glsl, "
-                         "numpy twin pbrcheck.occlusion); the reference traces occlusion", none="reflections below the geometric normal's horizon are not faded",
-    marmoset="Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et al. "
-             "2016): saturate(1 + 1.3 r.n_g)^2")
-#: Specular anti-aliasing / normal-map filtering: roughness widened by the normals' variance
-#: (pbrcheck/specular_aa.py, realtime/shaders/specular_aa.glsl).
-SPECULAR_AAS = _switch(
-    "SPECULAR_AA", "the raster pipeline's roughness (specular_aa.glsl, numpy twin pbrcheck.specular_aa); the "
-                   "reference integrates each pixel's normals", none="no filtering of the normals' variance into the roughness",
-    toksvig="Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered normal's length",
-    screen_space="Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
-                 "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
-    prefiltered="LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
-                "the mip chain: alpha^2 + var(s_x) + var(s_y)")
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
 MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (reference.multiscatter); the "
@@ -494,21 +551,72 @@ def _roles_dispatch(define: str) -> str:
     lines = [f"// Generated from pbrcheck.registry.{define}S (ROLE_REGISTRIES): do not edit.",
              f"#ifndef {define}", f"#define {define} {registry.constant(default)}", "#endif"]
     for role, (signature, identity) in roles.items():
-        params = ", ".join(p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(","))
+        params = _params(signature)
 
         def body(e, role=role, identity=identity, params=params):
-            return [f"    return {e.roles[role].glsl}({params});" if role in e.roles else f"    return {identity};"]
+            if role not in e.roles:
+                return [f"    return {identity};"]
+            return [f"    return {e.roles[role].glsl}({', '.join(e.roles[role].args or params)});"]
 
         lines += ["", signature + " {", *_switch_lines(registry, body), "}"]
+        reads = _reads_lines(registry, role, signature)
+        if reads:
+            lines[4:4] = ["", "// The inputs the selected member reads (a pass computes only these).", *reads]
     return "\n".join(lines) + "\n"
+
+
+def _params(signature: str) -> list[str]:
+    """The parameter names of a GLSL signature."""
+    return [p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(",")]
+
+
+def _reads_lines(registry: Registry, role: str, signature: str) -> list[str]:
+    """``#define <SWITCH>_READS_<PARAM>`` for each parameter the selected member's ``role`` function
+    reads (:attr:`Impl.args`), where some member reads fewer than all: empty otherwise."""
+    if not any(role in e.roles and e.roles[role].args for e in registry):
+        return []
+    params = _params(signature)
+    return _switch_lines(registry, lambda e: [f"#define {registry.define}_READS_{p.upper()} 1" for p in params
+                                              if role_reads(registry, e.name, role, p)])
+
+
+def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
+    """Whether member ``name``'s ``role`` function reads the dispatch parameter ``param`` (its
+    :attr:`Impl.args`, all parameters where empty; False for a member without the role)."""
+    impl = registry[name].roles.get(role)
+    return impl is not None and (not impl.args or param in impl.args)
+
+
+def role_impl(registry: Registry, name: str, role: str, what: str) -> Impl | None:
+    """Member ``name``'s ``role`` implementation, None for a member without it (its list's identity);
+    KeyError naming ``what`` (``"specular occlusion"``) and the members for an unknown name."""
+    if name not in registry:
+        raise KeyError(f"unknown {what} {name!r}; known: {', '.join(registry.names)}")
+    return registry[name].roles.get(role)
+
+
+def _shading_dispatch() -> str:
+    """``light_brdf`` (a point light's BRDF) and ``shade_composition`` (the outgoing radiance): the
+    selected composition's ``light_brdf_<name>`` / ``shade_<name>`` (:data:`SHADINGS`; the pixel seed
+    to a composition with ``extra["seeded"]``)."""
+    def shade(e):
+        return [f"    return shade_{e.name}(c{', pixel_seed' if e.extra['seeded'] else ''});"]
+
+    lines = ["// Generated from pbrcheck.registry.SHADINGS: do not edit.",
+             "vec3 light_brdf(Shading c, vec3 l, float NoL) {",
+             *_switch_lines(SHADINGS, lambda e: [f"    return light_brdf_{e.name}(c, l, NoL);"]), "}", "",
+             "vec3 shade_composition(Shading c, uint pixel_seed) {", *_switch_lines(SHADINGS, shade), "}", ""]
+    return "\n".join(lines)
 
 
 def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
-    (:func:`_sampling_dispatch`), and each role registry's (:func:`_roles_dispatch`):
-    ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``, ``dfg_sampling_dispatch.glsl``."""
+    (:func:`_sampling_dispatch`), ``shading_dispatch.glsl`` (:func:`_shading_dispatch`), and each role
+    registry's (:func:`_roles_dispatch`): ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``,
+    ``dfg_sampling_dispatch.glsl``, ``specular_occlusion_dispatch.glsl``,
+    ``horizon_occlusion_dispatch.glsl``, ``specular_aa_dispatch.glsl``."""
     out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
-           "sampling_dispatch.glsl": _sampling_dispatch()}
+           "sampling_dispatch.glsl": _sampling_dispatch(), "shading_dispatch.glsl": _shading_dispatch()}
     out.update({include: _roles_dispatch(define) for define, (_, include, _, _) in ROLE_REGISTRIES.items()})
     return out

@@ -10,14 +10,15 @@ API
 :class:`Option`, :data:`OPTIONS`, :data:`DEFAULT`, :data:`PRESETS`, :class:`RealtimeOptions` (the
 typed, frozen, validated options of one render), :func:`resolve_options`, :func:`parse_value`,
 :func:`parse_sets`, :func:`overrides_from_args`, :func:`fitted_mapping`, :class:`OptionError`,
-:data:`SHADER_SEP`, :data:`OPTION_REGISTRIES`, :func:`unmet_requirements`.
+:data:`SHADER_SEP`, :data:`OPTION_REGISTRIES`, :data:`DEFERRED`, :data:`MULTISAMPLES`, :func:`unmet_requirements`,
+:func:`check_requirements`.
 """
 
 from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, make_dataclass
+from dataclasses import dataclass, field, fields, make_dataclass
 from dataclasses import replace as _replace
 from pathlib import Path
 
@@ -53,7 +54,9 @@ class OptionError(PbrcheckError):
 
 @dataclass(frozen=True)
 class Option:
-    """One real-time option: its kind (int, float, bool, choice), help, choices and bounds."""
+    """One real-time option: its kind (int, float, bool, choice), help, choices and bounds; a value
+    other than ``off`` ``requires`` values of other options as a registry member does
+    (:attr:`pbrcheck.registry.Entry.requires`; :func:`check_requirements` enforces both)."""
     name: str
     kind: str                      # "int", "float", "bool", "choice"
     help: str
@@ -61,8 +64,12 @@ class Option:
     lo: float | None = None
     hi: float | None = None
     power_of_two: bool = False
+    requires: dict = field(default_factory=dict)
+    off: object = None
 
 
+#: The ``msaa`` values that multisample (alpha-to-coverage needs one: a single sample has no coverage to dither).
+MULTISAMPLES = (2, 4, 8)
 #: Choices of texture_sampling and normal_sampling (raster pipeline): the mip chain, or level 0 only.
 TEXTURE_SAMPLINGS = ("mip", "lod0")
 
@@ -130,10 +137,12 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "normals' variance: none | toksvig (Toksvig 2005) | screen_space (Kaplanyan 2016, Tokuyoshi & Kaplanyan "
            "2019, as Filament; raster only) | prefiltered (slope variance baked per normal-map mip); toksvig and "
            "prefiltered change only normal-mapped materials", SPECULAR_AAS.names),
+    # multisampling is the raster pipeline's (the ray-cast compute pass supersamples)
     Option("msaa", "int", "raster: samples per colour-pass pixel (1: off), on top of supersample's s x s",
-           lo=1, hi=8, power_of_two=True),
+           lo=1, hi=8, power_of_two=True, requires={"pipeline": ("raster",)}, off=1),
     Option("alpha_to_coverage", "bool", "raster: MASK materials write a sharpened alpha to coverage (Golus 2017) "
-           "instead of discarding below alphaCutoff; needs msaa > 1"),
+           "instead of discarding below alphaCutoff; needs msaa > 1", off=False,
+           requires={"pipeline": ("raster",), "msaa": MULTISAMPLES}),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
            lo=1.0, hi=16.0),
     Option("texture_sampling", "choice", "raster: material textures other than the normal map (base colour, "
@@ -406,23 +415,42 @@ OPTION_REGISTRIES = {"shading": SHADINGS, "irradiance": IRRADIANCES, "irradiance
                      "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS}
 
 
+#: Option values decided at render time (``auto``: by the scene, :func:`realtime.render.resolved_pipeline`):
+#: :func:`resolve_options` leaves a requirement on them to :func:`realtime.render.check_pipeline_options`,
+#: which checks it against the resolved value.
+DEFERRED = {"pipeline": "auto"}
+
+
 def unmet_requirements(entry: Entry, values) -> dict[str, tuple[str, ...]]:
     """The requirements of registry member ``entry`` (:attr:`pbrcheck.registry.Entry.requires`) that
     the options ``values`` (a dict or :class:`RealtimeOptions`) do not meet: option -> accepted values."""
     return {k: accepted for k, accepted in entry.requires.items() if values[k] not in accepted}
 
 
-def raycast_refusal(specular_aa: str, msaa: int, alpha_to_coverage: bool) -> str | None:
-    """The one-line reason the ray-cast pipeline refuses these raster-only option values, or None:
-    ``specular_aa=screen_space`` needs screen derivatives of the normal (the compute pass runs one
-    invocation per pixel, without neighbours), ``msaa`` and ``alpha_to_coverage`` multisampling."""
-    if specular_aa == "screen_space":
-        return ("option specular_aa: screen_space needs the screen derivatives of the normal, which the ray-cast "
-                "compute pass does not have; use pipeline=raster")
-    if msaa > 1 or alpha_to_coverage:
-        return ("option msaa / alpha_to_coverage: multisampling is the raster pipeline's; the ray-cast compute "
-                "pass supersamples (use pipeline=raster, or supersample)")
-    return None
+def check_requirements(values, resolved: dict | None = None) -> None:
+    """Raise :class:`OptionError` for the first chosen value whose requirements ``values`` (a dict or
+    :class:`RealtimeOptions`, with ``resolved`` values replacing theirs) do not meet: a registry
+    member's (:data:`OPTION_REGISTRIES`, :attr:`pbrcheck.registry.Entry.requires`: a composition its
+    specular IBL, an energy compensation the material composition's split sum, ``specular_aa =
+    screen_space`` the raster pipeline's screen derivatives) and an option's other than off
+    (:attr:`Option.requires`: ``msaa`` and ``alpha_to_coverage`` the raster pipeline's multisampling).
+    A requirement on a :data:`DEFERRED` value is left to the render, which resolves it."""
+    resolved = resolved or {}
+
+    def get(k):
+        return resolved.get(k, values[k])
+
+    chosen = [(name, get(name), reg[get(name)].requires) for name, reg in OPTION_REGISTRIES.items()
+              if get(name) in reg]
+    chosen += [(name, get(name), opt.requires) for name, opt in OPTIONS.items()
+               if opt.requires and get(name) != opt.off]
+    for name, value, requires in chosen:
+        unmet = [k for k, accepted in requires.items() if get(k) not in accepted and DEFERRED.get(k) != get(k)]
+        if unmet:
+            needs = " and ".join(f"{k}={'|'.join(map(str, v))}" for k, v in requires.items())
+            shown = str(value).lower() if isinstance(value, bool) else value
+            raise OptionError(f"option {name}: {shown} needs {needs}, found "
+                              f"{', '.join(f'{k}={get(k)}' for k in requires)}")
 
 
 def resolve_options(preset: str = "default", overrides: dict | None = None) -> RealtimeOptions:
@@ -447,13 +475,10 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
         raise OptionError(f"option lod_mapping: {what} was fitted for a "
                           f"{fm.cube_size}^2 cube with {fm.mip_count} mips; this render has cube_size "
                           f"{d['cube_size']} and prefilter_levels {d['prefilter_levels']}")
-    # What each chosen registry member requires of the other options (Entry.requires: a composition
-    # its specular IBL, an energy compensation the material composition's split sum).
-    for name, reg in OPTION_REGISTRIES.items():
-        if d[name] in reg and unmet_requirements(entry := reg[d[name]], d):
-            needs = " and ".join(k + "=" + "|".join(v) for k, v in entry.requires.items())
-            raise OptionError(f"option {name}: {d[name]} needs {needs}, found "
-                              f"{', '.join(f'{k}={d[k]}' for k in entry.requires)}")
+    # What each chosen registry member and option value requires of the other options (a composition
+    # its specular IBL, an energy compensation the material composition's split sum, the raster-only
+    # options the raster pipeline; with pipeline=auto the render checks that once it is resolved).
+    check_requirements(d)
     if d["shader"] and not SHADINGS[d["shading"]].extra.get("hooks"):
         hooked = "|".join(e.name for e in SHADINGS if e.extra.get("hooks"))
         raise OptionError(f"option shader: hooks replace pieces of shading={hooked}; this preset has "
@@ -463,10 +488,4 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
                           f"found {d['irradiance_source_size']}")
     if d["pipeline"] == "raster" and d["shadows"]:
         raise OptionError("option shadows: the raster pipeline has no shadow rays (use pipeline=raycast)")
-    # The ray-cast compute pass has no screen-space derivatives and no multisampling
-    # (realtime.render refuses the same where auto resolves to it).
-    if d["pipeline"] == "raycast" and raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]):
-        raise OptionError(raycast_refusal(d["specular_aa"], d["msaa"], d["alpha_to_coverage"]))
-    if d["alpha_to_coverage"] and d["msaa"] < 2:
-        raise OptionError("option alpha_to_coverage: needs msaa >= 2 (one sample has no coverage to dither)")
     return RealtimeOptions(**d)

@@ -66,12 +66,13 @@ from pbrcheck.registry import (
     SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
     lut_sampling_for,
+    role_reads,
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import OptionError, RealtimeOptions, raycast_refusal, resolve_options, unmet_requirements
+from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -657,14 +658,11 @@ def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
 
 
 def check_pipeline_options(pipeline: str, o: RealtimeOptions) -> None:
-    """Raise :class:`~realtime.presets.OptionError` for the raster-only options on a render that
-    ``auto`` resolved to the ray-cast pipeline (``resolve_options`` refuses them with an explicit
-    ``pipeline=raycast``)."""
-    if pipeline != "raycast":
-        return
-    why = raycast_refusal(o.specular_aa, o.msaa, o.alpha_to_coverage)
-    if why:
-        raise OptionError(why)
+    """Raise :class:`~realtime.presets.OptionError` for the options whose requirements the resolved
+    ``pipeline`` does not meet (the raster-only ones on a render that ``auto`` resolved to the ray-cast
+    pipeline): :func:`~realtime.presets.resolve_options` leaves these to the render
+    (:data:`~realtime.presets.DEFERRED`) and refuses them with an explicit ``pipeline``."""
+    check_requirements(o, {"pipeline": pipeline})
 
 
 def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dict, hooks, timings: dict):
@@ -682,6 +680,8 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     items = raster.draw_items(scene)
     timings["geometry"] = time.perf_counter() - t0
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
+    # the specular_aa member reads a baked variance (prefiltered): bind each normal map's slope-variance mips
+    variance = role_reads(SPECULAR_AAS, o.specular_aa, "specular_aa", "variance")
     _bind_env(bg_prog, env_texture(env), env, 0)
     try:
         # upload the material textures and generate their mips before the timed frame, each timed
@@ -689,7 +689,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         for it in items:
             for image, ref, srgb in it.textures.values():
                 raster._texture(image, ref, srgb, o.anisotropy, timings)
-            if o.specular_aa == "prefiltered" and "normal" in it.textures:  # and its slope-variance mips
+            if variance and "normal" in it.textures:  # and its slope-variance mips
                 t0 = time.perf_counter()
                 raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
                 ctx.finish()
@@ -697,7 +697,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         (color, aov, obj), timings["frame"] = _timed(
             ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
                                              o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
-                                             normal_variance=o.specular_aa == "prefiltered"))
+                                             normal_variance=variance))
     finally:
         lbuf.release()
     return color, aov, obj

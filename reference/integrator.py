@@ -620,8 +620,12 @@ class ReferenceIntegrator(RBIntegrator):
                             sampler.advance()
                         ray, weight = camera_rays(sensor, sampler, per, ids)
                         L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
-                        L = mi.Color3f(L * weight)
-                        hit = mi.Bool(hit)
+                        # A scene that cannot emit (black environment, no light) makes L a width-1 literal
+                        # and block_sum would then return one block, not one per pixel: widen to the rays'
+                        # width (adding a zero literal changes no value).
+                        lanes_now = dr.width(ray.o)
+                        L = mi.Color3f(L * weight) + dr.zeros(mi.Color3f, lanes_now)
+                        hit = mi.Bool(hit) | dr.zeros(mi.Bool, lanes_now)
                         dr.eval(L, hit)  # one kernel (see render)
                         p1 = dr.block_sum(L, per)
                         ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), per)

@@ -70,8 +70,9 @@ from .variant import ensure_variant
 REFERENCE_CODE_VERSION = "4"
 #: Bump when a change of this package changes the pixels of scenes holding glTF assets only: part of
 #: their cache keys alone, so that analytic scenes' cached renders stay valid. 2: single-sided back
-#: faces culled (path: volpath), the emissive texture's texCoord set.
-ASSET_CODE_VERSION = "2"
+#: faces culled (path: volpath), the emissive texture's texCoord set. 3: the glTF tangent and its sign
+#: read (they were zeros: Mitsuba's frame, wrong on mirrored UVs).
+ASSET_CODE_VERSION = "3"
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"

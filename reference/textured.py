@@ -232,9 +232,10 @@ class TexturedMaterial(mi.BSDF):
             x = (2.0 * t.x - 1.0) * self.normal_scale
             y = (2.0 * t.y - 1.0) * self.normal_scale
             z = 2.0 * t.z - 1.0
-            tan = si.shape.eval_attribute_x("vertex_tangent", si, active)
-            tw = mi.Vector3f(tan[0], tan[1], tan[2])
-            w = dr.select(tan[3] < 0, -1.0, 1.0)
+            # two attributes: Mitsuba 3.9's eval_attribute_x returns zeros for a 4-channel one
+            # (the frame then fell back to Mitsuba's, whose bitangent is +1 everywhere)
+            tw = mi.Vector3f(si.shape.eval_attribute_3("vertex_tangent", si, active))
+            w = dr.select(si.shape.eval_attribute_1("vertex_tangent_w", si, active) < 0, -1.0, 1.0)
             N = si.sh_frame.n
             T = tw - N * dr.dot(N, tw)
             ok = dr.squared_norm(T) > FRAME_EPS
@@ -504,7 +505,8 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
             t3 = t[:, :3] @ M[:3, :3].T
             t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
             w = t[:, 3] * (1.0 if det > 0 else -1.0)
-            mesh.add_attribute("vertex_tangent", 4, mi.Float(np.concatenate([t3, w[:, None]], 1).astype(np.float32).reshape(-1)))
+            mesh.add_attribute("vertex_tangent", 3, mi.Float(t3.astype(np.float32).reshape(-1)))
+            mesh.add_attribute("vertex_tangent_w", 1, mi.Float(w.astype(np.float32)))
         if prim.color is not None:
             mesh.add_attribute("vertex_color", 3, mi.Float(np.ascontiguousarray(prim.color[:, :3], np.float32).reshape(-1)))
         for k, uv in enumerate(prim.texcoords):

@@ -19,13 +19,19 @@ QUAD_UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
 QUAD_NRM = np.array([[0, 0, 1]] * 4, np.float32)
 QUAD_TAN = np.array([[1, 0, 0, 1]] * 4, np.float32)
 QUAD_IDX = np.array([0, 1, 2, 0, 2, 3], np.uint16)
+#: u running right to left, as on the mirrored half of a symmetric asset's UV layout: the tangent is
+#: -x and, the bitangent staying up the image (+y), its sign w is -1.
+MIRRORED_UV = QUAD_UV * np.array([-1, 1], np.float32) + np.array([1, 0], np.float32)
+MIRRORED_TAN = np.array([[-1, 0, 0, -1]] * 4, np.float32)
 
 
 def quad_asset(path: Path, material: dict, images: list[tuple[np.ndarray, dict | None]] = (), *,
                tangents: bool = True, scale: float = 1.0, uv0: np.ndarray = QUAD_UV,
-               uv1: np.ndarray | None = None) -> Path:
+               uv1: np.ndarray | None = None, tangent: np.ndarray = QUAD_TAN) -> Path:
     """A one-quad asset (module docstring); ``images`` become textures 0, 1, ... in order; ``uv0``,
-    ``uv1``: the corners' TEXCOORD_0 (default :data:`QUAD_UV`) and TEXCOORD_1 (default none)."""
+    ``uv1``: the corners' TEXCOORD_0 (default :data:`QUAD_UV`) and TEXCOORD_1 (default none);
+    ``tangent``: the corners' TANGENT (default :data:`QUAD_TAN`; with ``uv0`` :data:`MIRRORED_UV`,
+    :data:`MIRRORED_TAN`)."""
     doc = Doc()
     for px, sampler in images:
         doc.image(px, sampler)
@@ -34,7 +40,7 @@ def quad_asset(path: Path, material: dict, images: list[tuple[np.ndarray, dict |
     if uv1 is not None:
         attrs["TEXCOORD_1"] = doc.accessor(np.asarray(uv1, np.float32), "VEC2")
     if tangents:
-        attrs["TANGENT"] = doc.accessor(QUAD_TAN, "VEC4")
+        attrs["TANGENT"] = doc.accessor(np.asarray(tangent, np.float32), "VEC4")
     doc.d["materials"] = [material]
     doc.node(doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0))
     return doc.write(path)

@@ -400,3 +400,59 @@ def test_report_config_replaces_the_keywords_and_its_stages_match_the_run_log(fa
                                                   "tiny: comparisons and diagnose", "summary and furnace",
                                                   "both references"]
     assert 'id="tiny"' in index.read_text()
+
+
+def test_report_of_an_asset_scene_shows_the_approximations_against_both_truths(tmp_path, tmp_cache):
+    # a built quad with a tilted normal map and an occlusion texture: the asset section lists every
+    # option of compare.approximations, the shading ones against local, the occlusion ones against path
+    from compare.approximations import LOCAL_ROWS, PATH_ROWS
+    from compare.report import build
+    from gltf_build import quad_asset, quad_scene
+
+    nm = np.zeros((4, 4, 3), np.uint8)
+    nm[...] = (128, 128, 255)
+    nm[::2, ::2] = (200, 128, 230)
+    ao = np.full((4, 4, 3), 128, np.uint8)
+    asset = quad_asset(tmp_path / "q.gltf", {"normalTexture": {"index": 0}, "occlusionTexture": {"index": 1},
+                                            "pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.3}},
+                       [(nm, None), (ao, None)])
+    scene = quad_scene(tmp_path, asset, size=(10, 10))
+    cfg = build.ReportConfig(presets=["default"], spp=4, convergence=False, sweep=False, furnace=False,
+                             progress=False)
+    index = build.build_report([str(scene)], tmp_path / "r", cfg)
+    m = json.loads(next((tmp_path / "r").glob("*/metrics.json")).read_text())["asset_approximations"]
+    assert m["preset"] == "default"
+    rows = m["rows"]
+    assert [(r["truth"], r["option"]) for r in rows] == (
+        [("local", label) for label, _ in LOCAL_ROWS] + [("path", label) for label, _ in PATH_ROWS])
+    for r in rows:
+        assert np.isfinite(r["relmse"]) and np.isfinite(r["smape"]), r
+        assert [x["material"] for x in r["materials"]] and all(x["pixels"] > 0 for x in r["materials"]), r
+    # the occlusion texture (0.5) darkens the diffuse-free metal's specular only with specular occlusion
+    by = {r["option"]: r for r in rows}
+    assert by["+ specular_occlusion=lagarde"]["relmse"] != by["occlusion_texture (diffuse)"]["relmse"]
+    html = index.read_text()
+    assert "Asset approximations" in html and "<td class=\"l\">path</td>" in html and "<td class=\"l\">local</td>" in html
+
+
+def test_sweep_over_the_asset_approximations_against_their_truths(tmp_path, tmp_cache, capsys):
+    # pbrcheck sweep --approximations on a built quad: every option of compare.approximations, each
+    # against its truth's reference (a truth column), one speed-against-error plot per truth
+    from compare.approximations import LOCAL_ROWS, PATH_ROWS
+    from gltf_build import quad_asset, quad_scene
+
+    nm = np.full((4, 4, 3), (128, 128, 255), np.uint8)
+    nm[::2, ::2] = (200, 128, 230)
+    asset = quad_asset(tmp_path / "q.gltf", {"normalTexture": {"index": 0}, "occlusionTexture": {"index": 1},
+                                            "pbrMetallicRoughness": {"roughnessFactor": 0.3}},
+                       [(nm, None), (np.full((4, 4, 3), 128, np.uint8), None)])
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(quad_scene(tmp_path, asset, size=(8, 8))), "--approximations", "--out", str(out),
+                 "--spp", "4", "--quiet"]) == 0
+    rows = json.loads((out / "sweep.json").read_text())
+    assert [r["truth"] for r in rows] == ["local"] * len(LOCAL_ROWS) + ["path"] * len(PATH_ROWS)
+    assert all(r["options"]["pipeline"] == "raster" and r["frame_s"] is not None and np.isfinite(r["relmse"])
+               for r in rows)
+    assert all(r["options"]["occlusion_texture"] is False for r in rows[:len(LOCAL_ROWS)])
+    assert (out / "sweep.csv").read_text().startswith("preset,truth,")
+    assert (out / "pareto_local.png").stat().st_size > 0 and (out / "pareto_path.png").stat().st_size > 0

@@ -312,3 +312,17 @@ def test_measured_candidates_estimate_the_same_pixels(rough, option):
         rr.load_integrator("local", mis="cutoff")
     with pytest.raises(ValueError, match="env_sampling must be one of"):
         rr.load_integrator("local", env_sampling="product")
+
+
+@pytest.mark.parametrize("sampler", ["qmc", "independent"])
+def test_a_scene_that_cannot_emit_renders_black(sampler):
+    # A black environment and no light: the estimator folds to a width-1 literal zero, which the
+    # replicate passes once failed to reshape per pixel (a traceback instead of a black image).
+    scene = scene_from_dict({
+        "camera": {"origin": [0, 0, 4], "fov": 40, "width": 12, "height": 8},
+        "environment": {"type": "constant", "radiance": [0.0, 0.0, 0.0]},
+        "objects": [{"type": "sphere", "radius": 1.0}]})
+    img = render_uncached(scene, spp=4, sampler=sampler, progress=False)
+    for c in ("R", "G", "B", "variance.R"):
+        assert np.all(img.channels[c] == 0.0)
+    assert img.channels["coverage"].max() == 1.0 and img.channels["coverage"].min() == 0.0

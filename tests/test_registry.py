@@ -171,26 +171,57 @@ def test_term_dispatch_matches_the_registry_in_numpy():
 
 
 # The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
+# None: a real-time approximation the reference does not make (no Dr.Jit function).
 ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
               "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
-              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl")}
+              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
+              "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
+              "HORIZON_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
+              "SPECULAR_AA": ("pbrcheck.specular_aa", None, "specular_aa.glsl")}
+#: The real-time-only role registries, twinned by test_realtime_role_twins below.
+REALTIME_ROLES = [d for d, (_, dr, _) in ROLE_HOMES.items() if dr is None]
+
+
+def _offered(option: str, value) -> bool:
+    o = presets.OPTIONS[option]
+    return value in o.choices if o.kind == "choice" else o.lo <= value <= o.hi
 
 
 def test_requirements_name_options_and_resolve_options_enforces_them():
-    """A member's requirements (Entry.requires) name real-time options and values they offer;
-    resolve_options accepts the member with them and refuses it, naming it, without them."""
+    """A member's requirements (Entry.requires) and an option value's (Option.requires: msaa,
+    alpha_to_coverage) name real-time options and values they offer; resolve_options accepts the
+    value with them and refuses it, naming it, without them (a DEFERRED value, pipeline=auto, is
+    left to the render)."""
     checked = 0
+    chosen = [(name, e.name, e.name, e.requires) for name, reg in presets.OPTION_REGISTRIES.items() for e in reg]
+    on = {"bool": True, "int": 4}
+    chosen += [(name, on[o.kind], str(on[o.kind]).lower(), o.requires) for name, o in presets.OPTIONS.items()
+               if o.requires]
     for name, reg in presets.OPTION_REGISTRIES.items():
         assert set(presets.OPTIONS[name].choices) - {"scene"} <= set(reg.names), name
-        for e in reg:
-            for k, accepted in e.requires.items():
-                assert accepted and set(accepted) <= set(presets.OPTIONS[k].choices), (e.name, k)
-                presets.resolve_options("default", {name: e.name, **{r: v[0] for r, v in e.requires.items()}})
-                other = next(c for c in presets.OPTIONS[k].choices if c not in accepted)
-                with pytest.raises(presets.OptionError, match=rf"^option {name}: {e.name} needs .*{k}=.*, found .*{k}={other}"):
-                    presets.resolve_options("default", {name: e.name, k: other})
-                checked += 1
-    assert checked >= 5  # the compositions' ibl and the compensations' shading and ibl
+    for name, value, shown, requires in chosen:
+        for k, accepted in requires.items():
+            assert accepted and all(_offered(k, a) for a in accepted), (name, value, k)
+            presets.resolve_options("default", {name: value, **{r: v[0] for r, v in requires.items()}})
+            other = next(c for c in (presets.OPTIONS[k].choices or (1,)) if c not in accepted
+                         and presets.DEFERRED.get(k) != c)
+            # refused naming the value, or a value it requires that needs the same (a2c's msaa: the pipeline)
+            named = "|".join([f"{name}: {shown}", *(f"{r}: \\S+" for r in requires)])
+            with pytest.raises(presets.OptionError, match=rf"^option ({named}) needs .*{k}=.*, found .*{k}={other}"):
+                presets.resolve_options("default", {name: value, **{r: v[0] for r, v in requires.items()}, k: other})
+            checked += 1
+    assert checked >= 9  # compositions' ibl, compensations' shading and ibl, screen_space's, msaa's, a2c's pipeline
+
+
+def test_a_deferred_requirement_is_checked_once_resolved():
+    """pipeline=auto accepts the raster-only values; the render refuses them where auto resolves to
+    the ray-cast pipeline (analytic scenes) and accepts them where it resolves to raster."""
+    from realtime.render import check_pipeline_options
+    for over in ({"specular_aa": "screen_space"}, {"msaa": 4}, {"msaa": 2, "alpha_to_coverage": True}):
+        o = presets.resolve_options("default", {"pipeline": "auto", **over})
+        check_pipeline_options("raster", o)
+        with pytest.raises(presets.OptionError, match=r"needs pipeline=raster.*, found pipeline=raycast"):
+            check_pipeline_options("raycast", o)
 
 
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
@@ -220,27 +251,67 @@ def test_every_role_member_has_its_three_implementations(define):
     ensure_variant()
     reg, include, _, roles = registry.ROLE_REGISTRIES[define]
     np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
-    numpy_mod, drjit_mod = importlib.import_module(np_mod), importlib.import_module(dr_mod)
+    numpy_mod, drjit_mod = importlib.import_module(np_mod), dr_mod and importlib.import_module(dr_mod)
     glsl = (SHADER_DIR / glsl_file).read_text()
     dispatch = registry.glsl_generated()[include]
     assert f'#include "{include}"' in glsl
     for role, (signature, identity) in roles.items():
         assert signature + " {" in dispatch
-        assert callable(getattr(numpy_mod, role)) and callable(getattr(drjit_mod, role)), role
+        assert callable(getattr(numpy_mod, role)) and (not drjit_mod or callable(getattr(drjit_mod, role))), role
     for e in reg:
         assert set(e.roles) <= set(roles), e.name
         missing = set(roles) - set(e.roles)
         assert not missing or (e.applies_to and all(roles[r][1] for r in missing)), (e.name, missing)
         for role, impl in e.roles.items():
-            assert impl.numpy == impl.drjit == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
+            assert impl.numpy == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
             assert callable(getattr(numpy_mod, impl.numpy, None)), impl.numpy
-            assert callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
+            if drjit_mod:
+                assert impl.drjit == impl.glsl and callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
+            else:  # the entry says why the reference has none
+                assert impl.drjit == "" and "no Dr.Jit function" in e.applies_to, (e.name, e.applies_to)
+            params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
+            assert [p for p in params if p in impl.args] == list(impl.args), impl.args  # in the dispatch's order
             assert re.search(rf"^\w+ {impl.glsl}\(", glsl, re.M), impl.glsl
             assert f"{reg.constant(e.name)}\n    return {impl.glsl}(" in dispatch
-    twins = test_energy.test_role_twins if define == "ENERGY_COMPENSATION" else test_realtime_sampling.test_strategy_twins
+    twins = {"ENERGY_COMPENSATION": test_energy.test_role_twins}.get(
+        define, test_realtime_role_twins if define in REALTIME_ROLES else test_realtime_sampling.test_strategy_twins)
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
     covered = {p if len(p) == 2 else p[1:] for p in params if len(p) == 2 or p[0] == define}
     assert covered == {(e.name, r) for e in reg for r in e.roles}
+
+
+#: The real-time roles' parameters on grids including the extremes (roughness, n.v, ao 0..1 with
+#: 1e-4 and 0.999; r.n_g -1..1 with the fade's end and +-1e-6; normal length 1e-4..1.5; variances 0..4).
+_UNIT = np.concatenate([np.linspace(0.0, 1.0, 11), [1e-4, 0.999]])
+PARAM_GRIDS = {"NoV": _UNIT, "ao": _UNIT, "roughness": _UNIT,
+               "RoNg": np.concatenate([np.linspace(-1.0, 1.0, 41), [-1 / 1.3, -1e-6, 0.0, 1e-6]]),
+               "normal_length": np.array([1e-4, 0.01, 0.5, 0.95, 1.0, 1.001, 1.5]),
+               "variance": np.array([0.0, 1e-8, 1e-4, 0.1, 1.0, 4.0]), "dn2": np.array([0.0, 1e-6, 0.01, 0.5, 4.0])}
+
+
+@pytest.mark.parametrize("define, name, role", [(d, e.name, r) for d in REALTIME_ROLES
+                                                for e in registry.ROLE_REGISTRIES[d][0] for r in e.roles])
+def test_realtime_role_twins(define, name, role):
+    """Each real-time approximation's role function (GLSL) against its numpy twin of the same name,
+    and the generated GLSL dispatch selecting the member against the numpy dispatch looping the
+    registry, on grids including the extremes (test_occlusion's and test_specular_aa's tolerances)."""
+    import importlib
+
+    import test_occlusion
+    import test_specular_aa
+    from realtime.glsl_harness import run_glsl
+    reg, _, _, roles = registry.ROLE_REGISTRIES[define]
+    impl = reg[name].roles[role]
+    params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
+    grids = dict(zip(params, np.meshgrid(*(PARAM_GRIDS[p] for p in params), indexing="ij")))
+    numpy_mod = importlib.import_module(ROLE_HOMES[define][0])
+    atol = {"gtso": test_occlusion.GTSO_ATOL}.get(name, min(test_occlusion.GLSL_ATOL, test_specular_aa.GLSL_ATOL))
+    own = [grids[a] for a in impl.args or params]
+    got = run_glsl(f"{impl.glsl}({', '.join(f'x{i}' for i in range(len(own)))})", *own)
+    np.testing.assert_allclose(got, getattr(numpy_mod, impl.numpy)(*own), rtol=0, atol=atol)
+    got = run_glsl(f"{role}({', '.join(f'x{i}' for i in range(len(params)))})", *grids.values(),
+                   defines=reg.select(name))
+    np.testing.assert_allclose(got, getattr(numpy_mod, role)(*grids.values(), name), rtol=0, atol=atol)
 
 
 @pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
@@ -251,7 +322,8 @@ def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
         assert not re.search(rf"^\s*#\s*(el)?if\b.*\b{define}\s*==", p.read_text(), re.M), p.name
     reg, include, default, roles = registry.ROLE_REGISTRIES[define]
     text = registry.glsl_generated()[include]
-    assert text.count(f"== {define}_") == len(reg.names) * len(roles)
+    reads = any(i.args for e in reg for i in e.roles.values())  # and the SWITCH_READS_<INPUT> block
+    assert text.count(f"== {define}_") == len(reg.names) * (len(roles) + reads)
     assert f"#define {define} {reg.constant(default)}\n" in text
 
 
@@ -262,3 +334,20 @@ def test_docs_role_table_lists_every_member_and_its_functions():
             cells = _doc_row(f"{define}: {e.name}")
             listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
             assert listed == list(dict.fromkeys(i.glsl for i in e.roles.values())), (define, e.name, listed)
+
+
+def test_composition_dispatch_is_generated_and_no_shading_ladder_is_left():
+    """shading.glsl defines shade_<name> and light_brdf_<name> for every composition; the generated
+    shade_composition / light_brdf call them (the pixel seed to the seeded ones); no shader holds a
+    hand ``#if SHADING ==`` ladder."""
+    text = registry.glsl_generated()["shading_dispatch.glsl"]
+    shading = (SHADER_DIR / "shading.glsl").read_text()
+    assert '#include "shading_dispatch.glsl"' in shading
+    for e in registry.SHADINGS:
+        seed = ", pixel_seed" if e.extra["seeded"] else ""
+        assert re.search(rf"^vec3 shade_{e.name}\(Shading c{', uint pixel_seed' if seed else ''}\)", shading, re.M)
+        assert re.search(rf"^vec3 light_brdf_{e.name}\(Shading c, vec3 l, float NoL\)", shading, re.M)
+        assert f"{registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
+        assert f"{registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
+    for p in SHADER_DIR.iterdir():
+        assert not re.search(r"^\s*#\s*(el)?if\b.*\bSHADING\s*==", p.read_text(), re.M), p.name

@@ -15,19 +15,9 @@ Assets
 Both are framed as ``pbrcheck`` frames an asset (:func:`pbrcheck.scene.asset_scene`), lit by ``--env``
 (default ``../shared/envmaps/royal_esplanade_1k.hdr`` when present, else the constant environment).
 
-Rows
-----
-Shading approximations against the reference's ``local`` mode (no occlusion: the real-time renders
-turn ``occlusion_texture`` off): ``none`` (supersample 1), each ``specular_aa``, ``msaa=4`` and
-``supersample=4`` (the default preset's), all at one sample a pixel unless named. Occlusion
-approximations against ``path`` (one bounce of visibility and interreflection: the reference's truth
-for occlusion): the occlusion texture on the diffuse light alone, then ``specular_occlusion`` lagarde
-and gtso, and ``horizon_occlusion=marmoset``, at supersample 4.
-
-Columns: ``relmse`` and ``smape`` (bounded: a few outlier pixels, such as a sun glint, cannot
-dominate it) over the pixels fully covered in both images (:func:`compare.metrics.compare_images`,
-edges excluded), and ``relmse_all`` over every pixel (silhouettes and background included: what MSAA
-changes). The reference's own noise: ``ref_noise``, the relmse of a second reference of another seed
+Rows and columns: :mod:`compare.approximations` (the report's asset section reads the same rows):
+shading approximations against ``local``, occlusion approximations against ``path``; ``relmse``,
+``smape`` and ``relmse_all``. The reference's own noise: ``ref_noise``, the relmse of a second reference of another seed
 against the first (a floor under which no row can be told apart). Timings are not printed (the
 machine is shared); figures go to docs/realtime.md by hand.
 """
@@ -47,25 +37,6 @@ BUMP_CYCLES = (48, 24)
 BUMP_SLOPE = 0.7
 BUMP_TEXTURE = 512
 
-LOCAL_ROWS = [
-    ("none (ss 1)", {"supersample": 1}),
-    ("specular_aa=toksvig", {"supersample": 1, "specular_aa": "toksvig"}),
-    ("specular_aa=screen_space", {"supersample": 1, "specular_aa": "screen_space"}),
-    ("specular_aa=prefiltered", {"supersample": 1, "specular_aa": "prefiltered"}),
-    ("msaa=4", {"supersample": 1, "msaa": 4}),
-    ("supersample=4", {"supersample": 4}),
-    ("supersample=4, specular_aa=prefiltered", {"supersample": 4, "specular_aa": "prefiltered"}),
-]
-PATH_ROWS = [
-    ("no occlusion", {"occlusion_texture": False}),
-    ("occlusion_texture (diffuse)", {}),
-    ("+ specular_occlusion=lagarde", {"specular_occlusion": "lagarde"}),
-    ("+ specular_occlusion=gtso", {"specular_occlusion": "gtso"}),
-    ("+ horizon_occlusion=marmoset", {"horizon_occlusion": "marmoset"}),
-    ("+ gtso + marmoset", {"specular_occlusion": "gtso", "horizon_occlusion": "marmoset"}),
-]
-
-
 def bump_normal_map(size: int = BUMP_TEXTURE) -> np.ndarray:
     """The ``bumpy`` asset's tangent-space normal map, uint8 (size, size, 3) (module docstring)."""
     v, u = (np.mgrid[0:size, 0:size] + 0.5) / size
@@ -75,33 +46,25 @@ def bump_normal_map(size: int = BUMP_TEXTURE) -> np.ndarray:
     return np.round((n * 0.5 + 0.5) * 255).astype(np.uint8)
 
 
-def relmse_all(ref, test) -> float:
-    from compare.metrics import REL_EPS
-    r, t = ref.rgb.astype(np.float64), test.rgb.astype(np.float64)
-    return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
-
-
 def measure(scene, name: str, spp: int, out=sys.stdout) -> None:
-    from compare.metrics import compare_images
+    """Print ``scene``'s table (:func:`compare.approximations.approximation_rows`, with each truth's
+    reference noise first)."""
+    from compare.approximations import TRUTHS, approximation_rows, reference_noise_row
     from reference.render import render_reference
-    from realtime.render import render_realtime
 
-    def rel(ref, img):
-        c = compare_images(ref, img, scene=scene, noise=False, flip=False, itp=False)
-        m = c.summary["metrics"]
-        return f"{m['relmse']:.5f} | {m['smape']:.5f} | {relmse_all(ref, img):.5f}"
+    def fmt(r):
+        return f"| {r['truth']} | {r['option']} | {r['relmse']:.5f} | {r['smape']:.5f} | {r['relmse_all']:.5f} |"
 
     print(f"\n### {name} ({scene.camera.width} x {scene.camera.height}, reference {spp} spp)\n", file=out)
     print("| truth | option | relmse | smape | relmse_all |\n|---|---|---|---|---|", file=out)
-    for mode, rows, base in (("local", LOCAL_ROWS, {"occlusion_texture": False}), ("path", PATH_ROWS, {})):
+    refs = {}
+    for mode in TRUTHS:
         print(f"{name}: reference {mode} ...", file=sys.stderr, flush=True)
-        ref = render_reference(scene, spp=spp, mode=mode, progress=True)
-        ref2 = render_reference(scene, spp=spp, mode=mode, seed=1, progress=False)
-        print(f"| {mode} | ref_noise (seed 1 vs 0) | {rel(ref, ref2)} |", file=out, flush=True)
-        for label, opts in rows:
-            print(f"{name}: {mode} {label} ...", file=sys.stderr, flush=True)
-            img = render_realtime(scene, "default", {**base, **opts}, progress=False)
-            print(f"| {mode} | {label} | {rel(ref, img)} |", file=out, flush=True)
+        refs[mode] = render_reference(scene, spp=spp, mode=mode, progress=True)
+        print(fmt(reference_noise_row(scene, mode, refs[mode], spp)), file=out, flush=True)
+    for r in approximation_rows(scene, spp, references=refs,
+                                progress=lambda label: print(f"{name}: {label} ...", file=sys.stderr, flush=True)):
+        print(fmt(r), file=out, flush=True)
 
 
 def main(argv=None) -> int:

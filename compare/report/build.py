@@ -63,7 +63,7 @@ class ReportConfig:
     ``presets``: the renderers under test (default: every real-time preset); ``spp`` the least and
     ``spp_cap`` the most reference spp; ``vary``: ``KEY=V1,V2`` sweeps (every combination; default:
     the main cost knobs one at a time, unless ``sweep`` is off); ``convergence``: the reference's
-    convergence study; ``furnace``: the white furnace per renderer; ``hardcases`` and ``research``:
+    convergence study; ``approximations``: the asset approximations (asset scenes); ``furnace``: the white furnace per renderer; ``hardcases`` and ``research``:
     those sections; ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): where the presets' and the sweep's
     renders run; ``cache``: the render and FLIP-map caches; ``progress``: the progress bar."""
 
@@ -73,6 +73,7 @@ class ReportConfig:
     vary: list[str] | None = None
     convergence: bool = True
     sweep: bool = True
+    approximations: bool = True
     furnace: bool = True
     hardcases: bool = False
     research: bool = False
@@ -234,6 +235,7 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     with renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
+                            approximations=cfg.approximations,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

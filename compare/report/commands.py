@@ -34,7 +34,8 @@ def _cmd_report(args) -> int:
     extras = [corpus_section(d, prefix=os.path.relpath(Path(d).resolve(), Path(args.out).resolve()) + "/")
               for d in args.corpus or []]
     config = ReportConfig(presets=presets, spp=args.spp, spp_cap=args.spp_cap, vary=args.vary or None,
-                          convergence=not args.no_convergence, sweep=not args.no_sweep, furnace=not args.no_furnace,
+                          convergence=not args.no_convergence, sweep=not args.no_sweep,
+                          approximations=not args.no_approximations, furnace=not args.no_furnace,
                           hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
                           cache=not args.no_cache, progress=not args.quiet)
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
@@ -50,11 +51,12 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    vary = parse_vary(args.vary)
+    vary = parse_vary(args.vary) if args.vary or not args.approximations else None
     check_output_path(args.out, folder=True)  # before any render
     with staged_folder(args.out) as stage:  # all of its files, or none
         staged = run_sweep(args.scene, vary, preset=args.preset, out_dir=stage, spp=args.spp,
-                           progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler)
+                           progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler,
+                           mode=args.mode, approximations=args.approximations)
     paths = {k: Path(args.out) / Path(p).relative_to(stage) for k, p in staged.items()}
     for k, p in paths.items():
         print(f"{k}: {p}")
@@ -104,6 +106,8 @@ def register(sub, bench_sub) -> None:
                         "knobs one at a time")
     s.add_argument("--no-convergence", action="store_true", help="skip the reference convergence study")
     s.add_argument("--no-sweep", action="store_true", help="skip the default sweep over the cost knobs")
+    s.add_argument("--no-approximations", action="store_true",
+                   help="asset scenes: skip the approximation options against their truths (a path reference)")
     s.add_argument("--no-furnace", action="store_true", help="skip the white furnace per renderer")
     s.add_argument("--hardcases", action="store_true", help="add the hard-case section (pbrcheck hardcases, small)")
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
@@ -120,8 +124,13 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("sweep", help="speed against error over real-time option combinations")
     s.add_argument("scene", help="built-in scene name or TOML path")
-    s.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2",
+    s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="real-time option and its values (repeatable; every combination is rendered)")
+    s.add_argument("--approximations", action="store_true",
+                   help="asset scenes: sweep the approximation options (specular_aa, msaa, occlusion), "
+                        "each against the reference mode that is its truth (local or path)")
+    s.add_argument("--mode", choices=("local", "path"), default="local",
+                   help="reference mode of the --vary rows (default local)")
     s.add_argument("--preset", default="default", help="preset the variations start from")
     s.add_argument("--with", dest="also", metavar="P,...",
                    help="further renderers measured as they are on the same plot (presets or ext:NAME)")

@@ -49,6 +49,8 @@ class SceneSection:
     sweep_rows: list[dict]
     verdict: VerdictSpp | None = None
     material_rows: list[dict] = field(default_factory=list)   # glTF assets: renderer x material
+    approx_preset: str | None = None   # glTF assets: the preset of the approximation rows
+    approx_rows: list[dict] = field(default_factory=list)     # compare.approximations.approximation_rows
 
 
 __all__ = ["PresetResult", "SceneSection"]

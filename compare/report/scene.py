@@ -5,9 +5,10 @@ for external renderers), the sweep, the reference's convergence study, the plots
 (:meth:`SceneWork.stages`); once they have run, :attr:`SceneWork.section` is its
 :class:`~compare.report.results.SceneSection`. Files under ``OUT/<scene>/``: ``reference.png``, per
 renderer ``rt_``, ``flip_`` and ``rel_`` PNGs (and ``diagnose_*.json`` for an external one), the
-plots, ``sweep.csv`` / ``sweep.json`` and ``metrics.json``.
+plots, ``sweep.csv`` / ``sweep.json`` and ``metrics.json`` (with, for an asset scene, the approximation
+rows of :mod:`compare.approximations`: its ``asset_approximations``).
 
-API: :class:`ReportSettings`, :class:`SceneWork`, :func:`convergence_spps`, :data:`DIAGNOSE_SPP`,
+API: :class:`ReportSettings`, :class:`SceneWork`, :func:`approximation_preset`, :func:`convergence_spps`, :data:`DIAGNOSE_SPP`,
 :data:`CONVERGENCE_FRACTIONS`, :data:`CONVERGENCE_SEED`, :data:`PROVENANCE_SKIP`.
 """
 
@@ -21,6 +22,7 @@ from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
 from .. import renderers
+from ..approximations import approximation_rows
 from ..corpus import renderlist
 from ..maps import safe_name, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
@@ -79,6 +81,9 @@ class ReportSettings:
     #: least; None: as many as fit in ``DEFAULT_TIME_BUDGET_S`` of rendering per scene.
     spp_cap: int | None = None
     context: renderers.RenderContext = field(default=renderers.DIRECT)
+    #: Asset scenes drawn by a real-time preset: every approximation option against its truth
+    #: (compare.approximations; one ``path`` reference at ``spp`` and 13 raster frames).
+    approximations: bool = True
 
     def combos(self) -> list[dict]:
         """The sweep's option sets (over the first preset)."""
@@ -104,6 +109,8 @@ class SceneWork:
         self.provenance: list[tuple[str, str]] = []
         self.material_rows: list[dict] = []
         self.sweep_table: list[dict] = []
+        self.approx_preset = approximation_preset(self.scene, st.presets) if st.approximations else None
+        self.approx_rows: list[dict] = []
         self.conv: list[dict] = []
         self.section: SceneSection | None = None
 
@@ -117,6 +124,8 @@ class SceneWork:
         out += [ReportStage(f"{n}: comparisons and diagnose", 1, partial(self._measure, p)) for p in self.st.presets]
         if self.combos:
             out.append(ReportStage(f"{n}: sweep", len(self.combos), self._sweep))
+        if self.approx_preset:
+            out.append(ReportStage(f"{n}: asset approximations", 1, self._approximations))
         if self.st.convergence:  # at most one step per fraction (fewer at a low spp)
             out.append(ReportStage(f"{n}: convergence", len(CONVERGENCE_FRACTIONS), self._convergence))
         out.append(ReportStage(f"{n}: plots and files", 0, self._write, record=False))
@@ -199,6 +208,13 @@ class SceneWork:
             self.sweep_table.append({**r, "label": label})
             self.speed_rows.append({**r, "preset": label})
 
+    def _approximations(self, prog) -> None:
+        """The asset approximations (compare.approximations) with the first real-time preset, the
+        report's reference standing for ``local`` when it is one; references at the report's spp."""
+        refs = {"local": self.ref} if self.ref.meta.get("mode", "local") == "local" else {}
+        self.approx_rows = approximation_rows(self.scene, self.st.spp, preset=self.approx_preset, references=refs)
+        prog.update(1, f"{self.scene.name}: asset approximations")
+
     def _convergence(self, prog) -> None:
         """MSE of lower-spp renders (another seed) against the reference, with the variance prediction."""
         scene, ref = self.scene, self.ref
@@ -236,11 +252,27 @@ class SceneWork:
                               "note": "If the reference is converged, the renderers' MSE lines lie far above its "
                                       "noise floor."})
         write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": self.dump, "convergence": self.conv,
-                                                "sweep": self.sweep_table, "reference_spp": verdict.to_dict()},
+                                                "sweep": self.sweep_table, "reference_spp": verdict.to_dict(),
+                                                "asset_approximations": {"preset": self.approx_preset,
+                                                                         "rows": self.approx_rows}},
                           indent=1)
         self.section = SceneSection(sid, scene.name, scene.description, self.ref.meta.get("spp", self.st.spp),
                                     f"{sid}/reference.png", self.results, plots, self.provenance, self.noise_floor,
-                                    self.sweep_table, verdict, self.material_rows)
+                                    self.sweep_table, verdict, self.material_rows, self.approx_preset, self.approx_rows)
+
+
+def approximation_preset(scene, presets) -> str | None:
+    """The first real-time preset that draws ``scene`` with the raster pipeline, for an asset scene
+    (None otherwise: no asset section)."""
+    from pbrcheck.gltf_scene import scene_has_assets
+    from realtime.presets import PRESETS, resolve_options
+    from realtime.render import resolved_pipeline
+    if not scene_has_assets(scene):
+        return None
+    for p in presets:   # named presets only (not external renderers, not hook files)
+        if p in PRESETS and resolved_pipeline(scene, resolve_options(p, {})) == "raster":
+            return p
+    return None
 
 
 def _provenance(scene, ref) -> list[tuple[str, str]]:
@@ -255,4 +287,4 @@ def _provenance(scene, ref) -> list[tuple[str, str]]:
 
 
 __all__ = ["CONVERGENCE_FRACTIONS", "CONVERGENCE_SEED", "DIAGNOSE_SPP", "PROVENANCE_SKIP", "ReportSettings",
-           "SceneWork", "convergence_spps"]
+           "SceneWork", "approximation_preset", "convergence_spps"]

@@ -4,6 +4,9 @@ reference, tabulate precompute time, frame time and every metric, and plot the P
 ``precompute_s`` and ``frame_s`` come from the real-time image's ``timings`` metadata (pass name ->
 seconds), split by :func:`compare.timings.split_timings`. :data:`DEFAULT_SWEEP` and
 :func:`default_sweep`: the report's sweep over the main cost knobs, one at a time.
+:func:`approximation_groups`: the asset approximations of :mod:`compare.approximations` (specular_aa,
+msaa, supersample, occlusion texture, specular_occlusion, horizon_occlusion), each swept against the
+reference mode that is its truth (``pbrcheck sweep SCENE --approximations``).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from pbrcheck.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
 from .. import renderers
+from ..approximations import TRUTHS
 from ..corpus import renderlist
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure
@@ -147,6 +151,12 @@ def combinations(vary: dict[str, list]) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
+def approximation_groups() -> list[tuple[str, list[dict]]]:
+    """``[(reference mode, option dicts)]``: the rows of :data:`compare.approximations.TRUTHS`, the
+    options under every row of a mode included, raster pipeline."""
+    return [(mode, [{**base, **opts, "pipeline": "raster"} for _, opts in rows]) for mode, (rows, base) in TRUTHS.items()]
+
+
 def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
                executor=None, context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
     """Render and compare each option dict of ``combos`` (over ``preset``, rendered in ``context``);
@@ -173,54 +183,76 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
     """Write the sweep rows as ``stem.csv`` and ``stem.json`` in ``out_dir`` (atomically)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
-    cols = ["preset", *keys, "precompute_s", "frame_s", *METRICS]
+    truth = any("truth" in r for r in rows)   # --approximations: each row's reference mode
+    cols = ["preset", *(["truth"] if truth else []), *keys, "precompute_s", "frame_s", *METRICS]
+    first = 1 + truth + len(keys)
     buf = io.StringIO(newline="")
     w = csv.writer(buf)
     w.writerow(cols)
     for r in rows:
-        w.writerow([r["preset"], *(r["options"].get(k, "") for k in keys),
-                    *("" if r.get(c) is None else r[c] for c in cols[1 + len(keys):])])
+        w.writerow([r["preset"], *([r.get("truth", "")] if truth else []), *(r["options"].get(k, "") for k in keys),
+                    *("" if r.get(c) is None else r[c] for c in cols[first:])])
     write_text_atomic(csv_path, buf.getvalue())
     write_json_atomic(json_path, rows)
     return {"csv": csv_path, "json": json_path}
 
 
-def run_sweep(scene_arg: str, vary: dict[str, list], *, preset: str = "default", out_dir: Path,
+def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "default", out_dir: Path,
               spp: int = 64, progress: bool = True, also: list[str] | None = None,
-              scheduler: str | None = None) -> dict[str, Path]:
-    """Render the reference and every combination of ``vary`` over ``preset``; write the table and
-    the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths. ``also``:
-    further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the same plot.
-    ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the combinations run there
-    (:mod:`compare.corpus.scheduler`).
+              scheduler: str | None = None, mode: str = "local", approximations: bool = False) -> dict[str, Path]:
+    """Render the reference (``mode``) and every combination of ``vary`` over ``preset``; write the
+    table and the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
+    ``approximations``: the asset approximations instead (:func:`approximation_groups`), each group
+    against a reference in its own mode, a ``truth`` column, one plot per mode (``pareto_MODE.png``).
+    ``also``: further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the
+    same plot (against the first reference). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the
+    combinations run there (:mod:`compare.corpus.scheduler`).
 
     Raises
     ------
     SweepError
-        ``spp`` below 2; ``OptionError`` for an unknown option or value (before any render).
+        ``spp`` below 2; neither ``vary`` nor ``approximations``; ``OptionError`` for an unknown
+        option or value (before any render).
     """
     if spp < MIN_REFERENCE_SPP:
         raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
                          f"got {spp}")
+    if not vary and not approximations:
+        raise SweepError("sweep: --vary KEY=V1,V2,... or --approximations is needed")
     scene = load_scene(scene_arg)
-    for combo in combinations(vary):  # every option and value is checked before rendering
-        renderers.resolve_options(preset, combo)
+    groups = ([] if not vary else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
+    for _, combos in groups:  # every option and value is checked before rendering
+        for combo in combos:
+            renderers.resolve_options(preset, combo)
     also = list(also or [])
     for other in also:
         renderers.resolve_options(other, {})
-    n = math.prod(len(v) for v in vary.values()) + len(also)
+    n = sum(len(c) + 1 for _, c in groups) + len(also)
     spec = parse_scheduler(scheduler) if scheduler else None
-    with Progress(f"sweep {scene.name}", total=n + 1, enabled=progress) as p, \
+    rows = []
+    with Progress(f"sweep {scene.name}", total=n, enabled=progress) as p, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
-        ref = renderers.render_reference(scene, spp=spp, use_cache=True, progress=False)
-        p.update(1, "reference")
-        rows = sweep_rows(scene, ref, combinations(vary), preset=preset, progress=p, executor=ex)
-        for other in also:
-            rows += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
-    keys = list(vary)
+        for i, (m, combos) in enumerate(groups):
+            ref = renderers.render_reference(scene, spp=spp, mode=m, use_cache=True, progress=False)
+            p.update(1, f"reference ({m})")
+            new = sweep_rows(scene, ref, combos, preset=preset, progress=p, executor=ex)
+            if i == 0:
+                for other in also:
+                    new += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
+            if approximations:
+                for r in new:
+                    r["truth"] = m
+            rows += new
+    keys = list(vary) if vary and not approximations else sorted({k for _, c in groups for o in c for k in o})
     paths = write_table(Path(out_dir), rows, keys)
-    paths["plot"] = plot_speed_error(Path(out_dir) / "pareto.png", rows,
-                                     lambda r: (",".join(f"{k}={r['options'][k]}" for k in keys)
-                                                if r["preset"] == preset else r["preset"]),
-                                     f"{scene.name}: speed against error ({preset} + variations)")
+
+    def label(r):
+        return (",".join(f"{k}={r['options'][k]}" for k in keys if k in r["options"] and k != "pipeline")
+                or "preset") if r["preset"] == preset else r["preset"]
+
+    for m in dict.fromkeys(r.get("truth", mode) for r in rows):
+        name = f"pareto_{m}" if approximations else "pareto"
+        paths["plot" if name == "pareto" else f"plot_{m}"] = plot_speed_error(
+            Path(out_dir) / f"{name}.png", [r for r in rows if r.get("truth", mode) == m], label,
+            f"{scene.name}: speed against error ({preset} + variations, against {m})")
     return paths

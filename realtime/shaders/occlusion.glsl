@@ -1,6 +1,7 @@
 // occlusion.glsl: ambient and specular occlusion of the image-based lighting. Numpy twins of the
 // same names: pbrcheck/occlusion.py. SPECULAR_OCCLUSION (pbrcheck.registry.SPECULAR_OCCLUSIONS)
-// selects specular_occlusion(), HORIZON_OCCLUSION (HORIZON_OCCLUSIONS) horizon_occlusion(). ao in
+// selects specular_occlusion(), HORIZON_OCCLUSION (HORIZON_OCCLUSIONS) horizon_occlusion(), both
+// dispatches generated from the registry (included at the end). ao in
 // [0, 1] (1: unoccluded), roughness perceptual, alpha = roughness^2.
 
 // Source: glTF 2.0 specification 3.9.4 (occlusionTexture.strength). Equation: 1 + strength (r - 1).
@@ -43,17 +44,6 @@ float specular_occlusion_gtso(float NoV, float ao, float roughness) {
     return clamp(occluded / max(unoccluded, 1e-6), 0.0, 1.0);
 }
 
-// The specular occlusion factor of the selected method (1 for none).
-float specular_occlusion(float NoV, float ao, float roughness) {
-#if SPECULAR_OCCLUSION == SPECULAR_OCCLUSION_LAGARDE
-    return specular_occlusion_lagarde(NoV, ao, roughness);
-#elif SPECULAR_OCCLUSION == SPECULAR_OCCLUSION_GTSO
-    return specular_occlusion_gtso(NoV, ao, roughness);
-#else
-    return 1.0;
-#endif
-}
-
 // Source: Russell 2015 (Marmoset), "Horizon Occlusion for Normal Mapped Reflections"; Jimenez et
 // al. 2016. Equation: saturate(1 + 1.3 r.n_g)^2, n_g the geometric (interpolated vertex) normal.
 float horizon_occlusion_marmoset(float RoNg) {
@@ -61,11 +51,7 @@ float horizon_occlusion_marmoset(float RoNg) {
     return h * h;
 }
 
-// The horizon occlusion of reflection r on a surface of geometric normal ng (1 for none).
-float horizon_occlusion(vec3 r, vec3 ng) {
-#if HORIZON_OCCLUSION == HORIZON_OCCLUSION_MARMOSET
-    return horizon_occlusion_marmoset(dot(r, ng));
-#else
-    return 1.0;
-#endif
-}
+// specular_occlusion(NoV, ao, roughness) and horizon_occlusion(RoNg), RoNg = dot(r, n_g): the
+// selected member's function (1 for none), generated from the registry.
+#include "specular_occlusion_dispatch.glsl"
+#include "horizon_occlusion_dispatch.glsl"

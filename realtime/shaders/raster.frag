@@ -102,7 +102,7 @@ void main() {
     vec3 N = normalize(v_nrm);
     bool back = !gl_FrontFacing && flip_backface != 0;
     if (back) N = -N;
-#if SPECULAR_AA == SPECULAR_AA_SCREEN_SPACE && !AOV_PASS
+#if defined(SPECULAR_AA_READS_DN2) && !AOV_PASS
     vec3 dndx = dFdx(N), dndy = dFdy(N);
     float dn2 = dot(dndx, dndx) + dot(dndy, dndy);
 #else
@@ -123,9 +123,9 @@ void main() {
             T /= lt;
             vec3 B = (back ? -v_tan.w : v_tan.w) * cross(N, T);
             vec3 tn = slot(tex_normal, 2, vec4(0.5, 0.5, 1.0, 1.0)).xyz * 2.0 - 1.0;
-#if SPECULAR_AA == SPECULAR_AA_TOKSVIG
+#ifdef SPECULAR_AA_READS_NORMAL_LENGTH
             normal_length = length(tn);
-#elif SPECULAR_AA == SPECULAR_AA_PREFILTERED
+#elif defined(SPECULAR_AA_READS_VARIANCE)
             normal_var = slot(tex_normal_var, 2, vec4(0.0)).r * normal_scale * normal_scale;
 #endif
             tn.xy *= normal_scale;

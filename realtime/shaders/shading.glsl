@@ -1,7 +1,8 @@
 // shading.glsl: the shading of one surface point, shared by every pipeline that finds hits (the
 // compute pass render.comp ray-casts the analytic shapes; a raster pass can include this module
 // unchanged). Entry point: vec3 shade(Surface s, uint pixel_seed), the outgoing radiance towards
-// s.v. SHADING (a constant of pbrcheck.registry.SHADINGS) picks one composition, one function each:
+// s.v. SHADING (a constant of pbrcheck.registry.SHADINGS) picks one composition, one function each,
+// through shade_composition() and light_brdf() (shading_dispatch.glsl, generated from the registry):
 //
 // shade_material:: the README material model: split-sum specular prefiltered(r, lod) (F0 A + B),
 //   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights. With
@@ -113,6 +114,10 @@ vec3 light_brdf_article002(Shading c, vec3 l, float NoL) {
     return (1.0 - s.metallic) * s.base_color / PI + c.t * Dap / PI;
 }
 
+// The selected composition's point-light BRDF light_brdf_<name> (defined with shade_composition
+// in shading_dispatch.glsl, generated from pbrcheck.registry.SHADINGS, included below).
+vec3 light_brdf(Shading c, vec3 l, float NoL);
+
 // The one light loop: color + sum over the unoccluded lights above the horizon of f(l) I (n.l) / d^2
 // (point), the same times spot_attenuation (spot), f(l) E (n.l) with l = -direction (directional);
 // f the composition's point-light BRDF. A directional light's shadow ray is unbounded.
@@ -136,15 +141,7 @@ vec3 add_point_lights(vec3 color, Shading c) {
         if (NoL <= 0.0 || occluded(c.s.p, l, far ? LIGHT_FAR : sqrt(d2))) continue;
         vec3 I = intensity.rgb;
         if (int(pos_type.w) == LIGHT_SPOT) I *= spot_attenuation(dot(dir.xyz, -l), intensity.w, dir.w);
-#if SHADING == SHADING_MATERIAL
-        vec3 f = light_brdf_material(c, l, NoL);
-#elif SHADING == SHADING_ARTICLE000
-        vec3 f = light_brdf_article000(c, l, NoL);
-#elif SHADING == SHADING_ARTICLE001
-        vec3 f = light_brdf_article001(c, l, NoL);
-#else
-        vec3 f = light_brdf_article002(c, l, NoL);
-#endif
+        vec3 f = light_brdf(c, l, NoL);
         color += f * I * (NoL / d2);
     }
     return color;
@@ -176,7 +173,7 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     // (Filament) or a multiply scattered albedo times the irradiance (Fdez-Aguera, Kulla-Conty).
     // Specular occlusion (occlusion.glsl) of the image-based specular from the ambient occlusion,
     // and the horizon occlusion of a normal-mapped reflection below the geometric normal's horizon.
-    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness) * horizon_occlusion(c.r, s.ng);
+    float so = specular_occlusion(c.NoV, s.occlusion, c.roughness) * horizon_occlusion(dot(c.r, s.ng));
 #ifdef HOOK_ENERGY_COMPENSATION
     color += prefiltered_radiance(c.r, c.roughness) * spec_albedo
              * hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) * so;
@@ -230,6 +227,9 @@ vec3 shade_article002(Shading c) {
     return add_point_lights(mix(diffuse, specular, c.t), c);
 }
 
+// light_brdf and shade_composition: the selected composition's functions (generated).
+#include "shading_dispatch.glsl"
+
 // The outgoing radiance of surface point s towards s.v (0 on the back side of a one-sided
 // surface); pixel_seed decorrelates runtime sampling between pixels.
 vec3 shade(Surface s, uint pixel_seed) {
@@ -243,13 +243,5 @@ vec3 shade(Surface s, uint pixel_seed) {
     c.F0 = c.F0e = vec3(0.0);
     c.AB = vec2(0.0);
     c.t = vec3(0.0);
-#if SHADING == SHADING_MATERIAL
-    return shade_material(c, pixel_seed);
-#elif SHADING == SHADING_ARTICLE000
-    return shade_article000(c);
-#elif SHADING == SHADING_ARTICLE001
-    return shade_article001(c, pixel_seed);
-#else
-    return shade_article002(c);
-#endif
+    return shade_composition(c, pixel_seed);
 }

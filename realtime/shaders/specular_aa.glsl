@@ -2,7 +2,7 @@
 // variance of the normals a pixel covers: alpha'^2 = min(alpha^2 + v, 1), alpha = roughness^2
 // (perceptual in, perceptual out). Numpy twins of the same names: pbrcheck/specular_aa.py (its
 // docstring derives each variance). SPECULAR_AA (pbrcheck.registry.SPECULAR_AAS) selects
-// specular_aa(); the raster pass (raster.frag) supplies its inputs.
+// specular_aa() (dispatch generated from the registry, included at the end); the raster pass (raster.frag) supplies its inputs.
 
 // Equation: min(alpha^2 + v, 1)^(1/4), alpha = roughness^2; roughness itself where v = 0 (a flat
 // normal map, a plane's zero derivatives change nothing, to the bit).
@@ -32,15 +32,6 @@ float specular_aa_prefiltered(float roughness, float variance) {
     return specular_aa_widen(roughness, max(variance, 0.0));
 }
 
-// The filtered roughness of the selected method (roughness unchanged for none).
-float specular_aa(float roughness, float normal_length, float variance, float dn2) {
-#if SPECULAR_AA == SPECULAR_AA_TOKSVIG
-    return specular_aa_toksvig(roughness, normal_length);
-#elif SPECULAR_AA == SPECULAR_AA_SCREEN_SPACE
-    return specular_aa_screen_space(roughness, dn2);
-#elif SPECULAR_AA == SPECULAR_AA_PREFILTERED
-    return specular_aa_prefiltered(roughness, variance);
-#else
-    return roughness;
-#endif
-}
+// specular_aa(roughness, normal_length, variance, dn2): the selected member's function (roughness
+// unchanged for none), and SPECULAR_AA_READS_<INPUT> for the inputs it reads; generated from the registry.
+#include "specular_aa_dispatch.glsl"
