@@ -44,7 +44,10 @@ with ``eval_attribute_3``.
 
 API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
 :func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
-:class:`BoundTextured`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+:class:`BoundTextured`, :func:`fuse_textures`, :data:`FUSED_CHANNELS`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+
+Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
+texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ from __future__ import annotations
 import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+from pbrcheck.errors import SceneError
 from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 
 import drjit as dr
@@ -66,6 +70,9 @@ WRAP_MODES = {WRAP_CLAMP: "clamp", WRAP_MIRROR: "mirror"}   # else repeat
 MAG_NEAREST = 9728
 #: Shading-frame tangents shorter than this after Gram-Schmidt fall back to Mitsuba's frame.
 FRAME_EPS = 1e-8
+#: The texture slots a material reads at every hit, with the channels it reads of each: those that
+#: share a sampler and a size are read from one packed texture (:func:`fuse_textures`).
+FUSED_CHANNELS = {"base_color": (0, 1, 2), "metallic_roughness": (1, 2), "normal": (0, 1, 2)}
 
 
 def _pad_axis(px: np.ndarray, axis: int, wrap: int) -> np.ndarray:
@@ -87,7 +94,7 @@ def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
              "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp"}
     m = np.eye(3) if ref.transform is None else np.asarray(ref.transform, float).reshape(3, 3)
     return {"type": TEXTURE_PLUGIN, "inner": inner, "wrap_s": int(ref.wrap[0]), "wrap_t": int(ref.wrap[1]),
-            "width": int(w), "height": int(h), **{f"m{k}": float(x) for k, x in enumerate(m.reshape(-1)[:6])}}
+            "width": int(w), "height": int(h), "nearest": ref.mag_filter == MAG_NEAREST, **{f"m{k}": float(x) for k, x in enumerate(m.reshape(-1)[:6])}}
 
 
 def _wrap(x, mode: int):
@@ -118,15 +125,25 @@ class GltfTexture(mi.Texture):
         self.width = int(props.get("width"))
         self.height = int(props.get("height"))
         self.m = [float(props.get(f"m{k}", float(k in (0, 4)))) for k in range(6)]
+        self.nearest = bool(props.get("nearest", False))
 
-    def _si(self, si):
+    def sampler_key(self) -> tuple:
+        """What decides where a lookup reads (size, wraps, transform, filter): textures with equal
+        keys read the same texels with the same weights at every ``si``."""
+        return (self.width, self.height, self.wrap_s, self.wrap_t, tuple(self.m), self.nearest)
+
+    def coords(self, uv):
+        """The lookup's coordinates in the padded image (class docstring)."""
         m = self.m
-        u = m[0] * si.uv.x + m[1] * si.uv.y + m[2]
-        v = m[3] * si.uv.x + m[4] * si.uv.y + m[5]
+        u = m[0] * uv.x + m[1] * uv.y + m[2]
+        v = m[3] * uv.x + m[4] * uv.y + m[5]
         u = (_wrap(u, self.wrap_s) * self.width + 1.0) / (self.width + 2.0)
         v = (_wrap(v, self.wrap_t) * self.height + 1.0) / (self.height + 2.0)
+        return mi.Point2f(u, v)
+
+    def _si(self, si):
         s2 = mi.SurfaceInteraction3f(si)
-        s2.uv = mi.Point2f(u, v)
+        s2.uv = self.coords(si.uv)
         return s2
 
     def eval(self, si, active=True):
@@ -188,6 +205,7 @@ class TexturedMaterial(mi.BSDF):
             flags = flags | mi.BSDFFlags.Null | mi.BSDFFlags.BackSide
         self.m_components = comps
         self.m_flags = flags
+        self.fused = fuse_textures(self.tex, self.uvset)
 
     def traverse(self, callback):
         traverse_material(self, callback)
@@ -199,26 +217,52 @@ class TexturedMaterial(mi.BSDF):
         return f"TexturedMaterial[textures={sorted(self.tex)}, double_sided={self.double_sided}]"
 
     # ---- per-lane material and frame --------------------------------------------------------
-    def _lookup(self, slot, si, active):
-        t = self.tex[slot]
+    def _uv_si(self, slot, si, active, shape=None):
+        """``si`` with the uv of ``slot``'s texCoord set (``shape``: the lanes' one shape, read
+        directly, else ``si.shape``)."""
         k = self.uvset[slot]
         if k != self.primary_texcoord:
             s2 = mi.SurfaceInteraction3f(si)
-            uv = si.shape.eval_attribute_3(f"vertex_uv{k}", si, active)
+            uv = (si.shape if shape is None else shape).eval_attribute_3(f"vertex_uv{k}", si, active)
             s2.uv = mi.Point2f(uv.x, uv.y)
-            return t.eval(s2, active)
-        return t.eval(si, active)
+            return s2
+        return si
 
-    def _view(self, si, active):
-        """(MaterialView of the lanes, shading frame in Mitsuba's local coordinates)."""
+    def _lookup(self, slot, si, active):
+        return self.tex[slot].eval(self._uv_si(slot, si, active), active)
+
+    def _lookups(self, si, active, shape=None) -> dict:
+        """Each slot of :data:`FUSED_CHANNELS` with a texture: its value at ``si`` (one lookup of
+        the packed texture for the slots :func:`fuse_textures` packed, Color3f; the same values)."""
+        out = {}
+        for group in self.fused:
+            texture, gltf, slots = group
+            first = slots[0][0]
+            ch = texture.eval(gltf.coords(self._uv_si(first, si, active, shape).uv), active)
+            for slot, offset in slots:
+                used = FUSED_CHANNELS[slot]
+                val = [mi.Float(0.0)] * 3
+                for i, c in enumerate(used):
+                    val[c] = ch[offset + i]
+                out[slot] = mi.Color3f(*val)
+        for slot in FUSED_CHANNELS:
+            if slot in self.tex and slot not in out:
+                out[slot] = self.tex[slot].eval(self._uv_si(slot, si, active, shape), active)
+        return out
+
+    def _view(self, si, active, shape=None):
+        """(MaterialView of the lanes, shading frame in Mitsuba's local coordinates); ``shape``:
+        the one shape of every lane (its attributes read directly, not through ``si.shape``)."""
         bc = mi.Color3f(self.base_color)
         met, rough = mi.Float(self.metallic), mi.Float(self.roughness)
-        if "base_color" in self.tex:
-            bc = bc * self._lookup("base_color", si, active)
+        tex = self._lookups(si, active, shape)
+        shape = si.shape if shape is None else shape
+        if "base_color" in tex:
+            bc = bc * tex["base_color"]
         if self.vertex_color:
-            bc = bc * si.shape.eval_attribute_3("vertex_color", si, active)
-        if "metallic_roughness" in self.tex:
-            mr = self._lookup("metallic_roughness", si, active)
+            bc = bc * shape.eval_attribute_3("vertex_color", si, active)
+        if "metallic_roughness" in tex:
+            mr = tex["metallic_roughness"]
             rough = rough * mr.y
             met = met * mr.z
         if self.roughness_floor > 0.0:
@@ -227,15 +271,15 @@ class TexturedMaterial(mi.BSDF):
         flip = mi.Bool(False)
         if self.double_sided:
             flip = mi.Frame3f.cos_theta(si.wi) < 0
-        if "normal" in self.tex:
-            t = self._lookup("normal", si, active)
+        if "normal" in tex:
+            t = tex["normal"]
             x = (2.0 * t.x - 1.0) * self.normal_scale
             y = (2.0 * t.y - 1.0) * self.normal_scale
             z = 2.0 * t.z - 1.0
             # two attributes: Mitsuba 3.9's eval_attribute_x returns zeros for a 4-channel one
             # (the frame then fell back to Mitsuba's, whose bitangent is +1 everywhere)
-            tw = mi.Vector3f(si.shape.eval_attribute_3("vertex_tangent", si, active))
-            w = dr.select(si.shape.eval_attribute_1("vertex_tangent_w", si, active) < 0, -1.0, 1.0)
+            tw = mi.Vector3f(shape.eval_attribute_3("vertex_tangent", si, active))
+            w = dr.select(shape.eval_attribute_1("vertex_tangent_w", si, active) < 0, -1.0, 1.0)
             N = si.sh_frame.n
             T = tw - N * dr.dot(N, tw)
             ok = dr.squared_norm(T) > FRAME_EPS
@@ -290,10 +334,11 @@ class TexturedMaterial(mi.BSDF):
     def sample(self, ctx, si, sample1, sample2, active=True):
         return self._sample_at(self._view(si, active), ctx, si, sample1, sample2, active)
 
-    def bind(self, si, active=True):
+    def bind(self, si, active=True, shape=None):
         """The material at one interaction ``si``, its textures read once for all the caller's calls
-        there (:class:`BoundTextured`; ``reference.bsdf.SceneBSDFs`` uses it)."""
-        return BoundTextured(self, si, active)
+        there (:class:`BoundTextured`; ``reference.bsdf.SceneCalls`` uses it); ``shape``: the one
+        shape of the lanes (:meth:`_view`)."""
+        return BoundTextured(self, si, active, shape)
 
     def _eval_pdf_at(self, view_frame, ctx, si, wo, active):
         view, frame = view_frame
@@ -347,9 +392,9 @@ class BoundTextured:
     call; the local estimator calls three of them per hit). ``si`` and the calls' masks must lie
     within the bound ones."""
 
-    def __init__(self, material, si, active):
+    def __init__(self, material, si, active, shape=None):
         self.material = material
-        self.view_frame = material._view(si, active)
+        self.view_frame = material._view(si, active, shape)
 
     def eval_pdf(self, ctx, si, wo, active=True):
         return self.material._eval_pdf_at(self.view_frame, ctx, si, wo, active)
@@ -365,6 +410,41 @@ class BoundTextured:
 
     def eval_null_transmission(self, si, active=True):
         return self.material.eval_null_transmission(si, active)
+
+
+def fuse_textures(tex: dict, uvset: dict) -> list:
+    """The slots of :data:`FUSED_CHANNELS` in ``tex`` (``gltf_texture`` each) grouped by texCoord
+    set and :meth:`GltfTexture.sampler_key`; each group of two or more becomes one ``Texture2f``
+    holding the channels read of each slot side by side (base colour rgb, metallic-roughness gb,
+    normal xyz: 8 floats a texel). One lookup of it computes the weights once and gathers each
+    corner as one packet, and returns, channel by channel, the values the slots' own lookups return
+    (Dr.Jit's bilinear and nearest interpolation are per channel: bit-identical, tested). Returns
+    ``[(Texture2f, the group's first GltfTexture, [(slot, first channel), ...]), ...]``."""
+    groups: dict = {}
+    for slot in FUSED_CHANNELS:
+        t = tex.get(slot)
+        if isinstance(t, GltfTexture):
+            groups.setdefault((uvset[slot], t.sampler_key()), []).append(slot)
+    fused = []
+    for (_, key), slots in groups.items():
+        if len(slots) < 2:
+            continue
+        planes, placed, offset = [], [], 0
+        for slot in slots:
+            data = np.asarray(mi.traverse(tex[slot].inner)["data"], dtype=np.float32)
+            if data.ndim != 3 or data.shape[2] < 3:
+                break
+            planes.append(data[..., list(FUSED_CHANNELS[slot])])
+            placed.append((slot, offset))
+            offset += len(FUSED_CHANNELS[slot])
+        else:
+            if len({p.shape[:2] for p in planes}) != 1:
+                continue
+            packed = mi.TensorXf(np.ascontiguousarray(np.concatenate(planes, axis=-1)))
+            mode = dr.FilterMode.Nearest if key[-1] else dr.FilterMode.Linear
+            fused.append((mi.Texture2f(packed, filter_mode=mode, wrap_mode=dr.WrapMode.Clamp),
+                          tex[slots[0]], placed))
+    return fused
 
 
 def back_face(si):
@@ -402,6 +482,9 @@ def register() -> None:
 # ------------------------------------------------------------------------------------------------
 
 def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
+    if brdf.geometric_roughness != "none":
+        raise SceneError(f"[brdf] geometric_roughness = {brdf.geometric_roughness!r} is not implemented for "
+                         "glTF assets (the textured material); only for the built-in objects")
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,

@@ -76,3 +76,38 @@ def test_wrap_s_and_t_apply_to_their_own_axis(tmp_path, ws, wt, nearest):
     # the two modes really differ on this grid (the test would catch one mode used for both axes)
     same = np.array([_expected(float(u), float(v), ws, ws, nearest) for u, v in zip(uu.reshape(-1), vv.reshape(-1))])
     assert not np.allclose(want, same, atol=1e-3)
+
+
+@pytest.mark.parametrize("ws,wt,nearest", [(WRAP_REPEAT, WRAP_MIRROR, False), (WRAP_CLAMP, WRAP_REPEAT, True)])
+def test_packed_lookup_is_bit_identical_to_each_slots_own(tmp_path, ws, wt, nearest):
+    """reference.textured.fuse_textures: the slots that share a sampler read one packed texture, and
+    every value equals that slot's own lookup bit for bit; a slot with another sampler stays apart."""
+    from reference.variant import ensure_variant
+    ensure_variant()
+    import drjit as dr
+    import mitsuba as mi
+    from reference import textured
+    textured.register()
+
+    sampler = {"wrapS": ws, "wrapT": wt, **({"magFilter": 9728} if nearest else {})}
+    img = np.zeros((3, 4, 3), np.uint8)
+    asset = load_asset(quad_asset(tmp_path / "w.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                  [(img, sampler)]))
+    ref = asset.material(0).base_color_texture
+    other = load_asset(quad_asset(tmp_path / "o.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                                  [(img, {"wrapS": WRAP_CLAMP, "wrapT": WRAP_CLAMP})])).material(0).base_color_texture
+    rng = np.random.default_rng(7)
+    px = {slot: rng.random((5, 6, 3)).astype(np.float32) for slot in textured.FUSED_CHANNELS}
+    us = np.array([-1.3, -0.05, 0.0, 0.02, 0.3, 0.51, 0.97, 1.0, 1.6], np.float32)
+    uu, vv = np.meshgrid(us, us + 0.013)
+    si = dr.zeros(mi.SurfaceInteraction3f, uu.size)
+    si.uv = mi.Point2f(uu.reshape(-1), vv.reshape(-1))
+    for apart in (None, "normal"):
+        mat = mi.load_dict({"type": textured.PLUGIN_NAME, **{
+            f"{slot}_texture": textured.texture_dict(p, other if slot == apart else ref) for slot, p in px.items()}})
+        packed = [[s for s, _ in slots] for _, _, slots in mat.fused]
+        assert packed == [[s for s in textured.FUSED_CHANNELS if s != apart]]
+        got = mat._lookups(si, True)
+        for slot, channels in textured.FUSED_CHANNELS.items():
+            own = np.array(mat._lookup(slot, si, True))
+            assert np.array_equal(np.array(got[slot])[list(channels)], own[list(channels)]), slot
