@@ -2,9 +2,12 @@
 flip_cache=True)``): a map whose two images are unchanged is read back, equal to the computed one;
 any change of either image is a miss; a corrupt entry is recomputed; without the flag nothing is
 read or written. And
-``compare_images(flip=False, itp=False)`` skips both maps (their metrics None, the rest unchanged)."""
+``compare_images(flip=False, itp=False)`` skips both maps (their metrics None, the rest unchanged); flip-evaluator's OpenMP threads wait
+passively unless the environment says otherwise."""
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
@@ -108,3 +111,12 @@ def test_compare_images_stores_its_maps_only_when_asked(tmp_cache, pair, counted
     assert _entries(tmp_cache) == []
     metrics.compare_images(ref, Image.from_rgb(b * 1.2), noise=False, flip_cache=True)
     assert len(_entries(tmp_cache)) == 1
+
+
+def test_flip_threads_wait_passively_unless_the_environment_says(monkeypatch):
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    metrics._import_flip()
+    assert os.environ["OMP_WAIT_POLICY"] == metrics.FLIP_OMP_WAIT_POLICY == "PASSIVE"
+    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
+    metrics._import_flip()
+    assert os.environ["OMP_WAIT_POLICY"] == "ACTIVE"

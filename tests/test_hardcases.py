@@ -22,8 +22,40 @@ SCALE_RTOL = 0.01
 
 
 @pytest.fixture(scope="module")
-def rows():
-    return run_hardcases(size=SIZE, spp=SPP, cube_size=CUBE)
+def counted_run():
+    """The rows, and how many HDR-FLIP and Delta E ITP maps the run asked for."""
+    from compare import metrics
+
+    asked = {"flip": 0, "itp": 0}
+    real = metrics.flip_map, metrics.delta_e_itp_map
+
+    def flip(*a, **k):
+        asked["flip"] += 1
+        return real[0](*a, **k)
+
+    def itp(*a, **k):
+        asked["itp"] += 1
+        return real[1](*a, **k)
+
+    metrics.flip_map, metrics.delta_e_itp_map = flip, itp
+    try:
+        return run_hardcases(size=SIZE, spp=SPP, cube_size=CUBE), asked
+    finally:
+        metrics.flip_map, metrics.delta_e_itp_map = real
+
+
+@pytest.fixture(scope="module")
+def rows(counted_run):
+    return counted_run[0]
+
+
+def test_no_map_the_table_does_not_read(counted_run):
+    rows, asked = counted_run
+    from compare.research.hardcases import TABLE_METRICS
+
+    assert any(r.metrics for r in rows)
+    assert not {"flip_mean", "delta_e_itp_mean"} & set(TABLE_METRICS)
+    assert asked == {"flip": 0, "itp": 0}
 
 
 def test_every_case_and_preset_is_finite(rows):

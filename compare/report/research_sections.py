@@ -89,10 +89,12 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     own = o["lod_mapping"]
     # Before / after on the report's own render (full size, point lights on, report spp).
     ref = renderers.render_reference(scene, spp=report_spp, use_cache=True, progress=False)
+    # The table reads ``keys`` only (no Delta E ITP: its map is not computed).
     before = compare_images(ref, renderers.render_under_test(scene, preset, opts, context=context), noise=False,
-                            flip_cache=context.flip_cache).metrics
+                            itp=False, flip_cache=context.flip_cache).metrics
     after = compare_images(ref, renderers.render_under_test(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"},
-                                                            context=context), noise=False, flip_cache=context.flip_cache).metrics
+                                                            context=context), noise=False, itp=False,
+                           flip_cache=context.flip_cache).metrics
     m = res.mappings
     keys = ("relmse", "rmse", "flip_mean", "rel_p95")
     t_maps = Table(f"Every mapping on the fit scene ({res.size[0]} x {res.size[1]}, point lights "

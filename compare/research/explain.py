@@ -203,7 +203,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
     base_img = renderers.render_under_test(scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
-                                         probe=RESEARCH_PROBE, progress=progress)
+                                         probe=RESEARCH_PROBE, tails=False, progress=progress)
     spp = verdict.spp
 
     valid = None
@@ -212,7 +212,8 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         nonlocal valid
         img = img if img is not None else renderers.render_under_test(scene, preset, {**base, **over}, progress=False,
                                                                       context=context)
-        c = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
+        # KEEP has no Delta E ITP: its map is not computed.
+        c = compare_images(ref, img, scene=scene, noise=False, itp=False, flip_cache=context.flip_cache)
         if valid is None:
             valid = c.valid  # the baseline's valid pixels, for the noise figure
         return {k: c.metrics[k] for k in KEEP}
