@@ -71,7 +71,8 @@ def _cmd_gate(args) -> int:
     if args.reason is not None and not args.accept:
         raise BudgetError(f"{args.budget}: --reason only together with --accept")
     return run_gate(args.budget, junit=args.junit, summary=args.summary, maps_dir=args.maps, html=args.html,
-                    accept_reason=args.reason if args.accept else None, progress=not args.quiet)
+                    accept_reason=args.reason if args.accept else None, progress=not args.quiet,
+                    only=args.checks)
 
 
 def register(sub, bench_sub) -> None:
@@ -98,5 +99,7 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--accept", action="store_true", help="accept the current renders as the baselines "
                    "(baselines/ beside the budget; needs --reason)")
     s.add_argument("--reason", metavar="TEXT", help="why the baselines change (appended to the budget's [[history]])")
+    s.add_argument("--check", metavar="NAME", action="append", dest="checks",
+                   help="run only this check (repeatable); with --accept only its baseline is rewritten")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_gate)

@@ -41,6 +41,7 @@ Exit status: 2 if any check errored (never pass on missing data), else 1 if any 
 changed (unless ``on_change = "pass"``), else 0 (``improved`` prints the command that accepts it).
 A malformed budget is an error before any check runs (exit 2, nothing written).
 ``--accept --reason``: :func:`accept` (refused, nothing written, when a check errors).
+``--check NAME`` (repeatable): only the named checks run (and, with ``--accept``, are rewritten).
 
 API
 ---
@@ -793,7 +794,7 @@ def accept(budget: Path, results: list[Result], reason: str, *, progress: bool =
 
 def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | None = None,
              maps_dir: str | None = None, html: str | None = None, accept_reason: str | None = None,
-             progress: bool = True, stream=None) -> int:
+             progress: bool = True, stream=None, only: list[str] | None = None) -> int:
     """Run every check of ``budget``; print one line per check and the totals.
 
     Parameters
@@ -813,6 +814,9 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
         Show render progress on stderr.
     stream : file, optional
         Where the lines go (default stdout).
+    only : list of str, optional
+        Run only the checks of these names (``--check``); with ``accept_reason`` only their
+        baselines are rewritten (the others' stay as accepted).
 
     Returns
     -------
@@ -828,6 +832,12 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     """
     stream = stream or sys.stdout
     checks, base = load_budget(budget)
+    if only:
+        unknown = sorted(set(only) - {c.name for c in checks})
+        if unknown:
+            raise BudgetError(f"{budget}: --check {unknown[0]!r}: no such check (checks: "
+                              + ", ".join(c.name for c in checks) + ")")
+        checks = [c for c in checks if c.name in only]
     settings = budget_settings(budget)
     # the outputs' paths are checked before any render (a crash after the work helps nobody)
     for out, folder in ((junit, False), (summary, False), (maps_dir, True), (html, True)):

@@ -56,7 +56,7 @@ API
 :class:`Impl`, :class:`Entry`, :class:`Registry`, :data:`TERM_REGISTRIES`, :data:`NDFS`, :data:`GEOMETRIES` (every G term; ``scene=False``
 members exist in the real-time renderer only), :data:`FRESNELS`, :data:`LOD_MAPPINGS`,
 :data:`SHADINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`,
-:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
+:data:`DFGS`, :data:`LUT_SAMPLINGS`, :func:`lut_sampling_for`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`, :data:`GEOMETRIC_ROUGHNESSES`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`REGISTRIES`,
 :data:`ROLE_REGISTRIES`, :func:`role_impl`, :func:`role_reads`, :func:`glsl_defines`, :func:`glsl_generated`.
 """
 
@@ -459,6 +459,15 @@ MULTISCATTERS = _switch("MULTISCATTER", "the reference's specular lobe only (ref
 #: ``extra["walk_geometry"]``): its first bounce is the height-correlated Smith term of that NDF
 #: [Heitz16 sec. 5; Heitz 2014 eq. 99].
 MULTISCATTER_GEOMETRY = {e.name: e.extra["walk_geometry"] for e in NDFS if "walk_geometry" in e.extra}
+
+#: A screen-space geometric roughness an engine adds to its roughness, as a reference-only ``[brdf]``
+#: option (``geometric_roughness``; not a real-time switch, so not in :data:`REGISTRIES`); the
+#: implementation is ``reference.integrator.GEOMETRIC_ROUGHNESS``.
+GEOMETRIC_ROUGHNESSES = _switch(
+    "GEOMETRIC_ROUGHNESS", "the reference's first hit only (reference.integrator.GEOMETRIC_ROUGHNESS: Dr.Jit, "
+    "from the camera rays' differentials); the engines apply their own", none="no geometric roughness",
+    threejs="three.js r187 lights_physical_fragment: roughness = min(max(r, floor) + max(max |dFdx n|, "
+            "max |dFdy n|), 1), n the view-space normal, derivatives per sample of the engine's raster")
 
 #: Every registry, by its GLSL switch name.
 REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,

@@ -1,6 +1,7 @@
 """Khronos glTF Render Fidelity / model-viewer scenarios as pbrcheck scenes (``pbrcheck import-scenario``).
 
-A scenario (render-fidelity-tools' ``config.json`` entries, and the ``model_viewer`` part of
+A scenario (render-fidelity-tools' ``config.json`` entries, the ``scenario`` part of the
+``{"scenario", "outputFile"}`` file those tools hand each renderer, and the ``model_viewer`` part of
 ``pbrcheck export``'s ``scenario.json``) names ``model`` (a .gltf/.glb, relative to the scenario
 file), ``lighting`` (an .hdr/.exr, relative; absent or ``"neutral"``: pbrcheck's neutral constant
 environment), ``dimensions`` ``{width, height}``, ``target`` ``{x, y, z}``, ``orbit`` ``{theta, phi,
@@ -52,6 +53,9 @@ def scenario_scene(path: str | Path) -> dict:
         raise ScenarioError(str(p), None, "JSON", message=f"{p}: invalid JSON: {e}") from None
     if isinstance(data, dict) and "model_viewer" in data and "model" not in data:  # pbrcheck's own scenario.json
         data = data["model_viewer"]
+    elif isinstance(data, dict) and "scenario" in data and "model" not in data:
+        # the file render-fidelity-tools hands each renderer: {"scenario": {...}, "outputFile": PNG}
+        data = data["scenario"]
     if not isinstance(data, dict):
         raise ScenarioError(str(p), None, "a JSON object", type(data).__name__)
     f = str(p)

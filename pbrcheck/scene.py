@@ -28,6 +28,7 @@ from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
 from .registry import FRESNELS as _FRESNELS
+from .registry import GEOMETRIC_ROUGHNESSES as _GEOMETRIC_ROUGHNESSES
 from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
@@ -41,6 +42,7 @@ NDF_NAMES = _NDFS.scene_names
 GEOMETRY_NAMES = _GEOMETRIES.scene_names
 FRESNEL_NAMES = _FRESNELS.scene_names
 MULTISCATTER_NAMES = _MULTISCATTERS.scene_names
+GEOMETRIC_ROUGHNESS_NAMES = _GEOMETRIC_ROUGHNESSES.scene_names
 #: The scene ``pbrcheck`` commands use when none is named.
 DEFAULT_SCENE = "spheres"
 ENVIRONMENT_TYPES = ("constant", "file", "sky", "none")
@@ -102,6 +104,13 @@ class BRDFModel:
     # MIN_PERCEPTUAL_ROUGHNESS on desktop). 0 (default): no floor. The real-time renderer and the
     # external clients render the scene's roughness as written (the clients apply their own floor).
     roughness_floor: float = 0.0
+    # Screen-space geometric roughness added to the (floored) roughness, reference only like the
+    # floor: "none" (default) or "threejs" (three.js r187 lights_physical_fragment: + max(max |dFdx n|,
+    # max |dFdy n|) of the view-space normal, then min(., 1)); derivatives over one sample of the
+    # engine's raster, 1 / geometric_roughness_supersample of a pixel (the three.js client renders
+    # 2 x 2 samples per pixel: 2). reference/integrator.py, docs/reference.md.
+    geometric_roughness: str = "none"
+    geometric_roughness_supersample: int = 1
 
 
 @dataclass(frozen=True)
@@ -199,6 +208,10 @@ class Scene:
             d["brdf"].pop("multiscatter")  # the default keeps the content hashes of earlier versions
         if d["brdf"].get("roughness_floor") == 0.0:
             d["brdf"].pop("roughness_floor")  # likewise
+        if d["brdf"].get("geometric_roughness") == "none":
+            d["brdf"].pop("geometric_roughness")  # likewise
+        if d["brdf"].get("geometric_roughness_supersample") == 1:
+            d["brdf"].pop("geometric_roughness_supersample")  # likewise
         for o in d["objects"]:
             o.pop("name", None)
             if o["type"] == "gltf":
@@ -428,13 +441,17 @@ def _lights(ctx, lst) -> tuple[PointLight | SpotLight | DirectionalLight, ...]:
 
 
 def _brdf(ctx, t) -> BRDFModel:
-    _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter", "roughness_floor"}, "brdf")
+    _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter", "roughness_floor", "geometric_roughness",
+                         "geometric_roughness_supersample"}, "brdf")
     model = BRDFModel(
         ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDF_NAMES),
         geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRY_NAMES),
         fresnel=_str(ctx, t, "fresnel", "brdf", "schlick", FRESNEL_NAMES),
         multiscatter=_str(ctx, t, "multiscatter", "brdf", "none", MULTISCATTER_NAMES),
         roughness_floor=float(_num(ctx, t, "roughness_floor", "brdf", 0.0, lo=0.0, hi=1.0)),
+        geometric_roughness=_str(ctx, t, "geometric_roughness", "brdf", "none", GEOMETRIC_ROUGHNESS_NAMES),
+        geometric_roughness_supersample=int(_num(ctx, t, "geometric_roughness_supersample", "brdf", 1, lo=1, hi=16,
+                                                 integer=True)),
     )
     if model.multiscatter != "none":
         # The random walk's first bounce is the NDF's height-correlated Smith term.

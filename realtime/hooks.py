@@ -71,6 +71,10 @@ HOOKS: tuple[Hook, ...] = (
          "the geometry term G (point lights and runtime sampling)"),
     Hook("hook_F", "vec3", "float VoH, vec3 F0",
          "the Fresnel term F (point lights, runtime sampling and the point lights' diffuse weight 1 - F)"),
+    Hook("hook_specular_aa", "float", "float roughness, float normal_length, float normal_lod",
+         "the raster pass's specular anti-aliasing on a normal-mapped fragment: the widened perceptual "
+         "roughness from the normal map's mip-filtered length (before normalisation) and the level it "
+         "is read at (textureQueryLod; 0 with normal_sampling = lod0); the option specular_aa is then off"),
 )
 
 _BY_NAME = {h.name: h for h in HOOKS}

@@ -29,7 +29,7 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   (:data:`SPHERES_DEFAULT_MSE`), extrapolated from the measured per-sample variance and throughput:
   ``spp = 10 sigma^2 / MSE``, ``seconds = spp x (seconds per spp)`` (``spp_to_10x_noise_floor``).
 * ``asset``: a ~50k-triangle textured glTF asset (made here, :mod:`reference.bench_asset`) at the same
-  size, spp, sampler and environment, rendered alternately with spheres in its own loop
+  size, spp, sampler, environment and lights (spheres' own), rendered alternately with spheres in its own loop
   (``ASSET_REPEATS``; both rows under the same load): load and Mitsuba-scene (BVH) seconds apart,
   its local samples/s and ``asset_vs_spheres`` = its throughput over spheres'; goal >= 0.7.
 * ``samplers``: the same figure for each sampler, side by side in one run (:data:`SAMPLER_CONFIGS`:

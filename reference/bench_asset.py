@@ -5,7 +5,8 @@ The asset is made here (a fresh clone has no shared assets): a UV sphere of :dat
 segments and half as many rings (~50k triangles, normals, tangents, UVs) with
 :data:`ASSET_TEXTURE_SIZE`-square base-colour, metallic-roughness and normal PNG textures (a
 checker, a gradient, a bumpy normal map), written to a temporary ``.glb``-free ``.gltf`` with data
-URIs (:class:`pbrcheck.gltf_build.Doc`). Both rows, the asset and ``spheres``, are rendered in this one run, alternately (so that the
+URIs (:class:`pbrcheck.gltf_build.Doc`), lit by the spheres scene's own environment (every field, the
+same ``EnvMap``) and lights. Both rows, the asset and ``spheres``, are rendered in this one run, alternately (so that the
 machine's load, ``machine_load`` before and after, hits both alike), ``local``, same spp and
 sampler (:data:`BENCH_SAMPLER`), after a compile render each, median of repeats. Figures:
 ``load_seconds`` (:func:`pbrcheck.gltf.load_asset`: parse, decode, tangents) and ``build_seconds``
@@ -26,6 +27,7 @@ import os
 import statistics
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -110,16 +112,17 @@ def bench_asset(spheres_scene, spp: int, repeats: int, quick: bool = False) -> d
         data = {"name": "bench-asset", "objects": [{"type": "gltf", "path": str(path)}],
                 "camera": {"origin": [0.0, 0.0, 3.2], "target": [0.0, 0.0, 0.0], "fov": cam.fov,
                            "width": cam.width, "height": cam.height},
-                "environment": {"type": env.type, **({"path": env.path} if env.path else {}),
-                                **({"radiance": list(env.radiance)} if env.type == "constant" else {})}}
-        scene = scene_from_dict(data, file=str(path), base_dir=Path(tmp))
-        envmap = load_environment(scene)
+                "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]}}
+        # spheres' own environment (every field: a sky's sun, raster size) and lights, the very
+        # EnvMap both rows render with
+        scene = replace(scene_from_dict(data, file=str(path), base_dir=Path(tmp)),
+                        environment=spheres_scene.environment, lights=spheres_scene.own_lights())
+        envmap = load_environment(spheres_scene)
         t0 = time.perf_counter()
         mscene = load_mitsuba_scene(scene, envmap)
         build_s = time.perf_counter() - t0
-        senv = load_environment(spheres_scene)
-        smscene = load_mitsuba_scene(spheres_scene, senv)
-        rows = {"asset": (scene, envmap, mscene), "spheres": (spheres_scene, senv, smscene)}
+        smscene = load_mitsuba_scene(spheres_scene, envmap)
+        rows = {"asset": (scene, envmap, mscene), "spheres": (spheres_scene, envmap, smscene)}
 
         def render(name, seed):
             sc, e, ms = rows[name]
@@ -151,7 +154,7 @@ def bench_asset(spheres_scene, spp: int, repeats: int, quick: bool = False) -> d
             "timed": "both rows rendered alternately in this run after a compile render each, median of "
                      "repeats; render seconds: mi.render alone (no scene load, no AOV pass); CPU seconds: "
                      "this process's threads over the render",
-            "note": "same camera fov, size, environment, spp and sampler as spheres; the sphere asset fills "
+            "note": "same camera fov, size, environment (spheres' own, every field), lights, spp and sampler as spheres; the sphere asset fills "
                     "the image's centre (its frame: 3.2 units away); load_seconds (parse, decode, tangents) "
                     "and build_seconds (Mitsuba scene: meshes, textures, BVH) are apart from the render"}
 

@@ -55,7 +55,7 @@ from __future__ import annotations
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
 from pbrcheck import registry
-from pbrcheck.scene import FRESNEL_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
+from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import multiscatter
 from .terms import D_GGX, INV_PI, F_None, F_Schlick, fresnel_term  # noqa: F401  (re-exported: this module's API too)
@@ -434,6 +434,11 @@ class PBRMaterial(mi.BSDF):
         if self.multiscatter not in MULTISCATTER_NAMES:
             raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
         multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
+        # [brdf] geometric_roughness (reference.integrator.GEOMETRIC_ROUGHNESS): added per lane by the
+        # local estimator, which knows the camera ray's differentials; (name, supersample)
+        self.geometric = (str(get("geometric_roughness", "none")), int(get("geometric_roughness_supersample", 1)))
+        if self.geometric[0] not in GEOMETRIC_ROUGHNESS_NAMES or self.geometric[1] < 1:
+            raise ValueError(f"pbr_material: bad geometric roughness {self.geometric!r}")
         self._update()
 
     # ---- parameters ------------------------------------------------------------------------
@@ -462,8 +467,9 @@ class PBRMaterial(mi.BSDF):
                 f"roughness={self.roughness}, specular={self.specular}]")
 
     def model(self) -> tuple:
-        """The scene-wide part of the model (equal for every material of a scene)."""
-        return (self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed)
+        """The scene-wide part of the model (equal for every material of a scene); its last member
+        is the geometric roughness (name, supersample)."""
+        return (self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed, self.geometric)
 
     def eval_diffuse_reflectance(self, si, active=True):
         return (1.0 - self.metallic) * self.base_color
@@ -497,9 +503,15 @@ class MaterialView(PBRLobes):
     into the tables and the gather (both differentiable)."""
 
     def __init__(self, model: tuple, base_color, metallic, roughness, specular):
-        self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed = model
+        self.model = tuple(model)
+        self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed = model[:5]
+        self.geometric = model[5] if len(model) > 5 else ("none", 1)
         self.base_color, self.metallic, self.roughness, self.specular = base_color, metallic, roughness, specular
         self.delta = dr.detach(is_mirror_limit(roughness))
+
+    def with_roughness(self, roughness) -> "MaterialView":
+        """The same materials shading ``roughness`` per lane (the mirror limit decided anew)."""
+        return MaterialView(self.model, self.base_color, self.metallic, roughness, self.specular)
 
     @staticmethod
     def table(scene):
@@ -631,4 +643,5 @@ def material_dict(material, brdf) -> dict:
     return {"type": PLUGIN_NAME, "base_color": list(material.base_color), "metallic": material.metallic,
             "roughness": max(material.roughness, brdf.roughness_floor), "specular": material.specular,
             "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
-            "multiscatter": brdf.multiscatter}
+            "multiscatter": brdf.multiscatter, "geometric_roughness": brdf.geometric_roughness,
+            "geometric_roughness_supersample": brdf.geometric_roughness_supersample}

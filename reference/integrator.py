@@ -55,11 +55,15 @@ API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :f
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
 :func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :func:`culling_table`,
 :func:`past_back_faces`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
-:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`.
+:data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`,
+:data:`GEOMETRIC_ROUGHNESS`, :func:`threejs_geometric_roughness` (``[brdf] geometric_roughness``: the
+local estimator adds it to each lane's roughness at the first hit, from the camera ray's
+differentials and the sensor's world-to-camera transform that ``render`` records).
 References: Veach 1997 ch. 9 (MIS, power and balance heuristics); Vicini et al. 2021, "Path Replay
 Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
 Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Owen 2013, *Monte Carlo
-theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates).
+theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates); Igehy
+1999, "Tracing ray differentials" (the geometric roughness's normal derivative).
 """
 
 from __future__ import annotations
@@ -238,6 +242,43 @@ MIS_HEURISTICS = {"power": _power, "balance": _balance}
 DEFAULT_MIS = "power"
 
 
+#: The differentials' step (1 / this of a pixel) of the geometric roughness's normal derivative.
+GEO_DIFFERENTIAL_STEP = 64.0
+
+
+def threejs_geometric_roughness(si, ray, supersample: int, to_view):
+    """three.js r187's screen-space geometric roughness (lights_physical_fragment.glsl.js)::
+
+        vec3 dxy = max( abs( dFdx( nonPerturbedNormal ) ), abs( dFdy( nonPerturbedNormal ) ) );
+        float geometryRoughness = max( max( dxy.x, dxy.y ), dxy.z );
+
+    with the view-space normal differentiated over one sample of the engine's raster (``1 /
+    supersample`` of a pixel), to first order through the camera ray's differentials (Igehy 1999,
+    "Tracing ray differentials"): ``dn/dx = dn/du du/dx + dn/dv dv/dx``. ``si`` needs
+    ``RayFlags.dNSdUV``; ``to_view``: the world-to-camera transform (three.js's view axes up to
+    sign, and the sign does not matter here). Returns a Float per lane (0 where the ray has no
+    differentials or missed)."""
+    # Mitsuba's differentials are finite (the neighbouring pixel's ray, intersected with the
+    # tangent plane): steps of +-1 / GEO_DIFFERENTIAL_STEP pixel, centred, make them the derivative
+    dndx, dndy = mi.Vector3f(0.0), mi.Vector3f(0.0)
+    for sign in (1.0, -1.0):
+        rd = mi.RayDifferential3f(mi.Ray3f(ray))  # (copying a RayDifferential3f drops its differentials)
+        rd.o_x, rd.o_y, rd.d_x, rd.d_y = ray.o_x, ray.o_y, ray.d_x, ray.d_y
+        rd.has_differentials = ray.has_differentials
+        rd.scale_differential(sign / GEO_DIFFERENTIAL_STEP)
+        si.compute_uv_partials(rd)
+        k = sign * GEO_DIFFERENTIAL_STEP / (2.0 * supersample)
+        dndx += (si.dn_du * si.duv_dx.x + si.dn_dv * si.duv_dx.y) * k
+        dndy += (si.dn_du * si.duv_dy.x + si.dn_dv * si.duv_dy.y) * k
+    dxy = dr.maximum(dr.abs(to_view @ mi.Vector3f(dndx)), dr.abs(to_view @ mi.Vector3f(dndy)))
+    return dr.select(si.is_valid(), dr.maximum(dr.maximum(dxy.x, dxy.y), dxy.z), 0.0)
+
+
+#: The implementations of ``[brdf] geometric_roughness`` (pbrcheck.registry.GEOMETRIC_ROUGHNESSES):
+#: name -> function(si, ray, supersample, to_view) -> the roughness added per lane.
+GEOMETRIC_ROUGHNESS = {"threejs": threejs_geometric_roughness}
+
+
 #: What the estimators' ray_intersect computes: Mitsuba's RayFlags.All less the normals' UV
 #: derivatives (dNSdUV, dNGdUV), which nothing here reads (the shading frame, spawned rays and the
 #: BSDFs use p, n, uv, dp_du/dp_dv and sh_frame); a mesh's interaction skips their gathers and solve.
@@ -316,6 +357,8 @@ class ReferenceIntegrator(RBIntegrator):
             self.path = mi.load_dict({"type": "path", "max_depth": self.max_depth_value})
         # Called as progress(samples_per_pixel_done) after each pass of a moments render.
         self.progress = None
+        # The sensor's world-to-camera transform, set by render() ([brdf] geometric_roughness).
+        self._to_view = None
 
     def to_string(self):
         return (f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}, "
@@ -386,6 +429,20 @@ class ReferenceIntegrator(RBIntegrator):
     def has_area_emitters(scene) -> bool:
         return any(mi.has_flag(e.flags(), mi.EmitterFlags.Surface) for e in scene.emitters())
 
+    def _geometric(self, scene, bsdf, ray, hit):
+        """``bsdf`` with ``[brdf] geometric_roughness`` added to its roughness per lane (then at most
+        1), or ``bsdf`` itself when the scene's materials name none."""
+        geo = bsdf.geometric if isinstance(bsdf, MaterialView) else None
+        if geo is None or geo[0] == "none":
+            return bsdf
+        if self._to_view is None or not isinstance(ray, mi.RayDifferential3f):
+            raise ValueError(f"{INTEGRATOR_NAME}: [brdf] geometric_roughness needs the camera's ray "
+                             "differentials (render through the integrator's render())")
+        # the normal's derivatives (dNSdUV) only where asked: the same hit, intersected again
+        si_n = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.All | mi.RayFlags.dNSdUV, mi.Bool(True), hit)
+        g = GEOMETRIC_ROUGHNESS[geo[0]](si_n, ray, geo[1], self._to_view)
+        return bsdf.with_roughness(dr.minimum(bsdf.roughness + dr.detach(g), 1.0))
+
     def _compensated(self, env):
         """The ``compensated`` proposal of ``env`` (built once per emitter), or None: Mitsuba's own."""
         if env is None or self.env_sampling != "compensated":
@@ -398,6 +455,7 @@ class ReferenceIntegrator(RBIntegrator):
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
         to the AD graph (detached sampling, module docstring)."""
+        camera_ray = ray
         ray = mi.Ray3f(ray)
         si = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), active)  # coherent: camera rays, pixel-major lanes (Embree packets)
         hit = active & si.is_valid()
@@ -416,7 +474,7 @@ class ReferenceIntegrator(RBIntegrator):
         if self.has_null_bsdfs(scene):  # the surface is there (decided above): shade it as opaque
             ctx.type_mask = int(mi.BSDFFlags.All) & ~int(mi.BSDFFlags.Null)
         with dr.resume_grad(when=grad):  # the gathered parameters carry their instances' gradients
-            bsdf = self._bsdf(scene, si, ray, hit)
+            bsdf = self._geometric(scene, self._bsdf(scene, si, ray, hit), camera_ray, hit)
         proposal = self._compensated(env)
         if env is not None:
             # Environment sample, MIS against the BSDF's density.
@@ -508,10 +566,11 @@ class ReferenceIntegrator(RBIntegrator):
 
     # ---- rendering -------------------------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
-        if not self.moments:
-            return super().render(scene, sensor, seed, spp, develop, evaluate)
         if isinstance(sensor, int):
             sensor = scene.sensors()[sensor]
+        self._to_view = sensor.world_transform().inverse()
+        if not self.moments:
+            return super().render(scene, sensor, seed, spp, develop, evaluate)
         seed = int(seed[0] if isinstance(seed, (tuple, list)) else seed)
         spp = int(spp) or int(sensor.sampler().sample_count())
         if spp < 2:
@@ -588,6 +647,7 @@ class ReferenceIntegrator(RBIntegrator):
         ``Y_r`` of the replicates give the estimate ``mean(Y)`` and its variance ``s^2(Y) / K``,
         unbiased because the replicates are i.i.d. A pixel in no group is 0 with variance 0 and
         coverage 0."""
+        self._to_view = sensor.world_transform().inverse()
         npix = W * H
         nch = len(MOMENT_CHANNELS)
         out = np.zeros((npix, nch))

@@ -40,7 +40,8 @@ glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_texture
 
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
-:func:`adaptive_allocation`, :func:`check_sampler`, :data:`REFERENCE_CODE_VERSION`, :data:`ASSET_CODE_VERSION`,
+:func:`adaptive_allocation`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
+:data:`ASSET_CODE_VERSION`,
 :data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
 References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
 Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH); Neyman 1934 (optimal
@@ -291,6 +292,29 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
     n_np = np.array(n).reshape(3, H, W)
     return {"N.X": n_np[0], "N.Y": n_np[1], "N.Z": n_np[2],
             "NdotV": np.array(ndv).reshape(H, W), "object": np.array(obj).reshape(H, W)}
+
+
+def geometric_roughness_image(scene: Scene) -> np.ndarray:
+    """``(H, W)``: the roughness ``[brdf] geometric_roughness`` adds at each pixel centre (before
+    ``min(., 1)``; 0 where the camera ray misses), by the local estimator's own function
+    (:data:`reference.integrator.GEOMETRIC_ROUGHNESS`) on the pixel centres' ray differentials."""
+    ensure_variant()
+    mi, dr = _mi()
+    from .integrator import GEOMETRIC_ROUGHNESS, sensor_dict  # local: needs the variant set
+
+    name, ss = scene.brdf.geometric_roughness, scene.brdf.geometric_roughness_supersample
+    W, H = scene.camera.width, scene.camera.height
+    if name == "none":
+        return np.zeros((H, W))
+    mscene = load_mitsuba_scene(scene)
+    sensor = mi.load_dict(sensor_dict(scene.camera, 2))
+    idx = dr.arange(mi.UInt32, W * H)
+    y = idx // W
+    pos = mi.Vector2f(mi.Float(idx - y * W), mi.Float(y)) + 0.5
+    ray, _ = sensor.sample_ray_differential(0.0, 0.0, pos * dr.rcp(mi.ScalarVector2f(W, H)), mi.Vector2f(0.0))
+    si = mscene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.All | mi.RayFlags.dNSdUV, True)
+    g = GEOMETRIC_ROUGHNESS[name](si, ray, ss, sensor.world_transform().inverse())
+    return np.array(g, dtype=np.float64).reshape(H, W)
 
 
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,

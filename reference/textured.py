@@ -55,6 +55,7 @@ from __future__ import annotations
 import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+from pbrcheck.errors import SceneError
 from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 
 import drjit as dr
@@ -481,6 +482,9 @@ def register() -> None:
 # ------------------------------------------------------------------------------------------------
 
 def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
+    if brdf.geometric_roughness != "none":
+        raise SceneError(f"[brdf] geometric_roughness = {brdf.geometric_roughness!r} is not implemented for "
+                         "glTF assets (the textured material); only for the built-in objects")
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,

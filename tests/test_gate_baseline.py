@@ -191,6 +191,24 @@ def test_require_baselines(gate_dir, capsys):
     assert accept(gate_dir) == 0 and gate(gate_dir) == 0
 
 
+def test_check_runs_and_accepts_only_the_named_check(gate_dir, capsys):
+    """--check NAME: only that check runs; with --accept only its baseline and figures are written;
+    an unknown name is bad input (exit 2) before anything runs."""
+    write_exr(gate_dir / "test2.exr", under_test(left=1.0))
+    second = BUDGET.format(top="", extra="").replace('"synthetic"', '"second"').replace("test.exr", "test2.exr")
+    (gate_dir / "b.toml").write_text(BUDGET.format(top="", extra="") + second)
+    assert gate(gate_dir, "--accept", "--reason", "only one", "--check", "second") == 0
+    out = capsys.readouterr().out
+    assert "accepted second: new" in out and "synthetic" not in out
+    assert load_baseline(gate_dir, "second") is not None and load_baseline(gate_dir, "synthetic") is None
+    hist = tomllib.loads((gate_dir / "b.toml").read_text())["history"]
+    assert len(hist) == 1 and len(hist[0]["figures"]) == 1 and hist[0]["figures"][0].startswith("second: new")
+    before = (gate_dir / "b.toml").read_text()
+    assert gate(gate_dir, "--check", "nope") == 2
+    assert "--check 'nope': no such check" in capsys.readouterr().err
+    assert (gate_dir / "b.toml").read_text() == before
+
+
 @pytest.mark.parametrize("bound, msg", [("-1", "a finite number >= 0"), ("inf", "a finite number >= 0"),
                                         ("nan", "a finite number >= 0")])
 def test_budget_bounds_finite_and_non_negative(tmp_path, bound, msg):

@@ -82,7 +82,8 @@ def test_reference_scene_needs_scene(tmp_path):
 
 def test_shipped_client_checks_name_model_matched_references():
     """clients.toml's existing checks gate three.js and the Sample Viewer against the random-walk
-    reference (three.js's with its roughness floor), each stored EXR of its reference_scene."""
+    reference (three.js's with its roughness floor and geometric roughness), each stored EXR of its
+    reference_scene."""
     from pbrcheck.exr import read_exr
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml"
@@ -96,3 +97,18 @@ def test_shipped_client_checks_name_model_matched_references():
         assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(s), c.name
         if c.preset == "ext:threejs" and c.scene.startswith("spheres"):
             assert s.brdf.roughness_floor == 0.045
+        if c.preset == "ext:threejs":  # its screen-space geometric roughness, at its 2 x 2 samples
+            assert (s.brdf.geometric_roughness, s.brdf.geometric_roughness_supersample) == ("threejs", 2)
+
+
+def test_ci_filament_preset_gated_against_the_random_walk():
+    """ci.toml's filament preset compensates energy: its checks name the random-walk reference."""
+    from pbrcheck.exr import read_exr
+
+    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    fil = [c for c in checks if c.preset == "filament"]
+    assert len(fil) == 2
+    for c in fil:
+        s = load_scene(base / c.reference_scene)
+        assert s.brdf.multiscatter == "random_walk" and s.brdf.roughness_floor == 0.0, c.name
+        assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(s), c.name

@@ -107,6 +107,20 @@ def test_import_scenario_round_trips_the_export(tmp_path):
     assert back.objects[0].type == "mesh" and back.environment.type == "file"
 
 
+def test_import_scenario_reads_the_render_fidelity_renderer_file(tmp_path):
+    # render-fidelity-tools hands each renderer {"scenario": {...}, "outputFile": ...}: its scenario
+    # is read as the bare entry is (this file was refused, "unknown key 'scenario'")
+    _asset_scene(tmp_path)
+    entry = {"name": "khronos-Quad", "model": "q.gltf", "dimensions": {"width": 24, "height": 16},
+             "target": {"x": 0, "y": 0.1, "z": 0}, "orbit": {"theta": 20, "phi": 80, "radius": 3},
+             "verticalFoV": 45, "renderSkybox": False}
+    (tmp_path / "entry.json").write_text(json.dumps(entry))
+    (tmp_path / "job.json").write_text(json.dumps({"scenario": entry, "outputFile": "golden.png"}))
+    a, b = scenario_scene(tmp_path / "entry.json"), scenario_scene(tmp_path / "job.json")
+    assert b["camera"] == a["camera"] and b["name"] == "khronos-Quad" and b["camera"]["width"] == 24
+    assert np.allclose(b["camera"]["target"], [0, 0.1, 0])
+
+
 def test_import_scenario_bad_input_is_one_line_exit_2(tmp_path, capsys):
     p = tmp_path / "s.json"
     p.write_text(json.dumps({"model": "nothing.glb", "orbit": {"theta": 0}}))

@@ -53,6 +53,18 @@ def test_random_walk_scene_needs_the_correlated_geometry():
     assert none is None and "blinn_phong" in why
 
 
+def test_an_asset_scene_has_no_random_walk(tmp_path):
+    # the textured material of glTF assets scatters once: a "walk" render of an asset scene was the
+    # single-scattering image again, and the report showed share 0 % against a walk never rendered
+    from gltf_build import quad_asset, quad_scene
+    from pbrcheck.scene import load_scene
+    asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
+    s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
+    assert s.assets and s.brdf.ndf == "ggx"
+    rw, why = random_walk_scene(s)
+    assert rw is None and "glTF assets" in why
+
+
 def test_a_compensating_engine_is_right_against_the_walk(compensating):
     s = scene_from_dict(SCENE)
     [p] = measure_references(s, ["ext:pfm"], 512)

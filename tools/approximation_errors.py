@@ -1,7 +1,9 @@
 """Measure the real-time approximations of assets against the reference in the mode that is their
 truth (issue 23, section 2): prints one relmse table per asset, a row per option.
 
-``python tools/approximation_errors.py [--size N] [--spp N] [--env FILE.hdr] [--no-helmet]``
+``python tools/approximation_errors.py [--size N] [--spp N] [--env FILE.hdr] [--no-helmet]``;
+``python tools/approximation_errors.py --write-bumpy FILE.gltf`` writes the ``bumpy`` asset and exits
+(for ``pbrcheck fit-normal-roughness FILE.gltf``, docs/research.md).
 
 Assets
 ------
@@ -73,9 +75,14 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--env", default=None)
     ap.add_argument("--no-helmet", action="store_true")
+    ap.add_argument("--write-bumpy", metavar="FILE.gltf", help="write the bumpy asset and exit")
     args = ap.parse_args(argv)
     from pbrcheck.scene import asset_scene
     from reference.bench_asset import make_asset
+
+    if args.write_bumpy:
+        print(make_asset(Path(args.write_bumpy), segments=128, tex=BUMP_TEXTURE, normal_map=bump_normal_map()))
+        return 0
 
     env = args.env
     default_env = SHARED / "envmaps" / "royal_esplanade_1k.hdr"

@@ -149,7 +149,8 @@ def _hardcase_spps(rows) -> str:
     for r in rows:
         if r.preset is None and r.reference_spp:
             v = VerdictSpp(**r.reference_spp)
-            out.append(f"{r.case} {v.spp}" + (" noise-limited" if v.noise_limited else ""))
+            out.append(f"{r.case} {v.spp}" + ((" noise-limited (heavy tails)" if v.heavy_tails else " noise-limited")
+                                             if v.noise_limited else ""))
     return ", ".join(out) or "n/a"
 
 

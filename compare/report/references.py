@@ -68,6 +68,10 @@ def single_scattering_scene(scene: Scene) -> Scene:
 
 def random_walk_scene(scene: Scene) -> tuple[Scene | None, str]:
     """(``scene`` with ``multiscatter = "random_walk"``, "") or (None, why it has no random walk)."""
+    if scene.assets:
+        # The textured material of glTF assets is single-scattering (pbrcheck.scene refuses
+        # multiscatter beside an asset): a "walk" render would be the single one again.
+        return None, "no random walk for glTF assets (their textured material is single-scattering)"
     need = MULTISCATTER_GEOMETRY.get(scene.brdf.ndf)
     if need is None:
         return None, f"no random walk for ndf = {scene.brdf.ndf} (only {', '.join(MULTISCATTER_GEOMETRY)})"

@@ -1,5 +1,5 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
-``fit-lod``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck.cli` maps them to exit codes."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
 from ..verdict_spp import DEFAULT_SPP_CAP
-from . import diagnose, energy, explain, fit_lod, fit_roughness, hardcases
+from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, hardcases
 
 
 def _cmd_hardcases(args) -> int:
@@ -50,6 +50,15 @@ def _cmd_fit_lod(args) -> int:
                       size=args.size, out=Path(args.out), spp_cap=args.spp_cap, progress=not args.quiet,
                       **({"chains": chains} if chains else {}))
     print(fit_lod.table_markdown(res), end="")
+    print(f"json: {args.out}\nglsl: {res.glsl}")
+    return 0
+
+
+def _cmd_fit_normal_roughness(args) -> int:
+    res = fit_normal_roughness.run_fit_normal_roughness(
+        load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
+        spp=args.spp, size=args.size, out=Path(args.out), spp_cap=args.spp_cap, progress=not args.quiet)
+    print(fit_normal_roughness.table_markdown(res), end="")
     print(f"json: {args.out}\nglsl: {res.glsl}")
     return 0
 
@@ -159,6 +168,16 @@ def register(sub, bench_sub) -> None:
                    "mappings; default: linear,quadratic,log2; the best-predicting one is kept)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_fit_lod)
+
+    s = sub.add_parser("fit-normal-roughness", help="the GGX alpha^2 added per normal-map mip level that makes the "
+                                                    "raster image match the reference, against Toksvig's closed form; "
+                                                    "written as a hook_specular_aa GLSL file")
+    _renderer_args(s, spp=64, size=None, size_help="image height (default: the scene's own)")
+    _spp_cap_arg(s, DEFAULT_SPP_CAP)
+    s.add_argument("--out", default="out/fit_normal_roughness.json", metavar="FILE.json",
+                   help="JSON (the GLSL hook goes next to it)")
+    s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.set_defaults(func=_cmd_fit_normal_roughness)
 
     s = sub.add_parser("explain", help="error decomposition: make one approximation exact at a time and "
                                        "measure the error it contributes")

@@ -203,7 +203,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
     base_img = renderers.render_under_test(scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
-                                         probe=RESEARCH_PROBE, progress=progress)
+                                         probe=RESEARCH_PROBE, tails=False, progress=progress)
     spp = verdict.spp
 
     valid = None

@@ -225,7 +225,7 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     # error every scanned level is measured against; compare.verdict_spp), at most spp_cap.
     own_img = renderers.render_under_test(fit_scene, preset, base, progress=False, context=context)
     ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local",
-                                         metric="relmse", probe=RESEARCH_PROBE, progress=progress)
+                                         metric="relmse", probe=RESEARCH_PROBE, tails=False, progress=progress)
     spp = verdict.spp
     M = o["prefilter_levels"] - 1
     cube_log2 = math.log2(o["cube_size"])

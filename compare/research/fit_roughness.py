@@ -182,6 +182,10 @@ def scan_start(ms, params, keys: list[str], target: np.ndarray, masks: list[np.n
     for i, rows in enumerate(table):
         if rows:
             start, rng = bracket(rows)
+            # The range as the float32 values the fit clamps its parameter to (Dr.Jit's Float): a
+            # bound such as 0.0105 is 0.010499999858 in float32, and the fitted value clamped there
+            # must read as inside the range it reports.
+            rng = [float(np.float32(x)) for x in rng]
             out.append({"start": start, "range": rng, "scan": rows})
         else:
             out.append({"start": own[i], "range": None, "scan": []})

@@ -222,7 +222,7 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
                 if nf == 0:
                     imgs[p] = img
             ref, verdict = reference_for_verdict(sc, list(imgs.values()), spp=spp, cap=spp_cap, mode="local",
-                                                 metric="relmse", probe=RESEARCH_PROBE, seed=0, use_cache=False,
+                                                 metric="relmse", probe=RESEARCH_PROBE, tails=False, seed=0, use_cache=False,
                                                  progress=progress)
             nf = _nonfinite(ref)
             ref_ok = nf == 0

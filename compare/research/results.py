@@ -7,7 +7,8 @@ API
 ---
 :class:`HardcaseRow`; :class:`ExplainRow`, :class:`ExplainPathTruth`, :class:`ExplainResult`; :class:`LodSample`,
 :class:`ChainFit`, :class:`MappingEval`, :class:`FitLodResult`; :class:`ApparentRoughness`,
-:class:`FitRoughnessResult`.
+:class:`FitRoughnessResult`; :class:`LevelFit`,
+:class:`FitNormalRoughnessResult`.
 """
 
 from __future__ import annotations
@@ -230,3 +231,42 @@ class FitRoughnessResult(_JSON):
         d = asdict(self)
         d["objects"] = [o.to_json() for o in self.objects]
         return d
+
+
+# --- fit-normal-roughness ------------------------------------------------------------------------
+
+@dataclass
+class LevelFit(_JSON):
+    """One normal-map level of fit-normal-roughness: its pixels (0: the entry is its nearest fitted
+    neighbour's), the fitted alpha^2 increment, the closed forms' per-level means (``toksvig``, ``lean``),
+    the relmse at the optimum and the scan's curve (one relmse per ``u``, increment ``u^2``); ``optimum``:
+    stage 1's per-level optimum (None without pixels), ``fitted`` the table's entry after stage 2."""
+    level: int
+    pixels: int
+    fitted: float
+    toksvig: float
+    lean: float
+    relmse_at_optimum: float | None = None
+    scan: list = field(default_factory=list)
+    optimum: float | None = None
+
+
+@dataclass
+class FitNormalRoughnessResult(_JSON):
+    """fit-normal-roughness: per level a :class:`LevelFit`; ``fitted`` the table's JSON
+    (:class:`pbrcheck.normal_roughness.NormalRoughnessTable`); ``relmse`` per row of the evaluation
+    (none, toksvig, toksvig_table, lean_table, prefiltered, fitted); ``start``: stage 2's start (the lowest of
+    ``start_relmse``: per_level_optima, toksvig_table, lean_table); ``glsl`` the hook file."""
+    scene: str
+    preset: str
+    options: dict
+    size: list
+    target: str
+    metric: str
+    levels: list
+    fitted: dict
+    start: str
+    start_relmse: dict
+    relmse: dict
+    reference_spp: dict | None = None
+    glsl: str = ""

@@ -26,3 +26,6 @@ float hook_G(float NoV, float NoL, float roughness);
 #ifdef HOOK_F
 vec3 hook_F(float VoH, vec3 F0);
 #endif
+#ifdef HOOK_SPECULAR_AA
+float hook_specular_aa(float roughness, float normal_length, float normal_lod);
+#endif

@@ -11,7 +11,8 @@
 // the pixel centre instead of shading. SPECULAR_AA (specular_aa.glsl) widens the roughness by the
 // normals' variance: the normal map's mip-filtered length (toksvig), the geometric normal's screen
 // derivatives (screen_space), the slope variance baked beside the normal map's mips, tex_normal_var
-// (prefiltered). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
+// (prefiltered). HOOK_SPECULAR_AA (a user hook, realtime/hooks.py) replaces it on normal-mapped
+// fragments, given the mip-filtered length and normal_map_lod(). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
 // (coverage.glsl) for the host's GL_SAMPLE_ALPHA_TO_COVERAGE instead of discarding.
 #include "env.glsl"
 #include "shading.glsl"
@@ -86,6 +87,16 @@ vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback, b
     return lod0 ? textureLod(t, uv, 0.0) : textureGrad(t, uv, dx, dy);
 }
 
+#ifdef HOOK_SPECULAR_AA
+// The level textureGrad reads the normal map at (slot 2): textureQueryLod of the unfolded coordinates
+// (their derivatives are lookup()'s), 0 with NORMAL_LOD0. Feeds hook_specular_aa only.
+float normal_map_lod() {
+    if (NORMAL_LOD0 != 0) return 0.0;
+    vec2 uv = tex_set[2] == 0 ? v_uv0 : v_uv1;
+    return textureQueryLod(tex_normal, (tex_xf[2] * vec3(uv, 1.0)).xy).y;
+}
+#endif
+
 vec4 slot(sampler2D t, int k, vec4 fallback) {
     bool lod0 = k == 2 ? NORMAL_LOD0 != 0 : TEXTURE_LOD0 != 0;
     return lookup(t, tex_has[k], tex_set[k], tex_xf[k], tex_mirror[k], fallback, lod0);
@@ -109,6 +120,7 @@ void main() {
     float dn2 = 0.0;
 #endif
     float normal_length = 1.0, normal_var = 0.0;
+    bool normal_mapped = false;
     vec3 v = normalize(cam_origin - v_pos);
 #if AOV_PASS
     out_aov = vec4(N, max(dot(N, v), 0.0));
@@ -123,7 +135,8 @@ void main() {
             T /= lt;
             vec3 B = (back ? -v_tan.w : v_tan.w) * cross(N, T);
             vec3 tn = slot(tex_normal, 2, vec4(0.5, 0.5, 1.0, 1.0)).xyz * 2.0 - 1.0;
-#ifdef SPECULAR_AA_READS_NORMAL_LENGTH
+            normal_mapped = true;
+#if defined(SPECULAR_AA_READS_NORMAL_LENGTH) || defined(HOOK_SPECULAR_AA)
             normal_length = length(tn);
 #elif defined(SPECULAR_AA_READS_VARIANCE)
             normal_var = slot(tex_normal_var, 2, vec4(0.0)).r * normal_scale * normal_scale;
@@ -135,7 +148,9 @@ void main() {
     vec4 mr = slot(tex_mr, 1, vec4(1.0));
     float metallic = clamp(metallic_factor * mr.b, 0.0, 1.0);
     float roughness = clamp(roughness_factor * mr.g, 0.0, 1.0);
-#if SPECULAR_AA != SPECULAR_AA_NONE
+#ifdef HOOK_SPECULAR_AA
+    if (normal_mapped) roughness = hook_specular_aa(roughness, normal_length, normal_map_lod());
+#elif SPECULAR_AA != SPECULAR_AA_NONE
     roughness = specular_aa(roughness, normal_length, normal_var, dn2);
 #endif
     uvec2 px = uvec2(gl_FragCoord.xy);
