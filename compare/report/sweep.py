@@ -211,16 +211,17 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
     Raises
     ------
     SweepError
-        ``spp`` below 2; neither ``vary`` nor ``approximations``; ``OptionError`` for an unknown
+        ``spp`` below 2; ``vary`` None without ``approximations``; ``OptionError`` for an unknown
         option or value (before any render).
     """
     if spp < MIN_REFERENCE_SPP:
         raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
                          f"got {spp}")
-    if not vary and not approximations:
+    if vary is None and not approximations:
         raise SweepError("sweep: --vary KEY=V1,V2,... or --approximations is needed")
     scene = load_scene(scene_arg)
-    groups = ([] if not vary else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
+    # vary {}: the preset as it is (one row); None: no --vary rows (only the approximations)
+    groups = ([] if vary is None else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
     for _, combos in groups:  # every option and value is checked before rendering
         for combo in combos:
             renderers.resolve_options(preset, combo)
