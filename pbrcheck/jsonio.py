@@ -7,6 +7,8 @@ API
 - :func:`dump_json` -- the text (2-space indent) of :func:`jsonable`.
 - :func:`write_json_atomic` -- :func:`dump_json` plus a newline, written with
   :func:`pbrcheck.atomic.write_text_atomic` (a reader sees the old file or the new one).
+- :func:`read_json` -- a JSON file's value, or the caller's typed error naming the file and what
+  was expected (unreadable, not UTF-8, not JSON).
 
 Python's ``json`` writes ``NaN`` and ``Infinity`` by default, which no strict JSON reader accepts;
 a metric that is undefined (no valid pixel) is ``null`` instead.
@@ -71,3 +73,13 @@ def write_json_atomic(path: str | Path, obj, indent: int = 2) -> Path:
     """Write :func:`dump_json` ``(obj, indent)`` and a newline to ``path`` atomically, creating its
     folder; returns ``path`` (a :class:`~pathlib.Path`)."""
     return write_text_atomic(path, dump_json(obj, indent) + "\n")
+
+
+def read_json(path: str | Path, error: type[Exception], what: str):
+    """The value of the JSON file ``path``; an unreadable file or invalid JSON raises ``error`` with
+    one line ``PATH: cannot read WHAT (reason)`` (``what``: e.g. "a fitted LOD mapping")."""
+    p = Path(path)
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise error(f"{p}: cannot read {what} ({e})") from None

@@ -36,13 +36,13 @@ API
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .errors import PbrcheckError
+from .jsonio import read_json
 from .registry import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS
 
 #: log2's smallest roughness (log2 of 0 is -inf; 1e-6 is far below the first level's roughness).
@@ -163,12 +163,8 @@ class LodMapping:
 
     @classmethod
     def load(cls, path: str | Path) -> "LodMapping":
-        p = Path(path)
-        try:
-            d = json.loads(p.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise LodFitError(f"{p}: cannot read fitted LOD mapping ({e})") from None
-        return cls.from_json(d.get("mappings", {}).get("fitted", d), str(p))
+        d = read_json(path, LodFitError, "fitted LOD mapping")
+        return cls.from_json(d.get("mappings", {}).get("fitted", d), str(path))
 
     def glsl_expr(self, var: str = "r") -> str:
         """One GLSL expression of ``var`` (clamped as :meth:`__call__`), for a ``#define``."""

@@ -26,13 +26,13 @@ API
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .errors import PbrcheckError
+from .jsonio import read_json
 from .specular_aa import slope_variance_mips, specular_aa_widen
 
 
@@ -72,12 +72,8 @@ class NormalRoughnessTable:
 
     @classmethod
     def load(cls, path: str | Path) -> "NormalRoughnessTable":
-        p = Path(path)
-        try:
-            d = json.loads(p.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise NormalRoughnessError(f"{p}: cannot read a per-level roughness table ({e})") from None
-        return cls.from_json(d.get("fitted", d), str(p))
+        d = read_json(path, NormalRoughnessError, "a per-level roughness table")
+        return cls.from_json(d.get("fitted", d), str(path))
 
     def glsl(self, source: str = "pbrcheck fit-normal-roughness") -> str:
         """The table as a ``hook_specular_aa`` file (self-contained: the raster pass and the compute
