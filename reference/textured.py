@@ -84,6 +84,15 @@ def _pad_axis(px: np.ndarray, axis: int, wrap: int) -> np.ndarray:
     return np.pad(px, widths, mode="wrap" if wrap not in WRAP_MODES else "edge")
 
 
+#: Whether the reference's texture lookups may use the GPU's texture units (``bitmap``'s ``accel``,
+#: ``Texture2f``'s ``use_accel``; no effect on the LLVM backend). Off: CUDA's texture units resolve the
+#: position between texels with 8 fractional bits (Dr.Jit's ``Texture`` documentation), so a bilinear
+#: lookup is off by up to 1/512 of the step between two texels -- measured on an H100: 2.30078 for
+#: 2.3 (tests/test_gltf_wrap.py), and a texture-transform test 1.7e-3 off (test_gltf.py). The
+#: reference interpolates in float32 arithmetic, as on the CPU.
+TEXTURE_UNITS = False
+
+
 def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
     """A ``gltf_texture`` (:class:`GltfTexture`) of float32 linear ``pixels`` (H, W, C) read as glTF
     ``ref`` reads it: its own wrapS and wrapT, transform and magFilter."""
@@ -91,7 +100,8 @@ def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
     h, w = px.shape[:2]
     padded = _pad_axis(_pad_axis(px, 1, ref.wrap[0]), 0, ref.wrap[1])
     inner = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(padded)), "raw": True,
-             "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp"}
+             "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp",
+             "accel": TEXTURE_UNITS}
     m = np.eye(3) if ref.transform is None else np.asarray(ref.transform, float).reshape(3, 3)
     return {"type": TEXTURE_PLUGIN, "inner": inner, "wrap_s": int(ref.wrap[0]), "wrap_t": int(ref.wrap[1]),
             "width": int(w), "height": int(h), "nearest": ref.mag_filter == MAG_NEAREST, **{f"m{k}": float(x) for k, x in enumerate(m.reshape(-1)[:6])}}
@@ -442,7 +452,7 @@ def fuse_textures(tex: dict, uvset: dict) -> list:
                 continue
             packed = mi.TensorXf(np.ascontiguousarray(np.concatenate(planes, axis=-1)))
             mode = dr.FilterMode.Nearest if key[-1] else dr.FilterMode.Linear
-            fused.append((mi.Texture2f(packed, filter_mode=mode, wrap_mode=dr.WrapMode.Clamp),
+            fused.append((mi.Texture2f(packed, use_accel=TEXTURE_UNITS, filter_mode=mode, wrap_mode=dr.WrapMode.Clamp),
                           tex[slots[0]], placed))
     return fused
 
