@@ -206,6 +206,8 @@ class TexturedMaterial(mi.BSDF):
         self.m_components = comps
         self.m_flags = flags
         self.fused = fuse_textures(self.tex, self.uvset)
+        # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
+        self.normal_filter = None
 
     def traverse(self, callback):
         traverse_material(self, callback)
@@ -267,6 +269,11 @@ class TexturedMaterial(mi.BSDF):
             met = met * mr.z
         if self.roughness_floor > 0.0:
             rough = dr.maximum(rough, self.roughness_floor)
+        if self.normal_filter is not None and "normal" in tex:
+            # fit-normal-roughness's model (reference.normal_filter): the raster's trilinear normal
+            # lookup at its LOD, alpha^2 widened by the per-level table
+            tex["normal"], v = self.normal_filter.lookup(si, active)
+            rough = self.normal_filter.widen(rough, v)
         n_local = mi.Vector3f(0.0, 0.0, 1.0)
         flip = mi.Bool(False)
         if self.double_sided:
