@@ -31,7 +31,8 @@ two differ only in the normal map's filtering and the widening, so a table fitte
 normal filtering alone, not split-sum or horizon errors of the real-time image.
 
 API: :class:`NormalFilter`, :func:`attach`, :func:`footprint_lod`, :func:`lod_image`,
-:func:`render_model`, :func:`fit_table`, :data:`LOD_DEGENERATE`.
+:func:`render_model`, :func:`render_truth`, :func:`set_table`, :func:`loss_and_gradient`,
+:func:`fit_table`, :data:`LOD_DEGENERATE`.
 
 References: OpenGL 4.6 core specification, 8.14.1 (scale factor and level of detail); Toksvig 2005,
 "Mipmapping Normal Maps", JGT 10(3); Olano & Baker 2010, "LEAN Mapping".
@@ -111,6 +112,7 @@ class NormalFilter:
             d = texture_dict(lvl, ref)
             assert d["type"] == TEXTURE_PLUGIN
             self.mips.append(mi.load_dict(d))
+        self.material = material
         self.camera = camera
         self.supersample = int(supersample)
         self.texels = (tex.width, tex.height)
@@ -202,14 +204,29 @@ def render_model(mscene, *, spp: int, seed: int = 0) -> np.ndarray:
     return np.array(mi.render(mscene, spp=spp, seed=seed))[..., :3]
 
 
-def loss_and_gradient(mscene, filters: list[NormalFilter], target: np.ndarray, weight: np.ndarray, u, *,
+def render_truth(mscene, filters: list[NormalFilter], *, spp: int, seed: int = 0) -> np.ndarray:
+    """A primal render of the truth (H, W, 3): the same scene with the filters detached (the
+    full-resolution normal map, no widening: the ``local`` reference). On the model's ``seed`` it
+    uses the model's random numbers (the same pixel positions, environment and lobe samples)."""
+    for f in filters:
+        f.material.normal_filter = None
+    try:
+        return render_model(mscene, spp=spp, seed=seed)
+    finally:
+        for f in filters:
+            f.material.normal_filter = f
+
+
+def loss_and_gradient(mscene, filters: list[NormalFilter], target: np.ndarray | None, weight: np.ndarray, u, *,
                       spp: int, seed: int = 0, seed_grad: int | None = None) -> tuple[float, np.ndarray]:
     """(loss, d loss / d u) at ``u`` for the loss ``L = sum weight (I - T)^2`` (``weight`` (H, W, 3),
     fixed), ``I`` a render of the model: the primal pass on ``seed``, then the integrator's adjoint
     pass (``render_backward``) of ``dL/dI = 2 weight (I - T)`` on ``seed_grad`` (default: another
     seed, so the stochastic gradient is unbiased; ``seed_grad = seed``: the gradient of that one
     render's loss, which finite differences of renders at that seed check where the estimator is
-    deterministic in ``u``, as under punctual lights)."""
+    deterministic in ``u``, as under punctual lights). ``target`` None: ``T`` is
+    :func:`render_truth` on ``seed`` (paired with ``I``: ``I - T`` has the expected difference and
+    far less noise than against a fixed image, whose own noise would also bias the fit)."""
     mi, dr = _mi()
     integ = mscene.integrator()
     uu = mi.Float(np.asarray(u, np.float32))
@@ -217,6 +234,8 @@ def loss_and_gradient(mscene, filters: list[NormalFilter], target: np.ndarray, w
     with dr.suspend_grad():
         img = integ.render(mscene, seed=int(seed), spp=int(spp))
         img_np = np.array(img, np.float64)
+        if target is None:
+            target = render_truth(mscene, filters, spp=spp, seed=seed)
     diff = img_np[..., :3] - target[..., :3]
     loss = float(np.sum(weight * diff * diff))
     dimg = np.zeros(img_np.shape, np.float32)
@@ -235,11 +254,12 @@ ADAM_BETAS = (0.9, 0.999)
 ADAM_EPS = 1e-8
 
 
-def fit_table(mscene, filters: list[NormalFilter], target: np.ndarray, weight: np.ndarray, u0, *,
+def fit_table(mscene, filters: list[NormalFilter], target: np.ndarray | None, weight: np.ndarray, u0, *,
               iterations: int, spp: int, lr: float, lr_final: float, average_last: int,
               seed: int = 0, progress: Callable[[int, float], None] | None = None) -> tuple[np.ndarray, list[float]]:
     """Fit ``u`` (``table = u^2``) with Adam (Kingma & Ba 2015) so the model matches ``target``
-    (H, W, 3) under :func:`loss_and_gradient`'s loss; the learning rate decays geometrically from
+    (H, W, 3; None: the truth rendered on each step's seed, :func:`loss_and_gradient`) under
+    :func:`loss_and_gradient`'s loss; the learning rate decays geometrically from
     ``lr`` to ``lr_final``; ``u`` stays in [-1, 1] (increments <= 1); the result is the mean of the
     last ``average_last`` tables (Polyak-Ruppert: the iterates' Monte Carlo jitter averages out).
     Each step renders on seeds of its own. Returns (table, losses); the filters keep the result."""

@@ -48,6 +48,10 @@ API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's ass
 
 Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
 texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
+
+``TexturedMaterial.normal_filter`` (None: the reference): set by :func:`reference.normal_filter.attach`
+for ``pbrcheck fit-normal-roughness``'s model, it replaces the normal-map texel by the raster's
+trilinear mip lookup at its LOD and widens ``alpha^2`` by the per-level table (that module).
 """
 
 from __future__ import annotations

@@ -17,7 +17,10 @@ Method ``ad`` (the fit isolates normal filtering)
    levels (:class:`pbrcheck.normal_roughness.NormalRoughnessTable`'s definition), ``table = u^2``.
 3. ``u`` is fitted by Adam on the relative MSE against the truth with the scan's pixel weighting (per
    pixel ``mean over channels (I - T)^2 / (T^2 + REL_EPS)``, averaged over the valid pixels:
-   :func:`compare.metrics.pixel_classes` of the truth and the raster image), :data:`ITERATIONS` steps of
+   :func:`compare.metrics.pixel_classes` of the truth and the raster image; ``T`` in the weights is the
+   reference image, the ``T`` in the difference the truth rendered on the step's own seed, paired
+   with the model's render: far less noise, and no bias from a fixed noisy image; a given
+   ``target`` is used as is), :data:`ITERATIONS` steps of
    :data:`FIT_SPP` samples, the learning rate decaying from :data:`LR` to :data:`LR_FINAL`, the table the
    mean of the last :data:`AVERAGE_LAST` iterates. Start: Toksvig's per-level table, each entry at
    least :data:`START_INCREMENT` (so an entry that must be 0 has to be fitted down to it).
@@ -27,8 +30,11 @@ Method ``ad`` (the fit isolates normal filtering)
    0.33 - 1.0 where Toksvig gives <= 0.07).
    A level no pixel reads (``|lod - k| >= 1`` everywhere, lod clamped to the table) has no gradient:
    it takes its nearest populated neighbour's entry (``pixels`` 0). ``model_relmse``: the model's
-   relmse against the truth (renders of :data:`EVAL_SPP`) with no widening (``filtered``: the
-   filtering error the table corrects), the closed forms' tables and the fitted one.
+   relmse against the truth with no widening (``filtered``: the filtering error the table corrects),
+   the closed forms' tables and the fitted one; unbiased in the renders' noise: two independent
+   renders ``a``, ``b`` of :data:`EVAL_SPP`, ``mean (a - t_a)(b - t_b) / (T^2 + REL_EPS)`` with ``t_a``,
+   ``t_b`` the truth rendered on the same seeds (paired: ``E[(a - t_a)(b - t_b)] = (E[I] - E[t])^2``),
+   ``T`` the reference (the weights); a given target: ``t_a = t_b = T``.
 
 Method ``scan`` (fit-lod's: a dense scan of raster renders, per-group minima refined by a parabola)
 ----------------------------------------------------------------------------------------------------
@@ -235,7 +241,7 @@ def run_fit_normal_roughness(scene: Scene, *, method: str = "ad", preset: str = 
         if method == "ad":
             rows, cur, start_name, start_err, extra = _fit_ad(
                 scene, ref, valid, tok, lean, supersample=int(used.get("supersample", 1)), iterations=iterations,
-                fit_spp=fit_spp, start=start, prog=prog)
+                fit_spp=fit_spp, start=start, paired=target is None, prog=prog)
         else:
             rows, cur, start_name, start_err = _fit_scan(scene, preset, base, ref, valid, tok, lean, tmp,
                                                          scan_step, refine_steps, prog, context)
@@ -261,7 +267,8 @@ def run_fit_normal_roughness(scene: Scene, *, method: str = "ad", preset: str = 
     return result
 
 
-def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations: int, fit_spp: int, start, prog):
+def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations: int, fit_spp: int, start, paired: bool,
+            prog):
     """Method ``ad`` (module docstring): (rows, table, start name, {}, extra result fields)."""
     from reference.diff import load_differentiable_scene
     from reference.render import _mi
@@ -286,7 +293,8 @@ def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations
     T = ref.rgb.astype(np.float64)
     weight = (valid[..., None] / (T * T + REL_EPS)) / (3.0 * int(valid.sum()))
     u0 = np.sqrt(np.maximum(tok, START_INCREMENT)) if start is None else np.sqrt(np.asarray(start, np.float64))
-    table, losses = nf.fit_table(ms, filters, T, weight, u0, iterations=iterations, spp=fit_spp, lr=LR,
+    # the reference as the truth: paired renders on each step's seed (reference.normal_filter.loss_and_gradient)
+    table, losses = nf.fit_table(ms, filters, None if paired else T, weight, u0, iterations=iterations, spp=fit_spp, lr=LR,
                                  lr_final=LR_FINAL, average_last=min(AVERAGE_LAST, iterations),
                                  progress=lambda it, loss: prog.update(1, f"adam {it} loss {loss:.4g}"))
     have = [k for k in range(n) if populated[k]]
@@ -296,10 +304,14 @@ def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations
             for k in range(n)]
 
     def model_error(entries, name):
+        # unbiased in the model's noise: E[(a - T)(b - T)] = (E[I] - T)^2 for independent renders a, b
         nf.set_table(filters, mi.Float(np.sqrt(np.asarray(entries, np.float64)).astype(np.float32)))
-        img = nf.render_model(ms, spp=EVAL_SPP, seed=1 << 20)
+        seeds = ((1 << 20), (1 << 20) + 1)
+        a, b = (nf.render_model(ms, spp=EVAL_SPP, seed=k) for k in seeds)
+        ta, tb = (nf.render_truth(ms, filters, spp=EVAL_SPP, seed=k) for k in seeds) if paired else (T, T)
         prog.update(1, f"model {name}")
-        return float(_rel_map(ref, Image.from_rgb(img))[valid].mean())
+        e = ((a - ta) * (b - tb) / (T * T + REL_EPS)).mean(axis=-1)
+        return float(e[valid].mean())
 
     model = {name: model_error(t, name) for name, t in
              (("filtered", [0.0] * n), ("toksvig_table", tok), ("lean_table", lean), ("fitted", cur))}
