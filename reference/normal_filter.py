@@ -126,8 +126,10 @@ class NormalFilter:
     def lookup(self, si, active):
         """(the trilinearly filtered normal-map texel, Color3f; ``v(lod)``) at ``si``."""
         mi, dr = _mi()
+        lod = self.lod(si)
+        # the mip chain: lod clamped to this map's levels (GL's trilinear lookup)
         n = self.levels
-        x = dr.clip(self.lod(si), 0.0, float(n - 1))
+        x = dr.clip(lod, 0.0, float(n - 1))
         k0 = mi.UInt32(dr.floor(x))
         k1 = dr.minimum(k0 + 1, n - 1)
         fr = x - mi.Float(k0)
@@ -136,8 +138,14 @@ class NormalFilter:
             w = dr.select(k0 == k, 1.0 - fr, 0.0) + dr.select((k1 == k) & (k0 != k), fr, 0.0)
             use = mi.Bool(active) & (w > 0.0)
             t += dr.select(use, m.eval(si, use) * w, 0.0)
+        # the table: lod clamped to its entries (the hook's clamp), whatever this map's own levels
         table = dr.square(self.u)
-        v = (1.0 - fr) * dr.gather(mi.Float, table, k0, active) + fr * dr.gather(mi.Float, table, k1, active)
+        nt = dr.width(table)
+        xt = dr.clip(lod, 0.0, float(nt - 1))
+        j0 = mi.UInt32(dr.floor(xt))
+        j1 = dr.minimum(j0 + 1, nt - 1)
+        ft = xt - mi.Float(j0)
+        v = (1.0 - ft) * dr.gather(mi.Float, table, j0, active) + ft * dr.gather(mi.Float, table, j1, active)
         return t, v
 
     @staticmethod
@@ -150,8 +158,8 @@ class NormalFilter:
 
 def attach(mscene, camera, supersample: int, u) -> list[NormalFilter]:
     """A :class:`NormalFilter` on every normal-mapped glTF material of the Mitsuba scene ``mscene``
-    (the table variable ``u`` shared); returns them (empty: no normal map). All normal maps must
-    have the same number of levels (one table)."""
+    (the table variable ``u`` shared: one table for every map, indexed by the LOD as the hook indexes
+    it); returns them (empty: no normal map)."""
     from .textured import TexturedMaterial
 
     out, seen = [], set()
@@ -161,9 +169,6 @@ def attach(mscene, camera, supersample: int, u) -> list[NormalFilter]:
             seen.add(id(b))
             b.normal_filter = NormalFilter(b, camera, supersample, u)
             out.append(b.normal_filter)
-    if len({f.levels for f in out}) > 1:
-        raise PbrcheckError("normal filter: the normal maps' mip chains differ in length "
-                            f"({sorted({f.levels for f in out})}): one table cannot index them")
     return out
 
 

@@ -280,9 +280,9 @@ def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations
     filters = nf.attach(ms, scene.camera, supersample, mi.Float(np.zeros(n, np.float32)))
     if not filters:
         raise PbrcheckError(f"fit-normal-roughness: {scene.name}: no reference material has a normal map")
-    if filters[0].levels != n:
-        raise PbrcheckError(f"fit-normal-roughness: {scene.name}: the reference's normal map has "
-                            f"{filters[0].levels} levels, the raster's {n}")
+    if max(f.levels for f in filters) != n:
+        raise PbrcheckError(f"fit-normal-roughness: {scene.name}: the reference's normal maps have "
+                            f"{max(f.levels for f in filters)} levels, the raster's {n}")
     lod = nf.lod_image(ms, filters)
     mapped = valid & np.isfinite(lod)
     if not mapped.any():
