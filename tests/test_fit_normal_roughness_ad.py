@@ -206,3 +206,14 @@ def test_ad_bad_input_changes_nothing(sphere, tmp_path):
     with pytest.raises(PbrcheckError, match="iterations"):
         run_fit_normal_roughness(scene, options=SMALL, out=out, iterations=0)
     assert not out.exists() and not out.with_suffix(".glsl").exists()
+
+
+def test_cli_method_and_iterations(tmp_path, capsys):
+    from pbrcheck import cli
+    out = tmp_path / "fit.json"
+    assert cli.main(["fit-normal-roughness", "spheres", "--size", "8", "--iterations", "0", "--out", str(out),
+                     "--quiet"]) == 2
+    assert "iterations" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["fit-normal-roughness", "spheres", "--method", "bisect", "--out", str(out), "--quiet"])
+    assert not out.exists()
