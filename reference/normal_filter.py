@@ -95,7 +95,7 @@ class NormalFilter:
 
     def __init__(self, material, camera, supersample: int, u):
         mi, dr = _mi()
-        from .textured import TEXTURE_PLUGIN, GltfTexture, texture_dict
+        from .textured import GltfTexture, texture_dict
 
         tex = material.tex["normal"]
         if not isinstance(tex, GltfTexture):
@@ -107,11 +107,7 @@ class NormalFilter:
         self.levels = max(data.shape[:2]).bit_length()
         ref = SimpleNamespace(wrap=(tex.wrap_s, tex.wrap_t), mag_filter=None,
                               transform=[*tex.m, 0.0, 0.0, 1.0])
-        self.mips = []
-        for lvl in box_mips(data, self.levels):
-            d = texture_dict(lvl, ref)
-            assert d["type"] == TEXTURE_PLUGIN
-            self.mips.append(mi.load_dict(d))
+        self.mips = [mi.load_dict(texture_dict(lvl, ref)) for lvl in box_mips(data, self.levels)]
         self.material = material
         self.camera = camera
         self.supersample = int(supersample)
