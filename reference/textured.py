@@ -48,6 +48,10 @@ API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's ass
 
 Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
 texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
+
+``TexturedMaterial.normal_filter`` (None: the reference): set by :func:`reference.normal_filter.attach`
+for ``pbrcheck fit-normal-roughness``'s model, it replaces the normal-map texel by the raster's
+trilinear mip lookup at its LOD and widens ``alpha^2`` by the per-level table (that module).
 """
 
 from __future__ import annotations
@@ -216,6 +220,8 @@ class TexturedMaterial(mi.BSDF):
         self.m_components = comps
         self.m_flags = flags
         self.fused = fuse_textures(self.tex, self.uvset)
+        # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
+        self.normal_filter = None
 
     def traverse(self, callback):
         traverse_material(self, callback)
@@ -277,6 +283,11 @@ class TexturedMaterial(mi.BSDF):
             met = met * mr.z
         if self.roughness_floor > 0.0:
             rough = dr.maximum(rough, self.roughness_floor)
+        if self.normal_filter is not None and "normal" in tex:
+            # fit-normal-roughness's model (reference.normal_filter): the raster's trilinear normal
+            # lookup at its LOD, alpha^2 widened by the per-level table
+            tex["normal"], v = self.normal_filter.lookup(si, active)
+            rough = self.normal_filter.widen(rough, v)
         n_local = mi.Vector3f(0.0, 0.0, 1.0)
         flip = mi.Bool(False)
         if self.double_sided:
