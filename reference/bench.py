@@ -60,7 +60,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   ``VR_SEEDS`` seeds: ``mis_balance`` (the balance heuristic for the env and BSDF samples instead of
   the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`) and ``env_envmap`` (Mitsuba's
   own environment sampling, the default until version 4, against ``compensated``,
-  :mod:`reference.env_sampling`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
+  :mod:`reference.env_sampling`) and ``ris4`` (the environment sample resampled from 4 candidates
+  of the proposal by the MIS-weighted product of the environment and the BSDF:
+  :func:`reference.integrator.resampled_estimate`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
   the ratio is clearly above 1 (docs/reference.md records the measurements).
 
 ``--section samplers`` / ``--section variance_reduction`` (:func:`run_sections`): those figures alone.
@@ -128,7 +130,8 @@ SECTIONS = ("samplers", "variance_reduction")
 #: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
 VR_SPP, VR_SPP_QUICK = 128, 32
 VR_SEEDS = 3
-VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}))
+VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}),
+                 ("ris4", {"env_candidates": 4}))
 #: ``variance_reduction``'s scenes besides the real-HDR one (each at the bench resolution).
 VR_SCENES = ("spheres", "furnace", "grazing")
 
