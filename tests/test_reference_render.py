@@ -268,6 +268,10 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
         for k in ("variance_ratio", "spp_ratio", "seconds_speedup", "mean_z", "pixels_within_1.96"):
             assert np.isfinite(a[label][k]) and (k == "mean_z" or a[label][k] > 0), (label, k)
     assert a["independent"]["variance_ratio"] == 1.0 and a["target_floor"] > 0
+    assert "ris4" in res["variance_reduction"]["spheres"]  # the RIS candidate (reference.integrator.resampled_estimate)
+    from reference.bench import run_sections
+    with pytest.raises(ValueError, match="section must be one of"):
+        run_sections(("samplers", "everything"), quick=True)
 
 
 def test_black_environment_point_lights_only():
