@@ -12,9 +12,10 @@
   BSDF samples cover (textured or random-walk BSDFs included) and the estimator stays unbiased by
   construction; a constant environment (furnace), whose compensated density is zero, is sampled
   uniformly. The density is piecewise constant on a latitude-longitude grid of the environment's
-  resolution; each cell's weight is the largest of its centre and four inner points of Mitsuba's
-  ``eval`` (radiance as the estimator sees it), so a sun smaller than a cell is not missed.
-  Only the proposal changes: the radiance is still Mitsuba's ``eval``, the weights are the density's
+  resolution; each cell's weight is the largest of its centre and four inner points of the
+  environment's radiance as the estimator sees it (:mod:`reference.env_radiance`'s exact lookup,
+  not Mitsuba's ``eval``, whose CUDA texture interpolation is approximate), so a sun smaller than a
+  cell is not missed. Only the proposal changes: the radiance is the same exact lookup, the weights are the density's
   exact values, so the estimate stays unbiased with its variance the only difference (tested:
   ``tests/test_reference_integrator.py``, the same image within noise; calibrated:
   ``tests/test_reference_calibration.py``).
@@ -58,8 +59,9 @@ class CompensatedEnvironment:
     """The ``compensated`` proposal of one environment emitter: :meth:`sample` (a direction and its
     solid-angle density from a 2-D uniform sample) and :meth:`pdf` (the density of a direction)."""
 
-    def __init__(self, env, resolution: tuple[int, int]):
+    def __init__(self, env, resolution: tuple[int, int], exact):
         self.env = env
+        self.exact = exact  # reference.env_radiance.ExactEnvironment of env: the radiance it weighs
         self.H, self.W = int(resolution[0]), int(resolution[1])
         self.to_world = env.world_transform()
         H, W = self.H, self.W
@@ -88,9 +90,7 @@ class CompensatedEnvironment:
         return self.to_world @ mi.Vector3f(st * sp, ct, -st * cp)
 
     def _radiance(self, d, active) -> mi.Color3f:
-        si = dr.zeros(mi.SurfaceInteraction3f)
-        si.wi = -d
-        return self.env.eval(si, active)
+        return self.exact.radiance(d, active)
 
     def _cell_pdf(self, d, active) -> mi.Float:
         """Solid-angle density of the compensated grid (without the defensive share)."""

@@ -12,6 +12,11 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
   :mod:`reference.lights`) is added exactly through its deterministic ``sample_direction`` (``f cos
   I / d^2``, ``f cos E``), without a shadow ray.
   Camera rays that miss see the environment. This is the integral real-time IBL approximates.
+  The environment's radiance, wherever this estimator reads it (misses, BSDF samples, and the
+  weight radiance / pdf of an environment sample, Mitsuba's envmap proposal included), is
+  :class:`reference.env_radiance.ExactEnvironment`'s exact float32 lookup, the function of
+  ``pbrcheck.environment.EnvMap.radiance``: Mitsuba's ``envmap`` ``eval`` interpolates with CUDA's
+  hardware texture units (8-bit fractions between texels); its sampling and pdf are kept.
   With ``gather_materials`` (the default) the BSDF of each lane is a :class:`reference.bsdf.MaterialView`:
   every ``pbr_material``'s parameters gathered by the shape hit, the lobes traced once instead of once
   per material (Mitsuba's virtual call); the same maths and samples as the per-instance dispatch.
@@ -86,6 +91,7 @@ import mitsuba as mi
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
 from .bsdf import MaterialView, SceneCalls
+from .env_radiance import ExactEnvironment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
 
 INTEGRATOR_NAME = "pbrcheck_reference"
@@ -395,6 +401,7 @@ class ReferenceIntegrator(RBIntegrator):
             raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, "
                              f"not {self.env_sampling!r}")
         self._env_proposal = None  # (the emitter, its CompensatedEnvironment)
+        self._env_exact = None  # (the emitter, its ExactEnvironment: the radiance the estimator reads)
         # the environment sample resampled from this many candidates (RIS; 1: the plain sample)
         self.env_candidates = int(props.get("env_candidates", DEFAULT_ENV_CANDIDATES))
         if not 1 <= self.env_candidates <= MAX_ENV_CANDIDATES:
@@ -507,8 +514,14 @@ class ReferenceIntegrator(RBIntegrator):
             return None
         if self._env_proposal is None or self._env_proposal[0] is not env:
             H = int(mi.traverse(env)["data"].shape[0])
-            self._env_proposal = (env, CompensatedEnvironment(env, (H, 2 * H)))
+            self._env_proposal = (env, CompensatedEnvironment(env, (H, 2 * H), self._exact(env)))
         return self._env_proposal[1]
+
+    def _exact(self, env):
+        """The exact radiance lookup of ``env`` (:mod:`reference.env_radiance`; built once per emitter)."""
+        if self._env_exact is None or self._env_exact[0] is not env:
+            self._env_exact = (env, ExactEnvironment(env))
+        return self._env_exact[1]
 
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
         """(L, hit) of the local estimator for a wavefront of rays; ``grad``: attach the BSDF values
@@ -524,7 +537,8 @@ class ReferenceIntegrator(RBIntegrator):
         env = scene.environment()
         L = mi.Color3f(0.0)
         if env is not None:
-            L += env.eval(si, active & ~hit)  # misses: si.wi = -ray.d
+            exact = self._exact(env)  # the environment's radiance (never Mitsuba's eval: CUDA textures)
+            L += exact.radiance(-si.wi, active & ~hit)  # misses: si.wi = -ray.d
         if self.has_area_emitters(scene):  # emissive surfaces (glTF emission) seen at the first hit
             L += dr.select(hit, SceneCalls(self._dispatch(scene, "emitter"), si, hit).eval(si, hit), 0.0)
         ctx = mi.BSDFContext()
@@ -539,8 +553,10 @@ class ReferenceIntegrator(RBIntegrator):
             # proposal's direction, or of the one resampled from env_candidates of them (RIS).
             def env_estimate():
                 if proposal is None:
-                    ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+                    # Mitsuba's proposal and pdf; the weight is the exact radiance over that pdf
+                    ds, _ = env.sample_direction(si, sampler.next_2d(hit), hit)
                     e_d, e_pdf = ds.d, ds.pdf
+                    em_w = dr.select(e_pdf > 0, exact.radiance(e_d, hit) / e_pdf, 0.0)
                 else:
                     e_d, e_pdf, em_w = proposal.sample(sampler.next_2d(hit), hit)
                 ok = hit & (e_pdf > 0)
@@ -559,9 +575,7 @@ class ReferenceIntegrator(RBIntegrator):
             bs, bw = bsdf.sample(ctx, si, u1, u2, hit)
             wo_w = si.to_world(bs.wo)
             delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-            si_e = dr.zeros(mi.SurfaceInteraction3f)
-            si_e.wi = -wo_w
-            Le = env.eval(si_e, hit)
+            Le = exact.radiance(wo_w, hit)
             ds2 = dr.zeros(mi.DirectionSample3f)
             ds2.d = wo_w
             epdf = (env.pdf_direction(si, ds2, hit & ~delta) if proposal is None
