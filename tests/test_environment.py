@@ -24,15 +24,23 @@ POSITION_TOL = 3e-4
 
 
 def _mitsuba_eval(data, scale, rotation, d):
+    """Mitsuba's own envmap ``eval`` on ``llvm_ad_rgb`` (exact there; CUDA's hardware texture
+    interpolation is not, see reference/env_radiance.py), the process's variant restored after it
+    (the reference's, which registers the project's plugins for the tests that follow)."""
     import drjit as dr
     import mitsuba as mi
 
+    before = mi.variant()
     mi.set_variant("llvm_ad_rgb")
-    em = mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(data), "scale": scale,
-                       "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], rotation)})
-    si = dr.zeros(mi.SurfaceInteraction3f)
-    si.wi = mi.Vector3f(-d[:, 0], -d[:, 1], -d[:, 2])
-    return np.array(em.eval(si)).T
+    try:
+        em = mi.load_dict({"type": "envmap", "bitmap": mi.Bitmap(data), "scale": scale,
+                           "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], rotation)})
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wi = mi.Vector3f(-d[:, 0], -d[:, 1], -d[:, 2])
+        return np.array(em.eval(si)).T
+    finally:
+        if before is not None and before != mi.variant():
+            mi.set_variant(before)
 
 
 # float32 directions carry ~1e-7 rad of angle error, which near a pole becomes 1e-7 / sin(theta) rad
@@ -62,10 +70,14 @@ def _random_dirs(n, seed=0):
     return d.astype(np.float32).astype(np.float64)  # Mitsuba sees float32 directions
 
 
-@pytest.mark.parametrize("source,rotation,scale", [
-    ("smooth", 0.0, 1.0), ("smooth", 71.0, 3.0), ("sky", 0.0, 1.0), ("sky", 33.0, 2.5),
-    ("random", -120.0, 1.0), ("tiny", 10.0, 1.0)])
-def test_radiance_matches_mitsuba_envmap_eval(source, rotation, scale):
+#: The test maps by name, with the (rotation, scale) pairs they are checked under (tests/test_env_radiance.py too).
+SOURCES = [("smooth", 0.0, 1.0), ("smooth", 71.0, 3.0), ("sky", 0.0, 1.0), ("sky", 33.0, 2.5),
+           ("random", -120.0, 1.0), ("tiny", 10.0, 1.0)]
+
+
+def source_data(source: str) -> np.ndarray:
+    """A validated test map: ``smooth`` (low frequency), ``sky`` (a 5-degree sun on 256 x 128),
+    ``random`` (64 x 37 uniform texels, every edge sharp) or ``tiny`` (1 x 2, expanded)."""
     rng = np.random.default_rng(3)
     if source == "smooth":  # low-frequency: every direction within MITSUBA_REL_TOL
         dirs = texel_directions(128, 64)
@@ -76,7 +88,12 @@ def test_radiance_matches_mitsuba_envmap_eval(source, rotation, scale):
         data = rng.random((37, 64, 3)).astype(np.float32) * 5
     else:
         data = validate_pixels(rng.random((1, 2, 3)).astype(np.float32), "tiny")
-    data = validate_pixels(data, source)
+    return validate_pixels(data, source)
+
+
+@pytest.mark.parametrize("source,rotation,scale", SOURCES)
+def test_radiance_matches_mitsuba_envmap_eval(source, rotation, scale):
+    data = source_data(source)
     env = EnvMap(data, scale=scale, rotation=rotation)
     d = _random_dirs(50_000)
     ref = _mitsuba_eval(data, scale, rotation, d)

@@ -26,6 +26,7 @@ ROUNDING = (1.0 - 2.0 ** -22, 1.0 + 2.0 ** -22)
 
 
 def _mat(**kw):
+    ensure_variant()  # (another test module may have switched the process's variant)
     d = {"type": "pbr_material", "base_color": [0.9, 0.6, 0.3], "metallic": 1.0, "roughness": 0.0,
          "specular": 0.04, "ndf": "ggx", "geometry": "smith_ggx_correlated", "fresnel": "schlick"}
     d.update(kw)
@@ -33,6 +34,7 @@ def _mat(**kw):
 
 
 def _si(n=64):
+    ensure_variant()
     cos = np.linspace(0.001, 1.0, n)
     si = dr.zeros(mi.SurfaceInteraction3f, n)
     si.wi = mi.Vector3f(np.sqrt(1 - cos**2), 0.0, cos)
