@@ -24,7 +24,8 @@ builds them from the shared :class:`~pbrcheck.environment.EnvMap`; output end: i
   ``x = u W`` (column ``c`` at ``u = (c + 0.5) / W``; the first column copied as padding after the
   last: ``c + 1 = W`` reads column 0), ``y = v (H - 1)`` (row ``r`` at ``theta = pi r / (H - 1)``);
   ``ix = min(floor x, W - 1)``, ``iy = min(floor y, H - 2)``, bilinear with float weights
-  ``x - ix``, ``y - iy`` of the 4 texels (manual gathers); times ``scale``. All in float32: equal
+  ``x - ix``, ``y - iy`` of the 4 texels (manual gathers), each step ``a + w (b - a)`` (so a
+  constant region is exactly its value, as in Mitsuba); times ``scale``. All in float32: equal
   to ``EnvMap.radiance`` (float64) within float32 rounding of the position
   (``tests/test_env_radiance.py``, on the active variant, so on CUDA too).
 
@@ -85,9 +86,11 @@ class ExactEnvironment:
         def texel(i):
             return dr.gather(mi.Color3f, self.pixels, i, active)
 
-        v0 = (1.0 - wx) * texel(r0 + ix) + wx * texel(r0 + ix1)
-        v1 = (1.0 - wx) * texel(r1 + ix) + wx * texel(r1 + ix1)
-        return dr.select(active, ((1.0 - wy) * v0 + wy * v1) * self.scale, 0.0)
+        # a + w (b - a): exactly a where b = a (a constant region, a furnace, stays exact)
+        v00, v01 = texel(r0 + ix), texel(r1 + ix)
+        v0 = dr.fma(wx, texel(r0 + ix1) - v00, v00)
+        v1 = dr.fma(wx, texel(r1 + ix1) - v01, v01)
+        return dr.select(active, dr.fma(wy, v1 - v0, v0) * self.scale, 0.0)
 
 
 __all__ = ["ExactEnvironment", "emitter_pixels"]
