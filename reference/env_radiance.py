@@ -54,6 +54,12 @@ def emitter_pixels(emitter) -> np.ndarray:
     return np.ascontiguousarray(t[:, 1:-1])
 
 
+#: The envmap plugin with the exact radiance (:class:`ExactEnvmap`), what the reference's scenes use.
+ENVMAP_PLUGIN = "pbrcheck_envmap"
+#: Mitsuba's ``math::RayEpsilon<float>`` (the envmap's bounding sphere is padded by it).
+RAY_EPSILON = float(mi.math.RayEpsilon)
+
+
 class ExactEnvironment:
     """The radiance of one ``envmap`` emitter by the exact lookup of the module docstring."""
 
@@ -93,4 +99,82 @@ class ExactEnvironment:
         return dr.select(active, dr.fma(wy, v1 - v0, v0) * self.scale, 0.0)
 
 
-__all__ = ["ExactEnvironment", "emitter_pixels"]
+class ExactEnvmap(mi.Emitter):
+    """Plugin :data:`ENVMAP_PLUGIN`: Mitsuba's ``envmap`` (same ``bitmap``, ``scale``, ``to_world``)
+    whose radiance is :class:`ExactEnvironment`'s, so that Mitsuba's own integrators (``path``,
+    ``volpath``) read the exact lookup too. ``eval``, ``eval_direction`` and the weight of
+    ``sample_direction`` (radiance / pdf) use the exact lookup; the direction, its pdf and
+    ``pdf_direction`` are the inner ``envmap``'s. Python emitters get no ``set_scene``: the scene's
+    bounding sphere (the length of the shadow rays, ``2 r`` as Mitsuba's envmap) comes from
+    :func:`bind_environment`, called by ``reference.render.load_mitsuba_scene`` and by the
+    integrator before every wavefront (a scene loaded otherwise and rendered by another integrator
+    would cast shadow rays of length 2 only)."""
+
+    def __init__(self, props):
+        mi.Emitter.__init__(self, props)
+        self.inner = mi.load_dict({"type": "envmap", "bitmap": props.get("bitmap"),
+                                   "scale": float(props.get("scale", 1.0)),
+                                   "to_world": props.get("to_world", mi.ScalarTransform4f())})
+        self.m_flags = self.inner.flags()
+        self.exact = ExactEnvironment(self.inner)
+        self.radius: float | None = None  # the scene's bounding-sphere radius (bind_environment)
+
+    def eval(self, si, active=True):
+        return self.exact.radiance(-si.wi, active)
+
+    def eval_direction(self, it, ds, active=True):
+        return self.exact.radiance(ds.d, active)
+
+    def pdf_direction(self, it, ds, active=True):
+        return self.inner.pdf_direction(it, ds, active)
+
+    def sample_direction(self, it, sample, active=True):
+        ds, _ = self.inner.sample_direction(it, sample, active)
+        ds.emitter = mi.EmitterPtr(self)
+        if self.radius is not None:  # unbound: the inner envmap's unit sphere (Mitsuba's pointer
+            # calls trace every live instance, those of other scenes too, so this must not raise)
+            ds.dist = mi.Float(2.0 * self.radius)
+            ds.p = dr.fma(ds.d, ds.dist, it.p)
+        w = dr.select(active & (ds.pdf > 0), self.exact.radiance(ds.d, active) / ds.pdf, 0.0)
+        return ds, w
+
+    def world_transform(self):
+        return self.inner.world_transform()
+
+    def bbox(self):
+        return self.inner.bbox()
+
+    def traverse(self, callback):
+        pass  # the environment is no differentiable parameter of the reference
+
+    def to_string(self):
+        return f"ExactEnvmap[{self.exact.W} x {self.exact.H}]"
+
+
+def bind_environment(scene) -> None:
+    """Give a scene's :class:`ExactEnvmap` the scene's bounding-sphere radius (as Mitsuba's
+    ``envmap.set_scene``: ``max(RayEpsilon, r (1 + RayEpsilon))``); nothing for other environments."""
+    env = scene.environment()
+    if isinstance(env, ExactEnvmap):
+        r = float(scene.bbox().bounding_sphere().radius)
+        env.radius = max(RAY_EPSILON, r * (1.0 + RAY_EPSILON))
+
+
+def exact_environment(env) -> ExactEnvironment:
+    """The exact lookup of an environment emitter: an :class:`ExactEnvmap`'s own, else a new one."""
+    return env.exact if isinstance(env, ExactEnvmap) else ExactEnvironment(env)
+
+
+_REGISTERED: set[str] = set()
+
+
+def register() -> None:
+    """Register :data:`ENVMAP_PLUGIN` with the current variant (once per variant)."""
+    v = mi.variant()
+    if v in _REGISTERED:
+        return
+    mi.register_emitter(ENVMAP_PLUGIN, lambda props: ExactEnvmap(props))
+    _REGISTERED.add(v)
+
+
+__all__ = ["ENVMAP_PLUGIN", "ExactEnvmap", "bind_environment", "exact_environment", "register", "ExactEnvironment", "emitter_pixels"]

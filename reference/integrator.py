@@ -91,7 +91,7 @@ import mitsuba as mi
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
 from .bsdf import MaterialView, SceneCalls
-from .env_radiance import ExactEnvironment
+from .env_radiance import bind_environment, exact_environment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
 
 INTEGRATOR_NAME = "pbrcheck_reference"
@@ -513,14 +513,14 @@ class ReferenceIntegrator(RBIntegrator):
         if env is None or self.env_sampling != "compensated":
             return None
         if self._env_proposal is None or self._env_proposal[0] is not env:
-            H = int(mi.traverse(env)["data"].shape[0])
-            self._env_proposal = (env, CompensatedEnvironment(env, (H, 2 * H), self._exact(env)))
+            exact = self._exact(env)
+            self._env_proposal = (env, CompensatedEnvironment(env, (exact.H, 2 * exact.H), exact))
         return self._env_proposal[1]
 
     def _exact(self, env):
         """The exact radiance lookup of ``env`` (:mod:`reference.env_radiance`; built once per emitter)."""
         if self._env_exact is None or self._env_exact[0] is not env:
-            self._env_exact = (env, ExactEnvironment(env))
+            self._env_exact = (env, exact_environment(env))
         return self._env_exact[1]
 
     def local_radiance(self, scene, sampler, ray, active, grad: bool = False):
@@ -535,6 +535,7 @@ class ReferenceIntegrator(RBIntegrator):
         else:  # glTF single-sided back faces: culled (deterministic)
             si, hit = past_back_faces(scene, ray, si, hit, self._dispatch(scene, "cull"))
         env = scene.environment()
+        bind_environment(scene)
         L = mi.Color3f(0.0)
         if env is not None:
             exact = self._exact(env)  # the environment's radiance (never Mitsuba's eval: CUDA textures)
@@ -623,6 +624,7 @@ class ReferenceIntegrator(RBIntegrator):
             if self._volpath is None:
                 self._volpath = mi.load_dict({"type": "volpath", "max_depth": self.max_depth_value})
             path = self._volpath
+        bind_environment(scene)  # (its samples' shadow rays span the scene's bounding sphere)
         L, _, _ = path.sample(scene, sampler, ray, None, active)
         return mi.Color3f(L), hit
 

@@ -123,13 +123,17 @@ def shape_id(index: int) -> str:
     return f"object{index}"
 
 
-def environment_emitter_dict(env: EnvMap) -> dict | None:
-    """Mitsuba ``envmap`` from the shared :class:`EnvMap` (same pixels, scale and rotation), or None
-    for an all-black environment (Mitsuba cannot importance-sample zero radiance)."""
+def environment_emitter_dict(env: EnvMap, plugin: str | None = None) -> dict | None:
+    """The environment emitter of the shared :class:`EnvMap` (same pixels, scale and rotation):
+    ``reference.env_radiance.ENVMAP_PLUGIN`` (Mitsuba's ``envmap`` sampling, the exact radiance
+    lookup) unless ``plugin`` names another (``"envmap"``: Mitsuba's own), or None for an all-black
+    environment (Mitsuba cannot importance-sample zero radiance)."""
     mi, _ = _mi()
     if env.max_radiance <= 0:
         return None
-    return {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(env.data, dtype=np.float32)),
+    from .env_radiance import ENVMAP_PLUGIN  # local: subclasses mi.Emitter (variant set)
+
+    return {"type": plugin or ENVMAP_PLUGIN, "bitmap": mi.Bitmap(np.ascontiguousarray(env.data, dtype=np.float32)),
             "scale": float(env.scale),
             "to_world": mi.ScalarTransform4f().rotate([0.0, 1.0, 0.0], float(env.rotation))}
 
@@ -173,7 +177,11 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
 
 def load_mitsuba_scene(scene: Scene, env: EnvMap | None = None, **kw):
     mi, _ = _mi()
-    return mi.load_dict(scene_dict(scene, env, **kw))
+    from .env_radiance import bind_environment
+
+    ms = mi.load_dict(scene_dict(scene, env, **kw))
+    bind_environment(ms)  # the shadow rays' length of the environment's samples (path mode)
+    return ms
 
 
 # ------------------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ def chosen_variant() -> str | None:
 
 def ensure_variant() -> str:
     """Set (once per process) and return the variant the reference renders with; registers the BSDF,
-    the integrator and the spot light."""
+    the integrator, the spot light and the exact envmap."""
     global _chosen
     if _chosen is None:
         for v in PREFERENCE:
@@ -48,10 +48,12 @@ def ensure_variant() -> str:
     if mi.variant() != _chosen:
         mi.set_variant(_chosen)
     from .bsdf import register  # local: reference.bsdf subclasses mi.BSDF, which needs the variant set
+    from .env_radiance import register as register_envmap
     from .integrator import register as register_integrator
     from .lights import register as register_lights
 
     register()
     register_integrator()
     register_lights()
+    register_envmap()
     return _chosen

@@ -36,7 +36,7 @@ RENDER_REL_TOL = 3e-4
 
 def _exact(data, scale, rotation, d):
     env = EnvMap(data, scale=scale, rotation=rotation)
-    ex = er.ExactEnvironment(mi.load_dict(environment_emitter_dict(env)))
+    ex = er.exact_environment(mi.load_dict(environment_emitter_dict(env)))
     return np.array(ex.radiance(mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))).T, env
 
 
@@ -55,7 +55,7 @@ def test_exact_lookup_is_envmap_radiance_on_the_active_variant(source, rotation,
     elif source == "sky":
         assert within.mean() > 0.99
     # the padding stripped is Mitsuba's, and the pixels are the map's
-    em = mi.load_dict(environment_emitter_dict(env))
+    em = mi.load_dict(environment_emitter_dict(env, "envmap"))
     np.testing.assert_array_equal(er.emitter_pixels(em), data)
 
 
@@ -67,13 +67,13 @@ def test_texel_centres_and_inactive_lanes():
     ours, _ = _exact(data, 2.0, 0.0, d)
     # float32 directions: within POSITION_TOL texels of the centre (times the largest jump, 2 x 1)
     np.testing.assert_allclose(ours.reshape(7, 16, 3), 2.0 * data[1:-1], rtol=MITSUBA_REL_TOL, atol=2.0 * POSITION_TOL)
-    ex = er.ExactEnvironment(mi.load_dict(environment_emitter_dict(EnvMap(data))))
+    ex = er.exact_environment(mi.load_dict(environment_emitter_dict(EnvMap(data))))
     out = np.array(ex.radiance(mi.Vector3f(0.0, 1.0, 0.0), mi.Bool(False)))
     assert np.all(out == 0.0)
 
 
 def test_another_padding_is_refused(monkeypatch):
-    em = mi.load_dict(environment_emitter_dict(EnvMap(np.random.default_rng(1).random((5, 8, 3)).astype(np.float32))))
+    em = mi.load_dict(environment_emitter_dict(EnvMap(np.random.default_rng(1).random((5, 8, 3)).astype(np.float32)), "envmap"))
     t = mi.traverse(em)["data"]
     monkeypatch.setattr(er.mi, "traverse", lambda e: {"data": mi.TensorXf(np.array(t)[:, :-1].copy())})
     with pytest.raises(BackendError, match="not padded"):
