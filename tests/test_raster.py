@@ -11,6 +11,7 @@ from pbrcheck.gltf import srgb_to_linear
 from pbrcheck.gltf_export import mesh_object_ids
 from pbrcheck.gltf_scene import UnsupportedSceneError
 from pbrcheck.scene import load_scene, scene_from_dict
+from realtime.gl import is_software_renderer
 from realtime.render import render_realtime
 
 from gltf_build import quad_asset, quad_scene
@@ -223,5 +224,7 @@ def test_msaa_interior_equals_no_msaa_and_alpha_to_coverage(tmp_path):
     away = np.r_[0:14, 19:32]
     assert np.array_equal(ct[away], ca[away]) and np.allclose(test.rgb[away], a2c.rgb[away], rtol=1e-6)
     assert abs(ca.sum() - ct.sum()) <= 16
-    assert np.any((ca > 0) & (ca < 1) & ((ct == 0) | (ct == 1))), (  # a fractional edge where the test was binary
-        np.round(ct[12:21, 14:18], 3), np.round(ca[12:21, 14:18], 3))
+    if is_software_renderer():
+        # a fractional edge where the test was binary. Mesa only: how alpha becomes a sample mask is
+        # implementation-dependent (GL 4.6 core, 14.9.3), and NVIDIA's (H100) left this edge binary.
+        assert np.any((ca > 0) & (ca < 1) & ((ct == 0) | (ct == 1)))
