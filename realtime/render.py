@@ -565,6 +565,9 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     pipeline = resolved_pipeline(scene, o)
     check_pipeline_options(pipeline, o)
     ctx = get_context()
+    if pipeline == "raster":  # this GL's limits, before any bake
+        from .raster import check_msaa
+        check_msaa(int(o.msaa))
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
