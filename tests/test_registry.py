@@ -318,7 +318,12 @@ def test_realtime_role_twins(define, name, role):
 #: whose GLSL harness calls (``run_glsl("NAME(...)"``) compare a function that is no role member's.
 APPROXIMATION_TERM_FILES = {"occlusion.glsl": ("pbrcheck.occlusion", ("test_occlusion.py",)),
                             "specular_aa.glsl": ("pbrcheck.specular_aa", ("test_specular_aa.py",)),
-                            "coverage.glsl": ("pbrcheck.coverage", ("test_specular_aa.py",))}
+                            "coverage.glsl": ("pbrcheck.coverage", ("test_specular_aa.py",)),
+                            "texcoord.glsl": ("pbrcheck.gltf", ("test_gltf_wrap.py",))}
+#: raster.frag's own functions: pipeline plumbing with no closed form to twin (texture lookups through
+#: derivatives and the fragment's varyings, textureQueryLod, the raster pipeline's absent shadow rays).
+#: A closed-form term goes to a term file above, with its twin.
+RASTER_PLUMBING = {"occluded", "lookup", "normal_map_lod", "slot", "main"}
 
 
 @pytest.mark.parametrize("glsl_file", list(APPROXIMATION_TERM_FILES))
@@ -339,6 +344,13 @@ def test_every_approximation_glsl_function_has_a_harness_compared_twin(glsl_file
         assert callable(getattr(module, name, None)), f"{glsl_file}: {name} has no numpy twin in {np_mod}"
         assert name in roles or re.search(rf'run_glsl\(\s*f?"{name}\(', calls), \
             f"{glsl_file}: {name} is compared with its twin by no GLSL harness test ({', '.join(test_files)})"
+
+
+def test_the_raster_pass_defines_plumbing_only():
+    """Every function raster.frag defines is RASTER_PLUMBING's (its terms live in the term files that
+    the harness compiles and test_every_approximation_glsl_function_has_a_harness_compared_twin checks)."""
+    frag = re.sub(r"//[^\n]*", "", (SHADER_DIR / "raster.frag").read_text())
+    assert set(re.findall(r"^\w+\s+(\w+)\s*\([^;{)]*\)\s*\{", frag, re.M)) == RASTER_PLUMBING
 
 
 def test_the_generated_normal_roughness_hook_is_harness_compared():
