@@ -274,8 +274,10 @@ def test_light_units_on_asset_scenes_name_the_lights_and_scale_the_assets_own(tm
     (tmp_path / "a").mkdir()
     bare = load_scene(_lit_quad_scene(tmp_path / "a", [], env='type = "sky"'))
     why = units.applies_to(ref, bare)
-    assert why == "the scene has no punctual light (nor do its glTF assets, KHR_lights_punctual): only the " \
-                  "environment lights it", why
+    assert why == "neither the scene file nor its glTF assets (KHR_lights_punctual) have a punctual light: " \
+                  "only the environment lights it", why
+    assert units.applies_to(ref, load_scene("furnace")) == "the scene has no punctual light: only the " \
+                                                           "environment lights it"
     assert all(dg.hypothesis(f"env_rotate_{d}").applies_to(ref, bare) is None for d in (90, 180, 270))
     (tmp_path / "b").mkdir()
     sun = load_scene(_lit_quad_scene(tmp_path / "b", [{"type": "directional", "intensity": 2.0}]))

@@ -276,11 +276,15 @@ def _needs_intensity_lights(ref: Image, scene: Scene) -> str | None:
     """Where the 4 pi of point- and spot-light units can be tested: why not otherwise."""
     if _intensity_lights(scene):
         return None
-    where = " (nor do its glTF assets, KHR_lights_punctual)" if getattr(scene, "assets", ()) else ""
+    assets = bool(getattr(scene, "assets", ()))
     if scene.lights:
-        return (f"the scene's lights are directional only{where}: an irradiance (W/m^2, lux), with no 4 pi "
-                "between power and intensity")
-    return f"the scene has no punctual light{where}: only the environment lights it"
+        whose = " (the glTF assets' included)" if assets else ""
+        return (f"the scene's lights{whose} are directional only: "
+                "an irradiance (W/m^2, lux), with no 4 pi between power and intensity")
+    if assets:
+        return ("neither the scene file nor its glTF assets (KHR_lights_punctual) have a punctual light: only "
+                "the environment lights it")
+    return "the scene has no punctual light: only the environment lights it"
 
 
 def _needs_varying_environment(ref: Image, scene: Scene) -> str | None:
