@@ -430,20 +430,20 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
         col = ctx.texture((sw, sh), 4, dtype="f4")
         resolved = None
         if msaa > 1:  # multisampled colour and depth, resolved into col after the draws
-            released.append(col)
+            made = [col]
             try:  # a format-specific limit below GL_MAX_SAMPLES: the same typed error, not a GL one
                 col_ms = ctx.renderbuffer((sw, sh), 4, samples=msaa, dtype="f4")
-                released.append(col_ms)
+                made.insert(0, col_ms)
                 depth = ctx.depth_renderbuffer((sw, sh), samples=msaa)
-                released.append(depth)
+                made.insert(0, depth)
                 fbo = ctx.framebuffer(color_attachments=[col_ms], depth_attachment=depth)
-                released.append(fbo)
             except moderngl.Error as e:
+                released += made
                 raise BackendError(f"option msaa: {msaa} samples asked, this GL ({ctx.info['GL_RENDERER']}) "
                                    f"cannot multisample the colour pass's RGBA32F and depth buffers with them, although "
                                    f"GL_MAX_SAMPLES is {ctx.max_samples} ({' '.join(str(e).split())})") from None
             resolved = ctx.framebuffer(color_attachments=[col])
-            released.append(resolved)
+            released += [fbo, resolved, col, col_ms, depth]
         else:
             depth = ctx.depth_renderbuffer((sw, sh))
             fbo = ctx.framebuffer(color_attachments=[col], depth_attachment=depth)

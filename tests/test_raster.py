@@ -208,8 +208,8 @@ def test_msaa_above_this_gl_is_refused_before_any_work(tmp_path, monkeypatch, ca
     from realtime import render as rt
     from realtime.gl import get_context
     most = raster.max_msaa()
-    assert most == get_context().max_samples >= 1
-    if most >= 8:
+    assert most == get_context().max_samples >= 4      # OpenGL 3.0 and later: GL_MAX_SAMPLES >= 4
+    if most >= 8:   # the option's largest value renders here: the limit is lowered to 4
         monkeypatch.setattr(raster, "max_msaa", lambda: 4)
         most = 4
     asked = 2 * most
@@ -226,6 +226,15 @@ def test_msaa_above_this_gl_is_refused_before_any_work(tmp_path, monkeypatch, ca
     err = capsys.readouterr().err
     assert f"option msaa: {asked} samples asked" in err and f"at most {most}" in err and "%" not in err
     assert not out.exists()
+    # a GL that refuses the multisampled buffers below its GL_MAX_SAMPLES: the same typed error, not a GL one
+    import moderngl
+
+    def refuse(*args, **kwargs):
+        raise moderngl.Error("GL_INVALID_OPERATION")
+    monkeypatch.setattr(get_context(), "renderbuffer", refuse)
+    with pytest.raises(BackendError, match=rf"^option msaa: {most} samples asked, .* cannot multisample .*"
+                                           r"GL_INVALID_OPERATION"):
+        _render(sc, msaa=most)
 
 
 def test_msaa_interior_equals_no_msaa_and_alpha_to_coverage(tmp_path):
