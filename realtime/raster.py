@@ -74,7 +74,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
 from pbrcheck.scene import Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
-from .gl import ShaderCompileError, assemble, get_context, map_errors
+from .gl import ShaderCompileError, assemble, get_context, map_errors, timed
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -403,16 +403,57 @@ def check_msaa(msaa: int) -> None:
                                f"offers at most {most} (GL_MAX_SAMPLES)")
 
 
+def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,
+                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool) -> None:
+    """The colour pass's GL commands (:func:`raster_frame`): clear, the background triangle, each
+    primitive in order (opaque, then BLEND back to front) with its culling, blending and
+    alpha-to-coverage state, and the MSAA resolve into ``resolved``."""
+    import moderngl
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+    ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+    empty.render(moderngl.TRIANGLES, vertices=3)
+    ctx.enable(moderngl.DEPTH_TEST)
+    ctx.front_face = "ccw"
+    ctx.cull_face = "back"
+    for it, (vao, _, _) in zip(items, vaos):
+        if it.alpha_mode == "BLEND":
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                              moderngl.ONE_MINUS_SRC_ALPHA)
+            fbo.depth_mask = False
+        if it.cull:
+            ctx.enable(moderngl.CULL_FACE)
+        else:
+            ctx.disable(moderngl.CULL_FACE)
+        _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
+        a2c = alpha_to_coverage and it.alpha_mode == "MASK"
+        if a2c:
+            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+        vao.render(moderngl.TRIANGLES)
+        if a2c:
+            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+    fbo.depth_mask = True
+    ctx.disable(moderngl.BLEND)
+    if resolved is not None:
+        ctx.copy_framebuffer(resolved, fbo)
+
+
 def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
                  anisotropy: float = 1.0, occlusion: bool = True, *, msaa: int = 1,
-                 alpha_to_coverage: bool = False, normal_variance: bool = False
+                 alpha_to_coverage: bool = False, normal_variance: bool = False, timings: dict | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Draw one frame: ``(color (H, W, 4) = radiance, coverage; aov (H, W, 4) = N, NdotV; object (H, W))``.
 
     ``color_prog`` has the shading inputs bound by the caller; the background program its
     environment. The colour pass runs at (ss W, ss H), with ``msaa`` samples per fragment (resolved),
     and is box-filtered to (W, H); ``alpha_to_coverage`` draws MASK primitives with
-    GL_SAMPLE_ALPHA_TO_COVERAGE; ``normal_variance`` binds each normal map's slope-variance companion."""
+    GL_SAMPLE_ALPHA_TO_COVERAGE; ``normal_variance`` binds each normal map's slope-variance companion.
+    ``timings["frame"]``: the colour pass's draws alone (clear, background, primitives, MSAA resolve)
+    by :func:`realtime.gl.timed` -- a GL timer query on a GPU, as the ray-cast frame times its
+    dispatch -- without the target allocation, the read-back and its box filter, or the AOV pass
+    (on an H100 the read-back of a 4096 x 4096 float target alone took ~0.9 s of a timed call)."""
     import moderngl
     ctx = get_context()
     check_msaa(msaa)
@@ -450,43 +491,19 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
             released += [fbo, col, depth]
         fbo.use()
         fbo.viewport = (0, 0, sw, sh)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         for p in (color_prog, aov_prog, bg_prog):
             _set_camera(p, scene, near, far)
         _set(bg_prog, "target_size", (float(sw), float(sh)))
         empty = ctx.vertex_array(bg_prog, [])
         released.append(empty)
-        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
-        empty.render(moderngl.TRIANGLES, vertices=3)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.front_face = "ccw"
-        ctx.cull_face = "back"
         vaos = _vaos(color_prog, opaque + blend)
         for v in vaos:
             released.extend(v)
-        for it, (vao, _, _) in zip(opaque + blend, vaos):
-            if it.alpha_mode == "BLEND":
-                ctx.enable(moderngl.BLEND)
-                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
-                                  moderngl.ONE_MINUS_SRC_ALPHA)
-                fbo.depth_mask = False
-            if it.cull:
-                ctx.enable(moderngl.CULL_FACE)
-            else:
-                ctx.disable(moderngl.CULL_FACE)
-            _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
-            a2c = alpha_to_coverage and it.alpha_mode == "MASK"
-            if a2c:
-                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-            vao.render(moderngl.TRIANGLES)
-            if a2c:
-                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-        fbo.depth_mask = True
-        ctx.disable(moderngl.BLEND)
-        if resolved is not None:
-            ctx.copy_framebuffer(resolved, fbo)
+        ctx.finish()  # uploads and allocations above stay out of the timed draws
+        _, t_draw = timed(ctx, lambda: _draw_colour(ctx, fbo, resolved, empty, color_prog, opaque + blend, vaos,
+                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage))
+        if timings is not None:
+            timings["frame"] = t_draw
         color = np.frombuffer((resolved or fbo).read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]
         color = color.reshape(H, ss, W, ss, 4).mean(axis=(1, 3))
         # AOV pass at the pixel centres

@@ -103,7 +103,8 @@ def stripe_fit(tmp_path_factory):
                         env=None, size=(32, 32))
     # The known answer as an image: specular_aa = prefiltered reads S^2 at every level >= 1.
     target = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "prefiltered"})
-    res = run_fit_normal_roughness(scene, options=SMALL, out=tmp / "fit.json", target=target, scan_step=0.125,
+    res = run_fit_normal_roughness(scene, method="scan", options=SMALL, out=tmp / "fit.json", target=target,
+                                   scan_step=0.125,
                                    refine_steps=())
     return scene, target, res
 

@@ -108,6 +108,9 @@ def test_packed_lookup_is_bit_identical_to_each_slots_own(tmp_path, ws, wt, near
             f"{slot}_texture": textured.texture_dict(p, other if slot == apart else ref) for slot, p in px.items()}})
         packed = [[s for s, _ in slots] for _, _, slots in mat.fused]
         assert packed == [[s for s in textured.FUSED_CHANNELS if s != apart]]
+        # never the GPU's texture units: CUDA's resolve the position between texels with 8 bits
+        assert all(not t.use_accel() for t, _, _ in mat.fused)
+        assert textured.texture_dict(px["normal"], ref)["inner"]["accel"] is False
         got = mat._lookups(si, True)
         for slot, channels in textured.FUSED_CHANNELS.items():
             own = np.array(mat._lookup(slot, si, True))

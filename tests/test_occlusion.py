@@ -107,6 +107,11 @@ def test_gtso_known_answers():
     # ao = 0.75: visibility cone of 60 degrees; the mirror direction at 0 degrees / 80 degrees from n
     assert specular_occlusion_gtso(1.0, 0.75, 0.0) == 1.0 and specular_occlusion_gtso(np.cos(1.4), 0.75, 0.0) == 0.0
     assert np.allclose(cone_cone_intersection(0.5, 0.9, 1.0), 1.0)    # cap 2 inside cap 1
+    # no visibility against a mirror lobe is 0, also where cos_s rounds to 1 in float32 (r = 1e-4:
+    # two caps of zero size, which the GLSL once read as "cap 2 inside cap 1", fully visible)
+    for r in (0.0, 1e-4):
+        assert specular_occlusion_gtso(np.array([1.0, 0.5]), 0.0, r).max() == 0.0
+        assert run_glsl("specular_occlusion_gtso(x0, x1, x2)", np.array([1.0, 0.5]), np.zeros(2), np.full(2, r)).max() == 0.0
     assert np.allclose(cone_cone_intersection(0.9, 0.5, 1.0), 0.1 / 0.5)  # cap 1 (smaller) inside cap 2
 
 
