@@ -577,15 +577,19 @@ class SceneCalls:
             self.one = o.bind(si, self.active, owners[0]) if hasattr(o, "bind") else o
 
     @staticmethod
-    def table(scene, kind: str = "bsdf"):
+    def table(scene, kind: str = "bsdf", keep=None):
         """``(shape registry id -> 1 + index lookup, the scene's distinct objects, each object's
         one shape or None where several shapes share it)`` of ``kind`` (``"bsdf"`` or ``"emitter"``:
         the shape's method of that name). An object bound with its one shape reads that shape's
         attributes directly (a call through ``si.shape`` is a virtual call over every live shape of
-        the process: :class:`SceneCalls`)."""
+        the process: :class:`SceneCalls`). ``keep(object)``: where false, the shape is outside every
+        call (its lanes return zeros, as a shape without the object), e.g. the opaque BSDFs of the
+        alpha layers' ``eval_null_transmission`` (0 for them anyway)."""
         objects, index, owners = [], [], []
         for s in scene.shapes():
             o = getattr(s, kind)()
+            if o is not None and keep is not None and not keep(o):
+                o = None
             k = -1 if o is None else next((i for i, x in enumerate(objects) if x is o), None)
             if k is None:
                 k = len(objects)
