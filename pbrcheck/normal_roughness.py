@@ -10,7 +10,9 @@ reading the normal map at (fractional) level ``lod`` gets
 widening as :func:`pbrcheck.specular_aa.specular_aa_widen`, interpolated between levels as trilinear
 filtering interpolates the normal map itself. Written as GLSL it is a ``hook_specular_aa``
 (:mod:`realtime.hooks`, docs/hooks.md): ``--shader FILE.glsl`` or the option ``shader=FILE.glsl``
-renders with it (raster pipeline; the hook is called on normal-mapped fragments only).
+renders with it (raster pipeline; the hook is called on normal-mapped fragments only). :meth:`NormalRoughnessTable.__call__`
+is its numpy twin, compared with the written GLSL by the GLSL harness (``realtime.glsl_harness.run_glsl(...,
+hook=...)``) in ``tests/test_fit_normal_roughness.py``.
 
 Closed forms per level (means over the level's texels of a normal map, :func:`level_closed_forms`):
 ``toksvig``: ``2 (1 - L) / L`` of the box-filtered normal's length L (Toksvig 2005, "Mipmapping Normal

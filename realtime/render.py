@@ -560,11 +560,18 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     a pass whose artifact came from this process's cache reports its original bake time and is listed
     in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
     ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
+
+    Before any bake: :class:`~realtime.presets.OptionError` for options the resolved pipeline does not
+    take, :class:`pbrcheck.errors.BackendError` (exit 3) for ``msaa`` above this GL's
+    ``GL_MAX_SAMPLES`` (:func:`realtime.raster.check_msaa`).
     """
     o = resolve_options(preset, options)
     pipeline = resolved_pipeline(scene, o)
     check_pipeline_options(pipeline, o)
     ctx = get_context()
+    if pipeline == "raster":  # this GL's limits, before any bake
+        from .raster import check_msaa
+        check_msaa(int(o.msaa))
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}

@@ -17,7 +17,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   compile run; goal >= 0.9. Split into ``bsdf_trace_seconds`` (building the Dr.Jit graph: Python for
   ``pbr_material``, C++ for ``roughconductor``, once per call) and ``bsdf_kernel_seconds`` (compile
   cache lookup, launch, run): ``bsdf_kernel_ratio`` is the ratio without tracing, which is what a
-  render pays (the integrator traces the BSDF once per pass, not once per sample).
+  render pays (the integrator traces the BSDF once per pass, not once per sample);
+  ``bsdf_speed_ratio_pass_width``: the same ratio at a render pass's width
+  (:func:`reference.integrator.max_lanes`: 2^26 lanes on CUDA, 2^23 on LLVM), tracing included.
 * ``material_gather``: the local estimator with every ``pbr_material`` gathered per lane
   (:class:`reference.bsdf.MaterialView`, the default) against Mitsuba's per-material dispatch, which
   traces the lobes once per material (30 on ``spheres``): warm seconds of a small render
@@ -420,6 +422,12 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     repeats = 3 if quick else BSDF_REPEATS
     s_cpp, tr_cpp, k_cpp = _time_bsdf(cpp, lanes, repeats)
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
+    # ... and at a render's pass width (reference.integrator.max_lanes: 2^26 lanes on CUDA, 2^23 on
+    # LLVM), where the integrator traces the BSDF once per pass: the ratio a render pays
+    from .integrator import max_lanes
+    pass_lanes = (1 << 17) if quick else max_lanes()
+    sp_cpp, _, _ = _time_bsdf(cpp, pass_lanes, repeats)
+    sp_py, _, _ = _time_bsdf(py, pass_lanes, repeats)
 
     gather = _time_gather(scene, 2 if quick else 5)
     from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
@@ -442,6 +450,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "integrator_efficiency_cpu_seconds": (v_path * c_path) / (v_local * c_local),
         "bsdf_speed_ratio": s_cpp / s_py,
         "bsdf_kernel_ratio": k_cpp / k_py,
+        "bsdf_speed_ratio_pass_width": sp_cpp / sp_py,
         "seconds_to_10x_noise_floor": seconds_floor,
         "spp_to_10x_noise_floor": spp_floor,
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
@@ -476,6 +485,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "render_timed": "median wall (and CPU) seconds of alternating local / path / Mitsuba path renders "
                         "after a compile run each",
         "bsdf_lanes": lanes,
+        "bsdf_pass_lanes": pass_lanes,
         "bsdf_repeats": repeats,
         "bsdf_timed": "sample + eval_pdf per lane, median of repeats after a compile run",
         "roughconductor_seconds_per_sample": s_cpp,

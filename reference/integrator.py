@@ -60,7 +60,7 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
 :func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :func:`culling_table`,
-:func:`past_back_faces`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
+:func:`past_back_faces`, :func:`can_pass`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
 :data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`,
 :func:`resampled_estimate`, :data:`DEFAULT_ENV_CANDIDATES`, :data:`MAX_ENV_CANDIDATES`,
 :data:`GEOMETRIC_ROUGHNESS`, :func:`threejs_geometric_roughness` (``[brdf] geometric_roughness``: the
@@ -360,6 +360,16 @@ def culling_table(scene):
     return lut
 
 
+def can_pass(bsdf) -> bool:
+    """Whether a ray can pass a surface of ``bsdf`` in the local estimator: a glTF material with
+    alphaMode MASK or BLEND (:func:`reference.textured.has_alpha`) or single-sided (its back faces
+    culled, :func:`reference.textured.culls_back_faces`). Others (OPAQUE double-sided, analytic
+    materials) have ``eval_null_transmission`` 0 everywhere."""
+    from .textured import culls_back_faces, has_alpha
+
+    return has_alpha(bsdf) or culls_back_faces(bsdf)
+
+
 def past_back_faces(scene, ray, si, hit, lut):
     """(si, hit) of the first surface along ``ray`` that is not a culled back face (glTF
     ``doubleSided`` false, :func:`culling_table` ``lut``; None: ``si`` as it is): a symbolic loop
@@ -449,13 +459,20 @@ class ReferenceIntegrator(RBIntegrator):
 
     def _dispatch(self, scene, kind: str = "bsdf"):
         """:meth:`reference.bsdf.SceneCalls.table` of ``scene`` for ``kind``, kept while its shapes
-        are the same (keyed by them, as ``_table``)."""
+        are the same (keyed by them, as ``_table``): ``"bsdf"``, ``"emitter"``, ``"cull"``
+        (:func:`culling_table`) or ``"null"`` (the BSDFs a ray can pass, :func:`can_pass`; the opaque
+        ones outside every call)."""
         shapes = scene.shapes()
         if (self._switch is None or len(self._switch[0]) != len(shapes)
                 or any(a is not b for a, b in zip(self._switch[0], shapes))):
             self._switch = (tuple(shapes), {})
         if kind not in self._switch[1]:
-            self._switch[1][kind] = culling_table(scene) if kind == "cull" else SceneCalls.table(scene, kind)
+            if kind == "cull":
+                self._switch[1][kind] = culling_table(scene)
+            elif kind == "null":
+                self._switch[1][kind] = SceneCalls.table(scene, "bsdf", keep=can_pass)
+            else:
+                self._switch[1][kind] = SceneCalls.table(scene, kind)
         return self._switch[1][kind]
 
     #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
@@ -475,19 +492,41 @@ class ReferenceIntegrator(RBIntegrator):
 
     def _first_opaque_hit(self, scene, sampler, ray, si, hit):
         """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
-        layer; unrolled, no early exit, so the estimator stays one kernel), up to :data:`MAX_NULL_LAYERS`;
-        a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
-        going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
-        for _ in range(self.MAX_NULL_LAYERS):
-            t = mi.Float(SceneCalls(self._dispatch(scene), si, going).eval_null_transmission(si, going).x)
+        layer), up to :data:`MAX_NULL_LAYERS`; a ray still passing through after that stops at its last
+        hit; returns the interaction where it stopped.
+
+        A symbolic loop (one kernel still): a lane iterates only while it passes through surfaces, so
+        a lane that stops at its first hit (an OPAQUE primitive, or a MASK texel that is there) or
+        misses pays one layer, not :data:`MAX_NULL_LAYERS`. The transmission is called on the BSDFs
+        a ray can pass only (:func:`can_pass`: glTF MASK / BLEND, single-sided; the others' is 0,
+        given without a call). The random numbers are those of the unrolled layers it replaces
+        (``next_1d(going)`` once per layer, :data:`MAX_NULL_LAYERS` times per lane): a lane's
+        remaining layers draw with an empty mask after the loop (a sample dimension each, no random
+        state consumed), so every later dimension and every image is the same, bit for bit (checked
+        under the independent and the multijitter samplers)."""
+        null = self._dispatch(scene, "null")
+        layers = self.MAX_NULL_LAYERS
+
+        def body(sampler, ray, si, hit, going, i):
+            t = mi.Float(SceneCalls(null, si, going).eval_null_transmission(si, going).x)
             u = sampler.next_1d(going)
             through = going & (u < t)
-            going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
             si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
-            going &= hit
+            return sampler, ray, si, hit, through & hit, i + 1
+
+        # going: lanes still deciding (a lane that stopped at a surface keeps it); i: layers drawn
+        sampler, _, si, hit, _, i = dr.while_loop(
+            (sampler, mi.Ray3f(ray), si, mi.Bool(hit), mi.Bool(hit), mi.UInt32(0)),
+            lambda sampler, ray, si, hit, going, i: going & (i < layers), body)
+
+        def pad(sampler, i):
+            sampler.next_1d(mi.Bool(False))
+            return sampler, i + 1
+
+        dr.while_loop((sampler, i), lambda sampler, i: i < layers, pad)
         return si, hit
 
     @staticmethod

@@ -254,7 +254,7 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
     capsys.readouterr()
     assert main(["bench", "reference", "--quick"]) == 0
     res = json.loads(capsys.readouterr().out)
-    for k in ("integrator_efficiency", "bsdf_speed_ratio", "local_seconds", "path_seconds", "spp",
+    for k in ("integrator_efficiency", "bsdf_speed_ratio", "bsdf_speed_ratio_pass_width", "local_seconds", "path_seconds", "spp",
               "resolution", "variant"):
         assert k in res, k
     assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0

@@ -124,8 +124,11 @@ def _hook(tmp: Path, name: str, body: str) -> str:
 
 
 def _constant_hook(tmp: Path, v: float) -> str:
-    return _hook(tmp, f"const_{v:.9g}", f"float a = roughness * roughness; return {v:.9g} > 0.0 ? "
-                 f"sqrt(sqrt(clamp(a * a + {v:.9g}, 0.0, 1.0))) : roughness;")
+    """The one-level table of increment ``v`` (every level the same): the written hook's own GLSL,
+    harness-compared with its numpy twin (tests/test_fit_normal_roughness.py)."""
+    p = tmp / f"const_{v:.9g}.glsl"
+    p.write_text(NormalRoughnessTable((float(v),)).glsl(FITTED_SOURCE + ", scan"))
+    return str(p)
 
 
 def _rel_map(ref: Image, img: Image) -> np.ndarray:
