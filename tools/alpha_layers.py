@@ -70,7 +70,7 @@ def mixed_scene(d: Path, size: int) -> Path:
 
 
 def unrolled(self, scene, sampler, ray, si, hit):
-    """The layers before the symbolic loop (tests/test_gltf.py's reference for bit identity)."""
+    """The layers before the symbolic loop: the bit-identity reference of tests/test_gltf.py too."""
     import drjit as dr
     import mitsuba as mi
 
