@@ -29,7 +29,9 @@ builds them from the shared :class:`~pbrcheck.environment.EnvMap`; output end: i
   to ``EnvMap.radiance`` (float64) within float32 rounding of the position
   (``tests/test_env_radiance.py``, on the active variant, so on CUDA too).
 
-API: :class:`ExactEnvironment` (``radiance(d, active)``), :func:`emitter_pixels`. References: ``pbrcheck/environment.py`` (the convention, Mitsuba 3's
+API: :class:`ExactEnvironment` (``radiance(d, active)``), :func:`emitter_pixels`, :class:`ExactEnvmap`
+(plugin :data:`ENVMAP_PLUGIN`), :func:`bind_environment`, :func:`exact_environment`, :func:`register`,
+:data:`RAY_EPSILON`. References: ``pbrcheck/environment.py`` (the convention, Mitsuba 3's
 ``envmap.cpp``); Dr.Jit ``Texture`` (``use_accel``: hardware interpolation on CUDA).
 """
 
@@ -177,4 +179,4 @@ def register() -> None:
     _REGISTERED.add(v)
 
 
-__all__ = ["ENVMAP_PLUGIN", "ExactEnvmap", "bind_environment", "exact_environment", "register", "ExactEnvironment", "emitter_pixels"]
+__all__ = ["ENVMAP_PLUGIN", "RAY_EPSILON", "ExactEnvmap", "bind_environment", "exact_environment", "register", "ExactEnvironment", "emitter_pixels"]
