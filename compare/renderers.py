@@ -24,6 +24,9 @@ API
   (:func:`realtime.presets.resolve_options`: a ``RealtimeOptions``, read as a mapping too); ``{}``
   for an external renderer (which takes none),
   after checking that it exists.
+- :func:`check_backend_limits` -- raise :class:`pbrcheck.errors.BackendError` where this machine's GL
+  cannot render a preset's options (``msaa`` above ``GL_MAX_SAMPLES``: :func:`realtime.raster.check_msaa`),
+  for preflights that render other things first (report, sweep).
 - :func:`multiscatter_albedo` -- the reference random walk's directional albedo
   (:func:`reference.multiscatter_measure.directional_albedo`).
 - :func:`backends` -- the GL renderer and the reference's variant this process renders with.
@@ -223,6 +226,18 @@ def resolve_options(name: str, overrides: dict | None = None) -> Mapping:
         _clients_config.get_renderer(name)
         return {}
     return _presets.resolve_options(name, overrides)
+
+
+def check_backend_limits(name: str, overrides: dict | None = None) -> None:
+    """Raise :class:`pbrcheck.errors.BackendError` (exit 3) where this GL cannot render preset ``name``
+    with ``overrides`` (:func:`realtime.raster.check_msaa`); nothing for an external renderer. Opens
+    the GL context only where the options multisample."""
+    if is_external(name):
+        return
+    msaa = int(resolve_options(name, overrides).get("msaa", 1))
+    if msaa > 1:
+        from realtime import raster as _raster
+        _raster.check_msaa(msaa)
 
 
 def multiscatter_albedo(mu, roughness, F0, **kwargs):

@@ -12,6 +12,8 @@ API
   is an error; an optional one is listed in :attr:`Asset.extensions_ignored`).
 - :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
 - :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
+- :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
+  ``realtime/shaders/texcoord.glsl``'s, compared by the GLSL harness in ``tests/test_gltf_wrap.py``).
 - :func:`content_hash` -- sha256 of the asset file and every external resource it names.
 
 Conventions (glTF 2.0 specification, sections 3.5 accessors, 3.7 geometry, 3.9 materials, 3.8
@@ -248,6 +250,14 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
     x = np.asarray(x, dtype=np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def wrap_mirror(x):
+    """glTF's ``MIRRORED_REPEAT`` (specification 3.8.4.3; OpenGL 4.6 core, 8.14.2, ``mirror(a) = a``
+    for ``a >= 0``): ``1 - |mod(x, 2) - 1|``, ``mod(x, 2) = x - 2 floor(x / 2)``: ``x`` on [0, 1], then
+    back down to 0 over [1, 2], with period 2."""
+    x = np.asarray(x, np.float64)
+    return 1.0 - np.abs(np.mod(x, 2.0) - 1.0)
 
 
 def texture_transform_matrix(offset=(0.0, 0.0), rotation: float = 0.0, scale=(1.0, 1.0)) -> np.ndarray:

@@ -10,7 +10,9 @@ reading the normal map at (fractional) level ``lod`` gets
 widening as :func:`pbrcheck.specular_aa.specular_aa_widen`, interpolated between levels as trilinear
 filtering interpolates the normal map itself. Written as GLSL it is a ``hook_specular_aa``
 (:mod:`realtime.hooks`, docs/hooks.md): ``--shader FILE.glsl`` or the option ``shader=FILE.glsl``
-renders with it (raster pipeline; the hook is called on normal-mapped fragments only).
+renders with it (raster pipeline; the hook is called on normal-mapped fragments only). :meth:`NormalRoughnessTable.__call__`
+is its numpy twin, compared with the written GLSL by the GLSL harness (``realtime.glsl_harness.run_glsl(...,
+hook=...)``) in ``tests/test_fit_normal_roughness.py``.
 
 Closed forms per level (means over the level's texels of a normal map, :func:`level_closed_forms`):
 ``toksvig``: ``2 (1 - L) / L`` of the box-filtered normal's length L (Toksvig 2005, "Mipmapping Normal
@@ -21,7 +23,7 @@ Maps", JGT 10(3), with ``s = 2 / alpha^2``: :func:`pbrcheck.specular_aa.specular
 API
 ---
 :class:`NormalRoughnessTable` (``__call__``, ``to_json``, ``from_json``, ``load``, ``glsl``);
-:func:`level_closed_forms`; :class:`NormalRoughnessError`.
+:func:`level_closed_forms`; :func:`box_mips`; :class:`NormalRoughnessError`.
 """
 
 from __future__ import annotations
@@ -104,13 +106,26 @@ def level_closed_forms(texels: np.ndarray, levels: int | None = None) -> dict[st
     t = np.asarray(texels, np.float64)[..., :3]
     h, w = t.shape[:2]
     levels = max(h, w).bit_length() if levels is None else int(levels)
-    n = 2.0 * t - 1.0
     tok = []
-    for k in range(levels):
-        # level k's texel: the mean of a bh x bw block of level 0 (GL's box chain, odd edges dropped)
-        bh, bw = 1 << min(k, h.bit_length() - 1), 1 << min(k, w.bit_length() - 1)
-        m = n[:h - h % bh, :w - w % bw].reshape(h // bh, bh, w // bw, bw, 3).mean(axis=(1, 3))
-        L = np.clip(np.linalg.norm(m, axis=-1), 1e-4, 1.0)
+    for mip in box_mips(t, levels):
+        L = np.clip(np.linalg.norm(2.0 * mip - 1.0, axis=-1), 1e-4, 1.0)
         tok.append(float(np.mean(2.0 * (1.0 - L) / L)))
     lean = [float(np.mean(m)) for m in slope_variance_mips(t, levels)]
     return {"toksvig": tok, "lean": lean}
+
+
+def box_mips(texels: np.ndarray, levels: int | None = None) -> list[np.ndarray]:
+    """The box mip chain of ``texels`` (H, W, C), unnormalised: level ``k``'s texel is the mean of a
+    ``2^k x 2^k`` block of level 0 (each axis's block at most its size; an odd row or column dropped at
+    each halving), as ``glGenerateMipmap``'s box filter makes it of the uploaded texels (decoding
+    ``2 t - 1`` is linear: the mean of the decoded normals). Level 0 is ``texels`` itself;
+    ``levels`` default: the full chain (``max(H, W).bit_length()``)."""
+    t = np.asarray(texels)
+    h, w = t.shape[:2]
+    levels = max(h, w).bit_length() if levels is None else int(levels)
+    out = []
+    for k in range(levels):
+        bh, bw = 1 << min(k, h.bit_length() - 1), 1 << min(k, w.bit_length() - 1)
+        m = t[:h - h % bh, :w - w % bw].reshape(h // bh, bh, w // bw, bw, t.shape[2]).mean(axis=(1, 3))
+        out.append(m.astype(t.dtype, copy=False))
+    return out

@@ -65,7 +65,8 @@ def cone_cone_intersection(cos_cap1, cos_cap2, cos_distance):
     c1, c2, cd = (np.asarray(x, np.float64) for x in (cos_cap1, cos_cap2, cos_distance))
     r1, r2, d = np.arccos(np.clip(c1, -1, 1)), np.arccos(np.clip(c2, -1, 1)), np.arccos(np.clip(cd, -1, 1))
     # the area of the smaller cap over cap 2's: 1 when cap 2 is the smaller one
-    ratio = np.where(c2 >= c1, 1.0, (1.0 - c1) / np.maximum(1.0 - c2, 1e-30))
+    # (min, not a branch on c2 >= c1: two caps of zero size, c1 = c2 = 1, overlap by 0)
+    ratio = np.minimum(1.0, (1.0 - c1) / np.maximum(1.0 - c2, 1e-30))
     delta = np.abs(r1 - r2)
     x = 1.0 - np.clip((d - delta) / np.maximum(r1 + r2 - delta, 1e-4), 0.0, 1.0)
     smooth = x * x * (3.0 - 2.0 * x)
@@ -80,7 +81,7 @@ def specular_occlusion_gtso(NoV, ao, roughness):
     cos_s = np.exp2(-GTSO_APERTURE * alpha * alpha)
     occluded = cone_cone_intersection(np.sqrt(np.maximum(1.0 - ao, 0.0)), cos_s, NoV)
     free = cone_cone_intersection(0.0, cos_s, NoV)
-    return np.clip(occluded / np.maximum(free, 1e-6), 0.0, 1.0)
+    return np.where(occluded >= free, 1.0, np.clip(occluded / np.maximum(free, 1e-6), 0.0, 1.0))
 
 
 def specular_occlusion(NoV, ao, roughness, method: str):

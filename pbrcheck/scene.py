@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError, decode_reason
-from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing
+from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing, scene_light
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIC_ROUGHNESSES as _GEOMETRIC_ROUGHNESSES
@@ -216,7 +216,17 @@ class Scene:
             o.pop("name", None)
             if o["type"] == "gltf":
                 o.pop("path")  # the content hash stands for the file and its resources
+        # the assets' lights are their content hashes', unless edited (diagnose's light units): then
+        # the lights themselves, so that an edited scene is not another scene's cache entry
+        brought = self.lights[len(self.own_lights()):]
+        if all(a.asset is not None for a in self.assets) and brought != self.assets_lights():
+            d["asset_lights"] = [asdict(li) for li in brought]
         return d
+
+    def assets_lights(self) -> tuple:
+        """The lights the glTF assets bring as loaded (``KHR_lights_punctual``, placed by each
+        instance), in the assets' order: what :attr:`lights` ends with unless a caller edited them."""
+        return tuple(scene_light(L, a.matrix()) for a in self.assets for L in a.asset.lights)
 
     def with_camera(self, **changes) -> "Scene":
         return replace(self, camera=replace(self.camera, **changes))

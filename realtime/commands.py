@@ -14,7 +14,7 @@ from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import load_scene
 
 from . import render as R
-from .gl import renderer_name
+from .gl import renderer_name, timing_clock
 from .hooks import load_hook_file
 from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
@@ -72,7 +72,9 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
     if is_asset_path(scene_name):
         set_asset_options(env=env, size=(size, size))
     scene = load_scene(scene_name).with_camera(width=size, height=size)
-    out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "presets": {}}
+    out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "clock": timing_clock(),
+           "clock_note": "frame_s: GL timer query (GPU time of the frame's commands) on a GPU, the wall clock "
+                         "to glFinish on llvmpipe; raster frames time the colour pass's draws", "presets": {}}
     for p in presets or PRESETS:
         R.render_realtime(scene, p, progress=False)            # warm-up: compile, JIT, load env
         for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in ("env_cube", "irr", "sh9", "pre", "lut", "kd")]:
@@ -84,8 +86,10 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
         total = time.perf_counter() - t0
         t = json.loads(img.meta["timings"])
         t.pop("compile_frame", None)
+        frame_total = t.pop("frame_total", None)  # raster: the draws' call with its read-back and AOV pass
         out["presets"][p] = {"passes_s": {k: round(v, 4) for k, v in t.items() if k != "frame"},
                              "frame_s": round(t["frame"], 4), "total_s": round(total, 4),
+                             **({"frame_with_readback_s": round(frame_total, 4)} if frame_total is not None else {}),
                              "supersample": json.loads(img.meta["options"])["supersample"],
                              "pipeline": img.meta.get("pipeline", "raycast")}
     return out

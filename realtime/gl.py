@@ -224,14 +224,16 @@ def compute_program(entry: str, defines: dict | None = None, user: tuple[str, st
     return prog
 
 
-def compile_source(text_entry: str, extra: str, defines: dict | None = None, name: str = "<harness>"):
-    """Compile an entry file with an extra generated block (the harness's expression)."""
-    key = ("__extra__", text_entry, extra, tuple(sorted((defines or {}).items())))
+def compile_source(text_entry: str, extra: str, defines: dict | None = None, name: str = "<harness>",
+                   user: tuple[str, str] | None = None):
+    """Compile an entry file with an extra generated block (the harness's expression) and, as
+    :func:`assemble`, a hook file ``user`` = ``(file name, text)`` appended."""
+    key = ("__extra__", text_entry, extra, tuple(sorted((defines or {}).items())), user)
     prog = _programs.get(key)
     if prog is not None:
         return prog
     d = dict(defines or {})
-    src = assemble(text_entry, d)
+    src = assemble(text_entry, d, user)
     marker = "//@HARNESS@"
     lines = src.text.split("\n")
     lmap = list(src.line_map)
@@ -245,7 +247,8 @@ def compile_source(text_entry: str, extra: str, defines: dict | None = None, nam
     try:
         prog = get_context().compute_shader(s.text)
     except Exception as e:
-        raise ShaderCompileError(f"{name}: GLSL compile failed: {map_errors(str(e), s)}") from None
+        raise ShaderCompileError(_user_first(f"{name}: GLSL compile failed: {map_errors(str(e), s)}", user),
+                                 user=user is not None) from None
     _programs[key] = prog
     return prog
 

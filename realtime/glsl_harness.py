@@ -3,8 +3,12 @@
 ``run_glsl("D_GGX(x0, x1)", NoH, alpha)`` broadcasts the (up to 8) input arrays, hands element k to
 the shader as floats ``x0`` .. ``x7`` (and its index as ``uint idx``), evaluates the expression
 (float, vec2, vec3 or vec4) and returns float32 ``(..., 4)`` (or ``(...)`` / ``(..., n)`` with
-``components``). Every file of ``realtime/shaders`` that defines terms (brdf, sampling, ibl, env) is
-included, so the tests compare each GLSL term with its numpy twin of the same name.
+``components``). Every file of ``realtime/shaders`` that defines terms (brdf, sampling, ibl, env,
+energy, lights, occlusion, specular_aa, coverage, texcoord) is included, so the tests compare each GLSL term
+with its numpy twin of the same name. ``hook`` (a :class:`realtime.hooks.HookFile`, e.g. the table
+``pbrcheck fit-normal-roughness`` writes) is appended as the frame pass appends it (its
+``HOOK_<NAME>`` defines set, ``hooks.glsl``'s prototypes declared), so a generated hook is compared
+with its numpy twin too.
 """
 
 from __future__ import annotations
@@ -16,10 +20,11 @@ from .gl import compile_source, get_context, groups
 
 
 def run_glsl(expr: str, *inputs, components: int = 1, defines: dict | None = None, uniforms: dict | None = None,
-             textures: dict | None = None) -> np.ndarray:
+             textures: dict | None = None, hook=None) -> np.ndarray:
     """Evaluate GLSL expression ``expr`` of the shader library on up to 8 broadcast numpy inputs
     (``x0`` .. ``x7``); returns float32 ``(...)`` or ``(..., components)``. ``defines`` select
-    variants (registry constants), ``uniforms`` and ``textures`` are bound by name."""
+    variants (registry constants), ``uniforms`` and ``textures`` are bound by name; ``hook`` (a
+    :class:`realtime.hooks.HookFile`) is appended with its defines, so ``expr`` may call its hooks."""
     if len(inputs) > 8:
         raise ValueError("at most 8 inputs")
     arrs = np.broadcast_arrays(*[np.asarray(x, dtype=np.float32) for x in inputs]) if inputs else [np.zeros(1, np.float32)]
@@ -30,7 +35,10 @@ def run_glsl(expr: str, *inputs, components: int = 1, defines: dict | None = Non
         packed[:, k] = a.reshape(-1)
     names = "\n".join(f"    float x{k} = {'ab'[k // 4]}.{'xyzw'[k % 4]};" for k in range(8))
     extra = f"{names}\n    out_v[i] = _pad({expr});"
-    prog = compile_source("harness.comp", extra, defines, name=f"<harness: {expr}>")
+    if hook is not None:
+        defines = {**(defines or {}), **hook.defines}
+    prog = compile_source("harness.comp", extra, defines, name=f"<harness: {expr}>",
+                          user=(hook.path, hook.text) if hook is not None else None)
     ctx = get_context()
     a = ctx.buffer(np.ascontiguousarray(packed[:, :4]).tobytes())
     b = ctx.buffer(np.ascontiguousarray(packed[:, 4:]).tobytes())

@@ -42,7 +42,9 @@ Conventions (the same at both ends as :mod:`realtime.render`)
   average of the samples) before the s x s box filter: on top of supersampling, so ``supersample = 1,
   msaa = 4`` is MSAA alone and ``supersample = 2, msaa = 4`` 16 coverage samples per pixel, 4 shaded.
   ``msaa`` above the context's ``GL_MAX_SAMPLES`` raises :class:`pbrcheck.errors.BackendError`
-  (llvmpipe: 4). The AOV pass stays single-sampled at the pixel centres.
+  (llvmpipe: 4; exit 3, a limit of the GL backend) before any work (:func:`check_msaa`, called by
+  :func:`realtime.render.render_realtime` before its bakes). The AOV pass stays single-sampled at the
+  pixel centres.
 * Alpha-to-coverage (``alpha_to_coverage``, needs ``msaa > 1``): MASK primitives are drawn with
   ``GL_SAMPLE_ALPHA_TO_COVERAGE`` and ``GL_SAMPLE_ALPHA_TO_ONE``, writing the sharpened alpha
   (``shaders/coverage.glsl``) instead of discarding below ``alphaCutoff``.
@@ -51,7 +53,8 @@ API
 ---
 :func:`draw_items` (the scene's primitives as vertex arrays and materials), :func:`raster_frame`
 (one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
-:data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`.
+:data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`, :func:`max_msaa`,
+:func:`check_msaa`.
 
 References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
 specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
@@ -71,7 +74,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
 from pbrcheck.scene import Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
-from .gl import ShaderCompileError, assemble, get_context, map_errors
+from .gl import ShaderCompileError, assemble, get_context, map_errors, timed
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -382,21 +385,78 @@ def _vaos(prog, items: list[DrawItem]):
     return out
 
 
+def max_msaa() -> int:
+    """The most samples per pixel this GL context's multisampled colour pass can have: ``GL_MAX_SAMPLES``
+    (llvmpipe: 4; a GPU: 8 or more)."""
+    return int(get_context().max_samples)
+
+
+def check_msaa(msaa: int) -> None:
+    """Raise :class:`pbrcheck.errors.BackendError` (exit 3: a limit of this GL, not bad input: the same
+    value renders where the GL offers more samples) naming the option, the value asked and the most
+    this GL offers, when ``msaa > 1`` exceeds :func:`max_msaa`. :func:`realtime.render.render_realtime`
+    calls it before any bake, :func:`raster_frame` again before drawing."""
+    if msaa > 1:
+        most = max_msaa()
+        if msaa > most:
+            raise BackendError(f"option msaa: {msaa} samples asked, this GL ({get_context().info['GL_RENDERER']}) "
+                               f"offers at most {most} (GL_MAX_SAMPLES)")
+
+
+def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,
+                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool) -> None:
+    """The colour pass's GL commands (:func:`raster_frame`): clear, the background triangle, each
+    primitive in order (opaque, then BLEND back to front) with its culling, blending and
+    alpha-to-coverage state, and the MSAA resolve into ``resolved``."""
+    import moderngl
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+    ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+    empty.render(moderngl.TRIANGLES, vertices=3)
+    ctx.enable(moderngl.DEPTH_TEST)
+    ctx.front_face = "ccw"
+    ctx.cull_face = "back"
+    for it, (vao, _, _) in zip(items, vaos):
+        if it.alpha_mode == "BLEND":
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                              moderngl.ONE_MINUS_SRC_ALPHA)
+            fbo.depth_mask = False
+        if it.cull:
+            ctx.enable(moderngl.CULL_FACE)
+        else:
+            ctx.disable(moderngl.CULL_FACE)
+        _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
+        a2c = alpha_to_coverage and it.alpha_mode == "MASK"
+        if a2c:
+            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+        vao.render(moderngl.TRIANGLES)
+        if a2c:
+            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+    fbo.depth_mask = True
+    ctx.disable(moderngl.BLEND)
+    if resolved is not None:
+        ctx.copy_framebuffer(resolved, fbo)
+
+
 def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
                  anisotropy: float = 1.0, occlusion: bool = True, *, msaa: int = 1,
-                 alpha_to_coverage: bool = False, normal_variance: bool = False
+                 alpha_to_coverage: bool = False, normal_variance: bool = False, timings: dict | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Draw one frame: ``(color (H, W, 4) = radiance, coverage; aov (H, W, 4) = N, NdotV; object (H, W))``.
 
     ``color_prog`` has the shading inputs bound by the caller; the background program its
     environment. The colour pass runs at (ss W, ss H), with ``msaa`` samples per fragment (resolved),
     and is box-filtered to (W, H); ``alpha_to_coverage`` draws MASK primitives with
-    GL_SAMPLE_ALPHA_TO_COVERAGE; ``normal_variance`` binds each normal map's slope-variance companion."""
+    GL_SAMPLE_ALPHA_TO_COVERAGE; ``normal_variance`` binds each normal map's slope-variance companion.
+    ``timings["frame"]``: the colour pass's draws alone (clear, background, primitives, MSAA resolve)
+    by :func:`realtime.gl.timed` -- a GL timer query on a GPU, as the ray-cast frame times its
+    dispatch -- without the target allocation, the read-back and its box filter, or the AOV pass
+    (on an H100 the read-back of a 4096 x 4096 float target alone took ~0.9 s of a timed call)."""
     import moderngl
     ctx = get_context()
-    if msaa > 1 and msaa > ctx.max_samples:
-        raise BackendError(f"option msaa: {msaa} samples asked, this GL ({ctx.info['GL_RENDERER']}) has at most "
-                           f"{ctx.max_samples} (GL_MAX_SAMPLES)")
+    check_msaa(msaa)
     W, H = scene.camera.width, scene.camera.height
     r, u, f = camera_frame(scene.camera)
     origin = np.asarray(scene.camera.origin, float)
@@ -411,9 +471,18 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
         col = ctx.texture((sw, sh), 4, dtype="f4")
         resolved = None
         if msaa > 1:  # multisampled colour and depth, resolved into col after the draws
-            col_ms = ctx.renderbuffer((sw, sh), 4, samples=msaa, dtype="f4")
-            depth = ctx.depth_renderbuffer((sw, sh), samples=msaa)
-            fbo = ctx.framebuffer(color_attachments=[col_ms], depth_attachment=depth)
+            made = [col]
+            try:  # a format-specific limit below GL_MAX_SAMPLES: the same typed error, not a GL one
+                col_ms = ctx.renderbuffer((sw, sh), 4, samples=msaa, dtype="f4")
+                made.insert(0, col_ms)
+                depth = ctx.depth_renderbuffer((sw, sh), samples=msaa)
+                made.insert(0, depth)
+                fbo = ctx.framebuffer(color_attachments=[col_ms], depth_attachment=depth)
+            except moderngl.Error as e:
+                released += made
+                raise BackendError(f"option msaa: {msaa} samples asked, this GL ({ctx.info['GL_RENDERER']}) "
+                                   f"cannot multisample the colour pass's RGBA32F and depth buffers with them, although "
+                                   f"GL_MAX_SAMPLES is {ctx.max_samples} ({' '.join(str(e).split())})") from None
             resolved = ctx.framebuffer(color_attachments=[col])
             released += [fbo, resolved, col, col_ms, depth]
         else:
@@ -422,43 +491,19 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
             released += [fbo, col, depth]
         fbo.use()
         fbo.viewport = (0, 0, sw, sh)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         for p in (color_prog, aov_prog, bg_prog):
             _set_camera(p, scene, near, far)
         _set(bg_prog, "target_size", (float(sw), float(sh)))
         empty = ctx.vertex_array(bg_prog, [])
         released.append(empty)
-        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
-        empty.render(moderngl.TRIANGLES, vertices=3)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.front_face = "ccw"
-        ctx.cull_face = "back"
         vaos = _vaos(color_prog, opaque + blend)
         for v in vaos:
             released.extend(v)
-        for it, (vao, _, _) in zip(opaque + blend, vaos):
-            if it.alpha_mode == "BLEND":
-                ctx.enable(moderngl.BLEND)
-                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
-                                  moderngl.ONE_MINUS_SRC_ALPHA)
-                fbo.depth_mask = False
-            if it.cull:
-                ctx.enable(moderngl.CULL_FACE)
-            else:
-                ctx.disable(moderngl.CULL_FACE)
-            _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
-            a2c = alpha_to_coverage and it.alpha_mode == "MASK"
-            if a2c:
-                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-            vao.render(moderngl.TRIANGLES)
-            if a2c:
-                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-        fbo.depth_mask = True
-        ctx.disable(moderngl.BLEND)
-        if resolved is not None:
-            ctx.copy_framebuffer(resolved, fbo)
+        ctx.finish()  # uploads and allocations above stay out of the timed draws
+        _, t_draw = timed(ctx, lambda: _draw_colour(ctx, fbo, resolved, empty, color_prog, opaque + blend, vaos,
+                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage))
+        if timings is not None:
+            timings["frame"] = t_draw
         color = np.frombuffer((resolved or fbo).read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]
         color = color.reshape(H, ss, W, ss, 4).mean(axis=(1, 3))
         # AOV pass at the pixel centres

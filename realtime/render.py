@@ -597,11 +597,18 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     a pass whose artifact came from this process's cache reports its original bake time and is listed
     in ``cached_passes``; GL timer queries on a GPU, the wall clock on llvmpipe: ``timing_clock``),
     ``gl_renderer``, ``warnings``, ``renderer``, ``terms``.
+
+    Before any bake: :class:`~realtime.presets.OptionError` for options the resolved pipeline does not
+    take, :class:`pbrcheck.errors.BackendError` (exit 3) for ``msaa`` above this GL's
+    ``GL_MAX_SAMPLES`` (:func:`realtime.raster.check_msaa`).
     """
     o = resolve_options(preset, options)
     pipeline = resolved_pipeline(scene, o)
     check_pipeline_options(pipeline, o)
     ctx = get_context()
+    if pipeline == "raster":  # this GL's limits, before any bake
+        from .raster import check_msaa
+        check_msaa(int(o.msaa))
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
@@ -731,10 +738,13 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
                 raster.normal_variance_texture(*it.textures["normal"][:2], o.anisotropy)
                 ctx.finish()
                 timings["texture_mips"] += time.perf_counter() - t0
-        (color, aov, obj), timings["frame"] = _timed(
-            ctx, lambda: raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
-                                             o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
-                                             normal_variance=variance))
+        # timings["frame"]: the draws alone (raster_frame); frame_total: the whole call, with the
+        # render targets' allocation, the read-back and box filter, and the AOV pass
+        t0 = time.perf_counter()
+        color, aov, obj = raster.raster_frame(scene, items, prog, aov_prog, bg_prog, int(o.supersample), o.anisotropy,
+                                              o.occlusion_texture, msaa=o.msaa, alpha_to_coverage=o.alpha_to_coverage,
+                                              normal_variance=variance, timings=timings)
+        timings["frame_total"] = time.perf_counter() - t0
     finally:
         lbuf.release()
     return color, aov, obj

@@ -17,7 +17,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   compile run; goal >= 0.9. Split into ``bsdf_trace_seconds`` (building the Dr.Jit graph: Python for
   ``pbr_material``, C++ for ``roughconductor``, once per call) and ``bsdf_kernel_seconds`` (compile
   cache lookup, launch, run): ``bsdf_kernel_ratio`` is the ratio without tracing, which is what a
-  render pays (the integrator traces the BSDF once per pass, not once per sample).
+  render pays (the integrator traces the BSDF once per pass, not once per sample);
+  ``bsdf_speed_ratio_pass_width``: the same ratio at a render pass's width
+  (:func:`reference.integrator.max_lanes`: 2^26 lanes on CUDA, 2^23 on LLVM), tracing included.
 * ``material_gather``: the local estimator with every ``pbr_material`` gathered per lane
   (:class:`reference.bsdf.MaterialView`, the default) against Mitsuba's per-material dispatch, which
   traces the lobes once per material (30 on ``spheres``): warm seconds of a small render
@@ -45,11 +47,13 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   default on spheres); ``mean_z`` (the image mean against independent's, in standard errors:
   ``sum(a - b) / sqrt(sum(var_a + var_b))``, of the seed-averaged images) and ``pixels_within_1.96`` (share of pixel-channels
   with ``|a - b| < 1.96 sqrt(var_a + var_b)``, about 0.95 when both are unbiased and calibrated).
-  Scenes: ``spheres`` (target: :data:`SPHERES_DEFAULT_MSE` / 10) and ``spheres`` under a real HDR
-  environment (``--envmap``, default the first of :data:`ENVMAPS`; skipped when absent): there no
-  preset error is known here (this layer cannot render the real-time image), so its target is
-  independent's floor at ``FLOOR_SPP`` / ``HDR_TARGET_FACTOR``, and the speedups, ratios of seconds
-  at a common target, do not depend on it.
+  Scenes: ``spheres`` (target: :data:`SPHERES_DEFAULT_MSE` / 10), ``spheres`` under a real HDR
+  environment (``--envmap``, default the first of :data:`ENVMAPS`; skipped when absent) and
+  ``asset``, the asset row's textured ~50k-triangle glTF (:func:`reference.bench_asset.asset_scene`:
+  spheres' environment and lights; ``--quick``: its 64-segment, 128-px-texture version): for these
+  two no preset error is known here (this layer cannot render the real-time image), so their target
+  is independent's floor at ``FLOOR_SPP`` / ``HDR_TARGET_FACTOR``, and the speedups, ratios of
+  seconds at a common target, do not depend on it.
 * ``variance_reduction``: candidate variance reductions of the ``local`` estimator against its
   default, same scenes, each a **variance ratio** at equal spp (the default's floor over the
   candidate's; ``efficiency_ratio`` = that x the default's CPU seconds over the candidate's) from
@@ -58,14 +62,22 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   ``VR_SEEDS`` seeds: ``mis_balance`` (the balance heuristic for the env and BSDF samples instead of
   the power heuristic, :data:`reference.integrator.MIS_HEURISTICS`) and ``env_envmap`` (Mitsuba's
   own environment sampling, the default until version 4, against ``compensated``,
-  :mod:`reference.env_sampling`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
+  :mod:`reference.env_sampling`) and ``ris4`` (the environment sample resampled from 4 candidates
+  of the proposal by the MIS-weighted product of the environment and the BSDF:
+  :func:`reference.integrator.resampled_estimate`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
   the ratio is clearly above 1 (docs/reference.md records the measurements).
+
+``--section samplers`` / ``--section variance_reduction`` (:func:`run_sections`): those figures alone.
+
+API: :func:`run_bench`, :func:`run_sections`, :func:`run_asset_bench`, :data:`SAMPLER_CONFIGS`,
+:data:`VR_CANDIDATES`, :data:`SECTIONS`.
 """
 
 from __future__ import annotations
 
 import math
 import statistics
+import tempfile
 import time
 
 import numpy as np
@@ -114,11 +126,14 @@ ENVMAPS = Path(__file__).resolve().parents[1].parent / "shared" / "envmaps"
 ENVMAP_NAMES = ("royal_esplanade_1k.hdr", "venice_sunset_1k.hdr", "chinese_garden_1k.hdr")
 #: The real-HDR scene's target: independent's floor at FLOOR_SPP over this (about 10^4 spp).
 HDR_TARGET_FACTOR = 8.0
+#: The sections :func:`run_sections` runs alone (``--section``).
+SECTIONS = ("samplers", "variance_reduction")
 #: ``variance_reduction``: spp and seeds per candidate (independent sampler, uniform spp), and the
 #: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
 VR_SPP, VR_SPP_QUICK = 128, 32
 VR_SEEDS = 3
-VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}))
+VR_CANDIDATES = (("default", {}), ("env_envmap", {"env_sampling": "envmap"}), ("mis_balance", {"mis": "balance"}),
+                 ("ris4", {"env_candidates": 4}))
 #: ``variance_reduction``'s scenes besides the real-HDR one (each at the bench resolution).
 VR_SCENES = ("spheres", "furnace", "grazing")
 
@@ -346,6 +361,44 @@ def run_asset_bench(quick: bool = False) -> dict:
             "asset": bench_asset(scene, 8 if quick else BENCH_SPP, 1 if quick else ASSET_REPEATS, quick=quick)}
 
 
+def run_sections(sections: tuple[str, ...] = SECTIONS, quick: bool = False, envmap: str | None = None) -> dict:
+    """The ``samplers`` and ``variance_reduction`` figures (module docstring) of ``sections``, as in
+    :func:`run_bench` (``pbrcheck bench reference --section NAME``: one of them alone)."""
+    _mi()
+    bad = [x for x in sections if x not in SECTIONS]
+    if bad:
+        raise ValueError(f"bench reference: section must be one of {SECTIONS}, not {bad[0]!r}")
+    W, H = (48, 40) if quick else BENCH_RESOLUTION
+    scene = load_scene("spheres").with_camera(width=W, height=H)
+    hdr = _hdr_envmap(envmap)
+    hscene = (replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
+              if hdr is not None and hdr.is_file() else None)
+    skipped = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
+    out = {}
+    if "samplers" in sections:
+        from .bench_asset import (ASSET_SEGMENTS, ASSET_SEGMENTS_QUICK, ASSET_TEXTURE_QUICK, ASSET_TEXTURE_SIZE,
+                                  asset_scene, make_asset)
+
+        full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
+        fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP
+        fseeds = FLOOR_SEEDS_QUICK if quick else FLOOR_SEEDS
+        samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
+        samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full) if hscene is not None else skipped
+        # the asset row's scene (reference.bench_asset): spheres' environment and lights, target as the HDR's
+        with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-asset-") as tmp:
+            path = make_asset(Path(tmp) / "bench.gltf", segments=ASSET_SEGMENTS_QUICK if quick else ASSET_SEGMENTS,
+                              tex=ASSET_TEXTURE_QUICK if quick else ASSET_TEXTURE_SIZE)
+            samplers["asset"] = _samplers(asset_scene(scene, path), fspp, fseeds, None, full)
+        out["samplers"] = samplers
+    if "variance_reduction" in sections:
+        vspp = VR_SPP_QUICK if quick else VR_SPP
+        vr = {name: _variance_reduction(scene if name == "spheres" else load_scene(name).with_camera(width=W, height=H),
+                                        vspp, VR_SEEDS) for name in VR_SCENES}
+        vr["spheres_hdr"] = _variance_reduction(hscene, vspp, VR_SEEDS) if hscene is not None else skipped
+        out["variance_reduction"] = vr
+    return out
+
+
 def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     """The figures of the module docstring as one JSON-ready dict (``quick``: small sizes, for tests)."""
     mi, dr = _mi()
@@ -369,26 +422,19 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     repeats = 3 if quick else BSDF_REPEATS
     s_cpp, tr_cpp, k_cpp = _time_bsdf(cpp, lanes, repeats)
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
+    # ... and at a render's pass width (reference.integrator.max_lanes: 2^26 lanes on CUDA, 2^23 on
+    # LLVM), where the integrator traces the BSDF once per pass: the ratio a render pays
+    from .integrator import max_lanes
+    pass_lanes = (1 << 17) if quick else max_lanes()
+    sp_cpp, _, _ = _time_bsdf(cpp, pass_lanes, repeats)
+    sp_py, _, _ = _time_bsdf(py, pass_lanes, repeats)
 
     gather = _time_gather(scene, 2 if quick else 5)
     from .bench_asset import bench_asset  # the asset row: a ~50k-triangle textured glTF (reference.bench_asset)
     asset = bench_asset(scene, spp, max(rep, 1 if quick else ASSET_REPEATS), quick=quick)
 
-    full = BENCH_RESOLUTION[0] * BENCH_RESOLUTION[1]
-    fspp = FLOOR_SPP_QUICK if quick else FLOOR_SPP
-    fseeds = FLOOR_SEEDS_QUICK if quick else FLOOR_SEEDS
-    samplers = {"spheres": _samplers(scene, fspp, fseeds, SPHERES_DEFAULT_MSE / NOISE_FLOOR_FACTOR, full)}
-    hdr = _hdr_envmap(envmap)
-    vspp = VR_SPP_QUICK if quick else VR_SPP
-    vr = {name: _variance_reduction(scene if name == "spheres" else load_scene(name).with_camera(width=W, height=H),
-                                    vspp, VR_SEEDS) for name in VR_SCENES}
-    if hdr is not None and hdr.is_file():
-        hscene = replace(scene, name=f"spheres_{hdr.stem}", environment=Environment(type="file", path=str(hdr)))
-        samplers["spheres_hdr"] = _samplers(hscene, fspp, fseeds, None, full)
-        vr["spheres_hdr"] = _variance_reduction(hscene, vspp, VR_SEEDS)
-    else:
-        samplers["spheres_hdr"] = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
-        vr["spheres_hdr"] = {"skipped": f"no real HDR environment ({ENVMAPS} absent)"}
+    sections = run_sections(quick=quick, envmap=envmap)
+    samplers, vr = sections["samplers"], sections["variance_reduction"]
 
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
@@ -404,6 +450,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "integrator_efficiency_cpu_seconds": (v_path * c_path) / (v_local * c_local),
         "bsdf_speed_ratio": s_cpp / s_py,
         "bsdf_kernel_ratio": k_cpp / k_py,
+        "bsdf_speed_ratio_pass_width": sp_cpp / sp_py,
         "seconds_to_10x_noise_floor": seconds_floor,
         "spp_to_10x_noise_floor": spp_floor,
         "cpu_seconds_to_10x_noise_floor": spp_floor * c_local / spp * scale,
@@ -438,6 +485,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "render_timed": "median wall (and CPU) seconds of alternating local / path / Mitsuba path renders "
                         "after a compile run each",
         "bsdf_lanes": lanes,
+        "bsdf_pass_lanes": pass_lanes,
         "bsdf_repeats": repeats,
         "bsdf_timed": "sample + eval_pdf per lane, median of repeats after a compile run",
         "roughconductor_seconds_per_sample": s_cpp,

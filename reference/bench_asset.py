@@ -18,7 +18,7 @@ see geometry (the asset covers more of the image than the spheres); ``kernel_ops
 ``spheres_kernel_ops``: operations of each render's largest kernel (Dr.Jit's kernel history:
 load-independent).
 
-API: :func:`make_asset`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`, :data:`BENCH_SAMPLER`.
+API: :func:`make_asset`, :func:`asset_scene`, :func:`bench_asset`, :data:`ASSET_THROUGHPUT_GOAL`, :data:`BENCH_SAMPLER`.
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ from pbrcheck.scene import scene_from_dict
 #: Segments around the bench sphere (rings: half): 2 x 224 x 112 = 50176 triangles, less the poles'.
 ASSET_SEGMENTS = 224
 ASSET_TEXTURE_SIZE = 1024
+#: The same under ``--quick`` (tests).
+ASSET_SEGMENTS_QUICK, ASSET_TEXTURE_QUICK = 64, 128
 #: The asset's local samples/s over the spheres scene's (the issue's goal).
 ASSET_THROUGHPUT_GOAL = 0.7
 #: Both rows' sampler: the spheres row's (``local_msamples_per_s``).
@@ -86,6 +88,19 @@ def make_asset(path: Path, segments: int = ASSET_SEGMENTS, tex: int = ASSET_TEXT
     return doc.write(path)
 
 
+def asset_scene(spheres_scene, path: Path):
+    """The bench asset at ``path`` (:func:`make_asset`) as a scene: ``spheres_scene``'s camera fov and
+    size (the asset filling the image's centre, 3.2 units away), its environment (every field: a
+    sky's sun, raster size) and its lights; the asset's own name ``bench-asset``."""
+    cam = spheres_scene.camera
+    data = {"name": "bench-asset", "objects": [{"type": "gltf", "path": str(path)}],
+            "camera": {"origin": [0.0, 0.0, 3.2], "target": [0.0, 0.0, 0.0], "fov": cam.fov,
+                       "width": cam.width, "height": cam.height},
+            "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]}}
+    return replace(scene_from_dict(data, file=str(path), base_dir=Path(path).parent),
+                   environment=spheres_scene.environment, lights=spheres_scene.own_lights())
+
+
 def _largest_kernel_ops(dr, fn) -> int | None:
     """Operations of the largest kernel ``fn`` launches (Dr.Jit's kernel history; load-independent)."""
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
@@ -102,21 +117,13 @@ def bench_asset(spheres_scene, spp: int, repeats: int, quick: bool = False) -> d
 
     mi, dr = _mi()
     with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-asset-") as tmp:
-        path = make_asset(Path(tmp) / "bench.gltf", segments=64 if quick else ASSET_SEGMENTS,
-                          tex=128 if quick else ASSET_TEXTURE_SIZE)
+        path = make_asset(Path(tmp) / "bench.gltf", segments=ASSET_SEGMENTS_QUICK if quick else ASSET_SEGMENTS,
+                          tex=ASSET_TEXTURE_QUICK if quick else ASSET_TEXTURE_SIZE)
         t0 = time.perf_counter()
         asset = load_asset(path)
         load_s = time.perf_counter() - t0
         cam = spheres_scene.camera
-        env = spheres_scene.environment
-        data = {"name": "bench-asset", "objects": [{"type": "gltf", "path": str(path)}],
-                "camera": {"origin": [0.0, 0.0, 3.2], "target": [0.0, 0.0, 0.0], "fov": cam.fov,
-                           "width": cam.width, "height": cam.height},
-                "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]}}
-        # spheres' own environment (every field: a sky's sun, raster size) and lights, the very
-        # EnvMap both rows render with
-        scene = replace(scene_from_dict(data, file=str(path), base_dir=Path(tmp)),
-                        environment=spheres_scene.environment, lights=spheres_scene.own_lights())
+        scene = asset_scene(spheres_scene, path)
         envmap = load_environment(spheres_scene)
         t0 = time.perf_counter()
         mscene = load_mitsuba_scene(scene, envmap)
@@ -140,7 +147,7 @@ def bench_asset(spheres_scene, spp: int, repeats: int, quick: bool = False) -> d
     med = {name: [statistics.median(r[i] for r in runs[name]) for i in range(3)] for name in rows}
     (t_a, c_a, cov_a), (t_s, c_s, cov_s) = med["asset"], med["spheres"]
     samples = cam.width * cam.height * spp
-    return {"triangles": asset.triangles, "texture_size": 128 if quick else ASSET_TEXTURE_SIZE,
+    return {"triangles": asset.triangles, "texture_size": ASSET_TEXTURE_QUICK if quick else ASSET_TEXTURE_SIZE,
             "load_seconds": load_s, "build_seconds": build_s,
             "render_seconds": t_a, "render_cpu_seconds": c_a,
             "spheres_render_seconds": t_s, "spheres_render_cpu_seconds": c_s,

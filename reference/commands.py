@@ -13,7 +13,7 @@ from pbrcheck.atomic import check_output_path
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 
-from .bench import run_asset_bench, run_bench
+from .bench import SECTIONS, run_asset_bench, run_bench, run_sections
 from .render import DEFAULT_ADAPTIVE, DEFAULT_SAMPLER, SAMPLER_NAMES, render_reference
 
 
@@ -33,7 +33,12 @@ def _cmd_reference(args) -> int:
 
 
 def _cmd_bench(args) -> int:
-    out = run_asset_bench(quick=args.quick) if args.asset_only else run_bench(quick=args.quick, envmap=args.envmap)
+    if args.asset_only:
+        out = run_asset_bench(quick=args.quick)
+    elif args.section:
+        out = run_sections(tuple(args.section), quick=args.quick, envmap=args.envmap)
+    else:
+        out = run_bench(quick=args.quick, envmap=args.envmap)
     print(json.dumps(out, indent=2))
     sys.stdout.flush()
     return 0
@@ -73,6 +78,8 @@ def register(sub, bench_sub) -> None:
                         "skipped when absent)")
     b.add_argument("--asset-only", action="store_true",
                    help="only the asset row: the ~50k-triangle textured asset and spheres, rendered alternately")
+    b.add_argument("--section", action="append", choices=SECTIONS, default=None,
+                   help="only this section's figures (samplers, variance_reduction; repeatable)")
     b.set_defaults(func=_cmd_bench)
 
     b = bench_sub.add_parser("multiscatter", help="BSDF samples per second: random_walk against single "

@@ -128,8 +128,12 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
         dr.backward(loss)
         opt.step()
         keep = n > 1 and it >= iterations - n  # only the averaged iterates are read back
+        # clipped together: the optimizer makes each value it is given opaque, one kernel per key
+        # when given unevaluated values (30 a step on spheres)
+        clipped = {k: dr.clip(opt[k], *bounds[k]) for k in keys}
+        dr.eval(*clipped.values())
         for k in keys:
-            opt[k] = dr.clip(opt[k], *bounds[k])
+            opt[k] = clipped[k]
             if keep:
                 history[k].append(np.array(opt[k]))
         params.update(opt)

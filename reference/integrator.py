@@ -6,7 +6,8 @@ subclass of ``mi.ad.integrators.common.RBIntegrator``, so ``mi.render(scene, par
 
 * ``mode = "local"``: the first hit only. One environment sample (``env_sampling``, default
   ``"compensated"``: MIS compensation, :mod:`reference.env_sampling`; ``"envmap"``: Mitsuba's envmap
-  importance sampling) and one BSDF sample, combined by multiple importance sampling (power heuristic; a delta
+  importance sampling; ``env_candidates`` M > 1: resampled from M, :func:`resampled_estimate`) and one
+  BSDF sample, combined by multiple importance sampling (power heuristic; a delta
   lobe takes weight 1), **no visibility tests**; every delta emitter (point, spot, directional light:
   :mod:`reference.lights`) is added exactly through its deterministic ``sample_direction`` (``f cos
   I / d^2``, ``f cos E``), without a shadow ray.
@@ -54,14 +55,17 @@ offset ``(sx, sy)`` are :func:`pbrcheck.camera.primary_rays`'s (tested), row 0 a
 API: :data:`INTEGRATOR_NAME`, :class:`ReferenceIntegrator`, :func:`register`, :func:`sensor_dict`,
 :func:`max_lanes`, :func:`pass_sizes`, :func:`pixel_centre_rays`, :func:`camera_rays`,
 :func:`replicate_plan`, :func:`replicate_parts`, :func:`multijitter_count_ok`, :func:`culling_table`,
-:func:`past_back_faces`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
+:func:`past_back_faces`, :func:`can_pass`, :data:`LOCAL_RAY_FLAGS`, :data:`MAX_CULLED_LAYERS`, :data:`SAMPLERS`,
 :data:`MIN_REPLICATES`, :data:`MOMENT_CHANNELS`, :data:`MIS_HEURISTICS`, :data:`DEFAULT_MIS`,
+:func:`resampled_estimate`, :data:`DEFAULT_ENV_CANDIDATES`, :data:`MAX_ENV_CANDIDATES`,
 :data:`GEOMETRIC_ROUGHNESS`, :func:`threejs_geometric_roughness` (``[brdf] geometric_roughness``: the
 local estimator adds it to each lane's roughness at the first hit, from the camera ray's
 differentials and the sensor's world-to-camera transform that ``render`` records).
 References: Veach 1997 ch. 9 (MIS, power and balance heuristics); Vicini et al. 2021, "Path Replay
 Backpropagation" (detached sampling, ``RBIntegrator``); Mitsuba 3 ``mi.ad.integrators.common``;
-Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Owen 2013, *Monte Carlo
+Kensler 2013, "Correlated multi-jittered sampling" (``multijitter``); Talbot, Cline and Egbert 2005,
+"Importance resampling for global illumination" and Bitterli et al. 2020, "Spatiotemporal reservoir
+resampling" (RIS, ``env_candidates``); Owen 2013, *Monte Carlo
 theory, methods and examples*, ch. 17 (randomized QMC error from independent replicates); Igehy
 1999, "Tracing ray differentials" (the geometric roughness's normal derivative).
 """
@@ -82,7 +86,7 @@ import mitsuba as mi
 from mitsuba.python.ad.integrators.common import RBIntegrator
 
 from .bsdf import MaterialView, SceneCalls
-from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment
+from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -242,6 +246,54 @@ MIS_HEURISTICS = {"power": _power, "balance": _balance}
 DEFAULT_MIS = "power"
 
 
+#: Candidates of the environment sample (integrator property ``env_candidates``): 1 is the plain
+#: sample of the proposal; M > 1 resamples one of M (:func:`resampled_estimate`). Measured
+#: (docs/reference.md, ``pbrcheck bench reference`` ``variance_reduction``, ``ris4``): M = 4 divides
+#: the variance by 1.19 on spheres, 1.23 furnace, 1.68 grazing, 1.09 royal_esplanade at ~2x the CPU
+#: seconds (efficiency 0.52-0.85; M = 2 and 8 no better), so the default stays the plain sample.
+DEFAULT_ENV_CANDIDATES = 1
+#: The most candidates a render may ask for (each one a BSDF evaluation traced into the kernel).
+MAX_ENV_CANDIDATES = 64
+
+
+def resampled_estimate(estimate, M: int, u):
+    """Resampled importance sampling (RIS; Talbot, Cline and Egbert 2005, "Importance resampling
+    for global illumination"; Bitterli et al. 2020, "Spatiotemporal reservoir resampling", eq. 6)
+    of one MIS-weighted environment sample.
+
+    ``estimate()`` draws one candidate ``x_j`` from the environment proposal ``p`` and returns its
+    one-sample estimate ``c_j = w_e(x_j) f(x_j) Le(x_j) / p(x_j)`` (``w_e`` the default's MIS
+    weight, a function of the direction alone). With the target ``p^(x) = w_e(x) Y(f(x) Le(x))``
+    (``Y`` the luminance, positive wherever ``w_e f Le`` is not zero) the resampling weight of a
+    candidate is ``r_j = p^(x_j) / p(x_j) = Y(c_j)``; one candidate ``y`` is chosen with probability
+    ``r_y / sum r`` (weighted reservoir sampling, one uniform ``u`` rescaled at each step) and the
+    estimate is ``(w_e f Le)(y) / p^(y) x (1 / M) sum_j r_j = c_y / Y(c_y) x mean(r)``; 0 where
+    every ``r_j`` is 0. It is unbiased for ``int w_e f Le`` (Talbot 2005, sec. 3: ``p^ > 0``
+    wherever the integrand is not zero, ``p > 0`` wherever ``p^`` is: the proposal is defensive),
+    and ``M = 1`` is the plain estimate itself. The MIS weight is the default's, computed from the
+    proposal's own density ``p`` (not the RIS sample's, which has no closed form): the two weights
+    still sum to 1 at every direction, so the env and BSDF estimates stay an exact partition of the
+    integral; the RIS sample's approximate density ``p^(y) / mean(r)`` (Talbot 2005's MIS with the
+    effective pdf) depends on the other candidates, and a weight built from it need not sum to 1
+    with the BSDF sample's, which would bias the sum. Under AD, ``c_y`` carries the BSDF's
+    gradient and the weights ``r`` are detached (detached sampling: the selection is part of the
+    sampling, so the estimate's gradient is unbiased for the gradient of the same integral)."""
+    wsum = mi.Float(0.0)
+    chosen = mi.Color3f(0.0)
+    for _ in range(int(M)):
+        c = estimate()
+        r = _luminance(dr.detach(c))
+        wsum += r
+        q = dr.select(wsum > 0, r / wsum, 0.0)
+        take = (r > 0) & (u < q)
+        chosen = dr.select(take, c, chosen)
+        # u stays uniform on [0, 1) given the choice so far
+        u = dr.select(take, u / dr.maximum(q, 1e-30), (u - q) / dr.maximum(1.0 - q, 1e-30))
+        u = dr.clip(u, 0.0, 1.0 - 2.0 ** -24)
+    y = _luminance(dr.detach(chosen))
+    return dr.select(y > 0, chosen * (wsum / (M * dr.maximum(y, 1e-30))), 0.0)
+
+
 #: The differentials' step (1 / this of a pixel) of the geometric roughness's normal derivative.
 GEO_DIFFERENTIAL_STEP = 64.0
 
@@ -302,6 +354,16 @@ def culling_table(scene):
     return lut
 
 
+def can_pass(bsdf) -> bool:
+    """Whether a ray can pass a surface of ``bsdf`` in the local estimator: a glTF material with
+    alphaMode MASK or BLEND (:func:`reference.textured.has_alpha`) or single-sided (its back faces
+    culled, :func:`reference.textured.culls_back_faces`). Others (OPAQUE double-sided, analytic
+    materials) have ``eval_null_transmission`` 0 everywhere."""
+    from .textured import culls_back_faces, has_alpha
+
+    return has_alpha(bsdf) or culls_back_faces(bsdf)
+
+
 def past_back_faces(scene, ray, si, hit, lut):
     """(si, hit) of the first surface along ``ray`` that is not a culled back face (glTF
     ``doubleSided`` false, :func:`culling_table` ``lut``; None: ``si`` as it is): a symbolic loop
@@ -343,6 +405,11 @@ class ReferenceIntegrator(RBIntegrator):
             raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, "
                              f"not {self.env_sampling!r}")
         self._env_proposal = None  # (the emitter, its CompensatedEnvironment)
+        # the environment sample resampled from this many candidates (RIS; 1: the plain sample)
+        self.env_candidates = int(props.get("env_candidates", DEFAULT_ENV_CANDIDATES))
+        if not 1 <= self.env_candidates <= MAX_ENV_CANDIDATES:
+            raise ValueError(f"{INTEGRATOR_NAME}: env_candidates must be in [1, {MAX_ENV_CANDIDATES}], "
+                             f"not {self.env_candidates}")
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
@@ -362,7 +429,8 @@ class ReferenceIntegrator(RBIntegrator):
 
     def to_string(self):
         return (f"ReferenceIntegrator[mode={self.mode}, max_depth={self.max_depth}, moments={self.moments}, "
-                f"replicates={self.replicates}, mis={self.mis}, env_sampling={self.env_sampling}]")
+                f"replicates={self.replicates}, mis={self.mis}, env_sampling={self.env_sampling}, "
+                f"env_candidates={self.env_candidates}]")
 
     # ---- estimators ------------------------------------------------------------------------------
     def _bsdf(self, scene, si, ray, hit):
@@ -384,13 +452,20 @@ class ReferenceIntegrator(RBIntegrator):
 
     def _dispatch(self, scene, kind: str = "bsdf"):
         """:meth:`reference.bsdf.SceneCalls.table` of ``scene`` for ``kind``, kept while its shapes
-        are the same (keyed by them, as ``_table``)."""
+        are the same (keyed by them, as ``_table``): ``"bsdf"``, ``"emitter"``, ``"cull"``
+        (:func:`culling_table`) or ``"null"`` (the BSDFs a ray can pass, :func:`can_pass`; the opaque
+        ones outside every call)."""
         shapes = scene.shapes()
         if (self._switch is None or len(self._switch[0]) != len(shapes)
                 or any(a is not b for a, b in zip(self._switch[0], shapes))):
             self._switch = (tuple(shapes), {})
         if kind not in self._switch[1]:
-            self._switch[1][kind] = culling_table(scene) if kind == "cull" else SceneCalls.table(scene, kind)
+            if kind == "cull":
+                self._switch[1][kind] = culling_table(scene)
+            elif kind == "null":
+                self._switch[1][kind] = SceneCalls.table(scene, "bsdf", keep=can_pass)
+            else:
+                self._switch[1][kind] = SceneCalls.table(scene, kind)
         return self._switch[1][kind]
 
     #: Most surfaces a camera ray passes through (glTF alpha) before the local estimator stops.
@@ -410,19 +485,41 @@ class ReferenceIntegrator(RBIntegrator):
 
     def _first_opaque_hit(self, scene, sampler, ray, si, hit):
         """Continue the ray through each hit with probability ``eval_null_transmission`` (one sample per
-        layer; unrolled, no early exit, so the estimator stays one kernel), up to :data:`MAX_NULL_LAYERS`;
-        a ray still passing through after that stops at its last hit; returns the interaction where it stopped."""
-        going = mi.Bool(hit)  # lanes still deciding: a lane that stopped at a surface keeps it
-        for _ in range(self.MAX_NULL_LAYERS):
-            t = mi.Float(SceneCalls(self._dispatch(scene), si, going).eval_null_transmission(si, going).x)
+        layer), up to :data:`MAX_NULL_LAYERS`; a ray still passing through after that stops at its last
+        hit; returns the interaction where it stopped.
+
+        A symbolic loop (one kernel still): a lane iterates only while it passes through surfaces, so
+        a lane that stops at its first hit (an OPAQUE primitive, or a MASK texel that is there) or
+        misses pays one layer, not :data:`MAX_NULL_LAYERS`. The transmission is called on the BSDFs
+        a ray can pass only (:func:`can_pass`: glTF MASK / BLEND, single-sided; the others' is 0,
+        given without a call). The random numbers are those of the unrolled layers it replaces
+        (``next_1d(going)`` once per layer, :data:`MAX_NULL_LAYERS` times per lane): a lane's
+        remaining layers draw with an empty mask after the loop (a sample dimension each, no random
+        state consumed), so every later dimension and every image is the same, bit for bit (checked
+        under the independent and the multijitter samplers)."""
+        null = self._dispatch(scene, "null")
+        layers = self.MAX_NULL_LAYERS
+
+        def body(sampler, ray, si, hit, going, i):
+            t = mi.Float(SceneCalls(null, si, going).eval_null_transmission(si, going).x)
             u = sampler.next_1d(going)
             through = going & (u < t)
-            going = through
             ray = dr.select(through, si.spawn_ray(ray.d), ray)
             si2 = scene.ray_intersect(ray, LOCAL_RAY_FLAGS, mi.Bool(True), through)
             si = dr.select(through, si2, si)
             hit = dr.select(through, si2.is_valid(), hit)
-            going &= hit
+            return sampler, ray, si, hit, through & hit, i + 1
+
+        # going: lanes still deciding (a lane that stopped at a surface keeps it); i: layers drawn
+        sampler, _, si, hit, _, i = dr.while_loop(
+            (sampler, mi.Ray3f(ray), si, mi.Bool(hit), mi.Bool(hit), mi.UInt32(0)),
+            lambda sampler, ray, si, hit, going, i: going & (i < layers), body)
+
+        def pad(sampler, i):
+            sampler.next_1d(mi.Bool(False))
+            return sampler, i + 1
+
+        dr.while_loop((sampler, i), lambda sampler, i: i < layers, pad)
         return si, hit
 
     @staticmethod
@@ -477,18 +574,25 @@ class ReferenceIntegrator(RBIntegrator):
             bsdf = self._geometric(scene, self._bsdf(scene, si, ray, hit), camera_ray, hit)
         proposal = self._compensated(env)
         if env is not None:
-            # Environment sample, MIS against the BSDF's density.
-            if proposal is None:
-                ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
-                e_d, e_pdf = ds.d, ds.pdf
-            else:
-                e_d, e_pdf, em_w = proposal.sample(sampler.next_2d(hit), hit)
-            ok = hit & (e_pdf > 0)
-            wo = si.to_local(e_d)
-            with dr.resume_grad(when=grad):
-                f, bpdf = bsdf.eval_pdf(ctx, si, wo, ok)
-                w = mis(e_pdf, dr.detach(bpdf))
-                L += dr.select(ok, f * em_w * w, 0.0)
+            # Environment sample, MIS against the BSDF's density: the one-sample estimate of the
+            # proposal's direction, or of the one resampled from env_candidates of them (RIS).
+            def env_estimate():
+                if proposal is None:
+                    ds, em_w = env.sample_direction(si, sampler.next_2d(hit), hit)
+                    e_d, e_pdf = ds.d, ds.pdf
+                else:
+                    e_d, e_pdf, em_w = proposal.sample(sampler.next_2d(hit), hit)
+                ok = hit & (e_pdf > 0)
+                with dr.resume_grad(when=grad):
+                    f, bpdf = bsdf.eval_pdf(ctx, si, si.to_local(e_d), ok)
+                    w = mis(e_pdf, dr.detach(bpdf))
+                    return dr.select(ok, f * em_w * w, 0.0)
+
+            with dr.resume_grad(when=grad):  # (outside it, the sum would drop the estimate's gradient)
+                if self.env_candidates == 1:
+                    L += env_estimate()
+                else:
+                    L += resampled_estimate(env_estimate, self.env_candidates, sampler.next_1d(hit))
             # BSDF sample, MIS against the environment's density (delta lobes: weight 1).
             u1, u2 = sampler.next_1d(hit), sampler.next_2d(hit)
             bs, bw = bsdf.sample(ctx, si, u1, u2, hit)

@@ -253,24 +253,32 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
 
 
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
-                    sampler: str = "independent", mis: str = "power", env_sampling: str | None = None):
+                    sampler: str = "independent", mis: str = "power", env_sampling: str | None = None,
+                    env_candidates: int | None = None):
     """The ``pbrcheck_reference`` integrator (:mod:`reference.integrator`) for ``mode``; with the
     ``qmc`` sampler its variance channels come from replicates (``MIN_REPLICATES``); ``mis``: the
     local estimator's MIS heuristic (``reference.integrator.MIS_HEURISTICS``); ``env_sampling``:
-    its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default)."""
+    its environment proposal (``reference.env_sampling.ENV_SAMPLING``; None: the default);
+    ``env_candidates``: the env sample resampled from that many (RIS,
+    ``reference.integrator.resampled_estimate``; None: ``DEFAULT_ENV_CANDIDATES``)."""
     mi, _ = _mi()
     from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING  # local: imports Mitsuba
-    from .integrator import INTEGRATOR_NAME, MIN_REPLICATES, MIS_HEURISTICS  # local: needs the variant set
+    from .integrator import (DEFAULT_ENV_CANDIDATES, INTEGRATOR_NAME, MAX_ENV_CANDIDATES,  # local: needs the variant set
+                             MIN_REPLICATES, MIS_HEURISTICS)
 
     if mis not in MIS_HEURISTICS:
         raise ValueError(f"{INTEGRATOR_NAME}: mis must be one of {tuple(MIS_HEURISTICS)}, not {mis!r}")
     if env_sampling is not None and env_sampling not in ENV_SAMPLING:
         raise ValueError(f"{INTEGRATOR_NAME}: env_sampling must be one of {ENV_SAMPLING}, not {env_sampling!r}")
 
+    m = int(env_candidates if env_candidates is not None else DEFAULT_ENV_CANDIDATES)
+    if not 1 <= m <= MAX_ENV_CANDIDATES:
+        raise ValueError(f"{INTEGRATOR_NAME}: env_candidates must be in [1, {MAX_ENV_CANDIDATES}], not {m}")
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     return mi.load_dict({"type": INTEGRATOR_NAME, "mode": mode, "max_depth": depth, "moments": moments,
                          "replicates": 0 if sampler == "independent" else MIN_REPLICATES, "mis": mis,
-                         "env_sampling": env_sampling or DEFAULT_ENV_SAMPLING})
+                         "env_sampling": env_sampling or DEFAULT_ENV_SAMPLING,
+                         "env_candidates": m})
 
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
@@ -320,11 +328,13 @@ def geometric_roughness_image(scene: Scene) -> np.ndarray:
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power", env_sampling: str | None = None) -> Image:
+                    mis: str = "power", env_sampling: str | None = None, env_candidates: int | None = None) -> Image:
     """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
-    heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``), both for
-    measurements only (not part of the cache key: :func:`render_reference` always renders the
-    defaults, ``reference.integrator.DEFAULT_MIS`` and ``reference.env_sampling.DEFAULT_ENV_SAMPLING``)."""
+    heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``),
+    ``env_candidates``: RIS of the env sample (:func:`load_integrator`), all for measurements only
+    (not part of the cache key: :func:`render_reference` always renders the defaults,
+    ``reference.integrator.DEFAULT_MIS``, ``reference.env_sampling.DEFAULT_ENV_SAMPLING`` and
+    ``reference.integrator.DEFAULT_ENV_CANDIDATES``)."""
     check_sampler(sampler)
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
@@ -342,7 +352,8 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH)
     from .integrator import MIN_REPLICATES, MOMENT_CHANNELS, pass_sizes, replicate_plan, sensor_dict  # variant set
 
-    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis, env_sampling=env_sampling)
+    integrator = load_integrator(mode, depth, sampler=sampler, mis=mis, env_sampling=env_sampling,
+                                 env_candidates=env_candidates)
     sensor = mi.load_dict(sensor_dict(scene.camera, spp, sampler))
     W, H = scene.camera.width, scene.camera.height
     adaptive = bool(adaptive) and sampler == "qmc" and spp >= ADAPTIVE_MIN_SPP

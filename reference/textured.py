@@ -48,6 +48,10 @@ API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's ass
 
 Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
 texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
+
+``TexturedMaterial.normal_filter`` (None: the reference): set by :func:`reference.normal_filter.attach`
+for ``pbrcheck fit-normal-roughness``'s model, it replaces the normal-map texel by the raster's
+trilinear mip lookup at its LOD and widens ``alpha^2`` by the per-level table (that module).
 """
 
 from __future__ import annotations
@@ -84,6 +88,15 @@ def _pad_axis(px: np.ndarray, axis: int, wrap: int) -> np.ndarray:
     return np.pad(px, widths, mode="wrap" if wrap not in WRAP_MODES else "edge")
 
 
+#: Whether the reference's texture lookups may use the GPU's texture units (``bitmap``'s ``accel``,
+#: ``Texture2f``'s ``use_accel``; no effect on the LLVM backend). Off: CUDA's texture units resolve the
+#: position between texels with 8 fractional bits (Dr.Jit's ``Texture`` documentation), so a bilinear
+#: lookup is off by up to 1/512 of the step between two texels -- measured on an H100: 2.30078 for
+#: 2.3 (tests/test_gltf_wrap.py), and a texture-transform test 1.7e-3 off (test_gltf.py). The
+#: reference interpolates in float32 arithmetic, as on the CPU.
+TEXTURE_UNITS = False
+
+
 def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
     """A ``gltf_texture`` (:class:`GltfTexture`) of float32 linear ``pixels`` (H, W, C) read as glTF
     ``ref`` reads it: its own wrapS and wrapT, transform and magFilter."""
@@ -91,7 +104,8 @@ def texture_dict(pixels: np.ndarray, ref: TextureRef) -> dict:
     h, w = px.shape[:2]
     padded = _pad_axis(_pad_axis(px, 1, ref.wrap[0]), 0, ref.wrap[1])
     inner = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(padded)), "raw": True,
-             "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp"}
+             "filter_type": "nearest" if ref.mag_filter == MAG_NEAREST else "bilinear", "wrap_mode": "clamp",
+             "accel": TEXTURE_UNITS}
     m = np.eye(3) if ref.transform is None else np.asarray(ref.transform, float).reshape(3, 3)
     return {"type": TEXTURE_PLUGIN, "inner": inner, "wrap_s": int(ref.wrap[0]), "wrap_t": int(ref.wrap[1]),
             "width": int(w), "height": int(h), "nearest": ref.mag_filter == MAG_NEAREST, **{f"m{k}": float(x) for k, x in enumerate(m.reshape(-1)[:6])}}
@@ -206,6 +220,8 @@ class TexturedMaterial(mi.BSDF):
         self.m_components = comps
         self.m_flags = flags
         self.fused = fuse_textures(self.tex, self.uvset)
+        # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
+        self.normal_filter = None
 
     def traverse(self, callback):
         traverse_material(self, callback)
@@ -267,6 +283,11 @@ class TexturedMaterial(mi.BSDF):
             met = met * mr.z
         if self.roughness_floor > 0.0:
             rough = dr.maximum(rough, self.roughness_floor)
+        if self.normal_filter is not None and "normal" in tex:
+            # fit-normal-roughness's model (reference.normal_filter): the raster's trilinear normal
+            # lookup at its LOD, alpha^2 widened by the per-level table
+            tex["normal"], v = self.normal_filter.lookup(si, active)
+            rough = self.normal_filter.widen(rough, v)
         n_local = mi.Vector3f(0.0, 0.0, 1.0)
         flip = mi.Bool(False)
         if self.double_sided:
@@ -442,7 +463,7 @@ def fuse_textures(tex: dict, uvset: dict) -> list:
                 continue
             packed = mi.TensorXf(np.ascontiguousarray(np.concatenate(planes, axis=-1)))
             mode = dr.FilterMode.Nearest if key[-1] else dr.FilterMode.Linear
-            fused.append((mi.Texture2f(packed, filter_mode=mode, wrap_mode=dr.WrapMode.Clamp),
+            fused.append((mi.Texture2f(packed, use_accel=TEXTURE_UNITS, filter_mode=mode, wrap_mode=dr.WrapMode.Clamp),
                           tex[slots[0]], placed))
     return fused
 

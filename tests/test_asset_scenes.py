@@ -119,6 +119,10 @@ def test_report_sweep_and_diagnose_on_an_asset_scene(asset_dir, capsys):
     assert d["likely"] == "flip_vertical", d["likely"]
     skipped = {h["hypothesis"]: h["skipped"] for h in d["rows"]}
     assert "glTF asset materials" in (skipped["roughness_as_alpha"] or "")
+    # the scene file's point light is one: its units are tried; the constant environment is not rotated
+    assert skipped["light_units_4pi"] is None and skipped["light_units_over_4pi"] is None
+    assert all("constant" in (skipped[f"env_rotate_{a}"] or "") for a in (90, 180, 270))
+    assert "point lights" not in capsys.readouterr().out
 
 
 def test_corpus_of_environments_on_an_asset_scene(asset_dir, capsys):

@@ -251,6 +251,18 @@ def test_sweep_bad_vary_exits_2(fakes, scene_file, tmp_path, capsys, vary, msg):
     assert not (tmp_path / "s").exists()
 
 
+def test_sweep_refuses_msaa_above_this_gl_before_any_render(fakes, scene_file, tmp_path, monkeypatch, capsys):
+    """A --vary value this GL cannot render (msaa above GL_MAX_SAMPLES, lowered to 2 here) stops the
+    sweep in its preflight: exit 3 (a backend limit) naming the option, no render, no output."""
+    import compare.renderers as renderers
+    from realtime import raster
+    monkeypatch.setattr(renderers, "resolve_options", lambda preset, overrides=None: {"msaa": 1, **(overrides or {})})
+    monkeypatch.setattr(raster, "max_msaa", lambda: 2)
+    assert main(["sweep", str(scene_file), "--vary", "msaa=1,4", "--out", str(tmp_path / "s"), "--quiet"]) == 3
+    assert "option msaa: 4 samples asked" in capsys.readouterr().err
+    assert not any(fakes.values()) and not (tmp_path / "s").exists()
+
+
 def test_pareto_front():
     from compare.report.sweep import pareto_front, split_timings
 

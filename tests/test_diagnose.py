@@ -241,3 +241,56 @@ def test_cli_names_the_cause_writes_json_and_rejects_bad_input(tmp_path, ref, co
     assert cli.main(["diagnose", str(REF), str(small), "--json", str(bad), "--quiet"]) == 2
     assert "size mismatch" in capsys.readouterr().err
     assert not bad.exists()
+
+
+def _lit_quad_scene(tmp_path: Path, lights: list[dict], env: str = 'type = "constant"') -> Path:
+    """A one-quad glTF asset carrying ``lights`` (KHR_lights_punctual, each on its own node 2 above
+    the quad), alone in a scene file with environment ``env``."""
+    from gltf_build import quad_asset
+    doc = json.loads(quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}}).read_text())
+    if lights:
+        doc["extensionsUsed"] = ["KHR_lights_punctual"]
+        doc["extensions"] = {"KHR_lights_punctual": {"lights": lights}}
+        for k in range(len(lights)):
+            doc["nodes"].append({"translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": k}}})
+            doc["scenes"][0]["nodes"].append(len(doc["nodes"]) - 1)
+    (tmp_path / "q.gltf").write_text(json.dumps(doc))
+    s = tmp_path / "s.toml"
+    s.write_text(f'[camera]\norigin = [0.0, 0.0, 4.0]\nwidth = 8\nheight = 8\n[environment]\n{env}\n'
+                 '[[objects]]\ntype = "gltf"\npath = "q.gltf"\n')
+    return s
+
+
+def test_light_units_on_asset_scenes_name_the_lights_and_scale_the_assets_own(tmp_path):
+    """On a glTF asset scene: the light-units hypotheses say which lights the scene lacks (no point
+    lights was printed for a scene lit by its environment alone, and for directional-only ones),
+    scale the point and spot lights the asset brings (KHR_lights_punctual) and not its directional
+    ones, and the edit changes the scene's content hash (it was the unedited scene's cache entry);
+    environment rotations are skipped under a constant environment (the same image: no re-render)."""
+    from pbrcheck.environment import scene_hash
+    from pbrcheck.lights import DirectionalLight
+    ref = Image.from_rgb(np.ones((8, 8, 3), np.float32))
+    units = dg.hypothesis("light_units_4pi")
+    (tmp_path / "a").mkdir()
+    bare = load_scene(_lit_quad_scene(tmp_path / "a", [], env='type = "sky"'))
+    why = units.applies_to(ref, bare)
+    assert why == "neither the scene file nor its glTF assets (KHR_lights_punctual) have a punctual light: " \
+                  "only the environment lights it", why
+    assert units.applies_to(ref, load_scene("furnace")) == "the scene has no punctual light: only the " \
+                                                           "environment lights it"
+    assert all(dg.hypothesis(f"env_rotate_{d}").applies_to(ref, bare) is None for d in (90, 180, 270))
+    (tmp_path / "b").mkdir()
+    sun = load_scene(_lit_quad_scene(tmp_path / "b", [{"type": "directional", "intensity": 2.0}]))
+    assert "directional only" in units.applies_to(ref, sun) and "no 4 pi" in units.applies_to(ref, sun)
+    for name in ("env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u"):
+        assert "constant" in dg.hypothesis(name).applies_to(ref, sun), name
+    (tmp_path / "c").mkdir()
+    both = load_scene(_lit_quad_scene(tmp_path / "c", [{"type": "point", "intensity": 3.0},
+                                                         {"type": "directional", "intensity": 2.0}]))
+    assert units.applies_to(ref, both) is None and "spot" in units.description
+    edited = dg.hypothesis_scene("light_units_4pi", both, tmp_path)
+    point, sun_light = edited.lights
+    assert point.intensity == pytest.approx((12 * math.pi,) * 3) and isinstance(sun_light, DirectionalLight)
+    assert sun_light == both.lights[1]
+    assert scene_hash(edited, "e") != scene_hash(both, "e")
+    assert scene_hash(load_scene(tmp_path / "c" / "s.toml"), "e") == scene_hash(both, "e")

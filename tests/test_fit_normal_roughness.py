@@ -15,6 +15,7 @@ from compare.metrics import REL_EPS
 from compare.research.fit_normal_roughness import run_fit_normal_roughness
 from pbrcheck.normal_roughness import NormalRoughnessError, NormalRoughnessTable, level_closed_forms
 from pbrcheck.scene import asset_scene
+from realtime.glsl_harness import run_glsl
 from realtime.hooks import load_hook_file
 from reference.bench_asset import make_asset
 
@@ -31,6 +32,15 @@ RECOVERY_TOL = 0.02
 #: Least pixels of a level whose fitted entry is compared (levels with a couple of pixels are noisy).
 MIN_LEVEL_PIXELS = 20
 #: The small real-time setup of tests/test_raster.py (fast bakes), one sample a pixel.
+#: The generated hook (float32 GLSL, the table printed with 9 significant digits) against
+#: NormalRoughnessTable.__call__ (float64): tests/test_specular_aa.py's GLSL_ATOL.
+GLSL_ATOL = 2e-6
+#: Roughness 0 and 1 and between; lod below 0, at and between every level of the tables below, above the last.
+TWIN_ROUGHNESS = np.array([0.0, 1e-4, 0.05, 0.3, 0.5, 0.9, 1.0])
+TWIN_LODS = np.array([-3.0, -1e-6, 0.0, 1e-6, 0.25, 0.5, 1.0, 1.5, 2.0, 2.75, 3.0, 3.0 + 1e-6, 4.0, 1e6])
+#: Tables: zero and large increments, a zero level between non-zero ones, one level, all zero.
+TWIN_TABLES = ((0.0, 0.2, 0.4, 0.8), (0.0, 1e-6, 0.0, 25.0), (3.0, 0.0, 1e-3, 1e3), (0.3,), (0.0,),
+               (0.0, 0.0, 0.0, 0.0))
 SMALL = {"cube_size": 32, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 4,
          "prefilter_samples": 64, "lut_size": 16, "lut_samples": 256, "supersample": 1}
 
@@ -69,6 +79,23 @@ def test_table_interpolates_and_round_trips(tmp_path):
     assert load_hook_file(g).hooks == ("hook_specular_aa",)
 
 
+@pytest.mark.parametrize("increments", TWIN_TABLES, ids=lambda t: f"{len(t)}levels-" + "-".join(f"{x:g}" for x in t))
+def test_generated_hook_glsl_matches_its_numpy_twin(tmp_path, increments):
+    """The hook_specular_aa that NormalRoughnessTable.glsl writes, run by the GLSL harness, against
+    NormalRoughnessTable.__call__ on a grid including the extremes (roughness 0 and 1, lod below 0, at
+    each level, between levels, above the last; normal_length is not read: 0 and 1 give the same)."""
+    t = NormalRoughnessTable(increments)
+    g = tmp_path / "t.glsl"
+    g.write_text(t.glsl())
+    hook = load_hook_file(g)
+    r, lod, L = np.meshgrid(TWIN_ROUGHNESS, TWIN_LODS, np.array([0.0, 1.0]), indexing="ij")
+    got = run_glsl("hook_specular_aa(x0, x1, x2)", r, L, lod, hook=hook)
+    np.testing.assert_allclose(got, t(r, lod), rtol=0, atol=GLSL_ATOL)
+    # Where the interpolated increment is 0 the roughness comes back to the bit, in both.
+    flat = t.variance(lod) == 0.0
+    assert np.array_equal(got[flat], r[flat].astype(np.float32)) and np.array_equal(t(r, lod)[flat], r[flat])
+
+
 @pytest.fixture(scope="module")
 def stripe_fit(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("nr")
@@ -76,7 +103,8 @@ def stripe_fit(tmp_path_factory):
                         env=None, size=(32, 32))
     # The known answer as an image: specular_aa = prefiltered reads S^2 at every level >= 1.
     target = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "prefiltered"})
-    res = run_fit_normal_roughness(scene, options=SMALL, out=tmp / "fit.json", target=target, scan_step=0.125,
+    res = run_fit_normal_roughness(scene, method="scan", options=SMALL, out=tmp / "fit.json", target=target,
+                                   scan_step=0.125,
                                    refine_steps=())
     return scene, target, res
 

@@ -521,3 +521,52 @@ def test_multiscatter_with_assets_is_refused(tmp_path):
                  '[[objects]]\ntype = "gltf"\npath = "q.gltf"\n')
     with pytest.raises(SceneError, match="brdf.multiscatter"):
         load_scene(s)
+
+
+def _unrolled_first_opaque_hit(self, scene, sampler, ray, si, hit):
+    """The alpha layers as they were written before the symbolic loop (every lane, every layer,
+    every BSDF called): the image the loop must reproduce bit for bit. One copy, in the benchmark
+    that measures the loop against it (tools/alpha_layers.py)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("alpha_layers", Path(__file__).resolve().parents[1] / "tools" / "alpha_layers.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool.unrolled(self, scene, sampler, ray, si, hit)
+
+
+@pytest.mark.parametrize("sampler", ["independent", "qmc"])
+def test_alpha_layers_stop_early_and_change_no_bit(tmp_path, tmp_cache, monkeypatch, sampler):
+    """The local estimator's alpha layers (a symbolic loop a lane leaves at its first opaque surface;
+    the transmission called on the BSDFs a ray can pass only) give the image of the unrolled layers,
+    bit for bit, under both samplers (the random numbers of later sample dimensions included): a MASK
+    checker quad in front of an OPAQUE single-sided quad seen from its culled back, two opaque quads
+    and an analytic sphere behind, in a sky."""
+    from reference.variant import ensure_variant
+    ensure_variant()
+    from reference.integrator import ReferenceIntegrator
+    from reference.render import render_reference
+    chk = np.zeros((8, 8, 4), np.uint8)
+    chk[..., :3] = (200, 120, 60)
+    chk[..., 3] = np.where(np.indices((8, 8)).sum(0) % 2 == 0, 255, 0)
+    quad_asset(tmp_path / "mask.gltf", {"alphaMode": "MASK", "doubleSided": True, "pbrMetallicRoughness": {
+        "baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}, [(chk, {"magFilter": 9728})])
+    for k in range(3):
+        quad_asset(tmp_path / f"o{k}.gltf", {"pbrMetallicRoughness": {
+            "baseColorFactor": [0.2 + 0.3 * k, 0.5, 0.8 - 0.3 * k, 1.0], "metallicFactor": k / 2}})
+
+    def g(p, t, r=0.0, s=1.0):
+        return f'[[objects]]\ntype = "gltf"\npath = "{p}"\ntranslation = {t}\nrotation = [0.0, {r}, 0.0]\nscale = {s}\n'
+    s = tmp_path / "mixed.toml"
+    s.write_text('[camera]\norigin = [0.0, 0.3, 5.0]\nfov = 50.0\nwidth = 24\nheight = 18\n'
+                 '[environment]\ntype = "sky"\n' + g("mask.gltf", [0.0, 0.0, 0.8], s=0.9)
+                 + g("o0.gltf", [0.3, 0.0, 0.2], 180.0, 0.6) + g("o1.gltf", [-0.8, 0.0, -1.0], 20.0, 0.8)
+                 + g("o2.gltf", [0.8, 0.0, -1.2], -20.0, 0.8)
+                 + '[[objects]]\ntype = "sphere"\ncenter = [1.5, -0.6, 0.3]\nradius = 0.4\n')
+    scene = load_scene(s)
+    new = render_reference(scene, spp=8, use_cache=False, progress=False, sampler=sampler)
+    monkeypatch.setattr(ReferenceIntegrator, "_first_opaque_hit", _unrolled_first_opaque_hit)
+    old = render_reference(scene, spp=8, use_cache=False, progress=False, sampler=sampler)
+    for c in old.channels:
+        assert np.array_equal(new.channels[c], old.channels[c], equal_nan=True), c
+    cov = new.channels["coverage"]
+    assert 0.2 < cov.mean() < 1.0   # the sky through the checker and around the quads

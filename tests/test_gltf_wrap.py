@@ -1,11 +1,12 @@
 """glTF samplers whose wrapS and wrapT differ, in the reference (reference.textured.GltfTexture):
-each axis wrapped by its own mode, exactly, bilinear and nearest."""
+each axis wrapped by its own mode, exactly, bilinear and nearest; the raster pass's MIRRORED_REPEAT
+fold (realtime/shaders/texcoord.glsl) against its numpy twin and the reference's."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, load_asset
+from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, load_asset, wrap_mirror
 
 from gltf_build import quad_asset
 
@@ -107,7 +108,36 @@ def test_packed_lookup_is_bit_identical_to_each_slots_own(tmp_path, ws, wt, near
             f"{slot}_texture": textured.texture_dict(p, other if slot == apart else ref) for slot, p in px.items()}})
         packed = [[s for s, _ in slots] for _, _, slots in mat.fused]
         assert packed == [[s for s in textured.FUSED_CHANNELS if s != apart]]
+        # never the GPU's texture units: CUDA's resolve the position between texels with 8 bits
+        assert all(not t.use_accel() for t, _, _ in mat.fused)
+        assert textured.texture_dict(px["normal"], ref)["inner"]["accel"] is False
         got = mat._lookups(si, True)
         for slot, channels in textured.FUSED_CHANNELS.items():
             own = np.array(mat._lookup(slot, si, True))
             assert np.array_equal(np.array(got[slot])[list(channels)], own[list(channels)]), slot
+
+
+#: wrap_mirror: float32 GLSL against float64 numpy and Dr.Jit: the float32 input's own rounding at |x| ~ 1e3 (ulp 6e-5).
+WRAP_ATOL = 1e-4
+#: Coordinates: every integer and half from -4 to 4, a hair either side of 0, 1 and 2, and large ones.
+WRAP_GRID = np.concatenate([np.arange(-8, 9) / 2.0, [-1e-6, 1e-6, 1 - 1e-6, 1 + 1e-6, 2 - 1e-6, 2 + 1e-6,
+                                                     0.3, 1.7, -2.3, 123.25, -999.75]])
+
+
+def test_wrap_mirror_glsl_matches_its_numpy_twin_and_the_reference():
+    """texcoord.glsl's wrap_mirror (GLSL harness) against pbrcheck.gltf.wrap_mirror, and both against
+    the reference's MIRRORED_REPEAT (reference.textured._wrap) on a grid with the folds and large |x|;
+    the known answers: identity on [0, 1], 2 - x on [1, 2], even and 2-periodic."""
+    from realtime.glsl_harness import run_glsl
+    from reference.variant import ensure_variant
+    ensure_variant()
+    import mitsuba as mi
+
+    from reference.textured import _wrap
+    got = run_glsl("wrap_mirror(x0)", WRAP_GRID)
+    twin = wrap_mirror(WRAP_GRID)
+    np.testing.assert_allclose(got, twin, rtol=0, atol=WRAP_ATOL)
+    np.testing.assert_allclose(np.array(_wrap(mi.Float(WRAP_GRID), WRAP_MIRROR)), twin, rtol=0, atol=WRAP_ATOL)
+    x = np.linspace(0.0, 1.0, 11)
+    assert np.allclose(wrap_mirror(x), x) and np.allclose(wrap_mirror(1.0 + x), 1.0 - x)
+    assert np.allclose(wrap_mirror(-WRAP_GRID), twin) and np.allclose(wrap_mirror(WRAP_GRID + 2.0), twin)

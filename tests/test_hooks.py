@@ -13,7 +13,7 @@ import pytest
 from pbrcheck import cli
 from pbrcheck.exr import read_exr
 from pbrcheck.scene import load_scene, scene_from_dict
-from realtime.gl import ShaderCompileError
+from realtime.gl import ShaderCompileError, is_software_renderer
 from realtime.hooks import HOOKS, HookError, load_hook_file
 from realtime.presets import OptionError, resolve_options
 from realtime.render import render_realtime
@@ -21,6 +21,10 @@ from realtime.render import render_realtime
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "shaders"
 SPHERES_CI = ROOT / "compare" / "budgets" / "spheres_ci.toml"
+#: A hook that spells out a preset's terms renders the preset: bit for bit on Mesa; on a GPU within
+#: this relative difference, since its compiler may contract (fma) or reorder the two programs'
+#: arithmetic differently (NVIDIA, H100: see the test).
+HOOK_EQUIVALENT_GPU_RTOL = 1e-5
 #: Two spheres, a white metal and a white dielectric, in a white furnace, no lights.
 TWO = {"name": "two", "camera": {"origin": [0, 0, 6], "fov": 40, "width": 48, "height": 24},
        "environment": {"type": "constant", "radiance": [1, 1, 1]},
@@ -77,7 +81,10 @@ def test_filament_example_is_the_filament_preset(spheres):
     a = render_realtime(spheres, "default", {"irradiance": "sh9", "shader": str(EXAMPLES / "filament.glsl")},
                         progress=False)
     b = render_realtime(spheres, "filament", progress=False)
-    assert np.array_equal(a.rgb, b.rgb)
+    if is_software_renderer():
+        assert np.array_equal(a.rgb, b.rgb)
+    else:
+        np.testing.assert_allclose(a.rgb, b.rgb, rtol=HOOK_EQUIVALENT_GPU_RTOL, atol=1e-7)
 
 
 def test_ue4_example_is_karis_2013(spheres):

@@ -140,7 +140,21 @@ def test_gl_matrices_project_pixel_centres_back():
     np.testing.assert_allclose(y_top, ii.ravel(), atol=1e-9)
 
 
+def _dpkg_installed(*packages: str) -> bool:
+    """Whether Debian's package database lists every one as installed (the target machine's set-up;
+    the GPU machine unpacks its GL loaders without dpkg and has no libllvm19)."""
+    if shutil.which("dpkg-query") is None:
+        return False
+    for p in packages:
+        r = subprocess.run(["dpkg-query", "-W", "-f=${Status}", p], capture_output=True, text=True)
+        if r.returncode != 0 or "install ok installed" not in r.stdout:
+            return False
+    return True
+
+
 def test_llvm19_found_and_exported():
+    if not _dpkg_installed("libllvm19"):
+        pytest.skip("Debian's libllvm19 is not installed here (make setup installs it)")
     path = pbrcheck.find_llvm19()
     assert path is not None and "19" in path
     r = subprocess.run([sys.executable, "-c", "import pbrcheck, os; print(os.environ['DRJIT_LIBLLVM_PATH'])"],
@@ -151,6 +165,8 @@ def test_llvm19_found_and_exported():
 def test_setup_without_root_prints_the_apt_line(tmp_path):
     if os.geteuid() != 0 or shutil.which("setpriv") is None:
         pytest.skip("needs root to drop privileges with setpriv")
+    if not _dpkg_installed("libegl1"):
+        pytest.skip("Debian's libegl1 is not installed here (make setup installs it)")
     # a copy the unprivileged user can read (the checkout may sit in a private directory)
     script = Path("/tmp") / f"pbrcheck-ensure-{os.getpid()}.sh"
     shutil.copy(ROOT / "tools" / "ensure-system-packages.sh", script)
@@ -165,6 +181,8 @@ def test_setup_without_root_prints_the_apt_line(tmp_path):
 
 
 def test_setup_is_a_no_op_when_installed():
+    if not _dpkg_installed("libegl1", "libllvm19"):
+        pytest.skip("Debian's libegl1 and libllvm19 are not installed here (make setup installs them)")
     r = subprocess.run(["bash", str(ROOT / "tools" / "ensure-system-packages.sh"), "libegl1", "libllvm19"],
                        capture_output=True, text=True)
     assert r.returncode == 0 and r.stdout == "" and r.stderr == ""

@@ -26,6 +26,7 @@ ROUNDING = (1.0 - 2.0 ** -22, 1.0 + 2.0 ** -22)
 
 
 def _mat(**kw):
+    ensure_variant()  # another test module may have switched Mitsuba's variant in this process
     d = {"type": "pbr_material", "base_color": [0.9, 0.6, 0.3], "metallic": 1.0, "roughness": 0.0,
          "specular": 0.04, "ndf": "ggx", "geometry": "smith_ggx_correlated", "fresnel": "schlick"}
     d.update(kw)

@@ -254,13 +254,24 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
     capsys.readouterr()
     assert main(["bench", "reference", "--quick"]) == 0
     res = json.loads(capsys.readouterr().out)
-    for k in ("integrator_efficiency", "bsdf_speed_ratio", "local_seconds", "path_seconds", "spp",
+    for k in ("integrator_efficiency", "bsdf_speed_ratio", "bsdf_speed_ratio_pass_width", "local_seconds", "path_seconds", "spp",
               "resolution", "variant"):
         assert k in res, k
     assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0
     g = res["material_gather"]
     assert g["materials"] == 30 and g["gathered"]["render_seconds"] > 0 and g["per_instance"]["grad_step_seconds"] > 0
     assert res["material_gather_render_speedup"] == g["render_speedup"] > 0
+    # the samplers' figures of the asset scene (the textured glTF), beside spheres'
+    a = res["samplers"]["asset"]
+    assert a["environment"] == res["samplers"]["spheres"]["environment"]
+    for label in ("qmc", "qmc_adaptive"):
+        for k in ("variance_ratio", "spp_ratio", "seconds_speedup", "mean_z", "pixels_within_1.96"):
+            assert np.isfinite(a[label][k]) and (k == "mean_z" or a[label][k] > 0), (label, k)
+    assert a["independent"]["variance_ratio"] == 1.0 and a["target_floor"] > 0
+    assert "ris4" in res["variance_reduction"]["spheres"]  # the RIS candidate (reference.integrator.resampled_estimate)
+    from reference.bench import run_sections
+    with pytest.raises(ValueError, match="section must be one of"):
+        run_sections(("samplers", "everything"), quick=True)
 
 
 def test_black_environment_point_lights_only():

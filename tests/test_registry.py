@@ -314,6 +314,57 @@ def test_realtime_role_twins(define, name, role):
     np.testing.assert_allclose(got, getattr(numpy_mod, role)(*grids.values(), name), rtol=0, atol=atol)
 
 
+#: The real-time approximations' GLSL term files (issue 23): each one's numpy home and the test files
+#: whose GLSL harness calls (``run_glsl("NAME(...)"``) compare a function that is no role member's.
+APPROXIMATION_TERM_FILES = {"occlusion.glsl": ("pbrcheck.occlusion", ("test_occlusion.py",)),
+                            "specular_aa.glsl": ("pbrcheck.specular_aa", ("test_specular_aa.py",)),
+                            "coverage.glsl": ("pbrcheck.coverage", ("test_specular_aa.py",)),
+                            "texcoord.glsl": ("pbrcheck.gltf", ("test_gltf_wrap.py",))}
+#: raster.frag's own functions: pipeline plumbing with no closed form to twin (texture lookups through
+#: derivatives and the fragment's varyings, textureQueryLod, the raster pipeline's absent shadow rays).
+#: A closed-form term goes to a term file above, with its twin.
+RASTER_PLUMBING = {"occluded", "lookup", "normal_map_lod", "slot", "main"}
+
+
+@pytest.mark.parametrize("glsl_file", list(APPROXIMATION_TERM_FILES))
+def test_every_approximation_glsl_function_has_a_harness_compared_twin(glsl_file):
+    """Every function an approximation's GLSL file defines has a numpy twin of the same name, and is
+    compared with it by the GLSL harness: as a role member (test_realtime_role_twins, parametrized by
+    the registry) or by a ``run_glsl("NAME(`` call of the listed tests. A function added without
+    both fails here."""
+    import importlib
+    np_mod, test_files = APPROXIMATION_TERM_FILES[glsl_file]
+    module = importlib.import_module(np_mod)
+    glsl = re.sub(r"//[^\n]*", "", (SHADER_DIR / glsl_file).read_text())
+    names = re.findall(r"^\w+\s+(\w+)\s*\([^;{)]*\)\s*\{", glsl, re.M)
+    assert names, glsl_file
+    roles = {impl.glsl for d in REALTIME_ROLES for e in registry.ROLE_REGISTRIES[d][0] for impl in e.roles.values()}
+    calls = "\n".join((ROOT / "tests" / f).read_text() for f in test_files)
+    for name in names:
+        assert callable(getattr(module, name, None)), f"{glsl_file}: {name} has no numpy twin in {np_mod}"
+        assert name in roles or re.search(rf'run_glsl\(\s*f?"{name}\(', calls), \
+            f"{glsl_file}: {name} is compared with its twin by no GLSL harness test ({', '.join(test_files)})"
+
+
+def test_the_raster_pass_defines_plumbing_only():
+    """Every function raster.frag defines is RASTER_PLUMBING's (its terms live in the term files that
+    the harness compiles and test_every_approximation_glsl_function_has_a_harness_compared_twin checks)."""
+    frag = re.sub(r"//[^\n]*", "", (SHADER_DIR / "raster.frag").read_text())
+    assert set(re.findall(r"^\w+\s+(\w+)\s*\([^;{)]*\)\s*\{", frag, re.M)) == RASTER_PLUMBING
+
+
+def test_the_generated_normal_roughness_hook_is_harness_compared():
+    """The hook_specular_aa that ``pbrcheck fit-normal-roughness`` writes (NormalRoughnessTable.glsl) is
+    compared with NormalRoughnessTable.__call__ by the harness on tables of one and several levels."""
+    import test_fit_normal_roughness as fit
+    params = [m.args for m in fit.test_generated_hook_glsl_matches_its_numpy_twin.pytestmark
+              if m.name == "parametrize"][0][1]
+    assert any(len(t) == 1 for t in params) and any(len(t) > 2 for t in params)
+    assert any(0.0 in t for t in params) and max(max(t) for t in params) >= 1.0
+    assert fit.TWIN_LODS.min() < 0 and fit.TWIN_LODS.max() > max(len(t) for t in params)
+    assert {0.0, 1.0} <= set(fit.TWIN_ROUGHNESS)
+
+
 @pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
 def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
     """The shaders select a role registry's member only in its generated dispatch (no hand

@@ -177,8 +177,10 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | 
         load_scene(s)
     for p in presets:
         renderers.resolve_options(p, {})
+        renderers.check_backend_limits(p, {})
     for combo in combinations(vary_d) if vary_d else []:
         renderers.resolve_options(presets[0], combo)
+        renderers.check_backend_limits(presets[0], combo)
     if cfg.scheduler:
         parse_scheduler(cfg.scheduler)
     return presets, vary_d

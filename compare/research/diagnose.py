@@ -29,14 +29,19 @@ Scene space (``scene`` given: the reference is re-rendered under the hypothesis,
 at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
 
 - ``env_rotate_90``, ``env_rotate_180``, ``env_rotate_270``: the environment rotated about +Y.
-- ``env_mirror_u``: the environment mirrored in u (``x -> -x`` in Mitsuba's mapping).
+- ``env_mirror_u``: the environment mirrored in u (``x -> -x`` in Mitsuba's mapping). Neither for a
+  constant environment (the same rotated or mirrored: skipped, no re-render).
 - ``roughness_as_alpha``: the test uses roughness as alpha (GGX alpha = r, not r^2), i.e. the
   reference with roughness ``sqrt(r)``; ``roughness_squared_twice``: alpha = r^4, roughness ``r^2``.
 - ``diffuse_times_pi``, ``diffuse_over_pi``: the Lambert term off by pi: the base colour of every
   dielectric (``metallic = 0``, whose F0 is ``specular`` whatever the base colour) scaled by pi or
   1/pi; partial metals are left alone (their F0 depends on the base colour).
-- ``light_units_4pi``, ``light_units_over_4pi``: point-light intensity off by 4 pi (power in W
-  read as W/sr or the reverse): every light's intensity scaled. Only for scenes with point lights.
+- ``light_units_4pi``, ``light_units_over_4pi``: point- and spot-light intensity off by 4 pi (power
+  in W read as W/sr or the reverse): every point and spot light's intensity scaled, the scene
+  file's and the glTF assets' (``KHR_lights_punctual``; an edited asset light enters the scene's
+  content hash, :meth:`pbrcheck.scene.Scene.content_dict`). Directional lights (an irradiance, no 4
+  pi) are left alone. Only for scenes with a point or spot light; the skip says which lights the
+  scene has.
 - ``multiple_scattering``: not a convention but a model difference engines commonly have: the
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
@@ -80,6 +85,7 @@ from pbrcheck.environment import load_environment, texel_directions
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.fmt import format_value
+from pbrcheck.lights import DirectionalLight
 from pbrcheck.progress import Progress
 from pbrcheck.registry import MULTISCATTER_GEOMETRY
 from pbrcheck.scene import Environment, Scene
@@ -199,10 +205,19 @@ def _scale_dielectric_diffuse(k: float):
     return edit
 
 
+def _intensity_lights(scene: Scene) -> list:
+    """The lights whose ``intensity`` is a radiant intensity (W/sr): point and spot, the scene file's
+    and the glTF assets' (``KHR_lights_punctual``), where power and intensity differ by 4 pi; a
+    directional light's is an irradiance (W/m^2), with no such factor."""
+    return [li for li in scene.lights if not isinstance(li, DirectionalLight)]
+
+
 def _scale_lights(k: float):
-    """Scene edit: every light's intensity (point, spot, directional) scaled by ``k``."""
+    """Scene edit: every point and spot light's intensity (:func:`_intensity_lights`, the glTF
+    assets' included) scaled by ``k``; directional lights unchanged."""
     def edit(scene: Scene, directory: Path) -> tuple[Scene, dict]:
-        return replace(scene, lights=tuple(replace(li, intensity=tuple(k * c for c in li.intensity))
+        return replace(scene, lights=tuple(li if isinstance(li, DirectionalLight) else
+                                           replace(li, intensity=tuple(k * c for c in li.intensity))
                                            for li in scene.lights)), {"factor": k}
     return edit
 
@@ -257,8 +272,26 @@ def _needs_coverage(ref: Image, scene: Scene | None) -> str | None:
     return None if ref.channels.get("coverage") is not None else "the reference has no coverage AOV"
 
 
-def _needs_lights(ref: Image, scene: Scene) -> str | None:
-    return None if scene.lights else "the scene has no point lights"
+def _needs_intensity_lights(ref: Image, scene: Scene) -> str | None:
+    """Where the 4 pi of point- and spot-light units can be tested: why not otherwise."""
+    if _intensity_lights(scene):
+        return None
+    assets = bool(getattr(scene, "assets", ()))
+    if scene.lights:
+        whose = " (the glTF assets' included)" if assets else ""
+        return (f"the scene's lights{whose} are directional only: "
+                "an irradiance (W/m^2, lux), with no 4 pi between power and intensity")
+    if assets:
+        return ("neither the scene file nor its glTF assets (KHR_lights_punctual) have a punctual light: only "
+                "the environment lights it")
+    return "the scene has no punctual light: only the environment lights it"
+
+
+def _needs_varying_environment(ref: Image, scene: Scene) -> str | None:
+    """A constant environment is the same rotated or mirrored: nothing to test (and no re-render)."""
+    if scene.environment.type == "constant":
+        return "the environment is constant: rotated or mirrored it is the same"
+    return None
 
 
 def _needs_dielectric(ref: Image, scene: Scene) -> str | None:
@@ -326,9 +359,10 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
     Hypothesis("premultiplied_alpha", "image", "colour premultiplied by coverage (transparent background)",
                _premultiplied, _needs_coverage),
     *(Hypothesis(f"env_rotate_{deg}", "scene", f"environment rotated {deg} degrees about +Y",
-                 _rotate_environment(float(deg))) for deg in (90, 180, 270)),
+                 _rotate_environment(float(deg)), _needs_varying_environment) for deg in (90, 180, 270)),
     Hypothesis("env_mirror_u", "scene", "environment mirrored in u",
-               lambda scene, directory: (replace(scene, environment=_mirrored_environment(scene, directory)), {})),
+               lambda scene, directory: (replace(scene, environment=_mirrored_environment(scene, directory)), {}),
+               _needs_varying_environment),
     Hypothesis("roughness_as_alpha", "scene", "roughness used as alpha (not squared)",
                _edit_materials(lambda m: replace(m, roughness=math.sqrt(m.roughness))), _analytic_materials),
     Hypothesis("roughness_squared_twice", "scene", "roughness squared twice (alpha = r^4)",
@@ -337,10 +371,10 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
                _both(_analytic_materials, _needs_dielectric)),
     Hypothesis("diffuse_over_pi", "scene", "diffuse divided by pi", _scale_dielectric_diffuse(1 / math.pi),
                _both(_analytic_materials, _needs_dielectric)),
-    Hypothesis("light_units_4pi", "scene", "point-light intensity multiplied by 4 pi", _scale_lights(4 * math.pi),
-               _needs_lights),
-    Hypothesis("light_units_over_4pi", "scene", "point-light intensity divided by 4 pi",
-               _scale_lights(1 / (4 * math.pi)), _needs_lights),
+    Hypothesis("light_units_4pi", "scene", "point- and spot-light intensity multiplied by 4 pi",
+               _scale_lights(4 * math.pi), _needs_intensity_lights),
+    Hypothesis("light_units_over_4pi", "scene", "point- and spot-light intensity divided by 4 pi",
+               _scale_lights(1 / (4 * math.pi)), _needs_intensity_lights),
     Hypothesis("multiple_scattering", "scene",
                "the renderer keeps the energy of multiple scattering (energy compensation)",
                lambda scene, directory: (replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), {}),

@@ -256,7 +256,10 @@ class FitNormalRoughnessResult(_JSON):
     """fit-normal-roughness: per level a :class:`LevelFit`; ``fitted`` the table's JSON
     (:class:`pbrcheck.normal_roughness.NormalRoughnessTable`); ``relmse`` per row of the evaluation
     (none, toksvig, toksvig_table, lean_table, prefiltered, fitted); ``start``: stage 2's start (the lowest of
-    ``start_relmse``: per_level_optima, toksvig_table, lean_table); ``glsl`` the hook file."""
+    ``start_relmse``: per_level_optima, toksvig_table, lean_table; method ad: its starting table, no
+    relmse); ``glsl`` the hook file; ``method`` ad or scan; ad only: ``model_relmse`` (the filtered
+    reference model's relmse against the truth per table: filtered (none), toksvig_table, lean_table,
+    fitted), ``losses`` (Adam's per step), ``lod`` (its convention and range over the pixels)."""
     scene: str
     preset: str
     options: dict
@@ -270,3 +273,7 @@ class FitNormalRoughnessResult(_JSON):
     relmse: dict
     reference_spp: dict | None = None
     glsl: str = ""
+    method: str = "scan"
+    model_relmse: dict | None = None
+    losses: list | None = None
+    lod: dict | None = None

@@ -1,5 +1,6 @@
 // harness.comp: runs one GLSL expression of the shader library on arrays (realtime/glsl_harness.py).
-// Inputs: a[i], b[i] (8 floats per element); output: vec4 per element.
+// Inputs: a[i], b[i] (8 floats per element); output: vec4 per element. hooks.glsl: the prototypes
+// of a hook file the harness appends (its HOOK_<NAME> defined), none otherwise.
 layout(local_size_x = 64) in;
 #include "sampling.glsl"
 #include "ibl.glsl"
@@ -9,6 +10,8 @@ layout(local_size_x = 64) in;
 #include "occlusion.glsl"
 #include "specular_aa.glsl"
 #include "coverage.glsl"
+#include "texcoord.glsl"
+#include "hooks.glsl"
 layout(std430, binding = 0) readonly buffer InA { vec4 a_in[]; };
 layout(std430, binding = 1) readonly buffer InB { vec4 b_in[]; };
 layout(std430, binding = 2) writeonly buffer Out { vec4 out_v[]; };

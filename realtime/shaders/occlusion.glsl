@@ -24,7 +24,9 @@ float cone_cone_intersection(float cos_cap1, float cos_cap2, float cos_distance)
     float r1 = acos(clamp(cos_cap1, -1.0, 1.0));
     float r2 = acos(clamp(cos_cap2, -1.0, 1.0));
     float d = acos(clamp(cos_distance, -1.0, 1.0));
-    float ratio = cos_cap2 >= cos_cap1 ? 1.0 : (1.0 - cos_cap1) / max(1.0 - cos_cap2, 1e-30);
+    // min(1, .) rather than a branch on c2 >= c1: two caps of zero size (c1 = c2 = 1, e.g. ao = 0
+    // against a mirror lobe whose cos_s rounds to 1 in float32) overlap by 0, not 1.
+    float ratio = min(1.0, (1.0 - cos_cap1) / max(1.0 - cos_cap2, 1e-30));
     if (min(r1, r2) <= max(r1, r2) - d) return ratio;
     if (r1 + r2 <= d) return 0.0;
     float delta = abs(r1 - r2);
@@ -41,7 +43,9 @@ float specular_occlusion_gtso(float NoV, float ao, float roughness) {
     float cos_s = exp2(-3.321928 * alpha * alpha);
     float occluded = cone_cone_intersection(sqrt(max(1.0 - ao, 0.0)), cos_s, NoV);
     float unoccluded = cone_cone_intersection(0.0, cos_s, NoV);
-    return clamp(occluded / max(unoccluded, 1e-6), 0.0, 1.0);
+    // The branch, not the division, gives exactly 1 where nothing is occluded: NVIDIA divides as
+    // x * rcp(y), so x / x can be 1 - 2^-24 (measured on an H100).
+    return occluded >= unoccluded ? 1.0 : clamp(occluded / max(unoccluded, 1e-6), 0.0, 1.0);
 }
 
 // Source: Russell 2015 (Marmoset), "Horizon Occlusion for Normal Mapped Reflections"; Jimenez et

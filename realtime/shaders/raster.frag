@@ -18,6 +18,7 @@
 #include "shading.glsl"
 #include "specular_aa.glsl"
 #include "coverage.glsl"
+#include "texcoord.glsl"
 #ifndef ALPHA_TO_COVERAGE
 #define ALPHA_TO_COVERAGE 0
 #endif
@@ -71,8 +72,6 @@ layout(location = 0) out vec4 out_color;   // radiance, alpha (coverage)
 // No shadow rays in the raster pipeline (option shadows is refused with it).
 bool occluded(vec3 p, vec3 l, float dist) { return false; }
 
-float fold(float x) { return 1.0 - abs(mod(x, 2.0) - 1.0); }
-
 // Trilinear (and anisotropic where the texture has it) lookup of slot k, derivatives of the
 // unfolded coordinates so the mip level does not jump at a mirror fold. lod0: bilinear at level 0
 // only, as the reference reads textures (TEXTURE_LOD0 for the material textures, NORMAL_LOD0 for
@@ -82,8 +81,8 @@ vec4 lookup(sampler2D t, int has, int set, mat3 xf, int mirror, vec4 fallback, b
     vec2 uv = set == 0 ? v_uv0 : v_uv1;
     uv = (xf * vec3(uv, 1.0)).xy;
     vec2 dx = dFdx(uv), dy = dFdy(uv);
-    if ((mirror & 1) != 0) uv.x = fold(uv.x);
-    if ((mirror & 2) != 0) uv.y = fold(uv.y);
+    if ((mirror & 1) != 0) uv.x = wrap_mirror(uv.x);
+    if ((mirror & 2) != 0) uv.y = wrap_mirror(uv.y);
     return lod0 ? textureLod(t, uv, 0.0) : textureGrad(t, uv, dx, dy);
 }
 
