@@ -107,3 +107,22 @@ def test_stage_table_prints_wall_and_cpu_per_stage_and_kind():
     assert row["(none of these)"][-2:] == ["4.0", "4.0"]
     section = runlog.run_section({**run, "backends": {}, "caches": {}})
     assert [r[0] for r in section.tables[1].rows] == ["reference"]
+
+
+def test_first_run_says_whether_the_machine_was_quiet(monkeypatch, tmp_path):
+    """The load average before the first run is in the JSON, and a run started while other
+    processes kept more than QUIET_LOAD_MAX cores busy is not called quiet (its wall time is theirs too)."""
+    loads = iter([[1.7, 1.2, 0.9], [3.1, 2.0, 1.1], [0.2, 0.3, 0.3], [2.0, 1.0, 0.5]])
+    monkeypatch.setattr(runlog.os, "getloadavg", lambda: tuple(next(loads)))
+    monkeypatch.setattr(runlog.subprocess, "run", lambda *a, **k: type("P", (), {"returncode": 0})())
+
+    def fake_read(self):
+        return json.dumps({"wall_s": 100.0, "cpu_s": 180.0, "backends": {}, "caches": {}, "stages": []})
+
+    monkeypatch.setattr(Path, "read_text", fake_read)
+    res = runlog.bench_report(["furnace"], progress=False)
+    assert res["first"]["load_before"] == [1.7, 1.2, 0.9] and res["first"]["load_after"] == [3.1, 2.0, 1.1]
+    assert res["first_load_before"] == 1.7 and not res["first_quiet"]
+    assert res["first_cpu_s"] == 180.0 and res["first_meets_goal"]   # the goal's verdict is still the wall time's
+    loads = iter([[0.3, 0.3, 0.3], [2.0, 1.0, 0.5]] * 2)
+    assert runlog.bench_report(["furnace"], progress=False)["first_quiet"]

@@ -23,7 +23,8 @@ HDR-FLIP, plots, waiting on external renderers: :mod:`compare.worktime`), whiche
 
 API: :class:`RunLog` (:meth:`RunLog.stage` records one stage), :func:`run_section`, :func:`summary_line`,
 :func:`cache_line`, :func:`stage_table`, :func:`bench_report`, :func:`bench_report_asset`,
-:data:`RUN_FILE`, :data:`REPORT_GOAL_S`, :data:`ASSET_REPORT_GOAL`, :data:`ASSET_REPORT_SCENES`.
+:data:`RUN_FILE`, :data:`REPORT_GOAL_S`, :data:`QUIET_LOAD_MAX`, :data:`ASSET_REPORT_GOAL`,
+:data:`ASSET_REPORT_SCENES`.
 """
 
 from __future__ import annotations
@@ -51,6 +52,10 @@ REPORT_GOAL_S = {"cpu": 120.0, "gpu": 30.0}
 #: The report that ``make report`` builds (``pbrcheck bench report``'s default arguments).
 MAKE_REPORT_ARGS = ("spheres", "furnace", "grazing", "--spp", "256", "--with", "ext:threejs,ext:sample-viewer",
                     "--hardcases", "--research")
+#: The goal is about a quiet machine: a run that starts while other processes keep more than this
+#: many cores busy (the 1-minute load average just before it, ``os.getloadavg``) has its wall time
+#: inflated by them, and ``bench report`` says so (``first_quiet``) beside the goal's verdict.
+QUIET_LOAD_MAX = 0.5
 #: The asset report's wall time over the spheres scene's (issue 23's goal).
 ASSET_REPORT_GOAL = 2.0
 #: ``bench report-asset``'s scenes (repository paths): the gate's asset check and the CI spheres,
@@ -193,15 +198,28 @@ def _run(args: list[str], out: Path, env: dict, progress: bool = False) -> dict:
     """One report run in a new process; with ``progress`` its progress bars go to this stderr (and a
     failure points there), else its output is captured and a failure quotes its end."""
     cmd = [sys.executable, "-m", "pbrcheck.cli", "report", *args, "--out", str(out)] + ([] if progress else ["--quiet"])
+    load_before = _load()
     t = time.perf_counter()
     p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=None if progress else subprocess.PIPE, text=True)
     wall = time.perf_counter() - t
+    load_after = _load()
     if p.returncode != 0:
         why = "its output is above" if progress else p.stderr[-2000:]
         raise BenchReportError(f"bench report: `{' '.join(cmd)}` exited {p.returncode}:\n{why}")
     run = json.loads((out / RUN_FILE).read_text())
     run["process_wall_s"] = wall  # with the interpreter's start and imports
+    # The machine's load average (1, 5, 15 min) just before and after: before, it is the other
+    # processes' (this run's own is in the one after).
+    run["load_before"], run["load_after"] = load_before, load_after
     return run
+
+
+def _load() -> list[float] | None:
+    """The 1-, 5- and 15-minute load averages (None where the platform has none)."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return None
 
 
 def _matplotlib_cachedir() -> str:
@@ -214,10 +232,11 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
     """Run ``pbrcheck report ARGS`` twice, each in a new process: ``first`` with empty caches (a
     temporary ``PBRCHECK_CACHE`` and, with ``fresh_home``, a temporary ``HOME``, so Dr.Jit's kernel
     cache and Mesa's shader cache start empty too: a first run on a fresh machine; matplotlib's font
-    list is kept, see the code), then ``again``
-    with the caches the first run left. Returns both runs' ``run.json`` (plus ``process_wall_s``), the
-    goal for this machine (:data:`REPORT_GOAL_S`: ``gpu`` when the reference ran on CUDA) and whether
-    each run meets it."""
+    list is kept, see the code), then ``again`` with the caches the first run left. Returns both runs'
+    ``run.json`` (plus ``process_wall_s`` and the load averages before and after, ``load_before`` /
+    ``load_after``), the goal for this machine (:data:`REPORT_GOAL_S`: ``gpu`` when the reference ran
+    on CUDA), whether each run meets it, the first run's CPU seconds and whether it started on a quiet
+    machine (``first_quiet``: :data:`QUIET_LOAD_MAX`)."""
     args = list(MAKE_REPORT_ARGS if args is None else args)
     with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-report-") as tmp:
         tmp = Path(tmp)
@@ -235,18 +254,25 @@ def bench_report(args: list[str] | None = None, *, fresh_home: bool = True, prog
                 print(f"bench report: {name} run ...", file=sys.stderr, flush=True)
             runs[name] = _run(args, tmp / f"out_{name}", env, progress)
             if progress:
-                print(f"bench report: {name} run, {summary_line(runs[name])}\n{stage_table(runs[name])}",
+                print(f"bench report: {name} run, {summary_line(runs[name])}; load average before "
+                      f"{runs[name]['load_before']}, after {runs[name]['load_after']}\n{stage_table(runs[name])}",
                       file=sys.stderr, flush=True)
     gpu = str(runs["first"]["backends"].get("reference_variant", "")).startswith("cuda")
     goal = REPORT_GOAL_S["gpu" if gpu else "cpu"]
+    first_load = (runs["first"].get("load_before") or [None])[0]
     return {
         "args": args,
         "goal_s": goal,
         "goal_machine": "gpu" if gpu else "cpu",
         "first_wall_s": runs["first"]["wall_s"],
+        "first_cpu_s": runs["first"].get("cpu_s"),
         "again_wall_s": runs["again"]["wall_s"],
         "first_meets_goal": runs["first"]["wall_s"] <= goal,
         "again_meets_goal": runs["again"]["wall_s"] <= goal,
+        # Whether the first run started on a quiet machine (QUIET_LOAD_MAX): if not, its wall time is
+        # inflated by other processes, and first_meets_goal says less about this machine.
+        "first_load_before": first_load,
+        "first_quiet": first_load is not None and first_load <= QUIET_LOAD_MAX,
         "first": runs["first"],
         "again": runs["again"],
     }
