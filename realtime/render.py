@@ -252,6 +252,10 @@ def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: di
             _set(gather, "src_size", n_src)
             _set(gather, "src_lod", float(src_lod))
             gather.run(groups(n_src, 8), groups(n_src, 8), 6)
+            # the sum below reads the table through an SSBO: a GPU needs the barrier for the writes to
+            # be visible (GL 4.6 core, 7.13.2); llvmpipe's serial dispatches hid its absence, and on
+            # an H100 the gate's twenty reruns of the unchanged tree regressed at the 8th bake
+            ctx.memory_barrier()
         else:
             _set(prog, "src_cube", 1)
             _set(prog, "src_lod", float(src_lod))
