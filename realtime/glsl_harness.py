@@ -59,6 +59,7 @@ def run_glsl(expr: str, *inputs, components: int = 1, defines: dict | None = Non
             pass
     prog["count"].value = n
     prog.run(groups(n, 64))
+    ctx.memory_barrier()  # SSBO writes are incoherent (GL 4.6 core, 7.13.2): visible to the read-back after it
     res = np.frombuffer(out.read(), np.float32).reshape(n, 4).copy()
     for buf in (a, b, out):
         buf.release()

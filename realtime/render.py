@@ -141,12 +141,21 @@ def _timed(ctx, fn):
     return timed(ctx, fn)
 
 
+def _visible(result):
+    """``result``, after a memory barrier: image stores and SSBO writes of compute shaders are
+    incoherent (GL 4.6 core, 7.13.2): a later texture fetch, mip generation or read-back sees them
+    only after ``glMemoryBarrier``. llvmpipe runs dispatches in order, so a missing barrier shows on
+    a GPU alone (the irradiance bake's table did, on an H100)."""
+    get_context().memory_barrier()
+    return result
+
+
 def _baked(name: str, key, timings: dict | None, run):
     """A precompute pass baked once per process: ``run()`` timed with :func:`_timed` on a miss and
     kept in ``_cache``; the bake's wall time goes to ``timings[name]`` on a miss and on a hit (a hit
     reports the original bake, see ``meta["cached_passes"]``)."""
     if key not in _cache:
-        _cache[key], _timings[key] = _timed(get_context(), run)
+        _cache[key], _timings[key] = _timed(get_context(), lambda: _visible(run()))
     if timings is not None:
         timings[name] = _timings[key]
     return _cache[key]
@@ -220,6 +229,7 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
         tex.bind_to_image(0, read=False, write=True, level=0)
         _set(prog, "face_size", size)
         prog.run(groups(size, 8), groups(size, 8), 6)
+        _visible(None)  # the mips are built from the stored level 0
         tex.build_mipmaps()
         return tex
 
@@ -294,7 +304,7 @@ def sh9_coefficients(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
         _set(prog, "src_size", size)
         _set(prog, "src_lod", float(math.log2(o.cube_size / size)))
         prog.run(groups(size, 8), groups(size, 8), 6)
-        ctx.finish()
+        _visible(None)
         proj = np.frombuffer(buf.read(), np.float32).reshape(-1, 9, 4)[..., :3].astype(np.float64).sum(axis=0)
         buf.release()
         # proj_i = int L b_i dw; L_lm = K_i proj_i; E/pi = sum A_l/pi L_lm K_i b_i
@@ -420,6 +430,7 @@ def sample_cube(tex, directions: np.ndarray, lod: float = 0.0) -> np.ndarray:
     _set(prog, "cube", 0)
     _set(prog, "count", n)
     prog.run(groups(n, 64))
+    _visible(None)
     res = np.frombuffer(out.read(), np.float32).reshape(n, 4)[:, :3].copy()
     a.release()
     out.release()
@@ -674,6 +685,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
 
         _, timings["frame"] = _timed(ctx, frame)
         bar.update(1, "frame")
+        _visible(None)  # the frame's image stores, before the read-back
         color = np.frombuffer(out_color.read(), np.float32).reshape(H, W, 4).copy()
         aov = np.frombuffer(out_aov.read(), np.float32).reshape(H, W, 4).copy()
         obj = np.frombuffer(out_obj.read(), np.float32).reshape(H, W).copy()
