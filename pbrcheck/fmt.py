@@ -7,11 +7,21 @@ API
 - :data:`TABLE_DIGITS`, :data:`MESSAGE_DIGITS` -- the two precisions in use: 4 significant digits
   in tables a person reads across (report, research tables), 6 in CLI metric lines and the gate,
   where a value is compared with its budget.
+- :func:`terminal_safe`, :func:`xml_text`, :func:`markdown_cell`, :func:`csv_cell` -- a name from
+  an untrusted scene or asset made safe for one output format (a terminal line, XML 1.0 character
+  data, a Markdown table cell, a spreadsheet cell). Every writer of a name into such an output goes
+  through one of these (docs/security.md).
+
+References
+----------
+- W3C, Extensible Markup Language (XML) 1.0, section 2.2 "Characters" (the legal ``Char`` ranges).
+- OWASP, "CSV Injection" (cells beginning with ``= + - @``, tab or carriage return).
 """
 
 from __future__ import annotations
 
 import math
+import re
 
 #: Significant digits in tables (report, research tables).
 TABLE_DIGITS = 4
@@ -44,3 +54,53 @@ def format_value(v, digits: int = MESSAGE_DIGITS) -> str:
     if math.isinf(v):
         return "inf" if v > 0 else "-inf"
     return f"{v:.{digits}g}"
+
+
+#: C0 and C1 control characters and DEL: a terminal interprets them (ESC starts an ANSI sequence,
+#: CR rewinds the line, BS erases), so a name that holds one can forge or hide output.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def terminal_safe(s: str) -> str:
+    """``s`` with every control character shown as its Python escape (``\\x1b``, ``\\n``).
+
+    For names printed on a terminal (gate lines, ``check-scene``, stderr messages): the text stays
+    one line and no escape sequence reaches the terminal. Printable text, non-ASCII included, is kept.
+    """
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], str(s))
+
+
+#: Characters XML 1.0 forbids anywhere in a document (section 2.2): C0 controls but tab, LF and CR;
+#: the surrogates; U+FFFE and U+FFFF.
+_XML_ILLEGAL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(s: str) -> str:
+    """``s`` as XML 1.0-legal text: characters XML forbids replaced by their escape in visible form
+    (``\\x1b``); the markup characters are left to the XML writer's own escaping."""
+    return _XML_ILLEGAL.sub(lambda m: repr(m.group())[1:-1], str(s))
+
+
+def markdown_cell(s: str) -> str:
+    """``s`` for one cell of a Markdown (GitHub) table: one line, no raw HTML, no column break.
+
+    Control characters escaped (:func:`terminal_safe`; newlines become ``\\n``), ``&``, ``<``, ``>``
+    as HTML entities (GitHub renders inline HTML in a table), ``|`` and the backslash escaped, and
+    the inline-markup characters (`` ` * _ [ ] ``) escaped so a name cannot become a link or code span.
+    """
+    s = terminal_safe(s)
+    s = s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return re.sub(r"([\\|`*_\[\]])", r"\\\1", s)
+
+
+#: First characters that make a spreadsheet read a cell as a formula (OWASP "CSV Injection").
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_cell(v):
+    """A value for a CSV cell: a string that begins with ``= + - @``, tab or CR is prefixed with a
+    single quote so a spreadsheet shows it as text (OWASP's rule); numbers and None are returned
+    unchanged (a negative number is data, not a formula)."""
+    if isinstance(v, str) and v.startswith(_FORMULA_START):
+        return "'" + v
+    return v
