@@ -33,6 +33,7 @@ from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
+from .unmodelled import scene_unmodelled
 
 Vec3 = tuple[float, float, float]
 
@@ -230,6 +231,12 @@ class Scene:
 
     def with_camera(self, **changes) -> "Scene":
         return replace(self, camera=replace(self.camera, **changes))
+
+    @property
+    def unmodelled(self) -> tuple:
+        """The features of the scene's glTF assets that pbrcheck does not model
+        (:class:`pbrcheck.unmodelled.Unmodelled`: feature, material names, object ids, asset path)."""
+        return scene_unmodelled(self)
 
 
 def _environment_dict(env: Environment) -> dict[str, Any]:
