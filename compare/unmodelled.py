@@ -61,6 +61,7 @@ def unjudged_reason(scene, check_budget) -> str | None:
         return None
     named = "; ".join(f"{terminal_safe(f)} (materials: {', '.join(terminal_safe(m) for m in sorted(ms)) or 'none'})"
                       for f, ms in left.items())
+    names = ", ".join(f'"{f}"' for f in left)
     return (f"the scene uses what pbrcheck does not model: {named}; the reference leaves it out, so the "
-            f"engine cannot be judged; allow it by name with {ALLOW_KEY} = [{', '.join(f'"{f}"' for f in left)}] "
+            f"engine cannot be judged; allow it by name with {ALLOW_KEY} = [{names}] "
             f"in the check's table to judge it anyway")
