@@ -16,7 +16,7 @@ from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
 from pbrcheck.fmt import terminal_safe
-from pbrcheck.scenario_import import import_scenario
+from pbrcheck.scenario_import import INDEX, import_scenario, import_to_folder
 from pbrcheck.scene import load_scene
 
 from .config import load_renderers, set_renderers_file
@@ -51,6 +51,10 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_import_scenario(args) -> int:
+    if args.out is not None and (Path(args.out).is_dir() or not Path(args.out).suffix):  # a folder: every scenario
+        files = import_to_folder(args.scenario, args.out)
+        print(f"{args.out}: {len(files)} scene(s) of {args.scenario} and {INDEX}")
+        return 0
     text = import_scenario(args.scenario)
     if args.out is None:
         print(text, end="")
@@ -115,9 +119,11 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("import-scenario", help="a Khronos Render Fidelity / model-viewer scenario (JSON) as a "
                        "pbrcheck scene (TOML)")
-    s.add_argument("scenario", help="scenario JSON (model, lighting, dimensions, target, orbit, verticalFoV, "
-                   "renderSkybox), or the scenario.json of pbrcheck export")
-    s.add_argument("--out", default=None, help="the scene TOML to write (default: print it)")
+    s.add_argument("scenario", help="a Render Fidelity config.json (every scenario; with --out DIR), one scenario "
+                   "JSON (model, lighting, dimensions, target, orbit, verticalFoV, renderSkybox, exclude), or the "
+                   "scenario.json of pbrcheck export")
+    s.add_argument("--out", default=None, help="the scene TOML to write (default: print it), or a folder (an "
+                   "existing one, or a path without a suffix): one scene TOML per scenario and scenarios.json")
     s.set_defaults(func=_cmd_import_scenario)
 
     s = sub.add_parser("renderers", help="list the external renderers (built-in clients and renderers.toml)")

@@ -51,6 +51,8 @@ OBJECT_TYPES = ("sphere", "plane", "sphere_grid", "gltf")
 
 # Smallest |up x view| (sine of the angle) accepted before the camera frame is called degenerate.
 CAMERA_UP_PARALLEL_SINE = 1e-6
+#: LDR environment files (8-bit sRGB, decoded to linear by pbrcheck.environment.read_image_file).
+LDR_ENVIRONMENT_SUFFIXES = (".jpg", ".jpeg", ".png")
 # Longest side of an image either renderer is asked to make (a typo guard, 16k).
 MAX_IMAGE_SIDE = 16384
 
@@ -408,8 +410,9 @@ def _environment(ctx, t) -> Environment:
             path = (ctx.base_dir or Path.cwd()) / path
         if not path.is_file():
             raise ctx.err("environment.path", "an existing .exr or .hdr file", str(path))
-        if path.suffix.lower() not in (".exr", ".hdr"):
-            raise ctx.err("environment.path", "a .exr or .hdr file", str(path))
+        if path.suffix.lower() not in (".exr", ".hdr") + LDR_ENVIRONMENT_SUFFIXES:
+            raise ctx.err("environment.path", "a .exr or .hdr file (or an sRGB " + ", ".join(LDR_ENVIRONMENT_SUFFIXES)
+                          + " file)", str(path))
         kw["path"] = str(path.resolve())
     elif typ == "sky":
         d = Environment()
