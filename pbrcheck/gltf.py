@@ -61,6 +61,9 @@ from .unmodelled import announce, asset_unmodelled
 #: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
                         "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
+#: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
+#: named as unmodelled where an asset uses them).
+MODELLED_CORE_FEATURES: tuple[str, ...] = ()
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -851,6 +854,7 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
                   content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,
-                  unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], SUPPORTED_EXTENSIONS))
+                  unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], SUPPORTED_EXTENSIONS,
+                                               MODELLED_CORE_FEATURES))
     _CACHE[key] = asset
     return announce(asset)

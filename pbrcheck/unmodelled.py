@@ -5,7 +5,8 @@ gate's verdict, and removed from what the engines get.
 A feature is *unmodelled* when it is in the asset's ``extensionsUsed`` (or appears in an
 ``extensions`` object of the document without being declared there) and not in
 :data:`pbrcheck.gltf.SUPPORTED_EXTENSIONS` (the one list of what the loader models; it grows as
-features are modelled). An unmodelled ``extensionsRequired`` entry never gets this far: the loader
+features are modelled), or when it is a core feature of :data:`CORE_FEATURES` (skins, morph
+targets) that a primitive uses and :data:`pbrcheck.gltf.MODELLED_CORE_FEATURES` does not list. An unmodelled ``extensionsRequired`` entry never gets this far: the loader
 refuses the asset. For each feature the record names the materials it touches (a material whose
 own ``extensions`` or texture slots use it, a material of a primitive or node that carries it, a
 material reading a texture that carries it) and the objects: in :attr:`pbrcheck.gltf.Asset.unmodelled`
@@ -15,6 +16,7 @@ on buffers or images only) touches the whole asset: every primitive, every mater
 
 API
 ---
+- :data:`CORE_FEATURES` -- the core (non-extension) features checked.
 - :class:`Unmodelled` -- one feature: ``feature``, ``materials`` (names), ``objects``, ``asset`` (path).
 - :func:`asset_unmodelled` -- the records of one parsed glTF document (the loader calls it).
 - :func:`scene_unmodelled` -- the records of a scene (object ids, the asset's path).
@@ -87,16 +89,48 @@ def _list(doc: dict, key: str) -> list:
     return v if isinstance(v, list) else []
 
 
-def asset_unmodelled(doc: dict, primitives, material_names, modelled) -> tuple[Unmodelled, ...]:
+#: Core glTF features (no extension) that change the image, by name: whether one primitive uses it,
+#: given (node, mesh primitive). A feature here that the loader does not list in its modelled core
+#: features (:data:`pbrcheck.gltf.MODELLED_CORE_FEATURES`) is unmodelled like an extension.
+CORE_FEATURES = {
+    "skins": lambda node, prim: "skin" in node,                           # spec 3.7.3: the pose
+    "morph targets": lambda node, prim: bool(prim.get("targets")),        # spec 3.7.2.2: default weights
+}
+
+
+def _node_prim(doc: dict, p) -> tuple[dict, dict, dict]:
+    """(node, mesh, mesh primitive) of a loaded primitive ``p`` (empty where malformed)."""
+    nodes, meshes = _list(doc, "nodes"), _list(doc, "meshes")
+    node = nodes[p.node] if 0 <= p.node < len(nodes) and isinstance(nodes[p.node], dict) else {}
+    mesh = meshes[p.mesh] if 0 <= p.mesh < len(meshes) and isinstance(meshes[p.mesh], dict) else {}
+    prims = mesh.get("primitives", []) if isinstance(mesh.get("primitives"), list) else []
+    prim = prims[p.primitive] if 0 <= p.primitive < len(prims) and isinstance(prims[p.primitive], dict) else {}
+    return node, mesh, prim
+
+
+def _record(feature, objs: set, mats: set, primitives, material_names) -> Unmodelled:
+    mats = mats | {p.material for k, p in enumerate(primitives) if k in objs and p.material >= 0}
+    names = tuple(str(material_names[i]) for i in sorted(mats) if 0 <= i < len(material_names))
+    return Unmodelled(feature, names, tuple(sorted(objs)))
+
+
+def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_core=()) -> tuple[Unmodelled, ...]:
     """The unmodelled features of glTF document ``doc``: ``primitives`` are the loaded primitives
     (``node``, ``mesh``, ``primitive``, ``material`` attributes; their index is the record's
-    object), ``material_names`` the loaded materials' names, ``modelled`` the extensions modelled.
-    In ``extensionsUsed``'s order, then the undeclared ones sorted."""
+    object), ``material_names`` the loaded materials' names, ``modelled`` the extensions modelled,
+    ``modelled_core`` the :data:`CORE_FEATURES` modelled. Extensions in ``extensionsUsed``'s order,
+    then the undeclared ones sorted, then the core features."""
     used = [str(e) for e in _list(doc, "extensionsUsed")]
     found = _names(doc)
     features = [e for e in dict.fromkeys(used + sorted(found - set(used))) if e not in modelled]
+    core = []
+    for name, uses in CORE_FEATURES.items():
+        if name not in modelled_core:
+            objs = {k for k, p in enumerate(primitives) if uses(*[_node_prim(doc, p)[i] for i in (0, 2)])}
+            if objs:
+                core.append(_record(name, objs, set(), primitives, material_names))
     if not features:
-        return ()
+        return tuple(core)
     materials = _list(doc, "materials")
     textures = _list(doc, "textures")
     mat_ext = [_names(m) for m in materials]
@@ -106,26 +140,20 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled) -> tuple[U
         _texture_indices(m, s)
         mat_tex.append(s)
     tex_ext = [_names(t) for t in textures]
-    nodes, meshes = _list(doc, "nodes"), _list(doc, "meshes")
     out = []
     for f in features:
         mats = {i for i, e in enumerate(mat_ext) if f in e}
         mats |= {i for i, ts in enumerate(mat_tex) if any(0 <= t < len(tex_ext) and f in tex_ext[t] for t in ts)}
         objs = {k for k, p in enumerate(primitives) if p.material in mats}
         for k, p in enumerate(primitives):
-            node = nodes[p.node] if 0 <= p.node < len(nodes) and isinstance(nodes[p.node], dict) else {}
-            mesh = meshes[p.mesh] if 0 <= p.mesh < len(meshes) and isinstance(meshes[p.mesh], dict) else {}
-            prims = mesh.get("primitives", []) if isinstance(mesh.get("primitives"), list) else []
-            prim = prims[p.primitive] if 0 <= p.primitive < len(prims) else {}
+            node, mesh, prim = _node_prim(doc, p)
             if f in _names({"extensions": node.get("extensions", {})}) or f in _names(prim) \
                     or f in _names({"extensions": mesh.get("extensions", {})}):
                 objs.add(k)
         if not mats and not objs:  # a root-level (or buffer / image-only) feature: the whole asset
             objs = set(range(len(primitives)))
-        mats |= {p.material for k, p in enumerate(primitives) if k in objs and p.material >= 0}
-        names = tuple(str(material_names[i]) for i in sorted(mats) if 0 <= i < len(material_names))
-        out.append(Unmodelled(f, names, tuple(sorted(objs))))
-    return tuple(out)
+        out.append(_record(f, objs, mats, primitives, material_names))
+    return tuple(out + core)
 
 
 def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
@@ -145,7 +173,7 @@ NOTICE_MAX_MATERIALS = 8
 def _materials_text(materials) -> str:
     names = [terminal_safe(m) for m in materials]
     if not names:
-        return "no material"
+        return "the default material"
     more = len(names) - NOTICE_MAX_MATERIALS
     return ", ".join(names[:NOTICE_MAX_MATERIALS]) + (f" and {more} more" if more > 0 else "")
 
@@ -153,9 +181,9 @@ def _materials_text(materials) -> str:
 def notice_lines(asset) -> list[str]:
     """One stderr line per unmodelled feature of ``asset`` (a loaded :class:`pbrcheck.gltf.Asset`)."""
     name = terminal_safe(Path(asset.path).name)
-    return [f"pbrcheck: {name}: {terminal_safe(u.feature)} is not modelled (materials: "
-            f"{_materials_text(u.materials)}): the reference and the real-time image leave it out, "
-            f"a gate check using it is not judged" for u in asset.unmodelled]
+    return [f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (materials: "
+            f"{_materials_text(u.materials)}): the reference and the real-time image leave it out; "
+            f"a gate check of it is not judged" for u in asset.unmodelled]
 
 
 _NOTICES: dict = {"on": False, "stream": None, "seen": set()}

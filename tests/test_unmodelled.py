@@ -60,6 +60,24 @@ def test_undeclared_root_level_and_modelled_extensions(tmp_path):
     assert a.unmodelled == (Unmodelled("EXT_unknown_thing", ("plain", "coated"), (0, 1)),)
 
 
+def test_core_features_skins_and_morph_targets(tmp_path, monkeypatch):
+    import pbrcheck.gltf as gltf
+
+    path = coated_asset(tmp_path / "s.gltf", used=(), coat=False)
+    doc = json.loads(path.read_text())
+    doc["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]}]
+    doc["nodes"][1]["skin"] = 0
+    doc["skins"] = [{"joints": [0]}]
+    path.write_text(json.dumps(doc))
+    a = load_asset(path)
+    assert a.unmodelled == (Unmodelled("skins", ("coated",), (1,)), Unmodelled("morph targets", ("plain",), (0,)))
+    # once the loader models them (its MODELLED_CORE_FEATURES), they are not named
+    monkeypatch.setattr(gltf, "MODELLED_CORE_FEATURES", ("skins", "morph targets"))
+    gltf._CACHE.clear()
+    assert load_asset(path).unmodelled == ()
+    gltf._CACHE.clear()
+
+
 def test_stderr_names_each_feature_once_per_asset(tmp_path, capsys):
     asset = coated_asset(tmp_path / "c.gltf")
     sc = quad_scene(tmp_path, asset)
@@ -67,7 +85,7 @@ def test_stderr_names_each_feature_once_per_asset(tmp_path, capsys):
     assert main(["check-scene", str(sc)]) == 0
     err = capsys.readouterr().err
     assert err.count(COAT) == 1, err      # two instances of one asset: one line
-    assert "c.gltf: KHR_materials_clearcoat is not modelled (materials: coated)" in err
+    assert "c.gltf: not modelled: KHR_materials_clearcoat (materials: coated)" in err
     # a second command in the same process names it again (once per command), a library call never
     assert main(["check-scene", str(sc)]) == 0
     assert capsys.readouterr().err.count(COAT) == 1
@@ -79,7 +97,7 @@ def test_export_strips_unmodelled_material_extensions_unless_kept(tmp_path, caps
     sc = quad_scene(tmp_path, coated_asset(tmp_path / "c.gltf", used=(COAT, "KHR_materials_ior")), size=(8, 8))
     assert main(["export", str(sc), "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
-    assert err.count("c.gltf: KHR_materials_clearcoat is not modelled") == 1
+    assert err.count("c.gltf: not modelled: KHR_materials_clearcoat") == 1
     assert "export: KHR_materials_clearcoat removed (--keep-unmodelled keeps it): materials coated" in err
     doc = json.loads((tmp_path / "out" / "scene.gltf").read_text())
     assert "extensions" not in doc["materials"][1] and doc["extensionsUsed"] == ["KHR_materials_ior"]
