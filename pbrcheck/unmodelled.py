@@ -16,7 +16,9 @@ on buffers or images only) touches the whole asset: every primitive, every mater
 
 API
 ---
-- :data:`CORE_FEATURES` -- the core (non-extension) features checked.
+- :data:`CORE_FEATURES` -- the core (non-extension) features checked; :data:`METADATA_EXTENSIONS` --
+  extensions that never change the image (never unmodelled).
+- :func:`materials_text` -- a record's material names for one line.
 - :class:`Unmodelled` -- one feature: ``feature``, ``materials`` (names), ``objects``, ``asset`` (path).
 - :func:`asset_unmodelled` -- the records of one parsed glTF document (the loader calls it).
 - :func:`scene_unmodelled` -- the records of a scene (object ids, the asset's path).
@@ -98,6 +100,11 @@ CORE_FEATURES = {
 }
 
 
+#: Extensions whose specifications give them no effect on the image (metadata: XMP packets): never
+#: unmodelled.
+METADATA_EXTENSIONS = ("KHR_xmp", "KHR_xmp_json_ld")
+
+
 def _node_prim(doc: dict, p) -> tuple[dict, dict, dict]:
     """(node, mesh, mesh primitive) of a loaded primitive ``p`` (empty where malformed)."""
     nodes, meshes = _list(doc, "nodes"), _list(doc, "meshes")
@@ -110,7 +117,7 @@ def _node_prim(doc: dict, p) -> tuple[dict, dict, dict]:
 
 def _record(feature, objs: set, mats: set, primitives, material_names) -> Unmodelled:
     mats = mats | {p.material for k, p in enumerate(primitives) if k in objs and p.material >= 0}
-    names = tuple(str(material_names[i]) for i in sorted(mats) if 0 <= i < len(material_names))
+    names = tuple(dict.fromkeys(str(material_names[i]) for i in sorted(mats) if 0 <= i < len(material_names)))
     return Unmodelled(feature, names, tuple(sorted(objs)))
 
 
@@ -122,7 +129,8 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
     then the undeclared ones sorted, then the core features."""
     used = [str(e) for e in _list(doc, "extensionsUsed")]
     found = _names(doc)
-    features = [e for e in dict.fromkeys(used + sorted(found - set(used))) if e not in modelled]
+    features = [e for e in dict.fromkeys(used + sorted(found - set(used)))
+                if e not in modelled and e not in METADATA_EXTENSIONS]
     core = []
     for name, uses in CORE_FEATURES.items():
         if name not in modelled_core:
@@ -170,7 +178,9 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
 NOTICE_MAX_MATERIALS = 8
 
 
-def _materials_text(materials) -> str:
+def materials_text(materials) -> str:
+    """The material names of a record for one line: at most :data:`NOTICE_MAX_MATERIALS`, then
+    "and N more"; control characters escaped."""
     names = [terminal_safe(m) for m in materials]
     if not names:
         return "the default material"
@@ -182,7 +192,7 @@ def notice_lines(asset) -> list[str]:
     """One stderr line per unmodelled feature of ``asset`` (a loaded :class:`pbrcheck.gltf.Asset`)."""
     name = terminal_safe(Path(asset.path).name)
     return [f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (materials: "
-            f"{_materials_text(u.materials)}): the reference and the real-time image leave it out; "
+            f"{materials_text(u.materials)}): the reference and the real-time image leave it out; "
             f"a gate check of it is not judged" for u in asset.unmodelled]
 
 
