@@ -185,3 +185,36 @@ def test_unjudged_reason_of_a_table_and_of_no_scene(tmp_path):
     assert unjudged_reason(None, {}) is None
     plain = load_scene(quad_scene(tmp_path, coated_asset(tmp_path / "p.gltf", used=(), coat=False), name="p.toml"))
     assert unjudged_reason(plain, {}) is None
+
+
+def test_compare_with_scene_names_it(tmp_path, capsys):
+    sc = quad_scene(tmp_path, coated_asset(tmp_path / "c.gltf"), size=(8, 8))
+    img = Image.from_rgb(np.full((8, 8, 3), 0.5, np.float32))
+    img.channels["object"] = np.zeros((8, 8), np.float32)
+    write_exr(tmp_path / "a.exr", img)
+    assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "a.exr"), "--scene", str(sc)]) == 0
+    assert capsys.readouterr().err.count("c.gltf: not modelled: KHR_materials_clearcoat (materials: coated)") == 1
+
+
+def test_external_cache_key_changes_only_for_scenes_with_unmodelled_features(tmp_path):
+    from pbrcheck.cache import cache_key
+    from pbrcheck.environment import scene_hash
+    from pbrcheck.export import EXPORT_FORMAT_VERSION
+    from clients.config import load_renderers
+    from clients.run import cache_key_for
+
+    cfg = load_renderers()["threejs"]
+    plain = load_scene(quad_scene(tmp_path, coated_asset(tmp_path / "p.gltf", used=(), coat=False), name="p.toml"))
+    coated = load_scene(quad_scene(tmp_path, coated_asset(tmp_path / "c.gltf")))
+    # a scene without unmodelled features keeps the key it had (its cached renders stay valid)
+    assert cache_key_for(plain, cfg, "e") == cache_key(kind="external", scene=scene_hash(plain, "e"),
+                                                       renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION)
+    assert cache_key_for(coated, cfg, "e") != cache_key(kind="external", scene=scene_hash(coated, "e"),
+                                                        renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION)
+
+
+@pytest.mark.slow
+def test_reference_names_it_once(tmp_path, capsys, tmp_cache):
+    sc = quad_scene(tmp_path, coated_asset(tmp_path / "c.gltf"), size=(8, 8))
+    assert main(["reference", str(sc), "--spp", "4", "--out", str(tmp_path / "r.exr")]) == 0
+    assert capsys.readouterr().err.count("c.gltf: not modelled: KHR_materials_clearcoat") == 1
