@@ -157,11 +157,17 @@ def gate_files(tmp_path):
 
 
 def test_gate_does_not_judge_an_unmodelled_feature(gate_files, capsys, tmp_path):
-    assert main(["gate", gate_files(), "--quiet", "--junit", str(tmp_path / "j.xml")]) == 2
+    assert main(["gate", gate_files(), "--quiet", "--junit", str(tmp_path / "j.xml"), "--summary",
+                 str(tmp_path / "s.md"), "--html", str(tmp_path / "h")]) == 2
     out = capsys.readouterr().out
     assert "NOT JUDGED coat: the scene uses what pbrcheck does not model: KHR_materials_clearcoat (materials: coated)" in out
-    assert "gate: 0 pass, 1 not judged" in out
+    assert 'allow_unmodelled = ["KHR_materials_clearcoat"]' in out and "gate: 0 pass, 1 not judged" in out
     assert 'errors="1"' in (tmp_path / "j.xml").read_text()
+    assert "| coat | NOT JUDGED | | | the scene uses" in (tmp_path / "s.md").read_text()
+    assert "coat: not judged</h2>" in (tmp_path / "h" / "index.html").read_text()
+    # --accept accepts nothing
+    assert main(["gate", gate_files(), "--quiet", "--accept", "--reason", "x"]) == 2
+    assert "nothing accepted" in capsys.readouterr().out and not (tmp_path / "baselines").exists()
 
 
 def test_gate_judges_a_feature_allowed_by_name(gate_files, capsys):
