@@ -134,7 +134,7 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
     core = []
     for name, uses in CORE_FEATURES.items():
         if name not in modelled_core:
-            objs = {k for k, p in enumerate(primitives) if uses(*[_node_prim(doc, p)[i] for i in (0, 2)])}
+            objs = {k for k, (node, _, prim) in enumerate(_node_prim(doc, p) for p in primitives) if uses(node, prim)}
             if objs:
                 core.append(_record(name, objs, set(), primitives, material_names))
     if not features:
