@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -14,7 +15,8 @@ from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
-from pbrcheck.scenario_import import import_scenario
+from pbrcheck.fmt import terminal_safe
+from pbrcheck.scenario_import import INDEX, import_scenario, import_to_folder
 from pbrcheck.scene import load_scene
 
 from .config import load_renderers, set_renderers_file
@@ -24,7 +26,11 @@ from .run import render_external
 def _cmd_export(args) -> int:
     scene = load_scene(args.scene)
     check_output_path(args.out, folder=True)
-    exp = export_scene(scene, Path(args.out), output=args.output)
+    exp = export_scene(scene, Path(args.out), output=args.output, keep_unmodelled=args.keep_unmodelled)
+    for feature, materials in exp.unmodelled:
+        what = "kept (--keep-unmodelled)" if exp.kept_unmodelled else "removed (--keep-unmodelled keeps it)"
+        print(f"pbrcheck: export: {terminal_safe(feature)} {what}: materials {', '.join(map(terminal_safe, materials))}",
+              file=sys.stderr)
     segs = sorted(set(exp.segments.values()))
     print(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
           + (f", sphere segments {segs[0]}-{segs[-1]}" if segs else "") + ")")
@@ -45,6 +51,10 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_import_scenario(args) -> int:
+    if args.out is not None and (Path(args.out).is_dir() or not Path(args.out).suffix):  # a folder: every scenario
+        files = import_to_folder(args.scenario, args.out)
+        print(f"{args.out}: {len(files)} scene(s) of {args.scenario} and {INDEX}")
+        return 0
     text = import_scenario(args.scenario)
     if args.out is None:
         print(text, end="")
@@ -93,6 +103,9 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--output", default="exr", choices=OUTPUT_FORMATS,
                    help="the output format the renderer will write, stated in scenario.json (default exr)")
+    s.add_argument("--keep-unmodelled", action="store_true",
+                   help="keep the asset's material extensions pbrcheck does not model (default: removed, so "
+                        "that an engine is measured on what the reference models)")
     s.set_defaults(func=_cmd_export)
 
     s = sub.add_parser("render", help="render a scene with an external renderer (renderers.toml) to an EXR")
@@ -106,9 +119,11 @@ def register(sub, bench_sub) -> None:
 
     s = sub.add_parser("import-scenario", help="a Khronos Render Fidelity / model-viewer scenario (JSON) as a "
                        "pbrcheck scene (TOML)")
-    s.add_argument("scenario", help="scenario JSON (model, lighting, dimensions, target, orbit, verticalFoV, "
-                   "renderSkybox), or the scenario.json of pbrcheck export")
-    s.add_argument("--out", default=None, help="the scene TOML to write (default: print it)")
+    s.add_argument("scenario", help="a Render Fidelity config.json (every scenario; with --out DIR), one scenario "
+                   "JSON (model, lighting, dimensions, target, orbit, verticalFoV, renderSkybox, exclude), or the "
+                   "scenario.json of pbrcheck export")
+    s.add_argument("--out", default=None, help="the scene TOML to write (default: print it), or a folder (an "
+                   "existing one, or a path without a suffix): one scene TOML per scenario and scenarios.json")
     s.set_defaults(func=_cmd_import_scenario)
 
     s = sub.add_parser("renderers", help="list the external renderers (built-in clients and renderers.toml)")

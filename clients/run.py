@@ -312,8 +312,13 @@ def object_ids(scene: Scene) -> np.ndarray:
 def cache_key_for(scene: Scene, cfg: RendererConfig, env_hash: str) -> str:
     """The cache key of one external render: scene hash, renderer config (with the lockfile's
     hash) and the export format."""
+    # a scene with unmodelled features: its export has their material extensions removed (since
+    # pbrcheck.unmodelled), so its renders are not those of an earlier, unstripped export; every
+    # other scene keeps its key (and its cached renders)
+    um = getattr(scene, "unmodelled", ())
+    stripped = {"unmodelled_removed": sorted({u.feature for u in um})} if um else {}
     return cache_key(kind="external", scene=scene_hash(scene, env_hash), renderer=cfg.cache_dict(),
-                     export_format=EXPORT_FORMAT_VERSION)
+                     export_format=EXPORT_FORMAT_VERSION, **stripped)
 
 
 def render_external(scene: Scene, name: str, *, renderers_file: str | Path | None = None,

@@ -29,7 +29,9 @@ outside its budget) as before; (b) change against its accepted baseline (:mod:`c
 noise that would explain it: ``pass``, ``regressed`` (a region significantly worse against the
 reference), ``improved`` (better, none worse) or ``changed`` (beyond the renderer's run-to-run noise,
 neither better nor worse beyond the reference's). ``error``: missing or unreadable image, size
-mismatch, NaN, bad scene, a missing required baseline. Trusted verdicts: a budget is trusted when it
+mismatch, NaN, bad scene, a missing required baseline. ``not judged`` (exit 2, nothing rendered): the
+check's scene uses a feature pbrcheck does not model (:mod:`compare.unmodelled`) that the check does
+not allow by name (``allow_unmodelled = ["KHR_materials_clearcoat"]``). Trusted verdicts: a budget is trusted when it
 sits :data:`BUDGET_NOISE_FACTOR` (10) times above the reference's noise in its own metric (the
 metric of a simulated noise-only pair, :func:`compare.metrics.noise_floor`); an ``auto`` reference
 is rendered from ``spp`` up (powers of two, at most ``spp_cap``, default 4096) until its noise floor
@@ -81,10 +83,11 @@ from . import renderers
 from .baseline import Baseline, Change, compare_to_baseline, likely_term, load_baseline, sensitivity
 from .maps import safe_name, write_maps
 from .metrics import METRICS, compare_images, worse
+from .unmodelled import ALLOW_KEY, NOT_JUDGED, NOT_JUDGED_EXIT, allowed_features, unjudged_reason
 from .verdict_spp import DEFAULT_SPP_CAP, MIN_REFERENCE_SPP, VerdictSpp, reference_for_verdict, verdict_of
 
 CHECK_KEYS = {"name", "scene", "preset", "options", "shader", "reference", "reference_scene", "spp", "spp_cap", "test", "max", "min",
-              "mode", "seed", "on_change"}
+              "mode", "seed", "on_change", ALLOW_KEY}
 #: Top-level keys of a budget file besides [[check]].
 BUDGET_KEYS = {"check", "history", "on_change", "require_baselines"}
 #: What a ``changed`` verdict (differs from the baseline, neither better nor worse) does.
@@ -116,6 +119,7 @@ class Check:
     on_change: str = "fail"
     # The reference's scene (model-matched reference): the check's scene but for [brdf].
     reference_scene: str | None = None
+    allow_unmodelled: tuple[str, ...] = ()  # unmodelled features judged anyway (compare.unmodelled)
 
 
 @dataclass
@@ -124,7 +128,7 @@ class Result:
     objects and whether the reference's noise could explain it) or ``error`` (with the message and
     the exit code it maps to)."""
     check: Check
-    status: str                      # pass | fail | error
+    status: str                      # pass | fail | error | not judged (compare.unmodelled)
     metrics: dict | None = None
     failures: list[dict] = field(default_factory=list)
     error: str | None = None
@@ -145,7 +149,7 @@ class Result:
     @property
     def outcome(self) -> str:
         """pass | fail (accuracy budget) | regressed | improved | changed | error."""
-        if self.status in ("error", "fail"):
+        if self.status in ("error", "fail", NOT_JUDGED):
             return self.status
         return self.change.verdict if self.change is not None else "pass"
 
@@ -254,7 +258,7 @@ def load_budget(path: str | Path) -> tuple[list[Check], Path]:
                          test=t.get("test"), spp=t.get("spp", DEFAULT_SPP), mode=t.get("mode", "local"),
                          seed=t.get("seed", 0), spp_cap=t.get("spp_cap", DEFAULT_SPP_CAP),
                          on_change=t.get("on_change", top_change),
-                         reference_scene=t.get("reference_scene")))
+                         reference_scene=t.get("reference_scene"), allow_unmodelled=allowed_features(t, path, w)))
     return out, path.parent
 
 
@@ -312,6 +316,11 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
     res = Result(check, "error")
     try:
         scene = _scene_arg(base, check.scene) if check.scene else None
+        why = unjudged_reason(scene, check)
+        if why is not None:  # a feature the reference leaves out: no verdict (nothing rendered)
+            res.status, res.error, res.exit_code = NOT_JUDGED, why, NOT_JUDGED_EXIT
+            res.seconds = time.perf_counter() - t0
+            return res
         if check.test is not None:
             test_path = _resolve(base, check.test)
             test = read_exr(test_path, require=RGB)
@@ -540,7 +549,7 @@ def write_junit(path: Path, results: list[Result]) -> Path:
     for r in results:
         tc = ET.Element("testcase", classname="pbrcheck.gate", name=r.check.name, time=f"{r.seconds:.3f}")
         lines = failure_lines(r) + change_lines(r)
-        if r.status == "error":
+        if r.status in ("error", NOT_JUDGED):
             ET.SubElement(tc, "error", message=r.error or "error").text = r.error
         elif r.exit_code:
             ET.SubElement(tc, "failure", message=lines[0] if lines else r.outcome).text = "\n".join(lines)
@@ -559,7 +568,7 @@ def write_junit(path: Path, results: list[Result]) -> Path:
                 cases.append(sub)
     fails = sum(1 for c in cases if c.find("failure") is not None)
     suite = ET.Element("testsuite", name="pbrcheck-gate", tests=str(len(cases)), failures=str(fails),
-                       errors=str(sum(r.status == "error" for r in results)),
+                       errors=str(sum(r.status in ("error", NOT_JUDGED) for r in results)),
                        time=f"{sum(r.seconds for r in results):.3f}")
     suite.extend(cases)
     root = ET.Element("testsuites")
@@ -609,7 +618,7 @@ def write_summary(path: Path, results: list[Result], budget_path: str = "BUDGET.
     lines = ["# pbrcheck gate", "", "| check | outcome | metric | value | budget |", "|---|---|---|---|---|"]
     for r in results:
         budgets = [(m, b, ">") for m, b in r.check.max.items()] + [(m, b, "<") for m, b in r.check.min.items()]
-        if r.status == "error":
+        if r.status in ("error", NOT_JUDGED):
             lines.append(f"| {r.check.name} | {r.status.upper()} | | | {r.error} |")
             continue
         failed = {f["metric"] for f in r.failures}
@@ -846,14 +855,14 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     results = []
     for c in checks:
         r = run_check(c, base, maps_dir=Path(maps_dir) if maps_dir else None, progress=progress)
-        if r.status != "error" and r.baseline is None and settings["require_baselines"] \
+        if r.status not in ("error", NOT_JUDGED) and r.baseline is None and settings["require_baselines"] \
                 and accept_reason is None:
             r.status, r.exit_code = "error", 2
             r.error = (f"no accepted baseline ({Path(base) / 'baselines' / safe_name(c.name)}.exr) and the budget sets "
                        f"require_baselines = true; accept one: pbrcheck gate {budget} --accept --reason \"...\"")
         results.append(r)
-        if r.status == "error":
-            print(f"ERROR {c.name}: {r.error}", file=stream)
+        if r.status in ("error", NOT_JUDGED):
+            print(f"{r.status.upper()} {c.name}: {r.error}", file=stream)
             continue
         for line in failure_lines(r):
             print(line, file=stream)
@@ -869,9 +878,9 @@ def run_gate(budget: str | Path, *, junit: str | None = None, summary: str | Non
     if html:
         print(f"gate: page {write_html(Path(html), results, str(budget))}", file=stream)
     n = {s: sum(r.outcome == s for r in results)
-         for s in ("pass", "fail", "regressed", "improved", "changed", "error")}
+         for s in ("pass", "fail", "regressed", "improved", "changed", "error", NOT_JUDGED)}
     print("gate: " + ", ".join(f"{v} {k}" for k, v in n.items() if v or k == "pass"), file=stream)
-    errors = [r.exit_code for r in results if r.status == "error"]
+    errors = [r.exit_code for r in results if r.status in ("error", NOT_JUDGED)]
     if errors:
         if accept_reason is not None:
             print("gate: nothing accepted (a check errored)", file=stream)

@@ -32,7 +32,7 @@ import compare.research.commands
 import realtime.commands
 import reference.commands
 
-from . import __version__, cache
+from . import __version__, cache, unmodelled
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
@@ -247,9 +247,11 @@ def main(argv: list[str] | None = None) -> int:
     old_term = None
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+    unmodelled.start_notices()  # each asset's unmodelled features named once on stderr
     try:
         return _run(args)
     finally:
+        unmodelled.stop_notices()
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
         sys.stdout = stdout
         clients.config.set_renderers_file(prev_renderers)

@@ -38,7 +38,7 @@ import numpy as np
 
 from .errors import EnvironmentMapError
 from .exr import read_exr
-from .scene import Environment, Scene
+from .scene import LDR_ENVIRONMENT_SUFFIXES, Environment, Scene
 
 # Resolution (W, H) at which constant and black environments are rasterized: any size is exact.
 CONSTANT_RESOLUTION = (16, 8)
@@ -184,8 +184,15 @@ def validate_pixels(data: np.ndarray, source: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+#: LDR environment files: 8 bits per channel, sRGB-encoded (as the Render Fidelity scenarios' .jpg
+#: lighting), decoded to linear radiance in [0, 1] (the scene model's list).
+LDR_SUFFIXES = LDR_ENVIRONMENT_SUFFIXES
+
+
 def read_image_file(path: str | Path) -> np.ndarray:
-    """Read an .exr (OpenEXR) or .hdr (Radiance RGBE, via Mitsuba's Bitmap) file as float32 (H, W, C)."""
+    """Read an .exr (OpenEXR) or .hdr (Radiance RGBE, via Mitsuba's Bitmap) file as float32 (H, W, C);
+    an LDR file (:data:`LDR_SUFFIXES`, via Pillow) as its RGB sRGB-decoded to linear (IEC 61966-2-1),
+    alpha dropped."""
     p = Path(path)
     if not p.is_file():
         raise EnvironmentMapError(str(p), "no such file")
@@ -198,11 +205,19 @@ def read_image_file(path: str | Path) -> np.ndarray:
             import mitsuba as mi  # heavy optional import: only .hdr files need Mitsuba's reader
 
             return np.array(mi.Bitmap(str(p)), dtype=np.float32)
+        if suffix in LDR_SUFFIXES:
+            from PIL import Image as _PIL
+
+            from .gltf import srgb_to_linear
+            with _PIL.open(p) as im:
+                rgb = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+            return srgb_to_linear(rgb).astype(np.float32)
     except EnvironmentMapError:
         raise
     except Exception as e:  # the readers raise assorted types; this is the file boundary
         raise EnvironmentMapError(str(p), f"unreadable image ({type(e).__name__}: {e})".splitlines()[0]) from None
-    raise EnvironmentMapError(str(p), f"unsupported image type {suffix!r} (expected .exr or .hdr)")
+    raise EnvironmentMapError(str(p), f"unsupported image type {suffix!r} (expected .exr, .hdr, "
+                              + ", ".join(LDR_SUFFIXES) + ")")
 
 
 def rasterize_sky(env: Environment) -> np.ndarray:

@@ -4,7 +4,9 @@ output contract (``pbrcheck export SCENE --out DIR``; docs/renderers.md).
 API
 ---
 - :func:`export_scene` -- write ``scene.gltf``, ``scene.bin``, ``environment.exr``,
-  ``environment.hdr`` and ``scenario.json`` into a folder; returns an :class:`Export`.
+  ``environment.hdr`` and ``scenario.json`` into a folder; returns an :class:`Export`. An asset's
+  material extensions pbrcheck does not model are removed from ``scene.gltf`` unless
+  ``keep_unmodelled`` (:mod:`pbrcheck.unmodelled`; :attr:`Export.unmodelled` names them).
 - :func:`gltf_document` -- the glTF JSON and its binary buffer (no file written).
 - :func:`sphere_segments` -- the tessellation rule: segments around a sphere for a silhouette error
   below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.
@@ -32,6 +34,7 @@ References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,7 +49,9 @@ from .errors import PbrcheckError
 from .exr import Image, write_exr
 from .hdrimage import write_hdr
 from .jsonio import dump_json, write_json_atomic
+from .gltf import SUPPORTED_EXTENSIONS
 from .scene import Plane, Scene, Sphere, plane_frame
+from .unmodelled import strip_unmodelled
 
 #: Largest distance, in pixels, between a tessellated sphere's silhouette and the true one.
 SILHOUETTE_TOLERANCE_PX = 0.25
@@ -92,6 +97,10 @@ class Export:
     scenario: dict
     segments: dict[int, int] = field(default_factory=dict)   # object id -> segments around
     triangles: int = 0
+    # the asset's unmodelled material extensions: [(feature, material names)], removed from scene.gltf
+    # unless kept (keep_unmodelled): pbrcheck.unmodelled.strip_unmodelled
+    unmodelled: list = field(default_factory=list)
+    kept_unmodelled: bool = False
 
 
 # ------------------------------------------------------------------------------------------------
@@ -576,7 +585,8 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
 
 
 
-def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None) -> Export:
+def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None,
+                 keep_unmodelled: bool = False) -> Export:
     """Write the scene's files (:data:`FILES`) into ``out_dir`` (created).
 
     Everything is computed before the first write (a bad scene or environment writes nothing); the
@@ -593,6 +603,9 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
         The output format the renderer will write (:data:`OUTPUT_FORMATS`), stated in the scenario.
     env : EnvMap, optional
         The loaded environment (loaded from the scene when not given).
+    keep_unmodelled : bool, optional
+        Keep the asset's material extensions pbrcheck does not model (default: removed, so that an
+        engine is measured on what the reference models; :mod:`pbrcheck.unmodelled`).
 
     Returns
     -------
@@ -604,6 +617,8 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
     """
     env = env if env is not None else load_environment(scene)
     doc, blob, segments, triangles = gltf_document(scene)
+    # the unmodelled material extensions: removed from what the engine gets, or (kept) only named
+    unmodelled = strip_unmodelled(copy.deepcopy(doc) if keep_unmodelled else doc, SUPPORTED_EXTENSIONS)
     eq = equirect_image(env)
     sc = scenario(scene, env, eq.shape[:2], output=output, segments=segments, triangles=triangles)
     out = Path(out_dir)
@@ -622,5 +637,5 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
         write_exr(staged["environment.exr"], Image.from_rgb(eq, {"orientation": ENVIRONMENT_ORIENTATION}))
         write_hdr(staged["environment.hdr"], eq)
         write_json_atomic(staged["scenario.json"], sc)
-    return Export(out, files, sc, segments, triangles)
+    return Export(out, files, sc, segments, triangles, unmodelled, keep_unmodelled)
 

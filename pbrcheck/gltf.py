@@ -9,7 +9,8 @@ API
 - :class:`AssetError` -- every problem, naming the file and the JSON pointer
   (``/meshes/0/primitives/1/attributes/NORMAL``); the CLI maps it to exit 2.
 - :data:`SUPPORTED_EXTENSIONS` -- the extensions implemented (any other one in ``extensionsRequired``
-  is an error; an optional one is listed in :attr:`Asset.extensions_ignored`).
+  is an error; an optional one is listed in :attr:`Asset.extensions_ignored`, and recorded with the
+  materials and primitives it touches in :attr:`Asset.unmodelled`: :mod:`pbrcheck.unmodelled`).
 - :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
 - :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
@@ -55,10 +56,14 @@ import numpy as np
 from .errors import PbrcheckError
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
+from .unmodelled import announce, asset_unmodelled
 
 #: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
                         "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
+#: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
+#: named as unmodelled where an asset uses them).
+MODELLED_CORE_FEATURES: tuple[str, ...] = ()
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -223,6 +228,7 @@ class Asset:
     content_hash: str
     resources: tuple[str, ...] = ()          # external files (absolute), for the exporter
     scene: int = 0
+    unmodelled: tuple = ()                   # pbrcheck.unmodelled.Unmodelled: features not modelled
 
     def material(self, index: int) -> GltfMaterial:
         return DEFAULT_MATERIAL if index < 0 else self.materials[index]
@@ -796,7 +802,7 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     h = content_hash(p)
     key = (str(p.resolve()), h, -1 if scene is None else int(scene))
     if key in _CACHE:
-        return _CACHE[key]
+        return announce(_CACHE[key])
     doc, blob = _parse(p, raw)
     r = _Reader(p, doc, blob)
     used = tuple(doc.get("extensionsUsed", []))
@@ -847,6 +853,8 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
         raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render")
     asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
-                  content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si)
+                  content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,
+                  unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], SUPPORTED_EXTENSIONS,
+                                               MODELLED_CORE_FEATURES))
     _CACHE[key] = asset
-    return asset
+    return announce(asset)

@@ -1,35 +1,72 @@
-"""Khronos glTF Render Fidelity / model-viewer scenarios as pbrcheck scenes (``pbrcheck import-scenario``).
+"""Khronos glTF Render Fidelity (RF) scenarios as pbrcheck scenes, read as RF reads them
+(``pbrcheck import-scenario``).
 
-A scenario (render-fidelity-tools' ``config.json`` entries, the ``scenario`` part of the
-``{"scenario", "outputFile"}`` file those tools hand each renderer, and the ``model_viewer`` part of
-``pbrcheck export``'s ``scenario.json``) names ``model`` (a .gltf/.glb, relative to the scenario
-file), ``lighting`` (an .hdr/.exr, relative; absent or ``"neutral"``: pbrcheck's neutral constant
-environment), ``dimensions`` ``{width, height}``, ``target`` ``{x, y, z}``, ``orbit`` ``{theta, phi,
-radius}`` (degrees, degrees, scene units: ``theta`` the azimuth about +Y from +Z, ``phi`` the polar
-angle from +Y), ``verticalFoV`` (degrees) and ``renderSkybox``. Absent fields take model-viewer's
-defaults: the target is the bounding box's centre, the orbit and field of view are
-:func:`pbrcheck.gltf_scene.framing_camera`'s. ``renderSkybox = false``: the background shows the
-environment anyway (pbrcheck's images always see it; its metrics exclude background pixels); the
-scene's description says so.
+Inputs: a whole RF ``config.json`` (``{"renderers": [...], "scenarios": [...]}``: one scene per
+scenario, :func:`config_scenes`); one scenario entry (a JSON object with ``model``); the
+``{"scenario", "outputFile"}`` file the RF tools hand each renderer (its ``scenario``); the
+``scenario.json`` of ``pbrcheck export`` (its ``model_viewer`` part).
 
-API: :func:`scenario_scene` (a scenario file -> the scene TOML's table), :func:`import_scenario`
-(-> the TOML text), :class:`ScenarioError`.
+A scenario names ``model`` (a .gltf/.glb, relative to the file read), ``lighting`` (an environment
+file relative to the file read: .hdr / .exr, or an LDR .jpg / .png, which the scene loader
+sRGB-decodes to linear radiance in [0, 1] (:func:`pbrcheck.environment.read_image_file`; the scene's
+description says so); ``"neutral"``: pbrcheck's neutral constant environment of radiance 1),
+``dimensions`` ``{width, height}``, ``target`` ``{x, y, z}``, ``orbit`` ``{theta, phi, radius}``
+(model-viewer's camera-orbit: degrees, degrees, scene units; ``theta`` the azimuth about +Y from +Z
+towards +X, ``phi`` the polar angle from +Y), ``verticalFoV`` (degrees), ``renderSkybox`` and
+``exclude`` (the RF renderers that skip it). Absent fields take the RF generator's defaults
+(:data:`RF_DEFAULTS`, from ``src/config-reader.ts`` of KhronosGroup/glTF-Render-Fidelity-Generator,
+whose ``scenarioConfig`` merges ``dimensions``, ``target`` and ``orbit`` per component): 768 x 768,
+target (0, 0, 0), orbit theta 0 / phi 90 / radius 1, vertical field of view 45 degrees, no skybox,
+and the lighting ``../../../environments/lightroom_14b.hdr`` (relative to the file; an error naming
+it where that file is absent). ``renderSkybox = false`` (RF captures with a transparent background):
+pbrcheck's images show the environment anyway and its metrics exclude background pixels; the
+description says so. ``exclude`` is kept as metadata for the engines: a comment in the scene TOML
+and the ``exclude`` of the index ``scenarios.json`` that :func:`import_to_folder` writes.
+
+``orbit.radius`` 0 (RF's own MetalRoughSpheresNoTextures scenario) is no camera in RF: its
+three-gpu-pathtracer client puts the camera at the target, model-viewer clamps the radius to keep
+the camera out of the model; pbrcheck frames the asset's bounding sphere about the target
+(:func:`framing_radius`) and says so in the description.
+
+Importing does not otherwise load the asset (RF's framing needs no bounds): an asset pbrcheck
+refuses (a required extension it does not implement) imports, and is refused where the scene is used.
+
+API: :func:`scenario_scene` (one scenario file -> the scene TOML's table), :func:`scenario_table`
+(one scenario entry -> the table), :func:`config_scenes` (a file -> [(name, table, metadata)]),
+:func:`import_scenario` (one scenario file -> TOML text), :func:`import_to_folder` (every scenario
+of a file -> ``DIR/<name>.toml`` and ``DIR/scenarios.json``), :func:`scenario_toml`,
+:func:`framing_radius`, :data:`RF_DEFAULTS`, :data:`LIGHTING_SUFFIXES`, :class:`ScenarioError`.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import staged_folder, write_text_atomic
 from .errors import SceneError
-from .gltf_objects import DEFAULT_ASSET_SIZE, FRAMING_FOV_DEG, is_asset_path
-from .gltf_scene import framing_camera
-from .scene import dump_toml, scene_from_dict
+from .fmt import terminal_safe
+from .gltf import load_asset
+from .gltf_objects import is_asset_path
+from .jsonio import dump_json
+from .scene import CAMERA_UP_PARALLEL_SINE, LDR_ENVIRONMENT_SUFFIXES as LDR_SUFFIXES, MAX_IMAGE_SIDE, dump_toml
 
-KEYS = ("name", "model", "lighting", "dimensions", "target", "orbit", "verticalFoV", "renderSkybox")
+KEYS = ("name", "model", "lighting", "dimensions", "target", "orbit", "verticalFoV", "renderSkybox", "exclude")
+#: The RF generator's scenario defaults (``src/config-reader.ts``, ``defaultScenario``; checked
+#: against KhronosGroup/glTF-Render-Fidelity-Generator at commit deaaba0b, 2026-11-26).
+RF_DEFAULTS = {"lighting": "../../../environments/lightroom_14b.hdr", "dimensions": {"width": 768, "height": 768},
+               "target": {"x": 0.0, "y": 0.0, "z": 0.0}, "orbit": {"theta": 0.0, "phi": 90.0, "radius": 1.0},
+               "verticalFoV": 45.0, "renderSkybox": False}
+#: Environment files a scenario's ``lighting`` may name (HDR, or LDR read as sRGB).
+LIGHTING_SUFFIXES = (".hdr", ".exr") + LDR_SUFFIXES
+#: Smallest bounding-sphere radius :func:`framing_radius` frames (a point-like asset: 1 micrometre).
+MIN_FRAMING_RADIUS = 1e-6
+#: The index :func:`import_to_folder` writes beside the scenes.
+INDEX = "scenarios.json"
 
 
 class ScenarioError(SceneError):
@@ -42,88 +79,197 @@ def _num(v, file, fieldname):
     return float(v)
 
 
-def scenario_scene(path: str | Path) -> dict:
-    """The scene table (``pbrcheck.scene`` TOML fields, paths absolute) of scenario file ``path``."""
-    p = Path(path)
+def _merged(data: dict, key: str, file: str) -> dict:
+    """``RF_DEFAULTS[key]`` updated per component by the scenario's (config-reader's Object.assign)."""
+    v = data.get(key, {})
+    if not isinstance(v, dict):
+        raise ScenarioError(file, key, "{" + ", ".join(RF_DEFAULTS[key]) + "}", v)
+    for k in v:
+        if k not in RF_DEFAULTS[key]:
+            raise ScenarioError(file, f"{key}.{k}", "one of " + ", ".join(RF_DEFAULTS[key]), k)
+    return {**RF_DEFAULTS[key], **v}
+
+
+def _read(p: Path):
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
+        return json.loads(p.read_text(encoding="utf-8"))
     except OSError as e:
         raise ScenarioError(str(p), None, "a readable file", message=f"{p}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(str(p), None, "JSON", message=f"{p}: not a UTF-8 JSON file") from None
     except json.JSONDecodeError as e:
         raise ScenarioError(str(p), None, "JSON", message=f"{p}: invalid JSON: {e}") from None
-    if isinstance(data, dict) and "model_viewer" in data and "model" not in data:  # pbrcheck's own scenario.json
-        data = data["model_viewer"]
-    elif isinstance(data, dict) and "scenario" in data and "model" not in data:
-        # the file render-fidelity-tools hands each renderer: {"scenario": {...}, "outputFile": PNG}
-        data = data["scenario"]
+
+
+def scenario_table(data, base: Path, file: str, where: str = "") -> tuple[dict, dict]:
+    """One scenario entry ``data`` (paths relative to ``base``) -> (the scene table, the metadata
+    ``{"name", "exclude", "renderSkybox"}``); ``where`` prefixes the fields in errors."""
+    w = (lambda k: f"{where}.{k}" if where else k)
     if not isinstance(data, dict):
-        raise ScenarioError(str(p), None, "a JSON object", type(data).__name__)
-    f = str(p)
+        raise ScenarioError(file, where or None, "a JSON object", type(data).__name__)
     for k in data:
         if k not in KEYS:
-            raise ScenarioError(f, k, "one of the keys " + ", ".join(KEYS), f"unknown key {k!r}")
+            raise ScenarioError(file, w(k), "one of the keys " + ", ".join(KEYS), f"unknown key {k!r}")
     model = data.get("model")
     if not isinstance(model, str) or not is_asset_path(model):
-        raise ScenarioError(f, "model", "the path of a .gltf or .glb file", model)
-    model_path = (p.parent / model).resolve()
+        raise ScenarioError(file, w("model"), "the path of a .gltf or .glb file", model)
+    model_path = (base / model).resolve()
     if not model_path.is_file():
-        raise ScenarioError(f, "model", "an existing file", str(model_path))
-    light = data.get("lighting", "neutral")
+        raise ScenarioError(file, w("model"), "an existing file", str(model_path))
+    light = data.get("lighting", RF_DEFAULTS["lighting"])
     if not isinstance(light, str):
-        raise ScenarioError(f, "lighting", "a path of an .hdr or .exr file, or \"neutral\"", light)
+        raise ScenarioError(file, w("lighting"), "a path of an environment file, or \"neutral\"", light)
+    note = ""
     if light == "neutral":
         env = {"type": "constant", "radiance": [1.0, 1.0, 1.0]}
     else:
-        lp = (p.parent / light).resolve()
-        if lp.suffix.lower() not in (".hdr", ".exr") or not lp.is_file():
-            raise ScenarioError(f, "lighting", "an existing .hdr or .exr file", str(lp))
+        lp = (base / light).resolve()
+        if lp.suffix.lower() not in LIGHTING_SUFFIXES:
+            raise ScenarioError(file, w("lighting"), "an " + ", ".join(LIGHTING_SUFFIXES) + " file", str(lp))
+        if not lp.is_file():
+            default = "" if "lighting" in data else " (the RF generator's default lighting: name one)"
+            raise ScenarioError(file, w("lighting"), "an existing file" + default, str(lp))
         env = {"type": "file", "path": str(lp)}
-    dims = data.get("dimensions", {"width": DEFAULT_ASSET_SIZE[0], "height": DEFAULT_ASSET_SIZE[1]})
+        if lp.suffix.lower() in LDR_SUFFIXES:
+            note = f"; lighting {lp.name} is LDR: sRGB-decoded to linear radiance in [0, 1]"
+    dims = _merged(data, "dimensions", file)
     try:
+        if any(isinstance(dims[k], bool) or float(dims[k]) != int(dims[k]) for k in ("width", "height")):
+            raise ValueError
         W, H = int(dims["width"]), int(dims["height"])
-    except (TypeError, KeyError, ValueError):
-        raise ScenarioError(f, "dimensions", "{width, height} integers", dims) from None
-    if not (1 <= W <= 16384 and 1 <= H <= 16384):
-        raise ScenarioError(f, "dimensions", "sides in [1, 16384]", dims)
-    yfov = _num(data.get("verticalFoV", FRAMING_FOV_DEG), f, "verticalFoV")
+    except (TypeError, ValueError, OverflowError):
+        raise ScenarioError(file, w("dimensions"), "{width, height} integers", data.get("dimensions")) from None
+    if not (1 <= W <= MAX_IMAGE_SIDE and 1 <= H <= MAX_IMAGE_SIDE):
+        raise ScenarioError(file, w("dimensions"), f"sides in [1, {MAX_IMAGE_SIDE}]", dims)
+    yfov = _num(data.get("verticalFoV", RF_DEFAULTS["verticalFoV"]), file, w("verticalFoV"))
     if not 0 < yfov < 179:
-        raise ScenarioError(f, "verticalFoV", "degrees in (0, 179)", yfov)
-    sky = data.get("renderSkybox", True)
+        raise ScenarioError(file, w("verticalFoV"), "degrees in (0, 179)", yfov)
+    sky = data.get("renderSkybox", RF_DEFAULTS["renderSkybox"])
     if not isinstance(sky, bool):
-        raise ScenarioError(f, "renderSkybox", "true or false", sky)
-    table = {"name": str(data.get("name", model_path.stem)),
-             "description": f"Render Fidelity scenario {p.name}" + ("" if sky else
-                            " (renderSkybox false: pbrcheck's background still shows the environment)"),
-             "environment": env, "objects": [{"type": "gltf", "path": str(model_path)}]}
-    # the asset's bounds, for the defaults (model-viewer frames the model's bounding box)
-    sc = scene_from_dict(table, file=f, base_dir=p.parent)
-    lo, hi = sc.assets[0].bounds()
-    frame = framing_camera(lo, hi, W, H)
-    target = np.asarray(frame.target)
-    if "target" in data:
-        t = data["target"]
-        if not isinstance(t, dict):
-            raise ScenarioError(f, "target", "{x, y, z}", t)
-        target = np.array([_num(t.get(a, c), f, f"target.{a}") for a, c in zip("xyz", target)])
-    d0 = np.asarray(frame.origin) - np.asarray(frame.target)
-    r0 = float(np.linalg.norm(d0))
-    theta0, phi0 = math.degrees(math.atan2(d0[0], d0[2])), math.degrees(math.acos(d0[1] / r0))
-    orbit = data.get("orbit", {})
-    if not isinstance(orbit, dict):
-        raise ScenarioError(f, "orbit", "{theta, phi, radius}", orbit)
-    th = math.radians(_num(orbit.get("theta", theta0), f, "orbit.theta"))
-    ph = math.radians(_num(orbit.get("phi", phi0), f, "orbit.phi"))
-    rad = _num(orbit.get("radius", r0), f, "orbit.radius")
-    if rad <= 0:
-        raise ScenarioError(f, "orbit.radius", "a positive distance", rad)
-    origin = target + rad * np.array([math.sin(ph) * math.sin(th), math.cos(ph), math.sin(ph) * math.cos(th)])
+        raise ScenarioError(file, w("renderSkybox"), "true or false", sky)
+    exclude = data.get("exclude", [])
+    if not isinstance(exclude, list) or not all(isinstance(x, str) for x in exclude):
+        raise ScenarioError(file, w("exclude"), "a list of renderer names", exclude)
+    name = data.get("name", model_path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise ScenarioError(file, w("name"), "a non-empty string", name)
+    t = _merged(data, "target", file)
+    target = [_num(t[a], file, w(f"target.{a}")) for a in "xyz"]
+    o = _merged(data, "orbit", file)
+    th, ph = (math.radians(_num(o[k], file, w(f"orbit.{k}"))) for k in ("theta", "phi"))
+    rad = _num(o["radius"], file, w("orbit.radius"))
+    if rad < 0:
+        raise ScenarioError(file, w("orbit.radius"), "a distance >= 0", rad)
     tx = math.tan(math.radians(yfov) / 2) * W / H
-    table["camera"] = {"origin": [float(x) for x in origin], "target": [float(x) for x in target],
-                       "up": [0.0, 1.0, 0.0], "fov": math.degrees(2 * math.atan(tx)), "width": W, "height": H}
-    scene_from_dict(table, file=f, base_dir=p.parent)  # validates the camera (e.g. phi 0: up parallel)
-    return table
+    radius_note = ""
+    if rad == 0:  # RF's scenario leaves the camera at the target: frame the asset instead (module docstring)
+        rad = framing_radius(model_path, target, math.radians(yfov) / 2, math.atan(tx))
+        radius_note = f"; orbit radius 0 in the scenario: the asset framed about the target at radius {rad:.6g}"
+    if abs(math.sin(ph)) < CAMERA_UP_PARALLEL_SINE:  # the camera's up is +Y: it cannot look straight down
+        raise ScenarioError(file, w("orbit.phi"), "a polar angle away from 0 and 180 degrees", o["phi"])
+    d = (math.sin(ph) * math.sin(th), math.cos(ph), math.sin(ph) * math.cos(th))
+    origin = [c + rad * x for c, x in zip(target, d)]
+    sky_note = "" if sky else "; renderSkybox false: pbrcheck's background still shows the environment"
+    table = {"name": name,
+             "description": f"Render Fidelity scenario {name} ({Path(file).name}){sky_note}{note}{radius_note}",
+             "camera": {"origin": origin, "target": target, "up": [0.0, 1.0, 0.0],
+                        "fov": math.degrees(2 * math.atan(tx)), "width": W, "height": H},
+             "environment": env, "objects": [{"type": "gltf", "path": str(model_path)}]}
+    return table, {"name": name, "exclude": list(exclude), "renderSkybox": sky}
+
+
+def framing_radius(model_path: Path, target, half_yfov: float, half_xfov: float) -> float:
+    """The orbit radius of a scenario whose radius is 0: the distance at which the asset's bounding
+    sphere about ``target`` (through the bounding box's farthest corner) fills the narrower half
+    field of view (model-viewer clamps the radius to keep the camera out of the model; RF's
+    three-gpu-pathtracer would put the camera at the target)."""
+    lo, hi = load_asset(model_path).bounds()
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    r = max(float(np.linalg.norm(corners - np.asarray(target), axis=1).max()), MIN_FRAMING_RADIUS)
+    return r / math.sin(min(half_yfov, half_xfov))
+
+
+def config_scenes(path: str | Path) -> list[tuple[str, dict, dict]]:
+    """Every scenario of file ``path`` as (name, scene table, metadata): a whole RF config gives one
+    per ``scenarios`` entry (names unique), any other accepted file one."""
+    p = Path(path)
+    f = str(p)
+    data = _read(p)
+    if isinstance(data, dict) and "scenarios" in data and "model" not in data:  # a whole RF config.json
+        extra = set(data) - {"renderers", "scenarios"}
+        if extra:
+            raise ScenarioError(f, sorted(extra)[0], "renderers and scenarios (an RF config.json)", sorted(extra)[0])
+        lst = data["scenarios"]
+        if not isinstance(lst, list) or not lst:
+            raise ScenarioError(f, "scenarios", "a non-empty list of scenarios", lst)
+        out, seen = [], {}
+        for i, s in enumerate(lst):
+            table, meta = scenario_table(s, p.parent, f, f"scenarios[{i}]")
+            key = _file_name(meta["name"])
+            if key in seen:
+                raise ScenarioError(f, f"scenarios[{i}].name", f"a name unique in the config (as a file name: "
+                                    f"scenarios[{seen[key]}] is also {key})", meta["name"])
+            seen[key] = i
+            out.append((meta["name"], table, meta))
+        return out
+    if isinstance(data, dict) and "model_viewer" in data and "model" not in data:  # pbrcheck's own scenario.json
+        data = data["model_viewer"]
+    elif isinstance(data, dict) and "scenario" in data and "model" not in data:
+        data = data["scenario"]   # the file RF's tools hand each renderer: {"scenario": {...}, "outputFile": PNG}
+    table, meta = scenario_table(data, p.parent, f)
+    return [(meta["name"], table, meta)]
+
+
+def _one(path: str | Path) -> tuple[str, dict, dict]:
+    scenes = config_scenes(path)
+    if len(scenes) != 1:
+        raise ScenarioError(str(path), "scenarios", "one scenario (a config of several: import it with --out DIR)",
+                            f"{len(scenes)} scenarios")
+    return scenes[0]
+
+
+def scenario_scene(path: str | Path) -> dict:
+    """The scene table (``pbrcheck.scene`` TOML fields, paths absolute) of one-scenario file ``path``."""
+    return _one(path)[1]
+
+
+def scenario_toml(table: dict, meta: dict, source: str | Path) -> str:
+    """The scene TOML of one scenario, headed by comments naming its source and its RF metadata
+    (names from the file shown with their control characters escaped: a comment stays one line)."""
+    head = [f"# Render Fidelity scenario {terminal_safe(meta['name'])} of {terminal_safe(str(source))}"]
+    if meta["exclude"]:
+        head.append(f"# exclude (RF renderers that skip it): {', '.join(map(terminal_safe, meta['exclude']))}")
+    return "\n".join(head) + "\n" + dump_toml(table)
 
 
 def import_scenario(path: str | Path) -> str:
-    """The scene TOML text of scenario file ``path``."""
-    return dump_toml(scenario_scene(path))
+    """The scene TOML text of one-scenario file ``path``."""
+    _, table, meta = _one(path)
+    return scenario_toml(table, meta, path)
+
+
+def _file_name(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".") or "scenario"
+
+
+def import_to_folder(path: str | Path, out_dir: str | Path) -> list[Path]:
+    """Every scenario of ``path`` as ``out_dir/<name>.toml`` (characters other than letters, digits and
+    ``._-`` as ``_``) and the index ``out_dir/scenarios.json`` (the config's renderers, and per
+    scenario its scene file, ``exclude`` and ``renderSkybox``), all written or none. Returns the
+    scene files."""
+    src = Path(path)
+    scenes = config_scenes(src)
+    data = _read(src)
+    renderers = data.get("renderers", []) if isinstance(data, dict) and "scenarios" in data else []
+    index = {"source": str(src.resolve()), "renderers": renderers, "scenarios": []}
+    files = []
+    out = Path(out_dir)
+    with staged_folder(out) as stage:
+        for name, table, meta in scenes:
+            fn = _file_name(name) + ".toml"
+            write_text_atomic(stage / fn, scenario_toml(table, meta, src))
+            files.append(out / fn)
+            index["scenarios"].append({"name": name, "scene": fn, "exclude": meta["exclude"],
+                                       "renderSkybox": meta["renderSkybox"]})
+        write_text_atomic(stage / INDEX, dump_json(index, indent=2) + "\n")
+    return files

@@ -33,6 +33,7 @@ from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
+from .unmodelled import scene_unmodelled
 
 Vec3 = tuple[float, float, float]
 
@@ -50,6 +51,8 @@ OBJECT_TYPES = ("sphere", "plane", "sphere_grid", "gltf")
 
 # Smallest |up x view| (sine of the angle) accepted before the camera frame is called degenerate.
 CAMERA_UP_PARALLEL_SINE = 1e-6
+#: LDR environment files (8-bit sRGB, decoded to linear by pbrcheck.environment.read_image_file).
+LDR_ENVIRONMENT_SUFFIXES = (".jpg", ".jpeg", ".png")
 # Longest side of an image either renderer is asked to make (a typo guard, 16k).
 MAX_IMAGE_SIDE = 16384
 
@@ -231,6 +234,12 @@ class Scene:
     def with_camera(self, **changes) -> "Scene":
         return replace(self, camera=replace(self.camera, **changes))
 
+    @property
+    def unmodelled(self) -> tuple:
+        """The features of the scene's glTF assets that pbrcheck does not model
+        (:class:`pbrcheck.unmodelled.Unmodelled`: feature, material names, object ids, asset path)."""
+        return scene_unmodelled(self)
+
 
 def _environment_dict(env: Environment) -> dict[str, Any]:
     keep = {"type", "scale", "rotation"}
@@ -401,8 +410,9 @@ def _environment(ctx, t) -> Environment:
             path = (ctx.base_dir or Path.cwd()) / path
         if not path.is_file():
             raise ctx.err("environment.path", "an existing .exr or .hdr file", str(path))
-        if path.suffix.lower() not in (".exr", ".hdr"):
-            raise ctx.err("environment.path", "a .exr or .hdr file", str(path))
+        if path.suffix.lower() not in (".exr", ".hdr") + LDR_ENVIRONMENT_SUFFIXES:
+            raise ctx.err("environment.path", "a .exr or .hdr file (or an sRGB " + ", ".join(LDR_ENVIRONMENT_SUFFIXES)
+                          + " file)", str(path))
         kw["path"] = str(path.resolve())
     elif typ == "sky":
         d = Environment()

@@ -111,7 +111,7 @@ def test_import_scenario_reads_the_render_fidelity_renderer_file(tmp_path):
     # render-fidelity-tools hands each renderer {"scenario": {...}, "outputFile": ...}: its scenario
     # is read as the bare entry is (this file was refused, "unknown key 'scenario'")
     _asset_scene(tmp_path)
-    entry = {"name": "khronos-Quad", "model": "q.gltf", "dimensions": {"width": 24, "height": 16},
+    entry = {"name": "khronos-Quad", "model": "q.gltf", "lighting": "neutral", "dimensions": {"width": 24, "height": 16},
              "target": {"x": 0, "y": 0.1, "z": 0}, "orbit": {"theta": 20, "phi": 80, "radius": 3},
              "verticalFoV": 45, "renderSkybox": False}
     (tmp_path / "entry.json").write_text(json.dumps(entry))

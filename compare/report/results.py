@@ -51,6 +51,7 @@ class SceneSection:
     material_rows: list[dict] = field(default_factory=list)   # glTF assets: renderer x material
     approx_preset: str | None = None   # glTF assets: the preset of the approximation rows
     approx_rows: list[dict] = field(default_factory=list)     # compare.approximations.approximation_rows
+    unmodelled: list[dict] = field(default_factory=list)      # features not modelled (scene.unmodelled_banner)
 
 
 __all__ = ["PresetResult", "SceneSection"]

@@ -8,7 +8,8 @@ renderer ``rt_``, ``flip_`` and ``rel_`` PNGs (and ``diagnose_*.json`` for an ex
 plots, ``sweep.csv`` / ``sweep.json`` and ``metrics.json`` (with, for an asset scene, the approximation
 rows of :mod:`compare.approximations`: its ``asset_approximations``).
 
-API: :class:`ReportSettings`, :class:`SceneWork`, :func:`approximation_preset`, :func:`convergence_spps`, :data:`DIAGNOSE_SPP`,
+API: :class:`ReportSettings`, :class:`SceneWork`, :func:`approximation_preset`, :func:`material_rows`,
+:func:`unmodelled_banner`, :func:`convergence_spps`, :data:`DIAGNOSE_SPP`,
 :data:`CONVERGENCE_FRACTIONS`, :data:`CONVERGENCE_SEED`, :data:`PROVENANCE_SKIP`.
 """
 
@@ -52,12 +53,27 @@ PROVENANCE_SKIP = {"cache_key", "cache"}
 MATERIAL_METRICS = ("relmse", "flip_mean", "bias")
 
 
-def material_rows(preset: str, summary: dict) -> list[dict]:
+def material_rows(preset: str, summary: dict, unmodelled=()) -> list[dict]:
     """The per-material table's rows of one renderer (glTF asset scenes; empty otherwise):
-    ``{"preset", "material", "pixels", "metrics": {MATERIAL_METRICS}}``."""
-    return [{"preset": preset, "material": m["material"], "pixels": m["pixels"],
-             "metrics": {k: m["metrics"].get(k) for k in MATERIAL_METRICS}}
-            for m in summary.get("materials", [])]
+    ``{"preset", "material", "pixels", "metrics": {MATERIAL_METRICS}}``, and ``"unmodelled"`` (the
+    features of ``unmodelled``, the scene's :attr:`~pbrcheck.scene.Scene.unmodelled`, that touch one
+    of the row's objects) where there are any: the report marks those rows."""
+    rows = []
+    for m in summary.get("materials", []):
+        row = {"preset": preset, "material": m["material"], "pixels": m["pixels"],
+               "metrics": {k: m["metrics"].get(k) for k in MATERIAL_METRICS}}
+        feats = sorted({u.feature for u in unmodelled if set(u.objects) & set(m.get("objects", ()))})
+        if feats:
+            row["unmodelled"] = feats
+        rows.append(row)
+    return rows
+
+
+def unmodelled_banner(scene) -> list[dict]:
+    """The report's banner of a scene using features pbrcheck does not model: per (asset, feature)
+    ``{"asset", "feature", "materials"}`` (empty: no banner)."""
+    return [{"asset": Path(u.asset).name, "feature": u.feature, "materials": ", ".join(u.materials) or "none"}
+            for u in scene.unmodelled]
 
 
 def convergence_spps(spp: int) -> list[int]:
@@ -182,7 +198,7 @@ class SceneWork:
         self.dump[preset] = {**cmp.summary, "options": options,
                              "timings": img.meta_json("timings", None) if "timings" in img.meta else None}
         self.provenance.append((f"{preset} options", img.meta.get("options", "")))
-        self.material_rows += material_rows(preset, cmp.summary)   # glTF assets: per material
+        self.material_rows += material_rows(preset, cmp.summary, self.scene.unmodelled)   # glTF assets: per material
         if img.meta_json("shader", None):  # a shader hook file: its path, hash and hooks
             self.provenance.append((f"{preset} shader hooks", img.meta["shader"]))
         prog.update(1, f"{scene.name}: {preset}")
@@ -258,7 +274,8 @@ class SceneWork:
                           indent=1)
         self.section = SceneSection(sid, scene.name, scene.description, self.ref.meta.get("spp", self.st.spp),
                                     f"{sid}/reference.png", self.results, plots, self.provenance, self.noise_floor,
-                                    self.sweep_table, verdict, self.material_rows, self.approx_preset, self.approx_rows)
+                                    self.sweep_table, verdict, self.material_rows, self.approx_preset, self.approx_rows,
+                                    unmodelled_banner(scene))
 
 
 def approximation_preset(scene, presets) -> str | None:

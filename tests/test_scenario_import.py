@@ -1,0 +1,138 @@
+"""Render Fidelity scenarios as RF reads them (pbrcheck/scenario_import.py, ``import-scenario``): the
+generator's defaults merged per component, a whole config.json to one scene per scenario, ``exclude``
+kept, LDR lighting sRGB-decoded, paths relative to the config, radius 0 framed; RF's own config for the
+shared assets (skipped when ../shared is absent)."""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pbrcheck.cli import main
+from pbrcheck.environment import load_environment
+from pbrcheck.gltf import srgb_to_linear
+from pbrcheck.scenario_import import RF_DEFAULTS, ScenarioError, config_scenes, scenario_scene
+from pbrcheck.scene import load_scene
+from tests.gltf_build import quad_asset
+
+SHARED_RF = Path(__file__).resolve().parents[1].parent / "shared" / "rf" / "config.json"
+
+
+@pytest.fixture
+def quad(tmp_path):
+    """A quad asset [-1, 1]^2 at z = 0 in ``tmp_path/assets``."""
+    (tmp_path / "assets").mkdir()
+    return quad_asset(tmp_path / "assets" / "q.gltf", {"name": "matte"})
+
+
+def write(p: Path, obj) -> Path:
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(obj))
+    return p
+
+
+def test_generator_defaults(tmp_path, quad):
+    # config-reader.ts: 768 x 768, target (0, 0, 0), orbit theta 0 / phi 90 / radius 1, vertical fov 45
+    assert RF_DEFAULTS["dimensions"] == {"width": 768, "height": 768} and RF_DEFAULTS["verticalFoV"] == 45.0
+    t = scenario_scene(write(tmp_path / "s.json", {"model": "assets/q.gltf", "lighting": "neutral"}))
+    c = t["camera"]
+    assert (c["width"], c["height"]) == (768, 768) and c["target"] == [0.0, 0.0, 0.0]
+    np.testing.assert_allclose(c["origin"], [0.0, 0.0, 1.0], atol=1e-12)
+    assert c["fov"] == pytest.approx(45.0, abs=1e-12)          # square: horizontal = vertical
+    assert "renderSkybox false" in t["description"] and t["name"] == "q"
+
+
+def test_partial_fields_merge_per_component(tmp_path, quad):
+    t = scenario_scene(write(tmp_path / "s.json", {
+        "model": "assets/q.gltf", "lighting": "neutral", "dimensions": {"width": 1200}, "target": {"y": 0.5},
+        "orbit": {"radius": 3, "theta": 90}, "verticalFoV": 30, "renderSkybox": True}))
+    c = t["camera"]
+    assert (c["width"], c["height"]) == (1200, 768) and c["target"] == [0.0, 0.5, 0.0]
+    np.testing.assert_allclose(c["origin"], [3.0, 0.5, 0.0], atol=1e-12)   # theta 90: on +X, phi 90: level
+    assert c["fov"] == pytest.approx(math.degrees(2 * math.atan(math.tan(math.radians(15)) * 1200 / 768)))
+    assert "renderSkybox" not in t["description"]
+
+
+def test_radius_zero_frames_the_asset_about_the_target(tmp_path, quad):
+    t = scenario_scene(write(tmp_path / "s.json", {"model": "assets/q.gltf", "lighting": "neutral",
+                                                   "orbit": {"radius": 0}}))
+    # the quad's bounding sphere about the origin: radius sqrt(2); it fills a half fov of 22.5 degrees
+    np.testing.assert_allclose(t["camera"]["origin"], [0, 0, math.sqrt(2) / math.sin(math.radians(22.5))], atol=1e-9)
+    assert "orbit radius 0" in t["description"]
+
+
+def test_absent_lighting_is_the_generators_default_and_named(tmp_path, quad, capsys):
+    p = write(tmp_path / "s.json", {"model": "assets/q.gltf"})
+    with pytest.raises(ScenarioError, match="the RF generator.s default lighting"):
+        scenario_scene(p)
+    assert main(["import-scenario", str(p)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "RF generator's default lighting" in err and "lightroom_14b.hdr" in err
+
+
+def test_whole_config_imports_one_scene_per_scenario(tmp_path, quad, capsys):
+    from PIL import Image as PILImage
+
+    # an LDR environment beside the config (a sub-folder: paths are relative to the config, not the cwd)
+    cfg_dir = tmp_path / "rf"
+    (cfg_dir / "env").mkdir(parents=True)
+    PILImage.fromarray(np.full((8, 16, 3), 128, np.uint8)).save(cfg_dir / "env" / "grey.png")
+    PILImage.fromarray(np.full((8, 16, 3), 64, np.uint8)).save(cfg_dir / "env" / "dark.jpg", quality=100)
+    cfg = write(cfg_dir / "config.json", {
+        "renderers": [{"name": "three", "description": "three.js"}, {"name": "vray", "description": "V-Ray"}],
+        "scenarios": [
+            {"name": "a/one", "model": "../assets/q.gltf", "lighting": "env/grey.png", "exclude": ["vray"]},
+            {"name": "two", "model": "../assets/q.gltf", "lighting": "env/dark.jpg", "orbit": {"radius": 4},
+             "renderSkybox": True}]})
+    out = tmp_path / "scenes"
+    assert main(["import-scenario", str(cfg), "--out", str(out)]) == 0
+    assert "2 scene(s)" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["a_one.toml", "scenarios.json", "two.toml"]
+    index = json.loads((out / "scenarios.json").read_text())
+    assert [s["name"] for s in index["scenarios"]] == ["a/one", "two"]
+    assert [s["exclude"] for s in index["scenarios"]] == [["vray"], []]
+    assert [s["renderSkybox"] for s in index["scenarios"]] == [False, True]
+    assert [r["name"] for r in index["renderers"]] == ["three", "vray"]
+    text = (out / "a_one.toml").read_text()
+    assert "# exclude (RF renderers that skip it): vray" in text
+    one, two = load_scene(out / "a_one.toml"), load_scene(out / "two.toml")
+    assert "grey.png is LDR: sRGB-decoded to linear" in one.description
+    assert np.allclose(two.camera.origin, [0.0, 0.0, 4.0], atol=1e-12)
+    # the LDR environments: sRGB-decoded 128 and (JPEG, within a code value) 64
+    assert load_environment(one).data[..., :3] == pytest.approx(float(srgb_to_linear(np.float32(128 / 255))), abs=1e-6)
+    dark = load_environment(two).data[..., :3]
+    assert float(srgb_to_linear(np.float32(63 / 255))) <= dark.min() <= dark.max() <= float(
+        srgb_to_linear(np.float32(65 / 255)))
+
+
+def test_config_with_duplicate_names_or_one_bad_scenario_writes_nothing(tmp_path, quad, capsys):
+    cfg = write(tmp_path / "c.json", {"renderers": [], "scenarios": [
+        {"name": "x", "model": "assets/q.gltf", "lighting": "neutral"},
+        {"name": "x", "model": "assets/q.gltf", "lighting": "neutral"}]})
+    with pytest.raises(ScenarioError, match=r"scenarios\[1\]\.name"):
+        config_scenes(cfg)
+    write(cfg, {"renderers": [], "scenarios": [{"name": "x", "model": "assets/q.gltf", "lighting": "neutral"},
+                                                {"name": "y", "model": "assets/q.gltf", "orbit": {"phi": 0},
+                                                 "lighting": "neutral"}]})
+    assert main(["import-scenario", str(cfg), "--out", str(tmp_path / "o")]) == 2
+    assert "scenarios[1].orbit.phi" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(not SHARED_RF.is_file(), reason=f"{SHARED_RF} is absent (RF's scenarios for ../shared/assets)")
+def test_rf_config_of_the_shared_assets_imports_whole(tmp_path):
+    cfg = json.loads(SHARED_RF.read_text())
+    out = tmp_path / "rf"
+    assert main(["import-scenario", str(SHARED_RF), "--out", str(out)]) == 0
+    index = json.loads((out / "scenarios.json").read_text())
+    assert [s["name"] for s in index["scenarios"]] == [s["name"] for s in cfg["scenarios"]]
+    for s, entry in zip(index["scenarios"], cfg["scenarios"]):
+        t = tomllib.loads((out / s["scene"]).read_text())
+        assert s["exclude"] == entry.get("exclude", [])
+        want = {**RF_DEFAULTS["dimensions"], **entry.get("dimensions", {})}
+        assert (t["camera"]["width"], t["camera"]["height"]) == (want["width"], want["height"])
+        assert Path(t["objects"][0]["path"]) == (SHARED_RF.parent / entry["model"]).resolve()
