@@ -86,7 +86,7 @@ def budget_noise(check: Check, noise: dict | None, spp: int) -> tuple[dict, ...]
         n = sim.get(metric)
         if n is None or not (n > 0) or not math.isfinite(n):
             continue
-        power = METRICS[metric].noise_power if metric in METRICS else 2.0
+        power = METRICS[metric].noise_power
         n = n / 2.0 ** (1.0 / power)
         ratio = budget / n
         need = spp * (BUDGET_NOISE_FACTOR / ratio) ** power if spp and ratio > 0 else math.inf
@@ -147,7 +147,7 @@ def _measure(check: Check, base: Path, progress: bool) -> dict:
     cmp = compare_images(ref, test, scene=scene, ref_name=ref_name, test_name=test_name)
     if spp_verdict is None:
         spp_verdict = verdict_of(ref, cmp.summary["noise"])
-    out = {"cmp": cmp, "reference": spp_verdict, "ref_image": ref, "test_image": test,
+    out = {"cmp": cmp, "reference_spp": spp_verdict, "ref_image": ref, "test_image": test,
            "budget_noise": budget_noise(check, cmp.summary["noise"], spp_verdict.spp),
            "names": {}, "materials": {}}
     if scene is not None:

@@ -52,8 +52,8 @@ def noise_note(r: CheckResult) -> str:
              + (f"at {math.ceil(b['spp_needed'])} spp)" if math.isfinite(b["spp_needed"])
                 else "at no spp: a budget of 0 is below any noise)")
              for b in bad]
-    if r.check.reference == "auto" and r.reference is not None and r.reference.noise_limited:
-        parts.append(r.reference.provenance())
+    if r.check.reference == "auto" and r.reference_spp is not None and r.reference_spp.noise_limited:
+        parts.append(r.reference_spp.provenance())
     return f" (noise-limited: {'; '.join(parts)})" if parts else ""
 
 

@@ -106,7 +106,7 @@ class CheckResult:
 
     ``failures``: per broken bound ``{"metric", "value", "budget", "kind", "worst_objects",
     "within_noise"}``; ``error``: the message of an ERROR / BACKEND_ERROR / NOT_JUDGED verdict;
-    ``reference``: the reference's spp and noise floor against the error (:class:`VerdictSpp`);
+    ``reference_spp``: the reference's spp and noise floor against the error (:class:`VerdictSpp`);
     ``budget_noise``: per ``max`` budget, the reference's noise in its metric
     (:func:`compare.gate.evaluate.budget_noise`); ``change`` against the accepted ``baseline``
     (None without one); ``likely``: the term a change most likely comes from; the images are kept
@@ -120,7 +120,7 @@ class CheckResult:
     error: str | None = None
     seconds: float = 0.0
     maps: dict = field(default_factory=dict)
-    reference: VerdictSpp | None = None
+    reference_spp: VerdictSpp | None = None
     budget_noise: tuple[dict, ...] = ()
     change: Change | None = None
     baseline: Baseline | None = None

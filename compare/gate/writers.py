@@ -65,8 +65,8 @@ def write_junit(path: Path, results: list[CheckResult]) -> Path:
             _el("failure", tc, "\n".join(lines), message=lines[0] if lines else r.verdict.label)
         if r.metrics:
             out = [check_line(r)] + [f"{k} = {format_value(v)}" for k, v in r.metrics.items()]
-            if r.reference is not None:
-                out.append(f"reference: {r.reference.provenance()}")
+            if r.reference_spp is not None:
+                out.append(f"reference: {r.reference_spp.provenance()}")
             out += [f"budget {b['metric']}: {b['ratio']:.3g}x the reference's noise" for b in r.budget_noise]
             _el("system-out", tc, "\n".join(out))
         cases.append(tc)
@@ -158,9 +158,9 @@ def write_summary(path: Path, results: list[CheckResult], budget_path: str = "BU
                               format_value(x.relmse_after), pct(x.relative_d), format_value(x.sigma_d)))
         if not rows:
             lines.append("| (no object changed; screen tiles did) | | | | | | |")
-    refs = [f"- {md(r.check.name)}: {md(r.reference.provenance())}; budgets / noise: "
+    refs = [f"- {md(r.check.name)}: {md(r.reference_spp.provenance())}; budgets / noise: "
             + ", ".join(f"{b['metric']} {b['ratio']:.3g}x" for b in r.budget_noise) + md(noise_note(r))
-            for r in results if r.reference is not None]
+            for r in results if r.reference_spp is not None]
     if refs:
         lines += ["", "## References (noise floor against the error and the budgets; goal >= 10x)", ""] + refs
     fails = [l for r in results for l in failure_lines(r)]
