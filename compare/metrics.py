@@ -42,6 +42,10 @@ two independent renders with the reference's variance would show. A metric is fl
 ``within_noise`` when its value is no worse than :data:`NOISE_EXPLAINS_FACTOR` times that simulated
 value (for ``psnr``, higher is better: no lower than the simulated value less
 10 log10(NOISE_EXPLAINS_FACTOR) dB).
+
+The metric registry :data:`METRICS` (name -> :class:`Metric`: reduction, better direction, noise
+power) is the one place a metric's properties live: the comparator computes its entries, the gate
+(:mod:`compare.gate`) validates budgets and scales noise with it, the report's tables list it.
 """
 
 from __future__ import annotations
@@ -90,10 +94,47 @@ NDOTV_BINS = 10
 #: Luminance weights (Rec.709 / sRGB primaries), also what FLIP uses.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
-METRICS = ("mean_abs", "rmse", "relmse", "smape", "rel_p50", "rel_p95", "rel_p99", "rel_max",
-           "psnr", "flip_mean", "delta_e_itp_mean", "delta_e_itp_p95")
-#: Metrics where larger means better (everything else: smaller is better).
-HIGHER_IS_BETTER = frozenset({"psnr"})
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One image metric, as the comparator computes it and the gate and the report read it.
+
+    ``reduction``: how the per-pixel error becomes one number (the formulas: module docstring).
+    ``higher_is_better``: the better direction (``psnr``; every other metric: smaller is better).
+    ``noise_power``: the metric of a noise-only pair scales as ``var ** (1 / noise_power)``, i.e. as
+    ``spp ** (-1 / noise_power)``: 1 for a metric of squared errors normalised per pixel (``relmse``
+    is a mean of ``(t - r)^2 / (r^2 + eps)``: the variance itself, 1 / spp), 2 for one of absolute
+    errors or their root (a standard deviation: 1 / sqrt(spp)). The gate's budget-against-noise
+    figures (:func:`compare.gate.evaluate.budget_noise`) read it.
+    """
+
+    name: str
+    reduction: str
+    higher_is_better: bool = False
+    noise_power: float = 2.0
+
+
+#: The metric registry, in table order: name -> :class:`Metric`. The comparator computes exactly
+#: these (:func:`summarize`), budgets may name only these, the report's tables show them.
+METRICS: dict[str, Metric] = {m.name: m for m in (
+    Metric("mean_abs", "mean |t - r|"),
+    Metric("rmse", "sqrt(mean (t - r)^2)"),
+    Metric("relmse", "mean (t - r)^2 / (r^2 + eps)", noise_power=1.0),
+    Metric("smape", "mean |t - r| / (|t| + |r| + eps)"),
+    Metric("rel_p50", "50th percentile of |t - r| / (r + eps)"),
+    Metric("rel_p95", "95th percentile of |t - r| / (r + eps)"),
+    Metric("rel_p99", "99th percentile of |t - r| / (r + eps)"),
+    Metric("rel_max", "max |t - r| / (r + eps)"),
+    Metric("psnr", "10 log10(peak^2 / mean (t - r)^2)", higher_is_better=True),
+    Metric("flip_mean", "mean HDR-FLIP"),
+    Metric("delta_e_itp_mean", "mean Delta E_ITP"),
+    Metric("delta_e_itp_p95", "95th percentile of Delta E_ITP"),
+)}
+#: The relative MSE: the metric the gate's baseline comparison measures per region (compare.baseline).
+RELMSE = METRICS["relmse"]
+#: Names of the metrics where larger means better (read off :data:`METRICS`).
+HIGHER_IS_BETTER = frozenset(m.name for m in METRICS.values() if m.higher_is_better)
 
 
 class ComparisonError(PbrcheckError):
@@ -413,7 +454,7 @@ class Comparison:
 
     def worst_objects(self, metric: str, n: int = 3) -> list[dict]:
         objs = [o for o in self.summary["objects"] if o["metrics"].get(metric) is not None]
-        sign = -1 if metric in HIGHER_IS_BETTER else 1
+        sign = -1 if METRICS[metric].higher_is_better else 1
         objs.sort(key=lambda o: sign * o["metrics"][metric], reverse=True)
         return objs[:n]
 
@@ -553,7 +594,7 @@ def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metric
 def _within(metric: str, value, sim) -> bool:
     if value is None or sim is None:
         return False
-    if metric in HIGHER_IS_BETTER:
+    if METRICS[metric].higher_is_better:
         if math.isinf(value):
             return True
         return value >= sim - 10.0 * math.log10(NOISE_EXPLAINS_FACTOR)

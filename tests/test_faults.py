@@ -531,10 +531,10 @@ def test_gate_budget_numbers(work, tmp_path, capfd, monkeypatch, value):
 
 
 def test_gate_budget_of_zero_with_a_noisy_reference(tmp_path):
-    from compare.gate import Check, Result, budget_noise, noise_note
+    from compare.gate import Check, CheckResult, Verdict, budget_noise, noise_note
 
     c = Check(name="x", max={"relmse": 0.0}, min={}, reference="ref.exr")
-    r = Result(c, "pass", budget_noise=budget_noise(c, {"simulated": {"relmse": 1e-3}}, 64))
+    r = CheckResult(c, Verdict.PASS, budget_noise=budget_noise(c, {"simulated": {"relmse": 1e-3}}, 64))
     assert "a budget of 0" in noise_note(r)
 
 
