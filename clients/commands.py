@@ -14,6 +14,7 @@ from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
+from pbrcheck.fmt import terminal_safe
 from pbrcheck.scenario_import import import_scenario
 from pbrcheck.scene import load_scene
 
@@ -26,8 +27,8 @@ def _cmd_export(args) -> int:
     check_output_path(args.out, folder=True)
     exp = export_scene(scene, Path(args.out), output=args.output)
     segs = sorted(set(exp.segments.values()))
-    print(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
-          + (f", sphere segments {segs[0]}-{segs[-1]}" if segs else "") + ")")
+    print(terminal_safe(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
+                        + (f", sphere segments {segs[0]}-{segs[-1]}" if segs else "") + ")"))
     return 0
 
 
@@ -39,7 +40,7 @@ def _cmd_render(args) -> int:
     check_output_path(out)  # before the render
     img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     write_exr(out, img)
-    print(f"{out}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
+    print(f"{terminal_safe(out)}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
           f"({img.meta['version']}), {float(img.meta['seconds']):.2f}s")
     return 0
 

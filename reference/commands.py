@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pbrcheck.args import positive_int
 from pbrcheck.atomic import check_output_path
+from pbrcheck.fmt import terminal_safe
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 
@@ -26,9 +27,9 @@ def _cmd_reference(args) -> int:
                            adaptive=args.adaptive)
     write_exr(out, img)
     m = img.meta
-    print(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, sampler {m.get('sampler')}"
-          + (f" (adaptive: {m['adaptive']})" if m.get("adaptive", "off") != "off" else "")
-          + f", variant {m['variant']}, {m['seconds']} s render, cache {m.get('cache', 'off')}")
+    print(terminal_safe(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, sampler {m.get('sampler')}"
+                        + (f" (adaptive: {m['adaptive']})" if m.get("adaptive", "off") != "off" else "")
+                        + f", variant {m['variant']}, {m['seconds']} s render, cache {m.get('cache', 'off')}"))
     return 0
 
 
