@@ -74,29 +74,11 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
-from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
+from .gl import compute_program, get_context, groups, in_bands, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
 
 HALF_MAX = 65504.0
-#: A ray-cast frame of at most this many samples (pixels x supersample^2) is one dispatch, as it
-#: always was (a 360 x 300 report frame at supersample 4 has 1.7 M); a larger one is dispatched in
-#: bands of rows (:func:`frame_bands`) with ``glFinish`` between two, so that the process returns to
-#: Python -- where a SIGTERM's handler runs (pbrcheck.cli: Terminated, exit 143) -- every
-#: :data:`FRAME_BAND_SECONDS` or so. One dispatch of a 8192^2 frame held a SIGTERM for 44 s on
-#: llvmpipe (issue 34): a signal arriving during a GL call waits until the call returns.
-SINGLE_DISPATCH_SAMPLES = 1 << 21
-#: The wall time a band of a large frame aims at (the next band's rows are scaled from the last
-#: band's measured time; the GL work of one band is the longest a SIGTERM waits).
-FRAME_BAND_SECONDS = 0.5
-#: The first band of a large frame: this many samples at most (then :data:`FRAME_BAND_SECONDS`
-#: decides): 1 M samples are ~40 ms of llvmpipe at the default preset, ~1 ms on a GPU.
-FIRST_BAND_SAMPLES = 1 << 20
-#: The most a band's rows grow from one band to the next (a band that finished fast on a cheap
-#: region of the image must not make the next, on an expensive region, far longer than the aim).
-BAND_GROWTH = 4
-#: Rows of a band are a multiple of the compute pass's work-group height (render.comp: 8 x 8).
-BAND_ROWS_STEP = 8
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
 #: them: the split sum's prefiltered cube, max_lod and lod_override (ibl=runtime has none); the
 #: log2 mapping's cube_log2; runtime sampling's env_cube, env_face_size and runtime_samples; the
@@ -716,29 +698,17 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
 
 
 def frame_bands(ctx, prog, W: int, H: int, ss: int) -> int:
-    """Dispatch the frame pass ``prog`` (render.comp) over the W x H image: one dispatch when it has at
-    most :data:`SINGLE_DISPATCH_SAMPLES` samples, else bands of rows, each followed by ``glFinish``
-    and sized from the last band's wall time to take about :data:`FRAME_BAND_SECONDS` (constants'
-    comments: a SIGTERM is honoured between two bands). Every pixel is computed once, from its own
-    coordinates: the image is bit-identical either way. Returns the number of dispatches."""
-    if W * H * ss * ss <= SINGLE_DISPATCH_SAMPLES:
-        _set(prog, "tile_origin", (0, 0))
-        prog.run(groups(W, 8), groups(H, 8), 1)
-        return 1
-    step = BAND_ROWS_STEP
-    rows = max(step, FIRST_BAND_SAMPLES // (W * ss * ss) // step * step)
-    y, n = 0, 0
-    while y < H:
-        rows = min(rows, H - y)
-        t0 = time.perf_counter()
+    """Dispatch the frame pass ``prog`` (render.comp) over the W x H image through
+    :func:`realtime.gl.in_bands`: one dispatch for a frame of at most
+    :data:`~realtime.gl.SINGLE_DISPATCH_SAMPLES` samples, else bands of rows with ``glFinish``
+    between (a SIGTERM is honoured between two). A pixel is computed once, from its own coordinates
+    (``tile_origin`` + the invocation's): the image is bit-identical either way. Returns the number
+    of dispatches."""
+    def band(y: int, rows: int) -> None:
         _set(prog, "tile_origin", (0, y))
         prog.run(groups(W, 8), groups(rows, 8), 1)
-        ctx.finish()  # back in Python after every band: a pending signal's handler runs here
-        dt = time.perf_counter() - t0
-        y, n = y + rows, n + 1
-        grown = rows * FRAME_BAND_SECONDS / max(dt, 1e-6)
-        rows = max(step, int(min(grown, rows * BAND_GROWTH)) // step * step)
-    return n
+
+    return in_bands(ctx, H, W * ss * ss, band)
 
 
 def _image(color, aov, obj, meta) -> Image:

@@ -303,25 +303,57 @@ def test_sigterm_during_a_large_frame_is_honoured_within_the_bound(tmp_path):
     assert not list(tmp.iterdir())
 
 
-def test_a_banded_frame_is_bit_identical_to_one_dispatch(monkeypatch):
+def _banded(monkeypatch, first_rows: int, row_samples: int) -> list[int]:
+    """Every frame from now on in bands of ``first_rows`` rows (rows of ``row_samples`` samples); the
+    returned list gets each frame's band count."""
+    import realtime.gl as G
+
+    counts = []
+    bands = G.in_bands
+    monkeypatch.setattr(G, "SINGLE_DISPATCH_SAMPLES", 0)
+    monkeypatch.setattr(G, "FIRST_BAND_SAMPLES", first_rows * row_samples)
+    monkeypatch.setattr(G, "BAND_GROWTH", 1)                              # the bands never grow
+    for mod in ("realtime.render", "realtime.raster"):
+        monkeypatch.setattr(f"{mod}.in_bands", lambda *a: counts.append(bands(*a)) or counts[-1])
+    return counts
+
+
+def _same_pixels(a: Image, b: Image) -> None:
+    assert set(a.channels) == set(b.channels)
+    for k in a.channels:
+        assert a.channels[k].tobytes() == b.channels[k].tobytes(), k
+
+
+FAST = {"cube_size": 16, "prefilter_levels": 4, "prefilter_samples": 16, "lut_size": 16, "lut_samples": 16,
+        "irradiance_source_size": 8}
+
+
+def test_a_banded_ray_cast_frame_is_bit_identical_to_one_dispatch(monkeypatch):
     import realtime.render as R
+    from pbrcheck.scene import scene_from_dict
 
     d = load_scene("spheres").to_dict()
     d["camera"]["width"], d["camera"]["height"] = 72, 60
-    from pbrcheck.scene import scene_from_dict
-
     scene = scene_from_dict(d)
-    opts = {"cube_size": 16, "prefilter_levels": 4, "prefilter_samples": 16, "lut_size": 16, "lut_samples": 16,
-            "irradiance_source_size": 8}
-    one = R.render_realtime(scene, "default", opts, progress=False)
-    counts = []
-    bands = R.frame_bands
-    monkeypatch.setattr(R, "frame_bands", lambda *a: counts.append(bands(*a)) or counts[-1])
-    monkeypatch.setattr(R, "SINGLE_DISPATCH_SAMPLES", 0)                   # every frame banded ...
-    monkeypatch.setattr(R, "FIRST_BAND_SAMPLES", 72 * 16 * 8)              # ... from a first band of 8 rows
-    monkeypatch.setattr(R, "BAND_GROWTH", 1)                               # ... and never more
-    banded = R.render_realtime(scene, "default", opts, progress=False)
+    one = R.render_realtime(scene, "default", FAST, progress=False)
+    counts = _banded(monkeypatch, 8, 72 * 16)
+    banded = R.render_realtime(scene, "default", FAST, progress=False)
     assert counts == [60 // 8 + 1]                                         # 7 bands of 8 rows and one of 4
-    assert set(one.channels) == set(banded.channels)
-    for k in one.channels:
-        assert one.channels[k].tobytes() == banded.channels[k].tobytes(), k
+    _same_pixels(one, banded)
+
+
+def test_a_banded_raster_frame_is_bit_identical_to_one_pass(monkeypatch, tmp_path):
+    import realtime.render as R
+
+    from gltf_build import quad_asset, quad_scene
+
+    asset = quad_asset(tmp_path / "quad.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                                         "roughnessFactor": 0.4}},
+                       [(np.arange(8 * 8 * 3, dtype=np.uint8).reshape(8, 8, 3) * 3, None)])
+    scene = load_scene(quad_scene(tmp_path, asset, size=(40, 36)))
+    opts = {**FAST, "supersample": 2}
+    one = R.render_realtime(scene, "default", opts, progress=False)
+    counts = _banded(monkeypatch, 8, 80)
+    banded = R.render_realtime(scene, "default", opts, progress=False)
+    assert counts == [72 // 8]                                             # 72 supersampled rows
+    _same_pixels(one, banded)
