@@ -28,7 +28,7 @@ starts with that folder's name, or a writer's temporary file beside it) inside a
 follow no symbolic link, so a photo, a render or a ``.git`` pack file under the root stays.
 
 API: :func:`cache_root`, :func:`cache_key`, :class:`Cache`, :func:`usage`, :func:`prune`,
-:func:`parse_size`, :func:`claim_root`, :func:`is_marked`, :class:`NamespaceUsage`,
+:func:`parse_size`, :func:`claim_root`, :func:`is_marked`, :func:`checksum`, :class:`NamespaceUsage`,
 :class:`PruneResult`, :data:`MARKER`, :data:`CHECKSUM_META`.
 
 References: B. Ford, "Cache Directory Tagging Specification" (https://bford.info/cachedir/).

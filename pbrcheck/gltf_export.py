@@ -17,7 +17,7 @@ own). The scene file's own lights are added there too (root nodes ``light_<k>`` 
 ``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
 (:class:`~pbrcheck.gltf.AssetError` otherwise).
 
-API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
+API: :func:`asset_document` (the JSON, the files to write beside it), :data:`RENAMED_FOLDER`, :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).
 """
 

@@ -12,6 +12,9 @@ expected and what was found. Loading never writes anything.
 
 Object ids are the index in :attr:`Scene.objects` after expansion (the ``object`` AOV of both
 renderers); ``-1`` is the background.
+
+Writing: :func:`dump_toml` (a resolved scene as TOML), with :func:`toml_string` and :func:`toml_key`
+escaping every string and key, so the text parses whatever an untrusted name holds (docs/security.md).
 """
 
 from __future__ import annotations

@@ -34,7 +34,7 @@ API
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
 :func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
-:func:`chain_mapping`, :func:`effective_cube_format`.
+:func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large).
 """
 
 from __future__ import annotations
