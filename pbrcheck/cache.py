@@ -138,8 +138,8 @@ def claim_root(root: Path, *, create: bool) -> bool:
     :class:`~pbrcheck.errors.CacheError` naming the folder and a file that is not the cache's:
     ``pbrcheck cache clear`` must never take a user's folder for the cache."""
     root = Path(root)
-    if str(root) in _claimed and is_marked(root):
-        return True
+    if str(root) in _claimed and (not create or is_marked(root)):
+        return True  # checked before in this process (a read of an unmarked old cache: once, not per entry)
     try:
         st = root.stat()  # a root that is a link to a folder: the user's choice of folder
     except FileNotFoundError:
@@ -164,6 +164,7 @@ def claim_root(root: Path, *, create: bool) -> bool:
                              f"{other.relative_to(root)}, which is not a cache entry): set ${CACHE_ENV} to a new "
                              "or empty folder")
         if not create:
+            _claimed.add(str(root))
             return True
         try:
             write_text_atomic(root / MARKER, MARKER_TEXT)
