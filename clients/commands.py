@@ -14,7 +14,7 @@ from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
-from pbrcheck.fmt import terminal_safe
+from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.scenario_import import import_scenario
 from pbrcheck.scene import load_scene
 
@@ -36,7 +36,7 @@ def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
     scene = load_scene(args.scene)
-    out = Path(args.out or f"out/render/{scene.name}_{args.renderer.replace(':', '_')}.exr")
+    out = Path(args.out or f"out/render/{file_name_part(scene.name)}_{file_name_part(args.renderer)}.exr")
     check_output_path(out)  # before the render
     img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     write_exr(out, img)

@@ -44,6 +44,12 @@ ROOT = Path(__file__).resolve().parents[1]
 HOSTILE = "evil\x1b[31mRED\x1b[0m\n[forged]\nname = \"x\\\"] \u00fc \U0001F600 \x7f\x9b2J"
 
 
+#: The real-time renderer at its smallest (tests/test_faults.py's).
+RT_FAST = ["--set", "cube_size=16", "--set", "prefilter_samples=16", "--set", "irradiance=sh9",
+           "--set", "prefilter_levels=4", "--set", "lut_size=16", "--set", "lut_samples=16",
+           "--set", "irradiance_source_size=8"]
+
+
 # --- the cache ------------------------------------------------------------------------------------
 
 def _entry(ns: str, k: str, root: Path) -> Path:
@@ -199,6 +205,21 @@ def _json_of(scene: Path, capsys) -> str:
     return out
 
 
+def test_a_scene_name_cannot_move_a_default_output_path(tmp_path, monkeypatch, capsys):
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    scene = tmp_path / "s.toml"
+    scene.write_text(f"name = {toml_string('../../escaped' + chr(27) + '[2J')}\n[camera]\norigin = [0, 0, 4]\n"
+                     "fov = 40.0\nwidth = 8\nheight = 8\n[environment]\ntype = \"constant\"\nradiance = [1, 1, 1]\n"
+                     "[[objects]]\ntype = \"sphere\"\nradius = 1.0\n")
+    assert main(["realtime", str(scene), *RT_FAST]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out
+    written = [p.relative_to(tmp_path) for p in tmp_path.rglob("*.exr")]
+    assert written == [Path("work/out/realtime/_.._escaped__2J_default.exr")], written
+
+
 # --- export never overwrites an asset's file ------------------------------------------------------
 
 def test_export_keeps_an_asset_file_named_like_its_own(tmp_path, capsys):
@@ -262,9 +283,6 @@ _DRIVER = textwrap.dedent("""
     sys.exit(main(sys.argv[2:]))
 """)
 
-RT_FAST = ["--set", "cube_size=16", "--set", "prefilter_samples=16", "--set", "irradiance=sh9",
-           "--set", "prefilter_levels=4", "--set", "lut_size=16", "--set", "lut_samples=16",
-           "--set", "irradiance_source_size=8"]
 
 
 @pytest.mark.slow
