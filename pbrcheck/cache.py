@@ -49,6 +49,7 @@ from pathlib import Path
 from .atomic import write_text_atomic
 from .errors import CacheError, ImageIOError
 from .exr import Image, _meta_value, read_exr, write_exr
+from .fmt import terminal_safe
 
 CACHE_ENV = "PBRCHECK_CACHE"
 #: The marker file that makes a folder a pbrcheck cache (module docstring).
@@ -161,7 +162,7 @@ def claim_root(root: Path, *, create: bool) -> bool:
             raise CacheError(f"{root}: cannot read the cache folder ({e.strerror or e})") from None
         if other is not None:
             raise CacheError(f"{root}: not a pbrcheck cache (no {MARKER} written by pbrcheck, and it holds "
-                             f"{other.relative_to(root)}, which is not a cache entry): set ${CACHE_ENV} to a new "
+                             f"{terminal_safe(other.relative_to(root))}, which is not a cache entry): set ${CACHE_ENV} to a new "
                              "or empty folder")
         if not create:
             _claimed.add(str(root))

@@ -65,7 +65,7 @@ def test_clear_refuses_a_folder_that_is_not_a_cache(tmp_path, monkeypatch, capsy
     user = tmp_path / "pictures"
     for rel, data in {"holiday.jpg": b"\xff\xd8 a photo", "photos/2024/holiday.exr": b"an EXR of the user's",
                       f"renders/ab/{'ab' + '0' * 62}.exr": b"a render named like an entry",
-                      ".git/objects/pack/pack-1.pack": b"PACK"}.items():
+                      ".git/objects/pack/pack-1.pack": b"PACK", "\x1b[2Jnamed.txt": b"the first file found"}.items():
         (user / rel).parent.mkdir(parents=True, exist_ok=True)
         (user / rel).write_bytes(data)
     before = _files(user)
@@ -74,6 +74,7 @@ def test_clear_refuses_a_folder_that_is_not_a_cache(tmp_path, monkeypatch, capsy
         assert main(["cache", *action.split()]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "not a pbrcheck cache" in err[0] and str(user) in err[0], err
+        assert "\\x1b[2Jnamed.txt" in err[0] and "\x1b" not in err[0]     # the file it names, escaped
     assert _files(user) == before and not (user / cache.MARKER).exists()
     # a render into it is refused the same way, before anything is written
     with pytest.raises(cache.CacheError, match="not a pbrcheck cache"):
