@@ -8,6 +8,7 @@ or the escaped output.
 * Corpus CSV: cells that begin with ``= + - @``, tab or CR are text (OWASP's rule).
 * ``check-scene``: names holding ESC, newlines, quotes, backslashes, ``]`` and non-BMP characters
   neither reach the terminal raw nor break the TOML (it parses, and the names read back).
+* A scene's name cannot move a command's default output path out of ``out/`` (``../../x``).
 * ``export``: an asset's buffer named ``scenario.json`` and image named ``scene.gltf`` are kept (in
   ``_asset/``), the export's own files are the export's.
 * SIGTERM during a long ray-cast frame: exit 143 within :data:`SIGTERM_BOUND_S`, nothing written;
