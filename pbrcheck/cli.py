@@ -35,6 +35,7 @@ import reference.commands
 from . import __version__, cache, unmodelled
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
+from .fmt import terminal_safe
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -55,16 +56,18 @@ def _cmd_scenes(args) -> int:
 def _cmd_check_scene(args) -> int:
     scene = load_scene(args.scene)
     env = load_environment(scene)  # validates the environment's pixels too
-    if args.json:
+    if args.json or args.format == "json":  # ensure_ascii: every control character is a \u escape
         print(json.dumps(scene.to_dict(), indent=2))
         return 0
-    print(f"# {scene.source}: valid")
+    # TOML: the comment lines escaped for the terminal (one line each, no escape sequence reaches it),
+    # the values by dump_toml's own escaping (the output parses whatever the names hold)
+    print(terminal_safe(f"# {scene.source}: valid"))
     print(f"# {len(scene.objects)} object(s), {len(scene.lights)} light(s), environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g})")
     print(f"# scene hash {scene_hash(scene, env.content_hash)}")
     if getattr(scene, "assets", ()):
         from .gltf_scene import describe
-        print("\n".join(describe(scene)))
+        print("\n".join(terminal_safe(line) for line in describe(scene)))
     print(dump_toml(scene.to_dict()), end="")
     return 0
 
@@ -147,7 +150,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("check-scene", help="validate a scene and print it resolved")
     s.add_argument("scene", help="built-in scene name or path to a TOML scene file")
-    s.add_argument("--json", action="store_true", help="print the resolved scene as JSON")
+    s.add_argument("--format", choices=("toml", "json"), default="toml",
+                   help="toml (default): comment lines describing it, then the resolved scene as TOML; json: the resolved scene")
+    s.add_argument("--json", action="store_true", help="the same as --format json")
     s.set_defaults(func=_cmd_check_scene)
 
     s = sub.add_parser("cache", help="what the render cache holds ($PBRCHECK_CACHE), prune or clear it")

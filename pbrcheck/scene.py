@@ -12,12 +12,16 @@ expected and what was found. Loading never writes anything.
 
 Object ids are the index in :attr:`Scene.objects` after expansion (the ``object`` AOV of both
 renderers); ``-1`` is the background.
+
+Writing: :func:`dump_toml` (a resolved scene as TOML), with :func:`toml_string` and :func:`toml_key`
+escaping every string and key, so the text parses whatever an untrusted name holds (docs/security.md).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
@@ -667,8 +671,35 @@ def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, in
     return replace(scene, camera=camera)
 
 
+#: Characters a TOML basic string must escape (TOML 1.0: U+0000-U+001F but tab, and U+007F), the C1
+#: controls a terminal would act on (U+0080-U+009F, valid TOML but printed by check-scene), and the
+#: surrogates (no Unicode scalar value: TOML cannot hold them, so they become U+FFFD).
+_TOML_ESCAPE = re.compile("[\x00-\x08\x0a-\x1f\x7f-\x9f\\\\\"\ud800-\udfff]")
+_TOML_SHORT = {"\b": "\\b", "\n": "\\n", "\f": "\\f", "\r": "\\r", '"': '\\"', "\\": "\\\\"}
+_TOML_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def toml_string(s: str) -> str:
+    """``s`` as a TOML basic string: quotes, backslashes and control characters escaped, so that any
+    name (a scene's or an asset's: untrusted) reads back as itself (lone surrogates as U+FFFD)."""
+    def esc(m):
+        c = m.group()
+        if "\ud800" <= c <= "\udfff":
+            return "\ufffd"
+        return _TOML_SHORT.get(c) or f"\\u{ord(c):04x}"
+    return '"' + _TOML_ESCAPE.sub(esc, s) + '"'
+
+
+def toml_key(k: str) -> str:
+    """A TOML key: bare when it may be, else a quoted :func:`toml_string`."""
+    k = str(k)
+    return k if _TOML_BARE_KEY.match(k) else toml_string(k)
+
+
 def dump_toml(d: dict) -> str:
-    """Minimal TOML writer for resolved scenes (tables, arrays of tables, scalars, flat arrays)."""
+    """Minimal TOML writer for resolved scenes (tables, arrays of tables, scalars, flat arrays).
+    Strings and keys are escaped (:func:`toml_string`, :func:`toml_key`): the output parses with
+    ``tomllib`` whatever a name holds."""
     lines: list[str] = []
 
     def val(v):
@@ -677,7 +708,7 @@ def dump_toml(d: dict) -> str:
         if isinstance(v, (int, float)):
             return repr(v)
         if isinstance(v, str):
-            return json.dumps(v)
+            return toml_string(v)
         if isinstance(v, list):
             return "[" + ", ".join(val(x) for x in v) + "]"
         if v is None:
@@ -692,9 +723,9 @@ def dump_toml(d: dict) -> str:
             elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
                 subs.append(("a", k, v))
             else:
-                lines.append(f"{k} = {val(v)}")
+                lines.append(f"{toml_key(k)} = {val(v)}")
         for kind, k, v in subs:
-            name = f"{prefix}.{k}" if prefix else k
+            name = f"{prefix}.{toml_key(k)}" if prefix else toml_key(k)
             if kind == "t":
                 lines.append(f"\n[{name}]")
                 table(name, v)

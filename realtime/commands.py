@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pbrcheck.atomic import check_output_path
+from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import load_scene
 
@@ -26,16 +27,16 @@ def _cmd_realtime(args) -> int:
     if args.shader:
         load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
     scene = load_scene(args.scene)
-    out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
+    out = Path(args.out or f"out/realtime/{file_name_part(scene.name)}_{args.preset}.exr")
     check_output_path(out)  # before the render
     img = render_realtime(scene, args.preset, overrides, progress=True)
     write_exr(out, img)
     t = json.loads(img.meta["timings"])
-    print(f"{out}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
+    print(f"{terminal_safe(out)}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
           f"frame {t['frame']:.3f}s, passes " + ", ".join(f"{k} {v:.3f}s" for k, v in sorted(t.items())
                                                          if k != "frame"))
     for w in json.loads(img.meta["warnings"]):
-        print(f"warning: {w}")
+        print(terminal_safe(f"warning: {w}"))
     return 0
 
 

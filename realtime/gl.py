@@ -13,7 +13,14 @@ API
 ---
 :func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
 :func:`timed`, :func:`assemble`, :func:`map_errors`,
-:func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
+:func:`compute_program`, :func:`compile_source`, :func:`groups`, :func:`in_bands`, :class:`Source`.
+
+Long GL work and signals: a signal that arrives during a GL call waits until the call returns (the
+interpreter runs a handler between two bytecodes; pbrcheck.cli's SIGTERM handler raises
+:class:`pbrcheck.errors.Terminated`, exit 143). One dispatch of an 8192^2 ray-cast frame held a
+SIGTERM for 44 s on llvmpipe (issue 34). :func:`in_bands` cuts a large frame (the ray-cast dispatch,
+the raster colour pass under a scissor) into bands of rows with ``glFinish`` between two, each
+sized from the last one's wall time to take about :data:`FRAME_BAND_SECONDS`.
 """
 
 from __future__ import annotations
@@ -251,6 +258,48 @@ def compile_source(text_entry: str, extra: str, defines: dict | None = None, nam
                                  user=user is not None) from None
     _programs[key] = prog
     return prog
+
+
+#: A frame of at most this many samples (pixels x samples per pixel) is one GL call, as it always was
+#: (a 360 x 300 report frame at supersample 4 has 1.7 M); a larger one goes in bands (:func:`in_bands`).
+SINGLE_DISPATCH_SAMPLES = 1 << 21
+#: The wall time a band of a large frame aims at (the next band's rows are scaled from the last
+#: band's measured time): about the longest a SIGTERM waits for the GL work in flight.
+FRAME_BAND_SECONDS = 0.5
+#: The first band of a large frame: this many samples at most (then :data:`FRAME_BAND_SECONDS`
+#: decides): 1 M samples are ~0.1-0.5 s of llvmpipe at the default preset, ~1 ms on a GPU.
+FIRST_BAND_SAMPLES = 1 << 20
+#: The most a band's rows grow from one band to the next (a band that finished fast on a cheap
+#: region of the image must not make the next, on an expensive region, far longer than the aim).
+BAND_GROWTH = 4
+#: Rows of a band are a multiple of this: the compute pass's work-group height (render.comp: 8 x 8),
+#: and whole 2 x 2 fragment quads of the raster pass.
+BAND_ROWS_STEP = 8
+
+
+def in_bands(ctx, rows: int, samples_per_row: int, band) -> int:
+    """Issue the GL work of a frame of ``rows`` rows of ``samples_per_row`` samples: ``band(0, rows)``
+    once when the frame has at most :data:`SINGLE_DISPATCH_SAMPLES` samples; else ``band(y, n)`` for
+    consecutive bands of rows (``n`` a multiple of :data:`BAND_ROWS_STEP` but the last), each
+    followed by ``ctx.finish()`` -- the process is back in Python then, where a pending signal's
+    handler runs -- and sized from the previous band's wall time to take about
+    :data:`FRAME_BAND_SECONDS` (growing at most :data:`BAND_GROWTH` times). ``band`` must draw the
+    same pixels however the rows are cut. Returns the number of bands."""
+    if rows * samples_per_row <= SINGLE_DISPATCH_SAMPLES:
+        band(0, rows)
+        return 1
+    step = BAND_ROWS_STEP
+    n = max(step, FIRST_BAND_SAMPLES // max(samples_per_row, 1) // step * step)
+    y = count = 0
+    while y < rows:
+        n = min(n, rows - y)
+        t0 = time.perf_counter()
+        band(y, n)
+        ctx.finish()  # back in Python after every band: a pending signal's handler runs here
+        dt = time.perf_counter() - t0
+        y, count = y + n, count + 1
+        n = max(step, int(min(n * FRAME_BAND_SECONDS / max(dt, 1e-6), n * BAND_GROWTH)) // step * step)
+    return count
 
 
 def groups(n: int, local: int) -> int:

@@ -74,7 +74,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
 from pbrcheck.scene import Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
-from .gl import ShaderCompileError, assemble, get_context, map_errors, timed
+from .gl import ShaderCompileError, assemble, get_context, in_bands, map_errors, timed
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -404,38 +404,56 @@ def check_msaa(msaa: int) -> None:
 
 
 def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,
-                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool) -> None:
+                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool, msaa: int = 1) -> None:
     """The colour pass's GL commands (:func:`raster_frame`): clear, the background triangle, each
     primitive in order (opaque, then BLEND back to front) with its culling, blending and
-    alpha-to-coverage state, and the MSAA resolve into ``resolved``."""
+    alpha-to-coverage state, and the MSAA resolve into ``resolved``. A large target is drawn in bands
+    of rows under a scissor (:func:`realtime.gl.in_bands`: a SIGTERM is honoured between two): the
+    scissor test only discards fragments outside the band, and each pixel sees the same draws in the
+    same order, so the image is bit-identical to one pass. Not with ``msaa`` > 1: llvmpipe (Mesa 22.3)
+    then loses samples of a band's top row under the scissor (the image differed there), so a
+    multisampled colour pass stays one pass (a SIGTERM waits for it)."""
     import moderngl
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-    ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
-    empty.render(moderngl.TRIANGLES, vertices=3)
-    ctx.enable(moderngl.DEPTH_TEST)
-    ctx.front_face = "ccw"
-    ctx.cull_face = "back"
-    for it, (vao, _, _) in zip(items, vaos):
-        if it.alpha_mode == "BLEND":
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
-                              moderngl.ONE_MINUS_SRC_ALPHA)
-            fbo.depth_mask = False
-        if it.cull:
-            ctx.enable(moderngl.CULL_FACE)
+    sw, sh = fbo.size
+
+    def band(y: int, rows: int) -> None:
+        if rows < sh:
+            fbo.scissor = (0, y, sw, rows)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+        empty.render(moderngl.TRIANGLES, vertices=3)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.front_face = "ccw"
+        ctx.cull_face = "back"
+        for it, (vao, _, _) in zip(items, vaos):
+            if it.alpha_mode == "BLEND":
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                                  moderngl.ONE_MINUS_SRC_ALPHA)
+                fbo.depth_mask = False
+            if it.cull:
+                ctx.enable(moderngl.CULL_FACE)
+            else:
+                ctx.disable(moderngl.CULL_FACE)
+            _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
+            a2c = alpha_to_coverage and it.alpha_mode == "MASK"
+            if a2c:
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+            vao.render(moderngl.TRIANGLES)
+            if a2c:
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+        fbo.depth_mask = True
+        ctx.disable(moderngl.BLEND)
+
+    try:
+        if msaa > 1:
+            band(0, sh)
         else:
-            ctx.disable(moderngl.CULL_FACE)
-        _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
-        a2c = alpha_to_coverage and it.alpha_mode == "MASK"
-        if a2c:
-            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-        vao.render(moderngl.TRIANGLES)
-        if a2c:
-            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-    fbo.depth_mask = True
-    ctx.disable(moderngl.BLEND)
+            in_bands(ctx, sh, sw, band)
+    finally:
+        fbo.scissor = None  # the resolve (a blit) and later clears see the whole target
     if resolved is not None:
         ctx.copy_framebuffer(resolved, fbo)
 
@@ -501,7 +519,7 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
             released.extend(v)
         ctx.finish()  # uploads and allocations above stay out of the timed draws
         _, t_draw = timed(ctx, lambda: _draw_colour(ctx, fbo, resolved, empty, color_prog, opaque + blend, vaos,
-                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage))
+                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage, msaa))
         if timings is not None:
             timings["frame"] = t_draw
         color = np.frombuffer((resolved or fbo).read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]

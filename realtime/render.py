@@ -34,7 +34,7 @@ API
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
 :func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
-:func:`chain_mapping`, :func:`effective_cube_format`.
+:func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large).
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
-from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
+from .gl import compute_program, get_context, groups, in_bands, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
 
@@ -675,7 +675,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         out_color, out_aov, out_obj = buffers[2:]
 
         def frame():
-            prog.run(groups(W, 8), groups(H, 8), 1)
+            frame_bands(ctx, prog, W, H, int(o.supersample))
 
         if id(prog) not in _warm:
             # Warm-up: llvmpipe compiles the shader to machine code at its first dispatch; one 8x8
@@ -695,6 +695,20 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
     meta["pipeline"] = pipeline
     return _image(color, aov, obj, meta)
+
+
+def frame_bands(ctx, prog, W: int, H: int, ss: int) -> int:
+    """Dispatch the frame pass ``prog`` (render.comp) over the W x H image through
+    :func:`realtime.gl.in_bands`: one dispatch for a frame of at most
+    :data:`~realtime.gl.SINGLE_DISPATCH_SAMPLES` samples, else bands of rows with ``glFinish``
+    between (a SIGTERM is honoured between two). A pixel is computed once, from its own coordinates
+    (``tile_origin`` + the invocation's): the image is bit-identical either way. Returns the number
+    of dispatches."""
+    def band(y: int, rows: int) -> None:
+        _set(prog, "tile_origin", (0, y))
+        prog.run(groups(W, 8), groups(rows, 8), 1)
+
+    return in_bands(ctx, H, W * ss * ss, band)
 
 
 def _image(color, aov, obj, meta) -> Image:
