@@ -33,8 +33,10 @@ import realtime.commands
 import reference.commands
 
 from . import __version__, cache
+from .args import add_limit_flags_to_scene_commands
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
+from .limits import reset_limits, set_limits_from_args
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -169,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for mod in COMMAND_MODULES:
         mod.register(sub, bench_sub)
+    add_limit_flags_to_scene_commands(sub)  # --max-* on every command that reads a scene
     return p
 
 
@@ -236,6 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pbrcheck: error: {e}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    set_limits_from_args(args)
     # --renderers names the file of this call only: an in-process caller (tests, scripts calling
     # main() again) must not inherit it, so the previous choice is restored on the way out.
     prev_renderers = clients.config.user_renderers_file()
@@ -253,6 +257,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
         sys.stdout = stdout
         clients.config.set_renderers_file(prev_renderers)
+        reset_limits()  # the --max-* values of this call only, as --renderers
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
 

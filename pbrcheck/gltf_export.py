@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
-from .gltf import AssetError
+from .gltf import AssetError, read_resource, resource_cap
 
 #: Most candidate (triangle, pixel) pairs rasterized at once by :func:`mesh_object_ids`.
 RASTER_CHUNK = 1 << 22
@@ -69,9 +69,8 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
             if uri.startswith("data:"):
                 continue
             rel = urllib.parse.unquote(uri)
-            if Path(rel).is_absolute() or ".." in Path(rel).parts:
-                raise AssetError(src, f"/{key}/{k}/uri", f"a resource outside the asset's folder ({uri!r})")
-            files[rel] = (src.parent / rel).read_bytes()
+            # the loader's resolver: a symlink out of the asset's folder is refused, never its target copied
+            files[rel] = read_resource(src, uri, f"/{key}/{k}/uri", resource_cap(key, b), key[:-1])
     si = inst.asset.scene
     roots = doc["scenes"][si]["nodes"] if doc.get("scenes") else inst.asset and [
         i for i in range(len(doc.get("nodes", [])))

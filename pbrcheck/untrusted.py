@@ -1,0 +1,135 @@
+"""Files named by untrusted input: the one resolver of every path an asset or a scene names.
+
+An asset (a ``.gltf`` / ``.glb``) or a scene file is data someone else may have written: the paths
+it names must not make pbrcheck read anything the user did not hand it. The rule (docs/assets.md,
+"Paths an asset or a scene may name"):
+
+* a reference is a relative path (a glTF URI is percent-decoded first, RFC 3986 2.1, so ``..%2F`` is
+  checked as ``../``); an absolute path, a drive letter, a scheme other than ``data:``, a NUL byte
+  are refused;
+* it is resolved against the folder of the file that names it, symlinks followed
+  (:func:`os.path.realpath`), and the result must lie inside that folder (itself resolved): a
+  ``../`` or a symlink out of the folder is refused;
+* it must be a regular file: ``/dev/zero``, ``/dev/urandom``, a FIFO or a socket is refused in one
+  line. The file is opened ``O_NONBLOCK`` (opening a FIFO for reading would otherwise block until a
+  writer comes) and checked with ``fstat`` on the open descriptor, so a file swapped for a FIFO
+  between the check and the open is caught too;
+* never more than ``limit`` bytes are read (a glTF buffer's declared ``byteLength`` plus
+  :data:`READ_SLACK`; an image :data:`pbrcheck.limits.MAX_RESOURCE_BYTES`): a file that grew, or a
+  device that slipped through, cannot exhaust memory.
+
+Absolute paths the user passes on the command line (a scene, an asset, ``--env FILE``) are the
+user's own choice and are not contained; a path *written in* a scene file is (:func:`contained_path`).
+
+API
+---
+- :class:`UntrustedPathError` -- the one-line refusal (a :class:`~pbrcheck.errors.PbrcheckError`,
+  exit 2); :func:`error` lets a caller raise its own typed error class with the same text.
+- :func:`uri_path` -- a glTF URI -> the relative path it names (percent-decoded), or the refusal.
+- :func:`contained_path` -- resolve a relative path inside a folder, symlinks followed.
+- :func:`read_contained` -- :func:`contained_path` + a bounded read of a regular file.
+- :func:`read_regular` -- a bounded read of a regular file (no containment: the user's own path).
+- :data:`READ_SLACK`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import stat
+import urllib.parse
+from pathlib import Path
+
+from .errors import PbrcheckError
+
+#: Bytes read beyond a glTF buffer's declared ``byteLength``: the specification lets a buffer's file
+#: be padded to a multiple of 4 (glTF 2.0, 3.6.1.1), so 3 would do; 4 KiB leaves room for a trailing
+#: newline or a tool's padding and still stops a device or a growing file at once.
+READ_SLACK = 4096
+#: Bytes per ``read`` call while reading a resource.
+_CHUNK = 1 << 20
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
+
+
+class UntrustedPathError(PbrcheckError):
+    """A path named by an asset or a scene that pbrcheck refuses to read (one line, exit 2)."""
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a folder")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def uri_path(uri: str) -> str:
+    """The relative path a glTF ``uri`` names, percent-decoded; raises :class:`ValueError` (the
+    reason in words) for an absolute path, a scheme (``file:``, ``http:``...), a NUL byte or a
+    ``..`` component (checked after decoding, so ``..%2F`` too)."""
+    if not isinstance(uri, str) or not uri:
+        raise ValueError("an empty or non-string uri")
+    if _SCHEME.match(uri) and not re.match(r"^[A-Za-z]:[\\/]", uri):
+        raise ValueError(f"a uri with a scheme ({uri.split(':', 1)[0]}:); only relative paths and data: URIs are read")
+    rel = urllib.parse.unquote(uri)
+    return check_relative(rel)
+
+
+def check_relative(rel: str) -> str:
+    """``rel`` if it is a relative path without ``..`` components; :class:`ValueError` otherwise."""
+    if "\x00" in rel:
+        raise ValueError("a NUL byte in the path")
+    if rel.startswith(("/", "\\")) or re.match(r"^[A-Za-z]:", rel) or Path(rel).is_absolute():
+        raise ValueError(f"an absolute path ({rel!r}); only paths relative to the file's folder are read")
+    if ".." in re.split(r"[\\/]", rel):
+        raise ValueError(f"a path leaving the file's folder ({rel!r})")
+    return rel
+
+
+def contained_path(folder: str | Path, rel: str) -> Path:
+    """``folder / rel`` resolved (symlinks followed), required to lie inside ``folder`` (resolved too);
+    raises :class:`ValueError` with the reason otherwise (``rel`` must pass :func:`check_relative`)."""
+    check_relative(rel)
+    root = os.path.realpath(folder)
+    real = os.path.realpath(os.path.join(root, rel))
+    if real != root and not real.startswith(root.rstrip(os.sep) + os.sep):
+        raise ValueError(f"{rel!r} resolves outside the file's folder (to {real!r}; a symlink out of it?)")
+    return Path(real)
+
+
+def read_regular(path: str | Path, limit: int) -> bytes:
+    """At most ``limit`` bytes of the regular file ``path`` (opened ``O_NONBLOCK``, checked with
+    ``fstat``); raises :class:`ValueError` (the reason) for a device, FIFO, socket or folder, a file
+    longer than ``limit``, and :class:`OSError` when it cannot be opened."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        st = os.stat(path)
+    except OSError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")  # before open: a FIFO is never opened
+    fd = os.open(path, flags)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
+        if st.st_size > limit:
+            raise ValueError(f"{st.st_size} bytes, more than the {limit} read at most")
+        parts, n = [], 0
+        while n <= limit:
+            b = os.read(fd, min(_CHUNK, limit + 1 - n))
+            if not b:
+                break
+            parts.append(b)
+            n += len(b)
+        if n > limit:
+            raise ValueError(f"more than the {limit} bytes read at most (the file grows)")
+        return b"".join(parts)
+    finally:
+        os.close(fd)
+
+
+def read_contained(folder: str | Path, rel: str, limit: int) -> tuple[Path, bytes]:
+    """(resolved path, bytes) of ``rel`` inside ``folder`` (:func:`contained_path`, :func:`read_regular`)."""
+    p = contained_path(folder, rel)
+    return p, read_regular(p, limit)
