@@ -21,7 +21,10 @@ API
   the sum against ``texture_bytes`` before anything is decoded.
 - :func:`pillow_unbounded` -- a context for Pillow with its own decompression-bomb check off (the
   budget above replaces it) and its ``DecompressionBombWarning`` silenced.
-- :func:`check_world_positions` -- world positions finite and within :data:`MAX_WORLD_COORDINATE`.
+- :func:`check_positions` -- positions finite and within :data:`MAX_WORLD_COORDINATE`, in the
+  accessor's space and in world space.
+- :func:`check_world_matrix` -- a node's world matrix within :data:`MAX_WORLD_COORDINATE`.
+- :func:`budgets_key` -- the budgets in force, for the loader's cache key.
 - :data:`MAX_WORLD_COORDINATE`, :data:`BYTE_STRIDE_RANGE`, :data:`INDEX_COMPONENT_TYPES`.
 """
 
@@ -271,14 +274,28 @@ def check_texture_bytes(file, headers: list[tuple[int, int, int] | None]) -> int
     return total
 
 
-def check_world_positions(file, pointer: str, wpos: np.ndarray) -> None:
-    """World-space positions finite and within :data:`MAX_WORLD_COORDINATE` (the node transforms
-    applied; a huge scale or position gave a blank image and exit 0)."""
+def budgets_key() -> tuple[int, ...]:
+    """The budgets a loaded asset was checked against (part of the loader's cache key: an asset
+    loaded under a larger budget is checked again under a smaller one)."""
+    return tuple(limits.limit(n) for n in ("node_instances", "triangles", "texture_bytes"))
+
+
+def check_world_matrix(file, pointer: str, world: np.ndarray) -> None:
+    """A node's world matrix with every entry within :data:`MAX_WORLD_COORDINATE` (a scale of 1e300
+    is finite, but its determinant and every position it moves overflow)."""
+    m = float(np.abs(world).max())
+    if not m <= MAX_WORLD_COORDINATE:
+        raise _err(file, pointer, f"a world transform with an entry of magnitude {m:g}, beyond "
+                   f"{MAX_WORLD_COORDINATE:g} (the node hierarchy's scales and translations)")
+
+
+def check_positions(file, pointer: str, wpos: np.ndarray, space: str) -> None:
+    """Positions (``space``: "" for the accessor's, "world-space " after the node transforms) finite
+    and within :data:`MAX_WORLD_COORDINATE` (a huge scale or position gave a blank image and exit 0)."""
     with np.errstate(invalid="ignore", over="ignore"):
         a = np.abs(wpos)
         bad = ~(a <= MAX_WORLD_COORDINATE).all(axis=1)
     if bad.any():
         i = int(np.argmax(bad))
-        raise _err(file, pointer, f"{int(bad.sum())} world-space position(s) non-finite or beyond "
-                   f"{MAX_WORLD_COORDINATE:g} after the node transforms (first at vertex {i}: "
-                   f"{[float(x) for x in wpos[i]]})")
+        raise _err(file, pointer, f"{int(bad.sum())} {space}position(s) non-finite or beyond "
+                   f"{MAX_WORLD_COORDINATE:g} (first at vertex {i}: {[float(x) for x in wpos[i]]})")

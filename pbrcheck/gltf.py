@@ -707,6 +707,7 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     if bad.any():
         raise r.err(pp + "/attributes/POSITION", f"{int(bad.sum())} non-finite (NaN or infinite) position(s), "
                     f"first at vertex {int(np.argmax(bad))}")
+    asset_guard.check_positions(r.path, pp + "/attributes/POSITION", pos, "")  # before normals square them
     for k, v in data.items():
         if v.shape[0] != n:
             raise r.err(f"{pp}/attributes/{k}", f"count {v.shape[0]} differs from POSITION's {n}")
@@ -759,7 +760,7 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     if abs(det) < 1e-30:
         raise r.err(f"/nodes/{node_i}", "a singular world transform (zero scale)")
     wpos = pos.astype(np.float64) @ M.T + world[:3, 3]
-    asset_guard.check_world_positions(r.path, f"/nodes/{node_i}", wpos)  # before the float32 cast overflows
+    asset_guard.check_positions(r.path, f"/nodes/{node_i}", wpos, "world-space ")  # before the float32 cast overflows
     wpos = wpos.astype(np.float32)
     wn = nrm @ np.linalg.inv(M)
     wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
@@ -839,7 +840,7 @@ def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamer
                       znear=float(per.get("znear", 0.01)))
 
 
-_CACHE: dict[tuple[str, str, int], Asset] = {}
+_CACHE: dict[tuple, Asset] = {}
 
 
 def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
@@ -848,7 +849,7 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     p = Path(path)
     raw = _file_bytes(p)
     h = content_hash(p)
-    key = (str(p.resolve()), h, -1 if scene is None else int(scene))
+    key = (str(p.resolve()), h, -1 if scene is None else int(scene), asset_guard.budgets_key())
     if key in _CACHE:
         return _CACHE[key]
     doc, blob = _parse(p, raw)
@@ -889,6 +890,7 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
         world = parent @ node_matrix(node)
         if not np.isfinite(world).all():
             raise r.err(f"/nodes/{ni}", "a non-finite transform")
+        asset_guard.check_world_matrix(p, f"/nodes/{ni}", world)
         if "mesh" in node:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
             for pi, prim in enumerate(mesh.get("primitives", [])):

@@ -17,6 +17,8 @@ API
 - :func:`set_limits` / :func:`reset_limits` / :func:`overridden` -- set by the CLI, or a test.
 - :func:`check` -- raise :class:`LimitError` when an amount exceeds its budget.
 - :class:`LimitError` -- the one-line refusal.
+- :class:`OutputSizeError` -- an image larger than a renderer's backend can allocate (the raster
+  pipeline asks GL: :func:`realtime.raster.check_target_size`); no flag raises a backend's limit.
 """
 
 from __future__ import annotations
@@ -60,6 +62,10 @@ class LimitError(PbrcheckError):
         head = f"{where}: " if where else ""
         super().__init__(f"{head}{what}: {int(amount):,} {lim.unit}, above the limit of {int(value):,} "
                          f"({lim.constant}; raise it with {lim.flag} N)")
+
+
+class OutputSizeError(PbrcheckError):
+    """An output image larger than the renderer's backend allows (its limit named, exit 2)."""
 
 
 @dataclass(frozen=True)

@@ -21,14 +21,19 @@ it names must not make pbrcheck read anything the user did not hand it. The rule
 Absolute paths the user passes on the command line (a scene, an asset, ``--env FILE``) are the
 user's own choice and are not contained; a path *written in* a scene file is (:func:`contained_path`).
 
+Refusals are :class:`ValueError` with the reason in words; the callers raise their own typed error
+(:class:`~pbrcheck.gltf.AssetError` with the JSON pointer, :class:`~pbrcheck.errors.SceneError` with
+the field), exit 2.
+
 API
 ---
-- :class:`UntrustedPathError` -- the one-line refusal (a :class:`~pbrcheck.errors.PbrcheckError`,
-  exit 2); :func:`error` lets a caller raise its own typed error class with the same text.
 - :func:`uri_path` -- a glTF URI -> the relative path it names (percent-decoded), or the refusal.
+- :func:`check_relative` -- a relative path without ``..`` components, or the refusal.
 - :func:`contained_path` -- resolve a relative path inside a folder, symlinks followed.
 - :func:`read_contained` -- :func:`contained_path` + a bounded read of a regular file.
 - :func:`read_regular` -- a bounded read of a regular file (no containment: the user's own path).
+- :func:`read_regular_prefix` -- a header: the first bytes of a regular file.
+- :func:`scene_file_path` -- a path written in a scene file, resolved and contained in its folder.
 - :data:`READ_SLACK`.
 """
 
@@ -40,7 +45,6 @@ import stat
 import urllib.parse
 from pathlib import Path
 
-from .errors import PbrcheckError
 
 #: Bytes read beyond a glTF buffer's declared ``byteLength``: the specification lets a buffer's file
 #: be padded to a multiple of 4 (glTF 2.0, 3.6.1.1), so 3 would do; 4 KiB leaves room for a trailing
@@ -49,10 +53,6 @@ READ_SLACK = 4096
 #: Bytes per ``read`` call while reading a resource.
 _CHUNK = 1 << 20
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
-
-
-class UntrustedPathError(PbrcheckError):
-    """A path named by an asset or a scene that pbrcheck refuses to read (one line, exit 2)."""
 
 
 def _kind(mode: int) -> str:
@@ -129,7 +129,43 @@ def read_regular(path: str | Path, limit: int) -> bytes:
         os.close(fd)
 
 
+def read_regular_prefix(path: str | Path, n: int) -> bytes:
+    """The first ``n`` bytes (or fewer) of the regular file ``path`` (a header); the same refusals
+    as :func:`read_regular` but for the length."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
+    fd = os.open(path, flags)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
+        return os.read(fd, n)
+    finally:
+        os.close(fd)
+
+
 def read_contained(folder: str | Path, rel: str, limit: int) -> tuple[Path, bytes]:
     """(resolved path, bytes) of ``rel`` inside ``folder`` (:func:`contained_path`, :func:`read_regular`)."""
     p = contained_path(folder, rel)
     return p, read_regular(p, limit)
+
+
+def scene_file_path(scene_dir: str | Path | None, p: str, contained: bool) -> Path:
+    """A path written in a scene file, resolved: relative to the scene's folder (``scene_dir``; the
+    working directory when None). Where ``contained`` (a scene read from a file: untrusted), the
+    resolved path, symlinks followed, must lie in the scene's folder or below, whether written
+    relative or absolute; :class:`ValueError` otherwise. Scenes built by pbrcheck itself from the
+    user's command line (an asset path, ``--env FILE``) are not ``contained``."""
+    base = Path(scene_dir) if scene_dir is not None else Path.cwd()
+    path = Path(p)
+    if not path.is_absolute():
+        path = base / path
+    if contained:
+        root = os.path.realpath(base)
+        real = os.path.realpath(path)
+        if not real.startswith(root.rstrip(os.sep) + os.sep):
+            raise ValueError(f"{p!r} resolves to {real!r}, outside the scene's folder {root!r} (a scene file may "
+                             "name files in its own folder or below; pass others on the command line)")
+    return path
