@@ -40,6 +40,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from . import limits
+from .errors import AssetError
 
 #: Largest |coordinate| of a world-space position: the renderers square differences of positions in
 #: float32 (lengths, bounding spheres, depth ranges), so 3 (2 x 1e18)^2 = 1.2e37 must stay below
@@ -54,8 +55,7 @@ _LIBRARY_LOGGERS = ("pygltflib", "dataclasses_json")
 _PIL_LOCK = threading.Lock()
 
 
-def _err(file, pointer: str, problem: str):
-    from .gltf import AssetError
+def _err(file, pointer: str, problem: str) -> AssetError:
     return AssetError(file, pointer, problem)
 
 

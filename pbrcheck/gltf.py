@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from . import asset_guard, limits, untrusted
-from .errors import PbrcheckError, os_reason
+from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
 
@@ -68,17 +68,6 @@ WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR = 10497, 33071, 33648
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
 #: Largest asset file read (a .gltf or a .glb): a GLB's length field is a uint32 (glTF 2.0, 4.4.3).
 MAX_ASSET_FILE_BYTES = 1 << 32
-
-
-class AssetError(PbrcheckError):
-    """A glTF asset that cannot be used: names the file and the JSON pointer."""
-
-    def __init__(self, file: str | Path, pointer: str, problem: str):
-        self.file = str(file)
-        self.pointer = pointer
-        self.problem = problem
-        where = f"{self.file}: {pointer}" if pointer else self.file
-        super().__init__(f"{where}: {problem}")
 
 
 @dataclass(frozen=True)

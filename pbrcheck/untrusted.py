@@ -97,24 +97,29 @@ def contained_path(folder: str | Path, rel: str) -> Path:
     return Path(real)
 
 
+def _open_regular(path: str | Path) -> int:
+    """A read-only descriptor of the regular file ``path``: ``stat`` first (a FIFO is never opened),
+    then ``O_NONBLOCK`` open and ``fstat`` on the descriptor (a file swapped in between is caught)."""
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
+    return fd
+
+
 def read_regular(path: str | Path, limit: int) -> bytes:
-    """At most ``limit`` bytes of the regular file ``path`` (opened ``O_NONBLOCK``, checked with
-    ``fstat``); raises :class:`ValueError` (the reason) for a device, FIFO, socket or folder, a file
-    longer than ``limit``, and :class:`OSError` when it cannot be opened."""
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    """At most ``limit`` bytes of the regular file ``path`` (:func:`_open_regular`); raises
+    :class:`ValueError` (the reason) for a device, FIFO, socket or folder, a file longer than
+    ``limit``, and :class:`OSError` when it cannot be opened."""
+    fd = _open_regular(path)
     try:
-        st = os.stat(path)
-    except OSError:
-        st = None
-    if st is not None and not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")  # before open: a FIFO is never opened
-    fd = os.open(path, flags)
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
-        if st.st_size > limit:
-            raise ValueError(f"{st.st_size} bytes, more than the {limit} read at most")
+        size = os.fstat(fd).st_size
+        if size > limit:
+            raise ValueError(f"{size} bytes, more than the {limit} read at most")
         parts, n = [], 0
         while n <= limit:
             b = os.read(fd, min(_CHUNK, limit + 1 - n))
@@ -132,15 +137,8 @@ def read_regular(path: str | Path, limit: int) -> bytes:
 def read_regular_prefix(path: str | Path, n: int) -> bytes:
     """The first ``n`` bytes (or fewer) of the regular file ``path`` (a header); the same refusals
     as :func:`read_regular` but for the length."""
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-    st = os.stat(path)
-    if not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
-    fd = os.open(path, flags)
+    fd = _open_regular(path)
     try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise ValueError(f"{_kind(st.st_mode)}, not a regular file")
         return os.read(fd, n)
     finally:
         os.close(fd)
