@@ -300,6 +300,17 @@ def test_huge_positions_are_refused_not_rendered_blank(tmp_path):
     assert e.value.pointer == "/meshes/0/primitives/0/attributes/POSITION"
 
 
+def test_positions_beyond_the_bound_after_the_node_transform_are_refused(tmp_path):
+    # each finite and within the bound alone (positions 1e9, scale 1e10); their product, 1e19, is not
+    # (6 positions: the quad without NORMAL is unwelded into its triangles' corners)
+    p = quad_doc(positions=QUAD_POS * np.float32(1e9), scale=[1e10, 1e10, 1e10]).write(tmp_path / "w.gltf")
+    with pytest.raises(AssetError, match="6 world-space position.s. non-finite or beyond 1e.18") as e:
+        load_asset(p)
+    assert e.value.pointer == "/nodes/0"
+    with_margin = quad_doc(positions=QUAD_POS * np.float32(1e9), scale=[1e8, 1e8, 1e8]).write(tmp_path / "ok.gltf")
+    assert float(np.abs(load_asset(with_margin).primitives[0].positions).max()) == pytest.approx(1e17, rel=1e-6)
+
+
 def test_signed_indices_are_refused_as_such(tmp_path):
     p = quad_doc(indices=np.array([0, -1, 2], np.int16)).write(tmp_path / "i16.gltf")
     with pytest.raises(AssetError) as e:
