@@ -15,6 +15,10 @@ API
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
   ``realtime/shaders/texcoord.glsl``'s, compared by the GLSL harness in ``tests/test_gltf_wrap.py``).
 - :func:`content_hash` -- sha256 of the asset file and every external resource it names.
+- :func:`read_resource`, :func:`resource_cap` -- an external buffer or image through the one resolver
+  of untrusted paths (:mod:`pbrcheck.untrusted`: relative, inside the asset's folder after symlinks,
+  a regular file, at most its declared size); the loader checks the document
+  (:mod:`pbrcheck.asset_guard`) and the budgets (:mod:`pbrcheck.limits`) before the work.
 
 Conventions (glTF 2.0 specification, sections 3.5 accessors, 3.7 geometry, 3.9 materials, 3.8
 textures; the extensions' specifications): world = the node hierarchy's product of local matrices
