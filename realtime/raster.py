@@ -55,7 +55,8 @@ API
 (one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
 :data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`, :func:`max_msaa`,
 :func:`check_msaa`, :func:`max_target_side`, :func:`check_target_size` (the colour pass's size against
-this GL's limits, supersampling counted, before any bake: :class:`pbrcheck.limits.OutputSizeError`).
+this GL's limits, supersampling counted, before any bake: :class:`pbrcheck.limits.OutputSizeError`),
+:func:`check_texture_sizes` (the assets' texture images against ``GL_MAX_TEXTURE_SIZE``).
 
 References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
 specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
@@ -437,6 +438,21 @@ def check_target_size(width: int, height: int, ss: int) -> None:
         raise OutputSizeError(f"realtime raster: a colour pass of {sw}x{sh} ({width}x{height} x supersample {ss}) "
                               f"exceeds this GL's {most} ({name}); lower the size or the supersample option "
                               f"(at most {most // ss} per side at supersample {ss})")
+
+
+def check_texture_sizes(scene: Scene) -> None:
+    """Raise :class:`pbrcheck.limits.OutputSizeError` (exit 2) when an asset's texture image has a
+    side above this GL's ``GL_MAX_TEXTURE_SIZE`` (it is uploaded as one texture; the decoded-bytes
+    budget allows a 20000 x 1 image), naming the image and its JSON pointer, before any bake."""
+    from pbrcheck.limits import OutputSizeError
+
+    most = int(get_context().info["GL_MAX_TEXTURE_SIZE"])
+    for inst in getattr(scene, "assets", ()):
+        for k in sorted(inst.asset.texture_slots()):   # the images a material samples (the others: never uploaded)
+            im = inst.asset.images[k]
+            if max(im.size) > most:
+                raise OutputSizeError(f"{inst.path}: /images/{k}: a {im.size[0]}x{im.size[1]} texture, above this GL's "
+                                      f"GL_MAX_TEXTURE_SIZE of {most}")
 
 
 def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,

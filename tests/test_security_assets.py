@@ -32,7 +32,7 @@ from pbrcheck.cli import main
 from pbrcheck.gltf import AssetError, load_asset
 from pbrcheck.gltf_build import png_bytes
 from pbrcheck.scene import load_scene
-from tests.gltf_build import QUAD_IDX, QUAD_POS, Doc, quad_scene
+from tests.gltf_build import QUAD_IDX, QUAD_POS, Doc, quad_asset, quad_scene
 
 
 # ------------------------------------------------------------------------------------------------
@@ -67,7 +67,8 @@ def png_header(width: int, height: int, color_type: int = 6) -> bytes:
 
 
 def with_images(doc: Doc, folder: Path, images: list[bytes]) -> Path:
-    """``doc`` with external images ``img<k>.png`` (each its bytes) and a material using the first."""
+    """``doc`` with external images ``img<k>.png`` (each its bytes; decoded by the loader, sampled by
+    no material)."""
     folder.mkdir(parents=True, exist_ok=True)
     doc.d["images"] = []
     for k, raw in enumerate(images):
@@ -493,6 +494,17 @@ def test_raster_target_size_asked_from_gl(tmp_path, capsys):
     p = quad_doc().write(tmp_path / "q.gltf")
     rc, err = cli(capsys, "realtime", str(p), "--size", f"{most // 4 + 1}x8", "--out", str(tmp_path / "rt.exr"))
     assert_one_line_refusal(rc, err, f"{(most // 4 + 1) * 4}x32", name)
+    assert not (tmp_path / "rt.exr").exists()
+
+
+def test_raster_texture_side_asked_from_gl(tmp_path, capsys):
+    ctx = _gl_or_skip()
+    most = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+    wide = np.full((1, most + 1, 3), 128, np.uint8)   # one grey row: a few hundred bytes as PNG
+    p = quad_asset(tmp_path / "wide.gltf", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+                   [(wide, None)])
+    rc, err = cli(capsys, "realtime", str(p), "--size", "8x8", "--out", str(tmp_path / "rt.exr"))
+    assert_one_line_refusal(rc, err, f"/images/0: a {most + 1}x1 texture", f"GL_MAX_TEXTURE_SIZE of {most}")
     assert not (tmp_path / "rt.exr").exists()
 
 
