@@ -33,9 +33,11 @@ import realtime.commands
 import reference.commands
 
 from . import __version__, cache, unmodelled
+from .args import add_limit_flags_to_scene_commands
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
 from .fmt import terminal_safe
+from .limits import reset_limits, set_limits_from_args
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -174,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for mod in COMMAND_MODULES:
         mod.register(sub, bench_sub)
+    add_limit_flags_to_scene_commands(sub)  # --max-* on every command that reads a scene
     return p
 
 
@@ -238,9 +241,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         argv = _asset_options(argv)
     except ValueError as e:
-        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    set_limits_from_args(args)
     # --renderers names the file of this call only: an in-process caller (tests, scripts calling
     # main() again) must not inherit it, so the previous choice is restored on the way out.
     prev_renderers = clients.config.user_renderers_file()
@@ -260,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
         sys.stdout = stdout
         clients.config.set_renderers_file(prev_renderers)
+        reset_limits()  # the --max-* values of this call only, as --renderers
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
 
@@ -268,10 +273,10 @@ def _run(args) -> int:
     try:
         return int(args.func(args) or 0)
     except PbrcheckError as e:
-        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return e.exit_code
     except OSError as e:
-        print(f"pbrcheck: error: {_describe_os_error(e)}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(_describe_os_error(e))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
         return _interrupted(e)

@@ -16,6 +16,10 @@ API
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
   ``realtime/shaders/texcoord.glsl``'s, compared by the GLSL harness in ``tests/test_gltf_wrap.py``).
 - :func:`content_hash` -- sha256 of the asset file and every external resource it names.
+- :func:`read_resource`, :func:`resource_cap` -- an external buffer or image through the one resolver
+  of untrusted paths (:mod:`pbrcheck.untrusted`: relative, inside the asset's folder after symlinks,
+  a regular file, at most its declared size); the loader checks the document
+  (:mod:`pbrcheck.asset_guard`) and the budgets (:mod:`pbrcheck.limits`) before the work.
 
 Conventions (glTF 2.0 specification, sections 3.5 accessors, 3.7 geometry, 3.9 materials, 3.8
 textures; the extensions' specifications): world = the node hierarchy's product of local matrices
@@ -53,7 +57,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import PbrcheckError
+from . import asset_guard, limits, untrusted
+from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
 from .unmodelled import announce, asset_unmodelled
@@ -70,19 +75,8 @@ TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9
 ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0")
 WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR = 10497, 33071, 33648
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
-#: Largest triangle count accepted in one asset (a corrupt count guard: 2^27).
-MAX_TRIANGLES = 1 << 27
-
-
-class AssetError(PbrcheckError):
-    """A glTF asset that cannot be used: names the file and the JSON pointer."""
-
-    def __init__(self, file: str | Path, pointer: str, problem: str):
-        self.file = str(file)
-        self.pointer = pointer
-        self.problem = problem
-        where = f"{self.file}: {pointer}" if pointer else self.file
-        super().__init__(f"{where}: {problem}")
+#: Largest asset file read (a .gltf or a .glb): a GLB's length field is a uint32 (glTF 2.0, 4.4.3).
+MAX_ASSET_FILE_BYTES = 1 << 32
 
 
 @dataclass(frozen=True)
@@ -281,24 +275,23 @@ def texture_transform_matrix(offset=(0.0, 0.0), rotation: float = 0.0, scale=(1.
 # ------------------------------------------------------------------------------------------------
 
 def _file_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
+    try:  # a regular file only, read with a bound (pbrcheck.untrusted): never /dev/zero or a FIFO
+        return untrusted.read_regular(path, MAX_ASSET_FILE_BYTES)
     except OSError as e:
         raise AssetError(path, "", f"cannot read: {e.strerror}") from None
+    except ValueError as e:
+        raise AssetError(path, "", f"cannot read: {e}") from None
 
 
 def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
     """(glTF JSON, GLB binary chunk or None) via pygltflib."""
     import pygltflib
 
+    if raw[:4] == b"glTF":
+        asset_guard.check_glb_header(path, raw)
     try:
-        if raw[:4] == b"glTF":
-            g = pygltflib.GLTF2.load_from_bytes(raw)
-            blob = g.binary_blob()
-        else:
-            json.loads(raw.decode("utf-8"))   # pygltflib's own error on bad JSON is not one line
-            g = pygltflib.GLTF2.from_json(raw.decode("utf-8"))
-            blob = None
+        with asset_guard.quiet_library():  # pygltflib's own warnings are never printed
+            g, blob = _pygltflib_read(pygltflib, raw)
         doc = json.loads(g.to_json())
     except AssetError:
         raise
@@ -310,19 +303,60 @@ def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
     return doc, blob
 
 
+def _pygltflib_read(pygltflib, raw: bytes):
+    """(pygltflib document, GLB binary chunk or None)."""
+    if raw[:4] == b"glTF":
+        g = pygltflib.GLTF2.load_from_bytes(raw)
+        return g, g.binary_blob()
+    json.loads(raw.decode("utf-8"))   # pygltflib's own error on bad JSON is not one line
+    return pygltflib.GLTF2.from_json(raw.decode("utf-8")), None
+
+
 def content_hash(path: str | Path) -> str:
     """sha256 of the file and of every external resource (buffers, images) it names."""
     p = Path(path)
     raw = _file_bytes(p)
     h = hashlib.sha256(raw)
-    for uri in _external_uris(p, raw):
-        f = p.parent / urllib.parse.unquote(uri)
+    for pointer, uri, cap in _external_uris(p, raw):
         h.update(uri.encode())
-        h.update(f.read_bytes() if f.is_file() else b"<missing>")
+        try:  # the one resolver (pbrcheck.untrusted): a refusal is the loader's, raised here first
+            h.update(read_resource(p, uri, pointer, cap, pointer.split("/")[1][:-1]))
+        except AssetError as e:
+            if not isinstance(e.__cause__, FileNotFoundError):
+                raise
+            h.update(b"<missing>")  # the loader names the missing file
     return h.hexdigest()
 
 
-def _external_uris(p: Path, raw: bytes) -> list[str]:
+def resource_cap(key: str, entry: dict) -> int:
+    """Most bytes read of an external resource: a buffer's declared ``byteLength`` plus
+    :data:`pbrcheck.untrusted.READ_SLACK`; an image the ``texture_bytes`` budget plus the slack (an
+    encoded image larger than its decoded budget is refused by the budget anyway)."""
+    if key == "buffers":
+        n = entry.get("byteLength", 0)
+        n = n if isinstance(n, int) and not isinstance(n, bool) and n >= 0 else 0
+        return n + untrusted.READ_SLACK
+    return limits.limit("texture_bytes") + untrusted.READ_SLACK
+
+
+def read_resource(asset: Path, uri: str, pointer: str, cap: int, what: str = "resource") -> bytes:
+    """The bytes of an external resource ``uri`` of ``asset`` (``pointer`` its JSON pointer, ``/uri``
+    included) through :mod:`pbrcheck.untrusted`: a relative path, percent-decoded, inside the asset's
+    folder after symlinks, a regular file, at most ``cap`` bytes; :class:`AssetError` otherwise
+    (a missing file's error has the :class:`FileNotFoundError` as its cause)."""
+    try:
+        rel = untrusted.uri_path(uri)
+        f = untrusted.contained_path(asset.parent, rel)
+        return untrusted.read_regular(f, cap)
+    except ValueError as e:
+        raise AssetError(asset, pointer, f"refused {what} {uri!r}: {e}") from None
+    except OSError as e:
+        f = asset.parent / urllib.parse.unquote(uri)
+        raise AssetError(asset, pointer, f"missing or unreadable {what} {str(f)!r} ({os_reason(e)})") from e
+
+
+def _external_uris(p: Path, raw: bytes) -> list[tuple[str, str, int]]:
+    """(JSON pointer of the uri, uri, read cap) of every external buffer and image."""
     if raw[:4] == b"glTF":
         try:
             n = int.from_bytes(raw[12:16], "little")
@@ -336,10 +370,10 @@ def _external_uris(p: Path, raw: bytes) -> list[str]:
             return []
     uris = []
     for key in ("buffers", "images"):
-        for b in doc.get(key, []) if isinstance(doc, dict) else []:
+        for k, b in enumerate(doc.get(key, []) if isinstance(doc, dict) else []):
             u = b.get("uri") if isinstance(b, dict) else None
             if isinstance(u, str) and not u.startswith("data:"):
-                uris.append(u)
+                uris.append((f"/{key}/{k}/uri", u, resource_cap(key, b)))
     return uris
 
 
@@ -349,6 +383,7 @@ class _Reader:
     def __init__(self, path: Path, doc: dict, blob: bytes | None):
         self.path, self.doc, self.blob = path, doc, blob
         self._buffers: dict[int, bytes] = {}
+        self._image_bytes: dict[int, tuple[bytes, str]] = {}
         self.resources: list[str] = []
 
     def err(self, pointer: str, problem: str) -> AssetError:
@@ -360,19 +395,15 @@ class _Reader:
             raise self.err(pointer, f"index {index!r} out of range (the file has {len(arr)} {key})")
         return arr[index]
 
-    def _uri_bytes(self, uri: str, pointer: str, what: str) -> bytes:
+    def _uri_bytes(self, uri: str, pointer: str, what: str, cap: int) -> bytes:
         if uri.startswith("data:"):
             head, _, data = uri.partition(",")
             try:
                 return base64.b64decode(data) if head.endswith(";base64") else urllib.parse.unquote_to_bytes(data)
             except Exception:  # noqa: BLE001
                 raise self.err(pointer + "/uri", f"undecodable data URI of a {what}") from None
-        f = self.path.parent / urllib.parse.unquote(uri)
-        try:
-            data = f.read_bytes()
-        except OSError as e:
-            raise self.err(pointer + "/uri", f"missing or unreadable {what} {str(f)!r} ({e.strerror})") from None
-        self.resources.append(str(f.resolve()))
+        data = read_resource(self.path, uri, pointer + "/uri", cap, what)
+        self.resources.append(str(untrusted.contained_path(self.path.parent, untrusted.uri_path(uri))))
         return data
 
     def buffer(self, index: int, pointer: str) -> bytes:
@@ -380,7 +411,7 @@ class _Reader:
             p = f"/buffers/{index}"
             b = self.get("buffers", index, pointer)
             if "uri" in b:
-                data = self._uri_bytes(b["uri"], p, "buffer")
+                data = self._uri_bytes(b["uri"], p, "buffer", resource_cap("buffers", b))
             elif index == 0 and self.blob is not None:
                 data = self.blob
             else:
@@ -454,11 +485,17 @@ class _Reader:
                 x = x.astype(np.float32) / float(2 ** bits - 1)
         return x
 
-    def image(self, index: int) -> GltfImage:
+    def image_bytes(self, index: int) -> tuple[bytes, str]:
+        """(encoded bytes, source) of image ``index``, read once (the budget reads the headers first)."""
+        if index not in self._image_bytes:
+            self._image_bytes[index] = self._read_image(index)
+        return self._image_bytes[index]
+
+    def _read_image(self, index: int) -> tuple[bytes, str]:
         p = f"/images/{index}"
         im = self.get("images", index, p)
         if "uri" in im:
-            data = self._uri_bytes(im["uri"], p, "texture image")
+            data = self._uri_bytes(im["uri"], p, "texture image", resource_cap("images", im))
             source = im["uri"] if not im["uri"].startswith("data:") else "data URI"
         elif "bufferView" in im:
             buf, off, length, _ = self.view(im["bufferView"], p + "/bufferView")
@@ -466,10 +503,16 @@ class _Reader:
             source = f"bufferView {im['bufferView']}"
         else:
             raise self.err(p, "an image without uri or bufferView")
+        return data, source
+
+    def image(self, index: int) -> GltfImage:
+        p = f"/images/{index}"
+        im = self.get("images", index, p)
+        data, source = self.image_bytes(index)
         from PIL import Image as PILImage
 
         try:
-            with PILImage.open(io.BytesIO(data)) as pim:
+            with asset_guard.pillow_unbounded(), PILImage.open(io.BytesIO(data)) as pim:
                 fmt = pim.format
                 if fmt not in ("PNG", "JPEG"):
                     raise self.err(p, f"unsupported image format {fmt} (PNG and JPEG are)")
@@ -663,6 +706,7 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     if bad.any():
         raise r.err(pp + "/attributes/POSITION", f"{int(bad.sum())} non-finite (NaN or infinite) position(s), "
                     f"first at vertex {int(np.argmax(bad))}")
+    asset_guard.check_positions(r.path, pp + "/attributes/POSITION", pos, "")  # before normals square them
     for k, v in data.items():
         if v.shape[0] != n:
             raise r.err(f"{pp}/attributes/{k}", f"count {v.shape[0]} differs from POSITION's {n}")
@@ -671,11 +715,13 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     idx = idx.astype(np.int64)
     if idx.size % 3:
         raise r.err(pp + "/indices", f"{idx.size} indices, not a multiple of 3")
-    if idx.size and (idx.min() < 0 or idx.max() >= n):
+    if idx.size and idx.min() < 0:
+        raise r.err(pp + "/indices", f"negative index {int(idx.min())} (indices are unsigned)")
+    if idx.size and idx.max() >= n:
         raise r.err(pp + "/indices", f"index {int(idx.max())} out of range ({n} vertices)")
     tri = idx.reshape(-1, 3)
-    if tri.shape[0] > MAX_TRIANGLES:
-        raise r.err(pp + "/indices", f"{tri.shape[0]} triangles (more than {MAX_TRIANGLES})")
+    # declared counts were checked before decoding (asset_guard.expansion); a Draco stream may decode more
+    limits.check("triangles", tri.shape[0], f"{r.path}: {pp}", "triangles of one decoded primitive")
     mat_i = int(prim.get("material", -1))
     if mat_i >= 0:
         r.get("materials", mat_i, pp + "/material")
@@ -712,7 +758,9 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     det = float(np.linalg.det(M))
     if abs(det) < 1e-30:
         raise r.err(f"/nodes/{node_i}", "a singular world transform (zero scale)")
-    wpos = (pos.astype(np.float64) @ M.T + world[:3, 3]).astype(np.float32)
+    wpos = pos.astype(np.float64) @ M.T + world[:3, 3]
+    asset_guard.check_positions(r.path, f"/nodes/{node_i}", wpos, "world-space ")  # before the float32 cast overflows
+    wpos = wpos.astype(np.float32)
     wn = nrm @ np.linalg.inv(M)
     wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
     wt = None
@@ -791,7 +839,7 @@ def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamer
                       znear=float(per.get("znear", 0.01)))
 
 
-_CACHE: dict[tuple[str, str, int], Asset] = {}
+_CACHE: dict[tuple, Asset] = {}
 
 
 def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
@@ -800,10 +848,11 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     p = Path(path)
     raw = _file_bytes(p)
     h = content_hash(p)
-    key = (str(p.resolve()), h, -1 if scene is None else int(scene))
+    key = (str(p.resolve()), h, -1 if scene is None else int(scene), asset_guard.budgets_key())
     if key in _CACHE:
         return announce(_CACHE[key])
     doc, blob = _parse(p, raw)
+    asset_guard.check_document(p, doc)  # malformed fields, before any is used
     r = _Reader(p, doc, blob)
     used = tuple(doc.get("extensionsUsed", []))
     required = doc.get("extensionsRequired", [])
@@ -813,7 +862,6 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
                         f"(supported: {', '.join(SUPPORTED_EXTENSIONS)})")
     ignored = tuple(e for e in used if e not in SUPPORTED_EXTENSIONS)
     materials = tuple(_material(r, i) for i in range(len(doc.get("materials", []))))
-    images = tuple(r.image(i) for i in range(len(doc.get("images", []))))
     scenes = doc.get("scenes", [])
     si = int(scene if scene is not None else doc.get("scene", 0))
     if scenes:
@@ -824,6 +872,11 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     else:  # no scenes: every root node
         children = {c for n in doc.get("nodes", []) for c in n.get("children", [])}
         roots = [i for i in range(len(doc.get("nodes", []))) if i not in children]
+    # the budgets judged from the JSON and the image headers, before any decoding (pbrcheck.limits)
+    asset_guard.expansion(p, doc, roots, f"/scenes/{si}/nodes" if scenes else "/nodes")
+    n_images = len(doc.get("images", []))
+    asset_guard.check_texture_bytes(p, [asset_guard.image_header_bytes(r.image_bytes(i)[0]) for i in range(n_images)])
+    images = tuple(r.image(i) for i in range(n_images))
     prims: list[Primitive] = []
     lights: list[GltfLight] = []
     cameras: list[GltfCamera] = []
@@ -836,6 +889,7 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
         world = parent @ node_matrix(node)
         if not np.isfinite(world).all():
             raise r.err(f"/nodes/{ni}", "a non-finite transform")
+        asset_guard.check_world_matrix(p, f"/nodes/{ni}", world)
         if "mesh" in node:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
             for pi, prim in enumerate(mesh.get("primitives", [])):

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
-from .gltf import AssetError
+from .gltf import AssetError, read_resource, resource_cap
 
 #: The sub-folder of an asset's resource whose name an export file takes (:func:`asset_document`);
 #: ``_asset2``, ``_asset3``, ... when that path is taken too.
@@ -90,13 +90,12 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
             if uri.startswith("data:"):
                 continue
             rel = urllib.parse.unquote(uri)
-            if Path(rel).is_absolute() or ".." in Path(rel).parts:
-                raise AssetError(src, f"/{key}/{k}/uri", f"a resource outside the asset's folder ({uri!r})")
             norm = Path(rel).as_posix()
             if norm not in placed:
                 placed[norm] = _free_path(norm, taken)
                 taken.add(placed[norm].casefold())
-                files[placed[norm]] = (src.parent / rel).read_bytes()
+                # the loader's resolver: a symlink out of the asset's folder is refused, never its target copied
+                files[placed[norm]] = read_resource(src, uri, f"/{key}/{k}/uri", resource_cap(key, b), key[:-1])
             if placed[norm] != norm:
                 b["uri"] = urllib.parse.quote(placed[norm])
     si = inst.asset.scene

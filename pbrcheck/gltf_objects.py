@@ -150,9 +150,7 @@ def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: 
     p = t.get("path")
     if not isinstance(p, str) or not p:
         raise ctx.err(f"{where}.path", "the path of a .gltf or .glb file (required)", p)
-    path = Path(p)
-    if not path.is_absolute():
-        path = (ctx.base_dir or Path.cwd()) / path
+    path = ctx.path(f"{where}.path", p)  # a scene file's path stays in its folder (pbrcheck.untrusted)
     if not path.is_file():
         raise ctx.err(f"{where}.path", "an existing .gltf or .glb file", str(path))
     if not is_asset_path(path):

@@ -285,9 +285,18 @@ def plane_frame(normal: Vec3) -> tuple[Vec3, Vec3, Vec3]:
 class _Ctx:
     """Where we are: the file (for messages) and its directory (for relative paths)."""
 
-    def __init__(self, file: str, base_dir: Path | None):
+    def __init__(self, file: str, base_dir: Path | None, contained: bool = False):
         self.file = file
         self.base_dir = base_dir
+        self.contained = contained  # a scene file's own paths stay in its folder (pbrcheck.untrusted)
+
+    def path(self, fieldname: str, p: str) -> Path:
+        """A path written in the scene, resolved (:func:`pbrcheck.untrusted.scene_file_path`)."""
+        from .untrusted import scene_file_path
+        try:
+            return scene_file_path(self.base_dir, p, self.contained)
+        except ValueError as e:
+            raise SceneError(self.file, fieldname, "", message=f"{self.file}: {fieldname}: refused: {e}") from None
 
     def err(self, fieldname: str, expected: str, found: object = None) -> SceneError:
         return SceneError(self.file, fieldname, expected, found)
@@ -409,9 +418,7 @@ def _environment(ctx, t) -> Environment:
         kw["radiance"] = _vec3(ctx, t, "radiance", "environment", (1.0, 1.0, 1.0), nonneg=True)
     elif typ == "file":
         p = _str(ctx, t, "path", "environment")
-        path = Path(p)
-        if not path.is_absolute():
-            path = (ctx.base_dir or Path.cwd()) / path
+        path = ctx.path("environment.path", p)
         if not path.is_file():
             raise ctx.err("environment.path", "an existing .exr or .hdr file", str(path))
         if path.suffix.lower() not in (".exr", ".hdr") + LDR_ENVIRONMENT_SUFFIXES:
@@ -575,9 +582,12 @@ def _objects(ctx, lst):
     return tuple(objects), tuple(grids), tuple(assets), tuple(asset_lights)
 
 
-def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None) -> Scene:
-    """Validate a parsed scene table; raise :class:`SceneError` on the first problem."""
-    ctx = _Ctx(file, base_dir)
+def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None,
+                    contained: bool = False) -> Scene:
+    """Validate a parsed scene table; raise :class:`SceneError` on the first problem. ``contained``
+    (a scene read from a file, :func:`load_scene`): every path it names must resolve inside
+    ``base_dir`` (docs/assets.md, "Paths an asset or a scene may name")."""
+    ctx = _Ctx(file, base_dir, contained)
     if not isinstance(data, dict):
         raise ctx.err("", "a table", data)
     _check_keys(ctx, data, {"name", "description", "camera", "environment", "lights", "brdf", "objects"}, "")
@@ -635,7 +645,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(str(p), None, "valid TOML", message=f"{p}: invalid TOML: {e}") from None
-    return scene_from_dict(data, file=str(p), base_dir=p.parent)
+    return scene_from_dict(data, file=str(p), base_dir=p.parent, contained=True)
 
 
 def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None) -> Scene:

@@ -54,7 +54,9 @@ API
 :func:`draw_items` (the scene's primitives as vertex arrays and materials), :func:`raster_frame`
 (one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
 :data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`, :func:`max_msaa`,
-:func:`check_msaa`.
+:func:`check_msaa`, :func:`max_target_side`, :func:`check_target_size` (the colour pass's size against
+this GL's limits, supersampling counted, before any bake: :class:`pbrcheck.limits.OutputSizeError`),
+:func:`check_texture_sizes` (the assets' texture images against ``GL_MAX_TEXTURE_SIZE``).
 
 References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
 specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
@@ -401,6 +403,56 @@ def check_msaa(msaa: int) -> None:
         if msaa > most:
             raise BackendError(f"option msaa: {msaa} samples asked, this GL ({get_context().info['GL_RENDERER']}) "
                                f"offers at most {most} (GL_MAX_SAMPLES)")
+
+
+#: The GL limits a colour pass's render targets must fit (OpenGL 4.6 core, table 23.53): its
+#: textures, renderbuffers, framebuffer and viewport.
+TARGET_SIZE_LIMITS = ("GL_MAX_TEXTURE_SIZE", "GL_MAX_RENDERBUFFER_SIZE", "GL_MAX_FRAMEBUFFER_WIDTH",
+                      "GL_MAX_FRAMEBUFFER_HEIGHT", "GL_MAX_VIEWPORT_DIMS")
+
+
+def max_target_side() -> tuple[int, str]:
+    """(largest side of a colour-pass target, the GL limit that sets it) of this GL context
+    (llvmpipe: 16384, GL_MAX_TEXTURE_SIZE)."""
+    info = get_context().info
+    best = None
+    for name in TARGET_SIZE_LIMITS:
+        v = info.get(name)
+        if v is None:
+            continue
+        v = min(v) if isinstance(v, (tuple, list)) else int(v)
+        if best is None or v < best[0]:
+            best = (int(v), name)
+    return best or (16384, "GL_MAX_TEXTURE_SIZE")
+
+
+def check_target_size(width: int, height: int, ss: int) -> None:
+    """Raise :class:`pbrcheck.limits.OutputSizeError` (exit 2) when the colour pass, ``ss`` x the
+    image's sides, exceeds :func:`max_target_side`: GL would answer ``framebuffer is not complete``
+    after the bakes (an asset above 4096 wide at the default supersample 4 on a 16384 GL)."""
+    from pbrcheck.limits import OutputSizeError
+
+    most, name = max_target_side()
+    sw, sh = width * ss, height * ss
+    if max(sw, sh) > most:
+        raise OutputSizeError(f"realtime raster: a colour pass of {sw}x{sh} ({width}x{height} x supersample {ss}) "
+                              f"exceeds this GL's {most} ({name}); lower the size or the supersample option "
+                              f"(at most {most // ss} per side at supersample {ss})")
+
+
+def check_texture_sizes(scene: Scene) -> None:
+    """Raise :class:`pbrcheck.limits.OutputSizeError` (exit 2) when an asset's texture image has a
+    side above this GL's ``GL_MAX_TEXTURE_SIZE`` (it is uploaded as one texture; the decoded-bytes
+    budget allows a 20000 x 1 image), naming the image and its JSON pointer, before any bake."""
+    from pbrcheck.limits import OutputSizeError
+
+    most = int(get_context().info["GL_MAX_TEXTURE_SIZE"])
+    for inst in getattr(scene, "assets", ()):
+        for k in sorted(inst.asset.texture_slots()):   # the images a material samples (the others: never uploaded)
+            im = inst.asset.images[k]
+            if max(im.size) > most:
+                raise OutputSizeError(f"{inst.path}: /images/{k}: a {im.size[0]}x{im.size[1]} texture, above this GL's "
+                                      f"GL_MAX_TEXTURE_SIZE of {most}")
 
 
 def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,

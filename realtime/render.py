@@ -622,8 +622,10 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     check_pipeline_options(pipeline, o)
     ctx = get_context()
     if pipeline == "raster":  # this GL's limits, before any bake
-        from .raster import check_msaa
+        from .raster import check_msaa, check_target_size, check_texture_sizes
         check_msaa(int(o.msaa))
+        check_target_size(scene.camera.width, scene.camera.height, int(o.supersample))
+        check_texture_sizes(scene)
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}

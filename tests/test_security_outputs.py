@@ -184,7 +184,7 @@ def _hostile_scene(folder: Path, asset: Path | None = None) -> Path:
 
 @pytest.mark.parametrize("with_asset", [False, True], ids=["analytic", "asset"])
 def test_check_scene_escapes_names_and_its_toml_parses(tmp_path, capsys, with_asset):
-    asset = _asset(tmp_path, HOSTILE) if with_asset else None
+    asset = _asset(tmp_path / "s", HOSTILE) if with_asset else None  # in the scene's folder (docs/assets.md)
     scene = _hostile_scene(tmp_path / "s", asset)
     assert main(["check-scene", str(scene)]) == 0
     out = capsys.readouterr().out
@@ -377,3 +377,12 @@ def test_a_banded_raster_frame_is_bit_identical_to_one_pass(monkeypatch, tmp_pat
     banded = R.render_realtime(scene, "default", opts, progress=False)
     assert counts == [72 // 8]                                             # 72 supersampled rows
     _same_pixels(one, banded)
+
+
+def test_error_lines_escape_control_characters(tmp_path, capsys):
+    """The CLI's one error line shows a hostile path's control characters escaped (no ESC reaches
+    the terminal, no second line is forged)."""
+    missing = tmp_path / "x\x1b[2J\nforged.toml"
+    assert main(["check-scene", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\\x1b[2J\\nforged.toml" in err and len(err.strip().splitlines()) == 1
