@@ -52,13 +52,18 @@ from pathlib import Path
 
 import numpy as np
 
+from . import gltf_features
 from .errors import PbrcheckError
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
 
-#: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
-SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
-                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
+#: Extensions pbrcheck models (an ``extensionsRequired`` entry outside this list is an error; an
+#: optional one is listed in :attr:`Asset.extensions_ignored`). Scene features: :mod:`pbrcheck.gltf_features`.
+MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
+                       "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization",
+                       *gltf_features.MODELLED_SCENE_EXTENSIONS)
+#: The former name of :data:`MODELLED_EXTENSIONS`.
+SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -110,6 +115,7 @@ class GltfMaterial:
     alpha_cutoff: float = 0.5
     double_sided: bool = False
     ior: float = 1.5
+    unlit: bool = False       # KHR_materials_unlit: the base colour (x texture x COLOR_0), no lighting
 
     @property
     def specular(self) -> float:
@@ -136,6 +142,7 @@ class GltfImage:
     source: str          # the uri, "data URI" or "bufferView k"
     mime: str
     pixels: np.ndarray
+    decoded: bool = True  # False: no used texture reads it; not decoded (``pixels`` empty)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -223,6 +230,8 @@ class Asset:
     content_hash: str
     resources: tuple[str, ...] = ()          # external files (absolute), for the exporter
     scene: int = 0
+    variants: tuple[str, ...] = ()           # KHR_materials_variants' names, in index order
+    variant: str | None = None               # the selected one (None: the file's default materials)
 
     def material(self, index: int) -> GltfMaterial:
         return DEFAULT_MATERIAL if index < 0 else self.materials[index]
@@ -448,6 +457,17 @@ class _Reader:
                 x = x.astype(np.float32) / float(2 ** bits - 1)
         return x
 
+    def image_undecoded(self, index: int) -> GltfImage:
+        """An image no used texture reads: named, its format sniffed from the file name or
+        ``mimeType`` alone, its data neither read nor decoded (``decoded`` False)."""
+        im = self.get("images", index, f"/images/{index}")
+        uri = im.get("uri") if isinstance(im.get("uri"), str) else None
+        source = (uri if not uri.startswith("data:") else "data URI") if uri else f"bufferView {im.get('bufferView')}"
+        mime = im.get("mimeType") or (uri.partition(";")[0][5:] if uri and uri.startswith("data:") else
+                                      _MIME_BY_SUFFIX.get(Path(urllib.parse.unquote(uri or "")).suffix.lower(), "unknown"))
+        return GltfImage(im.get("name", f"image{index}"), source, str(mime), np.zeros((0, 0, 4), np.uint8),
+                         decoded=False)
+
     def image(self, index: int) -> GltfImage:
         p = f"/images/{index}"
         im = self.get("images", index, p)
@@ -462,11 +482,14 @@ class _Reader:
             raise self.err(p, "an image without uri or bufferView")
         from PIL import Image as PILImage
 
+        sniffed = _sniff_format(bytes(data[:16]))
+        if sniffed not in (None, "PNG", "JPEG", "WEBP"):
+            raise self.err(p, f"unsupported image format {sniffed} of {source!r} (PNG, JPEG and WEBP are)")
         try:
             with PILImage.open(io.BytesIO(data)) as pim:
                 fmt = pim.format
-                if fmt not in ("PNG", "JPEG"):
-                    raise self.err(p, f"unsupported image format {fmt} (PNG and JPEG are)")
+                if fmt not in DECODED_FORMATS:
+                    raise self.err(p, f"unsupported image format {fmt} (PNG, JPEG and WEBP are)")
                 if pim.mode in ("P", "PA"):
                     pim = pim.convert("RGBA")
                 elif pim.mode == "CMYK":
@@ -478,12 +501,30 @@ class _Reader:
         except AssetError:
             raise
         except Exception as e:  # noqa: BLE001 - Pillow raises many types on corrupt data
-            raise self.err(p, f"unreadable texture image {source!r} ({type(e).__name__}: {e})") from None
+            # Pillow's messages embed its stream's repr (<_io.BytesIO object at 0x...>): name the format instead
+            what = sniffed or "an unrecognized format"
+            raise self.err(p, f"unreadable texture image {source!r} ({what}; {type(e).__name__})") from None
         if pixels.dtype == bool:
             pixels = pixels.astype(np.uint8) * 255
-        mime = "image/png" if fmt == "PNG" else "image/jpeg"
+        mime = DECODED_FORMATS[fmt]
         return GltfImage(im.get("name", source if not source.startswith("data") else f"image{index}"), source, mime,
                          np.ascontiguousarray(pixels))
+
+
+#: Image formats decoded (Pillow's format name -> MIME type): glTF's core PNG and JPEG, EXT_texture_webp's WEBP.
+DECODED_FORMATS = {"PNG": "image/png", "JPEG": "image/jpeg", "WEBP": "image/webp"}
+_MIME_BY_SUFFIX = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".webp": "image/webp",
+                   ".ktx2": "image/ktx2"}
+#: Leading bytes of image formats (their specifications' signatures), to name a format in errors.
+_SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"\xabKTX 20\xbb\r\n\x1a\n", "KTX2"),
+               (b"\xabKTX 11\xbb\r\n\x1a\n", "KTX1"), (b"DDS ", "DDS"), (b"GIF8", "GIF"), (b"BM", "BMP"))
+
+
+def _sniff_format(head: bytes) -> str | None:
+    """The format an image's first bytes announce (WEBP: RIFF....WEBP), or None."""
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        return "WEBP"
+    return next((name for sig, name in _SIGNATURES if head.startswith(sig)), None)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -547,10 +588,7 @@ def _texture_ref(r: _Reader, t: dict, pointer: str, *, scale_key: str | None = N
         raise r.err(pointer, "a textureInfo with an index")
     tex = r.get("textures", t["index"], pointer + "/index")
     tp = f"/textures/{t['index']}"
-    if "source" not in tex:
-        raise r.err(tp, "a texture without source (only PNG and JPEG sources are supported)")
-    image = tex["source"]
-    r.get("images", image, tp + "/source")
+    image = gltf_features.texture_source(r, tex, tp)
     wrap = (WRAP_REPEAT, WRAP_REPEAT)
     mag = mn = None
     if "sampler" in tex:
@@ -602,6 +640,7 @@ def _material(r: _Reader, index: int) -> GltfMaterial:
         emissive=em, emissive_texture=tex(m, "emissiveTexture", p),
         alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
         ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
+        unlit="KHR_materials_unlit" in ext,
     )
 
 
@@ -631,7 +670,12 @@ def _draco(r: _Reader, prim: dict, pp: str) -> dict[str, np.ndarray]:
 
 
 def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, prim_i: int, prim: dict,
-               world: np.ndarray, materials: tuple[GltfMaterial, ...]) -> Primitive:
+               world: np.ndarray, materials: tuple[GltfMaterial, ...], *, weights: np.ndarray | None = None,
+               joint_mats: np.ndarray | None = None, worlds: list[np.ndarray] | None = None,
+               variant: int | None = None) -> Primitive:
+    """One (node, primitive) in world space: morph ``weights`` and the skin's ``joint_mats`` applied
+    (:func:`pbrcheck.gltf_features.deform`; skinned: world space, ``world`` ignored), placed by
+    ``worlds`` (GPU instances; default ``[world]``), drawn with ``variant``'s material."""
     pp = f"/meshes/{mesh_i}/primitives/{prim_i}"
     mode = prim.get("mode", 4)
     if mode != 4:
@@ -660,6 +704,11 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     for k, v in data.items():
         if v.shape[0] != n:
             raise r.err(f"{pp}/attributes/{k}", f"count {v.shape[0]} differs from POSITION's {n}")
+    if weights is not None or joint_mats is not None:
+        data = gltf_features.deform(r, prim, pp, data, weights, joint_mats)
+        pos = data["POSITION"]
+        if joint_mats is not None:   # skinned: world space already (spec 3.7.3.3)
+            worlds = [np.eye(4)]
     if idx is None:
         idx = np.arange(n, dtype=np.uint32)
     idx = idx.astype(np.int64)
@@ -670,7 +719,7 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     tri = idx.reshape(-1, 3)
     if tri.shape[0] > MAX_TRIANGLES:
         raise r.err(pp + "/indices", f"{tri.shape[0]} triangles (more than {MAX_TRIANGLES})")
-    mat_i = int(prim.get("material", -1))
+    mat_i = gltf_features.variant_material(r, prim, pp, variant)
     if mat_i >= 0:
         r.get("materials", mat_i, pp + "/material")
     mat = DEFAULT_MATERIAL if mat_i < 0 else materials[mat_i]
@@ -701,22 +750,13 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
         pos, nrm = data["POSITION"], nrm[src]
         generated = True
 
-    # to world
-    M = world[:3, :3]
-    det = float(np.linalg.det(M))
-    if abs(det) < 1e-30:
-        raise r.err(f"/nodes/{node_i}", "a singular world transform (zero scale)")
-    wpos = (pos.astype(np.float64) @ M.T + world[:3, 3]).astype(np.float32)
-    wn = nrm @ np.linalg.inv(M)
-    wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
-    wt = None
-    if tan is not None:
-        t3 = tan[:, :3].astype(np.float64) @ M.T
-        t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
-        w = np.where(tan[:, 3] < 0, -1.0, 1.0) * (1.0 if det > 0 else -1.0)
-        wt = np.concatenate([t3, w[:, None]], axis=1).astype(np.float32)
-    if det < 0:
-        tri = tri[:, [0, 2, 1]]
+    # to world, once per GPU instance
+    worlds = [world] if worlds is None else worlds
+    if tri.shape[0] * len(worlds) > MAX_TRIANGLES:
+        raise r.err(f"/nodes/{node_i}", f"{tri.shape[0]} triangles x {len(worlds)} instances (more than {MAX_TRIANGLES})")
+    wpos, wn, wt, tri = gltf_features.place(r, node_i, pos, nrm, tan, tri, worlds)
+    if len(worlds) > 1:
+        data = {k: np.tile(v, (len(worlds), 1)) for k, v in data.items()}
     color = data.get("COLOR_0")
     if color is not None:
         color = color.astype(np.float32)
@@ -785,16 +825,17 @@ def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamer
                       znear=float(per.get("znear", 0.01)))
 
 
-_CACHE: dict[tuple[str, str, int], Asset] = {}
+_CACHE: dict[tuple[str, str, int, str | None], Asset] = {}
 
 
-def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
+def load_asset(path: str | Path, *, scene: int | None = None, variant: str | None = None) -> Asset:
     """Read ``path`` (.gltf or .glb) and resolve glTF scene ``scene`` (default: the file's ``scene``,
-    else 0) into an :class:`Asset`. Raises :class:`AssetError`. Cached by content in this process."""
+    else 0) into an :class:`Asset`, its primitives drawn with ``KHR_materials_variants``' ``variant``
+    (None: the file's default materials). Raises :class:`AssetError`. Cached by content in this process."""
     p = Path(path)
     raw = _file_bytes(p)
     h = content_hash(p)
-    key = (str(p.resolve()), h, -1 if scene is None else int(scene))
+    key = (str(p.resolve()), h, -1 if scene is None else int(scene), variant)
     if key in _CACHE:
         return _CACHE[key]
     doc, blob = _parse(p, raw)
@@ -802,12 +843,18 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     used = tuple(doc.get("extensionsUsed", []))
     required = doc.get("extensionsRequired", [])
     for k, e in enumerate(required):
-        if e not in SUPPORTED_EXTENSIONS:
+        why = gltf_features.required_refusal(e)
+        if why is not None:
+            raise r.err(f"/extensionsRequired/{k}", f"required extension {e}: {why}")
+        if e not in MODELLED_EXTENSIONS:
             raise r.err(f"/extensionsRequired/{k}", f"required extension {e} is not supported by pbrcheck "
-                        f"(supported: {', '.join(SUPPORTED_EXTENSIONS)})")
-    ignored = tuple(e for e in used if e not in SUPPORTED_EXTENSIONS)
+                        f"(supported: {', '.join(MODELLED_EXTENSIONS)})")
+    ignored = tuple(e for e in used if e not in MODELLED_EXTENSIONS)
+    variant_i = gltf_features.variant_index(r, variant)
     materials = tuple(_material(r, i) for i in range(len(doc.get("materials", []))))
-    images = tuple(r.image(i) for i in range(len(doc.get("images", []))))
+    wanted = gltf_features.used_images(materials)
+    images = tuple(r.image(i) if i in wanted else r.image_undecoded(i) for i in range(len(doc.get("images", []))))
+    worlds = gltf_features.node_worlds(r, node_matrix)
     scenes = doc.get("scenes", [])
     si = int(scene if scene is not None else doc.get("scene", 0))
     if scenes:
@@ -821,32 +868,40 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     prims: list[Primitive] = []
     lights: list[GltfLight] = []
     cameras: list[GltfCamera] = []
-    stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes") for n in roots]
+    stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes", True) for n in roots]
     while stack:
-        ni, parent, seen, ptr = stack.pop(0)
+        ni, parent, seen, ptr, visible = stack.pop(0)
         node = r.get("nodes", ni, ptr)
         if ni in seen:
             raise r.err(f"/nodes/{ni}/children", "a cycle in the node hierarchy")
         world = parent @ node_matrix(node)
         if not np.isfinite(world).all():
             raise r.err(f"/nodes/{ni}", "a non-finite transform")
-        if "mesh" in node:
+        visible = visible and gltf_features.node_visible(r, node, ni)   # KHR_node_visibility
+        if "mesh" in node and visible:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
+            joints = gltf_features.skin_matrices(r, node["skin"], ni, worlds) if "skin" in node else None
+            inst = gltf_features.instance_matrices(r, node, ni, world, _quat_matrix)
             for pi, prim in enumerate(mesh.get("primitives", [])):
-                prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials))
+                targets = prim.get("targets", []) if isinstance(prim, dict) else []
+                weights = (gltf_features.morph_weights(r, node, ni, mesh, node["mesh"], len(targets))
+                           if targets else None)
+                prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials,
+                                        weights=weights, joint_mats=joints, worlds=inst, variant=variant_i))
         if "camera" in node:
             c = _camera(r, node["camera"], world, ni)
             if c is not None:
                 cameras.append(c)
         le = node.get("extensions", {}).get("KHR_lights_punctual")
-        if le is not None:
+        if le is not None and visible:
             lights.append(_light(r, le.get("light"), world, ni))
         for c in node.get("children", []):
-            stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children"))
+            stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children", visible))
     if not prims:
         raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render")
     asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
-                  content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si)
+                  content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,
+                  variants=gltf_features.variant_names(doc), variant=variant)
     _CACHE[key] = asset
     return asset
