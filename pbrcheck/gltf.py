@@ -183,6 +183,9 @@ class Primitive:
     color: np.ndarray | None = None      # COLOR_0 (N, 4) linear
     flat_normals: bool = False
     generated_tangents: bool = False
+    instances: int = 1                   # EXT_mesh_gpu_instancing: copies concatenated in the arrays
+    skinned: bool = False                # posed by its node's skin (pbrcheck.gltf_features.deform)
+    morph_weights: tuple[float, ...] = ()  # the default morph weights applied
 
     @property
     def triangles(self) -> int:
@@ -303,6 +306,7 @@ def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
             g = pygltflib.GLTF2.from_json(raw.decode("utf-8"))
             blob = None
         doc = json.loads(g.to_json())
+        gltf_features.restore_node_weights(doc, raw)
     except AssetError:
         raise
     except Exception as e:  # noqa: BLE001 - pygltflib raises anything on corrupt input
@@ -768,7 +772,8 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
         name=f"{nname}/{mname}/{prim_i}", node=node_i, mesh=mesh_i, primitive=prim_i, material=mat_i,
         positions=wpos, normals=wn.astype(np.float32), indices=np.ascontiguousarray(tri, dtype=np.uint32),
         tangents=wt, texcoords=(data.get("TEXCOORD_0"), data.get("TEXCOORD_1")), color=color,
-        flat_normals=flat, generated_tangents=generated)
+        flat_normals=flat, generated_tangents=generated, instances=len(worlds), skinned=joint_mats is not None,
+        morph_weights=tuple(float(w) for w in weights) if weights is not None else ())
 
 
 def _light(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfLight:

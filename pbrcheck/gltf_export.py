@@ -9,7 +9,10 @@ their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``sce
 buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
 objects of the same scene are added by :func:`pbrcheck.export.gltf_document`, tessellated as in an
 analytic scene's export (nodes ``object_<k>_<name>``, a buffer ``pbrcheck_objects.bin`` of their
-own). The scene file's own lights are added there too (root nodes ``light_<k>`` beside
+own). The asset's ``KHR_materials_variants`` variant drawn becomes its default material, and nodes
+hidden by ``KHR_node_visibility`` lose their meshes and lights
+(:func:`pbrcheck.gltf_features.export_selection`); skins, morph targets and GPU instances are kept
+for the engines to apply. The scene file's own lights are added there too (root nodes ``light_<k>`` beside
 ``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
 (:class:`~pbrcheck.gltf.AssetError` otherwise).
 
@@ -27,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
+from . import gltf_features
 from .gltf import AssetError
 
 #: Most candidate (triangle, pixel) pairs rasterized at once by :func:`mesh_object_ids`.
@@ -56,7 +60,7 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
     inst = scene.assets[0]
     src = Path(inst.path)
     doc, blob = _read_doc(src)
-    doc = copy.deepcopy(doc)
+    doc = gltf_features.export_selection(copy.deepcopy(doc), inst.variant)   # the variant and visibility drawn
     files: dict[str, bytes] = {}
     for key in ("buffers", "images"):
         for k, b in enumerate(doc.get(key, [])):

@@ -18,6 +18,8 @@ API
 - :func:`variant_names`, :func:`variant_index`, :func:`variant_material` -- ``KHR_materials_variants``.
 - :func:`texture_source` -- the image a texture reads (``EXT_texture_webp``, ``KHR_texture_basisu``, core).
 - :func:`used_images` -- the images a material's texture reads (the only ones decoded).
+- :func:`restore_node_weights` -- the nodes' morph ``weights`` that the JSON reader drops.
+- :func:`export_selection` -- the exported JSON drawing the selected variant, hidden nodes removed.
 
 Conventions (Khronos glTF 2.0 specification, 3.7.2.2 morph targets, 3.7.3 skins; the extensions'
 READMEs in KhronosGroup/glTF):
@@ -49,6 +51,8 @@ READMEs in KhronosGroup/glTF):
 """
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 
@@ -356,3 +360,57 @@ def texture_source(r, tex: dict, tp: str) -> int:
 def used_images(materials) -> set[int]:
     """Images read by any material's textures (the only ones the loader decodes)."""
     return {t.image for m in materials for t in m.textures().values()}
+
+
+# ------------------------------------------------------------------------------------------------
+# Export
+# ------------------------------------------------------------------------------------------------
+
+def export_selection(doc: dict, variant: str | None) -> dict:
+    """``doc`` (a copy of the asset's JSON, edited in place and returned) made to draw what the
+    loader draws, whatever an engine supports: under ``variant`` every primitive's ``material`` is
+    the variant's (the extension kept: the selected variant becomes the file's default); a node
+    hidden by ``KHR_node_visibility`` and its descendants lose their ``mesh`` and
+    ``KHR_lights_punctual`` light (an engine without the extension would draw them). Skins, morph
+    targets and GPU instances stay as they are: engines apply them as the loader does."""
+    names = variant_names(doc)
+    if variant is not None and variant in names:
+        k = names.index(variant)
+        for mesh in doc.get("meshes", []):
+            for prim in mesh.get("primitives", []):
+                maps = prim.get("extensions", {}).get("KHR_materials_variants", {}).get("mappings", [])
+                for m in maps:
+                    if k in m.get("variants", []) and "material" in m:
+                        prim["material"] = m["material"]
+                        break
+    nodes = doc.get("nodes", [])
+    hidden = [i for i, n in enumerate(nodes)
+              if n.get("extensions", {}).get("KHR_node_visibility", {}).get("visible", True) is False]
+    stack, seen = list(hidden), set()
+    while stack:
+        i = stack.pop()
+        if i in seen or not 0 <= i < len(nodes):
+            continue
+        seen.add(i)
+        nodes[i].pop("mesh", None)
+        nodes[i].pop("skin", None)
+        nodes[i].pop("weights", None)
+        ext = nodes[i].get("extensions", {})
+        ext.pop("KHR_lights_punctual", None)
+        ext.pop("EXT_mesh_gpu_instancing", None)
+        stack.extend(nodes[i].get("children", []))
+    return doc
+
+
+def restore_node_weights(doc: dict, raw: bytes) -> None:
+    """Put back the nodes' ``weights`` (morph weights overriding the mesh's, spec 5.25) that the
+    reader's round trip through pygltflib drops (its ``Node`` has no such field), from the file's
+    own JSON (``raw``: the .gltf text or the .glb bytes, whose JSON chunk starts at byte 20)."""
+    try:
+        text = raw[20:20 + int.from_bytes(raw[12:16], "little")] if raw[:4] == b"glTF" else raw
+        nodes = json.loads(text.decode("utf-8")).get("nodes", [])
+    except Exception:  # noqa: BLE001 - the reader has parsed it already; nothing to restore
+        return
+    for node, src in zip(doc.get("nodes", []), nodes if isinstance(nodes, list) else []):
+        if isinstance(node, dict) and isinstance(src, dict) and "weights" in src:
+            node["weights"] = src["weights"]

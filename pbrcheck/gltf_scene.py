@@ -47,7 +47,9 @@ def describe(scene: Scene) -> list[str]:
                 p = a.primitives[o.primitive]
                 extra = [s for s, on in (("flat normals", p.flat_normals), ("generated tangents", p.generated_tangents),
                                          ("TANGENT", p.tangents is not None and not p.generated_tangents),
-                                         ("TEXCOORD_1", p.texcoords[1] is not None), ("COLOR_0", p.color is not None)) if on]
+                                         ("TEXCOORD_1", p.texcoords[1] is not None), ("COLOR_0", p.color is not None),
+                                         ("skinned", p.skinned), (f"morph weights {list(p.morph_weights)}", p.morph_weights),
+                                         (f"{p.instances} instances", p.instances > 1)) if on]
                 out.append(f"#     object {o.id} {o.name}: {p.triangles} triangles, material "
                            f"{a.material(p.material).name!r}" + (f" ({', '.join(extra)})" if extra else ""))
         out.append(f"#   {len(a.materials)} material(s):")
