@@ -8,8 +8,10 @@ API
   :class:`GltfLight`, :class:`GltfCamera` -- the resolved asset (immutable dataclasses, numpy arrays).
 - :class:`AssetError` -- every problem, naming the file and the JSON pointer
   (``/meshes/0/primitives/1/attributes/NORMAL``); the CLI maps it to exit 2.
-- :data:`SUPPORTED_EXTENSIONS` -- the extensions implemented (any other one in ``extensionsRequired``
-  is an error; an optional one is listed in :attr:`Asset.extensions_ignored`).
+- :data:`MODELLED_EXTENSIONS` (formerly ``SUPPORTED_EXTENSIONS``, kept as an alias) -- the
+  extensions modelled (any other one in ``extensionsRequired`` is an error; an optional one is
+  listed in :attr:`Asset.extensions_ignored`).
+- :data:`DECODED_FORMATS` -- the image formats decoded (PNG, JPEG, WEBP).
 - :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
 - :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
@@ -28,14 +30,17 @@ pixel ``(v H, u W)`` without a flip. Where ``NORMAL`` is absent every triangle g
 (the vertices are unwelded); where ``TANGENT`` is absent and the material has a normal texture,
 tangents are generated (:func:`generate_tangents`: the reference MikkTSpace C implementation,
 :mod:`pbrcheck.mikktspace`, per face corner, vertices split where it splits them; ``w`` its sign
-negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
+negated for glTF's v-down UVs). Skins (the default pose), morph targets (default weights), GPU
+instances, node visibility, material variants and the image a texture reads are
+:mod:`pbrcheck.gltf_features`'s; only images a material's texture reads are decoded. Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
 or their indices where unnamed, and the primitive's index).
 
 The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
 ``KHR_draco_mesh_compression`` is decoded with DracoPy (Google's Draco); images with Pillow.
 References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_materials_ior,
 KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
-(integer attributes: any component type, decoded as above); Mikkelsen 2008,
+(integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
+KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp (:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
@@ -873,6 +878,7 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
     prims: list[Primitive] = []
     lights: list[GltfLight] = []
     cameras: list[GltfCamera] = []
+    hidden = 0   # meshes of nodes KHR_node_visibility hides
     stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes", True) for n in roots]
     while stack:
         ni, parent, seen, ptr, visible = stack.pop(0)
@@ -883,6 +889,7 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
         if not np.isfinite(world).all():
             raise r.err(f"/nodes/{ni}", "a non-finite transform")
         visible = visible and gltf_features.node_visible(r, node, ni)   # KHR_node_visibility
+        hidden += int("mesh" in node and not visible)
         if "mesh" in node and visible:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
             joints = gltf_features.skin_matrices(r, node["skin"], ni, worlds) if "skin" in node else None
@@ -903,7 +910,8 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
         for c in node.get("children", []):
             stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children", visible))
     if not prims:
-        raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render")
+        raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render"
+                    + (f" ({hidden} mesh node(s) hidden by KHR_node_visibility)" if hidden else ""))
     asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
                   content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,

@@ -251,6 +251,21 @@ def test_a_hidden_node_hides_its_subtree(tmp_path):
             assert ((img[..., 0] > 0.99) & (img[..., 2] < 0.01)).sum() > 0
 
 
+
+def test_an_asset_all_hidden_is_refused_naming_the_extension(tmp_path):
+    p = _two_quads(tmp_path, True, "all.gltf")
+    d = json.loads(p.read_text())
+    d["nodes"][0]["extensions"] = {"KHR_node_visibility": {"visible": False}}
+    p.write_text(json.dumps(d))
+    with pytest.raises(AssetError, match=r"/scenes/0: no mesh primitive to render \(2 mesh node\(s\) hidden by "
+                                         r"KHR_node_visibility\)"):
+        load_asset(p)
+    d["nodes"][0]["extensions"] = {"KHR_node_visibility": {"visible": "no"}}
+    p.write_text(json.dumps(d))
+    with pytest.raises(AssetError, match=r"/nodes/0/extensions/KHR_node_visibility/visible: a boolean, found 'no'"):
+        load_asset(p)
+
+
 # ---- KHR_materials_unlit ---------------------------------------------------------------------
 
 def _unlit_quad(tmp_path: Path, name="u.gltf", *, texture=True, color=True) -> Path:
