@@ -864,7 +864,9 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
     materials = tuple(_material(r, i) for i in range(len(doc.get("materials", []))))
     wanted = gltf_features.used_images(materials)
     images = tuple(r.image(i) if i in wanted else r.image_undecoded(i) for i in range(len(doc.get("images", []))))
-    worlds = gltf_features.node_worlds(r, node_matrix)
+    # every node's world matrix, for the joints of skins (only where a node has a skin)
+    skinned = any(isinstance(n, dict) and "skin" in n for n in doc.get("nodes", []))
+    worlds = gltf_features.node_worlds(r, node_matrix) if skinned else {}
     scenes = doc.get("scenes", [])
     si = int(scene if scene is not None else doc.get("scene", 0))
     if scenes:

@@ -170,10 +170,12 @@ def test_morph_node_weights_override_the_mesh_weights_and_sparse_deltas_apply(tm
 # ---- EXT_mesh_gpu_instancing and KHR_node_visibility ---------------------------------------------
 
 def _instanced(tmp_path: Path, name="inst.gltf") -> Path:
-    """The quad scaled by 0.25 drawn at x = -1.5, 0, +1.5 (TRANSLATION, ROTATION identity, SCALE)."""
+    """The quad scaled by 0.25 drawn at x = -1.5, 0, +1.5 (TRANSLATION, SCALE; ROTATION the identity
+    but for the third, 90 degrees about +Z)."""
     doc, attrs = _quad_doc({"pbrMetallicRoughness": {"baseColorFactor": [0, 1, 0, 1]}, "extensions": UNLIT})
     t = np.array([[-1.5, 0, 0], [0, 0, 0], [1.5, 0, 0]], np.float32)
     r = np.array([[0, 0, 0, 1]] * 3, np.float32)
+    r[2] = (0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4))
     s = np.full((3, 3), 0.25, np.float32)
     mesh = doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0)
     doc.node(mesh, extensions={"EXT_mesh_gpu_instancing": {"attributes": {
@@ -186,8 +188,11 @@ def test_instancing_draws_each_instance_at_its_place(tmp_path):
     a = load_asset(_instanced(tmp_path))
     p = a.primitives[0]
     assert len(a.primitives) == 1 and p.positions.shape == (12, 3) and p.triangles == 6
-    for k, x in enumerate((-1.5, 0.0, 1.5)):
+    for k, x in enumerate((-1.5, 0.0)):
         assert np.allclose(p.positions[4 * k:4 * k + 4], QUAD_POS * 0.25 + [x, 0, 0], atol=POS_ATOL)
+    rotated = np.stack([-QUAD_POS[:, 1], QUAD_POS[:, 0], QUAD_POS[:, 2]], 1) * 0.25 + [1.5, 0, 0]   # Rz(90)
+    assert np.allclose(p.positions[8:], rotated, atol=POS_ATOL)
+    assert np.array_equal(p.indices[4:], QUAD_IDX.reshape(-1, 3) + 8)   # its two triangles, offset
     assert a.extensions_ignored == ()
 
 
@@ -336,6 +341,13 @@ def test_variants_switch_the_material_and_default_to_the_files(tmp_path):
         colours[v] = (_realtime(toml)[0][4, 4], _reference(toml)[0][4, 4])
     assert all(np.allclose(c, [1, 0, 0], atol=1e-6) for c in colours[None])
     assert all(np.allclose(c, [0, 1, 0], atol=1e-6) for c in colours["green"])
+    # the variant is part of both renderers' cache keys
+    from realtime.cache import realtime_cache_key
+    from reference.render import reference_cache_key
+    a, b = load_scene(tmp_path / "None.toml"), load_scene(tmp_path / "green.toml")
+    assert realtime_cache_key(a, "default") != realtime_cache_key(b, "default")
+    ref_key = lambda sc: reference_cache_key(sc, spp=8, mode="local", seed=0, max_depth=None)  # noqa: E731
+    assert ref_key(a) != ref_key(b)
 
 
 def test_variant_option_on_the_cli_and_check_scene_lists_variants(tmp_path, capsys):
