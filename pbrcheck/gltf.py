@@ -405,6 +405,9 @@ class _Reader:
     def view(self, index: int, pointer: str) -> tuple[bytes, int, int, int | None]:
         """(buffer bytes, byte offset, byte length, byte stride) of a buffer view."""
         v = self.get("bufferViews", index, pointer)
+        decoded = gltf_features.meshopt_view(self, v, index)   # EXT_meshopt_compression
+        if decoded is not None:
+            return decoded
         p = f"/bufferViews/{index}"
         data = self.buffer(v.get("buffer", -1), p + "/buffer")
         off, length = int(v.get("byteOffset", 0)), int(v.get("byteLength", 0))

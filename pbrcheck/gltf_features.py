@@ -17,6 +17,7 @@ API
 - :func:`place` -- positions, normals, tangents and triangles to world space, once per instance, merged.
 - :func:`variant_names`, :func:`variant_index`, :func:`variant_material` -- ``KHR_materials_variants``.
 - :func:`texture_source` -- the image a texture reads (``EXT_texture_webp``, ``KHR_texture_basisu``, core).
+- :func:`meshopt_view` -- an ``EXT_meshopt_compression`` buffer view decoded (the ``meshopt`` package).
 - :func:`used_images` -- the images a material's texture reads (the only ones decoded).
 - :func:`restore_node_weights` -- the nodes' morph ``weights`` that the JSON reader drops.
 - :func:`export_selection` -- the exported JSON drawing the selected variant, hidden nodes removed.
@@ -44,10 +45,13 @@ READMEs in KhronosGroup/glTF):
   variant selected, uses its ``material`` (the file's default).
 - Images: ``EXT_texture_webp``'s ``source`` is read where present (Pillow decodes WEBP);
   ``KHR_texture_basisu``'s KTX2 images are not decoded (no maintained Python decoder of Basis
-  Universal installs from PyPI as a wheel), so the texture's core ``source`` is read, and a texture
-  with none is refused naming the extension. ``EXT_meshopt_compression``: buffer views are read from
-  their core fields (the uncompressed fallback the extension requires when it is optional); a file
-  that requires it is refused (no maintained meshoptimizer decoder installs from PyPI as a wheel).
+  Universal installs from PyPI as a wheel: pyktx is an sdist that needs libktx built), so the
+  texture's core ``source`` is read, and a texture with none, or a file that requires the extension,
+  is refused naming it. ``EXT_meshopt_compression``: a buffer view with the extension is decoded from
+  the extension's ``buffer``/``byteOffset``/``byteLength`` (``count`` elements of ``byteStride``
+  bytes, its ``mode`` and ``filter``) by the ``meshopt`` package (PyPI; meshoptimizer's own decoder
+  sources, vendored, behind the JavaScript module's ``decodeGltfBuffer``), whether the extension is
+  required or optional (its core fields, the optional fallback, are then not read).
 """
 
 from __future__ import annotations
@@ -58,10 +62,13 @@ import numpy as np
 
 #: Extensions modelled here (scene features and image formats).
 MODELLED_SCENE_EXTENSIONS = ("EXT_mesh_gpu_instancing", "KHR_node_visibility", "KHR_materials_unlit",
-                             "KHR_materials_variants", "EXT_texture_webp")
+                             "KHR_materials_variants", "EXT_texture_webp", "EXT_meshopt_compression")
 #: Extensions whose data is not decoded: when optional the core fallback is read (the same content in
 #: another encoding), when required the asset is refused (:func:`required_refusal`).
-FALLBACK_EXTENSIONS = ("KHR_texture_basisu", "EXT_meshopt_compression")
+FALLBACK_EXTENSIONS = ("KHR_texture_basisu",)
+#: ``EXT_meshopt_compression``'s modes and filters (the extension's README).
+MESHOPT_MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
+MESHOPT_FILTERS = ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL")
 #: Deepest node hierarchy walked for world matrices (a guard against corrupt parent chains; the
 #: loader's own traversal reports cycles by name).
 MAX_NODE_DEPTH = 4096
@@ -72,9 +79,6 @@ _REFUSALS = {
     "KHR_texture_basisu": "KTX2 / Basis Universal textures are not decoded by pbrcheck (no maintained "
                           "decoder installs from PyPI); it reads the core PNG/JPEG/WEBP source when the "
                           "extension is optional",
-    "EXT_meshopt_compression": "meshoptimizer-compressed buffer views are not decoded by pbrcheck (no maintained "
-                               "decoder installs from PyPI); it reads the uncompressed fallback when the "
-                               "extension is optional",
 }
 
 
@@ -414,3 +418,48 @@ def restore_node_weights(doc: dict, raw: bytes) -> None:
     for node, src in zip(doc.get("nodes", []), nodes if isinstance(nodes, list) else []):
         if isinstance(node, dict) and isinstance(src, dict) and "weights" in src:
             node["weights"] = src["weights"]
+
+
+def meshopt_view(r, v: dict, index: int) -> tuple[bytes, int, int, int | None] | None:
+    """``(data, 0, byte length, byte stride)`` of buffer view ``v`` (index ``index``) decoded from
+    its ``EXT_meshopt_compression`` (module docstring), or None without the extension. Decoded once
+    per reader."""
+    ext = v.get("extensions", {}).get("EXT_meshopt_compression") if isinstance(v.get("extensions"), dict) else None
+    if ext is None:
+        return None
+    cache = r.__dict__.setdefault("_meshopt_views", {})
+    if index in cache:
+        return cache[index]
+    p = f"/bufferViews/{index}/extensions/EXT_meshopt_compression"
+    if not isinstance(ext, dict):
+        raise r.err(p, "an object")
+    mode, filt = ext.get("mode"), ext.get("filter", "NONE")
+    if mode not in MESHOPT_MODES:
+        raise r.err(p + "/mode", f"one of {', '.join(MESHOPT_MODES)}, found {mode!r}")
+    if filt not in MESHOPT_FILTERS:
+        raise r.err(p + "/filter", f"one of {', '.join(MESHOPT_FILTERS)}, found {filt!r}")
+    fields = {}
+    for k in ("count", "byteStride", "byteLength"):
+        x = ext.get(k)
+        if isinstance(x, bool) or not isinstance(x, int) or x < (0 if k == "count" else 1):
+            raise r.err(f"{p}/{k}", f"an integer >= {0 if k == 'count' else 1}, found {x!r}")
+        fields[k] = x
+    off = ext.get("byteOffset", 0)
+    if isinstance(off, bool) or not isinstance(off, int) or off < 0:
+        raise r.err(p + "/byteOffset", f"an integer >= 0, found {off!r}")
+    data = r.buffer(ext.get("buffer", -1), p + "/buffer")
+    if off + fields["byteLength"] > len(data):
+        raise r.err(p, f"byte range [{off}, {off + fields['byteLength']}) outside its buffer of {len(data)} bytes")
+    try:
+        import meshopt
+    except ImportError:  # a declared dependency; a broken install is named, not a traceback
+        raise r.err(p, "EXT_meshopt_compression needs the meshopt package (pip install meshopt)") from None
+    count, stride = fields["count"], fields["byteStride"]
+    try:
+        out = meshopt.decode_gltf_buffer(bytes(data[off:off + fields["byteLength"]]), count, stride, mode,
+                                         None if filt == "NONE" else filt)
+    except Exception as e:  # noqa: BLE001 - the decoder raises ValueError / RuntimeError on corrupt data
+        raise r.err(p, f"undecodable meshopt data ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") from None
+    raw = np.ascontiguousarray(out).tobytes()
+    cache[index] = (raw, 0, len(raw), v.get("byteStride"))
+    return cache[index]

@@ -1,7 +1,7 @@
 """glTF scene features with known answers on assets built here (tests/gltf_build.py): skins, morph
 targets, sparse morph deltas, EXT_mesh_gpu_instancing, KHR_node_visibility, KHR_materials_unlit (both
 renderers and the reference), KHR_materials_variants (--variant), image formats (EXT_texture_webp,
-KHR_texture_basisu / EXT_meshopt_compression fallbacks and refusals, lazy decoding), the export; then
+KHR_texture_basisu's fallback and refusal, lazy decoding), EXT_meshopt_compression, the export; then
 the shared Khronos assets (skipped when ../shared is absent)."""
 
 from __future__ import annotations
@@ -422,18 +422,57 @@ def test_basisu_optional_falls_back_required_is_refused_and_ktx2_is_named(tmp_pa
     assert "KTX2" in str(e.value) and "BytesIO" not in str(e.value) and "\n" not in str(e.value)
 
 
-def test_meshopt_required_is_refused_in_one_line_optional_reads_the_fallback(tmp_path):
-    p = quad_asset(tmp_path / "q.gltf", {})
+def _meshopt_quad(tmp_path: Path, name: str, *, fallback: bool, required: bool) -> Path:
+    """The quad with every buffer view compressed by meshoptimizer into buffer 1 (attributes as
+    ATTRIBUTES, the indices as TRIANGLES); buffer 0 (the core fields' data) holds zeros when
+    ``fallback`` (so that reading it would show), else nothing (a fallback buffer without uri, as the
+    extension allows)."""
+    import base64
+
+    import meshopt
+    p = quad_asset(tmp_path / name, {})
     d = json.loads(p.read_text())
-    d["bufferViews"][0]["extensions"] = {"EXT_meshopt_compression": {"buffer": 0, "byteLength": 4, "count": 4,
-                                                                     "byteStride": 12, "mode": "ATTRIBUTES"}}
+    plain = base64.b64decode(d["buffers"][0]["uri"].split(",", 1)[1])
+    prim = d["meshes"][0]["primitives"][0]
+    comp = bytearray()
+    for acc, mode in [(a, "ATTRIBUTES") for a in prim["attributes"].values()] + [(prim["indices"], "TRIANGLES")]:
+        a = d["accessors"][acc]
+        v = d["bufferViews"][a["bufferView"]]
+        rows = np.frombuffer(plain[v["byteOffset"]:v["byteOffset"] + v["byteLength"]], np.uint8)
+        if mode == "ATTRIBUTES":
+            stride = v["byteLength"] // a["count"]
+            raw = meshopt.encode_gltf_buffer(rows.reshape(a["count"], stride), mode)
+            v["byteStride"] = stride
+        else:
+            stride = 2
+            raw = meshopt.encode_gltf_buffer(rows.view(np.uint16).astype(np.uint32), mode)
+        while len(comp) % 4:
+            comp.append(0)
+        v["extensions"] = {"EXT_meshopt_compression": {"buffer": 1, "byteOffset": len(comp), "byteLength": len(raw),
+                                                       "byteStride": stride, "count": a["count"], "mode": mode}}
+        comp += raw
+    d["buffers"].append({"byteLength": len(comp), "uri": _uri(bytes(comp), "application/octet-stream")})
+    d["buffers"][0] = {"byteLength": len(plain), "extensions": {"EXT_meshopt_compression": {"fallback": True}},
+                       **({"uri": _uri(bytes(len(plain)), "application/octet-stream")} if fallback else {})}
     d["extensionsUsed"] = ["EXT_meshopt_compression"]
+    if required:
+        d["extensionsRequired"] = ["EXT_meshopt_compression"]
     p.write_text(json.dumps(d))
-    assert np.allclose(load_asset(p).primitives[0].positions, QUAD_POS)
-    d["extensionsRequired"] = ["EXT_meshopt_compression"]
-    p.write_text(json.dumps(d))
-    with pytest.raises(AssetError, match=r"required extension EXT_meshopt_compression: meshoptimizer-compressed"):
-        load_asset(p)
+    return p
+
+
+def test_meshopt_compressed_buffer_views_are_decoded(tmp_path):
+    """Required, with a data-less fallback buffer, and optional, with a fallback buffer of zeros: the
+    decoded views give the quad (the fallback is not read)."""
+    for name, fallback, required in (("r.gltf", False, True), ("o.gltf", True, False)):
+        p = load_asset(_meshopt_quad(tmp_path, name, fallback=fallback, required=required)).primitives[0]
+        assert np.array_equal(p.positions, QUAD_POS) and np.array_equal(p.indices, QUAD_IDX.reshape(-1, 3))
+    bad = _meshopt_quad(tmp_path, "bad.gltf", fallback=False, required=True)
+    d = json.loads(bad.read_text())
+    d["bufferViews"][d["accessors"][0]["bufferView"]]["extensions"]["EXT_meshopt_compression"]["mode"] = "PACKED"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(AssetError, match=r"EXT_meshopt_compression/mode: one of ATTRIBUTES, TRIANGLES, INDICES"):
+        load_asset(bad)
 
 
 def test_an_unused_undecodable_image_is_not_decoded(tmp_path):
