@@ -11,7 +11,8 @@ API
 - :data:`MODELLED_EXTENSIONS` (formerly ``SUPPORTED_EXTENSIONS``, kept as an alias) -- the
   extensions modelled (any other one in ``extensionsRequired`` is an error; an optional one is
   listed in :attr:`Asset.extensions_ignored`).
-- :data:`DECODED_FORMATS` -- the image formats decoded (PNG, JPEG, WEBP).
+- :data:`DECODED_FORMATS` -- the image formats Pillow decodes (PNG, JPEG, WEBP; KTX2 is
+  :func:`pbrcheck.gltf_features.decode_ktx2`'s).
 - :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
 - :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
@@ -40,7 +41,8 @@ The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views
 References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_materials_ior,
 KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
 (integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
-KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp (:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
+KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp, KHR_texture_basisu, EXT_meshopt_compression
+(:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
@@ -495,8 +497,11 @@ class _Reader:
         from PIL import Image as PILImage
 
         sniffed = _sniff_format(bytes(data[:16]))
+        if sniffed == "KTX2":   # KHR_texture_basisu (pbrcheck.gltf_features.decode_ktx2)
+            return GltfImage(im.get("name", f"image{index}"), source, "image/ktx2",
+                             gltf_features.decode_ktx2(self, data, p, source))
         if sniffed not in (None, "PNG", "JPEG", "WEBP"):
-            raise self.err(p, f"unsupported image format {sniffed} of {source!r} (PNG, JPEG and WEBP are)")
+            raise self.err(p, f"unsupported image format {sniffed} of {source!r} (PNG, JPEG, WEBP and KTX2 are)")
         try:
             with PILImage.open(io.BytesIO(data)) as pim:
                 fmt = pim.format
@@ -523,7 +528,8 @@ class _Reader:
                          np.ascontiguousarray(pixels))
 
 
-#: Image formats decoded (Pillow's format name -> MIME type): glTF's core PNG and JPEG, EXT_texture_webp's WEBP.
+#: Image formats Pillow decodes (its format name -> MIME type): glTF's core PNG and JPEG, EXT_texture_webp's
+#: WEBP (KHR_texture_basisu's KTX2: :func:`pbrcheck.gltf_features.decode_ktx2`).
 DECODED_FORMATS = {"PNG": "image/png", "JPEG": "image/jpeg", "WEBP": "image/webp"}
 _MIME_BY_SUFFIX = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".webp": "image/webp",
                    ".ktx2": "image/ktx2"}
@@ -856,9 +862,6 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
     used = tuple(doc.get("extensionsUsed", []))
     required = doc.get("extensionsRequired", [])
     for k, e in enumerate(required):
-        why = gltf_features.required_refusal(e)
-        if why is not None:
-            raise r.err(f"/extensionsRequired/{k}", f"required extension {e}: {why}")
         if e not in MODELLED_EXTENSIONS:
             raise r.err(f"/extensionsRequired/{k}", f"required extension {e} is not supported by pbrcheck "
                         f"(supported: {', '.join(MODELLED_EXTENSIONS)})")

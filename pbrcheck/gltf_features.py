@@ -6,8 +6,6 @@ API
 ---
 - :data:`MODELLED_SCENE_EXTENSIONS` -- the extensions this module models (the loader's
   :data:`pbrcheck.gltf.MODELLED_EXTENSIONS` includes them).
-- :data:`FALLBACK_EXTENSIONS` -- extensions whose data is not decoded: refused when required
-  (:func:`required_refusal`), their core fallback used when optional.
 - :func:`node_worlds` -- every node's world matrix (the hierarchy's product of local matrices).
 - :func:`node_visible` -- ``KHR_node_visibility``'s flag of one node.
 - :func:`morph_weights` -- a mesh instance's default morph weights (node ``weights`` over mesh ``weights``).
@@ -17,6 +15,7 @@ API
 - :func:`place` -- positions, normals, tangents and triangles to world space, once per instance, merged.
 - :func:`variant_names`, :func:`variant_index`, :func:`variant_material` -- ``KHR_materials_variants``.
 - :func:`texture_source` -- the image a texture reads (``EXT_texture_webp``, ``KHR_texture_basisu``, core).
+- :func:`decode_ktx2` -- a ``KHR_texture_basisu`` KTX2 image's level 0 as RGBA8 (``opengl_basisu``).
 - :func:`meshopt_view` -- an ``EXT_meshopt_compression`` buffer view decoded (the ``meshopt`` package).
 - :func:`used_images` -- the images a material's texture reads (the only ones decoded).
 - :func:`restore_node_weights` -- the nodes' morph ``weights`` that the JSON reader drops.
@@ -43,11 +42,11 @@ READMEs in KhronosGroup/glTF):
 - ``KHR_materials_variants``: the root's ``variants[k].name``; a primitive's ``mappings`` give the
   material of each variant index; a primitive without a mapping for the selected variant, or no
   variant selected, uses its ``material`` (the file's default).
-- Images: ``EXT_texture_webp``'s ``source`` is read where present (Pillow decodes WEBP);
-  ``KHR_texture_basisu``'s KTX2 images are not decoded (no maintained Python decoder of Basis
-  Universal installs from PyPI as a wheel: pyktx is an sdist that needs libktx built), so the
-  texture's core ``source`` is read, and a texture with none, or a file that requires the extension,
-  is refused naming it. ``EXT_meshopt_compression``: a buffer view with the extension is decoded from
+- Images: a texture reads ``EXT_texture_webp``'s ``source`` where present (Pillow decodes WEBP),
+  else ``KHR_texture_basisu``'s (a KTX2 image with a Basis Universal payload, ETC1S or UASTC: level 0
+  transcoded to RGBA8 by ``opengl_basisu``, Binomial's basis_universal transcoder; its values are the
+  stored ones, sRGB-decoded for colour slots like a PNG's), else its core ``source``: what an engine
+  with the extensions reads. ``EXT_meshopt_compression``: a buffer view with the extension is decoded from
   the extension's ``buffer``/``byteOffset``/``byteLength`` (``count`` elements of ``byteStride``
   bytes, its ``mode`` and ``filter``) by the ``meshopt`` package (PyPI; meshoptimizer's own decoder
   sources, vendored, behind the JavaScript module's ``decodeGltfBuffer``), whether the extension is
@@ -62,10 +61,8 @@ import numpy as np
 
 #: Extensions modelled here (scene features and image formats).
 MODELLED_SCENE_EXTENSIONS = ("EXT_mesh_gpu_instancing", "KHR_node_visibility", "KHR_materials_unlit",
-                             "KHR_materials_variants", "EXT_texture_webp", "EXT_meshopt_compression")
-#: Extensions whose data is not decoded: when optional the core fallback is read (the same content in
-#: another encoding), when required the asset is refused (:func:`required_refusal`).
-FALLBACK_EXTENSIONS = ("KHR_texture_basisu",)
+                             "KHR_materials_variants", "EXT_texture_webp", "EXT_meshopt_compression",
+                             "KHR_texture_basisu")
 #: ``EXT_meshopt_compression``'s modes and filters (the extension's README).
 MESHOPT_MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
 MESHOPT_FILTERS = ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL")
@@ -74,17 +71,6 @@ MESHOPT_FILTERS = ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL")
 MAX_NODE_DEPTH = 4096
 #: The sum of a vertex's skin weights below which it is left unnormalized (all weights zero).
 MIN_WEIGHT_SUM = 1e-12
-
-_REFUSALS = {
-    "KHR_texture_basisu": "KTX2 / Basis Universal textures are not decoded by pbrcheck (no maintained "
-                          "decoder installs from PyPI); it reads the core PNG/JPEG/WEBP source when the "
-                          "extension is optional",
-}
-
-
-def required_refusal(ext: str) -> str | None:
-    """The one-line reason a required ``ext`` of :data:`FALLBACK_EXTENSIONS` is refused, else None."""
-    return _REFUSALS.get(ext)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -345,20 +331,34 @@ def variant_material(r, prim: dict, pp: str, variant: int | None) -> int:
 
 
 def texture_source(r, tex: dict, tp: str) -> int:
-    """The image index texture ``tex`` reads: ``EXT_texture_webp``'s source where present, else the
-    core ``source``; a texture whose only source is ``KHR_texture_basisu``'s KTX2 is refused."""
+    """The image index texture ``tex`` reads: ``EXT_texture_webp``'s source, else
+    ``KHR_texture_basisu``'s, else the core ``source`` (module docstring)."""
     ext = tex.get("extensions", {}) if isinstance(tex.get("extensions"), dict) else {}
-    webp = ext.get("EXT_texture_webp")
-    if isinstance(webp, dict) and "source" in webp:
-        r.get("images", webp["source"], tp + "/extensions/EXT_texture_webp/source")
-        return webp["source"]
+    for name in ("EXT_texture_webp", "KHR_texture_basisu"):
+        e = ext.get(name)
+        if isinstance(e, dict) and "source" in e:
+            r.get("images", e["source"], f"{tp}/extensions/{name}/source")
+            return e["source"]
     if "source" not in tex:
-        if "KHR_texture_basisu" in ext:
-            raise r.err(tp + "/extensions/KHR_texture_basisu",
-                        f"a texture with a KTX2 source only: {_REFUSALS['KHR_texture_basisu']}")
-        raise r.err(tp, "a texture without source (PNG, JPEG and WEBP sources are supported)")
+        raise r.err(tp, "a texture without source")
     r.get("images", tex["source"], tp + "/source")
     return tex["source"]
+
+
+def decode_ktx2(r, data: bytes, pointer: str, source: str) -> np.ndarray:
+    """Level 0 of a KTX2 image with a Basis Universal payload (``KHR_texture_basisu``) as (H, W, 4)
+    uint8, row 0 at the top as KTX2 stores it (its default orientation, ``rd``, is glTF's)."""
+    try:
+        import opengl_basisu
+    except ImportError:  # a declared dependency; a broken install is named, not a traceback
+        raise r.err(pointer, "KTX2 images need the opengl_basisu package (pip install --pre opengl_basisu)") from None
+    try:
+        tex = opengl_basisu.open(bytes(data))
+        px = tex.transcode(opengl_basisu.Target.RGBA8).data
+    except Exception as e:  # noqa: BLE001 - BasisuError (a ValueError) and others on corrupt data
+        msg = str(e).splitlines()[0] if str(e) else ""
+        raise r.err(pointer, f"undecodable KTX2 texture image {source!r} ({type(e).__name__}: {msg})") from None
+    return np.ascontiguousarray(np.asarray(px, np.uint8).reshape(tex.height, tex.width, 4))
 
 
 def used_images(materials) -> set[int]:

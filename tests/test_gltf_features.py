@@ -1,7 +1,7 @@
 """glTF scene features with known answers on assets built here (tests/gltf_build.py): skins, morph
 targets, sparse morph deltas, EXT_mesh_gpu_instancing, KHR_node_visibility, KHR_materials_unlit (both
 renderers and the reference), KHR_materials_variants (--variant), image formats (EXT_texture_webp,
-KHR_texture_basisu's fallback and refusal, lazy decoding), EXT_meshopt_compression, the export; then
+KHR_texture_basisu's KTX2, lazy decoding), EXT_meshopt_compression, the export; then
 the shared Khronos assets (skipped when ../shared is absent)."""
 
 from __future__ import annotations
@@ -387,7 +387,16 @@ def _uri(raw: bytes, mime: str) -> str:
 
 RED = np.full((2, 2, 3), (255, 0, 0), np.uint8)
 BLUE = np.full((2, 2, 3), (0, 0, 255), np.uint8)
-KTX2 = b"\xabKTX 20\xbb\r\n\x1a\n" + bytes(64)
+KTX2 = b"\xabKTX 20\xbb\r\n\x1a\n" + bytes(64)          # a KTX2 signature, then nothing valid
+#: :data:`QUADRANTS` as KTX2 with a UASTC payload, written by alktx2 0.1.7's basisu encoder (Basis
+#: Universal 2.10; codec "uastc", quality 100, effort 4, zstd level 0); each quadrant is one flat
+#: 4 x 4 block, so the transcoded RGBA8 is exact.
+UASTC_QUADRANTS = __import__("base64").b64decode(
+    "q0tUWCAyMLsNChoKAAAAAAEAAAAIAAAACAAAAAAAAAAAAAAAAQAAAAEAAAACAAAAaAAAACwAAACUAAAAJAAAAAAAAAAAAAAAAAAAAAAAAAC4"
+    "AAAAAAAAADQAAAAAAAAAQAAAAAAAAAAsAAAAAAAAAAIAKACmAQIAAwMAABAAAAAAAAAAAAB/AAAAAAAAAAAA/////x8AAABLVFh3cml0ZXIAQm"
+    "FzaXMgVW5pdmVyc2FsIDIuMTAAACi1L/0gQF0BAPj3HwDgH3oAFwDg/x8C4AEAF+Af4B8CDwD3////H3zvBABDFQMIB/kUwAg=")
+QUADRANTS = np.zeros((8, 8, 3), np.uint8)
+QUADRANTS[:4, :4], QUADRANTS[:4, 4:], QUADRANTS[4:, :4], QUADRANTS[4:, 4:] = (255, 0, 0), (0, 0, 255), (0, 255, 0), 255
 
 
 def test_webp_is_decoded_and_preferred_over_the_core_fallback(tmp_path):
@@ -401,24 +410,23 @@ def test_webp_is_decoded_and_preferred_over_the_core_fallback(tmp_path):
     assert not a.images[1].decoded and a.extensions_ignored == ()     # the unused PNG is not decoded
 
 
-def test_basisu_optional_falls_back_required_is_refused_and_ktx2_is_named(tmp_path):
+def test_basisu_ktx2_is_decoded_preferred_over_the_fallback_and_named_when_corrupt(tmp_path):
+    """KTX2 (UASTC) of an 8 x 8 image, quadrants red / blue (top) and green / white (bottom): read
+    through KHR_texture_basisu in preference to the PNG fallback, decoded exactly (flat 4 x 4 blocks),
+    top row first, whether the extension is optional or required."""
     from pbrcheck.gltf_build import png_bytes
-    images = [{"uri": _uri(KTX2, "image/ktx2")}, {"uri": _uri(png_bytes(BLUE), "image/png")}]
-    opt = _textured(tmp_path, "o.gltf", {"source": 1, "extensions": {"KHR_texture_basisu": {"source": 0}}}, images)
-    a = load_asset(opt)
-    assert a.materials[0].base_color_texture.image == 1 and (a.images[1].pixels[..., :3] == BLUE).all()
-    assert not a.images[0].decoded
-    only = _textured(tmp_path, "k.gltf", {"extensions": {"KHR_texture_basisu": {"source": 0}}}, images)
-    with pytest.raises(AssetError, match=r"/textures/0/extensions/KHR_texture_basisu: a texture with a KTX2 source only"):
-        load_asset(only)
-    req = _textured(tmp_path, "r.gltf", {"source": 1, "extensions": {"KHR_texture_basisu": {"source": 0}}}, images,
-                    required=("KHR_texture_basisu",))
-    with pytest.raises(AssetError, match=r"/extensionsRequired/0: required extension KHR_texture_basisu: KTX2"):
-        load_asset(req)
-    # a KTX2 image read as a core source: the error names the format, not Pillow's stream object
-    core = _textured(tmp_path, "c.gltf", {"source": 0}, images)
+    images = [{"uri": _uri(UASTC_QUADRANTS, "image/ktx2")}, {"uri": _uri(png_bytes(BLUE), "image/png")}]
+    for name, required in (("o.gltf", ()), ("r.gltf", ("KHR_texture_basisu",))):
+        p = _textured(tmp_path, name, {"source": 1, "extensions": {"KHR_texture_basisu": {"source": 0}}}, images,
+                      required=required)
+        a = load_asset(p)
+        assert a.materials[0].base_color_texture.image == 0 and a.images[0].mime == "image/ktx2"
+        assert np.array_equal(a.images[0].pixels[..., :3], QUADRANTS) and (a.images[0].pixels[..., 3] == 255).all()
+        assert not a.images[1].decoded
+    # a corrupt KTX2: one line naming the format, not Pillow's stream object
+    bad = _textured(tmp_path, "c.gltf", {"source": 0}, [{"uri": _uri(KTX2, "image/ktx2")}])
     with pytest.raises(AssetError) as e:
-        load_asset(core)
+        load_asset(bad)
     assert "KTX2" in str(e.value) and "BytesIO" not in str(e.value) and "\n" not in str(e.value)
 
 
