@@ -53,6 +53,7 @@ import hashlib
 import io
 import json
 import math
+import re
 import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -520,7 +521,9 @@ class _Reader:
         except Exception as e:  # noqa: BLE001 - Pillow raises many types on corrupt data
             # Pillow's messages embed its stream's repr (<_io.BytesIO object at 0x...>): name the format instead
             what = sniffed or "an unrecognized format"
-            raise self.err(p, f"unreadable texture image {source!r} ({what}; {type(e).__name__})") from None
+            msg = _PIL_STREAM.sub("", str(e)).strip().splitlines()
+            raise self.err(p, f"unreadable texture image {source!r} ({what}; {type(e).__name__}"
+                           + (f": {msg[0]}" if msg else "") + ")") from None
         if pixels.dtype == bool:
             pixels = pixels.astype(np.uint8) * 255
         mime = DECODED_FORMATS[fmt]
@@ -536,6 +539,10 @@ _MIME_BY_SUFFIX = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jp
 #: Leading bytes of image formats (their specifications' signatures), to name a format in errors.
 _SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"\xabKTX 20\xbb\r\n\x1a\n", "KTX2"),
                (b"\xabKTX 11\xbb\r\n\x1a\n", "KTX1"), (b"DDS ", "DDS"), (b"GIF8", "GIF"), (b"BM", "BMP"))
+
+
+#: Pillow's repr of the stream it was given, in its error messages (dropped: it names no file).
+_PIL_STREAM = re.compile(r"\s*<_io\.BytesIO object at 0x[0-9a-fA-F]+>")
 
 
 def _sniff_format(head: bytes) -> str | None:

@@ -428,6 +428,10 @@ def test_basisu_ktx2_is_decoded_preferred_over_the_fallback_and_named_when_corru
     with pytest.raises(AssetError) as e:
         load_asset(bad)
     assert "KTX2" in str(e.value) and "BytesIO" not in str(e.value) and "\n" not in str(e.value)
+    png = _textured(tmp_path, "p.gltf", {"source": 0}, [{"uri": _uri(b"\x89PNG\r\n\x1a\n" + bytes(20), "image/png")}])
+    with pytest.raises(AssetError, match=r"/images/0: unreadable texture image 'data URI' \(PNG; "
+                                         r"UnidentifiedImageError: cannot identify image file\)$"):
+        load_asset(png)
 
 
 def _meshopt_quad(tmp_path: Path, name: str, *, fallback: bool, required: bool) -> Path:
