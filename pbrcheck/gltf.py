@@ -72,6 +72,9 @@ MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength",
                        *gltf_features.MODELLED_SCENE_EXTENSIONS)
 #: The former name of :data:`MODELLED_EXTENSIONS`.
 SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
+#: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
+#: named as unmodelled where an asset uses them): skins and morph targets (pbrcheck.gltf_features).
+MODELLED_CORE_FEATURES: tuple[str, ...] = ("skins", "morph targets")
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -907,14 +910,20 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
         hidden += int("mesh" in node and not visible)
         if "mesh" in node and visible:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
-            joints = gltf_features.skin_matrices(r, node["skin"], ni, worlds) if "skin" in node else None
+            joints = None
             inst = gltf_features.instance_matrices(r, node, ni, world, _quat_matrix)
             for pi, prim in enumerate(mesh.get("primitives", [])):
                 targets = prim.get("targets", []) if isinstance(prim, dict) else []
                 weights = (gltf_features.morph_weights(r, node, ni, mesh, node["mesh"], len(targets))
                            if targets else None)
+                # a skin poses the primitives that have joints (as engines do: without JOINTS_0 a
+                # primitive is an ordinary mesh at its node's transform)
+                skinned = "skin" in node and "JOINTS_0" in (prim.get("attributes", {}) if isinstance(prim, dict) else {})
+                if skinned and joints is None:
+                    joints = gltf_features.skin_matrices(r, node["skin"], ni, worlds)
                 prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials,
-                                        weights=weights, joint_mats=joints, worlds=inst, variant=variant_i))
+                                        weights=weights, joint_mats=joints if skinned else None, worlds=inst,
+                                        variant=variant_i))
         if "camera" in node:
             c = _camera(r, node["camera"], world, ni)
             if c is not None:

@@ -33,7 +33,8 @@ READMEs in KhronosGroup/glTF):
   xyz by ``S``. The skinned mesh node's own transform is ignored (spec 3.7.3.3: only the joints'
   transforms apply); the result is world space. Weights are divided by their sum where it is not 0
   (the specification requires sum 1; engines normalize likewise). The pose is the nodes' own
-  transforms (the file's default pose; animations are not played).
+  transforms (the file's default pose; animations are not played). A primitive of a skinned node
+  without ``JOINTS_0`` is not skinned (an ordinary mesh at its node's transform, as engines draw it).
 - ``EXT_mesh_gpu_instancing``: instance ``i``'s world matrix is ``world(node) @ T_i R_i S_i``
   (TRANSLATION VEC3, ROTATION VEC4 unit quaternion xyzw, SCALE VEC3; each absent one identity); the
   node's mesh is drawn once per instance, not for the node itself.

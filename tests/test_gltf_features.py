@@ -107,6 +107,18 @@ def test_skin_blends_two_weight_sets(tmp_path):
     assert np.allclose(p.positions[2], [0.5, 1.5, 0.0], atol=POS_ATOL)
 
 
+def test_a_skin_poses_only_primitives_with_joints(tmp_path):
+    """A skinned node's primitive without JOINTS_0 is an ordinary mesh at its node's transform (as
+    engines draw it): here the node's +5 x translation applies."""
+    path = _skinned_quad(tmp_path, 90.0)
+    d = json.loads(path.read_text())
+    for k in ("JOINTS_0", "WEIGHTS_0"):
+        d["meshes"][0]["primitives"][0]["attributes"].pop(k)
+    path.write_text(json.dumps(d))
+    p = load_asset(path).primitives[0]
+    assert np.allclose(p.positions, QUAD_POS + [5, 0, 0], atol=POS_ATOL) and not p.skinned
+
+
 def test_skin_joint_out_of_range_is_named(tmp_path):
     path = _skinned_quad(tmp_path, 90.0)
     d = json.loads(path.read_text())
