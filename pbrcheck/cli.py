@@ -106,24 +106,26 @@ def _cmd_cache(args) -> int:
 
 
 def _asset_options(argv: list[str]) -> list[str]:
-    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE`` and ``--size WxH`` out of
-    ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every command that takes a SCENE
-    accepts an asset that way; an integer ``--size`` stays the command's own)."""
+    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE``, ``--size WxH`` and
+    ``--variant NAME`` out of ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every
+    command that takes a SCENE accepts an asset that way; an integer ``--size`` stays the command's own)."""
     from .gltf_scene import is_asset_path, parse_size, set_asset_options
 
     if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
         set_asset_options()
         return argv
-    env = size = None
+    env = size = variant = None
     out: list[str] = []
     i = 0
     while i < len(argv):
         a = argv[i]
         key, eq, val = a.partition("=")
-        if key in ("--env", "--size") and (eq or i + 1 < len(argv)):
+        if key in ("--env", "--size", "--variant") and (eq or i + 1 < len(argv)):
             v = val if eq else argv[i + 1]
-            if key == "--env" or "x" in v.lower():
-                if key == "--env":
+            if key != "--size" or "x" in v.lower():
+                if key == "--variant":
+                    variant = v
+                elif key == "--env":
                     env = v
                 else:
                     size = parse_size(v)
@@ -131,7 +133,7 @@ def _asset_options(argv: list[str]) -> list[str]:
                 continue
         out.append(a)
         i += 1
-    set_asset_options(env, size)
+    set_asset_options(env, size, variant)
     return out
 
 

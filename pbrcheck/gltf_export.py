@@ -13,7 +13,10 @@ copy goes into a sub-folder :data:`RENAMED_FOLDER` (``_asset/scenario.json``), i
 no file of the asset is overwritten by the export's own; data URIs stay. Analytic
 objects of the same scene are added by :func:`pbrcheck.export.gltf_document`, tessellated as in an
 analytic scene's export (nodes ``object_<k>_<name>``, a buffer ``pbrcheck_objects.bin`` of their
-own). The scene file's own lights are added there too (root nodes ``light_<k>`` beside
+own). The asset's ``KHR_materials_variants`` variant drawn becomes its default material, and nodes
+hidden by ``KHR_node_visibility`` lose their meshes and lights
+(:func:`pbrcheck.gltf_features.export_selection`); skins, morph targets and GPU instances are kept
+for the engines to apply. The scene file's own lights are added there too (root nodes ``light_<k>`` beside
 ``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
 (:class:`~pbrcheck.gltf.AssetError` otherwise).
 
@@ -31,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
+from . import gltf_features
 from .gltf import AssetError, read_resource, resource_cap
 
 #: The sub-folder of an asset's resource whose name an export file takes (:func:`asset_document`);
@@ -74,7 +78,7 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
     inst = scene.assets[0]
     src = Path(inst.path)
     doc, blob = _read_doc(src)
-    doc = copy.deepcopy(doc)
+    doc = gltf_features.export_selection(copy.deepcopy(doc), inst.variant)   # the variant and visibility drawn
     files: dict[str, bytes] = {}
     taken = {r.casefold() for r in reserved}
     placed: dict[str, str] = {}  # the asset's relative path -> where its copy goes

@@ -658,7 +658,8 @@ def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, in
     env = env if env is not None else opts["env"]
     size = size if size is not None else opts["size"]
     data: dict = {"name": p.stem, "description": f"glTF asset {p.name}",
-                  "objects": [{"type": "gltf", "path": str(p.resolve())}],
+                  "objects": [{"type": "gltf", "path": str(p.resolve()),
+                               **({"variant": opts["variant"]} if opts.get("variant") is not None else {})}],
                   "environment": {"type": "file", "path": str(Path(env).resolve())} if env is not None
                   else {"type": "constant", "radiance": list(NEUTRAL_RADIANCE)}}
     scene = scene_from_dict(data, file=str(p), base_dir=p.parent)

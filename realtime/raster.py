@@ -119,6 +119,7 @@ class DrawItem:
     flip_backface: bool = False
     normal_scale: float = 1.0
     textures: dict = field(default_factory=dict)   # slot -> (GltfImage, TextureRef, srgb)
+    unlit: bool = False                             # KHR_materials_unlit (raster.frag's UNLIT_MATERIALS)
 
     @property
     def centre(self) -> np.ndarray:
@@ -206,7 +207,8 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                 np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
                 tuple(m.emissive), m.alpha_mode, m.alpha_cutoff, cull=not m.double_sided,
                 flip_backface=m.double_sided,
-                normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex))
+                normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex,
+                unlit=m.unlit))
             continue
         mat = ob.material
         common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
@@ -337,6 +339,7 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
     _set(prog, "normal_scale", float(it.normal_scale))
     _set(prog, "flip_backface", int(it.flip_backface))
     _set(prog, "object_id", float(it.object_id))
+    _set(prog, "unlit", int(it.unlit))   # only in programs compiled with UNLIT_MATERIALS
     has, sets, mirror, xf = [], [], [], []
     for k, ((slot, _), name) in enumerate(zip(TEXTURE_SLOTS, ("tex_base", "tex_mr", "tex_normal", "tex_emissive"))):
         entry = it.textures.get(slot)

@@ -747,14 +747,17 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     ctx = get_context()
     user = (hooks.path, hooks.text) if hooks else None
     t0 = time.perf_counter()
+    items = raster.draw_items(scene)
+    timings["geometry"] = time.perf_counter() - t0
+    # KHR_materials_unlit: its path is compiled only into the programs of scenes that draw an unlit material
+    unlit = {"UNLIT_MATERIALS": 1} if any(it.unlit for it in items) else {}
+    t0 = time.perf_counter()
     prog = raster.graphics_program("raster.vert", "raster.frag",
-                                   {**defines, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)}, user)
+                                   {**defines, **unlit, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)},
+                                   user)
     aov_prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 1}, user)
     bg_prog = raster.graphics_program("fullscreen.vert", "raster_background.frag")
     timings["compile_frame"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    items = raster.draw_items(scene)
-    timings["geometry"] = time.perf_counter() - t0
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     # the specular_aa member reads a baked variance (prefiltered): bind each normal map's slope-variance mips
     variance = role_reads(SPECULAR_AAS, o.specular_aa, "specular_aa", "variance")

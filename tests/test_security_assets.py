@@ -67,13 +67,16 @@ def png_header(width: int, height: int, color_type: int = 6) -> bytes:
 
 
 def with_images(doc: Doc, folder: Path, images: list[bytes]) -> Path:
-    """``doc`` with external images ``img<k>.png`` (each its bytes; decoded by the loader, sampled by
-    no material)."""
+    """``doc`` with external images ``img<k>.png`` (each its bytes), each the emissive texture of a
+    material of its own that no primitive draws: the loader decodes every image a material's texture
+    reads (pbrcheck.gltf_features.used_images), so each is read and counted."""
     folder.mkdir(parents=True, exist_ok=True)
-    doc.d["images"] = []
+    doc.d["images"], doc.d["textures"], doc.d["materials"] = [], [], []
     for k, raw in enumerate(images):
         (folder / f"img{k}.png").write_bytes(raw)
         doc.d["images"].append({"uri": f"img{k}.png"})
+        doc.d["textures"].append({"source": k})
+        doc.d["materials"].append({"emissiveTexture": {"index": k}})
     return write_external(doc, folder)
 
 
