@@ -28,7 +28,7 @@ render printed are printed again. Callers choose: :func:`compare.renderers.rende
 it only with a caching :class:`compare.renderers.RenderContext` (the report), so a test or a
 benchmark of the renderer always renders.
 
-API: :data:`NAMESPACE`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`
+API: :data:`NAMESPACE`, :func:`code_files`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`
 (:func:`realtime.gl.shader_sources_hash` re-exported).
 """
 

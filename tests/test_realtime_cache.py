@@ -163,6 +163,18 @@ def test_an_edited_shader_is_compiled_again_in_the_same_process(shader_copy):
     assert graphics_program("fullscreen.vert", "raster_background.frag") is not g
 
 
+def test_an_edited_shader_bakes_again_in_the_same_process(shader_copy):
+    """The bakes kept for the process (cubes, SH, LUTs) are keyed by the shader sources too: after an
+    edit of the bake's shader a render bakes afresh instead of reading the bake of the old text."""
+    from realtime.render import dfg_lut
+
+    a = dfg_lut(8, 16, "f32", "smith_ggx_correlated")
+    assert dfg_lut(8, 16, "f32", "smith_ggx_correlated") is a
+    with open(shader_copy / "dfg_lut.comp", "a", encoding="utf-8") as f:
+        f.write("\n// edited\n")
+    assert dfg_lut(8, 16, "f32", "smith_ggx_correlated") is not a
+
+
 def test_a_corrupt_entry_is_rendered_again(scene, counted, tmp_cache):
     rc.render_cached(scene, "default", SMALL)
     path = Cache(rc.NAMESPACE).path(rc.realtime_cache_key(scene, "default", SMALL))
