@@ -106,3 +106,33 @@ def test_a_corpus_row_is_keyed_by_the_reference_code_and_an_external_renderers_c
     study.code_identity.cache_clear()
     keys = study._keys(st, _entry(tmp_path), st.renderers[0])
     assert keys[0] == env_k and keys[1] != ref_k and keys[2] != ren_k and keys[3] != cmp_k
+
+
+def test_a_render_lists_task_keys_hold_the_environments_pixels_and_the_code(tmp_path, monkeypatch):
+    """The report's and the sweep's render tasks (keys a long-lived Dask scheduler may still hold):
+    another environment file at the same path, or a shader edit, is another key."""
+    import numpy as np
+
+    from compare import renderers
+    from compare.corpus.renderlist import _render_tasks
+    from pbrcheck.exr import Image, write_exr
+
+    env = tmp_path / "env.exr"
+    write_exr(env, Image.from_rgb(np.full((8, 16, 3), 0.5, np.float32)))
+    s = scene_from_dict({**TINY, "environment": {"type": "file", "path": str(env)}})
+    jobs = [("default", None), ("splitsum_basic", {"cube_size": 32})]
+
+    def keys():
+        return [t.key for t in _render_tasks(s, jobs, renderers.DIRECT)]
+
+    a = keys()
+    assert len(set(a)) == 2 and keys() == a
+    write_exr(env, Image.from_rgb(np.full((8, 16, 3), 0.6, np.float32)))
+    b = keys()
+    assert not set(a) & set(b)
+    d = tmp_path / "shaders"
+    shutil.copytree(gl.SHADER_DIR, d)
+    monkeypatch.setattr(gl, "SHADER_DIR", d)
+    with open(d / "raster.vert", "a", encoding="utf-8") as f:
+        f.write("\n// edited\n")
+    assert not set(keys()) & set(b)
