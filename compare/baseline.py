@@ -56,7 +56,8 @@ API
   accept: stage every baseline and the budget's new text, then switch them in one rename.
 - :func:`finish_accepts` -- complete a committed accept a stop interrupted (run by every read).
 - :func:`spread_of` -- the per-pixel run-to-run standard deviation of repeated renders.
-- :func:`shader_sources_hash` -- SHA-256 over the real-time shader sources.
+- :func:`shader_sources_hash` -- SHA-256 over every file the GL programs read
+  (:func:`realtime.gl.shader_sources_hash`: one rule for the baselines and the real-time cache).
 - :data:`LOD_PROBE_HOOK` -- the hook file text of the LOD probe.
 
 References: the significance test is a z-test on first-order noise propagation (the delta method);
@@ -66,7 +67,6 @@ golden-image CI for comparison: Filament's renderdiff, model-viewer's fidelity t
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import math
 import os
@@ -80,6 +80,7 @@ import numpy as np
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import RGB, Image, read_exr, write_exr
+from realtime.gl import shader_sources_hash  # noqa: F401 (re-exported: the gate records it per baseline)
 
 from .metrics import LUMA, REL_EPS, pixel_classes
 
@@ -147,16 +148,6 @@ def load_baseline(base: Path, safe_name: str) -> Baseline | None:
     sp = [img.channels.get(f"spread.{c}") for c in RGB]
     spread = np.stack(sp, -1).astype(np.float64) if all(s is not None for s in sp) else np.zeros(img.rgb.shape)
     return Baseline(img, spread, record, exr)
-
-
-def shader_sources_hash() -> str:
-    """SHA-256 over the real-time renderer's GLSL sources (names and contents, sorted)."""
-    root = Path(__file__).resolve().parents[1] / "realtime" / "shaders"
-    h = hashlib.sha256()
-    for p in sorted(root.glob("*")):
-        if p.is_file():
-            h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
-    return h.hexdigest()
 
 
 def spread_of(images: list[np.ndarray]) -> np.ndarray:

@@ -13,7 +13,8 @@ API
 ---
 :func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
 :func:`timed`, :func:`assemble`, :func:`map_errors`,
-:func:`compute_program`, :func:`compile_source`, :func:`groups`, :func:`in_bands`, :class:`Source`.
+:func:`compute_program`, :func:`compile_source`, :func:`groups`, :func:`in_bands`, :class:`Source`,
+:func:`shader_sources_hash`.
 
 Long GL work and signals: a signal that arrives during a GL call waits until the call returns (the
 interpreter runs a handler between two bytecodes; pbrcheck.cli's SIGTERM handler raises
@@ -21,10 +22,19 @@ interpreter runs a handler between two bytecodes; pbrcheck.cli's SIGTERM handler
 SIGTERM for 44 s on llvmpipe (issue 34). :func:`in_bands` cuts a large frame (the ray-cast dispatch,
 the raster colour pass under a scissor) into bands of rows with ``glFinish`` between two, each
 sized from the last one's wall time to take about :data:`FRAME_BAND_SECONDS`.
+
+One rule for "what the GL programs read": :func:`shader_sources_hash` hashes every file of
+:data:`SHADER_DIR` whatever its suffix (``.glsl`` includes, ``.comp`` compute shaders, the raster
+program's ``.vert`` / ``.frag``), the registry's generated sources and its ``#define`` lines. The
+real-time cache (:mod:`realtime.cache`) and the gate's baselines (:mod:`compare.baseline`) both key
+on it. The compiled-program caches of this process (:func:`compute_program`, :func:`compile_source`,
+:func:`realtime.raster.graphics_program`) are keyed by the assembled source text, so a shader file
+edited under a running process is compiled again, never served from a program of the old text.
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 import time
 from dataclasses import dataclass
@@ -129,6 +139,25 @@ class Source:
 _GENERATED = glsl_generated()
 
 
+def shader_sources_hash(root: Path | None = None) -> str:
+    """SHA-256 over every source the GL programs can read: each file below ``root`` (default:
+    :data:`SHADER_DIR` as it is now), whatever its suffix, by relative path and bytes in sorted
+    order, then the registry's generated sources (:func:`pbrcheck.registry.glsl_generated`, included
+    by name like files) and ``#define`` lines (:func:`pbrcheck.registry.glsl_defines`, prepended to
+    every program). Not memoized: ~30 small files, well under a millisecond, and a file edited under
+    a running process must change it."""
+    root = Path(SHADER_DIR if root is None else root)
+    h = hashlib.sha256()
+    for p in sorted(root.rglob("*")):
+        if p.is_file() and "__pycache__" not in p.parts:
+            h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+    for name, text in sorted(_GENERATED.items()):
+        h.update(b"<generated>" + name.encode() + b"\0" + text.encode() + b"\0")
+    for k, v in glsl_defines().items():
+        h.update(f"<define>{k} {v}\0".encode())
+    return h.hexdigest()
+
+
 def _expand(name: str, seen: set, out_lines: list, out_map: list, stack: tuple = ()) -> None:
     path = SHADER_DIR / name
     if name in stack:
@@ -215,12 +244,12 @@ def _user_first(message: str, user: tuple[str, str] | None) -> str:
 def compute_program(entry: str, defines: dict | None = None, user: tuple[str, str] | None = None):
     """Compiled (cached) compute shader of ``entry`` with ``defines`` (and a hook file ``user`` =
     ``(file name, text)``, see :func:`assemble`)."""
-    key = (entry, tuple(sorted((defines or {}).items())), user)
+    src = assemble(entry, defines, user)
+    key = ("__compute__", src.text)  # the text, not the file name: an edited file is compiled again
     prog = _programs.get(key)
     if prog is not None:
         return prog
     ctx = get_context()
-    src = assemble(entry, defines, user)
     try:
         prog = ctx.compute_shader(src.text)
     except Exception as e:
@@ -235,12 +264,12 @@ def compile_source(text_entry: str, extra: str, defines: dict | None = None, nam
                    user: tuple[str, str] | None = None):
     """Compile an entry file with an extra generated block (the harness's expression) and, as
     :func:`assemble`, a hook file ``user`` = ``(file name, text)`` appended."""
-    key = ("__extra__", text_entry, extra, tuple(sorted((defines or {}).items())), user)
+    d = dict(defines or {})
+    src = assemble(text_entry, d, user)
+    key = ("__extra__", src.text, extra)  # the assembled text: an edited file is compiled again
     prog = _programs.get(key)
     if prog is not None:
         return prog
-    d = dict(defines or {})
-    src = assemble(text_entry, d, user)
     marker = "//@HARNESS@"
     lines = src.text.split("\n")
     lmap = list(src.line_map)

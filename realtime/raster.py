@@ -129,10 +129,10 @@ class DrawItem:
 
 def graphics_program(vert: str, frag: str, defines: dict | None = None, user: tuple[str, str] | None = None):
     """Compiled (cached) vertex + fragment program (sources assembled as :func:`realtime.gl.assemble`)."""
-    key = (vert, frag, tuple(sorted((defines or {}).items())), user)
+    vs, fs = assemble(vert, defines), assemble(frag, defines, user)
+    key = (vs.text, fs.text)  # the texts, not the file names: an edited file is compiled again
     if key in _programs:
         return _programs[key]
-    vs, fs = assemble(vert, defines), assemble(frag, defines, user)
     try:
         prog = get_context().program(vertex_shader=vs.text, fragment_shader=fs.text)
     except Exception as e:

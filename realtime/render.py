@@ -74,7 +74,7 @@ from pbrcheck.registry import (
 )
 from pbrcheck.scene import Plane, Scene, plane_frame
 
-from .gl import compute_program, get_context, groups, in_bands, renderer_name, timed, timing_clock
+from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
 
@@ -153,7 +153,10 @@ def _visible(result):
 def _baked(name: str, key, timings: dict | None, run):
     """A precompute pass baked once per process: ``run()`` timed with :func:`_timed` on a miss and
     kept in ``_cache``; the bake's wall time goes to ``timings[name]`` on a miss and on a hit (a hit
-    reports the original bake, see ``meta["cached_passes"]``)."""
+    reports the original bake, see ``meta["cached_passes"]``). The key ends with the shader sources'
+    hash (:func:`realtime.gl.shader_sources_hash`): a shader edited under a running process bakes
+    afresh, as its program compiles afresh (a key of the options alone served the old bake)."""
+    key = (*key, shader_sources_hash())
     if key not in _cache:
         _cache[key], _timings[key] = _timed(get_context(), lambda: _visible(run()))
     if timings is not None:

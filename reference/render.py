@@ -63,7 +63,7 @@ from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
 from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 
-from .variant import ensure_variant
+from .variant import backend_identity, ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
 # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive; 4: the
@@ -461,7 +461,7 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
-                     sampler=check_sampler(sampler), adaptive=adaptive, **assets)
+                     sampler=check_sampler(sampler), adaptive=adaptive, backend=backend_identity(), **assets)
 
 
 def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
@@ -470,7 +470,9 @@ def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: 
     """Render the reference image of ``scene`` (channels R, G, B, variance.*, N.*, NdotV, object,
     coverage; metadata as in the module docstring). Cached in the ``reference`` namespace of
     :class:`pbrcheck.cache.Cache` by scene content (environment pixels included), spp, mode, seed,
-    max depth and :data:`REFERENCE_CODE_VERSION`; ``meta["cache"]`` says ``hit`` or ``miss``.
+    max depth, sampler, :data:`REFERENCE_CODE_VERSION` and the backend (Mitsuba variant and the
+    Mitsuba and Dr.Jit versions, :func:`reference.variant.backend_identity`); ``meta["cache"]`` says
+    ``hit`` or ``miss``.
     The budgets (:func:`check_budget`) are checked first."""
     check_budget(scene, spp)
     env = load_environment(scene)

@@ -84,25 +84,26 @@ def test_reference_scene_needs_scene(tmp_path):
 
 
 def test_shipped_client_checks_name_model_matched_references():
-    """clients.toml's existing checks gate three.js and the Sample Viewer against the random-walk
-    reference (three.js's with its roughness floor and geometric roughness), each stored EXR of its
-    reference_scene."""
+    """clients.toml gates every client on both CI scenes against the random-walk reference (three.js's
+    with its roughness floor and geometric roughness, the others with neither), each stored EXR of its
+    reference_scene. Every check is asserted on (no check is skipped): the expected checks exist."""
     from pbrcheck.exr import read_exr
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml"
     budget = load_budget(path)
     checks, base = budget.checks, budget.base
+    clients = ("ext:threejs", "ext:sample-viewer", "ext:babylon", "ext:playcanvas", "ext:filament")
+    assert sorted((c.preset, c.scene) for c in checks) == sorted(
+        (p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml"))
     for c in checks:
-        if c.preset not in ("ext:threejs", "ext:sample-viewer"):
-            continue  # other clients' checks choose their own reference
         assert c.reference_scene, c.name
         s = load_scene(base / c.reference_scene)
         assert s.brdf.multiscatter == "random_walk", c.name
         assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(s), c.name
-        if c.preset == "ext:threejs" and c.scene.startswith("spheres"):
-            assert s.brdf.roughness_floor == 0.045
-        if c.preset == "ext:threejs":  # its screen-space geometric roughness, at its 2 x 2 samples
-            assert (s.brdf.geometric_roughness, s.brdf.geometric_roughness_supersample) == ("threejs", 2)
+        three = c.preset == "ext:threejs"  # its floor and screen-space geometric roughness at its 2 x 2 samples
+        assert s.brdf.roughness_floor == (0.045 if three else 0.0), c.name
+        assert (s.brdf.geometric_roughness, s.brdf.geometric_roughness_supersample) == \
+            (("threejs", 2) if three else ("none", 1)), c.name
 
 
 def test_ci_filament_preset_gated_against_the_random_walk():
