@@ -35,18 +35,40 @@ def test_docs_registry_table_lists_every_member_in_order(define):
     assert re.findall(r"`([^`]+)`", cells[1]) == list(registry.REGISTRIES[define].names)
 
 
+def _options_rows() -> dict[str, tuple[int, list[str]]]:
+    """docs/realtime.md's options table: each option named in a row's first cell, with its position
+    among the row's options and the row's cells (a grouped row names several: `lut_size`, ...)."""
+    rows = {}
+    for line in DOC.read_text().splitlines():
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+        names = re.findall(r"`([a-z0-9_]+)`", cells[0]) if len(cells) == 3 else []
+        for i, name in enumerate(names):
+            if name in presets.OPTIONS:
+                rows.setdefault(name, (i, cells))
+    return rows
+
+
 def test_docs_options_table_names_every_choice():
-    """Each single-option row of the options table lists the option's choices (its registry's)."""
-    for name, opt in presets.OPTIONS.items():
-        if opt.kind != "choice":
-            continue
-        try:
-            cells = _doc_row(f"`{name}`")
-        except AssertionError:
-            continue  # documented in a grouped row (e.g. `ndf`, `geometry`, `fresnel`: 'scene')
-        listed = [c.strip() for c in cells[1].split("(")[0].split("\\|")]
-        choices = [c for c in opt.choices if c != "scene"]
-        assert [c for c in listed if c in choices] == choices, (name, listed, choices)
+    """Every choice option has a row of the options table. A row of its own lists the option's
+    choices (its registry's); a grouped row (`ndf`, `geometry`, `fresnel` | scene) gives each
+    option's default at the option's place in the values cell (one value: shared by all)."""
+    rows = _options_rows()
+    choice = [name for name, opt in presets.OPTIONS.items() if opt.kind == "choice"]
+    assert not set(choice) - set(rows), sorted(set(choice) - set(rows))
+    grouped = 0
+    for name in choice:
+        i, cells = rows[name]
+        choices = [c for c in presets.OPTIONS[name].choices if c != "scene"]
+        values = cells[1].split(", ")
+        if len(re.findall(r"`([a-z0-9_]+)`", cells[0])) == 1:
+            listed = [c.strip() for c in cells[1].split("(")[0].split("\\|")]
+            assert [c for c in listed if c in choices] == choices, (name, listed, choices)
+        else:
+            grouped += 1
+            value = values[i] if len(values) > 1 else values[0]
+            listed = [c.strip() for c in value.split("\\|")]
+            assert str(presets.DEFAULT[name]) in listed, (name, value, presets.DEFAULT[name])
+    assert grouped >= 8  # lut_format, lut_geometry, lut_sampling, runtime_sampling, ndf, geometry, fresnel, tonemap
 
 
 def test_options_and_scene_read_the_registry():
