@@ -64,6 +64,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from . import terms
 from .lights import glsl_light_constants
 
 
@@ -116,10 +117,10 @@ class Entry:
         False for members only the real-time renderer offers (not a scene's ``[brdf]`` value).
     extra : dict
         Per-list data (a LOD mapping's basis coefficients; an NDF's GLSL sampler ``sample``).
-    impl : Impl or None
-        The term's functions (NDFs, geometry and Fresnel terms): the numpy, Dr.Jit and GLSL
-        dispatch loop over these (:func:`pbrcheck.brdf.geometry_term`,
-        :func:`reference.terms.geometry_term`, :func:`glsl_generated`).
+    term : type or None
+        The term's numpy class (:mod:`pbrcheck.terms`: NDFs, geometry and Fresnel terms), which names
+        its GLSL functions; the reference's Dr.Jit class of the same entry is
+        :data:`reference.terms.TERMS`' (``tests/test_registry.py`` checks both).
     roles : dict of str to Impl
         For a list whose members each implement several dispatch functions (:data:`ROLE_REGISTRIES`:
         energy compensations, DFG LUT sampling strategies): the member's functions by the dispatch
@@ -138,7 +139,7 @@ class Entry:
     source: str
     scene: bool = True
     extra: dict = field(default_factory=dict)
-    impl: Impl | None = None
+    term: type | None = None
     roles: dict = field(default_factory=dict)
     applies_to: str = ""
     requires: dict = field(default_factory=dict)
@@ -208,43 +209,33 @@ def _roles(member: str, *roles: str, **shared: str) -> dict[str, Impl]:
     return out
 
 
-_ALPHA = "alpha_from_roughness"
-
-#: ``extra["sample"]``: the NDF's GLSL sampler; ``extra["runtime_sampling"]``: the runtime sampling
-#: strategy (:data:`RUNTIME_SAMPLINGS`) exact for its D (``pbrcheck explain``'s ``v=n=r`` row; absent:
-#: none is); ``extra["walk_geometry"]``: the height-correlated Smith term of the multiple-scattering
-#: random walk's first bounce (:data:`MULTISCATTER_GEOMETRY`; absent: no walk for this NDF).
+#: ``extra["runtime_sampling"]``: the runtime sampling strategy (:data:`RUNTIME_SAMPLINGS`) exact for
+#: its D (``pbrcheck explain``'s ``v=n=r`` row; absent: none is); ``extra["walk_geometry"]``: the
+#: height-correlated Smith term of the multiple-scattering random walk's first bounce
+#: (:data:`MULTISCATTER_GEOMETRY`; absent: no walk for this NDF).
 NDFS = Registry("NDF", [
-    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33",
-          extra={"sample": "sample_GGX", "runtime_sampling": "vndf", "walk_geometry": "smith_ggx_correlated"},
-          impl=Impl("D_GGX", "D_GGX", "D_GGX", _ALPHA)),
-    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25",
-          extra={"sample": "sample_Beckmann", "runtime_sampling": "beckmann",
-                 "walk_geometry": "smith_beckmann_correlated"},
-          impl=Impl("D_Beckmann", "D_Beckmann", "D_Beckmann", _ALPHA)),
+    Entry("ggx", "GGX / Trowbridge-Reitz, Walter et al. 2007 eq. 33", term=terms.GGX,
+          extra={"runtime_sampling": "vndf", "walk_geometry": "smith_ggx_correlated"}),
+    Entry("beckmann", "Beckmann, Walter et al. 2007 eq. 25", term=terms.Beckmann,
+          extra={"runtime_sampling": "beckmann", "walk_geometry": "smith_beckmann_correlated"}),
     Entry("blinn_phong", "normalized Blinn-Phong, Walter et al. 2007 eq. 30 with n = 2/alpha^2 - 2",
-          extra={"sample": "sample_BlinnPhong"}, impl=Impl("D_BlinnPhong", "D_BlinnPhong", "D_BlinnPhong", _ALPHA)),
+          term=terms.BlinnPhong),
 ])
 
 GEOMETRIES = Registry("GEOMETRY", [
-    Entry("smith_ggx_correlated", "height-correlated Smith GGX, Heitz 2014 eq. 99",
-          impl=Impl("G_SmithGGXCorrelated", "G_SmithGGXCorrelated", "G_SmithGGXCorrelated", _ALPHA)),
-    Entry("smith_ggx", "separable Smith GGX G1(l) G1(v), as Mitsuba's roughconductor",
-          impl=Impl("G_SmithGGX", "G_SmithGGX", "G_SmithGGX", _ALPHA)),
-    Entry("schlick_ggx_ibl", "Schlick-GGX with k = alpha/2, Karis 2013",
-          impl=Impl("G_SchlickGGX", "G_SchlickGGX", "G_SchlickGGX", "k_schlick_ibl")),
-    Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013",
-          impl=Impl("G_SchlickGGX", "G_SchlickGGX", "G_SchlickGGX", "k_schlick_direct")),
+    Entry("smith_ggx_correlated", "height-correlated Smith GGX, Heitz 2014 eq. 99", term=terms.SmithGGXCorrelated),
+    Entry("smith_ggx", "separable Smith GGX G1(l) G1(v), as Mitsuba's roughconductor", term=terms.SmithGGX),
+    Entry("schlick_ggx_ibl", "Schlick-GGX with k = alpha/2, Karis 2013", term=terms.SchlickGGXIBL),
+    Entry("schlick_ggx_direct", "Schlick-GGX with k = (roughness+1)^2/8, Karis 2013", term=terms.SchlickGGXDirect),
     Entry("schlick_beckmann", "Schlick's approximation of Smith-Beckmann, k = alpha sqrt(2/pi) (article 001's "
-                              "catalogue), real time only", scene=False,
-          impl=Impl("G_SchlickBeckmann", "G_SchlickBeckmann", "G_SchlickBeckmann", _ALPHA)),
+                              "catalogue), real time only", scene=False, term=terms.SchlickBeckmann),
     Entry("smith_beckmann_correlated", "height-correlated Smith Beckmann, Heitz 2014 eq. 99 with eq. 80",
-          impl=Impl("G_SmithBeckmannCorrelated", "G_SmithBeckmannCorrelated", "G_SmithBeckmannCorrelated", _ALPHA)),
+          term=terms.SmithBeckmannCorrelated),
 ])
 
 FRESNELS = Registry("FRESNEL", [
-    Entry("schlick", "Schlick 1994 eq. 15", impl=Impl("F_Schlick", "F_Schlick", "F_Schlick")),
-    Entry("none", "F = 1 (also removes the diffuse term)", impl=Impl("F_None", "F_None", "F_None")),
+    Entry("schlick", "Schlick 1994 eq. 15", term=terms.Schlick),
+    Entry("none", "F = 1 (also removes the diffuse term)", term=terms.NoFresnel),
 ])
 
 #: The registries whose entries carry their implementations (:class:`Impl`), by GLSL switch, with
@@ -533,8 +524,8 @@ def _terms_dispatch() -> str:
         params = [p.split()[-1] for p in signature[signature.index("(") + 1:-1].split(",")]
 
         def call(e, params=params):
-            args = [f"{e.impl.width}({p})" if p == "roughness" and e.impl.width else p for p in params]
-            return [f"    return {e.impl.glsl}({', '.join(args)});"]
+            args = [f"{e.term.glsl_width}({p})" if p == "roughness" and e.term.glsl_width else p for p in params]
+            return [f"    return {e.term.glsl}({', '.join(args)});"]
 
         lines += ["", f"#ifndef {define}", f"#define {define} {registry.constant(registry.names[0])}", "#endif",
                   signature + " {", f"#ifdef HOOK_{hook[5:hook.index('(')]}", f"    return {hook};",
@@ -544,11 +535,11 @@ def _terms_dispatch() -> str:
 
 
 def _sampling_dispatch() -> str:
-    """``sample_ndf(u, alpha)``: a half vector drawn from the selected NDF's ``D (n.h)`` (its entry's
-    ``extra["sample"]``)."""
+    """``sample_ndf(u, alpha)``: a half vector drawn from the selected NDF's ``D (n.h)`` (its term's
+    ``glsl_sample``)."""
     lines = ["// Generated from pbrcheck.registry.NDFS: do not edit.",
              "vec3 sample_ndf(vec2 u, float alpha) {",
-             *_switch_lines(NDFS, lambda e: [f"    return {e.extra['sample']}(u, alpha);"]), "}", ""]
+             *_switch_lines(NDFS, lambda e: [f"    return {e.term.glsl_sample}(u, alpha);"]), "}", ""]
     return "\n".join(lines)
 
 

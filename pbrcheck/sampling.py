@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, blinn_phong_exponent, geometry_term
+from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, geometry_term
+from .terms import GGX, Beckmann, BlinnPhong
 from .registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
 
 
@@ -45,36 +46,8 @@ def hammersley(i, n):
     return np.stack([i.astype(np.float64) / float(n), radical_inverse(i)], axis=-1)
 
 
-def _dir(ct, st, phi):
-    return np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=-1)
-
-
-def sample_GGX(u, alpha):
-    """[Walter07] eq. 35-36 (Karis's form): ``phi = 2 pi u0``,
-    ``cos theta_h = sqrt((1 - u1) / (1 + (alpha^2 - 1) u1))``; pdf_h = D_GGX (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    den = np.maximum(1.0 + (a2 - 1.0) * u[..., 1], COS_EPS)
-    ct = np.sqrt(np.clip((1.0 - u[..., 1]) / den, 0.0, 1.0))
-    st = np.sqrt(np.clip(a2 * u[..., 1] / den, 0.0, 1.0))
-    return _dir(ct, st, 2 * np.pi * u[..., 0])
-
-
-def sample_Beckmann(u, alpha):
-    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u1)``; pdf_h = D_Beckmann (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    t2 = -a2 * np.log(np.maximum(1.0 - u[..., 1], 1e-12))
-    ct = 1.0 / np.sqrt(1.0 + t2)
-    return _dir(ct, np.sqrt(t2) * ct, 2 * np.pi * u[..., 0])
-
-
-def sample_BlinnPhong(u, alpha):
-    """[Walter07] sec. 5.2: ``cos theta_h = (1 - u1)^(1/(n+2))``; pdf_h = D_BlinnPhong (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    n = blinn_phong_exponent(alpha)
-    ct = np.power(np.maximum(1.0 - u[..., 1], 1e-12), 1.0 / (n + 2.0))
-    return _dir(ct, np.sqrt(np.maximum(1.0 - ct * ct, 0.0)), 2 * np.pi * u[..., 0])
+#: The NDFs' samplers of ``D (n.h)`` (their term classes', :mod:`pbrcheck.terms`), by their GLSL twins' names.
+sample_GGX, sample_Beckmann, sample_BlinnPhong = GGX.sample, Beckmann.sample, BlinnPhong.sample
 
 
 def sample_GGX_VNDF(u, v, alpha):
@@ -116,8 +89,8 @@ def sample_cosine(u):
 
 
 def sample_ndf(u, alpha, ndf: str = "ggx"):
-    """A half vector drawn from ``D (n.h)`` of the NDF ``ndf`` (its registry entry's ``sample``)."""
-    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+    """A half vector drawn from ``D (n.h)`` of the NDF ``ndf`` (its registry entry's term's ``sample``)."""
+    return NDFS[ndf].term.sample(u, alpha)
 
 
 # ---- the DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS) --------------------------

@@ -9,8 +9,7 @@ sum's LUT error from its own.
 
 Tangent space, ``z`` = the normal; ``u`` is a ``mi.Point2f`` with GLSL's convention (``u.x`` the
 azimuth of an NDF sample). The ``ndf`` strategy draws ``D (n.h)`` by the NDF's sampler, named by its
-registry entry (``extra["sample"]``): :func:`sample_GGX` here, Beckmann and Blinn-Phong through
-:mod:`reference.bsdf`'s samplers. References: [Heitz18] E. Heitz, "Sampling the GGX Distribution of
+Dr.Jit class (:mod:`reference.terms`, ``sample_cos``). References: [Heitz18] E. Heitz, "Sampling the GGX Distribution of
 Visible Normals", JCGT 7(4) 2018 (listing 1, eq. 17); [Walter07] Walter et al., "Microfacet Models
 for Refraction through Rough Surfaces", EGSR 2007 (eq. 35-38); [Karis13] B. Karis, "Real Shading in
 Unreal Engine 4", 2013 (eq. 8).
@@ -31,50 +30,35 @@ import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, MIN_ALPHA
-from pbrcheck.registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
+from pbrcheck.registry import LUT_SAMPLINGS, RUNTIME_SAMPLINGS, lut_sampling_for
 from pbrcheck.sampling import hammersley
 
 import drjit as dr
 import mitsuba as mi
 
-from . import bsdf
+from . import terms
 
 
-def sample_GGX(u, alpha):
-    """[Walter07] eq. 35-36 in Karis's form: ``cos theta_h = sqrt((1 - u.y) / (1 + (a^2 - 1) u.y))``."""
-    a2 = dr.square(dr.maximum(alpha, MIN_ALPHA))
-    den = dr.maximum(1.0 + (a2 - 1.0) * u.y, COS_EPS)
-    ct = dr.sqrt(dr.clip((1.0 - u.y) / den, 0.0, 1.0))
-    st = dr.sqrt(dr.clip(a2 * u.y / den, 0.0, 1.0))
-    phi = 2.0 * dr.pi * u.x
-    return mi.Vector3f(st * dr.cos(phi), st * dr.sin(phi), ct)
-
-
-def sample_Beckmann(u, alpha):
-    """[Walter07] eq. 28 (:func:`reference.bsdf.sample_h_Beckmann`, GLSL's ``u`` order)."""
-    return bsdf.sample_h_Beckmann(None, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
-
-
-def sample_BlinnPhong(u, alpha):
-    """[Walter07] sec. 5.2 (:func:`reference.bsdf.sample_h_BlinnPhong`, GLSL's ``u`` order)."""
-    return bsdf.sample_h_BlinnPhong(None, mi.Point2f(u.y, u.x), alpha)
+#: The NDFs' samplers of ``D (n.h)`` in GLSL's ``u`` order (their Dr.Jit classes', reference.terms),
+#: by their GLSL twins' names.
+sample_GGX, sample_Beckmann, sample_BlinnPhong = terms.GGX.sample_cos, terms.Beckmann.sample_cos, terms.BlinnPhong.sample_cos
 
 
 def sample_ndf(u, alpha, ndf: str = "ggx"):
-    """A half vector from ``D (n.h)`` of ``ndf`` (its registry entry's ``extra["sample"]``)."""
-    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+    """A half vector from ``D (n.h)`` of ``ndf`` (its Dr.Jit class's ``sample_cos``)."""
+    return terms.ndf(ndf).sample_cos(u, alpha)
 
 
 # ---- the registry members' role functions (pbrcheck.registry.LUT_SAMPLINGS) ----------------------
 
 def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
-    """[Heitz18] listing 1: GGX visible normals (:func:`reference.bsdf.sample_h_GGX`, ``u.yx``)."""
-    return bsdf.sample_h_GGX(v, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
+    """[Heitz18] listing 1: GGX visible normals (:meth:`reference.terms.GGX.sample`, ``u.yx``)."""
+    return terms.GGX.sample(v, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
 
 
 def lut_weight_vndf(G, v, h, alpha):
     """[Heitz18] eq. 17: ``G2 / G1(v)``."""
-    return G / dr.maximum(bsdf.G1_SmithGGX(v.z, alpha), COS_EPS)
+    return G / dr.maximum(terms.G1_SmithGGX(v.z, alpha), COS_EPS)
 
 
 def lut_half_vector_ndf(u, v, alpha, ndf: str = "ggx"):
@@ -112,7 +96,7 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     h = lut_half_vector(u, v, alpha, sampling, ndf)
     VoH = dr.dot(v, h)
     NoL = 2.0 * VoH * h.z - NoV
-    G = bsdf.geometry_term(geometry, NoV, NoL, roughness, alpha)
+    G = terms.geometry_term(geometry, NoV, NoL, roughness, alpha)
     w = dr.select((NoL > 0.0) & (VoH > 0.0), lut_weight(G, v, h, alpha, sampling), 0.0)
     Fc = dr.power(1.0 - VoH, 5)
     A = np.asarray(w * (1.0 - Fc), dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
@@ -144,7 +128,7 @@ def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
 
 def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     """[Heitz18] eq. 17: ``F G L / G1(v)``."""
-    return F * G / dr.maximum(bsdf.G1_SmithGGX(NoV, alpha), COS_EPS) * L
+    return F * G / dr.maximum(terms.G1_SmithGGX(NoV, alpha), COS_EPS) * L
 
 
 def runtime_half_vector(u, vt, alpha, sampling: str):

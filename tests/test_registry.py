@@ -136,58 +136,65 @@ def test_registry_rejects_unknown_members():
         lodmap.builtin_lod("fitted", [0.5], 6.0, 8.0)
 
 
+#: Each term registry's Dr.Jit twin (reference.terms), by GLSL switch.
+DRJIT_TERMS = {"NDF": "NDFS", "GEOMETRY": "GEOMETRIES", "FRESNEL": "FRESNELS"}
+
+
 @pytest.mark.parametrize("define", list(registry.TERM_REGISTRIES))
 def test_every_term_has_its_three_implementations(define):
-    """Each member of a term registry names a numpy function (pbrcheck.brdf), a Dr.Jit function
-    (reference.bsdf) and a GLSL function (brdf.glsl) that exist, and a width function in each
-    language; the generated GLSL dispatch calls it; the GLSL harness twins it
-    (tests/test_realtime_glsl.py's test_ndf_twins, test_g2_twins and test_fresnel_twins are
-    parametrized by these entries; the GLSL function is the numpy twin of the same name)."""
+    """Each member of a term registry holds its numpy class (pbrcheck.terms) with the methods of its
+    kind; the reference's registry (reference.terms) keys the same members, each with the Dr.Jit class
+    of the numpy class's name and the same methods; the GLSL names the class holds are functions of
+    brdf.glsl (an NDF's sampler of sampling.glsl) that the generated dispatch calls; the GLSL harness
+    twins every member (tests/test_realtime_glsl.py's test_ndf_twins, test_g2_twins and
+    test_fresnel_twins are parametrized by these entries)."""
     import test_realtime_glsl as harness
     from pbrcheck import brdf
     from reference.variant import ensure_variant
     ensure_variant()
-    from reference import bsdf
+    from reference import terms as drjit_terms
     reg = registry.TERM_REGISTRIES[define][0]
+    drjit_reg = getattr(drjit_terms, DRJIT_TERMS[define])
+    assert list(drjit_reg) == list(reg.names)
     brdf_glsl = (SHADER_DIR / "brdf.glsl").read_text()
+    sampling_glsl = (SHADER_DIR / "sampling.glsl").read_text()
     dispatch = registry.glsl_generated()["terms_dispatch.glsl"]
+    methods = {"NDF": ("eval", "sample", "pdf", "theta_h", "cdf_theta_h"), "GEOMETRY": ("eval", "width"),
+               "FRESNEL": ("eval",)}[define]
+    drjit_methods = {"NDF": ("eval", "sample", "pdf", "sample_cos"), "GEOMETRY": ("eval", "width"),
+                     "FRESNEL": ("eval",)}[define]
     for e in reg:
-        assert e.impl is not None, e.name
-        assert callable(getattr(brdf, e.impl.numpy, None)), (e.name, e.impl.numpy)
-        assert e.impl.glsl == e.impl.numpy, f"{e.name}: the GLSL twin has the numpy function's name"
-        assert callable(getattr(bsdf, e.impl.drjit, None)), (e.name, e.impl.drjit)
-        assert re.search(rf"^\w+ {e.impl.glsl}\(", brdf_glsl, re.M), (e.name, e.impl.glsl)
-        if e.impl.width:
-            assert callable(getattr(brdf, e.impl.width)) and callable(getattr(bsdf, e.impl.width))
-            assert re.search(rf"^float {e.impl.width}\(", brdf_glsl, re.M), e.impl.width
-        assert f"{reg.constant(e.name)}\n    return {e.impl.glsl}(" in dispatch
-        if define == "NDF":  # its samplers: GLSL (numpy twin in pbrcheck.sampling), quadrature, Dr.Jit
+        t, d = e.term, drjit_reg[e.name]
+        assert isinstance(t, type) and d.__name__ == t.__name__, (e.name, t, d)
+        assert all(callable(getattr(t, m)) for m in methods), (e.name, methods)
+        assert all(callable(getattr(d, m)) for m in drjit_methods), (e.name, drjit_methods)
+        assert re.search(rf"^\w+ {t.glsl}\(", brdf_glsl, re.M), (e.name, t.glsl)
+        assert getattr(brdf, t.glsl) is t.eval, f"{e.name}: pbrcheck.brdf names the GLSL twin {t.glsl}"
+        if t.glsl_width:
+            assert t.width.__name__ == t.glsl_width and re.search(rf"^float {t.glsl_width}\(", brdf_glsl, re.M)
+        assert f"{reg.constant(e.name)}\n    return {t.glsl}(" in dispatch
+        if define == "NDF":  # its sampler's GLSL twin, explain's exact runtime strategy, the random walk
             from pbrcheck import sampling
-            assert callable(getattr(sampling, e.extra["sample"], None)), e.extra["sample"]
-            assert re.search(rf"^vec3 {e.extra['sample']}\(", (SHADER_DIR / "sampling.glsl").read_text(), re.M)
-            assert brdf._ndf_quadrature(e.name, "theta_h") and brdf._ndf_quadrature(e.name, "cdf_theta_h")
-            assert e.name in bsdf.NDF_SAMPLERS
-            # explain's exact runtime strategy, the random walk's first bounce and its functions
+            assert getattr(sampling, t.glsl_sample) is t.sample
+            assert re.search(rf"^vec3 {t.glsl_sample}\(", sampling_glsl, re.M), t.glsl_sample
             assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in registry.RUNTIME_SAMPLINGS
-            if "walk_geometry" in e.extra:
-                from reference import multiscatter
-                assert e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
-                assert all(map(callable, multiscatter.WALK_NDFS[e.name])), e.name
+            walk = "walk_geometry" in e.extra
+            assert not walk or e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
+            assert (t.Lambda is not None) >= walk and (d.Lambda is not None, d.sample_visible is not None) >= (walk, walk)
     twins = {"NDF": harness.test_ndf_twins, "GEOMETRY": harness.test_g2_twins,
              "FRESNEL": harness.test_fresnel_twins}[define]
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
-    covered = {p if isinstance(p, str) else p.name for p in params}
-    assert covered >= ({e.impl.glsl for e in reg} if define == "NDF" else set(reg.names)), covered
+    assert {p.name for p in params} == set(reg.names)
+
 
 def test_term_dispatch_matches_the_registry_in_numpy():
-    """pbrcheck.brdf's dispatch is the registry's: each member's function at its width."""
+    """pbrcheck.brdf's dispatch is the registry's: each member's class at its width."""
     from pbrcheck import brdf
     c, r = np.linspace(0.05, 1.0, 7), np.linspace(0.0, 1.0, 7)
     for e in registry.GEOMETRIES:
-        ref = getattr(brdf, e.impl.numpy)(c, c[::-1], getattr(brdf, e.impl.width)(r))
-        np.testing.assert_array_equal(brdf.geometry_term(e.name, c, c[::-1], r), ref)
+        np.testing.assert_array_equal(brdf.geometry_term(e.name, c, c[::-1], r), e.term.eval(c, c[::-1], e.term.width(r)))
     for e in registry.NDFS:
-        np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), getattr(brdf, e.impl.numpy)(c, brdf.alpha_from_roughness(r)))
+        np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), e.term.eval(c, brdf.alpha_from_roughness(r)))
     with pytest.raises(ValueError, match="unknown geometry term 'nope'"):
         brdf.geometry_term("nope", c, c, r)
 
@@ -251,7 +258,7 @@ def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
     where it applies and why it has none (a switch of one renderer's own code)."""
     assert set(ROLE_HOMES) == set(registry.ROLE_REGISTRIES)
     for define, reg in registry.REGISTRIES.items():
-        owned = [e.name for e in reg if e.impl is not None or e.roles]
+        owned = [e.name for e in reg if e.term is not None or e.roles]
         if define in registry.TERM_REGISTRIES or define in registry.ROLE_REGISTRIES:
             assert not reg.applies_to, define
             assert all(e.name in owned or e.applies_to for e in reg), (define, owned)
