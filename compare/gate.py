@@ -74,7 +74,7 @@ from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError, decode_reason
 from pbrcheck.exr import RGB, Image, read_exr
 from pbrcheck.fmt import format_value
-from pbrcheck.registry import SHADINGS
+from realtime.registry import SHADINGS
 from pbrcheck.scene import builtin_scene_names, load_scene
 
 from . import renderers

@@ -1,9 +1,9 @@
 """Headless OpenGL: one cached moderngl EGL context, and GLSL source assembly.
 
 Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include "file.glsl"``
-lines (each file once; the sources of :func:`pbrcheck.registry.glsl_generated` are included by
+lines (each file once; the sources of :func:`realtime.generated.glsl_generated` are included by
 name like files), prepends ``#version 430``, the named constants of every registry
-(:func:`pbrcheck.registry.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
+(:func:`realtime.generated.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
 of the caller, and keeps a line map so that a compile error reported by the driver is re-reported as
 ``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`). Two driver
 formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, column) and NVIDIA's
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pbrcheck.errors import BackendError, ShaderCompileError
-from pbrcheck.registry import glsl_defines, glsl_generated
+from .generated import glsl_defines, glsl_generated
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 GLSL_VERSION = "#version 430"

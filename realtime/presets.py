@@ -26,22 +26,20 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.lodmap import LodMapping
 from pbrcheck.registry import (
     BUILTIN_LOD_MAPPINGS,
-    DFGS,
     ENERGY_COMPENSATIONS,
     Entry,
     FRESNELS,
     GEOMETRIES,
     HORIZON_OCCLUSIONS,
-    IRRADIANCE_METHODS,
-    IRRADIANCES,
     LOD_MAPPINGS,
     LUT_SAMPLINGS,
     NDFS,
     RUNTIME_SAMPLINGS,
-    SHADINGS,
     SPECULAR_AAS,
     SPECULAR_OCCLUSIONS,
 )
+
+from .registry import DFGS, IRRADIANCE_METHODS, IRRADIANCES, SHADINGS
 
 
 #: Separates a preset from a shader hook file in a renderer name: ``default+hooks/ue4.glsl``.

@@ -11,6 +11,7 @@ from scipy import stats
 
 from pbrcheck import brdf, registry, sampling
 from pbrcheck.sampling import pdf_GGX_VNDF
+from realtime import registry as rt_registry
 from realtime.glsl_harness import run_glsl
 
 N_SAMPLES = 20000
@@ -27,7 +28,7 @@ DIR_RTOL = 1e-4
 WEIGHT_RTOL = 2e-5
 WEIGHT_ATOL = 2e-6
 STRATEGIES = ("RUNTIME_SAMPLING", "LUT_SAMPLING")
-STRATEGY_ROLES = [(d, e.name, r) for d in STRATEGIES for e in registry.ROLE_REGISTRIES[d][0] for r in e.roles]
+STRATEGY_ROLES = [(d, e.name, r) for d in STRATEGIES for e in rt_registry.ROLE_REGISTRIES[d][0] for r in e.roles]
 
 
 def _strategy_grid():
@@ -68,7 +69,7 @@ def test_strategy_twins(define, name, role):
     import mitsuba as mi
 
     from reference import sampling as drjit_sampling
-    fn = registry.ROLE_REGISTRIES[define][0][name].roles[role].glsl
+    fn = rt_registry.ROLE_REGISTRIES[define][0][name].roles[role].glsl
     u, v, alpha = _strategy_grid()
     F = mi.Float
     if role == "lut_half_vector":

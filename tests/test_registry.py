@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from pbrcheck import lodmap, registry, scene
-from realtime import presets
+from realtime import generated, presets
+from realtime import registry as rt_registry
 from realtime.gl import SHADER_DIR, assemble
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,10 +30,10 @@ def _doc_row(first_cell: str) -> list[str]:
     raise AssertionError(f"docs/realtime.md has no table row for {first_cell}")
 
 
-@pytest.mark.parametrize("define", list(registry.REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.REGISTRIES))
 def test_docs_registry_table_lists_every_member_in_order(define):
     cells = _doc_row(f"`{define}`")
-    assert re.findall(r"`([^`]+)`", cells[1]) == list(registry.REGISTRIES[define].names)
+    assert re.findall(r"`([^`]+)`", cells[1]) == list(rt_registry.REGISTRIES[define].names)
 
 
 def _options_rows() -> dict[str, tuple[int, list[str]]]:
@@ -72,7 +73,7 @@ def test_docs_options_table_names_every_choice():
 
 
 def test_options_and_scene_read_the_registry():
-    assert presets.OPTIONS["shading"].choices == registry.SHADINGS.names
+    assert presets.OPTIONS["shading"].choices == rt_registry.SHADINGS.names
     assert presets.OPTIONS["lod_mapping"].choices == registry.BUILTIN_LOD_MAPPINGS
     assert presets.OPTIONS["geometry"].choices == ("scene", *registry.GEOMETRIES.names)
     assert scene.NDF_NAMES == registry.NDFS.scene_names
@@ -85,20 +86,20 @@ def test_shaders_switch_on_named_constants_only():
     for p in SHADER_DIR.iterdir():
         for i, line in enumerate(p.read_text().splitlines(), 1):
             m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\d+)", line)
-            if m and m.group(2) in registry.REGISTRIES:
+            if m and m.group(2) in rt_registry.REGISTRIES:
                 bare.append(f"{p.name}:{i}: {line.strip()}")
     assert not bare, bare
 
 
 def test_every_shader_gets_every_constant():
     src = assemble("render.comp", registry.GEOMETRIES.select("smith_ggx")).text
-    for k, v in registry.glsl_defines().items():
+    for k, v in generated.glsl_defines().items():
         assert f"#define {k} {v}\n" in src
     assert "#define GEOMETRY GEOMETRY_SMITH_GGX\n" in src
 
 
 def test_lod_dispatch_is_generated_for_every_builtin_mapping():
-    text = registry.glsl_generated()["lod_dispatch.glsl"]
+    text = generated.glsl_generated()["lod_dispatch.glsl"]
     for name in registry.BUILTIN_LOD_MAPPINGS:
         assert f"return lod_{name}(r, max_lod, cube_log2);" in text
         assert f"return roughness_{name}(lod, max_lod, cube_log2);" in text
@@ -140,7 +141,7 @@ def test_registry_rejects_unknown_members():
 DRJIT_TERMS = {"NDF": "NDFS", "GEOMETRY": "GEOMETRIES", "FRESNEL": "FRESNELS"}
 
 
-@pytest.mark.parametrize("define", list(registry.TERM_REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.TERM_REGISTRIES))
 def test_every_term_has_its_three_implementations(define):
     """Each member of a term registry holds its numpy class (pbrcheck.terms) with the methods of its
     kind; the reference's registry (reference.terms) keys the same members, each with the Dr.Jit class
@@ -153,12 +154,12 @@ def test_every_term_has_its_three_implementations(define):
     from reference.variant import ensure_variant
     ensure_variant()
     from reference import terms as drjit_terms
-    reg = registry.TERM_REGISTRIES[define][0]
+    reg = rt_registry.TERM_REGISTRIES[define][0]
     drjit_reg = getattr(drjit_terms, DRJIT_TERMS[define])
     assert list(drjit_reg) == list(reg.names)
     brdf_glsl = (SHADER_DIR / "brdf.glsl").read_text()
     sampling_glsl = (SHADER_DIR / "sampling.glsl").read_text()
-    dispatch = registry.glsl_generated()["terms_dispatch.glsl"]
+    dispatch = generated.glsl_generated()["terms_dispatch.glsl"]
     methods = {"NDF": ("eval", "sample", "pdf", "theta_h", "cdf_theta_h"), "GEOMETRY": ("eval", "width"),
                "FRESNEL": ("eval",)}[define]
     drjit_methods = {"NDF": ("eval", "sample", "pdf", "sample_cos"), "GEOMETRY": ("eval", "width"),
@@ -256,17 +257,17 @@ def test_a_deferred_requirement_is_checked_once_resolved():
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
     """Each member of every registry carries its functions (an Impl, or roles) or its list states
     where it applies and why it has none (a switch of one renderer's own code)."""
-    assert set(ROLE_HOMES) == set(registry.ROLE_REGISTRIES)
-    for define, reg in registry.REGISTRIES.items():
+    assert set(ROLE_HOMES) == set(rt_registry.ROLE_REGISTRIES)
+    for define, reg in rt_registry.REGISTRIES.items():
         owned = [e.name for e in reg if e.term is not None or e.roles]
-        if define in registry.TERM_REGISTRIES or define in registry.ROLE_REGISTRIES:
+        if define in rt_registry.TERM_REGISTRIES or define in rt_registry.ROLE_REGISTRIES:
             assert not reg.applies_to, define
             assert all(e.name in owned or e.applies_to for e in reg), (define, owned)
         else:
             assert not owned and len(reg.applies_to) > 20, (define, reg.applies_to)
 
 
-@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.ROLE_REGISTRIES))
 def test_every_role_member_has_its_three_implementations(define):
     """Each role of each member names a numpy, a Dr.Jit and a GLSL function of one name that exist,
     and the generated GLSL dispatch calls it; a member without a role states where it applies; the
@@ -278,11 +279,11 @@ def test_every_role_member_has_its_three_implementations(define):
     import test_realtime_sampling
     from reference.variant import ensure_variant
     ensure_variant()
-    reg, include, _, roles = registry.ROLE_REGISTRIES[define]
+    reg, include, _, roles = rt_registry.ROLE_REGISTRIES[define]
     np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
     numpy_mod, drjit_mod = importlib.import_module(np_mod), dr_mod and importlib.import_module(dr_mod)
     glsl = (SHADER_DIR / glsl_file).read_text()
-    dispatch = registry.glsl_generated()[include]
+    dispatch = generated.glsl_generated()[include]
     assert f'#include "{include}"' in glsl
     for role, (signature, identity) in roles.items():
         assert signature + " {" in dispatch
@@ -319,7 +320,7 @@ PARAM_GRIDS = {"NoV": _UNIT, "ao": _UNIT, "roughness": _UNIT,
 
 
 @pytest.mark.parametrize("define, name, role", [(d, e.name, r) for d in REALTIME_ROLES
-                                                for e in registry.ROLE_REGISTRIES[d][0] for r in e.roles])
+                                                for e in rt_registry.ROLE_REGISTRIES[d][0] for r in e.roles])
 def test_realtime_role_twins(define, name, role):
     """Each real-time approximation's role function (GLSL) against its numpy twin of the same name,
     and the generated GLSL dispatch selecting the member against the numpy dispatch looping the
@@ -329,7 +330,7 @@ def test_realtime_role_twins(define, name, role):
     import test_occlusion
     import test_specular_aa
     from realtime.glsl_harness import run_glsl
-    reg, _, _, roles = registry.ROLE_REGISTRIES[define]
+    reg, _, _, roles = rt_registry.ROLE_REGISTRIES[define]
     impl = reg[name].roles[role]
     params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
     grids = dict(zip(params, np.meshgrid(*(PARAM_GRIDS[p] for p in params), indexing="ij")))
@@ -367,7 +368,7 @@ def test_every_approximation_glsl_function_has_a_harness_compared_twin(glsl_file
     glsl = re.sub(r"//[^\n]*", "", (SHADER_DIR / glsl_file).read_text())
     names = re.findall(r"^\w+\s+(\w+)\s*\([^;{)]*\)\s*\{", glsl, re.M)
     assert names, glsl_file
-    roles = {impl.glsl for d in REALTIME_ROLES for e in registry.ROLE_REGISTRIES[d][0] for impl in e.roles.values()}
+    roles = {impl.glsl for d in REALTIME_ROLES for e in rt_registry.ROLE_REGISTRIES[d][0] for impl in e.roles.values()}
     calls = "\n".join((ROOT / "tests" / f).read_text() for f in test_files)
     for name in names:
         assert callable(getattr(module, name, None)), f"{glsl_file}: {name} has no numpy twin in {np_mod}"
@@ -394,14 +395,14 @@ def test_the_generated_normal_roughness_hook_is_harness_compared():
     assert {0.0, 1.0} <= set(fit.TWIN_ROUGHNESS)
 
 
-@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.ROLE_REGISTRIES))
 def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
     """The shaders select a role registry's member only in its generated dispatch (no hand
     ``#if SWITCH == MEMBER`` ladder; shading.glsl's ``!= ENERGY_COMPENSATION_NONE`` guard remains)."""
     for p in SHADER_DIR.iterdir():
         assert not re.search(rf"^\s*#\s*(el)?if\b.*\b{define}\s*==", p.read_text(), re.M), p.name
-    reg, include, default, roles = registry.ROLE_REGISTRIES[define]
-    text = registry.glsl_generated()[include]
+    reg, include, default, roles = rt_registry.ROLE_REGISTRIES[define]
+    text = generated.glsl_generated()[include]
     reads = any(i.args for e in reg for i in e.roles.values())  # and the SWITCH_READS_<INPUT> block
     assert text.count(f"== {define}_") == len(reg.names) * (len(roles) + reads)
     assert f"#define {define} {reg.constant(default)}\n" in text
@@ -409,7 +410,7 @@ def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
 
 def test_docs_role_table_lists_every_member_and_its_functions():
     """docs/realtime.md's role table: one row per member of a role registry, naming its functions."""
-    for define, (reg, *_rest) in registry.ROLE_REGISTRIES.items():
+    for define, (reg, *_rest) in rt_registry.ROLE_REGISTRIES.items():
         for e in reg:
             cells = _doc_row(f"{define}: {e.name}")
             listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
@@ -420,14 +421,14 @@ def test_composition_dispatch_is_generated_and_no_shading_ladder_is_left():
     """shading.glsl defines shade_<name> and light_brdf_<name> for every composition; the generated
     shade_composition / light_brdf call them (the pixel seed to the seeded ones); no shader holds a
     hand ``#if SHADING ==`` ladder."""
-    text = registry.glsl_generated()["shading_dispatch.glsl"]
+    text = generated.glsl_generated()["shading_dispatch.glsl"]
     shading = (SHADER_DIR / "shading.glsl").read_text()
     assert '#include "shading_dispatch.glsl"' in shading
-    for e in registry.SHADINGS:
+    for e in rt_registry.SHADINGS:
         seed = ", pixel_seed" if e.extra["seeded"] else ""
         assert re.search(rf"^vec3 shade_{e.name}\(Shading c{', uint pixel_seed' if seed else ''}\)", shading, re.M)
         assert re.search(rf"^vec3 light_brdf_{e.name}\(Shading c, vec3 l, float NoL\)", shading, re.M)
-        assert f"{registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
-        assert f"{registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
+        assert f"{rt_registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
+        assert f"{rt_registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
     for p in SHADER_DIR.iterdir():
         assert not re.search(r"^\s*#\s*(el)?if\b.*\bSHADING\s*==", p.read_text(), re.M), p.name

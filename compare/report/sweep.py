@@ -22,7 +22,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
-from pbrcheck.registry import IRRADIANCES
+from realtime.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
 from .. import renderers
