@@ -12,8 +12,8 @@ formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, col
 API
 ---
 :func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
-:func:`timed`, :func:`assemble`, :func:`map_errors`,
-:func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`.
+:func:`timed`, :func:`assemble`, :func:`map_errors`, :func:`dump_sources`,
+:func:`compute_program`, :func:`compile_source`, :func:`groups`, :class:`Source`, :data:`DEFINES_FILE`.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from pbrcheck.atomic import staged_folder
 from pbrcheck.errors import BackendError, ShaderCompileError
 from .generated import glsl_defines, glsl_generated
 
@@ -170,6 +171,34 @@ def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | No
             lines.append(line)
             lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
+
+
+#: The file of :func:`dump_sources` holding the ``#define`` lines :func:`assemble` prepends.
+DEFINES_FILE = "registry_defines.glsl"
+
+
+def dump_sources(folder: str | Path) -> list[str]:
+    """Write every GLSL source the programs read into ``folder``, atomically (a staged folder, then
+    one rename or a merge into an existing ``folder``): each file of ``realtime/shaders`` as it is,
+    each generated include of :func:`realtime.generated.glsl_generated` (its first line names its registry),
+    :data:`DEFINES_FILE` (``#version`` and the registries' named constants, which :func:`assemble`
+    prepends to every program) and a ``README.txt`` of the conventions. Returns the files' names."""
+    files = {p.name: p.read_text() for p in sorted(SHADER_DIR.iterdir()) if p.is_file()}
+    clash = set(files) & set(_GENERATED)
+    if clash:  # assemble would read the generated source and ignore the file: never ship both
+        raise ShaderCompileError(f"generated includes shadow shader files: {', '.join(sorted(clash))}")
+    files.update(_GENERATED)  # each begins "// Generated from <its registry>: do not edit."
+    files[DEFINES_FILE] = "\n".join([GLSL_VERSION, *(f"#define {k} {v}" for k, v in glsl_defines().items())]) + "\n"
+    files["README.txt"] = (
+        "The real-time renderer's GLSL as realtime.gl.assemble compiles it: each program is an entry file "
+        f"(*.comp, *.vert, *.frag) preceded by {DEFINES_FILE} and its caller's #define lines (the registries' "
+        "switches, e.g. #define NDF NDF_GGX), with every #include \"NAME\" expanded once from this folder; "
+        "files whose first line says \"Generated from\" are made by realtime/generated.py from the registry "
+        "it names (edit that), the others are copies of realtime/shaders.\n")
+    with staged_folder(folder) as stage:
+        for name, text in files.items():
+            (stage / name).write_text(text)
+    return sorted(files)
 
 
 def map_errors(message: str, src: Source) -> str:

@@ -432,3 +432,38 @@ def test_composition_dispatch_is_generated_and_no_shading_ladder_is_left():
         assert f"{rt_registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
     for p in SHADER_DIR.iterdir():
         assert not re.search(r"^\s*#\s*(el)?if\b.*\bSHADING\s*==", p.read_text(), re.M), p.name
+
+
+def _expand_from(folder: Path, name: str, seen: set) -> list[str]:
+    """``name``'s lines with every ``#include`` expanded once from ``folder`` alone (assemble's rule)."""
+    if name in seen:
+        return []
+    seen.add(name)
+    out = []
+    for line in (folder / name).read_text().splitlines():
+        m = re.match(r'^\s*#\s*include\s+"([^"]+)"\s*$', line)
+        out += [*_expand_from(folder, m.group(1), seen), f"// end of {m.group(1)}"] if m else [line]
+    return out
+
+
+def test_shaders_dump_writes_what_every_program_compiles(tmp_path):
+    """``pbrcheck shaders --dump DIR`` writes every shader file, every generated include and the
+    registries' defines: each entry program assembled from the dumped folder alone is the text
+    realtime.gl.assemble compiles; a second dump replaces the files; a file in the way is exit 2."""
+    from pbrcheck.cli import main
+    from realtime.gl import DEFINES_FILE
+    out = tmp_path / "glsl"
+    assert main(["shaders", "--dump", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {p.name for p in SHADER_DIR.iterdir()} | set(generated.glsl_generated()) | {DEFINES_FILE, "README.txt"}
+    assert "registry_defines.glsl" in (out / "README.txt").read_text()
+    entries = sorted(p.name for p in SHADER_DIR.iterdir() if p.suffix in (".comp", ".vert", ".frag"))
+    assert len(entries) >= 14
+    for entry in entries:
+        text = (out / DEFINES_FILE).read_text() + "\n".join(_expand_from(out, entry, set())) + "\n"
+        assert text == assemble(entry).text, entry
+    (out / "brdf.glsl").write_text("stale")
+    assert main(["shaders", "--dump", str(out)]) == 0
+    assert (out / "brdf.glsl").read_text() == (SHADER_DIR / "brdf.glsl").read_text()
+    (tmp_path / "file").write_text("x")
+    assert main(["shaders", "--dump", str(tmp_path / "file")]) == 2
