@@ -5,7 +5,7 @@ Single-scattering microfacet BRDFs lose the energy of the light that bounces mor
 microfacets: a white metal (F0 = 1) reflects ``E(mu) = A + B < 1`` of a white furnace (A, B: the
 split sum's DFG terms at F0 = 1, ``E`` = ``Ess``). Engines add it back with one of these
 (``energy_compensation`` option of the real-time renderer; registry
-:data:`pbrcheck.registry.ENERGY_COMPENSATIONS`). The truth they approximate is the random walk of
+:data:`ENERGY_COMPENSATIONS`). The truth they approximate is the random walk of
 Heitz et al. 2016 (``[brdf] multiscatter = "random_walk"`` in the reference).
 
 * ``filament`` -- Filament's documentation, "Energy loss in specular reflectance" (sec. 4.7.2) and
@@ -50,7 +50,7 @@ API
 :func:`f_ms_kulla_conty`, :func:`kc_eavg`; the registry members' role functions
 :func:`energy_scale_filament`, :func:`energy_direct_filament`, :func:`energy_ms_fdez_aguera`,
 :func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty`; the dispatch looping
-:data:`pbrcheck.registry.ENERGY_COMPENSATIONS` :func:`energy_scale`, :func:`energy_ms`,
+:data:`ENERGY_COMPENSATIONS` :func:`energy_scale`, :func:`energy_ms`,
 :func:`energy_direct`; :func:`specular_albedo_compensated`, :func:`bake_kc_eavg`, :data:`KC_EAVG`,
 :data:`KC_EAVG_SIZE`. Dr.Jit twins of the same names: :mod:`reference.energy`.
 """
@@ -60,7 +60,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import brdf as _brdf
-from .registry import ENERGY_COMPENSATIONS
+from .registry import Entry, Registry, member_role, role
 
 #: Entries of the E_avg table, at roughness j / (KC_EAVG_SIZE - 1).
 KC_EAVG_SIZE = 17
@@ -135,7 +135,7 @@ def kc_eavg(roughness):
     return np.interp(r, np.linspace(0.0, 1.0, KC_EAVG_SIZE), np.asarray(KC_EAVG))
 
 
-# ---- the registry members' role functions (pbrcheck.registry.ENERGY_COMPENSATIONS) --------------
+# ---- the registry members' role functions (pbrcheck.energy.ENERGY_COMPENSATIONS) ----------------
 
 def energy_scale_filament(F0, A, B):
     """Filament: the split sum's specular factor ``1 + F0 (1 / (A + B) - 1)``."""
@@ -162,13 +162,38 @@ def energy_direct_kulla_conty(f_spec, F0, A, B, El, roughness):
     return f_ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), El, kc_eavg(roughness))
 
 
-def _role(role: str, compensation: str):
-    """The member's numpy function for ``role``, None where the member has not that role (its
-    identity); ValueError naming an unknown compensation."""
-    if compensation not in ENERGY_COMPENSATIONS:
-        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})")
-    impl = ENERGY_COMPENSATIONS[compensation].roles.get(role)
-    return None if impl is None else globals()[impl.numpy]
+_IBL_ONLY = "image-based lighting only"
+#: The real-time options a compensation needs: the material composition's split sum.
+_SPLIT_SUM_MATERIAL = {"shading": ("material",), "ibl": ("splitsum",)}
+#: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
+#: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
+#: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
+#: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy`,
+#: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
+#: ``ibl = splitsum`` only (they need the split sum's DFG terms, which runtime sampling and the
+#: article compositions do not have): each member but ``none`` requires them (:attr:`Entry.requires`).
+ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
+    Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
+    Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
+          roles={"energy_scale": role(energy_scale_filament), "energy_direct": role(energy_direct_filament)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
+    Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
+          roles={"energy_ms": role(energy_ms_fdez_aguera)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
+    Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
+          roles={"energy_ms": role(energy_ms_kulla_conty), "energy_direct": role(energy_direct_kulla_conty)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
+])
+
+
+def _role(name: str, compensation: str):
+    """The member's numpy function for the role ``name``, None where the member has not that role
+    (its identity); ValueError naming an unknown compensation."""
+    try:
+        r = member_role(ENERGY_COMPENSATIONS, compensation, name, "energy compensation")
+    except KeyError:
+        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})") from None
+    return None if r is None else r.numpy
 
 
 def energy_scale(F0, A, B, compensation: str):

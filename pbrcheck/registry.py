@@ -3,57 +3,67 @@
 Each closed list is a :class:`Registry` of :class:`Entry`, from which the scene model's accepted
 values (:mod:`pbrcheck.scene`), the real-time options' choices (:mod:`realtime.presets`), the
 dispatch in each language, the generated GLSL (:mod:`realtime.generated`) and the docs' tables
-(checked by ``tests/test_registry.py``) are derived. A scene term's entry holds its numpy class
-(:attr:`Entry.term`, :mod:`pbrcheck.terms`), which names its GLSL functions; the reference holds the
-Dr.Jit class of the same member (:mod:`reference.terms`). Adding an NDF is one class per language
-and one entry here (docs/realtime.md has the worked example). A role registry's member names its
-functions per dispatch role (:attr:`Entry.roles`, :class:`Impl`). A member that needs other real-time
-options says so (:attr:`Entry.requires`, enforced by :func:`realtime.presets.check_requirements`).
-The lists here are those the core's numpy twins read; the real-time renderer's own switches and the
-GLSL side of every list are :mod:`realtime.registry`'s.
+(checked by ``tests/test_registry.py``) are derived; an entry holds its functions, never their names.
+Here: the scene's lists. A term's entry holds its numpy class (:attr:`Entry.term`,
+:mod:`pbrcheck.terms`), which names its GLSL functions; the reference holds the Dr.Jit class of the
+same member (:mod:`reference.terms`). Adding an NDF is one class per language and one entry here
+(docs/realtime.md has the worked example). A list of the real-time renderer's approximations lives
+with its numpy functions, each member's :class:`Role` functions by dispatch role
+(:data:`pbrcheck.lodmap.LOD_MAPPINGS`, :data:`pbrcheck.energy.ENERGY_COMPENSATIONS`,
+:data:`pbrcheck.sampling.RUNTIME_SAMPLINGS` and ``LUT_SAMPLINGS``,
+:data:`pbrcheck.occlusion.SPECULAR_OCCLUSIONS` and ``HORIZON_OCCLUSIONS``,
+:data:`pbrcheck.specular_aa.SPECULAR_AAS`); the real-time renderer's own switches and the GLSL side
+of every list are :mod:`realtime.registry`'s.
 
 API
 ---
-:class:`Impl`, :class:`Entry`, :class:`Registry`, :func:`switch`, :data:`NDFS`, :data:`GEOMETRIES`
-(``scene=False`` members exist in the real-time renderer only), :data:`FRESNELS`,
-:data:`LOD_MAPPINGS`, :data:`BUILTIN_LOD_MAPPINGS`, :data:`RUNTIME_SAMPLINGS`, :data:`LUT_SAMPLINGS`,
-:func:`lut_sampling_for`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`,
-:data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`,
-:data:`GEOMETRIC_ROUGHNESSES`, :func:`role_impl`.
+:class:`Role`, :func:`role`, :class:`Entry`, :class:`Registry`, :func:`switch`, :func:`member_role`,
+:data:`REALTIME_APPROXIMATION`, :data:`NDFS`, :data:`GEOMETRIES` (``scene=False`` members exist in the
+real-time renderer only), :data:`FRESNELS`, :data:`MULTISCATTERS`, :data:`MULTISCATTER_GEOMETRY`,
+:data:`GEOMETRIC_ROUGHNESSES`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import terms
 
 
 @dataclass(frozen=True)
-class Impl:
-    """A role function in the three languages, named alike (``energy_scale_filament``).
+class Role:
+    """A role function of a member (:attr:`Entry.roles`): its numpy function and its GLSL twin's name.
 
     Attributes
     ----------
-    numpy : str
-        The function in its list's numpy module (:mod:`pbrcheck.energy`, :mod:`pbrcheck.sampling`,
-        :mod:`pbrcheck.occlusion`, :mod:`pbrcheck.specular_aa`).
-    drjit : str
-        Its Dr.Jit twin in :mod:`reference.energy` or :mod:`reference.sampling`, resolved there (the
-        core does not import the renderers; ``tests/test_registry.py`` checks that it exists). Empty
-        for a real-time approximation the reference does not make (:attr:`Entry.applies_to` says so).
+    numpy : callable
+        The function, in its list's numpy module (which holds the list: :mod:`pbrcheck.energy`,
+        :mod:`pbrcheck.sampling`, :mod:`pbrcheck.occlusion`, :mod:`pbrcheck.specular_aa`,
+        :mod:`pbrcheck.lodmap`); its Dr.Jit twin, where the reference has one, is in the reference's
+        table of the same member (:mod:`reference.energy`, :mod:`reference.sampling`).
     glsl : str
-        The shader function (``energy.glsl``, ``sampling.glsl``, ...), called by the generated dispatch
-        (:func:`realtime.generated.glsl_generated`).
+        The shader function of the same name, called by the generated dispatch
+        (:func:`realtime.generated.glsl_generated`; ``tests/test_registry.py`` checks it exists).
     args : tuple of str
         The dispatch function's parameters it reads, in order (empty: all of them); the numpy
         dispatch passes them by these names.
     """
 
-    numpy: str
-    drjit: str
+    numpy: Callable
     glsl: str
     args: tuple = ()
+
+
+def role(fn: Callable, *args: str) -> Role:
+    """The :class:`Role` of ``fn``, whose GLSL twin has its name; ``args``: :attr:`Role.args`."""
+    return Role(fn, fn.__name__, args)
+
+
+#: Why the real-time approximations (occlusions, specular anti-aliasing) have no Dr.Jit function:
+#: the reference does not approximate, it traces the occlusion and integrates each pixel's normals.
+REALTIME_APPROXIMATION = ("a real-time approximation of what the reference computes exactly (it traces the "
+                          "occlusion and integrates each pixel's normals): no Dr.Jit function; ")
 
 
 @dataclass(frozen=True)
@@ -74,7 +84,7 @@ class Entry:
         The term's numpy class (:mod:`pbrcheck.terms`: NDFs, geometry and Fresnel terms), which names
         its GLSL functions; the reference's Dr.Jit class of the same member is in
         :mod:`reference.terms`' registries (``tests/test_registry.py`` checks both).
-    roles : dict of str to Impl
+    roles : dict of str to Role
         For a list whose members each implement several dispatch functions
         (:data:`realtime.registry.ROLE_REGISTRIES`: energy compensations, sampling strategies,
         occlusions, specular anti-aliasing): the member's functions by the dispatch
@@ -154,15 +164,6 @@ class Registry:
         return {self.constant(e.name): i for i, e in enumerate(self.entries)}
 
 
-def _roles(member: str, *roles: str, **shared: str) -> dict[str, Impl]:
-    """``{role: Impl}`` of a member whose role functions are named ``<role>_<member>`` in the three
-    languages (``energy_scale_filament``); ``shared``: ``role="<role>_<other>"`` for a function
-    several members share (``runtime_estimate_ndf``)."""
-    out = {r: Impl(f"{r}_{member}", f"{r}_{member}", f"{r}_{member}") for r in roles}
-    out.update({r: Impl(fn, fn, fn) for r, fn in shared.items()})
-    return out
-
-
 #: ``extra["runtime_sampling"]``: the runtime sampling strategy (:data:`RUNTIME_SAMPLINGS`) exact for
 #: its D (``pbrcheck explain``'s ``v=n=r`` row; absent: none is); ``extra["walk_geometry"]``: the
 #: height-correlated Smith term of the multiple-scattering random walk's first bounce
@@ -192,148 +193,11 @@ FRESNELS = Registry("FRESNEL", [
     Entry("none", "F = 1 (also removes the diffuse term)", term=terms.NoFresnel),
 ])
 
-#: Roughness -> prefiltered mip level. ``extra["basis"]``: the mapping as coefficients of
-#: :data:`pbrcheck.lodmap.BASIS_NAMES` times the last level ``M`` (None: not a member of the fit's
-#: family); ``extra["builtin"]``: bakes a prefiltered chain (``fitted`` reads a built-in chain).
-LOD_MAPPINGS = Registry("LOD_MAPPING", applies_to=(
-    "the real-time renderer's prefiltered chain only (the reference has none): GLSL lod_<name> / roughness_<name> "
-    "(lod.glsl) and numpy twins of the same names (pbrcheck.lodmap)"), entries=[
-    Entry("linear", "article 000: lod = r M", extra={"builtin": True, "basis": (1, 0, 0, 0, 0, 0)}),
-    Entry("quadratic", "Filament's perceptualRoughnessToLod: lod = M r (2 - r)",
-          extra={"builtin": True, "basis": (0, 0, 0, 0, 0, 1)}),
-    Entry("log2", "UE4's ComputeReflectionCaptureMipFromRoughness (article 002): "
-                  "lod = log2(size) - (1 - 1.2 log2 r)", extra={"builtin": True, "basis": None}),
-    Entry("fitted", "pbrcheck fit-lod's fitted monotone mapping (lod_mapping=fitted:FILE)",
-          extra={"builtin": False, "basis": None}),
-])
-
-#: The built-in mappings (each bakes its own prefiltered chain).
-BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
-
-#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
-#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
-#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
-#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
-#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
-RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
-    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
-          roles=_roles("beckmann", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
-          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
-    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
-          roles=_roles("ggx", "runtime_half_vector", runtime_estimate="runtime_estimate_ndf"),
-          applies_to="any NDF's shading; exact for the GGX D it samples"),
-    Entry("vndf", "GGX visible normals, Heitz 2018", roles=_roles("vndf", "runtime_half_vector", "runtime_estimate"),
-          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
-])
-
 def switch(define: str, applies_to: str, **members: str) -> Registry:
     """A registry of switch values of one renderer's own code (``applies_to`` says which):
     ``member=source`` keyword pairs, in order."""
     return Registry(define, [Entry(name, source) for name, source in members.items()], applies_to)
 
-
-#: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
-#: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
-#: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
-#: :mod:`reference.sampling`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
-#: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
-LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
-    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
-          roles=_roles("vndf", "lut_half_vector", "lut_weight"),
-          applies_to="the GGX NDF only (its visible normals); other NDFs bake with ndf"),
-    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007", extra={"ndfs": None},
-          roles=_roles("ndf", "lut_half_vector", "lut_weight"), applies_to="every NDF (its own D (n.h) sampler)"),
-])
-
-
-def lut_sampling_for(sampling: str, ndf: str) -> str:
-    """The LUT sampling strategy used for ``ndf``: ``sampling`` where it is defined for that NDF,
-    else ``ndf`` (KeyError for an unknown strategy)."""
-    ndfs = LUT_SAMPLINGS[sampling].extra["ndfs"]
-    return sampling if ndfs is None or ndf in ndfs else "ndf"
-
-
-_IBL_ONLY = "image-based lighting only"
-#: The real-time options a compensation needs: the material composition's split sum.
-_SPLIT_SUM_MATERIAL = {"shading": ("material",), "ibl": ("splitsum",)}
-#: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
-#: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
-#: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
-#: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy`,
-#: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
-#: ``ibl = splitsum`` only (they need the split sum's DFG terms, which runtime sampling and the
-#: article compositions do not have): each member but ``none`` requires them (:attr:`Entry.requires`).
-ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
-    Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
-    Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
-          roles=_roles("filament", "energy_scale", "energy_direct"), requires=_SPLIT_SUM_MATERIAL,
-          applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
-    Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
-          roles=_roles("fdez_aguera", "energy_ms"), requires=_SPLIT_SUM_MATERIAL,
-          applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
-    Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
-          roles=_roles("kulla_conty", "energy_ms", "energy_direct"), requires=_SPLIT_SUM_MATERIAL,
-          applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
-])
-
-#: Why the real-time approximations below have no Dr.Jit function (:attr:`Impl.drjit` empty): the
-#: reference does not approximate, it traces the occlusion and integrates each pixel's normals.
-_REALTIME_APPROXIMATION = ("a real-time approximation of what the reference computes exactly (it traces the "
-                           "occlusion and integrates each pixel's normals): no Dr.Jit function; ")
-
-
-def _realtime_role(role: str, member: str, *args: str) -> dict[str, Impl]:
-    """``{role: Impl}`` of a real-time-only member: numpy and GLSL ``<role>_<member>`` (no Dr.Jit),
-    called with the dispatch's parameters ``args`` (all of them where empty)."""
-    fn = f"{role}_{member}"
-    return {role: Impl(fn, "", fn, args=args)}
-
-
-#: Specular occlusion of the split sum's image-based specular from the ambient occlusion: each
-#: member's ``specular_occlusion_<name>(NoV, ao, roughness)``, numpy in :mod:`pbrcheck.occlusion`,
-#: GLSL in ``realtime/shaders/occlusion.glsl`` (dispatch ``specular_occlusion_dispatch.glsl``).
-SPECULAR_OCCLUSIONS = Registry("SPECULAR_OCCLUSION", [
-    Entry("none", "the specular image-based term is not occluded", applies_to="nothing is occluded: factor 1"),
-    Entry("lagarde", "Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
-                     "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
-          roles=_realtime_role("specular_occlusion", "lagarde"),
-          applies_to=_REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
-    Entry("gtso", "Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
-                  "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 "
-                  "alpha^2)), Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's",
-          roles=_realtime_role("specular_occlusion", "gtso"),
-          applies_to=_REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
-])
-#: Horizon occlusion of normal-mapped reflections: ``horizon_occlusion_<name>(RoNg)``, numpy in
-#: :mod:`pbrcheck.occlusion`, GLSL in ``occlusion.glsl`` (dispatch ``horizon_occlusion_dispatch.glsl``).
-HORIZON_OCCLUSIONS = Registry("HORIZON_OCCLUSION", [
-    Entry("none", "reflections below the geometric normal's horizon are not faded", applies_to="factor 1"),
-    Entry("marmoset", "Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et "
-                      "al. 2016): saturate(1 + 1.3 r.n_g)^2", roles=_realtime_role("horizon_occlusion", "marmoset"),
-          applies_to=_REALTIME_APPROXIMATION + "the image-based specular of normal-mapped materials"),
-])
-#: Specular anti-aliasing / normal-map filtering, the roughness widened by the normals' variance:
-#: ``specular_aa_<name>`` of the dispatch inputs it reads (:attr:`Impl.args`), numpy in
-#: :mod:`pbrcheck.specular_aa`, GLSL in ``specular_aa.glsl`` (dispatch ``specular_aa_dispatch.glsl``,
-#: which also defines ``SPECULAR_AA_READS_<INPUT>`` for the inputs the selected member reads, so
-#: that the raster pass computes only those). ``screen_space`` needs the screen derivatives of the
-#: normal, which only the raster pipeline has (:attr:`Entry.requires`).
-SPECULAR_AAS = Registry("SPECULAR_AA", [
-    Entry("none", "no filtering of the normals' variance into the roughness", applies_to="roughness unchanged"),
-    Entry("toksvig", "Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered "
-                     "normal's length", roles=_realtime_role("specular_aa", "toksvig", "roughness", "normal_length"),
-          applies_to=_REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
-    Entry("screen_space", "Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
-                          "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
-          roles=_realtime_role("specular_aa", "screen_space", "roughness", "dn2"),
-          requires={"pipeline": ("raster",)},
-          applies_to=_REALTIME_APPROXIMATION + "the raster pipeline only: it needs the screen derivatives of the "
-                     "normal, which the ray-cast compute pass (one invocation per pixel, no neighbours) has not"),
-    Entry("prefiltered", "LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
-                         "the mip chain: alpha^2 + var(s_x) + var(s_y)",
-          roles=_realtime_role("specular_aa", "prefiltered", "roughness", "variance"),
-          applies_to=_REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
-])
 
 #: The reference's specular lobe: single scattering, or the multiple-scattering random walk
 #: (reference/multiscatter.py; a scene's ``[brdf] multiscatter``).
@@ -356,9 +220,9 @@ GEOMETRIC_ROUGHNESSES = switch(
             "max |dFdy n|), 1), n the view-space normal, derivatives per sample of the engine's raster")
 
 
-def role_impl(registry: Registry, name: str, role: str, what: str) -> Impl | None:
-    """Member ``name``'s ``role`` implementation, None for a member without it (its list's identity);
-    KeyError naming ``what`` (``"specular occlusion"``) and the members for an unknown name."""
+def member_role(registry: Registry, name: str, role: str, what: str) -> Role | None:
+    """Member ``name``'s ``role``, None for a member without it (its list's identity); KeyError
+    naming ``what`` (``"specular occlusion"``) and the members for an unknown name."""
     if name not in registry:
         raise KeyError(f"unknown {what} {name!r}; known: {', '.join(registry.names)}")
     return registry[name].roles.get(role)

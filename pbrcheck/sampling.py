@@ -3,10 +3,10 @@
 Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
 plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
 
-The runtime importance sampling's strategies (:data:`pbrcheck.registry.RUNTIME_SAMPLINGS`): each
+The runtime importance sampling's strategies (:data:`RUNTIME_SAMPLINGS`): each
 member's ``runtime_half_vector_<name>`` and its ``runtime_estimate_*``, dispatched by
 :func:`runtime_half_vector` / :func:`runtime_estimate`. The DFG LUT's sampling strategies
-(:data:`pbrcheck.registry.LUT_SAMPLINGS`): each member's
+(:data:`LUT_SAMPLINGS`): each member's
 ``lut_half_vector_<name>`` and ``lut_weight_<name>`` (the GLSL NDF switch is the ``ndf`` argument
 here), the dispatch :func:`lut_half_vector` / :func:`lut_weight` looping the registry, and
 :func:`dfg_lut_texel`, the numpy twin of ``dfg_lut.comp``'s texel (same points, same estimator).
@@ -28,7 +28,7 @@ import numpy as np
 
 from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, geometry_term
 from .terms import GGX, Beckmann, BlinnPhong
-from .registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
+from .registry import NDFS, Entry, Registry, role
 
 
 def radical_inverse(i):
@@ -93,7 +93,7 @@ def sample_ndf(u, alpha, ndf: str = "ggx"):
     return NDFS[ndf].term.sample(u, alpha)
 
 
-# ---- the DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS) --------------------------
+# ---- the DFG LUT's sampling strategies (LUT_SAMPLINGS) --------------------------
 
 def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
     """[Heitz18]: GGX visible normals seen from ``v`` (the GLSL passes ``u.yx``)."""
@@ -117,21 +117,43 @@ def lut_weight_ndf(G, v, h, alpha):
     return np.asarray(G) * np.sum(v * h, -1) / np.maximum(h[..., 2] * v[..., 2], COS_EPS)
 
 
+#: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
+#: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
+#: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
+#: :mod:`reference.sampling`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
+#: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
+LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
+    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
+          roles={"lut_half_vector": role(lut_half_vector_vndf), "lut_weight": role(lut_weight_vndf)},
+          applies_to="the GGX NDF only (its visible normals); other NDFs bake with ndf"),
+    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007", extra={"ndfs": None},
+          roles={"lut_half_vector": role(lut_half_vector_ndf), "lut_weight": role(lut_weight_ndf)}, applies_to="every NDF (its own D (n.h) sampler)"),
+])
+
+
+def lut_sampling_for(sampling: str, ndf: str) -> str:
+    """The LUT sampling strategy used for ``ndf``: ``sampling`` where it is defined for that NDF,
+    else ``ndf`` (KeyError for an unknown strategy)."""
+    ndfs = LUT_SAMPLINGS[sampling].extra["ndfs"]
+    return sampling if ndfs is None or ndf in ndfs else "ndf"
+
+
+
 def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
     """The strategy ``sampling``'s half vector (KeyError for an unknown one)."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].numpy](u, v, alpha, ndf)
+    return LUT_SAMPLINGS[sampling].roles["lut_half_vector"].numpy(u, v, alpha, ndf)
 
 
 def lut_weight(G, v, h, alpha, sampling: str):
     """The strategy ``sampling``'s weight of the sample ``h``."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].numpy](G, v, h, alpha)
+    return LUT_SAMPLINGS[sampling].roles["lut_weight"].numpy(G, v, h, alpha)
 
 
 def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf: str = "ggx",
                   sampling: str = "vndf") -> tuple[float, float]:
     """``(A, B)`` of ``dfg_lut.comp``'s texel at ``(n.v, roughness)``: the same Hammersley points with
     the half-cell offset, the same strategy and estimator (``sampling`` as the bake uses it for
-    ``ndf``, :func:`pbrcheck.registry.lut_sampling_for`)."""
+    ``ndf``, :func:`lut_sampling_for`)."""
     sampling = lut_sampling_for(sampling, ndf)
     alpha = alpha_from_roughness(roughness)
     v = np.array([np.sqrt(1.0 - NoV * NoV), 0.0, NoV])
@@ -147,7 +169,7 @@ def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf
     return float(np.sum(w * (1.0 - Fc)) / samples), float(np.sum(w * Fc) / samples)
 
 
-# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (RUNTIME_SAMPLINGS) ----------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -174,11 +196,29 @@ def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     return np.asarray(F) * G / np.maximum(G1_SmithGGX(NoV, alpha), COS_EPS) * np.asarray(L)
 
 
+#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
+#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
+#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
+#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
+#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
+RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
+    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
+          roles={"runtime_half_vector": role(runtime_half_vector_beckmann), "runtime_estimate": role(runtime_estimate_ndf)},
+          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
+    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
+          roles={"runtime_half_vector": role(runtime_half_vector_ggx), "runtime_estimate": role(runtime_estimate_ndf)},
+          applies_to="any NDF's shading; exact for the GGX D it samples"),
+    Entry("vndf", "GGX visible normals, Heitz 2018", roles={"runtime_half_vector": role(runtime_half_vector_vndf),
+                 "runtime_estimate": role(runtime_estimate_vndf)},
+          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
+])
+
+
 def runtime_half_vector(u, vt, alpha, sampling: str):
     """The runtime strategy ``sampling``'s half vector (KeyError for an unknown one)."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy](u, vt, alpha)
+    return RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy(u, vt, alpha)
 
 
 def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
     """The runtime strategy ``sampling``'s estimate of one sample."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy](F, G, L, NoV, NoH, VoH, alpha)
+    return RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy(F, G, L, NoV, NoH, VoH, alpha)

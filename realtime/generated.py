@@ -13,7 +13,8 @@ API
 from __future__ import annotations
 
 from pbrcheck.lights import glsl_light_constants
-from pbrcheck.registry import LOD_MAPPINGS, NDFS, Registry
+from pbrcheck.lodmap import LOD_MAPPINGS
+from pbrcheck.registry import NDFS, Registry
 
 from .registry import REGISTRIES, ROLE_REGISTRIES, SHADINGS, TERM_REGISTRIES, role_reads
 
@@ -29,15 +30,15 @@ def glsl_defines() -> dict[str, int]:
 
 def _lod_dispatch() -> str:
     """``lod_from_roughness`` and ``roughness_from_lod``, each calling the selected mapping's
-    ``lod_<name>`` / ``roughness_<name>`` (``realtime/shaders/lod.glsl``). ``fitted`` reads through
+    ``lod`` / ``roughness`` role functions (``realtime/shaders/lod.glsl``). ``fitted`` reads through
     ``LOD_FITTED(r)`` (a ``#define`` of the fitted expression, frame pass only) and bakes nothing."""
-    lines = ["// Generated from pbrcheck.registry.LOD_MAPPINGS: do not edit.",
+    lines = ["// Generated from pbrcheck.lodmap.LOD_MAPPINGS: do not edit.",
              "float lod_from_roughness(float r, float max_lod, float cube_log2) {"]
     for i, e in enumerate(LOD_MAPPINGS):
         kw = "#if" if i == 0 else "#elif"
         lines.append(f"{kw} LOD_MAPPING == {LOD_MAPPINGS.constant(e.name)}")
         if e.extra["builtin"]:
-            lines.append(f"    return lod_{e.name}(r, max_lod, cube_log2);")
+            lines.append(f"    return {e.roles['lod'].glsl}(r, max_lod, cube_log2);")
         else:
             lines.append("    return min(LOD_FITTED(r), max_lod);")
     lines += ["#endif", "}", "",
@@ -50,7 +51,7 @@ def _lod_dispatch() -> str:
         if not e.extra["builtin"]:
             continue
         lines.append(f"{'#if' if first else '#elif'} LOD_MAPPING == {LOD_MAPPINGS.constant(e.name)}")
-        lines.append(f"    return roughness_{e.name}(lod, max_lod, cube_log2);")
+        lines.append(f"    return {e.roles['roughness'].glsl}(lod, max_lod, cube_log2);")
         first = False
     lines += ["#else", "    return -1.0;  // not a baking mapping", "#endif", "}", ""]
     return "\n".join(lines)

@@ -23,21 +23,12 @@ from dataclasses import replace as _replace
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.lodmap import LodMapping
-from pbrcheck.registry import (
-    BUILTIN_LOD_MAPPINGS,
-    ENERGY_COMPENSATIONS,
-    Entry,
-    FRESNELS,
-    GEOMETRIES,
-    HORIZON_OCCLUSIONS,
-    LOD_MAPPINGS,
-    LUT_SAMPLINGS,
-    NDFS,
-    RUNTIME_SAMPLINGS,
-    SPECULAR_AAS,
-    SPECULAR_OCCLUSIONS,
-)
+from pbrcheck.energy import ENERGY_COMPENSATIONS
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
+from pbrcheck.occlusion import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
+from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
+from pbrcheck.sampling import LUT_SAMPLINGS, RUNTIME_SAMPLINGS
+from pbrcheck.specular_aa import SPECULAR_AAS
 
 from .registry import DFGS, IRRADIANCE_METHODS, IRRADIANCES, SHADINGS
 

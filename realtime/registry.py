@@ -17,9 +17,12 @@ API
 
 from __future__ import annotations
 
-from pbrcheck.registry import (ENERGY_COMPENSATIONS, FRESNELS, GEOMETRIES, HORIZON_OCCLUSIONS, LOD_MAPPINGS,
-                               LUT_SAMPLINGS, MULTISCATTERS, NDFS, RUNTIME_SAMPLINGS, SPECULAR_AAS,
-                               SPECULAR_OCCLUSIONS, Entry, Registry, switch)
+from pbrcheck.energy import ENERGY_COMPENSATIONS
+from pbrcheck.lodmap import LOD_MAPPINGS
+from pbrcheck.occlusion import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
+from pbrcheck.registry import FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS, Entry, Registry, switch
+from pbrcheck.sampling import LUT_SAMPLINGS, RUNTIME_SAMPLINGS
+from pbrcheck.specular_aa import SPECULAR_AAS
 
 #: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
 #: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.

@@ -52,21 +52,13 @@ from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.lights import pack_lights
-from pbrcheck.energy import SCENE_COMPENSATION
+from pbrcheck.energy import ENERGY_COMPENSATIONS, SCENE_COMPENSATION
+from pbrcheck.lodmap import LOD_MAPPINGS
+from pbrcheck.occlusion import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from pbrcheck.progress import Progress
-from pbrcheck.registry import (
-    ENERGY_COMPENSATIONS,
-    FRESNELS,
-    GEOMETRIES,
-    HORIZON_OCCLUSIONS,
-    LOD_MAPPINGS,
-    LUT_SAMPLINGS,
-    NDFS,
-    RUNTIME_SAMPLINGS,
-    SPECULAR_AAS,
-    SPECULAR_OCCLUSIONS,
-    lut_sampling_for,
-)
+from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS
+from pbrcheck.sampling import LUT_SAMPLINGS, RUNTIME_SAMPLINGS, lut_sampling_for
+from pbrcheck.specular_aa import SPECULAR_AAS
 from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
@@ -90,7 +82,7 @@ FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "c
 
 def chain_mapping(o: RealtimeOptions) -> str:
     """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``):
-    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`."""
+    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.lodmap.LOD_MAPPINGS`."""
     return o.chain
 
 

@@ -1,8 +1,8 @@
 """The real-time renderer's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
 runtime importance sampling (``runtime_half_vector_<name>``, ``runtime_estimate_*``) and DFG LUT
 strategies (``lut_half_vector_<name>`` / ``lut_weight_<name>``), same names, same formulas (the GLSL
-ones are in ``realtime/shaders/sampling.glsl``), resolved here from the names that
-:data:`pbrcheck.registry.RUNTIME_SAMPLINGS` and :data:`pbrcheck.registry.LUT_SAMPLINGS` hold, and
+ones are in ``realtime/shaders/sampling.glsl``), dispatched by this module's tables of :data:`pbrcheck.sampling.RUNTIME_SAMPLINGS` and
+:data:`pbrcheck.sampling.LUT_SAMPLINGS` (:data:`RUNTIME_ROLES`, :data:`LUT_ROLES`), and
 :func:`dfg_lut`, the Dr.Jit bake of
 ``dfg_lut.comp`` (same points, same estimator) that the reference can use to separate the split
 sum's LUT error from its own.
@@ -21,7 +21,7 @@ API
 :func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut`,
 :func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
 :func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
-:func:`runtime_estimate`.
+:func:`runtime_estimate`, :data:`LUT_ROLES`, :data:`RUNTIME_ROLES`.
 """
 
 from __future__ import annotations
@@ -30,8 +30,7 @@ import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, MIN_ALPHA
-from pbrcheck.registry import LUT_SAMPLINGS, RUNTIME_SAMPLINGS, lut_sampling_for
-from pbrcheck.sampling import hammersley
+from pbrcheck.sampling import hammersley, lut_sampling_for
 
 import drjit as dr
 import mitsuba as mi
@@ -49,7 +48,7 @@ def sample_ndf(u, alpha, ndf: str = "ggx"):
     return terms.ndf(ndf).sample_cos(u, alpha)
 
 
-# ---- the registry members' role functions (pbrcheck.registry.LUT_SAMPLINGS) ----------------------
+# ---- the registry members' role functions (pbrcheck.sampling.LUT_SAMPLINGS) ----------------------
 
 def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
     """[Heitz18] listing 1: GGX visible normals (:meth:`reference.terms.GGX.sample`, ``u.yx``)."""
@@ -72,13 +71,13 @@ def lut_weight_ndf(G, v, h, alpha):
 
 
 def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
-    """The strategy ``sampling``'s half vector (the registry's name, resolved here)."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].drjit](u, v, alpha, ndf)
+    """The strategy ``sampling``'s half vector (:data:`LUT_ROLES`; KeyError for an unknown one)."""
+    return LUT_ROLES[sampling]["lut_half_vector"](u, v, alpha, ndf)
 
 
 def lut_weight(G, v, h, alpha, sampling: str):
     """The strategy ``sampling``'s weight of the sample ``h``."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].drjit](G, v, h, alpha)
+    return LUT_ROLES[sampling]["lut_weight"](G, v, h, alpha)
 
 
 def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: str = "vndf") -> np.ndarray:
@@ -104,7 +103,7 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     return np.stack([A, B], axis=-1)
 
 
-# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (pbrcheck.sampling.RUNTIME_SAMPLINGS) ----------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -131,11 +130,21 @@ def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     return F * G / dr.maximum(terms.G1_SmithGGX(NoV, alpha), COS_EPS) * L
 
 
+#: The reference's tables of :data:`pbrcheck.sampling.LUT_SAMPLINGS` and ``RUNTIME_SAMPLINGS``: each
+#: member's Dr.Jit role functions by role (``tests/test_registry.py``: the registries' members and
+#: roles, each the twin of the member's numpy function of the same name).
+LUT_ROLES = {"vndf": {"lut_half_vector": lut_half_vector_vndf, "lut_weight": lut_weight_vndf},
+             "ndf": {"lut_half_vector": lut_half_vector_ndf, "lut_weight": lut_weight_ndf}}
+RUNTIME_ROLES = {"beckmann": {"runtime_half_vector": runtime_half_vector_beckmann, "runtime_estimate": runtime_estimate_ndf},
+                 "ggx": {"runtime_half_vector": runtime_half_vector_ggx, "runtime_estimate": runtime_estimate_ndf},
+                 "vndf": {"runtime_half_vector": runtime_half_vector_vndf, "runtime_estimate": runtime_estimate_vndf}}
+
+
 def runtime_half_vector(u, vt, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s half vector (the registry's name, resolved here)."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].drjit](u, vt, alpha)
+    """The runtime strategy ``sampling``'s half vector (:data:`RUNTIME_ROLES`; KeyError for an unknown one)."""
+    return RUNTIME_ROLES[sampling]["runtime_half_vector"](u, vt, alpha)
 
 
 def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
     """The runtime strategy ``sampling``'s estimate of one sample."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].drjit](F, G, L, NoV, NoH, VoH, alpha)
+    return RUNTIME_ROLES[sampling]["runtime_estimate"](F, G, L, NoV, NoH, VoH, alpha)

@@ -53,10 +53,10 @@ def test_twins_same_grid():
     _close(run_glsl("kc_eavg(x0)", rr), energy.kc_eavg(rr))
 
 
-@pytest.mark.parametrize("name", registry.ENERGY_COMPENSATIONS.names)
+@pytest.mark.parametrize("name", energy.ENERGY_COMPENSATIONS.names)
 def test_dispatch_twins(name):
     F0, r, mu, A, B = GRID
-    d = registry.ENERGY_COMPENSATIONS.select(name)
+    d = energy.ENERGY_COMPENSATIONS.select(name)
     _close(run_glsl("energy_scale(vec3(x0), x1, x2).x", F0, A, B, defines=d), energy.energy_scale(F0, A, B, name))
     _close(run_glsl("energy_ms(vec3(x0), x1, x2, x3).x", F0, A, B, r, defines=d),
            energy.energy_ms(F0, A, B, r, name))
@@ -67,7 +67,7 @@ def test_dispatch_twins(name):
         energy.energy_direct(fs, F0, A, B, El, r, name), rtol=RTOL_F32, atol=FMS_ATOL_F32)
 
 
-ROLE_PAIRS = [(e.name, r) for e in registry.ENERGY_COMPENSATIONS for r in e.roles]
+ROLE_PAIRS = [(e.name, r) for e in energy.ENERGY_COMPENSATIONS for r in e.roles]
 
 
 def _role_args(role):
@@ -94,7 +94,7 @@ def test_role_twins(name, role):
     import mitsuba as mi
 
     from reference import energy as drjit_energy
-    fn = registry.ENERGY_COMPENSATIONS[name].roles[role].glsl
+    fn = energy.ENERGY_COMPENSATIONS[name].roles[role].glsl
     args = _role_args(role)
     want = getattr(energy, fn)(*args)
     atol = FMS_ATOL_F32 if role == "energy_direct" else ATOL_F32  # f_ms's float32 cancellations
@@ -103,7 +103,7 @@ def test_role_twins(name, role):
     np.testing.assert_allclose(np.array(got), want, rtol=RTOL_F32, atol=atol)
 
 
-@pytest.mark.parametrize("name", registry.ENERGY_COMPENSATIONS.names)
+@pytest.mark.parametrize("name", energy.ENERGY_COMPENSATIONS.names)
 def test_drjit_dispatch_matches_numpy(name):
     """reference.energy's dispatch loops the registry as pbrcheck.energy's does (identity included),
     on Color3f F0 as the reference would pass it."""
@@ -165,7 +165,7 @@ def test_none_is_single_scattering_and_compensations_add_energy():
 def test_presets_offer_the_compensations():
     from realtime.presets import OPTIONS, PRESETS, resolve_options
 
-    assert OPTIONS["energy_compensation"].choices == ("scene", *registry.ENERGY_COMPENSATIONS.names)
+    assert OPTIONS["energy_compensation"].choices == ("scene", *energy.ENERGY_COMPENSATIONS.names)
     assert set(energy.SCENE_COMPENSATION) == set(registry.MULTISCATTERS.names)
     assert energy.SCENE_COMPENSATION["none"] == "none"
     assert PRESETS["default"]["energy_compensation"] == "scene"

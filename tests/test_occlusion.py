@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from pbrcheck.occlusion import (
+    HORIZON_OCCLUSIONS,
+    SPECULAR_OCCLUSIONS,
     HORIZON_FADE,
     cone_cone_intersection,
     horizon_occlusion,
@@ -17,7 +19,6 @@ from pbrcheck.occlusion import (
     specular_occlusion_gtso,
     specular_occlusion_lagarde,
 )
-from pbrcheck.registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from realtime.gl import is_software_renderer
 from realtime.glsl_harness import run_glsl
 

@@ -73,7 +73,7 @@ def test_strategy_twins(define, name, role):
     u, v, alpha = _strategy_grid()
     F = mi.Float
     if role == "lut_half_vector":
-        for ndf in registry.LUT_SAMPLINGS[name].extra["ndfs"] or registry.NDFS.names:
+        for ndf in sampling.LUT_SAMPLINGS[name].extra["ndfs"] or registry.NDFS.names:
             _half_vector_twins(fn, u, v, alpha, ndf, (ndf,), (ndf,))
         return
     if role == "runtime_half_vector":

@@ -74,7 +74,7 @@ def test_docs_options_table_names_every_choice():
 
 def test_options_and_scene_read_the_registry():
     assert presets.OPTIONS["shading"].choices == rt_registry.SHADINGS.names
-    assert presets.OPTIONS["lod_mapping"].choices == registry.BUILTIN_LOD_MAPPINGS
+    assert presets.OPTIONS["lod_mapping"].choices == lodmap.BUILTIN_LOD_MAPPINGS
     assert presets.OPTIONS["geometry"].choices == ("scene", *registry.GEOMETRIES.names)
     assert scene.NDF_NAMES == registry.NDFS.scene_names
     assert scene.GEOMETRY_NAMES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRY_NAMES
@@ -100,33 +100,36 @@ def test_every_shader_gets_every_constant():
 
 def test_lod_dispatch_is_generated_for_every_builtin_mapping():
     text = generated.glsl_generated()["lod_dispatch.glsl"]
-    for name in registry.BUILTIN_LOD_MAPPINGS:
+    for name in lodmap.BUILTIN_LOD_MAPPINGS:
         assert f"return lod_{name}(r, max_lod, cube_log2);" in text
         assert f"return roughness_{name}(lod, max_lod, cube_log2);" in text
-        assert hasattr(lodmap, f"lod_{name}") and hasattr(lodmap, f"roughness_{name}")
+        roles = lodmap.LOD_MAPPINGS[name].roles
+        assert [roles["lod"].glsl, roles["roughness"].glsl] == [f"lod_{name}", f"roughness_{name}"]
+        assert getattr(lodmap, roles["lod"].glsl) is roles["lod"].numpy
 
 
-@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+@pytest.mark.parametrize("name", lodmap.BUILTIN_LOD_MAPPINGS)
 def test_lod_mapping_glsl_matches_numpy_twin(name):
     from realtime.glsl_harness import run_glsl
 
     r = np.array([0.0, 1e-6, 1e-3, 0.01, 0.1, 0.25, 0.5, 0.75, 0.99, 1.0, 1.5])
     for max_lod, cube_log2 in ((6.0, 8.0), (8.0, 9.0), (4.0, 4.0)):
-        want = getattr(lodmap, f"lod_{name}")(r, max_lod, cube_log2)
+        roles = lodmap.LOD_MAPPINGS[name].roles
+        want = roles["lod"].numpy(r, max_lod, cube_log2)
         got = run_glsl(f"lod_{name}(x0, x1, x2)", r, max_lod, cube_log2)
         np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
         lods = np.linspace(0.0, max_lod, 13)
-        want = getattr(lodmap, f"roughness_{name}")(lods, max_lod, cube_log2)
+        want = roles["roughness"].numpy(lods, max_lod, cube_log2)
         got = run_glsl(f"roughness_{name}(x0, x1, x2)", lods, max_lod, cube_log2)
         np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
 
 
-@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+@pytest.mark.parametrize("name", lodmap.BUILTIN_LOD_MAPPINGS)
 def test_dispatch_selects_the_mapping(name):
     from realtime.glsl_harness import run_glsl
 
     r = np.array([0.0, 0.3, 1.0])
-    got = run_glsl("lod_from_roughness(x0, x1, x2)", r, 6.0, 8.0, defines=registry.LOD_MAPPINGS.select(name))
+    got = run_glsl("lod_from_roughness(x0, x1, x2)", r, 6.0, 8.0, defines=lodmap.LOD_MAPPINGS.select(name))
     np.testing.assert_allclose(got, lodmap.builtin_lod(name, r, 6.0, 8.0), rtol=RTOL_F32, atol=ATOL_F32)
 
 
@@ -178,7 +181,7 @@ def test_every_term_has_its_three_implementations(define):
             from pbrcheck import sampling
             assert getattr(sampling, t.glsl_sample) is t.sample
             assert re.search(rf"^vec3 {t.glsl_sample}\(", sampling_glsl, re.M), t.glsl_sample
-            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in registry.RUNTIME_SAMPLINGS
+            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in sampling.RUNTIME_SAMPLINGS
             walk = "walk_geometry" in e.extra
             assert not walk or e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
             assert (t.Lambda is not None) >= walk and (d.Lambda is not None, d.sample_visible is not None) >= (walk, walk)
@@ -202,9 +205,9 @@ def test_term_dispatch_matches_the_registry_in_numpy():
 
 # The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
 # None: a real-time approximation the reference does not make (no Dr.Jit function).
-ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
-              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
-              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
+ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy.ROLES", "energy.glsl"),
+              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling.RUNTIME_ROLES", "sampling.glsl"),
+              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling.LUT_ROLES", "sampling.glsl"),
               "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
               "HORIZON_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
               "SPECULAR_AA": ("pbrcheck.specular_aa", None, "specular_aa.glsl")}
@@ -260,7 +263,9 @@ def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
     assert set(ROLE_HOMES) == set(rt_registry.ROLE_REGISTRIES)
     for define, reg in rt_registry.REGISTRIES.items():
         owned = [e.name for e in reg if e.term is not None or e.roles]
-        if define in rt_registry.TERM_REGISTRIES or define in rt_registry.ROLE_REGISTRIES:
+        if define == "LOD_MAPPING":  # the built-in mappings' lod and roughness (the fitted one reads a file)
+            assert owned == list(lodmap.BUILTIN_LOD_MAPPINGS) and len(reg.applies_to) > 20
+        elif define in rt_registry.TERM_REGISTRIES or define in rt_registry.ROLE_REGISTRIES:
             assert not reg.applies_to, define
             assert all(e.name in owned or e.applies_to for e in reg), (define, owned)
         else:
@@ -269,8 +274,10 @@ def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
 
 @pytest.mark.parametrize("define", list(rt_registry.ROLE_REGISTRIES))
 def test_every_role_member_has_its_three_implementations(define):
-    """Each role of each member names a numpy, a Dr.Jit and a GLSL function of one name that exist,
-    and the generated GLSL dispatch calls it; a member without a role states where it applies; the
+    """Each role of each member holds its numpy function (in the module that holds the list) and
+    names its GLSL twin of the same name, which the generated dispatch calls; the reference's table
+    (where it has one) keys the same members and roles with Dr.Jit twins of that name; a member
+    without a role states where it applies; the
     GLSL harness twins every (member, role) (tests/test_energy.py's test_role_twins and
     tests/test_realtime_sampling.py's test_strategy_twins are parametrized by these)."""
     import importlib
@@ -280,8 +287,15 @@ def test_every_role_member_has_its_three_implementations(define):
     from reference.variant import ensure_variant
     ensure_variant()
     reg, include, _, roles = rt_registry.ROLE_REGISTRIES[define]
-    np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
-    numpy_mod, drjit_mod = importlib.import_module(np_mod), dr_mod and importlib.import_module(dr_mod)
+    np_mod, dr_table, glsl_file = ROLE_HOMES[define]
+    numpy_mod = importlib.import_module(np_mod)
+    drjit_mod, drjit = (None, None)
+    if dr_table:  # the reference's table of the same members (reference.energy.ROLES, ...)
+        mod, table = dr_table.rsplit(".", 1)
+        drjit_mod = importlib.import_module(mod)
+        drjit = getattr(drjit_mod, table)
+        assert list(drjit) == list(reg.names) and all(set(drjit[e.name]) == set(e.roles) for e in reg), define
+    assert getattr(numpy_mod, reg.define + "S") is reg  # the list lives with its numpy functions
     glsl = (SHADER_DIR / glsl_file).read_text()
     dispatch = generated.glsl_generated()[include]
     assert f'#include "{include}"' in glsl
@@ -292,17 +306,17 @@ def test_every_role_member_has_its_three_implementations(define):
         assert set(e.roles) <= set(roles), e.name
         missing = set(roles) - set(e.roles)
         assert not missing or (e.applies_to and all(roles[r][1] for r in missing)), (e.name, missing)
-        for role, impl in e.roles.items():
-            assert impl.numpy == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
-            assert callable(getattr(numpy_mod, impl.numpy, None)), impl.numpy
-            if drjit_mod:
-                assert impl.drjit == impl.glsl and callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
+        for role, r in e.roles.items():
+            assert r.numpy.__name__ == r.glsl and r.glsl.startswith(f"{role}_"), r
+            assert getattr(numpy_mod, r.glsl) is r.numpy, r.glsl
+            if drjit:  # the Dr.Jit twin has the GLSL twin's name
+                assert drjit[e.name][role].__name__ == r.glsl, (e.name, role, drjit[e.name][role])
             else:  # the entry says why the reference has none
-                assert impl.drjit == "" and "no Dr.Jit function" in e.applies_to, (e.name, e.applies_to)
+                assert "no Dr.Jit function" in e.applies_to, (e.name, e.applies_to)
             params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
-            assert [p for p in params if p in impl.args] == list(impl.args), impl.args  # in the dispatch's order
-            assert re.search(rf"^\w+ {impl.glsl}\(", glsl, re.M), impl.glsl
-            assert f"{reg.constant(e.name)}\n    return {impl.glsl}(" in dispatch
+            assert [p for p in params if p in r.args] == list(r.args), r.args  # in the dispatch's order
+            assert re.search(rf"^\w+ {r.glsl}\(", glsl, re.M), r.glsl
+            assert f"{reg.constant(e.name)}\n    return {r.glsl}(" in dispatch
     twins = {"ENERGY_COMPENSATION": test_energy.test_role_twins}.get(
         define, test_realtime_role_twins if define in REALTIME_ROLES else test_realtime_sampling.test_strategy_twins)
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
@@ -338,7 +352,7 @@ def test_realtime_role_twins(define, name, role):
     atol = {"gtso": test_occlusion.GTSO_ATOL}.get(name, min(test_occlusion.GLSL_ATOL, test_specular_aa.GLSL_ATOL))
     own = [grids[a] for a in impl.args or params]
     got = run_glsl(f"{impl.glsl}({', '.join(f'x{i}' for i in range(len(own)))})", *own)
-    np.testing.assert_allclose(got, getattr(numpy_mod, impl.numpy)(*own), rtol=0, atol=atol)
+    np.testing.assert_allclose(got, impl.numpy(*own), rtol=0, atol=atol)
     got = run_glsl(f"{role}({', '.join(f'x{i}' for i in range(len(params)))})", *grids.values(),
                    defines=reg.select(name))
     np.testing.assert_allclose(got, getattr(numpy_mod, role)(*grids.values(), name), rtol=0, atol=atol)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrcheck.coverage import alpha_to_coverage_sharpen
-from pbrcheck.registry import SPECULAR_AAS
+from pbrcheck.specular_aa import SPECULAR_AAS
 from pbrcheck.specular_aa import (
     SCREEN_SPACE_THRESHOLD,
     slope_variance_mips,

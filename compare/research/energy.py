@@ -3,7 +3,7 @@
 The truth is the reference's random walk (``[brdf] multiscatter = "random_walk"``, Heitz et al.
 2016): its directional albedo (specular lobe, grey Schlick F0) is estimated from the walk's exact
 throughput (:func:`compare.renderers.multiscatter_albedo`). Each real-time compensation
-(:data:`pbrcheck.registry.ENERGY_COMPENSATIONS`, formulas in :mod:`pbrcheck.energy`) predicts that
+(:data:`pbrcheck.energy.ENERGY_COMPENSATIONS`, formulas in :mod:`pbrcheck.energy`) predicts that
 albedo from the single-scattering DFG terms ``A, B`` (:func:`pbrcheck.brdf.specular_dfg`, the exact
 quadrature the DFG LUT approximates) under a white furnace (irradiance E(n)/pi = 1):
 :func:`pbrcheck.energy.specular_albedo_compensated`. The grid is roughness x F0 x n.v; the
@@ -33,7 +33,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
-from pbrcheck.registry import ENERGY_COMPENSATIONS
+from pbrcheck.energy import ENERGY_COMPENSATIONS
 from pbrcheck.scene import load_scene
 
 from .. import renderers
