@@ -1,7 +1,10 @@
 """BRDF terms in numpy: the ground truth both renderers are checked against.
 
-Every function here has a GLSL twin of the *same name* in ``realtime/shaders/brdf.glsl`` (the test
-harness runs both on the same grids). Arguments are cosines clamped by the caller to [0, 1];
+The terms are classes of :mod:`pbrcheck.terms` (one per NDF, G and Fresnel term), which the scene's
+registries hold (:mod:`pbrcheck.registry`); here the dispatch by name (:func:`ndf_term`,
+:func:`geometry_term`, :func:`fresnel_term`), the full material BRDF and the albedo quadrature. Every
+function here (and each term under its GLSL name: ``D_GGX = GGX.eval``) has a GLSL twin of the *same
+name* in ``realtime/shaders/brdf.glsl`` (the test harness runs both on the same grids). Arguments are cosines clamped by the caller to [0, 1];
 ``alpha`` is the GGX width ``roughness^2``.
 
 The material model both renderers implement (README, "Material model")::

@@ -52,7 +52,8 @@ API
 :func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty`; the dispatch looping
 :data:`ENERGY_COMPENSATIONS` :func:`energy_scale`, :func:`energy_ms`,
 :func:`energy_direct`; :func:`specular_albedo_compensated`, :func:`bake_kc_eavg`, :data:`KC_EAVG`,
-:data:`KC_EAVG_SIZE`. Dr.Jit twins of the same names: :mod:`reference.energy`.
+:data:`KC_EAVG_SIZE`, :data:`ENERGY_COMPENSATIONS` (the registry, its entries holding these role functions).
+Dr.Jit twins of the same names: :mod:`reference.energy`.
 """
 
 from __future__ import annotations

@@ -29,7 +29,8 @@ API
 ---
 :func:`lod_linear`, :func:`lod_quadratic`, :func:`lod_log2` and their inverses
 :func:`roughness_linear`, :func:`roughness_quadratic`, :func:`roughness_log2`;
-:func:`builtin_lod` (dispatch by name); :data:`BASIS_NAMES`, :func:`basis`,
+:data:`LOD_MAPPINGS` (the registry, a built-in mapping's entry holding its pair),
+:data:`BUILTIN_LOD_MAPPINGS`, :func:`builtin_lod` (dispatch by name); :data:`BASIS_NAMES`, :func:`basis`,
 :func:`basis_coefficients`; :class:`LodMapping` (``__call__``, ``to_json``, ``from_json``,
 ``load``, ``glsl_expr``, ``glsl``); :class:`LodFitError`.
 """

@@ -27,7 +27,8 @@ API
   with ``n_g`` the geometric (interpolated vertex) normal: a normal map's reflection below the
   surface's horizon fades out; 1 wherever r is above it.
 - :func:`specular_occlusion`, :func:`horizon_occlusion` -- the dispatches: each looks up the member's
-  function in :data:`SPECULAR_OCCLUSIONS` / :data:`HORIZON_OCCLUSIONS`.
+  function in :data:`SPECULAR_OCCLUSIONS` / :data:`HORIZON_OCCLUSIONS` (the registries, defined here: each
+  entry holds its member's function).
 
 Conventions: ``ao`` in [0, 1] (1: unoccluded), ``NoV`` in [0, 1], ``roughness`` perceptual in [0, 1],
 ``alpha = roughness^2``; ``RoNg`` the cosine between the reflection and the geometric normal.

@@ -87,7 +87,7 @@ class Entry:
     roles : dict of str to Role
         For a list whose members each implement several dispatch functions
         (:data:`realtime.registry.ROLE_REGISTRIES`: energy compensations, sampling strategies,
-        occlusions, specular anti-aliasing): the member's functions by the dispatch
+        occlusions, specular anti-aliasing; a LOD mapping's ``lod`` and ``roughness``): the member's functions by the dispatch
         function's name (``"energy_scale"``), each named alike in the three languages
         (``energy_scale_filament``). A role the member has not is its list's identity there.
     applies_to : str

@@ -19,7 +19,8 @@ API
 :func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`,
 :func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
 :func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
-:func:`runtime_estimate`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
+:func:`runtime_estimate`; the registries :data:`RUNTIME_SAMPLINGS`, :data:`LUT_SAMPLINGS` (their entries
+holding these role functions) and :func:`lut_sampling_for`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
 """
 
 from __future__ import annotations

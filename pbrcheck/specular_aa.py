@@ -27,7 +27,8 @@ API
   I3D: per texel of mip k, ``var(s_x) + var(s_y)`` of the slopes ``s = (n_x, n_y) / n_z`` of the unit
   level-0 normals it covers), times ``normal_scale^2``.
 - :func:`specular_aa_widen` -- ``min(alpha^2 + v, 1)^(1/4)``, the roughness itself where ``v = 0``.
-- :func:`specular_aa` -- the dispatch: the member's function of :data:`SPECULAR_AAS`.
+- :func:`specular_aa` -- the dispatch: the member's function of :data:`SPECULAR_AAS` (the registry, defined
+  here: each entry holds its member's function).
 
 Conventions: roughness perceptual in [0, 1]; ``normal_length`` the length of the tangent-space
 normal ``2 t - 1`` read through the mip chain before its normalisation (and before ``normal_scale``).
