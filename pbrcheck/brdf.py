@@ -2,7 +2,9 @@
 
 The terms are classes of :mod:`pbrcheck.terms` (one per NDF, G and Fresnel term), which the scene's
 registries hold (:mod:`pbrcheck.registry`); here the dispatch by name (:func:`ndf_term`,
-:func:`geometry_term`, :func:`fresnel_term`), the full material BRDF and the albedo quadrature. Every
+:func:`geometry_term`, :func:`fresnel_term`), the material's lobes as objects (:class:`SpecularLobe`,
+:class:`DiffuseLobe`: eval, sample, pdf, albedo), the full material BRDF (:func:`brdf_eval`, the two
+lobes' sum) and the albedo quadrature. Every
 function here (and each term under its GLSL name: ``D_GGX = GGX.eval``) has a GLSL twin of the *same
 name* in ``realtime/shaders/brdf.glsl`` (the test harness runs both on the same grids). Arguments are cosines clamped by the caller to [0, 1];
 ``alpha`` is the GGX width ``roughness^2``.
@@ -106,12 +108,10 @@ def brdf_eval(n, v, l, base_color, metallic, roughness, specular, *, ndf="ggx",
     NoH = np.clip(np.sum(n * h, axis=-1), 0.0, 1.0)
     VoH = np.clip(np.sum(v * h, axis=-1), 0.0, 1.0)
     F0 = material_f0(base_color, metallic, specular)
-    F = fresnel_term(fresnel, VoH[..., None], F0)
-    D = ndf_term(ndf, NoH, roughness)
-    G = geometry_term(geometry, np.clip(NoV, 0, 1), np.clip(NoL, 0, 1), roughness)
-    spec = (D * G)[..., None] * F / (4.0 * np.maximum(NoV, COS_EPS) * np.maximum(NoL, COS_EPS))[..., None]
-    m = np.asarray(metallic, dtype=np.float64)[..., None]
-    diff = (1.0 - F) * (1.0 - m) * np.asarray(base_color, dtype=np.float64) * Fd_Lambert()
+    spec_lobe = SpecularLobe(ndf, geometry, fresnel)
+    F = spec_lobe.F.eval(VoH[..., None], F0)  # shared by the two lobes
+    spec = spec_lobe.eval(NoV, NoL, NoH, F, roughness)
+    diff = DiffuseLobe(fresnel).eval(F, metallic, base_color)
     valid = ((NoV > 0) & (NoL > 0))[..., None]
     return np.where(valid, diff + spec, 0.0)
 
@@ -228,6 +228,68 @@ def diffuse_albedo(NoV, roughness, F0, *, fresnel="schlick", n_theta=48, n_phi=6
     VoH = h[..., 0] * sv + h[..., 2] * NoV
     F = F0 + (1.0 - F0) * (1.0 - np.clip(VoH, 0, 1)) ** 5
     return float(np.sum((1.0 - F) / PI * 0.5 * ws[:, None] * wp[None, :]) * 2.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# The material's two lobes (pbrt-v4's BxDF shape): each with its eval, density and albedo.
+# ------------------------------------------------------------------------------------------------
+
+class SpecularLobe:
+    """The microfacet specular lobe ``D G F / (4 (n.l)(n.v))`` of the scene's terms ``ndf``,
+    ``geometry``, ``fresnel`` (members of the registries; their classes ``D``, ``G``, ``F``):
+    :meth:`eval`, the half vector's :meth:`sample` from its NDF's ``D (n.h)`` and the density of l
+    :meth:`pdf` (``D (n.h) / (4 v.h)``, [Walter07] eq. 14), the split sum's :meth:`dfg` terms and the
+    directional :meth:`albedo` (:func:`specular_dfg`, :func:`specular_albedo`)."""
+
+    def __init__(self, ndf: str = "ggx", geometry: str = "smith_ggx_correlated", fresnel: str = "schlick"):
+        self.ndf, self.geometry, self.fresnel = ndf, geometry, fresnel
+        self.D, self.G, self.F = term(NDFS, ndf), term(GEOMETRIES, geometry), term(FRESNELS, fresnel)
+
+    def eval(self, NoV, NoL, NoH, F, roughness):
+        """The lobe's value (..., 3) with the Fresnel factor ``F`` (..., 3) of the half vector."""
+        D = self.D.eval(NoH, self.D.width(roughness))
+        G = self.G.eval(np.clip(NoV, 0, 1), np.clip(NoL, 0, 1), self.G.width(roughness))
+        return (D * G)[..., None] * F / (4.0 * np.maximum(NoV, COS_EPS) * np.maximum(NoL, COS_EPS))[..., None]
+
+    def sample(self, u, roughness):
+        """A half vector (tangent space) from the NDF's ``D (n.h)``; l is v reflected about it."""
+        return self.D.sample(u, self.D.width(roughness))
+
+    def pdf(self, NoH, VoH, roughness):
+        """The density in l of :meth:`sample`'s reflections: ``D (n.h) / (4 v.h)``."""
+        return self.D.pdf(NoH, self.D.width(roughness)) / np.maximum(4.0 * np.asarray(VoH, dtype=np.float64), COS_EPS)
+
+    def dfg(self, NoV, roughness, **quad):
+        """The split sum's ``(A, B)`` at n.v (:func:`specular_dfg`)."""
+        return specular_dfg(NoV, roughness, ndf=self.ndf, geometry=self.geometry, **quad)
+
+    def albedo(self, NoV, roughness, F0=1.0, **quad):
+        """The directional albedo for a scalar F0 (:func:`specular_albedo`)."""
+        return specular_albedo(NoV, roughness, F0, ndf=self.ndf, geometry=self.geometry, fresnel=self.fresnel, **quad)
+
+
+class DiffuseLobe:
+    """Lambert's lobe weighted by ``(1 - F(v.h)) (1 - metallic)`` (none without Fresnel: the diffuse
+    term vanishes with F = 1): :meth:`eval`, the cosine density :meth:`pdf` and :meth:`albedo`
+    (:func:`diffuse_albedo`)."""
+
+    def __init__(self, fresnel: str = "schlick"):
+        self.fresnel = fresnel
+
+    @staticmethod
+    def eval(F, metallic, base_color):
+        """``(1 - F) (1 - metallic) base_color / pi`` (..., 3)."""
+        m = np.asarray(metallic, dtype=np.float64)[..., None]
+        return (1.0 - F) * (1.0 - m) * np.asarray(base_color, dtype=np.float64) * Fd_Lambert()
+
+    @staticmethod
+    def pdf(NoL):
+        """The cosine density ``max(n.l, 0) / pi`` (Malley's sampler, :func:`pbrcheck.sampling.sample_cosine`)."""
+        return np.maximum(np.asarray(NoL, dtype=np.float64), 0.0) / PI
+
+    def albedo(self, NoV, roughness, F0, **quad):
+        """Per unit ``(1 - metallic) base_color`` (:func:`diffuse_albedo`)."""
+        return diffuse_albedo(NoV, roughness, F0, fresnel=self.fresnel, **quad)
 
 
 # ------------------------------------------------------------------------------------------------
