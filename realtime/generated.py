@@ -125,7 +125,7 @@ def _params(signature: str) -> list[str]:
 
 def _reads_lines(registry: Registry, role: str, signature: str) -> list[str]:
     """``#define <SWITCH>_READS_<PARAM>`` for each parameter the selected member's ``role`` function
-    reads (:attr:`Impl.args`), where some member reads fewer than all: empty otherwise."""
+    reads (:attr:`~pbrcheck.registry.Role.args`), where some member reads fewer than all: empty otherwise."""
     if not any(role in e.roles and e.roles[role].args for e in registry):
         return []
     params = _params(signature)

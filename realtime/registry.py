@@ -50,8 +50,6 @@ IRRADIANCE_METHODS = switch("IRRADIANCE_METHOD", _REALTIME_ONLY.format("irradian
 DFGS = switch("DFG", _REALTIME_ONLY.format("ibl.glsl"), lut="baked DFG LUT (split sum's second factor), Karis 2013",
                analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
 
-
-
 #: The term registries (their entries hold their term classes, :mod:`pbrcheck.terms`), by GLSL switch, with
 #: the GLSL dispatch function each generates, its signature and its user hook.
 TERM_REGISTRIES = {"NDF": (NDFS, "float ndf_term(float NoH, float roughness)", "hook_D(NoH, roughness)"),
@@ -91,6 +89,6 @@ REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SH
 
 def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
     """Whether member ``name``'s ``role`` function reads the dispatch parameter ``param`` (its
-    :attr:`Impl.args`, all parameters where empty; False for a member without the role)."""
-    impl = registry[name].roles.get(role)
-    return impl is not None and (not impl.args or param in impl.args)
+    :attr:`~pbrcheck.registry.Role.args`, all parameters where empty; False for a member without the role)."""
+    r = registry[name].roles.get(role)
+    return r is not None and (not r.args or param in r.args)

@@ -258,7 +258,7 @@ def test_a_deferred_requirement_is_checked_once_resolved():
 
 
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
-    """Each member of every registry carries its functions (an Impl, or roles) or its list states
+    """Each member of every registry carries its functions (a term class, or roles) or its list states
     where it applies and why it has none (a switch of one renderer's own code)."""
     assert set(ROLE_HOMES) == set(rt_registry.ROLE_REGISTRIES)
     for define, reg in rt_registry.REGISTRIES.items():
