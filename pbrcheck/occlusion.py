@@ -26,9 +26,8 @@ API
   Mapped Reflections", the form Jimenez et al. 2016 also use: ``saturate(1 + HORIZON_FADE r.n_g)^2``
   with ``n_g`` the geometric (interpolated vertex) normal: a normal map's reflection below the
   surface's horizon fades out; 1 wherever r is above it.
-- :func:`specular_occlusion`, :func:`horizon_occlusion` -- the dispatches: each looks up the member's
-  function in :data:`SPECULAR_OCCLUSIONS` / :data:`HORIZON_OCCLUSIONS` (the registries, defined here: each
-  entry holds its member's function).
+The registries :data:`realtime.registry.SPECULAR_OCCLUSIONS` / ``HORIZON_OCCLUSIONS`` hold these
+functions; their dispatch by name is :func:`realtime.dispatch.specular_occlusion` / ``horizon_occlusion``.
 
 Conventions: ``ao`` in [0, 1] (1: unoccluded), ``NoV`` in [0, 1], ``roughness`` perceptual in [0, 1],
 ``alpha = roughness^2``; ``RoNg`` the cosine between the reflection and the geometric normal.
@@ -38,7 +37,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registry import REALTIME_APPROXIMATION, Entry, Registry, member_role, role
 
 #: Marmoset's horizon fade (Russell 2015): the reflection fades out over the 1 / 1.3 of r.n_g below 0.
 HORIZON_FADE = 1.3
@@ -85,52 +83,7 @@ def specular_occlusion_gtso(NoV, ao, roughness):
     return np.where(occluded >= free, 1.0, np.clip(occluded / np.maximum(free, 1e-6), 0.0, 1.0))
 
 
-#: Specular occlusion of the split sum's image-based specular from the ambient occlusion: each
-#: member's ``specular_occlusion_<name>(NoV, ao, roughness)``, numpy in :mod:`pbrcheck.occlusion`,
-#: GLSL in ``realtime/shaders/occlusion.glsl`` (dispatch ``specular_occlusion_dispatch.glsl``).
-SPECULAR_OCCLUSIONS = Registry("SPECULAR_OCCLUSION", [
-    Entry("none", "the specular image-based term is not occluded", applies_to="nothing is occluded: factor 1"),
-    Entry("lagarde", "Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
-                     "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
-          roles={"specular_occlusion": role(specular_occlusion_lagarde)},
-          applies_to=REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
-    Entry("gtso", "Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
-                  "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 "
-                  "alpha^2)), Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's",
-          roles={"specular_occlusion": role(specular_occlusion_gtso)},
-          applies_to=REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
-])
-
-
-def specular_occlusion(NoV, ao, roughness, method: str):
-    """The specular occlusion factor of ``method``: its registry entry's ``specular_occlusion_<name>``
-    (:data:`SPECULAR_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
-    r = member_role(SPECULAR_OCCLUSIONS, method, "specular_occlusion", "specular occlusion")
-    if r is None:
-        return np.ones(np.broadcast(np.asarray(NoV), np.asarray(ao), np.asarray(roughness)).shape)
-    return r.numpy(NoV, ao, roughness)
-
-
 def horizon_occlusion_marmoset(RoNg):
     """[Russell15]: ``clip(1 + HORIZON_FADE r.n_g, 0, 1)^2``."""
     h = np.clip(1.0 + HORIZON_FADE * np.asarray(RoNg, np.float64), 0.0, 1.0)
     return h * h
-
-
-#: Horizon occlusion of normal-mapped reflections: ``horizon_occlusion_<name>(RoNg)``, numpy in
-#: :mod:`pbrcheck.occlusion`, GLSL in ``occlusion.glsl`` (dispatch ``horizon_occlusion_dispatch.glsl``).
-HORIZON_OCCLUSIONS = Registry("HORIZON_OCCLUSION", [
-    Entry("none", "reflections below the geometric normal's horizon are not faded", applies_to="factor 1"),
-    Entry("marmoset", "Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et "
-                      "al. 2016): saturate(1 + 1.3 r.n_g)^2", roles={"horizon_occlusion": role(horizon_occlusion_marmoset)},
-          applies_to=REALTIME_APPROXIMATION + "the image-based specular of normal-mapped materials"),
-])
-
-
-def horizon_occlusion(RoNg, method: str):
-    """The horizon occlusion factor of ``method``: its registry entry's ``horizon_occlusion_<name>``
-    (:data:`HORIZON_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
-    r = member_role(HORIZON_OCCLUSIONS, method, "horizon_occlusion", "horizon occlusion")
-    if r is None:
-        return np.ones(np.shape(RoNg))
-    return r.numpy(RoNg)

@@ -7,13 +7,12 @@ dispatch in each language, the generated GLSL (:mod:`realtime.generated`) and th
 Here: the scene's lists. A term's entry holds its numpy class (:attr:`Entry.term`,
 :mod:`pbrcheck.terms`), which names its GLSL functions; the reference holds the Dr.Jit class of the
 same member (:mod:`reference.terms`). Adding an NDF is one class per language and one entry here
-(docs/realtime.md has the worked example). A list of the real-time renderer's approximations lives
-with its numpy functions, each member's :class:`Role` functions by dispatch role
-(:data:`pbrcheck.lodmap.LOD_MAPPINGS`, :data:`pbrcheck.energy.ENERGY_COMPENSATIONS`,
-:data:`pbrcheck.sampling.RUNTIME_SAMPLINGS` and ``LUT_SAMPLINGS``,
-:data:`pbrcheck.occlusion.SPECULAR_OCCLUSIONS` and ``HORIZON_OCCLUSIONS``,
-:data:`pbrcheck.specular_aa.SPECULAR_AAS`); the real-time renderer's own switches and the GLSL side
-of every list are :mod:`realtime.registry`'s.
+(docs/realtime.md has the worked example). A role registry's member holds its :class:`Role`
+functions by dispatch role. The real-time renderer's lists (its approximations, whose numpy
+functions are the core's, its own switches and the GLSL side of every list) are
+:mod:`realtime.registry`'s; two the core reads itself live beside their numpy functions
+(:data:`pbrcheck.lodmap.LOD_MAPPINGS`: a fitted mapping's file names its chain;
+:data:`pbrcheck.sampling.LUT_SAMPLINGS`: the reference's LUT bake shares it).
 
 API
 ---

@@ -3,9 +3,9 @@
 Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
 plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
 
-The runtime importance sampling's strategies (:data:`RUNTIME_SAMPLINGS`): each
+The runtime importance sampling's strategies (:data:`realtime.registry.RUNTIME_SAMPLINGS`): each
 member's ``runtime_half_vector_<name>`` and its ``runtime_estimate_*``, dispatched by
-:func:`runtime_half_vector` / :func:`runtime_estimate`. The DFG LUT's sampling strategies
+:func:`realtime.dispatch.runtime_half_vector` / ``runtime_estimate``. The DFG LUT's sampling strategies
 (:data:`LUT_SAMPLINGS`): each member's
 ``lut_half_vector_<name>`` and ``lut_weight_<name>`` (the GLSL NDF switch is the ``ndf`` argument
 here), the dispatch :func:`lut_half_vector` / :func:`lut_weight` looping the registry, and
@@ -18,9 +18,8 @@ API
 :func:`sample_ndf`, :func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
 :func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`,
 :func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
-:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
-:func:`runtime_estimate`; the registries :data:`RUNTIME_SAMPLINGS`, :data:`LUT_SAMPLINGS` (their entries
-holding these role functions) and :func:`lut_sampling_for`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`; the registry :data:`LUT_SAMPLINGS` (its entries
+holding these role functions; the reference's LUT bake shares it) and :func:`lut_sampling_for`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
 """
 
 from __future__ import annotations
@@ -170,7 +169,7 @@ def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf
     return float(np.sum(w * (1.0 - Fc)) / samples), float(np.sum(w * Fc) / samples)
 
 
-# ---- runtime importance sampling's strategies (RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (realtime.registry.RUNTIME_SAMPLINGS) ---------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -195,31 +194,3 @@ def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
 def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     """[Heitz18] eq. 17: ``F G L / G1(v)``."""
     return np.asarray(F) * G / np.maximum(G1_SmithGGX(NoV, alpha), COS_EPS) * np.asarray(L)
-
-
-#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
-#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
-#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
-#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
-#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling`, GLSL in ``sampling.glsl``.
-RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
-    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
-          roles={"runtime_half_vector": role(runtime_half_vector_beckmann), "runtime_estimate": role(runtime_estimate_ndf)},
-          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
-    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
-          roles={"runtime_half_vector": role(runtime_half_vector_ggx), "runtime_estimate": role(runtime_estimate_ndf)},
-          applies_to="any NDF's shading; exact for the GGX D it samples"),
-    Entry("vndf", "GGX visible normals, Heitz 2018", roles={"runtime_half_vector": role(runtime_half_vector_vndf),
-                 "runtime_estimate": role(runtime_estimate_vndf)},
-          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
-])
-
-
-def runtime_half_vector(u, vt, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s half vector (KeyError for an unknown one)."""
-    return RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy(u, vt, alpha)
-
-
-def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s estimate of one sample."""
-    return RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy(F, G, L, NoV, NoH, VoH, alpha)

@@ -27,8 +27,8 @@ API
   I3D: per texel of mip k, ``var(s_x) + var(s_y)`` of the slopes ``s = (n_x, n_y) / n_z`` of the unit
   level-0 normals it covers), times ``normal_scale^2``.
 - :func:`specular_aa_widen` -- ``min(alpha^2 + v, 1)^(1/4)``, the roughness itself where ``v = 0``.
-- :func:`specular_aa` -- the dispatch: the member's function of :data:`SPECULAR_AAS` (the registry, defined
-  here: each entry holds its member's function).
+The registry :data:`realtime.registry.SPECULAR_AAS` holds these functions; its dispatch by name is
+:func:`realtime.dispatch.specular_aa`.
 
 Conventions: roughness perceptual in [0, 1]; ``normal_length`` the length of the tangent-space
 normal ``2 t - 1`` read through the mip chain before its normalisation (and before ``normal_scale``).
@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registry import REALTIME_APPROXIMATION, Entry, Registry, member_role, role
 
 #: Filament's ``specularAntiAliasingVariance`` default (screen-space variance of the normal's kernel).
 SCREEN_SPACE_VARIANCE = 0.15
@@ -70,42 +69,6 @@ def specular_aa_screen_space(roughness, dn2):
 def specular_aa_prefiltered(roughness, variance):
     """[Olano10]: ``alpha'^2 = alpha^2 + variance`` (the baked slope variance)."""
     return specular_aa_widen(roughness, variance)
-
-
-#: Specular anti-aliasing / normal-map filtering, the roughness widened by the normals' variance:
-#: ``specular_aa_<name>`` of the dispatch inputs it reads (:attr:`~pbrcheck.registry.Role.args`), numpy in
-#: :mod:`pbrcheck.specular_aa`, GLSL in ``specular_aa.glsl`` (dispatch ``specular_aa_dispatch.glsl``,
-#: which also defines ``SPECULAR_AA_READS_<INPUT>`` for the inputs the selected member reads, so
-#: that the raster pass computes only those). ``screen_space`` needs the screen derivatives of the
-#: normal, which only the raster pipeline has (:attr:`Entry.requires`).
-SPECULAR_AAS = Registry("SPECULAR_AA", [
-    Entry("none", "no filtering of the normals' variance into the roughness", applies_to="roughness unchanged"),
-    Entry("toksvig", "Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered "
-                     "normal's length", roles={"specular_aa": role(specular_aa_toksvig, "roughness", "normal_length")},
-          applies_to=REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
-    Entry("screen_space", "Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
-                          "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
-          roles={"specular_aa": role(specular_aa_screen_space, "roughness", "dn2")},
-          requires={"pipeline": ("raster",)},
-          applies_to=REALTIME_APPROXIMATION + "the raster pipeline only: it needs the screen derivatives of the "
-                     "normal, which the ray-cast compute pass (one invocation per pixel, no neighbours) has not"),
-    Entry("prefiltered", "LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
-                         "the mip chain: alpha^2 + var(s_x) + var(s_y)",
-          roles={"specular_aa": role(specular_aa_prefiltered, "roughness", "variance")},
-          applies_to=REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
-])
-
-
-def specular_aa(roughness, normal_length, variance, dn2, method: str):
-    """The filtered perceptual roughness of ``method``: its registry entry's ``specular_aa_<name>``
-    (:data:`SPECULAR_AAS`) of the inputs it reads (:attr:`~pbrcheck.registry.Role.args`),
-    the roughness unchanged for ``none``; KeyError for an unknown method."""
-    r = member_role(SPECULAR_AAS, method, "specular_aa", "specular anti-aliasing")
-    inputs = {"roughness": roughness, "normal_length": normal_length, "variance": variance, "dn2": dn2}
-    if r is None:
-        return np.broadcast_to(np.asarray(roughness, np.float64),
-                               np.broadcast(*(np.asarray(x) for x in inputs.values())).shape)
-    return r.numpy(*(inputs[a] for a in r.args))
 
 
 def slope_variance_mips(texels: np.ndarray, levels: int) -> list[np.ndarray]:

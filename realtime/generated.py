@@ -101,7 +101,7 @@ def _roles_dispatch(define: str) -> str:
     selected member's role function called with the dispatch's parameters, or the identity for a
     member without that role."""
     registry, _, default, roles = ROLE_REGISTRIES[define]
-    lines = [f"// Generated from pbrcheck.registry.{define}S (realtime.registry.ROLE_REGISTRIES): do not edit.",
+    lines = [f"// Generated from the registry {define}S (realtime.registry.ROLE_REGISTRIES): do not edit.",
              f"#ifndef {define}", f"#define {define} {registry.constant(default)}", "#endif"]
     for role, (signature, identity) in roles.items():
         params = _params(signature)

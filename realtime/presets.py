@@ -23,14 +23,12 @@ from dataclasses import replace as _replace
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.energy import ENERGY_COMPENSATIONS
 from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
-from pbrcheck.occlusion import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
-from pbrcheck.sampling import LUT_SAMPLINGS, RUNTIME_SAMPLINGS
-from pbrcheck.specular_aa import SPECULAR_AAS
+from pbrcheck.sampling import LUT_SAMPLINGS
 
-from .registry import DFGS, IRRADIANCE_METHODS, IRRADIANCES, SHADINGS
+from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
+                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
 
 
 #: Separates a preset from a shader hook file in a renderer name: ``default+hooks/ue4.glsl``.

@@ -52,19 +52,18 @@ from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.lights import pack_lights
-from pbrcheck.energy import ENERGY_COMPENSATIONS, SCENE_COMPENSATION
+from pbrcheck.energy import SCENE_COMPENSATION
 from pbrcheck.lodmap import LOD_MAPPINGS
-from pbrcheck.occlusion import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from pbrcheck.progress import Progress
 from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS
-from pbrcheck.sampling import LUT_SAMPLINGS, RUNTIME_SAMPLINGS, lut_sampling_for
-from pbrcheck.specular_aa import SPECULAR_AAS
+from pbrcheck.sampling import LUT_SAMPLINGS, lut_sampling_for
 from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
-from .registry import DFGS, IRRADIANCE_METHODS, IRRADIANCES, SHADINGS, role_reads
+from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
+                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops

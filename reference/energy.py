@@ -1,7 +1,7 @@
 """Multiple-scattering energy compensations in Dr.Jit: the twins of :mod:`pbrcheck.energy` (same
 function names, same formulas; ``realtime/shaders/energy.glsl`` is the third language).
 
-Each member of :data:`pbrcheck.energy.ENERGY_COMPENSATIONS` names its role functions
+Each member of :data:`realtime.registry.ENERGY_COMPENSATIONS` has its role functions
 (``energy_scale_<name>``, ``energy_ms_<name>``, ``energy_direct_<name>``); this module's :data:`ROLES` holds their Dr.Jit twins by member (:func:`energy_scale`, :func:`energy_ms`,
 :func:`energy_direct` loop the registry), so the reference can evaluate a compensation exactly as
 the real-time renderer does, e.g. the compensated albedo of a single-scattering lobe
@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
-from pbrcheck.energy import ENERGY_COMPENSATIONS, KC_EAVG, KC_EAVG_SIZE
+from pbrcheck.energy import KC_EAVG, KC_EAVG_SIZE
 
 import drjit as dr
 import mitsuba as mi
@@ -70,7 +70,7 @@ def kc_eavg(roughness):
     return dr.lerp(lo, hi, x - mi.Float(i))
 
 
-# ---- the registry members' role functions (pbrcheck.energy.ENERGY_COMPENSATIONS) ----------------
+# ---- the registry members' role functions (realtime.registry.ENERGY_COMPENSATIONS) ---------------
 
 def energy_scale_filament(F0, A, B):
     return energy_filament(F0, A + B)
@@ -92,7 +92,8 @@ def energy_direct_kulla_conty(f_spec, F0, A, B, El, roughness):
     return f_ms_kulla_conty(F0, A + B, El, kc_eavg(roughness))
 
 
-#: The reference's table of :data:`pbrcheck.energy.ENERGY_COMPENSATIONS`: each member's Dr.Jit role
+#: The reference's table of :data:`realtime.registry.ENERGY_COMPENSATIONS` (keyed by its members; the
+#: reference may not import the real-time renderer): each member's Dr.Jit role
 #: functions by role (``tests/test_registry.py``: the registry's members and roles, each the twin of
 #: the member's numpy function of the same name).
 ROLES = {"none": {}, "filament": {"energy_scale": energy_scale_filament, "energy_direct": energy_direct_filament},
@@ -103,7 +104,7 @@ ROLES = {"none": {}, "filament": {"energy_scale": energy_scale_filament, "energy
 def _role(role: str, compensation: str):
     """The member's Dr.Jit function for ``role`` (:data:`ROLES`), None where the member has not that role."""
     if compensation not in ROLES:
-        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})")
+        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ROLES)})")
     return ROLES[compensation].get(role)
 
 

@@ -1,7 +1,7 @@
 """The real-time renderer's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
 runtime importance sampling (``runtime_half_vector_<name>``, ``runtime_estimate_*``) and DFG LUT
 strategies (``lut_half_vector_<name>`` / ``lut_weight_<name>``), same names, same formulas (the GLSL
-ones are in ``realtime/shaders/sampling.glsl``), dispatched by this module's tables of :data:`pbrcheck.sampling.RUNTIME_SAMPLINGS` and
+ones are in ``realtime/shaders/sampling.glsl``), dispatched by this module's tables of :data:`realtime.registry.RUNTIME_SAMPLINGS` and
 :data:`pbrcheck.sampling.LUT_SAMPLINGS` (:data:`RUNTIME_ROLES`, :data:`LUT_ROLES`), and
 :func:`dfg_lut`, the Dr.Jit bake of
 ``dfg_lut.comp`` (same points, same estimator) that the reference can use to separate the split
@@ -103,7 +103,7 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     return np.stack([A, B], axis=-1)
 
 
-# ---- runtime importance sampling's strategies (pbrcheck.sampling.RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (realtime.registry.RUNTIME_SAMPLINGS) ---------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -130,7 +130,7 @@ def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     return F * G / dr.maximum(terms.G1_SmithGGX(NoV, alpha), COS_EPS) * L
 
 
-#: The reference's tables of :data:`pbrcheck.sampling.LUT_SAMPLINGS` and ``RUNTIME_SAMPLINGS``: each
+#: The reference's tables of :data:`pbrcheck.sampling.LUT_SAMPLINGS` and ``realtime.registry.RUNTIME_SAMPLINGS``: each
 #: member's Dr.Jit role functions by role (``tests/test_registry.py``: the registries' members and
 #: roles, each the twin of the member's numpy function of the same name).
 LUT_ROLES = {"vndf": {"lut_half_vector": lut_half_vector_vndf, "lut_weight": lut_weight_vndf},

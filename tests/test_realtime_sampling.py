@@ -61,7 +61,7 @@ def _half_vector_twins(fn, u, v, alpha, ndf, numpy_args, drjit_args):
 
 @pytest.mark.parametrize("define, name, role", STRATEGY_ROLES)
 def test_strategy_twins(define, name, role):
-    """Each strategy's functions (pbrcheck.registry RUNTIME_SAMPLINGS, LUT_SAMPLINGS): GLSL and Dr.Jit
+    """Each strategy's functions (realtime.registry RUNTIME_SAMPLINGS, pbrcheck.sampling LUT_SAMPLINGS): GLSL and Dr.Jit
     against the numpy twin of the same name; an ``ndf`` LUT strategy for every NDF it applies to
     (GLSL's NDF switch, numpy and Dr.Jit's argument)."""
     from reference.variant import ensure_variant

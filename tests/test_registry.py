@@ -181,7 +181,7 @@ def test_every_term_has_its_three_implementations(define):
             from pbrcheck import sampling
             assert getattr(sampling, t.glsl_sample, t.sample) is t.sample, t.glsl_sample
             assert re.search(rf"^vec3 {t.glsl_sample}\(", sampling_glsl, re.M), t.glsl_sample
-            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in sampling.RUNTIME_SAMPLINGS
+            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in rt_registry.RUNTIME_SAMPLINGS
             walk = "walk_geometry" in e.extra
             assert not walk or e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
             assert (t.Lambda is not None) >= walk and (d.Lambda is not None, d.sample_visible is not None) >= (walk, walk)
@@ -203,16 +203,18 @@ def test_term_dispatch_matches_the_registry_in_numpy():
         brdf.geometry_term("nope", c, c, r)
 
 
-# The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
-# None: a real-time approximation the reference does not make (no Dr.Jit function).
-ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy.ROLES", "energy.glsl"),
-              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling.RUNTIME_ROLES", "sampling.glsl"),
-              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling.LUT_ROLES", "sampling.glsl"),
-              "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
-              "HORIZON_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
-              "SPECULAR_AA": ("pbrcheck.specular_aa", None, "specular_aa.glsl")}
+# The role registries' languages: the numpy module of the members' functions, the one of the numpy
+# dispatch by name (the registry's module), the reference's Dr.Jit table (None: a real-time
+# approximation the reference does not make), the GLSL file.
+ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "realtime.dispatch", "reference.energy.ROLES", "energy.glsl"),
+              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "realtime.dispatch", "reference.sampling.RUNTIME_ROLES",
+                                   "sampling.glsl"),
+              "LUT_SAMPLING": ("pbrcheck.sampling", "pbrcheck.sampling", "reference.sampling.LUT_ROLES", "sampling.glsl"),
+              "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", "realtime.dispatch", None, "occlusion.glsl"),
+              "HORIZON_OCCLUSION": ("pbrcheck.occlusion", "realtime.dispatch", None, "occlusion.glsl"),
+              "SPECULAR_AA": ("pbrcheck.specular_aa", "realtime.dispatch", None, "specular_aa.glsl")}
 #: The real-time-only role registries, twinned by test_realtime_role_twins below.
-REALTIME_ROLES = [d for d, (_, dr, _) in ROLE_HOMES.items() if dr is None]
+REALTIME_ROLES = [d for d, (_, _, dr, _) in ROLE_HOMES.items() if dr is None]
 
 
 def _offered(option: str, value) -> bool:
@@ -287,21 +289,22 @@ def test_every_role_member_has_its_three_implementations(define):
     from reference.variant import ensure_variant
     ensure_variant()
     reg, include, _, roles = rt_registry.ROLE_REGISTRIES[define]
-    np_mod, dr_table, glsl_file = ROLE_HOMES[define]
-    numpy_mod = importlib.import_module(np_mod)
+    np_mod, dispatch_mod, dr_table, glsl_file = ROLE_HOMES[define]
+    numpy_mod, dispatcher = importlib.import_module(np_mod), importlib.import_module(dispatch_mod)
     drjit_mod, drjit = (None, None)
     if dr_table:  # the reference's table of the same members (reference.energy.ROLES, ...)
         mod, table = dr_table.rsplit(".", 1)
         drjit_mod = importlib.import_module(mod)
         drjit = getattr(drjit_mod, table)
         assert list(drjit) == list(reg.names) and all(set(drjit[e.name]) == set(e.roles) for e in reg), define
-    assert getattr(numpy_mod, reg.define + "S") is reg  # the list lives with its numpy functions
+    home = "realtime.registry" if dispatch_mod == "realtime.dispatch" else dispatch_mod  # where the list lives
+    assert getattr(importlib.import_module(home), reg.define + "S") is reg
     glsl = (SHADER_DIR / glsl_file).read_text()
     dispatch = generated.glsl_generated()[include]
     assert f'#include "{include}"' in glsl
     for role, (signature, identity) in roles.items():
         assert signature + " {" in dispatch
-        assert callable(getattr(numpy_mod, role)) and (not drjit_mod or callable(getattr(drjit_mod, role))), role
+        assert callable(getattr(dispatcher, role)) and (not drjit_mod or callable(getattr(drjit_mod, role))), role
     for e in reg:
         assert set(e.roles) <= set(roles), e.name
         missing = set(roles) - set(e.roles)
@@ -348,14 +351,14 @@ def test_realtime_role_twins(define, name, role):
     impl = reg[name].roles[role]
     params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
     grids = dict(zip(params, np.meshgrid(*(PARAM_GRIDS[p] for p in params), indexing="ij")))
-    numpy_mod = importlib.import_module(ROLE_HOMES[define][0])
+    dispatcher = importlib.import_module(ROLE_HOMES[define][1])
     atol = {"gtso": test_occlusion.GTSO_ATOL}.get(name, min(test_occlusion.GLSL_ATOL, test_specular_aa.GLSL_ATOL))
     own = [grids[a] for a in impl.args or params]
     got = run_glsl(f"{impl.glsl}({', '.join(f'x{i}' for i in range(len(own)))})", *own)
     np.testing.assert_allclose(got, impl.numpy(*own), rtol=0, atol=atol)
     got = run_glsl(f"{role}({', '.join(f'x{i}' for i in range(len(params)))})", *grids.values(),
                    defines=reg.select(name))
-    np.testing.assert_allclose(got, getattr(numpy_mod, role)(*grids.values(), name), rtol=0, atol=atol)
+    np.testing.assert_allclose(got, getattr(dispatcher, role)(*grids.values(), name), rtol=0, atol=atol)
 
 
 #: The real-time approximations' GLSL term files (issue 23): each one's numpy home and the test files
