@@ -1,6 +1,8 @@
-"""The closed lists live in one registry (pbrcheck.registry): the docs' tables, the options'
-choices, the scene model and the shaders agree with it; each LOD mapping's GLSL pair matches its
-numpy twin of the same name on a grid including roughness 0, 1e-6 and 1."""
+"""The closed lists are registries (pbrcheck.registry, realtime.registry; the LOD mappings' and the DFG
+LUT strategies' beside their numpy functions): the docs' tables, the options' choices, the scene
+model, the three languages' implementations, the generated GLSL and the shaders agree with them;
+each LOD mapping's GLSL pair matches its numpy twin on a grid including roughness 0, 1e-6 and 1;
+``pbrcheck shaders --dump`` writes what every program compiles."""
 
 from __future__ import annotations
 
@@ -80,15 +82,27 @@ def test_options_and_scene_read_the_registry():
     assert scene.GEOMETRY_NAMES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRY_NAMES
 
 
-def test_shaders_switch_on_named_constants_only():
-    """No ``#if SWITCH == <integer>`` is left in the shaders: every comparison names a constant."""
-    bare = []
-    for p in SHADER_DIR.iterdir():
-        for i, line in enumerate(p.read_text().splitlines(), 1):
-            m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\d+)", line)
+def _switch_comparisons(sources: dict[str, str]) -> tuple[list[str], list[str]]:
+    """(named, bare): each ``#if``/``#elif SWITCH == X`` line on a registry switch of ``sources`` (name
+    -> text), X a constant or an integer."""
+    named, bare = [], []
+    for name, text in sources.items():
+        for i, line in enumerate(text.splitlines(), 1):
+            m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\w+)", line)
             if m and m.group(2) in rt_registry.REGISTRIES:
-                bare.append(f"{p.name}:{i}: {line.strip()}")
+                (bare if m.group(3).isdigit() else named).append(f"{name}:{i}: {line.strip()}")
+    return named, bare
+
+
+def test_shaders_switch_on_named_constants_only():
+    """No ``#if SWITCH == <integer>`` is left in the shaders or the generated includes: every
+    comparison names a constant (and there are comparisons to check: the check itself finds an
+    integer one)."""
+    sources = {p.name: p.read_text() for p in SHADER_DIR.iterdir()} | generated.glsl_generated()
+    named, bare = _switch_comparisons(sources)
     assert not bare, bare
+    assert len(named) > 40, named  # the generated dispatch alone compares every member of every switch
+    assert _switch_comparisons({"x.glsl": "#if NDF == 1\n"})[1] == ["x.glsl:1: #if NDF == 1"]
 
 
 def test_every_shader_gets_every_constant():
