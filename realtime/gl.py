@@ -1,9 +1,9 @@
 """Headless OpenGL: one cached moderngl EGL context, and GLSL source assembly.
 
 Shader sources live in ``realtime/shaders``. :func:`assemble` expands ``#include "file.glsl"``
-lines (each file once; the sources of :func:`pbrcheck.registry.glsl_generated` are included by
+lines (each file once; the sources of :func:`realtime.generated.glsl_generated` are included by
 name like files), prepends ``#version 430``, the named constants of every registry
-(:func:`pbrcheck.registry.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
+(:func:`realtime.generated.glsl_defines`: ``#define GEOMETRY_SMITH_GGX 1``) and the ``#define`` lines
 of the caller, and keeps a line map so that a compile error reported by the driver is re-reported as
 ``file.glsl:line`` of the original source (:class:`pbrcheck.errors.ShaderCompileError`). Two driver
 formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, column) and NVIDIA's
@@ -12,9 +12,9 @@ formats are parsed: Mesa's ``0:LINE(COL): error: ...`` (source string, line, col
 API
 ---
 :func:`get_context`, :func:`renderer_name`, :func:`is_software_renderer`, :func:`timing_clock`,
-:func:`timed`, :func:`assemble`, :func:`map_errors`,
+:func:`timed`, :func:`assemble`, :func:`map_errors`, :func:`dump_sources`,
 :func:`compute_program`, :func:`compile_source`, :func:`groups`, :func:`in_bands`, :class:`Source`,
-:func:`shader_sources_hash`.
+:func:`shader_sources_hash`, :data:`DEFINES_FILE`.
 
 Long GL work and signals: a signal that arrives during a GL call waits until the call returns (the
 interpreter runs a handler between two bytecodes; pbrcheck.cli's SIGTERM handler raises
@@ -40,8 +40,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from pbrcheck.atomic import staged_folder
 from pbrcheck.errors import BackendError, ShaderCompileError
-from pbrcheck.registry import glsl_defines, glsl_generated
+from .generated import glsl_defines, glsl_generated
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 GLSL_VERSION = "#version 430"
@@ -142,8 +143,8 @@ _GENERATED = glsl_generated()
 def shader_sources_hash(root: Path | None = None) -> str:
     """SHA-256 over every source the GL programs can read: each file below ``root`` (default:
     :data:`SHADER_DIR` as it is now), whatever its suffix, by relative path and bytes in sorted
-    order, then the registry's generated sources (:func:`pbrcheck.registry.glsl_generated`, included
-    by name like files) and ``#define`` lines (:func:`pbrcheck.registry.glsl_defines`, prepended to
+    order, then the registry's generated sources (:func:`realtime.generated.glsl_generated`, included
+    by name like files) and ``#define`` lines (:func:`realtime.generated.glsl_defines`, prepended to
     every program). Not memoized: ~30 small files, well under a millisecond, and a file edited under
     a running process must change it."""
     root = Path(SHADER_DIR if root is None else root)
@@ -206,6 +207,34 @@ def assemble(entry: str, defines: dict | None = None, user: tuple[str, str] | No
             lines.append(line)
             lmap.append((uname, i))
     return Source("\n".join(lines) + "\n", lmap)
+
+
+#: The file of :func:`dump_sources` holding the ``#define`` lines :func:`assemble` prepends.
+DEFINES_FILE = "registry_defines.glsl"
+
+
+def dump_sources(folder: str | Path) -> list[str]:
+    """Write every GLSL source the programs read into ``folder``, atomically (a staged folder, then
+    one rename or a merge into an existing ``folder``): each file of ``realtime/shaders`` as it is,
+    each generated include of :func:`realtime.generated.glsl_generated` (its first line names its registry),
+    :data:`DEFINES_FILE` (``#version`` and the registries' named constants, which :func:`assemble`
+    prepends to every program) and a ``README.txt`` of the conventions. Returns the files' names."""
+    files = {p.name: p.read_text() for p in sorted(SHADER_DIR.iterdir()) if p.is_file()}
+    clash = set(files) & set(_GENERATED)
+    if clash:  # assemble would read the generated source and ignore the file: never ship both
+        raise ShaderCompileError(f"generated includes shadow shader files: {', '.join(sorted(clash))}")
+    files.update(_GENERATED)  # each begins "// Generated from <its registry>: do not edit."
+    files[DEFINES_FILE] = "\n".join([GLSL_VERSION, *(f"#define {k} {v}" for k, v in glsl_defines().items())]) + "\n"
+    files["README.txt"] = (
+        "The real-time renderer's GLSL as realtime.gl.assemble compiles it: each program is an entry file "
+        f"(*.comp, *.vert, *.frag) preceded by {DEFINES_FILE} and its caller's #define lines (the registries' "
+        "switches, e.g. #define NDF NDF_GGX), with every #include \"NAME\" expanded once from this folder; "
+        "files whose first line says \"Generated from\" are made by realtime/generated.py from the registry "
+        "it names (edit that), the others are copies of realtime/shaders.\n")
+    with staged_folder(folder) as stage:
+        for name, text in files.items():
+            (stage / name).write_text(text)
+    return sorted(files)
 
 
 def map_errors(message: str, src: Source) -> str:

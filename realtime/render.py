@@ -24,7 +24,7 @@ Conventions at both ends of every baked artifact
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
 
-Compile-time switches are the named constants of :mod:`pbrcheck.registry` (``{"GEOMETRY":
+Compile-time switches are the named constants of the registries (:mod:`realtime.registry`; ``{"GEOMETRY":
 "GEOMETRY_SMITH_GGX"}``); uniforms are set with :func:`_set`, which raises on a uniform the program
 lacks unless the caller declares it optional (a variant's compiler may drop a uniform its code
 does not read; a misspelt or renamed uniform would otherwise render with 0).
@@ -53,30 +53,17 @@ from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.lights import pack_lights
 from pbrcheck.energy import SCENE_COMPENSATION
+from pbrcheck.lodmap import LOD_MAPPINGS
 from pbrcheck.progress import Progress
-from pbrcheck.registry import (
-    DFGS,
-    ENERGY_COMPENSATIONS,
-    FRESNELS,
-    GEOMETRIES,
-    HORIZON_OCCLUSIONS,
-    IRRADIANCE_METHODS,
-    IRRADIANCES,
-    LOD_MAPPINGS,
-    LUT_SAMPLINGS,
-    NDFS,
-    RUNTIME_SAMPLINGS,
-    SHADINGS,
-    SPECULAR_AAS,
-    SPECULAR_OCCLUSIONS,
-    lut_sampling_for,
-    role_reads,
-)
+from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS
+from pbrcheck.sampling import LUT_SAMPLINGS, lut_sampling_for
 from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
+from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
+                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -94,7 +81,7 @@ FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "c
 
 def chain_mapping(o: RealtimeOptions) -> str:
     """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``):
-    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`."""
+    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.lodmap.LOD_MAPPINGS`."""
     return o.chain
 
 
@@ -493,7 +480,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
     """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
     :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
 
-    Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
+    Every switch comes from its registry (:mod:`realtime.registry`), so the GLSL tests named constants;
     a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
     """
     shading = o.shading  # its combination with ibl is checked by resolve_options

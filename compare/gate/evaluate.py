@@ -29,7 +29,7 @@ from pathlib import Path
 from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import RGB, Image, read_exr
-from pbrcheck.registry import SHADINGS
+from realtime.registry import SHADINGS
 
 from .. import renderers
 from ..baseline import compare_to_baseline, likely_term, load_baseline, sensitivity

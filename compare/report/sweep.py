@@ -23,7 +23,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import csv_cell
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
-from pbrcheck.registry import IRRADIANCES
+from realtime.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
 from .. import renderers

@@ -67,7 +67,8 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value, terminal_safe
 from pbrcheck.gltf_scene import scene_has_assets
 from pbrcheck.jsonio import write_json_atomic
-from pbrcheck.registry import BUILTIN_LOD_MAPPINGS, NDFS
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS
+from pbrcheck.registry import NDFS
 from pbrcheck.scene import Scene
 
 from .. import renderers
