@@ -16,19 +16,19 @@ from pbrcheck.scene import load_scene
 from . import render as R
 from .gl import renderer_name, timing_clock
 from .hooks import load_hook_file
-from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
+from .presets import BAKES, PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
 
 
 def _cmd_realtime(args) -> int:
-    overrides = overrides_from_args(args.set, args.shader)
-    resolve_options(args.preset, overrides)  # validate before any GL work
-    if args.shader:
-        load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
+    preset = args.preset
+    o = resolve_options(preset, overrides_from_args(args.set, args.shader))  # once, before any GL work
+    if o.shader:
+        load_hook_file(o.shader)  # a hook file that cannot be read or parsed: before any work
     scene = load_scene(args.scene)
     out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
     check_output_path(out)  # before the render
-    img = render_realtime(scene, args.preset, overrides, progress=True)
+    img = render_realtime(scene, preset, o, progress=True)
     write_exr(out, img)
     t = json.loads(img.meta["timings"])
     print(f"{out}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
@@ -77,7 +77,7 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
                          "to glFinish on llvmpipe; raster frames time the colour pass's draws", "presets": {}}
     for p in presets or PRESETS:
         R.render_realtime(scene, p, progress=False)            # warm-up: compile, JIT, load env
-        for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in ("env_cube", "irr", "sh9", "pre", "lut", "kd")]:
+        for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in BAKES]:
             R._cache.pop(k)                                     # re-bake every pass, now warm
         for k in [k for k in raster._textures if k != ("white",)]:
             raster._textures.pop(k)[1].release()               # re-upload the material textures
