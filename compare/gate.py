@@ -317,8 +317,9 @@ def run_check(check: Check, base: Path, *, maps_dir: Path | None = None, progres
             test = read_exr(test_path, require=RGB)
             test_name = str(test_path)
         else:
-            test = renderers.render_under_test(scene, check.preset, check.options or None, progress=progress)
-            test_name = check.preset if renderers.is_external(check.preset) else f"real-time {check.preset}"
+            spec = renderers.RendererSpec.parse(check.preset, check.options)
+            test = renderers.render_under_test(scene, spec, progress=progress)
+            test_name = spec.text if spec.external else f"real-time {spec.text}"
         ref_scene = _reference_scene(base, check, scene) if check.reference_scene else scene
         if check.reference == "auto":
             ref, res.verdict = reference_for_verdict(ref_scene, [test], spp=check.spp, cap=check.spp_cap,
@@ -705,10 +706,11 @@ def _takes_hooks(check: Check) -> bool:
     if check.test is not None or renderers.is_external(check.preset):
         return False
     try:
-        o = renderers.resolve_options(check.preset, {k: v for k, v in check.options.items() if k != "shader"})
+        no_hook = {k: v for k, v in check.options.items() if k != "shader"}
+        o = renderers.RendererSpec.parse(check.preset, no_hook).options
     except PbrcheckError:
         return False
-    if not SHADINGS[o["shading"]].extra.get("hooks"):
+    if not SHADINGS[o.shading].extra.get("hooks"):
         return False
     shader = check.options.get("shader")
     return not (shader and "hook_lod" in Path(shader).read_text(encoding="utf-8", errors="replace"))
@@ -721,20 +723,20 @@ def _accept_one(r: Result, base: Path, staging: Path, reason: str, date: str, pr
 
     c = r.check
     scene = _scene_arg(base, c.scene) if c.scene else None
+    spec = renderers.RendererSpec.parse(c.preset, c.options) if c.test is None else None
     images = [r.test_image.rgb]
     probe = None
     if c.test is None:
         for _ in range(SPREAD_RUNS - 1):
             renderers.trim_caches(0)  # every run bakes its environment afresh
-            images.append(renderers.render_under_test(scene, c.preset, c.options or None, progress=progress,
-                                                      use_cache=False).rgb)
+            images.append(renderers.render_under_test(scene, spec, progress=progress, use_cache=False).rgb)
         if _takes_hooks(c):
             import tempfile
 
             with tempfile.TemporaryDirectory(prefix="pbrcheck-lod-probe-") as d:
                 hook = Path(d) / "lod_probe.glsl"
                 hook.write_text(LOD_PROBE_HOOK, encoding="utf-8")
-                img = renderers.render_under_test(scene, c.preset, {**c.options, "shader": str(hook)}, progress=progress)
+                img = renderers.render_under_test(scene, spec.with_options(shader=str(hook)), progress=progress)
             probe = probe_response(r.ref_image, r.test_image.rgb, img.rgb, r.test_image, r.names)
     spread = spread_of(images)
     meta = r.test_image.meta

@@ -101,10 +101,11 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     def summary(prog):
         page.top += [summary_section(sections())]
         if cfg.furnace:
-            page.top.append(furnace_section(list(presets), st.spp, prog, context=st.context))
+            page.top.append(furnace_section([st.spec(p) for p in presets], st.spp, prog, context=st.context))
 
     def references(prog):  # ext:NAME against both references
-        page.top += references_sections(scenes, sections(), list(presets), out_dir, prog, context=st.context)
+        page.top += references_sections(scenes, sections(), [st.spec(p) for p in presets], out_dir, prog,
+                                        context=st.context)
 
 
     def hardcases(prog):
@@ -165,8 +166,9 @@ def render_page(scenes: list[SceneSection], top: list[Section], extras: list[Sec
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
 
 
-def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | None]:
-    """The presets and the parsed ``vary``; raises before anything is rendered or written."""
+def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict, dict | None]:
+    """The presets, each parsed once (name -> :class:`compare.renderers.RendererSpec`), and the parsed
+    ``vary``; raises before anything is rendered or written."""
     presets = list(cfg.presets) if cfg.presets is not None else renderers.preset_names()
     if not presets:
         raise PbrcheckError("report: no preset to compare")
@@ -175,21 +177,20 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | 
     vary_d = parse_vary(cfg.vary) if cfg.vary else None
     for s in scenes:
         load_scene(s)
-    for p in presets:
-        renderers.resolve_options(p, {})
-        renderers.check_backend_limits(p, {})
+    specs = {p: renderers.RendererSpec.parse(p) for p in presets}
+    for spec in specs.values():
+        renderers.check_backend_limits(spec)
     for combo in combinations(vary_d) if vary_d else []:
-        renderers.resolve_options(presets[0], combo)
-        renderers.check_backend_limits(presets[0], combo)
+        renderers.check_backend_limits(specs[presets[0]].with_options(**combo))
     if cfg.scheduler:
         parse_scheduler(cfg.scheduler)
-    return presets, vary_d
+    return presets, specs, vary_d
 
 
-def _prefetch_jobs(scenes: list[str], presets: list[str], cfg: ReportConfig) -> list:
+def _prefetch_jobs(scenes: list[str], specs: dict, cfg: ReportConfig) -> list:
     """The external renderers' images, in the order the sections use them (rendered in a background
     thread while this process renders the presets, references and maps)."""
-    ext = [p for p in presets if renderers.is_external(p)]
+    ext = [r for r in specs.values() if r.external]
     if cfg.scheduler:
         return []
     jobs = [(load_scene(s), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if cfg.furnace else [])
@@ -228,16 +229,16 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
         No preset, ``spp`` below 2, an unknown scene, preset or swept option: raised before anything
         is rendered or written."""
     cfg = config
-    presets, vary_d = _validated(scenes, cfg)
+    presets, specs, vary_d = _validated(scenes, cfg)
     spec = parse_scheduler(cfg.scheduler) if cfg.scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     page = _Page(extras=list(extras or []))
     log = RunLog()
-    with renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
+    with renderers.prefetch_external(_prefetch_jobs(scenes, specs, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
-                            approximations=cfg.approximations,
+                            approximations=cfg.approximations, specs=specs,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

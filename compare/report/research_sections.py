@@ -85,14 +85,15 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     opts = dict(st.options)
     res = run_fit_lod(scene, preset=preset, options=opts, spp=st.fitlod_spp, size=st.fitlod_size, out=out,
                       progress=progress, context=context)
-    o = renderers.resolve_options(preset, opts)
-    own = o["lod_mapping"]
+    spec = renderers.RendererSpec.parse(preset, opts)  # once: before and after are variants of it
+    o = spec.options
+    own = o.lod_mapping
     # Before / after on the report's own render (full size, point lights on, report spp).
     ref = renderers.render_reference(scene, spp=report_spp, use_cache=True, progress=False)
     # The table reads ``keys`` only (no Delta E ITP: its map is not computed).
-    before = compare_images(ref, renderers.render_under_test(scene, preset, opts, context=context), noise=False,
+    before = compare_images(ref, renderers.render_under_test(scene, spec, context=context), noise=False,
                             itp=False, flip_cache=context.flip_cache).metrics
-    after = compare_images(ref, renderers.render_under_test(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"},
+    after = compare_images(ref, renderers.render_under_test(scene, spec.with_options(lod_mapping=f"fitted:{out}"),
                                                             context=context), noise=False, itp=False,
                            flip_cache=context.flip_cache).metrics
     m = res.mappings
@@ -119,7 +120,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     rr = np.linspace(0, 1, 201)
     fm = LodMapping.from_json(m["fitted"].to_json())
-    M, cube_log2 = o["prefilter_levels"] - 1, float(np.log2(o["cube_size"]))
+    M, cube_log2 = o.prefilter_levels - 1, float(np.log2(o.cube_size))
     colour = {k: f"C{i}" for i, k in enumerate(BUILTIN_LOD_MAPPINGS)}  # a chain's line and its optima alike
     for k in BUILTIN_LOD_MAPPINGS:
         ax.plot(rr, builtin_lod(k, rr, M, cube_log2), lw=1, color=colour[k], label=f"{k} (relmse {_fmt(m[k].relmse)})")

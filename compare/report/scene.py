@@ -69,7 +69,9 @@ def convergence_spps(spp: int) -> list[int]:
 class ReportSettings:
     """What every scene section renders: the renderers under test, the reference spp, the sweep
     (``vary``: option -> values, every combination; else the default sweep when ``sweep``), the
-    reference convergence study, and how the renderers under test render (``context``)."""
+    reference convergence study, and how the renderers under test render (``context``).
+    ``specs``: each name of ``presets`` parsed once (:class:`compare.renderers.RendererSpec`), what
+    every stage renders; the names label the outputs."""
 
     presets: list[str]
     spp: int
@@ -84,10 +86,15 @@ class ReportSettings:
     #: Asset scenes drawn by a real-time preset: every approximation option against its truth
     #: (compare.approximations; one ``path`` reference at ``spp`` and 13 raster frames).
     approximations: bool = True
+    specs: dict = field(default_factory=dict)
+
+    def spec(self, name: str) -> renderers.RendererSpec:
+        """The parsed renderer of preset name ``name`` (a name the report was not given: KeyError)."""
+        return self.specs[name]
 
     def combos(self) -> list[dict]:
         """The sweep's option sets (over the first preset)."""
-        return combinations(self.vary) if self.vary else (default_sweep(self.presets[0]) if self.sweep else [])
+        return combinations(self.vary) if self.vary else (default_sweep(self.spec(self.presets[0])) if self.sweep else [])
 
 
 class SceneWork:
@@ -109,7 +116,8 @@ class SceneWork:
         self.provenance: list[tuple[str, str]] = []
         self.material_rows: list[dict] = []
         self.sweep_table: list[dict] = []
-        self.approx_preset = approximation_preset(self.scene, st.presets) if st.approximations else None
+        self.approx_preset = (approximation_preset(self.scene, [st.spec(p) for p in st.presets])
+                              if st.approximations else None)
         self.approx_rows: list[dict] = []
         self.conv: list[dict] = []
         self.section: SceneSection | None = None
@@ -135,10 +143,11 @@ class SceneWork:
         self.sd.mkdir(parents=True, exist_ok=True)
         st = self.st
         if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
-            imgs = renderlist.render_images(st.executor, self.scene, [(p, None) for p in st.presets], context=st.context)
+            imgs = renderlist.render_images(st.executor, self.scene, [st.spec(p) for p in st.presets],
+                                            context=st.context)
             self.images = dict(zip(st.presets, imgs))
         else:
-            self.images = {p: renderers.render_under_test(self.scene, p, None, progress=False, context=st.context)
+            self.images = {p: renderers.render_under_test(self.scene, st.spec(p), progress=False, context=st.context)
                            for p in st.presets}
 
     def _reference(self, prog) -> None:
@@ -200,7 +209,7 @@ class SceneWork:
     def _sweep(self, prog) -> None:
         """The sweep over the cost knobs (from the first preset)."""
         st = self.st
-        srows = sweep_rows(self.scene, self.ref, self.combos, preset=st.presets[0], progress=prog,
+        srows = sweep_rows(self.scene, self.ref, self.combos, spec=st.spec(st.presets[0]), progress=prog,
                            executor=st.executor, context=st.context)
         write_table(self.sd, srows, sorted({k for c in self.combos for k in c}))
         for r in srows:
@@ -261,17 +270,16 @@ class SceneWork:
                                     self.sweep_table, verdict, self.material_rows, self.approx_preset, self.approx_rows)
 
 
-def approximation_preset(scene, presets) -> str | None:
-    """The first real-time preset that draws ``scene`` with the raster pipeline, for an asset scene
-    (None otherwise: no asset section)."""
+def approximation_preset(scene, specs: list[renderers.RendererSpec]) -> str | None:
+    """The first real-time preset (of the parsed renderers ``specs``) that draws ``scene`` with the
+    raster pipeline, for an asset scene (None otherwise: no asset section)."""
     from pbrcheck.gltf_scene import scene_has_assets
-    from realtime.presets import PRESETS, resolve_options
     from realtime.render import resolved_pipeline
     if not scene_has_assets(scene):
         return None
-    for p in presets:   # named presets only (not external renderers, not hook files)
-        if p in PRESETS and resolved_pipeline(scene, resolve_options(p, {})) == "raster":
-            return p
+    for r in specs:   # named presets only (not external renderers, not hook files nor overrides)
+        if not r.external and not r.overrides and resolved_pipeline(scene, r.options) == "raster":
+            return r.name
     return None
 
 
