@@ -15,6 +15,7 @@ from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
 from pbrcheck.scenario_import import import_scenario
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
 from .config import load_renderers, set_renderers_file
@@ -22,7 +23,7 @@ from .run import render_external
 
 
 def _cmd_export(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     check_output_path(args.out, folder=True)
     exp = export_scene(scene, Path(args.out), output=args.output)
     segs = sorted(set(exp.segments.values()))
@@ -34,7 +35,7 @@ def _cmd_export(args) -> int:
 def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     out = Path(args.out or f"out/render/{scene.name}_{args.renderer.replace(':', '_')}.exr")
     check_output_path(out)  # before the render
     img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)

@@ -27,6 +27,8 @@ API
 - :func:`is_external` -- whether a renderer name names an external renderer (``ext:NAME``; the
   parser's test, for a name not parsed yet).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
+- :func:`resolve_options` -- a bare preset's resolved options (what :class:`RendererSpec` resolves
+  through, once per spec; the seam a test replaces for fake presets).
 - :func:`check_backend_limits` -- raise :class:`pbrcheck.errors.BackendError` where this machine's GL
   cannot render a spec's options (``msaa`` above ``GL_MAX_SAMPLES``: :func:`realtime.raster.check_msaa`),
   for preflights that render other things first (report, sweep).
@@ -167,7 +169,7 @@ class RendererSpec:
             return cls(text, text)
         preset, named = _presets.split_preset(text)
         merged = {**named, **(overrides or {})}
-        return cls(text, preset, tuple(sorted(merged.items())), _presets.resolve_options(preset, merged))
+        return cls(text, preset, tuple(sorted(merged.items())), resolve_options(preset, merged))
 
     @property
     def external(self) -> bool:
@@ -187,7 +189,7 @@ class RendererSpec:
             return self
         merged = {**dict(self.overrides), **changes}
         return replace(self, overrides=tuple(sorted(merged.items(), key=lambda kv: kv[0])),
-                       options=_presets.resolve_options(self.name, merged))
+                       options=resolve_options(self.name, merged))
 
     def __str__(self) -> str:
         return self.text
@@ -291,14 +293,22 @@ def preset_names() -> list[str]:
     return list(_presets.PRESETS)
 
 
+def resolve_options(preset: str, overrides: Mapping | None = None) -> RealtimeOptions:
+    """The resolved options of real-time preset ``preset`` (a bare preset name) with ``overrides``
+    (:func:`realtime.presets.resolve_options`): what :class:`RendererSpec` resolves through, the one
+    place a test replaces to stand in fake presets."""
+    return _presets.resolve_options(preset, dict(overrides or {}))
+
+
 def check_backend_limits(spec: RendererSpec) -> None:
     """Raise :class:`pbrcheck.errors.BackendError` (exit 3) where this GL cannot render ``spec``'s
     options (:func:`realtime.raster.check_msaa`); nothing for an external renderer. Opens the GL
     context only where the options multisample."""
-    if spec.external or spec.options.msaa <= 1:
+    msaa = 1 if spec.external else int(getattr(spec.options, "msaa", 1))
+    if msaa <= 1:
         return
     from realtime import raster as _raster
-    _raster.check_msaa(int(spec.options.msaa))
+    _raster.check_msaa(msaa)
 
 
 def multiscatter_albedo(mu, roughness, F0, **kwargs):

@@ -35,6 +35,7 @@ import reference.commands
 from . import __version__, cache
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
+from .gltf_objects import add_asset_arguments, asset_options_of
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -53,7 +54,7 @@ def _cmd_scenes(args) -> int:
 
 
 def _cmd_check_scene(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     env = load_environment(scene)  # validates the environment's pixels too
     if args.json:
         print(json.dumps(scene.to_dict(), indent=2))
@@ -100,36 +101,6 @@ def _cmd_cache(args) -> int:
     return 0
 
 
-def _asset_options(argv: list[str]) -> list[str]:
-    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE`` and ``--size WxH`` out of
-    ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every command that takes a SCENE
-    accepts an asset that way; an integer ``--size`` stays the command's own)."""
-    from .gltf_scene import is_asset_path, parse_size, set_asset_options
-
-    if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
-        set_asset_options()
-        return argv
-    env = size = None
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        a = argv[i]
-        key, eq, val = a.partition("=")
-        if key in ("--env", "--size") and (eq or i + 1 < len(argv)):
-            v = val if eq else argv[i + 1]
-            if key == "--env" or "x" in v.lower():
-                if key == "--env":
-                    env = v
-                else:
-                    size = parse_size(v)
-                i += 1 if eq else 2
-                continue
-        out.append(a)
-        i += 1
-    set_asset_options(env, size)
-    return out
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``pbrcheck`` argument parser with every package's subcommands."""
     p = argparse.ArgumentParser(
@@ -169,6 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     for mod in COMMAND_MODULES:
         mod.register(sub, bench_sub)
+    for s in sub.choices.values():  # every command that takes a SCENE: --env and --size WxH for an asset
+        add_asset_arguments(s)
     return p
 
 
@@ -230,12 +203,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        argv = _asset_options(argv)
-    except ValueError as e:
-        print(f"pbrcheck: error: {e}", file=sys.stderr)
-        return 2
     args = parser.parse_args(argv)
+    asset_options_of(args)  # a WxH given to a command's own integer --size is the asset's, from here on
     # --renderers names the file of this call only: an in-process caller (tests, scripts calling
     # main() again) must not inherit it, so the previous choice is restored on the way out.
     prev_renderers = clients.config.user_renderers_file()

@@ -11,6 +11,7 @@ import numpy as np
 
 from pbrcheck.atomic import check_output_path
 from pbrcheck.exr import Image, write_exr
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
 from . import render as R
@@ -25,7 +26,7 @@ def _cmd_realtime(args) -> int:
     o = resolve_options(preset, overrides_from_args(args.set, args.shader))  # once, before any GL work
     if o.shader:
         load_hook_file(o.shader)  # a hook file that cannot be read or parsed: before any work
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
     check_output_path(out)  # before the render
     img = render_realtime(scene, preset, o, progress=True)
@@ -67,11 +68,9 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
     be a glTF asset (``env`` its environment file): the raster pipeline then also reports its
     ``texture_upload`` and ``texture_mips`` (upload and mip generation apart, re-done warm) and
     ``geometry`` passes."""
-    from pbrcheck.gltf_objects import is_asset_path, set_asset_options
+    from pbrcheck.gltf_objects import AssetOptions
     from . import raster
-    if is_asset_path(scene_name):
-        set_asset_options(env=env, size=(size, size))
-    scene = load_scene(scene_name).with_camera(width=size, height=size)
+    scene = load_scene(scene_name, AssetOptions(env=env, size=(size, size))).with_camera(width=size, height=size)
     out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "clock": timing_clock(),
            "clock_note": "frame_s: GL timer query (GPU time of the frame's commands) on a GPU, the wall clock "
                          "to glFinish on llvmpipe; raster frames time the colour pass's draws", "presets": {}}

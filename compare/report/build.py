@@ -29,6 +29,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -80,6 +81,8 @@ class ReportConfig:
     scheduler: str | None = None
     cache: bool = True
     progress: bool = True
+    #: ``--env`` / ``--size WxH`` of the glTF asset scene arguments (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
 
 
 @dataclass
@@ -105,7 +108,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
 
     def references(prog):  # ext:NAME against both references
         page.top += references_sections(scenes, sections(), [st.spec(p) for p in presets], out_dir, prog,
-                                        context=st.context)
+                                        context=st.context, assets=cfg.assets)
 
 
     def hardcases(prog):
@@ -119,6 +122,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
             ReportStage("both references", len(scenes) * n_ext, references)]
     if cfg.research:  # at the first scene's trusted-verdict spp (the reference its sections compare against)
         parts = research_parts(scenes[0], out_dir / "research", presets, report_spp=lambda: works[0].verdict.spp,
+                               st=ResearchSettings(assets=cfg.assets),
                                progress=cfg.progress, context=st.context)
         out += [ReportStage(name, 0, lambda prog, make=make: page.extras.append(make())) for name, make in parts]
     if cfg.hardcases:
@@ -176,7 +180,7 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict, d
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {cfg.spp}")
     vary_d = parse_vary(cfg.vary) if cfg.vary else None
     for s in scenes:
-        load_scene(s)
+        load_scene(s, cfg.assets)
     specs = {p: renderers.RendererSpec.parse(p) for p in presets}
     for spec in specs.values():
         renderers.check_backend_limits(spec)
@@ -193,9 +197,9 @@ def _prefetch_jobs(scenes: list[str], specs: dict, cfg: ReportConfig) -> list:
     ext = [r for r in specs.values() if r.external]
     if cfg.scheduler:
         return []
-    jobs = [(load_scene(s), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if cfg.furnace else [])
+    jobs = [(load_scene(s, cfg.assets), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if cfg.furnace else [])
     if cfg.research:  # fit-roughness's targets (the first scene at its fit size)
-        jobs += [(fit_scene(load_scene(scenes[0]), ResearchSettings().fitrough_size), p) for p in ext]
+        jobs += [(fit_scene(load_scene(scenes[0], cfg.assets), ResearchSettings().fitrough_size), p) for p in ext]
     return jobs
 
 
@@ -238,7 +242,7 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     with renderers.prefetch_external(_prefetch_jobs(scenes, specs, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
-                            approximations=cfg.approximations, specs=specs,
+                            approximations=cfg.approximations, specs=specs, assets=cfg.assets,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

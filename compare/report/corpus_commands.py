@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pbrcheck.args import positive_int, split_list
 from pbrcheck.atomic import check_output_path
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import DEFAULT_SCENE, load_scene
 from realtime.presets import parse_sets
 
@@ -22,7 +23,7 @@ from .corpus_section import write_corpus_page
 
 
 def _cmd_corpus(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     names = split_list(args.presets) or renderers.preset_names()
     options = parse_sets(args.set)
     # --set is for the real-time presets; external renderers take their options from renderers.toml.

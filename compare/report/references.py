@@ -42,6 +42,7 @@ from pathlib import Path
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.registry import MULTISCATTER_GEOMETRY
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import Scene, load_scene
 
 from .. import renderers
@@ -158,18 +159,20 @@ def _cell(metrics: dict | None, within: dict, m: str) -> str:
 
 
 def references_sections(scene_args: list, scene_sections, presets: list[renderers.RendererSpec], out_dir: Path,
-                        progress=None, context: renderers.RenderContext = renderers.DIRECT) -> list:
+                        progress=None, context: renderers.RenderContext = renderers.DIRECT,
+                        assets: AssetOptions | None = None) -> list:
     """The report's "both references" section (``[]`` when ``presets`` name no external renderer).
 
     ``scene_args`` are the report's scene arguments and ``scene_sections`` its
     :class:`~compare.report.results.SceneSection` s, in the same order (their ``verdict.spp``, else
-    ``spp``, is the single-scattering reference's spp). Writes ``OUT/<section id>/references.json``."""
+    ``spp``, is the single-scattering reference's spp; ``assets``: an asset argument's ``--env`` and
+    ``--size``). Writes ``OUT/<section id>/references.json``."""
     externals = [p for p in presets if p.external]
     if not externals:
         return []
     pairs = []
     for arg, sec in zip(scene_args, scene_sections):
-        scene = load_scene(arg)
+        scene = load_scene(arg, assets)
         spp = sec.verdict.spp if getattr(sec, "verdict", None) is not None else int(sec.spp)
         got = measure_references(scene, externals, spp, progress=progress, context=context)
         write_json_atomic(Path(out_dir) / sec.id / "references.json", [p.to_dict() for p in got], indent=1)

@@ -21,6 +21,7 @@ from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.lodmap import LodMapping, builtin_lod
 from pbrcheck.progress import Progress
 from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -58,6 +59,8 @@ class ResearchSettings:
     energy_spp: int = 128
     energy_size: int = 64
     energy_scenes: tuple = ("furnace", "spheres")
+    #: ``--env`` / ``--size WxH`` of a glTF asset scene (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
 
 
 def _fmt(v) -> str:
@@ -80,7 +83,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
                     context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-lod`` on ``scene_name``, then the report scene rendered by ``preset`` before
     (its own mapping) and after (``lod_mapping=fitted:FILE``) against the report's reference."""
-    scene = load_scene(scene_name)
+    scene = load_scene(scene_name, st.assets)
     out = out_dir / "fit_lod.json"
     opts = dict(st.options)
     res = run_fit_lod(scene, preset=preset, options=opts, spp=st.fitlod_spp, size=st.fitlod_size, out=out,
@@ -146,7 +149,7 @@ def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
                     st: ResearchSettings = ResearchSettings(), progress: bool = False,
                     context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck explain`` of ``preset`` on ``scene_name`` (with the LOD fit's file when present)."""
-    res = run_explain(load_scene(scene_name), preset=preset, options=dict(st.options), spp=st.explain_spp,
+    res = run_explain(load_scene(scene_name, st.assets), preset=preset, options=dict(st.options), spp=st.explain_spp,
                       size=st.explain_size, cube_max=st.cube_max, samples_scale=st.samples_scale,
                       fitted=str(out_dir / "fit_lod.json") if (out_dir / "fit_lod.json").exists() else None,
                       progress=progress, context=context)
@@ -182,7 +185,7 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
                           st: ResearchSettings = ResearchSettings(), progress: bool = False,
                           context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-roughness`` of every preset on ``scene_name``: plot and table of r* against r."""
-    scene = load_scene(scene_name)
+    scene = load_scene(scene_name, st.assets)
     results = {}
     scans: dict = {}  # the scan's renders do not depend on the preset: made once for all of them
     with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:

@@ -19,6 +19,7 @@ from functools import partial
 from pathlib import Path
 
 from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
 from .. import renderers
@@ -87,6 +88,8 @@ class ReportSettings:
     #: (compare.approximations; one ``path`` reference at ``spp`` and 13 raster frames).
     approximations: bool = True
     specs: dict = field(default_factory=dict)
+    #: ``--env`` / ``--size WxH`` of a glTF asset scene argument (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
 
     def spec(self, name: str) -> renderers.RendererSpec:
         """The parsed renderer of preset name ``name`` (a name the report was not given: KeyError)."""
@@ -101,7 +104,7 @@ class SceneWork:
     """One scene of the report: its stages (:meth:`stages`) and, once they ran, its :attr:`section`."""
 
     def __init__(self, scene_arg, out_dir: Path, st: ReportSettings):
-        self.scene = load_scene(scene_arg)
+        self.scene = load_scene(scene_arg, st.assets)
         self.st = st
         self.sid = safe_name(self.scene.name)
         self.sd = Path(out_dir) / self.sid

@@ -23,6 +23,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
 from pbrcheck.registry import IRRADIANCES
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -199,7 +200,8 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "default", out_dir: Path,
               spp: int = 64, progress: bool = True, also: list[str] | None = None,
-              scheduler: str | None = None, mode: str = "local", approximations: bool = False) -> dict[str, Path]:
+              scheduler: str | None = None, mode: str = "local", approximations: bool = False,
+              assets: AssetOptions | None = None) -> dict[str, Path]:
     """Render the reference (``mode``) and every combination of ``vary`` over ``preset``; write the
     table and the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
     ``approximations``: the asset approximations instead (:func:`approximation_groups`), each group
@@ -219,7 +221,7 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
                          f"got {spp}")
     if vary is None and not approximations:
         raise SweepError("sweep: --vary KEY=V1,V2,... or --approximations is needed")
-    scene = load_scene(scene_arg)
+    scene = load_scene(scene_arg, assets)
     # vary {}: the preset as it is (one row); None: no --vary rows (only the approximations)
     groups = ([] if vary is None else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
     base = renderers.RendererSpec.parse(preset)  # the renderer names, parsed once
