@@ -87,7 +87,8 @@ def _sweep_row(ref, img, scene, flip_cache: bool = False):
 
 def sweep_metrics(executor, scene: Scene, ref, jobs: list[renderers.RendererSpec], progress=None, *,
                   context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
-    """Per renderer of ``jobs`` (:class:`compare.renderers.RendererSpec`): ``{"metrics", "precompute_s", "frame_s", "timed_on"}`` of its render
+    """Per renderer of ``jobs`` (:class:`compare.renderers.RendererSpec`): ``{"metrics", "precompute_s",
+    "frame_s", "timed_on"}`` of its render
     against ``ref`` (no noise simulation, as the sweep), computed by ``executor``.
 
     Raises

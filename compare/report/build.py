@@ -99,7 +99,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     bar's total (:mod:`compare.report.stages`)."""
     presets = st.presets
     sections = lambda: [w.section for w in works]  # noqa: E731  (filled in as the scenes' stages run)
-    n_ext = sum(renderers.is_external(p) for p in presets)
+    n_ext = sum(st.spec(p).external for p in presets)
 
     def summary(prog):
         page.top += [summary_section(sections())]
@@ -114,7 +114,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     def hardcases(prog):
         # The shipped shaders' robustness: real-time presets only (an external engine's hard cases
         # cost a browser start each; `pbrcheck hardcases --presets ext:NAME` runs them on their own).
-        page.extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not renderers.is_external(p)],
+        page.extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not st.spec(p).external],
                                              cfg.progress, context=st.context))
 
     out = [s for w in works for s in w.stages()]
@@ -197,7 +197,8 @@ def _prefetch_jobs(scenes: list[str], specs: dict, cfg: ReportConfig) -> list:
     ext = [r for r in specs.values() if r.external]
     if cfg.scheduler:
         return []
-    jobs = [(load_scene(s, cfg.assets), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if cfg.furnace else [])
+    jobs = [(load_scene(s, cfg.assets), p) for s in scenes for p in ext]
+    jobs += [(furnace_scene(), p) for p in ext] if cfg.furnace else []
     if cfg.research:  # fit-roughness's targets (the first scene at its fit size)
         jobs += [(fit_scene(load_scene(scenes[0], cfg.assets), ResearchSettings().fitrough_size), p) for p in ext]
     return jobs

@@ -97,7 +97,9 @@ class ReportSettings:
 
     def combos(self) -> list[dict]:
         """The sweep's option sets (over the first preset)."""
-        return combinations(self.vary) if self.vary else (default_sweep(self.spec(self.presets[0])) if self.sweep else [])
+        if self.vary:
+            return combinations(self.vary)
+        return default_sweep(self.spec(self.presets[0])) if self.sweep else []
 
 
 class SceneWork:
@@ -168,8 +170,9 @@ class SceneWork:
     def _measure(self, preset: str, prog) -> None:
         """Compare ``preset``'s image, write its images (and diagnose an external renderer)."""
         scene, ref, sd, sid, img = self.scene, self.ref, self.sd, self.sid, self.images[preset]
+        external = self.st.spec(preset).external
         cmp = compare_images(ref, img, scene=scene, ref_name="reference",
-                             test_name=preset if renderers.is_external(preset) else f"real-time {preset}",
+                             test_name=preset if external else f"real-time {preset}",
                              flip_cache=self.st.context.flip_cache)
         p = safe_name(preset)
         options = img.meta_json("options", None) if "options" in img.meta else None
@@ -182,7 +185,7 @@ class SceneWork:
                            {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                            f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
                            (cmp.metrics["rmse"] or 0.0) ** 2, timed_on_text(img.meta), cmp.summary["space"])
-        if renderers.is_external(preset):
+        if external:
             res.diagnosis, res.diagnosis_json = self._diagnose(img, p, res.space)
         if noise is not None:
             self.noise_floor = noise["mean_variance"]

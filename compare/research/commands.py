@@ -66,9 +66,10 @@ def _cmd_fit_normal_roughness(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    res = explain.run_explain(load_scene(args.scene, asset_options_of(args)), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
-                      size=args.size or None, fitted=args.fitted, spp_cap=args.spp_cap,
-                      only=tuple(split_list(args.sources)) if args.sources else None, progress=not args.quiet)
+    res = explain.run_explain(
+        load_scene(args.scene, asset_options_of(args)), preset=args.preset,
+        options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size or None, fitted=args.fitted,
+        spp_cap=args.spp_cap, only=tuple(split_list(args.sources)) if args.sources else None, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
     print(f"json: {out}\ntable: {out.with_suffix('.md')}")
@@ -76,9 +77,10 @@ def _cmd_explain(args) -> int:
 
 
 def _cmd_fit_roughness(args) -> int:
-    res = fit_roughness.run_fit_roughness(load_scene(args.scene, asset_options_of(args)), preset=args.preset, options=overrides_from_args(args.set, args.shader),
-                            size=args.size or None, iterations=args.iterations, spp=args.spp,
-                            scan=not args.no_scan)
+    res = fit_roughness.run_fit_roughness(
+        load_scene(args.scene, asset_options_of(args)), preset=args.preset,
+        options=overrides_from_args(args.set, args.shader), size=args.size or None, iterations=args.iterations,
+        spp=args.spp, scan=not args.no_scan)
     out = write_json_atomic(args.out, res)
     print(fit_roughness.table_markdown(res), end="")
     print(f"json: {out}")
