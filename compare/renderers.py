@@ -46,9 +46,9 @@ import contextlib
 import json
 from collections import Counter
 from collections.abc import Mapping
-from types import MappingProxyType
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 from clients import config as _clients_config
 from clients import run as _clients
