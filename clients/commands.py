@@ -16,6 +16,7 @@ from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
 from pbrcheck.fmt import file_name_part, terminal_safe
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scenario_import import INDEX, import_scenario, import_to_folder
 from pbrcheck.scene import load_scene
 
@@ -24,7 +25,7 @@ from .run import render_external
 
 
 def _cmd_export(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     check_output_path(args.out, folder=True)
     exp = export_scene(scene, Path(args.out), output=args.output, keep_unmodelled=args.keep_unmodelled)
     for feature, materials in exp.unmodelled:
@@ -40,7 +41,7 @@ def _cmd_export(args) -> int:
 def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     out = Path(args.out or f"out/render/{file_name_part(scene.name)}_{file_name_part(args.renderer)}.exr")
     check_output_path(out)  # before the render
     img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)

@@ -10,6 +10,7 @@ from pbrcheck.errors import ImageIOError
 from pbrcheck.exr import exr_size, read_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
 from .gate import BudgetError, run_gate
@@ -40,7 +41,7 @@ def _cmd_compare(args) -> int:
             check_output_path(out, folder=folder)
     scene = None
     if args.scene:
-        scene = load_scene(args.scene)
+        scene = load_scene(args.scene, asset_options_of(args))
     for p in (args.reference, args.test):
         _check_size(p, args.max_pixels)
     ref = read_exr(args.reference)

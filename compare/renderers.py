@@ -7,9 +7,15 @@ Every compare, report and research module renders through these functions (calle
 API
 ---
 - :func:`render_reference` -- the Mitsuba reference (:func:`reference.render.render_reference`).
-- :func:`render_under_test` -- the renderer under test named ``name``: a real-time preset
-  (:func:`realtime.render.render_realtime`) or ``ext:NAME``, an external renderer of
-  ``renderers.toml`` (:func:`clients.run.render_external`).
+- :class:`RendererSpec` -- a renderer under test, parsed once where its name is read (the command
+  line, a budget file, a report's configuration) from the renderer mini-language (``default``, a
+  preset name, ``PRESET+FILE.glsl``, ``ext:NAME``) and option overrides (``--set key=value``):
+  :meth:`RendererSpec.parse`; a real-time one holds its resolved, validated
+  :class:`realtime.presets.RealtimeOptions`. Every layer below takes the spec, none re-parses.
+- :func:`render_under_test` -- render a :class:`RendererSpec`: a real-time preset
+  (:func:`realtime.render.render_realtime`, with the spec's resolved options: resolved once per
+  render) or ``ext:NAME``, an external renderer of ``renderers.toml``
+  (:func:`clients.run.render_external`).
 - :class:`RenderContext` -- how :func:`render_under_test` renders, passed to it explicitly
   (``context=``): whether real-time renders come from the content-addressed cache
   (:mod:`realtime.cache`; the report) and the external renders started in the background
@@ -18,14 +24,13 @@ API
 - :func:`prefetch_external` -- a context that renders some external renderers' images in a
   background thread while this process renders the rest; yields the :class:`Prefetch` to put in a
   :class:`RenderContext` (the report).
-- :func:`is_external` -- whether ``name`` names an external renderer (``ext:NAME``).
+- :func:`is_external` -- whether a renderer name names an external renderer (``ext:NAME``; the
+  parser's test, for a name not parsed yet).
 - :func:`preset_names` -- every real-time preset, in the registry's order.
-- :func:`resolve_options` -- a preset's complete, validated options
-  (:func:`realtime.presets.resolve_options`: a ``RealtimeOptions``, read as a mapping too); ``{}``
-  for an external renderer (which takes none),
-  after checking that it exists.
+- :func:`resolve_options` -- a bare preset's resolved options (what :class:`RendererSpec` resolves
+  through, once per spec; the seam a test replaces for fake presets).
 - :func:`check_backend_limits` -- raise :class:`pbrcheck.errors.BackendError` where this machine's GL
-  cannot render a preset's options (``msaa`` above ``GL_MAX_SAMPLES``: :func:`realtime.raster.check_msaa`),
+  cannot render a spec's options (``msaa`` above ``GL_MAX_SAMPLES``: :func:`realtime.raster.check_msaa`),
   for preflights that render other things first (report, sweep).
 - :func:`multiscatter_albedo` -- the reference random walk's directional albedo
   (:func:`reference.multiscatter_measure.directional_albedo`).
@@ -43,6 +48,7 @@ from collections import Counter
 from collections.abc import Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 from clients import config as _clients_config
 from clients import run as _clients
@@ -52,6 +58,7 @@ from pbrcheck.scene import Scene
 from realtime import cache as _realtime_cache
 from realtime import gl as _realtime_gl
 from realtime import presets as _presets
+from realtime.presets import RealtimeOptions
 from realtime import render as _realtime
 from reference import render as _reference
 
@@ -74,19 +81,19 @@ def render_reference(scene: Scene, **kwargs) -> Image:
 
 class Prefetch:
     """External renderers' images being rendered in the background (:func:`prefetch_external`), by
-    (scene content, renderer name); :meth:`take` hands each one out once."""
+    (scene content, renderer); :meth:`take` hands each one out once."""
 
     def __init__(self):
         self._futures: dict[str, Future] = {}
 
-    def submit(self, pool: ThreadPoolExecutor, scene: Scene, name: str) -> None:
-        k = _prefetch_key(scene, name)
+    def submit(self, pool: ThreadPoolExecutor, scene: Scene, spec: "RendererSpec") -> None:
+        k = _prefetch_key(scene, spec)
         if k not in self._futures:
-            self._futures[k] = pool.submit(_clients.render_external, scene, name, progress=False)
+            self._futures[k] = pool.submit(_clients.render_external, scene, spec.name, progress=False)
 
-    def take(self, scene: Scene, name: str) -> Future | None:
-        """The future of ``(scene, name)``, removed (a second call renders again), or None."""
-        return self._futures.pop(_prefetch_key(scene, name), None)
+    def take(self, scene: Scene, spec: "RendererSpec") -> Future | None:
+        """The future of ``(scene, spec)``, removed (a second call renders again), or None."""
+        return self._futures.pop(_prefetch_key(scene, spec), None)
 
     def close(self) -> None:
         """Cancel the renders not yet started (running ones finish) and forget them all: a later
@@ -122,18 +129,83 @@ class RenderContext:
 DIRECT = RenderContext()
 
 
-def render_under_test(scene: Scene, name: str, options: dict | None = None, *, progress: bool = False,
+@dataclass(frozen=True)
+class RendererSpec:
+    """A renderer under test, parsed once (:meth:`parse`) and passed down as is.
+
+    ``text``: the name as it was given (``default``, ``filament``, ``default+hooks/ue4.glsl``,
+    ``ext:threejs``): what outputs call it (report columns, check names, metadata). ``name``: the
+    preset (the ``+FILE.glsl`` split off, :func:`realtime.presets.split_preset`) or ``ext:NAME``.
+    ``overrides``: the option overrides as given, the name's hook file included (sorted pairs;
+    :meth:`with_options` derives a variant from them). ``options``: the resolved, validated
+    :class:`realtime.presets.RealtimeOptions` of a real-time renderer (what the render reads;
+    ``None`` for an external one, which takes none)."""
+
+    text: str
+    name: str
+    overrides: tuple[tuple[str, object], ...] = ()
+    options: RealtimeOptions | None = None
+
+    @classmethod
+    def parse(cls, text: str, overrides: Mapping | None = None) -> "RendererSpec":
+        """The spec of renderer name ``text`` with option ``overrides`` (``--set``, a budget's
+        ``options``; values as :func:`realtime.presets.parse_value` takes them).
+
+        Raises
+        ------
+        OptionError
+            An unknown preset or option, a bad value, ``PRESET+`` with no file, or a combination the
+            options refuse (:func:`realtime.presets.resolve_options`).
+        RendererConfigError
+            ``ext:NAME`` that no ``renderers.toml`` defines.
+        PbrcheckError
+            Options given to an external renderer (it takes none: its command sets them).
+        """
+        if not isinstance(text, str) or not text:
+            raise _presets.OptionError(f"renderer {text!r}: expected a preset name, PRESET+FILE.glsl or ext:NAME")
+        if is_external(text):
+            _no_options(text, overrides)
+            _clients_config.get_renderer(text)
+            return cls(text, text)
+        preset, named = _presets.split_preset(text)
+        merged = {**named, **(overrides or {})}
+        return cls(text, preset, tuple(sorted(merged.items())), resolve_options(preset, merged))
+
+    @property
+    def external(self) -> bool:
+        """Whether this is an external renderer (``ext:NAME``)."""
+        return self.options is None
+
+    @property
+    def override_dict(self) -> Mapping:
+        """The option overrides (read-only)."""
+        return MappingProxyType(dict(self.overrides))
+
+    def with_options(self, **changes) -> "RendererSpec":
+        """This real-time spec with further option overrides (validated again: a variant of the
+        renderer, as a study's ``{**base, "energy_compensation": c}``); the same ``text``."""
+        if self.external:
+            _no_options(self.text, changes)
+            return self
+        merged = {**dict(self.overrides), **changes}
+        return replace(self, overrides=tuple(sorted(merged.items(), key=lambda kv: kv[0])),
+                       options=resolve_options(self.name, merged))
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def render_under_test(scene: Scene, spec: RendererSpec, *, progress: bool = False,
                       context: RenderContext = DIRECT, use_cache: bool = True) -> Image:
-    """Render ``scene`` with the renderer under test ``name``.
+    """Render ``scene`` with the renderer under test ``spec``.
 
     Parameters
     ----------
     scene : Scene
         The scene.
-    name : str
-        A real-time preset (:data:`realtime.presets.PRESETS`) or ``ext:NAME``.
-    options : dict, optional
-        Option overrides (``--set key=value``), validated by the renderer.
+    spec : RendererSpec
+        The renderer, parsed once (:meth:`RendererSpec.parse`): a real-time preset with its resolved
+        options (rendered as they are: no second resolve) or ``ext:NAME``.
     progress : bool, optional
         Show progress on stderr.
     context : RenderContext, optional
@@ -150,22 +222,24 @@ def render_under_test(scene: Scene, name: str, options: dict | None = None, *, p
     Raises
     ------
     PbrcheckError
-        Unknown preset or bad option (``OptionError``), or the renderer failed (``RendererError``).
+        The renderer failed (``RendererError``); ``TypeError`` for a renderer that is not a
+        :class:`RendererSpec` (a name must be parsed where it is read).
     """
-    if is_external(name):
-        _no_options(name, options)
-        fut = context.prefetch.take(scene, name) if context.prefetch is not None else None
+    if not isinstance(spec, RendererSpec):
+        raise TypeError(f"render_under_test takes a RendererSpec (RendererSpec.parse), got {spec!r}")
+    if spec.external:
+        fut = context.prefetch.take(scene, spec) if context.prefetch is not None else None
         with work("clients"):  # the wait for a background render, or the render itself
             if fut is not None:  # rendered (or being rendered) in the background: its result or error
                 return fut.result()
-            return _clients.render_external(scene, name, progress=progress, use_cache=use_cache)
+            return _clients.render_external(scene, spec.name, progress=progress, use_cache=use_cache)
     with work("realtime"):
         if context.cache and use_cache:
-            img = _realtime_cache.render_cached(scene, name, options, progress=progress)
+            img = _realtime_cache.render_cached(scene, spec.name, spec.options, progress=progress)
             CACHE_COUNTS["realtime"][img.meta.get("cache", "off")] += 1
             return img
         CACHE_COUNTS["realtime"]["off"] += 1
-        return _realtime.render_realtime(scene, name, options, progress=progress)
+        return _realtime.render_realtime(scene, spec.name, spec.options, progress=progress)
 
 
 def backends() -> dict:
@@ -178,13 +252,13 @@ def backends() -> dict:
             "reference_variant": _variant.chosen_variant()}
 
 
-def _prefetch_key(scene: Scene, name: str) -> str:
-    return json.dumps([scene.content_dict(), name], sort_keys=True, default=str)
+def _prefetch_key(scene: Scene, spec: RendererSpec) -> str:
+    return json.dumps([scene.content_dict(), spec.name], sort_keys=True, default=str)
 
 
 @contextlib.contextmanager
 def prefetch_external(jobs, workers: int = 1):
-    """Render the external renderers' images of ``jobs`` (``(scene, "ext:NAME")`` pairs) in
+    """Render the external renderers' images of ``jobs`` (``(scene, RendererSpec)`` pairs) in
     ``workers`` background threads while this process renders the rest: an external renderer is a
     process of its own (a browser on SwiftShader) that this one would otherwise only wait for.
     Yields the :class:`Prefetch`: :func:`render_under_test` with a :class:`RenderContext` holding it
@@ -193,9 +267,9 @@ def prefetch_external(jobs, workers: int = 1):
     pre = Prefetch()
     pool = ThreadPoolExecutor(max_workers=max(1, int(workers)), thread_name_prefix="pbrcheck-prefetch")
     try:
-        for scene, name in jobs:
-            if is_external(name):
-                pre.submit(pool, scene, name)
+        for scene, spec in jobs:
+            if spec.external:
+                pre.submit(pool, scene, spec)
         yield pre
     finally:
         pre.close()
@@ -203,7 +277,8 @@ def prefetch_external(jobs, workers: int = 1):
 
 
 def is_external(name: str) -> bool:
-    """Whether ``name`` names an external renderer (``ext:NAME``)."""
+    """Whether renderer name ``name`` names an external renderer (``ext:NAME``); a parsed spec says
+    so itself (:attr:`RendererSpec.external`)."""
     return name.startswith(_clients_config.PREFIX)
 
 
@@ -218,26 +293,22 @@ def preset_names() -> list[str]:
     return list(_presets.PRESETS)
 
 
-def resolve_options(name: str, overrides: dict | None = None) -> Mapping:
-    """The complete validated options of preset ``name`` with ``overrides`` (raises ``OptionError``);
-    ``{}`` for an external renderer that exists (raises ``RendererConfigError`` otherwise)."""
-    if is_external(name):
-        _no_options(name, overrides)
-        _clients_config.get_renderer(name)
-        return {}
-    return _presets.resolve_options(name, overrides)
+def resolve_options(preset: str, overrides: Mapping | None = None) -> RealtimeOptions:
+    """The resolved options of real-time preset ``preset`` (a bare preset name) with ``overrides``
+    (:func:`realtime.presets.resolve_options`): what :class:`RendererSpec` resolves through, the one
+    place a test replaces to stand in fake presets."""
+    return _presets.resolve_options(preset, dict(overrides or {}))
 
 
-def check_backend_limits(name: str, overrides: dict | None = None) -> None:
-    """Raise :class:`pbrcheck.errors.BackendError` (exit 3) where this GL cannot render preset ``name``
-    with ``overrides`` (:func:`realtime.raster.check_msaa`); nothing for an external renderer. Opens
-    the GL context only where the options multisample."""
-    if is_external(name):
+def check_backend_limits(spec: RendererSpec) -> None:
+    """Raise :class:`pbrcheck.errors.BackendError` (exit 3) where this GL cannot render ``spec``'s
+    options (:func:`realtime.raster.check_msaa`); nothing for an external renderer. Opens the GL
+    context only where the options multisample."""
+    msaa = 1 if spec.external else int(getattr(spec.options, "msaa", 1))
+    if msaa <= 1:
         return
-    msaa = int(resolve_options(name, overrides).get("msaa", 1))
-    if msaa > 1:
-        from realtime import raster as _raster
-        _raster.check_msaa(msaa)
+    from realtime import raster as _raster
+    _raster.check_msaa(msaa)
 
 
 def multiscatter_albedo(mu, roughness, F0, **kwargs):

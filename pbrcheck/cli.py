@@ -37,6 +37,7 @@ from .args import add_limit_flags_to_scene_commands
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
 from .fmt import terminal_safe
+from .gltf_objects import add_asset_arguments, asset_options_of
 from .limits import reset_limits, set_limits_from_args
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
@@ -56,7 +57,7 @@ def _cmd_scenes(args) -> int:
 
 
 def _cmd_check_scene(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     env = load_environment(scene)  # validates the environment's pixels too
     if args.json or args.format == "json":  # ensure_ascii: every control character is a \u escape
         print(json.dumps(scene.to_dict(), indent=2))
@@ -105,38 +106,6 @@ def _cmd_cache(args) -> int:
     return 0
 
 
-def _asset_options(argv: list[str]) -> list[str]:
-    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE``, ``--size WxH`` and
-    ``--variant NAME`` out of ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every
-    command that takes a SCENE accepts an asset that way; an integer ``--size`` stays the command's own)."""
-    from .gltf_scene import is_asset_path, parse_size, set_asset_options
-
-    if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
-        set_asset_options()
-        return argv
-    env = size = variant = None
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        a = argv[i]
-        key, eq, val = a.partition("=")
-        if key in ("--env", "--size", "--variant") and (eq or i + 1 < len(argv)):
-            v = val if eq else argv[i + 1]
-            if key != "--size" or "x" in v.lower():
-                if key == "--variant":
-                    variant = v
-                elif key == "--env":
-                    env = v
-                else:
-                    size = parse_size(v)
-                i += 1 if eq else 2
-                continue
-        out.append(a)
-        i += 1
-    set_asset_options(env, size, variant)
-    return out
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``pbrcheck`` argument parser with every package's subcommands."""
     p = argparse.ArgumentParser(
@@ -178,6 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     for mod in COMMAND_MODULES:
         mod.register(sub, bench_sub)
+    for s in sub.choices.values():  # every command that takes a SCENE: --env and --size WxH for an asset
+        add_asset_arguments(s)
     add_limit_flags_to_scene_commands(sub)  # --max-* on every command that reads a scene
     return p
 
@@ -240,13 +211,9 @@ def main(argv: list[str] | None = None) -> int:
     """
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        argv = _asset_options(argv)
-    except ValueError as e:
-        print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
-        return 2
     args = parser.parse_args(argv)
     set_limits_from_args(args)
+    asset_options_of(args)  # a WxH given to a command's own integer --size is the asset's, from here on
     # --renderers names the file of this call only: an in-process caller (tests, scripts calling
     # main() again) must not inherit it, so the previous choice is restored on the way out.
     prev_renderers = clients.config.user_renderers_file()

@@ -8,8 +8,10 @@ API
 - :class:`AssetInstance` -- one ``gltf`` object of a scene: the file, its placement, the loaded asset.
 - :class:`Mesh` -- one (node, primitive) of an instance as a scene object (id, ``node/mesh/primitive``).
 - :func:`expand_gltf_object` -- a scene file's ``gltf`` table -> (instance, meshes, lights).
-- :func:`set_asset_options` / :func:`asset_options` -- ``--env``, ``--size`` and ``--variant`` for asset
-  paths (the CLI).
+- :class:`AssetOptions` -- ``--env``, ``--size WxH`` and ``--variant NAME`` of a scene made from an asset path alone, an
+  explicit argument of :func:`pbrcheck.scene.load_scene` (no module state); :func:`add_asset_arguments`
+  gives a command that takes a SCENE the three options (listed in its ``--help``), :func:`asset_options_of`
+  reads them back from the parsed arguments.
 - :func:`framing` -- model-viewer's default framing of a bounding box (origin, target, horizontal fov).
 - :func:`is_asset_path`, :func:`parse_size`.
 
@@ -52,17 +54,84 @@ DEFAULT_ASSET_SIZE = (512, 512)
 NEUTRAL_RADIANCE = (1.0, 1.0, 1.0)
 ASSET_SUFFIXES = (".gltf", ".glb")
 
-_OPTIONS: dict = {"env": None, "size": None, "variant": None}
 
 
-def set_asset_options(env: str | None = None, size: tuple[int, int] | None = None, variant: str | None = None) -> None:
-    """Environment file, image size and ``KHR_materials_variants`` variant (None: the file's default
-    materials) for scenes made from an asset path (set by the CLI)."""
-    _OPTIONS["env"], _OPTIONS["size"], _OPTIONS["variant"] = env, size, variant
+@dataclass(frozen=True)
+class AssetOptions:
+    """How a scene made from an asset file alone is set up (``pbrcheck COMMAND asset.glb --env FILE
+    --size WxH``; :func:`pbrcheck.scene.asset_scene`): ``env`` an .hdr/.exr file (None: the neutral
+    constant environment of radiance 1), ``size`` (W, H) (None: 512 x 512, or the asset camera's
+    aspect ratio at that height), ``variant`` the
+    ``KHR_materials_variants`` variant drawn (None: the file's default materials). Passed to :func:`pbrcheck.scene.load_scene` explicitly; a TOML or
+    built-in scene ignores it."""
+
+    env: str | None = None
+    size: tuple[int, int] | None = None
+    variant: str | None = None   # KHR_materials_variants' variant drawn (None: the file's default materials)
 
 
-def asset_options() -> dict:
-    return dict(_OPTIONS)
+class _AssetSize(tuple):
+    """A ``--size WxH`` value given to a command whose own ``--size`` is an integer (the asset's)."""
+
+
+def _size_or_own(own_type):
+    """The type of a command's own ``--size N`` that also takes the asset's ``WxH``."""
+    def parse(s: str):
+        if "x" in s.lower():
+            return _AssetSize(_wxh(s))
+        return own_type(s)
+    parse.__name__ = getattr(own_type, "__name__", "size")
+    return parse
+
+
+def _wxh(s: str) -> tuple[int, int]:
+    try:
+        return parse_size(s)
+    except ValueError as e:
+        import argparse
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+#: Help of the asset options (every command that takes a SCENE).
+ENV_HELP = "a glTF asset SCENE's environment (.hdr or .exr; default: constant radiance 1)"
+SIZE_HELP = "a glTF asset SCENE's image size WxH (default 512x512, or its camera's aspect at height 512)"
+VARIANT_HELP = "a glTF asset SCENE's KHR_materials_variants variant to draw (default: the file's default materials)"
+
+
+def add_asset_arguments(parser) -> bool:
+    """Give ``parser`` (a command that takes a ``scene`` or ``scenes``, positional or ``--scene``) ``--env FILE`` and
+    ``--size WxH`` for asset paths (:class:`AssetOptions`, read back by :func:`asset_options_of`);
+    where the command has an integer ``--size`` of its own, that option takes ``WxH`` too (the
+    asset's; ``N`` stays the command's). Returns whether ``parser`` takes a SCENE."""
+    actions = parser._actions  # argparse keeps no public list of a parser's arguments
+    if not any(a.dest == "scene" or (a.dest == "scenes" and not a.option_strings) for a in actions):
+        return False
+    opts = parser._option_string_actions
+    if "--env" not in opts:
+        parser.add_argument("--env", dest="asset_env", default=None, metavar="FILE", help=ENV_HELP)
+    if "--variant" not in opts:
+        parser.add_argument("--variant", dest="asset_variant", default=None, metavar="NAME", help=VARIANT_HELP)
+    if "--size" not in opts:
+        parser.add_argument("--size", dest="asset_size", type=_wxh, default=None, metavar="WxH", help=SIZE_HELP)
+    else:
+        own = opts["--size"]
+        parser.set_defaults(_own_size_default=own.default)
+        own.type = _size_or_own(own.type or str)
+        own.help = f"{own.help or ''}; WxH: {SIZE_HELP}"
+    return True
+
+
+def asset_options_of(args) -> AssetOptions:
+    """The :class:`AssetOptions` of parsed command-line ``args`` (:func:`add_asset_arguments`): a
+    ``WxH`` given to a command's own integer ``--size`` is the asset's, the command's own size then
+    stays its default (``args.size`` is reset here, once)."""
+    env = getattr(args, "asset_env", None)
+    size = getattr(args, "asset_size", None)
+    if isinstance(getattr(args, "size", None), _AssetSize):
+        size = tuple(args.size)
+        args.size = getattr(args, "_own_size_default", None)
+        args.asset_size = size
+    return AssetOptions(env, size, getattr(args, "asset_variant", None))
 
 
 def parse_size(s: str) -> tuple[int, int]:

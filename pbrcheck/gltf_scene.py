@@ -9,15 +9,15 @@ API
   pipeline's one-line refusal of meshes (``pipeline=raycast``; ``auto`` rasterizes them).
 - :func:`scene_has_assets`, :func:`framing_camera`; re-exported: :class:`~pbrcheck.gltf_objects.Mesh`,
   :class:`~pbrcheck.gltf_objects.AssetInstance`, :func:`~pbrcheck.scene.asset_scene`,
-  :func:`~pbrcheck.gltf_objects.set_asset_options`, :func:`~pbrcheck.gltf_objects.parse_size`,
+  :class:`~pbrcheck.gltf_objects.AssetOptions`, :func:`~pbrcheck.gltf_objects.parse_size`,
   :func:`~pbrcheck.gltf_objects.is_asset_path`.
 """
 
 from __future__ import annotations
 
 from .gltf import AssetError
-from .gltf_objects import (AssetInstance, Mesh, asset_options, framing, is_asset_path,  # noqa: F401
-                           parse_size, set_asset_options)
+from .gltf_objects import (AssetInstance, AssetOptions, Mesh, framing, is_asset_path,  # noqa: F401
+                           parse_size)
 from .scene import Camera, Scene, asset_scene  # noqa: F401
 
 

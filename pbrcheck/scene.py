@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError, decode_reason
-from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing, scene_light
+from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object, framing, scene_light
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIC_ROUGHNESSES as _GEOMETRIC_ROUGHNESSES
@@ -622,12 +622,16 @@ def builtin_scene_path(name: str) -> Path:
     return Path(str(resources.files("pbrcheck") / "scenes" / f"{name}.toml"))
 
 
-def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a built-in scene by name (``spheres``) or a TOML file by path."""
+def load_scene(name_or_path: str | Path, assets: AssetOptions | None = None) -> Scene:
+    """Load a built-in scene by name (``spheres``), a TOML file by path, or a scene of one glTF asset
+    file (``.gltf`` / ``.glb``) set up by ``assets`` (:class:`pbrcheck.gltf_objects.AssetOptions`:
+    the command line's ``--env``, ``--size WxH`` and ``--variant``; None: the neutral environment at the default
+    size). Reads no module state: the same call gives the same scene."""
     s = str(name_or_path)
     p = Path(s)
     if p.suffix.lower() in (".gltf", ".glb") and p.is_file():
-        return asset_scene(p)  # an asset alone: --env / --size
+        assets = assets or AssetOptions()
+        return asset_scene(p, env=assets.env, size=assets.size, variant=assets.variant)  # an asset alone
     if not p.suffix and s in builtin_scene_names():
         p = builtin_scene_path(s)
     elif not p.exists():
@@ -648,18 +652,16 @@ def load_scene(name_or_path: str | Path) -> Scene:
     return scene_from_dict(data, file=str(p), base_dir=p.parent, contained=True)
 
 
-def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None) -> Scene:
+def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None,
+                variant: str | None = None) -> Scene:
     """A scene of one glTF asset (``pbrcheck COMMAND asset.glb``): its first camera, else model-viewer's
-    default framing (:func:`pbrcheck.gltf_objects.framing`); ``env`` (an .hdr/.exr file; default the
-    CLI's ``--env``) or the neutral constant environment of radiance 1; ``size`` (W, H; default the
-    CLI's ``--size``, else 512 x 512, or the camera's aspect ratio at that height)."""
+    default framing (:func:`pbrcheck.gltf_objects.framing`); ``env`` (an .hdr/.exr file) or the
+    neutral constant environment of radiance 1; ``size`` (W, H; default 512 x 512, or the camera's
+    aspect ratio at that height); ``variant``: the ``KHR_materials_variants`` variant drawn."""
     p = Path(path)
-    opts = asset_options()
-    env = env if env is not None else opts["env"]
-    size = size if size is not None else opts["size"]
     data: dict = {"name": p.stem, "description": f"glTF asset {p.name}",
                   "objects": [{"type": "gltf", "path": str(p.resolve()),
-                               **({"variant": opts["variant"]} if opts.get("variant") is not None else {})}],
+                               **({"variant": variant} if variant is not None else {})}],
                   "environment": {"type": "file", "path": str(Path(env).resolve())} if env is not None
                   else {"type": "constant", "radiance": list(NEUTRAL_RADIANCE)}}
     scene = scene_from_dict(data, file=str(p), base_dir=p.parent)

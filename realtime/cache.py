@@ -6,7 +6,8 @@ give the same pixels. :func:`render_cached` keys a render by all of them and kee
 entry is a miss):
 
 * the scene's content hash with the environment's pixels (:func:`pbrcheck.environment.scene_hash`);
-* the preset name and its resolved options (:func:`realtime.presets.resolve_options`), the SHA-256
+* the preset name and its resolved options (:func:`realtime.presets.resolve_options`, once per
+  render: the render takes the resolved options), the SHA-256
   of a shader hook file (``shader`` option) and of the mapping a fitted LOD file holds
   (``fitted:PATH``: its coefficients, cube size, mip count and chain; the file's other fields are the
   fit's record), by content only (the same file in another folder is a hit; the hit's ``options`` and
@@ -48,8 +49,8 @@ from pbrcheck.scene import Scene
 
 from .gl import get_context, renderer_name, shader_sources_hash
 from .hooks import load_hook_file
-from .presets import RealtimeOptions, resolve_options
-from .render import environment_of, render_realtime
+from .presets import RealtimeOptions
+from .render import as_options, environment_of, render_realtime
 
 #: Cache namespace of real-time renders (``$PBRCHECK_CACHE/realtime``).
 NAMESPACE = "realtime"
@@ -80,11 +81,12 @@ def code_hash() -> str:
     return h.hexdigest()
 
 
-def realtime_cache_key(scene: Scene, preset: str, options: dict | None = None) -> str:
-    """The content address of ``scene`` rendered by ``preset`` with ``options`` (module docstring).
+def realtime_cache_key(scene: Scene, preset: str, options: RealtimeOptions | dict | None = None) -> str:
+    """The content address of ``scene`` rendered by ``preset`` with ``options`` (resolved, or
+    overrides: :func:`realtime.render.as_options`; module docstring).
 
     Raises the errors of :func:`realtime.presets.resolve_options` for a bad preset or option."""
-    return _key(scene, preset, resolve_options(preset, options))
+    return _key(scene, preset, as_options(preset, options))
 
 
 def _key(scene: Scene, preset: str, o: RealtimeOptions) -> str:
@@ -102,12 +104,13 @@ def _key(scene: Scene, preset: str, o: RealtimeOptions) -> str:
                      gl_version=str(get_context().info.get("GL_VERSION", "?")), moderngl=moderngl.__version__)
 
 
-def render_cached(scene: Scene, preset: str = "default", options: dict | None = None, *,
+def render_cached(scene: Scene, preset: str = "default", options: RealtimeOptions | dict | None = None, *,
                   progress: bool = False, cache: Cache | None = None):
     """:func:`realtime.render.render_realtime` through the content-addressed cache (module docstring);
-    ``meta["cache"]`` is ``hit`` or ``miss``."""
+    ``meta["cache"]`` is ``hit`` or ``miss``. ``options`` as :func:`realtime.render.render_realtime`'s:
+    resolved once here (or by the caller), the render takes them as they are."""
     cache = cache if cache is not None else Cache(NAMESPACE)
-    o = resolve_options(preset, options)
+    o = as_options(preset, options)
     key = _key(scene, preset, o)
     img = cache.get(key)
     if img is not None:
@@ -121,7 +124,7 @@ def render_cached(scene: Scene, preset: str = "default", options: dict | None = 
             for w in json.loads(img.meta.get("warnings", "[]")):
                 print(f"pbrcheck realtime: {w}", file=sys.stderr)
         return img
-    img = render_realtime(scene, preset, options, progress=progress)
+    img = render_realtime(scene, preset, o, progress=progress)
     cache.put(key, img)
     img.meta["cache"] = "miss"
     return img

@@ -12,24 +12,25 @@ import numpy as np
 from pbrcheck.atomic import check_output_path
 from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.exr import Image, write_exr
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
 from . import render as R
 from .gl import dump_sources, renderer_name, timing_clock
 from .hooks import load_hook_file
-from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
+from .presets import BAKES, PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
 
 
 def _cmd_realtime(args) -> int:
-    overrides = overrides_from_args(args.set, args.shader)
-    resolve_options(args.preset, overrides)  # validate before any GL work
-    if args.shader:
-        load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
-    scene = load_scene(args.scene)
-    out = Path(args.out or f"out/realtime/{file_name_part(scene.name)}_{args.preset}.exr")
+    preset = args.preset
+    o = resolve_options(preset, overrides_from_args(args.set, args.shader))  # once, before any GL work
+    if o.shader:
+        load_hook_file(o.shader)  # a hook file that cannot be read or parsed: before any work
+    scene = load_scene(args.scene, asset_options_of(args))
+    out = Path(args.out or f"out/realtime/{file_name_part(scene.name)}_{file_name_part(args.preset)}.exr")
     check_output_path(out)  # before the render
-    img = render_realtime(scene, args.preset, overrides, progress=True)
+    img = render_realtime(scene, preset, o, progress=True)
     write_exr(out, img)
     t = json.loads(img.meta["timings"])
     print(f"{terminal_safe(out)}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
@@ -75,17 +76,15 @@ def bench(size: int = 512, scene_name: str = "spheres", presets=None, env: str |
     be a glTF asset (``env`` its environment file): the raster pipeline then also reports its
     ``texture_upload`` and ``texture_mips`` (upload and mip generation apart, re-done warm) and
     ``geometry`` passes."""
-    from pbrcheck.gltf_objects import is_asset_path, set_asset_options
+    from pbrcheck.gltf_objects import AssetOptions
     from . import raster
-    if is_asset_path(scene_name):
-        set_asset_options(env=env, size=(size, size))
-    scene = load_scene(scene_name).with_camera(width=size, height=size)
+    scene = load_scene(scene_name, AssetOptions(env=env, size=(size, size))).with_camera(width=size, height=size)
     out = {"scene": scene_name, "size": [size, size], "gl_renderer": renderer_name(), "clock": timing_clock(),
            "clock_note": "frame_s: GL timer query (GPU time of the frame's commands) on a GPU, the wall clock "
                          "to glFinish on llvmpipe; raster frames time the colour pass's draws", "presets": {}}
     for p in presets or PRESETS:
         R.render_realtime(scene, p, progress=False)            # warm-up: compile, JIT, load env
-        for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in ("env_cube", "irr", "sh9", "pre", "lut", "kd")]:
+        for k in [k for k in R._cache if isinstance(k, tuple) and k[0] in BAKES]:
             R._cache.pop(k)                                     # re-bake every pass, now warm
         for k in [k for k in raster._textures if k != ("white",)]:
             raster._textures.pop(k)[1].release()               # re-upload the material textures

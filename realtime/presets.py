@@ -7,17 +7,19 @@ their mistakes included.
 
 API
 ---
-:class:`Option`, :data:`OPTIONS`, :data:`DEFAULT`, :data:`PRESETS`, :class:`RealtimeOptions` (the
-typed, frozen, validated options of one render), :func:`resolve_options`, :func:`parse_value`,
-:func:`parse_sets`, :func:`overrides_from_args`, :func:`fitted_mapping`, :class:`OptionError`,
-:data:`SHADER_SEP`, :data:`OPTION_REGISTRIES`, :data:`DEFERRED`, :data:`MULTISAMPLES`, :func:`unmet_requirements`,
-:func:`check_requirements`.
+:class:`Option` (with its default and the bakes it affects), :data:`OPTIONS`, :data:`PRESETS`,
+:class:`RealtimeOptions` (the typed, frozen, validated options of one render; attribute access only),
+:func:`resolve_options`, :func:`parse_value`, :func:`parse_sets`, :func:`overrides_from_args`,
+:func:`split_preset`, :func:`fitted_mapping`, :class:`OptionError`, :data:`SHADER_SEP`,
+:data:`OPTION_REGISTRIES`, :data:`DEFERRED`, :data:`MULTISAMPLES`, :func:`unmet_requirements`,
+:func:`check_requirements`; the bakes' cache keys: :data:`BAKES`, :data:`CUBE_BAKES`,
+:func:`bake_options`, :func:`bake_inputs` (:class:`BakeInputs`), :func:`bake_key`.
 """
 
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+import json
 from dataclasses import dataclass, field, fields, make_dataclass
 from dataclasses import replace as _replace
 from pathlib import Path
@@ -41,11 +43,14 @@ class OptionError(PbrcheckError):
 
 @dataclass(frozen=True)
 class Option:
-    """One real-time option: its kind (int, float, bool, choice), help, choices and bounds; a value
-    other than ``off`` ``requires`` values of other options as a registry member does
-    (:attr:`pbrcheck.registry.Entry.requires`; :func:`check_requirements` enforces both)."""
+    """One real-time option: its kind (int, float, bool, choice, file), help, choices and bounds, its
+    ``default`` (the ``default`` preset's value, the base of every other preset) and the ``bakes`` it
+    affects (:data:`BAKES`: every baked artifact's cache key is derived from the options naming it,
+    :func:`bake_inputs`); a value other than ``off`` ``requires`` values of other options as a
+    registry member does (:attr:`pbrcheck.registry.Entry.requires`; :func:`check_requirements`
+    enforces both)."""
     name: str
-    kind: str                      # "int", "float", "bool", "choice"
+    kind: str                      # "int", "float", "bool", "choice", "file"
     help: str
     choices: tuple = ()
     lo: float | None = None
@@ -53,7 +58,17 @@ class Option:
     power_of_two: bool = False
     requires: dict = field(default_factory=dict)
     off: object = None
+    default: object = None
+    bakes: tuple[str, ...] = ()
 
+
+#: Every artifact the real-time renderer bakes once per process and keeps (:mod:`realtime.render`,
+#: :mod:`realtime.raster`): its cache key holds the values of exactly the options whose
+#: :attr:`Option.bakes` name it (:func:`bake_inputs`, :func:`bake_key`), so an option cannot be
+#: forgotten in a key (a bake reading an option it does not declare raises).
+BAKES = ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut", "material_texture", "normal_variance")
+#: The bakes of the environment cube and of what is filtered from it (they read its size and format).
+CUBE_BAKES = ("env_cube", "irradiance", "sh9", "prefilter")
 
 #: The ``msaa`` values that multisample (alpha-to-coverage needs one: a single sample has no coverage to dither).
 MULTISAMPLES = (2, 4, 8)
@@ -65,140 +80,109 @@ GEOMETRY_CHOICES = ("scene", *GEOMETRIES.names)
 
 OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("shading", "choice", "composition of the terms: material (README model) | article000 | article001 | article002",
-           SHADINGS.names),
+           SHADINGS.names, default="material"),
     Option("ibl", "choice", "specular image-based lighting: split-sum prefiltered cube | runtime importance sampling",
-           ("splitsum", "runtime")),
-    Option("cube_size", "int", "face size of the environment cube (texels)", lo=4, hi=4096, power_of_two=True),
-    Option("cube_format", "choice", "cube texel format (f16 switches to f32 when radiance > 65504)", ("f16", "f32")),
-    Option("irradiance", "choice", "diffuse irradiance: cube convolution | SH9 (article 002)", IRRADIANCES.names),
+           ("splitsum", "runtime"), default="splitsum"),
+    Option("cube_size", "int", "face size of the environment cube (texels)", lo=4, hi=4096, power_of_two=True,
+           default=256, bakes=CUBE_BAKES),
+    Option("cube_format", "choice", "cube texel format (f16 switches to f32 when radiance > 65504)", ("f16", "f32"),
+           default="f32", bakes=CUBE_BAKES),
+    Option("irradiance", "choice", "diffuse irradiance: cube convolution | SH9 (article 002)", IRRADIANCES.names,
+           default="convolution"),
     Option("irradiance_method", "choice", "convolution: sum over source texels | article 000's polar/azimuth steps",
-           IRRADIANCE_METHODS.names),
-    Option("irradiance_size", "int", "face size of the irradiance cube", lo=1, hi=512),
+           IRRADIANCE_METHODS.names, default="texel_sum", bakes=("irradiance",)),
+    Option("irradiance_size", "int", "face size of the irradiance cube", lo=1, hi=512,
+           default=32, bakes=("irradiance",)),
     Option("irradiance_source_size", "int", "face size of the source level the irradiance passes read", lo=1, hi=512,
-           power_of_two=True),
-    Option("irradiance_step", "float", "polar_steps angular step (radians; article 000 uses 0.025)", lo=1e-3, hi=0.5),
-    Option("prefilter_samples", "int", "GGX Hammersley samples per prefiltered texel", lo=1, hi=1 << 16),
-    Option("prefilter_filtered", "bool", "filtered importance sampling (GPU Gems 3 ch. 20): source mip from the pdf"),
-    Option("prefilter_nl_weight", "bool", "weight prefilter samples by N.L (article 000)"),
-    Option("prefilter_levels", "int", "levels in the prefiltered mip chain (level 0 = cube_size)", lo=1, hi=13),
+           power_of_two=True, default=32, bakes=("irradiance", "sh9")),
+    Option("irradiance_step", "float", "polar_steps angular step (radians; article 000 uses 0.025)", lo=1e-3, hi=0.5,
+           default=0.025, bakes=("irradiance",)),
+    Option("prefilter_samples", "int", "GGX Hammersley samples per prefiltered texel", lo=1, hi=1 << 16,
+           default=1024, bakes=("prefilter",)),
+    Option("prefilter_filtered", "bool", "filtered importance sampling (GPU Gems 3 ch. 20): source mip from the pdf",
+           default=True, bakes=("prefilter",)),
+    Option("prefilter_nl_weight", "bool", "weight prefilter samples by N.L (article 000)",
+           default=False, bakes=("prefilter",)),
+    Option("prefilter_levels", "int", "levels in the prefiltered mip chain (level 0 = cube_size)", lo=1, hi=13,
+           default=7, bakes=("prefilter",)),
     Option("lod_mapping", "choice", "roughness -> mip level: linear | quadratic | log2 | fitted:FILE.json (pbrcheck "
-           "fit-lod's fit; bakes the chain of the mapping it was fitted on)", BUILTIN_LOD_MAPPINGS),
+           "fit-lod's fit; bakes the chain of the mapping it was fitted on)", BUILTIN_LOD_MAPPINGS,
+           default="quadratic", bakes=("prefilter",)),
     Option("lod_override", "float", "< 0: off; >= 0: every prefiltered lookup at this mip level, whatever the "
-           "roughness (pbrcheck fit-lod's LOD scan)", lo=-1.0, hi=16.0),
-    Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", DFGS.names),
-    Option("lut_size", "int", "DFG LUT size N (N x N)", lo=2, hi=1024),
-    Option("lut_samples", "int", "samples per DFG LUT texel", lo=1, hi=1 << 16),
-    Option("lut_format", "choice", "DFG LUT format: f16 (RG16F) | f32 (RG32F)", ("f16", "f32")),
+           "roughness (pbrcheck fit-lod's LOD scan)", lo=-1.0, hi=16.0, default=-1.0),
+    Option("dfg", "choice", "DFG term: LUT | Karis's analytic EnvBRDFApprox", DFGS.names, default="lut"),
+    Option("lut_size", "int", "DFG LUT size N (N x N)", lo=2, hi=1024, default=64, bakes=("dfg_lut", "kd_lut")),
+    Option("lut_samples", "int", "samples per DFG LUT texel", lo=1, hi=1 << 16, default=4096, bakes=("dfg_lut",)),
+    Option("lut_format", "choice", "DFG LUT format: f16 (RG16F) | f32 (RG32F)", ("f16", "f32"),
+           default="f32", bakes=("dfg_lut",)),
     Option("lut_geometry", "choice", "geometry term integrated into the LUT ('scene': the scene's [brdf] geometry)",
-           GEOMETRY_CHOICES),
-    Option("lut_sampling", "choice", "LUT sampling: GGX visible normals | NDF half vectors", LUT_SAMPLINGS.names),
-    Option("runtime_samples", "int", "samples per pixel of runtime importance sampling", lo=1, hi=1 << 14),
+           GEOMETRY_CHOICES, default="scene", bakes=("dfg_lut",)),
+    Option("lut_sampling", "choice", "LUT sampling: GGX visible normals | NDF half vectors", LUT_SAMPLINGS.names,
+           default="vndf", bakes=("dfg_lut",)),
+    Option("runtime_samples", "int", "samples per pixel of runtime importance sampling", lo=1, hi=1 << 14, default=64),
     Option("runtime_sampling", "choice", "runtime half-vector distribution (article 001 samples Beckmann for GGX)",
-           RUNTIME_SAMPLINGS.names),
-    Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)"),
-    Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points"),
+           RUNTIME_SAMPLINGS.names, default="vndf"),
+    Option("runtime_lod", "bool", "runtime: mip-filtered environment lookups from the pdf (GPU Gems 3 ch. 20)",
+           default=True),
+    Option("runtime_rotate", "bool", "runtime: per-pixel XOR scrambling of the Hammersley points", default=True),
     Option("energy_compensation", "choice", "multiple-scattering energy compensation of the split-sum specular "
            "(pbrcheck/energy.py): none | filament | fdez_aguera | kulla_conty | scene (none for a single-scattering "
-           "scene, the best measured one for [brdf] multiscatter = random_walk)", ("scene", *ENERGY_COMPENSATIONS.names)),
-    Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names)),
-    Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES),
-    Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names)),
-    Option("min_roughness", "float", "roughness clamp (article 001: 0.01)", lo=0.0, hi=1.0),
-    Option("reflect_bug", "bool", "article 002's reflect(v, n) with v towards the eye (looks up -r)"),
+           "scene, the best measured one for [brdf] multiscatter = random_walk)",
+           ("scene", *ENERGY_COMPENSATIONS.names),
+           # "scene": compensate exactly when the scene's reference has multiple scattering (pbrcheck energy:
+           # filament has the lowest albedo and image error against the random walk; docs/research.md).
+           default="scene"),
+    Option("ndf", "choice", "D term ('scene': the scene's [brdf] ndf)", ("scene", *NDFS.names),
+           default="scene", bakes=("dfg_lut",)),
+    Option("geometry", "choice", "G term for direct and runtime lighting ('scene': the scene's)", GEOMETRY_CHOICES,
+           default="scene"),
+    Option("fresnel", "choice", "F term ('scene': the scene's)", ("scene", *FRESNELS.names), default="scene"),
+    Option("min_roughness", "float", "roughness clamp (article 001: 0.01)", lo=0.0, hi=1.0, default=0.0),
+    Option("reflect_bug", "bool", "article 002's reflect(v, n) with v towards the eye (looks up -r)", default=False),
     Option("shadows", "bool", "point lights are occluded by the scene's objects (off by default: the "
            "reference's `local` integrator casts no shadow rays, so the default comparison measures "
-           "shading approximations only; turn on against `--mode path`)"),
-    Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16),
+           "shading approximations only; turn on against `--mode path`)",
+           default=False),  # as the reference's `local` integrator (no visibility tests)
+    Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16, default=4),
     Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes, else raycast) | "
            "raycast (the compute pass's exact analytic shapes) | raster (meshes; analytic shapes tessellated)",
-           ("auto", "raycast", "raster")),
+           ("auto", "raycast", "raster"), default="auto"),
     Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "
-           "(glTF 2.0 3.9.4) and feeds specular_occlusion"),
+           "(glTF 2.0 3.9.4) and feeds specular_occlusion", default=True),
     Option("specular_occlusion", "choice", "occlusion of the split-sum specular from the ambient occlusion: none | "
            "lagarde (Lagarde & de Rousiers 2014, listing 26) | gtso (Jimenez et al. 2016, cone/cone intersection)",
-           SPECULAR_OCCLUSIONS.names),
+           SPECULAR_OCCLUSIONS.names, default="none"),
     Option("horizon_occlusion", "choice", "fade of normal-mapped reflections below the geometric normal's horizon: "
            "none | marmoset (Russell 2015, Jimenez et al. 2016); no normal map (the ray-cast shapes): no change",
-           HORIZON_OCCLUSIONS.names),
+           HORIZON_OCCLUSIONS.names, default="none"),
     Option("specular_aa", "choice", "specular anti-aliasing / normal-map filtering, the roughness widened by the "
            "normals' variance: none | toksvig (Toksvig 2005) | screen_space (Kaplanyan 2016, Tokuyoshi & Kaplanyan "
            "2019, as Filament; raster only) | prefiltered (slope variance baked per normal-map mip); toksvig and "
-           "prefiltered change only normal-mapped materials", SPECULAR_AAS.names),
+           "prefiltered change only normal-mapped materials", SPECULAR_AAS.names, default="none"),
     # multisampling is the raster pipeline's (the ray-cast compute pass supersamples)
     Option("msaa", "int", "raster: samples per colour-pass pixel (1: off), on top of supersample's s x s",
-           lo=1, hi=8, power_of_two=True, requires={"pipeline": ("raster",)}, off=1),
+           lo=1, hi=8, power_of_two=True, requires={"pipeline": ("raster",)}, off=1, default=1),
     Option("alpha_to_coverage", "bool", "raster: MASK materials write a sharpened alpha to coverage (Golus 2017) "
            "instead of discarding below alphaCutoff; needs msaa > 1", off=False,
-           requires={"pipeline": ("raster",), "msaa": MULTISAMPLES}),
+           requires={"pipeline": ("raster",), "msaa": MULTISAMPLES}, default=False),
     Option("anisotropy", "float", "raster: maximum anisotropic filtering of material textures (1: trilinear only)",
-           lo=1.0, hi=16.0),
+           lo=1.0, hi=16.0, default=1.0, bakes=("material_texture", "normal_variance")),
     Option("texture_sampling", "choice", "raster: material textures other than the normal map (base colour, "
            "metallic-roughness, emissive, occlusion): mip (trilinear through the mip chain, as engines) | lod0 "
            "(bilinear at level 0 only, as the reference reads them; with supersampling, its filtering)",
-           TEXTURE_SAMPLINGS),
+           TEXTURE_SAMPLINGS, default="mip"),
     Option("normal_sampling", "choice", "raster: the normal map: mip (trilinear, averaged normals renormalized, as "
-           "engines) | lod0 (bilinear at level 0 only, as the reference)", TEXTURE_SAMPLINGS),
+           "engines) | lod0 (bilinear at level 0 only, as the reference)", TEXTURE_SAMPLINGS, default="mip"),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
-           ("none", "aces")),
-    Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6),
+           ("none", "aces"), default="none"),
+    Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6, default=1.0),
     Option("shader", "file", "shader hook file (docs/hooks.md): its hook_* functions replace built-in pieces of "
-           "the frame pass ('': none; needs shading = material)"),
+           "the frame pass ('': none; needs shading = material)", default=""),
 ]}
 
-DEFAULT = {
-    "shading": "material",
-    "ibl": "splitsum",
-    "cube_size": 256,
-    "cube_format": "f32",
-    "irradiance": "convolution",
-    "irradiance_method": "texel_sum",
-    "irradiance_size": 32,
-    "irradiance_source_size": 32,
-    "irradiance_step": 0.025,
-    "prefilter_samples": 1024,
-    "prefilter_filtered": True,
-    "prefilter_nl_weight": False,
-    "prefilter_levels": 7,
-    "lod_mapping": "quadratic",
-    "lod_override": -1.0,
-    "dfg": "lut",
-    "lut_size": 64,
-    "lut_samples": 4096,
-    "lut_format": "f32",
-    "lut_geometry": "scene",
-    "lut_sampling": "vndf",
-    "runtime_samples": 64,
-    "runtime_sampling": "vndf",
-    "runtime_lod": True,
-    "runtime_rotate": True,
-    # "scene": compensate exactly when the scene's reference has multiple scattering (pbrcheck energy:
-    # filament has the lowest albedo and image error against the random walk; docs/research.md).
-    "energy_compensation": "scene",
-    "ndf": "scene",
-    "geometry": "scene",
-    "fresnel": "scene",
-    "min_roughness": 0.0,
-    "reflect_bug": False,
-    "shadows": False,  # as the reference's `local` integrator (no visibility tests)
-    "supersample": 4,
-    "pipeline": "auto",
-    "anisotropy": 1.0,
-    "texture_sampling": "mip",
-    "normal_sampling": "mip",
-    "occlusion_texture": True,
-    "specular_occlusion": "none",
-    "horizon_occlusion": "none",
-    "specular_aa": "none",
-    "msaa": 1,
-    "alpha_to_coverage": False,
-    "tonemap": "none",
-    "exposure": 1.0,
-    "shader": "",
-}
-
-
 def _preset(**changes) -> dict:
-    d = copy.deepcopy(DEFAULT)
+    """Every option's :attr:`Option.default`, with ``changes``."""
+    d = {name: copy.deepcopy(opt.default) for name, opt in OPTIONS.items()}
     d.update(changes)
     return d
 
@@ -317,20 +301,8 @@ def fitted_mapping(value):
 IN_MEMORY_FITTED = "fitted:"
 
 
-class _OptionsBase(Mapping):
-    """Methods of :class:`RealtimeOptions`; read-only ``o["name"]`` too (a :class:`~collections.abc.Mapping`
-    over the option names, for callers written against the option dict)."""
-
-    def __getitem__(self, name: str):
-        if name not in OPTIONS:
-            raise KeyError(name)
-        return getattr(self, name)
-
-    def __iter__(self):
-        return iter(OPTIONS)
-
-    def __len__(self) -> int:
-        return len(OPTIONS)
+class _OptionsBase:
+    """Methods of :class:`RealtimeOptions` (attribute access only: ``o.cube_size``)."""
 
     def as_dict(self) -> dict:
         """Every option's JSON value (``Image.meta["options"]``, cache keys): a fitted mapping held
@@ -368,9 +340,22 @@ RealtimeOptions = make_dataclass(
     bases=(_OptionsBase,), frozen=True, eq=True, repr=False)
 RealtimeOptions.__module__ = __name__
 RealtimeOptions.__doc__ = """The resolved options of one real-time render: one typed, read-only attribute per
-:data:`OPTIONS` entry (``o.cube_size``; also ``o["cube_size"]``), built by :func:`resolve_options`.
+:data:`OPTIONS` entry (``o.cube_size``), built by :func:`resolve_options`.
 ``lod_mapping`` is a built-in name, ``fitted:PATH`` or a :class:`~pbrcheck.lodmap.LodMapping` held in
 memory; :attr:`fitted` and :attr:`chain` read it, :meth:`as_dict` is the JSON form."""
+
+
+def split_preset(text: str) -> tuple[str, dict]:
+    """``PRESET`` or ``PRESET+FILE.glsl`` (a shader hook file named wherever a preset is,
+    :data:`SHADER_SEP`): the preset name and the option overrides the name carries (``{"shader":
+    FILE}`` or none). The one parser of that form: callers keep its result
+    (:class:`compare.renderers.RendererSpec`), nothing splits a name twice."""
+    if SHADER_SEP not in text:
+        return text, {}
+    preset, shader = text.split(SHADER_SEP, 1)
+    if not shader:
+        raise OptionError(f"renderer {text!r}: expected PRESET+FILE.glsl, found no file after {SHADER_SEP!r}")
+    return preset, {"shader": shader}
 
 
 def parse_sets(items) -> dict:
@@ -411,7 +396,13 @@ DEFERRED = {"pipeline": "auto"}
 def unmet_requirements(entry: Entry, values) -> dict[str, tuple[str, ...]]:
     """The requirements of registry member ``entry`` (:attr:`pbrcheck.registry.Entry.requires`) that
     the options ``values`` (a dict or :class:`RealtimeOptions`) do not meet: option -> accepted values."""
-    return {k: accepted for k, accepted in entry.requires.items() if values[k] not in accepted}
+    return {k: accepted for k, accepted in entry.requires.items() if _value(values, k) not in accepted}
+
+
+def _value(values, name: str):
+    """Option ``name`` of ``values``: a dict of option values (:func:`resolve_options` while it
+    builds one) or a :class:`RealtimeOptions`."""
+    return values[name] if isinstance(values, dict) else getattr(values, name)
 
 
 def check_requirements(values, resolved: dict | None = None) -> None:
@@ -425,7 +416,7 @@ def check_requirements(values, resolved: dict | None = None) -> None:
     resolved = resolved or {}
 
     def get(k):
-        return resolved.get(k, values[k])
+        return resolved.get(k, _value(values, k))
 
     chosen = [(name, get(name), reg[get(name)].requires) for name, reg in OPTION_REGISTRIES.items()
               if get(name) in reg]
@@ -441,13 +432,8 @@ def check_requirements(values, resolved: dict | None = None) -> None:
 
 
 def resolve_options(preset: str = "default", overrides: dict | None = None) -> RealtimeOptions:
-    """The complete options of ``preset`` with ``overrides`` applied and validated.
-
-    ``preset`` may carry a shader hook file as ``PRESET+FILE.glsl`` (the ``shader`` option), so a hook
-    file can be named wherever a preset is."""
-    if SHADER_SEP in preset:
-        preset, shader = preset.split(SHADER_SEP, 1)
-        overrides = {**(overrides or {}), "shader": shader}
+    """The complete options of ``preset`` (a name of :data:`PRESETS`; a ``PRESET+FILE.glsl`` renderer
+    name is split once where it is read, :func:`split_preset`) with ``overrides`` applied and validated."""
     if preset not in PRESETS:
         raise OptionError(f"unknown preset {preset!r}; presets are: {', '.join(PRESETS)}")
     d = copy.deepcopy(PRESETS[preset])
@@ -476,3 +462,63 @@ def resolve_options(preset: str = "default", overrides: dict | None = None) -> R
     if d["pipeline"] == "raster" and d["shadows"]:
         raise OptionError("option shadows: the raster pipeline has no shadow rays (use pipeline=raycast)")
     return RealtimeOptions(**d)
+
+
+class BakeInputs:
+    """The option values one bake reads (:data:`BAKES`), and nothing else: ``i.cube_size`` for a
+    declared option (:attr:`Option.bakes`), :class:`AttributeError` naming the option and the bake
+    for any other, so a bake that starts reading an option without declaring it fails at its first
+    render instead of keying a stale texture. Built by :func:`bake_inputs`; :meth:`key` is its cache key."""
+
+    __slots__ = ("bake", "values")
+
+    def __init__(self, bake: str, values: dict):
+        object.__setattr__(self, "bake", bake)
+        object.__setattr__(self, "values", dict(values))
+
+    def __getattr__(self, name: str):
+        try:
+            return self.values[name]
+        except KeyError:
+            raise AttributeError(f"bake {self.bake!r} reads option {name!r}, which does not list it in "
+                                 f"Option.bakes (realtime/presets.py): its cache key would miss it") from None
+
+    def __setattr__(self, name, value):
+        raise AttributeError("BakeInputs is read-only")
+
+    def key(self, *context) -> tuple:
+        """:func:`bake_key` of these values, with the non-option ``context`` (an environment's hash...)."""
+        return bake_key(self.bake, *context, **self.values)
+
+
+def bake_options(bake: str) -> tuple[str, ...]:
+    """The options whose values bake ``bake`` reads (:attr:`Option.bakes`), in :data:`OPTIONS` order."""
+    if bake not in BAKES:
+        raise KeyError(f"unknown bake {bake!r}; bakes are: {', '.join(BAKES)}")
+    return tuple(name for name, opt in OPTIONS.items() if bake in opt.bakes)
+
+
+def bake_inputs(bake: str, o: RealtimeOptions, **resolved) -> BakeInputs:
+    """The values of ``o`` that ``bake`` reads (:func:`bake_options`); ``resolved`` replaces an
+    option's value by what the render resolved it to (``cube_format`` f16 switched to f32, the
+    scene's geometry for ``lut_geometry = scene``, a fitted mapping's chain), so the key tells
+    apart what the bake tells apart. A ``resolved`` name the bake does not read is an error."""
+    names = bake_options(bake)
+    stray = sorted(set(resolved) - set(names))
+    if stray:
+        raise KeyError(f"bake {bake!r} does not read option(s) {', '.join(stray)} (Option.bakes)")
+    return BakeInputs(bake, {n: resolved[n] if n in resolved else getattr(o, n) for n in names})
+
+
+def bake_key(bake: str, *context, **values) -> tuple:
+    """The process-cache key of ``bake``: ``(bake, *context, values as JSON)``. ``values`` must be
+    exactly the bake's options (:func:`bake_options`): a missing or extra one is a :class:`KeyError`,
+    so a bake called with plain arguments (``env_cube(env, size, fmt)``) is keyed by the same rule
+    as one reading :class:`RealtimeOptions`. ``context`` holds what is not an option (an
+    environment's content hash, an image's identity)."""
+    names = bake_options(bake)
+    if set(values) != set(names):
+        missing, extra = sorted(set(names) - set(values)), sorted(set(values) - set(names))
+        raise KeyError(f"bake {bake!r} keyed by its options {', '.join(names)}: "
+                       f"missing {missing or 'none'}, not its own {extra or 'none'}")
+    return (bake, *context, json.dumps(values, sort_keys=True, default=str))

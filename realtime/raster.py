@@ -77,6 +77,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
 from .gl import ShaderCompileError, assemble, get_context, in_bands, map_errors, timed
+from .presets import bake_key
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -232,7 +233,7 @@ def _texture(image, ref, srgb: bool, anisotropy: float, times: dict | None = Non
     """The image as an RGBA16F texture with its full mip chain (cached per image, colour space, wrap).
     ``times``: adds the seconds of the upload (decode to linear half floats, the level-0 upload) to
     ``texture_upload`` and of the mip generation to ``texture_mips`` (each up to ``ctx.finish()``)."""
-    key = (id(image), srgb, ref.wrap, anisotropy)
+    key = bake_key("material_texture", id(image), srgb, ref.wrap, anisotropy=anisotropy)
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]
@@ -266,7 +267,7 @@ def normal_variance_texture(image, ref, anisotropy: float):
     """The ``prefiltered`` companion of normal map ``image``: an R32F texture with the normal map's
     mip sizes, level k = :func:`pbrcheck.specular_aa.slope_variance_mips`'s level k, the same wrap
     and filtering (cached per image, wrap and anisotropy)."""
-    key = ("normal_var", id(image), ref.wrap, anisotropy)
+    key = bake_key("normal_variance", id(image), ref.wrap, anisotropy=anisotropy)
     hit = _textures.get(key)
     if hit is not None and hit[0] is image:
         return hit[1]

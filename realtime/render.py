@@ -34,7 +34,8 @@ API
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
 :func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
-:func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large).
+:func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large),
+:func:`as_options`.
 """
 
 from __future__ import annotations
@@ -61,7 +62,14 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
-from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
+from .presets import (
+    RealtimeOptions,
+    bake_inputs,
+    bake_key,
+    check_requirements,
+    resolve_options,
+    unmet_requirements,
+)
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -137,12 +145,14 @@ def _visible(result):
     return result
 
 
-def _baked(name: str, key, timings: dict | None, run):
+def _baked(key: tuple, timings: dict | None, run):
     """A precompute pass baked once per process: ``run()`` timed with :func:`_timed` on a miss and
-    kept in ``_cache``; the bake's wall time goes to ``timings[name]`` on a miss and on a hit (a hit
-    reports the original bake, see ``meta["cached_passes"]``). The key ends with the shader sources'
-    hash (:func:`realtime.gl.shader_sources_hash`): a shader edited under a running process bakes
-    afresh, as its program compiles afresh (a key of the options alone served the old bake)."""
+    kept in ``_cache`` under ``key`` (:func:`realtime.presets.bake_key`: the bake's name, then its
+    context and its options); the bake's wall time goes to ``timings[name]`` on a miss and on a hit
+    (a hit reports the original bake, see ``meta["cached_passes"]``). The key ends with the shader
+    sources' hash (:func:`realtime.gl.shader_sources_hash`): a shader edited under a running process
+    bakes afresh, as its program compiles afresh (a key of the options alone served the old bake)."""
+    name = key[0]
     key = (*key, shader_sources_hash())
     if key not in _cache:
         _cache[key], _timings[key] = _timed(get_context(), lambda: _visible(run()))
@@ -210,7 +220,7 @@ def _image_format(fmt: str) -> str:
 
 def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
     """Bake the environment into a ``size``^2 cube (level 0 point-evaluated, box-filtered mips)."""
-    key = ("env_cube", env.content_hash, size, fmt)
+    key = bake_key("env_cube", env.content_hash, cube_size=size, cube_format=fmt)
     prog = compute_program("env_to_cube.comp", {"IMAGE_FORMAT": _image_format(fmt)})
 
     def run():
@@ -223,15 +233,15 @@ def env_cube(env: EnvMap, size: int, fmt: str, timings: dict):
         tex.build_mipmaps()
         return tex
 
-    return _baked("env_cube", key, timings, run)
+    return _baked(key, timings, run)
 
 
 def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
-    """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``)."""
+    """Bake the irradiance cube (E(n) / pi) from the environment cube (``irradiance_method``); reads
+    only the options that declare the bake (:func:`realtime.presets.bake_inputs`)."""
+    o = bake_inputs("irradiance", o, cube_format=fmt)
+    key = o.key(env.content_hash)
     src_lod = math.log2(o.cube_size / o.irradiance_source_size)
-    method = IRRADIANCE_METHODS.names.index(o.irradiance_method)  # its GLSL constant; 0: texel_sum, no step
-    key = ("irr", env.content_hash, o.cube_size, fmt, o.irradiance_size, o.irradiance_source_size, method,
-           o.irradiance_step if method else None)
     ctx = get_context()
     prog = compute_program("irradiance.comp", {"IMAGE_FORMAT": _image_format(fmt),
                                                **IRRADIANCE_METHODS.select(o.irradiance_method)})
@@ -269,7 +279,7 @@ def irradiance_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: di
             texels.release()
         return tex
 
-    return _baked("irradiance", key, timings, run)
+    return _baked(key, timings, run)
 
 
 # Cosine-lobe convolution factors A_l / pi (irradiance over pi), [Ramamoorthi01] eq. 8.
@@ -280,8 +290,9 @@ _SH_K = np.array([0.282095, 0.488603, 0.488603, 0.488603, 1.092548, 1.092548, 0.
 
 def sh9_coefficients(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict) -> np.ndarray:
     """(9, 3) coefficients c_i so that sum_i c_i b_i(n) = E(n) / pi (article 002's basis order)."""
+    o = bake_inputs("sh9", o, cube_format=fmt)
+    key = o.key(env.content_hash)
     size = o.irradiance_source_size
-    key = ("sh9", env.content_hash, o.cube_size, fmt, size)
     ctx = get_context()
     prog = compute_program("sh9.comp")
 
@@ -300,17 +311,17 @@ def sh9_coefficients(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
         # proj_i = int L b_i dw; L_lm = K_i proj_i; E/pi = sum A_l/pi L_lm K_i b_i
         return proj * (_SH_K ** 2 * _SH_A)[:, None]
 
-    return _baked("sh9", key, timings, run)
+    return _baked(key, timings, run)
 
 
 def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
     """Bake the prefiltered chain: level L holds GGX-filtered radiance at the roughness of the chain
     mapping's inverse (``roughness_from_lod``)."""
+    chain = chain_mapping(o)  # what the bake reads of lod_mapping (a fitted file's other fields: not)
+    o = bake_inputs("prefilter", o, cube_format=fmt, lod_mapping=chain)
+    key = o.key(env.content_hash)
     levels = o.prefilter_levels
     size = o.cube_size
-    chain = chain_mapping(o)
-    key = ("pre", env.content_hash, size, fmt, levels, o.prefilter_samples, o.prefilter_filtered,
-           o.prefilter_nl_weight, chain)
     prog = compute_program("prefilter.comp", {
         "IMAGE_FORMAT": _image_format(fmt), "FILTERED": int(o.prefilter_filtered),
         "NL_WEIGHT": int(o.prefilter_nl_weight), **LOD_MAPPINGS.select(chain)})
@@ -351,14 +362,15 @@ def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
             t.release()
         return tex
 
-    return _baked("prefilter", key, timings, run)
+    return _baked(key, timings, run)
 
 
 def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
             timings: dict | None = None):
     """The DFG LUT texture (RG16F or RG32F), see the module docstring for its axes."""
     sampling = lut_sampling_for(sampling, ndf)  # e.g. visible-normal sampling exists for GGX only
-    key = ("lut", size, samples, fmt, geometry, ndf, sampling)
+    key = bake_key("dfg_lut", lut_size=size, lut_samples=samples, lut_format=fmt, lut_geometry=geometry, ndf=ndf,
+                   lut_sampling=sampling)
     ctx = get_context()
     prog = compute_program("dfg_lut.comp", {
         "LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f", **LUT_SAMPLINGS.select(sampling),
@@ -374,7 +386,7 @@ def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", 
         prog.run(groups(size, 8), groups(size, 8), 1)
         return tex
 
-    return _baked("dfg_lut", key, timings, run)
+    return _baked(key, timings, run)
 
 
 def read_lut(tex) -> np.ndarray:
@@ -386,7 +398,7 @@ def read_lut(tex) -> np.ndarray:
 
 def kd_lut(size: int, timings: dict):
     """Bake the N x 1 Kd (diffuse Fresnel weight) LUT over n.v."""
-    key = ("kd", size)
+    key = bake_key("kd_lut", lut_size=size)
     ctx = get_context()
     prog = compute_program("kd_lut.comp")
 
@@ -400,7 +412,7 @@ def kd_lut(size: int, timings: dict):
         prog.run(groups(size, 64))
         return tex
 
-    return _baked("kd_lut", key, timings, run)
+    return _baked(key, timings, run)
 
 
 def sample_cube(tex, directions: np.ndarray, lod: float = 0.0) -> np.ndarray:
@@ -567,9 +579,8 @@ def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timi
                 fmt: str, warnings: list, hooks=None) -> dict:
     """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
     shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
-    cached = sorted(p for p, k in (("env_cube", "env_cube"), ("irradiance", "irr"), ("sh9", "sh9"),
-                                   ("prefilter", "pre"), ("dfg_lut", "lut"), ("kd_lut", "kd"))
-                    if p in timings and any(isinstance(c, tuple) and c[0] == k for c in cached_before))
+    cached = sorted(p for p in ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut")
+                    if p in timings and any(isinstance(c, tuple) and c[0] == p for c in cached_before))
     return {
         "renderer": "realtime",
         "gl_renderer": renderer_name(),
@@ -594,9 +605,13 @@ def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timi
     }
 
 
-def render_realtime(scene: Scene, preset: str = "default", options: dict | None = None, *,
+def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOptions | dict | None = None, *,
                     progress: bool = True) -> Image:
-    """Render ``scene`` with ``preset`` and option overrides; returns R, G, B and the AOVs.
+    """Render ``scene`` with ``preset`` and its options; returns R, G, B and the AOVs.
+
+    ``options``: the resolved :class:`~realtime.presets.RealtimeOptions` of ``preset`` (what a caller
+    that parsed them once passes: :class:`compare.renderers.RendererSpec`, :mod:`realtime.cache`;
+    rendered as they are), or option overrides resolved here (:func:`as_options`).
 
     Meta: ``preset``, ``options`` (JSON of every option value), ``timings`` (JSON seconds per pass;
     a pass whose artifact came from this process's cache reports its original bake time and is listed
@@ -607,7 +622,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     take, :class:`pbrcheck.errors.BackendError` (exit 3) for ``msaa`` above this GL's
     ``GL_MAX_SAMPLES`` (:func:`realtime.raster.check_msaa`).
     """
-    o = resolve_options(preset, options)
+    o = as_options(preset, options)
     pipeline = resolved_pipeline(scene, o)
     check_pipeline_options(pipeline, o)
     ctx = get_context()
@@ -711,6 +726,13 @@ def _image(color, aov, obj, meta) -> Image:
     }, meta)
 
 
+def as_options(preset: str, options: RealtimeOptions | dict | None) -> RealtimeOptions:
+    """``options`` when they are resolved already (a :class:`~realtime.presets.RealtimeOptions`:
+    resolved once by the caller), else ``preset``'s with these overrides
+    (:func:`~realtime.presets.resolve_options`)."""
+    return options if isinstance(options, RealtimeOptions) else resolve_options(preset, options)
+
+
 def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
     """``raycast`` or ``raster``: the option's value, or for ``auto`` raster exactly when the scene
     holds glTF meshes (analytic scenes keep the exact ray-cast geometry). ``raycast`` on a scene with
@@ -776,7 +798,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
 
 
 #: Cache kinds whose key's second element is an environment's content hash.
-ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irr", "sh9", "pre")
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irradiance", "sh9", "prefilter")
 
 
 def trim_environment_caches(keep: int) -> int:

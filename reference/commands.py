@@ -12,6 +12,7 @@ from pbrcheck.args import positive_int
 from pbrcheck.atomic import check_output_path
 from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.exr import write_exr
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
 from .bench import SECTIONS, run_asset_bench, run_bench, run_sections
@@ -19,7 +20,7 @@ from .render import DEFAULT_ADAPTIVE, DEFAULT_SAMPLER, SAMPLER_NAMES, render_ref
 
 
 def _cmd_reference(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     out = Path(args.out) if args.out else Path("out") / f"reference_{file_name_part(scene.name)}_{args.mode}_{args.spp}spp.exr"
     check_output_path(out)  # before the render
     img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,

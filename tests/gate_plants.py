@@ -352,7 +352,7 @@ def plant_budget(folder: Path, plant: Plant, scenes=None) -> Path:
                     o.pop("content_hash", None)
             edited = scene_from_dict(plant.scene_edit(d) if plant.scene_edit else d)
             with (planted_threejs(folder, plant.page) if plant.page else contextlib.nullcontext()):
-                img = renderers.render_under_test(edited, plant.preset, plant.options or None)
+                img = renderers.render_under_test(edited, renderers.RendererSpec.parse(plant.preset, plant.options or None))
             test = write_exr(folder / f"{safe}-{s}.exr", img)
             if external:
                 text += _client_check(client_checks(plant.preset)[s], f'test = "{test}"\n')

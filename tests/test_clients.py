@@ -106,7 +106,7 @@ def runs(d: Path) -> list[str]:
 
 @pytest.mark.parametrize("mode", ["pfm", "exr", "hdr"])
 def test_float_outputs_come_back_row_0_at_the_top_with_metadata(fake, scene, mode):
-    img = renderers.render_under_test(scene, f"ext:{mode}")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse(f"ext:{mode}"))
     assert img.shape == (8, 16)
     assert np.allclose(img.rgb[0, 0], (1.0, 0.0, 0.0), atol=0.01)     # row 0 is the top
     assert np.allclose(img.rgb[4, 8], 0.5, atol=0.01)
@@ -119,19 +119,19 @@ def test_float_outputs_come_back_row_0_at_the_top_with_metadata(fake, scene, mod
 
 
 def test_png_srgb_is_display_referred(fake, scene):
-    img = renderers.render_under_test(scene, "ext:png")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:png"))
     assert img.meta["display_referred"] == "1"
     assert np.allclose(img.rgb[4, 8], 127 / 255, atol=1e-6)
 
 
 def test_cached_by_scene_and_renderer_config_and_lockfile(fake, scene):
-    renderers.render_under_test(scene, "ext:pfm")
-    renderers.render_under_test(scene, "ext:pfm")
+    renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:pfm"))
+    renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:pfm"))
     assert runs(fake) == ["pfm"]                       # the second came from the cache
-    renderers.render_under_test(scene.with_camera(width=18), "ext:pfm")
+    renderers.render_under_test(scene.with_camera(width=18), renderers.RendererSpec.parse("ext:pfm"))
     assert runs(fake) == ["pfm", "pfm"]                # another scene hash
     (fake / "fake.py").write_text(FAKE + "\n# changed\n")
-    renderers.render_under_test(scene, "ext:pfm")
+    renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:pfm"))
     assert runs(fake) == ["pfm", "pfm", "pfm"]         # the lockfile changed
 
 
@@ -147,7 +147,7 @@ def test_cached_by_scene_and_renderer_config_and_lockfile(fake, scene):
 ])
 def test_failure_modes(fake, scene, mode, msg):
     with pytest.raises(R.RendererError) as e:
-        renderers.render_under_test(scene, f"ext:{mode}")
+        renderers.render_under_test(scene, renderers.RendererSpec.parse(f"ext:{mode}"))
     assert msg in str(e.value) and str(e.value).startswith(f"ext:{mode}: ")
     assert "\n" not in str(e.value) and e.value.exit_code == 2
 
@@ -163,7 +163,7 @@ def _alive(pid: int) -> bool:
 def test_timeout_kills_the_renderer_and_its_children(fake, scene):
     t0 = time.perf_counter()
     with pytest.raises(R.RendererError, match=r"timed out after 3 s \(killed with its children: its session"):
-        renderers.render_under_test(scene, "ext:sleep")
+        renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sleep"))
     assert time.perf_counter() - t0 < 20
     pid = int((fake / "child.pid").read_text())
     deadline = time.time() + 5
@@ -238,10 +238,11 @@ def test_malformed_renderers_file_names_file_and_field(tmp_path, body, msg):
 
 def test_unknown_renderer_lists_the_known_ones(tmp_path):
     with pytest.raises(C.RendererConfigError, match="unknown external renderer 'ext:nope'; known: ext:babylon, ext:filament, ext:playcanvas, ext:sample-viewer, .*ext:threejs"):
-        renderers.resolve_options("ext:nope")
-    assert renderers.resolve_options("ext:threejs") == {}
+        renderers.RendererSpec.parse("ext:nope")
+    spec = renderers.RendererSpec.parse("ext:threejs")
+    assert spec.external and spec.options is None and spec.name == "ext:threejs" and spec.overrides == ()
     with pytest.raises(Exception, match="takes no options"):
-        renderers.resolve_options("ext:threejs", {"supersample": 2})
+        renderers.RendererSpec.parse("ext:threejs", {"supersample": 2})
 
 
 def test_builtin_threejs_config_and_user_override(tmp_path):
@@ -311,7 +312,7 @@ def test_png_srgb_is_compared_in_display_space(fake, scene):
     from compare.metrics import compare_images
     from pbrcheck.exr import Image
 
-    test = renderers.render_under_test(scene, "ext:png")           # code values 127/255 (0.5 * 255 floored)
+    test = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:png"))           # code values 127/255 (0.5 * 255 floored)
     lin = (127 / 255 + 0.055) / 1.055
     lin = lin ** 2.4                                                 # the linear radiance sRGB 127 encodes
     ref = Image.from_rgb(np.full((8, 16, 3), lin, np.float32), variance_R=np.zeros((8, 16), np.float32))
@@ -320,7 +321,7 @@ def test_png_srgb_is_compared_in_display_space(fake, scene):
     assert c.metrics["mean_abs"] < 1e-3                             # same display values
     hot = Image.from_rgb(np.full((8, 16, 3), 5.0, np.float32))      # clamped to 1 before the transfer
     assert compare_images(hot, test).metrics["mean_abs"] == pytest.approx(1 - 127 / 255, abs=0.02)
-    assert compare_images(ref, renderers.render_under_test(scene, "ext:pfm")).summary["space"] == "linear"
+    assert compare_images(ref, renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:pfm"))).summary["space"] == "linear"
 
 
 def test_ext_names_a_renderer_in_explain_and_sweep(fake, scene, tmp_path, monkeypatch):
@@ -352,7 +353,7 @@ def test_threejs_client_without_a_browser_fails_in_one_line(scene, monkeypatch, 
     monkeypatch.setenv("PBRCHECK_CHROMIUM", "/nonexistent/chromium")
     with pytest.raises(R.RendererError, match=r"ext:threejs: exited with status 1; stderr: .*cannot start Chromium "
                                               r"\(/nonexistent/chromium\)"):
-        renderers.render_under_test(scene, "ext:threejs")
+        renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"))
 
 
 def test_renderers_option_does_not_outlive_its_call(tmp_path):

@@ -96,7 +96,8 @@ def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progr
                           **var, **aovs)
 
 
-def fake_realtime(scene, preset="default", options=None, *, progress=True, context=None, use_cache=True):
+def fake_realtime(scene, spec, *, progress=True, context=None, use_cache=True):
+    preset, options = spec.text, dict(spec.overrides)
     CALLS["realtime"].append((preset, dict(options or {})))
     CALLS["cached"].append(bool(context and context.cache))
     rgb, aovs = raycast(scene)
@@ -256,7 +257,9 @@ def test_sweep_refuses_msaa_above_this_gl_before_any_render(fakes, scene_file, t
     sweep in its preflight: exit 3 (a backend limit) naming the option, no render, no output."""
     import compare.renderers as renderers
     from realtime import raster
-    monkeypatch.setattr(renderers, "resolve_options", lambda preset, overrides=None: {"msaa": 1, **(overrides or {})})
+    from types import SimpleNamespace  # resolved options: attribute access
+    monkeypatch.setattr(renderers, "resolve_options",
+                        lambda preset, overrides=None: SimpleNamespace(**{"msaa": 1, **(overrides or {})}))
     monkeypatch.setattr(raster, "max_msaa", lambda: 2)
     assert main(["sweep", str(scene_file), "--vary", "msaa=1,4", "--out", str(tmp_path / "s"), "--quiet"]) == 3
     assert "option msaa: 4 samples asked" in capsys.readouterr().err

@@ -22,9 +22,10 @@ import compare.metrics
 import compare.renderers
 from compare.corpus import envstats
 from compare.corpus.scheduler import SchedulerError, parse_scheduler
-from compare.corpus.study import (TIMING_COLUMNS, CorpusError, CorpusSettings, RendererSpec, discover,
+from compare.corpus.study import (TIMING_COLUMNS, CorpusError, CorpusSettings, discover,
                                   run_corpus)
 from compare.report.corpus_section import corpus_section, write_corpus_page
+from compare.renderers import RendererSpec
 from pbrcheck.cli import main
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import PbrcheckError
@@ -75,7 +76,8 @@ class FakeRenderers:
         ch.update({f"variance.{c}": np.full((8, 8), 1e-6, np.float32) for c in "RGB"})
         return Image(ch, {"seconds": "0.5"})
 
-    def under_test(self, scene, name, options=None, *, progress=False, context=None):
+    def under_test(self, scene, spec, *, progress=False, context=None):
+        name = spec.text
         self.calls.append((name, scene.environment.path))
         if name == "broken":
             raise PbrcheckError(f"renderer broken failed on {scene.environment.path}")
@@ -101,7 +103,7 @@ def fake(monkeypatch, tmp_cache):
 
 
 def settings(*names, spp=4):
-    return CorpusSettings(scene_from_dict(TINY), tuple(RendererSpec(n) for n in names), spp=spp)
+    return CorpusSettings(scene_from_dict(TINY), tuple(RendererSpec.parse(n) for n in names), spp=spp)
 
 
 def strip_times(rows):
@@ -368,8 +370,9 @@ def test_sweep_and_report_on_an_executor_give_the_same_results(tmp_path, fake):
     scene = scene_from_dict(TINY)
     ref = fake.reference(scene)
     combos = [{"cube_size": 64}, {"cube_size": 128}]
-    plain = sweep_rows(scene, ref, combos, preset="default")
-    assert sweep_rows(scene, ref, combos, preset="default", executor=SerialExecutor()) == plain
+    spec = RendererSpec.parse("default")
+    plain = sweep_rows(scene, ref, combos, spec=spec)
+    assert sweep_rows(scene, ref, combos, spec=spec, executor=SerialExecutor()) == plain
     outs = {}
     for name, sched in (("plain", None), ("serial", "serial")):
         build_report([str(_scene_file(tmp_path))], tmp_path / name,
@@ -407,4 +410,4 @@ def test_external_renderers_are_checked_before_any_work(tmp_path, tmp_cache):
     assert main(["corpus", str(d), "--presets", "default,ext:nope", "--set", "cube_size=64",
                  "--scheduler", "serial", "--out", str(out)]) == 2
     assert not out.exists()
-    assert compare.renderers.resolve_options("ext:threejs", {}) == {}  # a built-in client: no options
+    assert compare.renderers.RendererSpec.parse("ext:threejs", {}).external  # a built-in client: no options

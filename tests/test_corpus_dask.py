@@ -12,7 +12,8 @@ import time
 import pytest
 
 from compare.corpus.scheduler import open_executor, parse_scheduler
-from compare.corpus.study import TIMING_COLUMNS, CorpusSettings, RendererSpec, run_corpus
+from compare.corpus.study import TIMING_COLUMNS, CorpusSettings, run_corpus
+from compare.renderers import RendererSpec
 from pbrcheck.scene import scene_from_dict
 
 from test_corpus import make_corpus
@@ -30,8 +31,8 @@ SMALL = {"cube_size": 64}
 
 
 def settings(seed: int = 3):
-    return CorpusSettings(scene_from_dict(SCENE), (RendererSpec("default", dict(SMALL)),
-                                                   RendererSpec("runtime_is20", dict(SMALL))), spp=4, seed=seed)
+    return CorpusSettings(scene_from_dict(SCENE), (RendererSpec.parse("default", SMALL),
+                                                   RendererSpec.parse("runtime_is20", SMALL)), spp=4, seed=seed)
 
 
 def strip_times(rows):
@@ -124,8 +125,9 @@ def test_sweep_on_the_cluster_gives_the_serial_rows(cluster):
     ref = renderers.render_reference(scene, spp=4, use_cache=False, progress=False)
     combos = [{"cube_size": 64}, {"cube_size": 64, "prefilter_samples": 64}]
     strip = lambda rows: [{k: v for k, v in r.items() if not k.endswith("_s")} for r in rows]  # noqa: E731
-    assert strip(sweep_rows(scene, ref, combos, executor=cluster)) == \
-           strip(sweep_rows(scene, ref, combos, executor=SerialExecutor()))
+    spec = renderers.RendererSpec.parse("default")
+    assert strip(sweep_rows(scene, ref, combos, spec=spec, executor=cluster)) == \
+           strip(sweep_rows(scene, ref, combos, spec=spec, executor=SerialExecutor()))
 
 
 def test_trimmed_caches_bound_memory_and_keep_the_pixels(tmp_path):
@@ -139,14 +141,14 @@ def test_trimmed_caches_bound_memory_and_keep_the_pixels(tmp_path):
     corpus = make_corpus(tmp_path / "c", 3, bad=False)
     scene = scene_from_dict(SCENE)
     scenes = [replace(scene, environment=Environment(type="file", path=str(p))) for p in sorted(corpus.glob("*.exr"))]
-    first = renderers.render_under_test(scenes[0], "default", SMALL)
+    first = renderers.render_under_test(scenes[0], renderers.RendererSpec.parse("default", SMALL))
     for s in scenes[1:]:
-        renderers.render_under_test(s, "default", SMALL)
+        renderers.render_under_test(s, renderers.RendererSpec.parse("default", SMALL))
     envs = lambda: {k[1] for k in R._cache if isinstance(k, tuple) and k[0] in R.ENVIRONMENT_CACHE_KINDS}  # noqa: E731
     assert len(envs()) >= 3
     renderers.trim_caches(1)
     assert len(envs()) == 1
-    again = renderers.render_under_test(scenes[0], "default", SMALL)  # re-baked after being freed
+    again = renderers.render_under_test(scenes[0], renderers.RendererSpec.parse("default", SMALL))  # re-baked after being freed
     assert np.array_equal(again.rgb, first.rgb)
 
 
@@ -226,7 +228,7 @@ def test_shared_envmaps_through_a_list_file(envmap, tmp_path, tmp_cache):
     spot, sunset = envmap("spot1Lux.hdr"), envmap("venice_sunset_1k.hdr")
     lst = tmp_path / "corpus.txt"
     lst.write_text(f"{spot}\n{sunset}\n")
-    st = CorpusSettings(scene_from_dict(SCENE), (RendererSpec("default", dict(SMALL)),), spp=4)
+    st = CorpusSettings(scene_from_dict(SCENE), (RendererSpec.parse("default", SMALL),), spp=4)
     res = run_corpus(lst, st, tmp_path / "out", scheduler="serial", progress=False)
     by = {r["environment"]: r for r in res.rows}
     assert all(r["status"] == "ok" and r["relmse"] is not None for r in res.rows)

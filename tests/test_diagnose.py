@@ -46,7 +46,7 @@ def ref():
 
 @pytest.fixture(scope="module")
 def correct(scene):
-    return renderers.render_under_test(scene, "default")
+    return renderers.render_under_test(scene, renderers.RendererSpec.parse("default"))
 
 
 def _with_rgb(img: Image, rgb: np.ndarray) -> Image:

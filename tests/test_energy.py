@@ -172,7 +172,7 @@ def test_presets_offer_the_compensations():
     assert energy.SCENE_COMPENSATION["none"] == "none"
     assert PRESETS["default"]["energy_compensation"] == "scene"
     f = resolve_options("filament")
-    assert f["energy_compensation"] == "filament" and f["irradiance"] == "sh9" and f["lod_mapping"] == "quadratic"
+    assert f.energy_compensation == "filament" and f.irradiance == "sh9" and f.lod_mapping == "quadratic"
     assert "energy_compensation" in PRESETS["default"]
 
 
@@ -199,4 +199,4 @@ def test_compensation_needs_the_material_split_sum():
     with pytest.raises(OptionError, match="energy_compensation"):
         resolve_options("splitsum_basic", {"energy_compensation": "kulla_conty"})
     for p in ("splitsum_basic", "runtime_is20", "runtime_is256", "analytic_mobile"):
-        assert resolve_options(p)["energy_compensation"] == "none"
+        assert resolve_options(p).energy_compensation == "none"

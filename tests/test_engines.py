@@ -103,7 +103,7 @@ def _centroids_in(rgb: np.ndarray, mask: np.ndarray, min_pixels: int) -> dict:
 def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radiance(name, tmp_cache, tmp_path):
     _skip_without(name)
     scene = probe_scene(tmp_path)
-    img = renderers.render_under_test(scene, f"ext:{name}")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse(f"ext:{name}"))
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     assert img.meta["version"].startswith(", ".join(f"{p} {v}" for p, v in CLIENTS[name][1].items()))
     ids = img.channels["object"]

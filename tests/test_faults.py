@@ -654,7 +654,8 @@ def test_bounded_renderer_output(tmp_path):
 
 
 def test_interrupted_rerun_leaves_no_stale_table(work, tmp_path, monkeypatch):
-    from compare.corpus.study import CorpusSettings, RendererSpec, run_corpus
+    from compare.corpus.study import CorpusSettings, run_corpus
+    from compare.renderers import RendererSpec
     from pbrcheck.scene import load_scene
     from realtime.presets import parse_sets
 
@@ -668,7 +669,7 @@ def test_interrupted_rerun_leaves_no_stale_table(work, tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     settings = CorpusSettings(load_scene(work / "tiny.toml"),
-                              (RendererSpec("default", parse_sets(RT_FAST[1::2])),),
+                              (RendererSpec.parse("default", parse_sets(RT_FAST[1::2])),),
                               spp=4)
     with pytest.raises(KeyboardInterrupt):
         run_corpus(work / "envs", settings, out, scheduler="serial", progress=False, on_row=stop)

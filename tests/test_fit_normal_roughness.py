@@ -102,7 +102,7 @@ def stripe_fit(tmp_path_factory):
     scene = asset_scene(make_asset(tmp / "stripes.gltf", segments=32, tex=64, normal_map=stripe_map()),
                         env=None, size=(32, 32))
     # The known answer as an image: specular_aa = prefiltered reads S^2 at every level >= 1.
-    target = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "prefiltered"})
+    target = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "specular_aa": "prefiltered"}))
     res = run_fit_normal_roughness(scene, method="scan", options=SMALL, out=tmp / "fit.json", target=target,
                                    scan_step=0.125,
                                    refine_steps=())
@@ -130,11 +130,11 @@ def test_written_hook_renders_and_reduces_the_error(stripe_fit):
         r, t = target.rgb.astype(np.float64), img.rgb.astype(np.float64)
         return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
 
-    hooked = renderers.render_under_test(scene, "default", {**SMALL, "shader": res.glsl})
-    none = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "none"})
+    hooked = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "shader": res.glsl}))
+    none = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "specular_aa": "none"}))
     assert rel(hooked) < 0.01 * rel(none)
     # The hook replaces specular_aa: the option under it changes nothing.
-    again = renderers.render_under_test(scene, "default", {**SMALL, "shader": res.glsl, "specular_aa": "toksvig"})
+    again = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "shader": res.glsl, "specular_aa": "toksvig"}))
     assert np.array_equal(again.rgb, hooked.rgb)
 
 

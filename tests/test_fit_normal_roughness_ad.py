@@ -116,12 +116,12 @@ def test_lod_is_gl_on_a_facing_plane(tmp_path):
         assert np.allclose(lod, expect - math.log2(s), atol=LOD_TOL), (s, expect, lod.min(), lod.max())
     # The raster: a hook setting roughness 1 where textureQueryLod is within RASTER_LOD_TOL of it
     # changes every pixel; one 2 * RASTER_LOD_TOL above it, none.
-    plain = renderers.render_under_test(scene, "default", {**SMALL, "specular_aa": "none"})
+    plain = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "specular_aa": "none"}))
     for c, changed in ((expect, True), (expect + 2 * RASTER_LOD_TOL, False)):
         hook = tmp_path / f"h{int(changed)}.glsl"
         hook.write_text("float hook_specular_aa(float roughness, float normal_length, float normal_lod) {\n"
                         f"    return abs(normal_lod - {c:.6f}) < {RASTER_LOD_TOL} ? 1.0 : roughness;\n}}\n")
-        img = renderers.render_under_test(scene, "default", {**SMALL, "shader": str(hook)})
+        img = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", {**SMALL, "shader": str(hook)}))
         diff = np.abs(img.rgb - plain.rgb).sum(axis=-1) > 0
         assert diff.all() if changed else not diff.any(), (c, diff.mean())
 

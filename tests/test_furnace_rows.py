@@ -127,10 +127,10 @@ def _loosest_checks(tmp_path: Path) -> Path:
 def test_a_client_drawing_only_the_environment_fails_the_furnace_and_the_spheres_check(env_only, tmp_path):
     # the fake really draws the environment: the reference's background pixels, and 1.0 in the furnace
     furnace = load_scene(BUDGETS / "furnace_ci.toml")
-    img = renderers.render_under_test(furnace, "ext:envonly")
+    img = renderers.render_under_test(furnace, renderers.RendererSpec.parse("ext:envonly"))
     np.testing.assert_array_equal(img.rgb, 1.0)
     spheres = load_scene(BUDGETS / "spheres_ci.toml")
-    img, ref = renderers.render_under_test(spheres, "ext:envonly"), read_exr(BUDGETS / "refs" / "spheres_ci_ms.exr")
+    img, ref = renderers.render_under_test(spheres, renderers.RendererSpec.parse("ext:envonly")), read_exr(BUDGETS / "refs" / "spheres_ci_ms.exr")
     bg = (np.rint(ref.channels["object"]) < 0) & (ref.channels["coverage"] == 0)  # no sphere in the pixel
     assert bg.sum() > 1000
     # a nearest-texel lookup against the reference's filtered one: the mean within 3 %

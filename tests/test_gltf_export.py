@@ -146,7 +146,7 @@ def test_asymmetric_texture_same_pixels_in_reference_and_threejs(tmp_path, tmp_c
     from reference.render import render_reference
 
     sc = _asset_scene(tmp_path)
-    ext = renderers.render_under_test(sc, "ext:threejs")
+    ext = renderers.render_under_test(sc, renderers.RendererSpec.parse("ext:threejs"))
     ref = render_reference(sc, spp=16, use_cache=False, progress=False)
     assert np.array_equal(np.rint(ext.channels["object"]), np.rint(ref.channels["object"])) or \
         (np.rint(ext.channels["object"]) != np.rint(ref.channels["object"])).mean() < 0.02

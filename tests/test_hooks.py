@@ -69,7 +69,7 @@ def test_prototypes_and_docs_match_the_hook_list():
 def test_a_hook_that_reproduces_the_built_in_gives_the_same_image(spheres, tmp_path):
     f = write(tmp_path, "float hook_lod(float roughness, float max_lod, float cube_log2) {\n"
                         "    return lod_quadratic(roughness, max_lod, cube_log2);\n}\n")
-    a = render_realtime(spheres, f"default+{f}", progress=False)
+    a = render_realtime(spheres, "default", {"shader": str(f)}, progress=False)
     b = render_realtime(spheres, "default", progress=False)
     assert np.array_equal(a.rgb, b.rgb)
     meta = json.loads(a.meta["shader"])
@@ -108,19 +108,19 @@ def test_ibl_hooks_replace_what_they_document(two, tmp_path):
     base_metal, base_diel = _object_means(render_realtime(two, "default", progress=False))
     no_spec = write(tmp_path, "vec3 hook_specular_ibl(vec3 n, vec3 v, float roughness, vec3 F0) "
                               "{ return vec3(0.0); }\n", "nospec.glsl")
-    metal, diel = _object_means(render_realtime(two, f"default+{no_spec}", progress=False))
+    metal, diel = _object_means(render_realtime(two, "default", {"shader": str(no_spec)}, progress=False))
     assert metal == 0.0 and 0.0 < diel < base_diel  # the metal had only specular; the dielectric keeps its diffuse
     # With a preset that compensates energy, the whole specular IBL is still the hook's.
-    assert _object_means(render_realtime(two, f"filament+{no_spec}", progress=False))[0] == 0.0
+    assert _object_means(render_realtime(two, "filament", {"shader": str(no_spec)}, progress=False))[0] == 0.0
     no_diff = write(tmp_path, "vec3 hook_diffuse_ibl(vec3 n) { return vec3(0.0); }\n", "nodiff.glsl")
-    metal, diel = _object_means(render_realtime(two, f"default+{no_diff}", progress=False))
+    metal, diel = _object_means(render_realtime(two, "default", {"shader": str(no_diff)}, progress=False))
     assert metal == pytest.approx(base_metal, rel=1e-6) and diel < base_diel
     dfg = write(tmp_path, "vec2 hook_dfg(float NoV, float roughness) { return vec2(0.5, 0.0); }\n", "dfg.glsl")
-    metal, _ = _object_means(render_realtime(two, f"default+{dfg}", progress=False))
+    metal, _ = _object_means(render_realtime(two, "default", {"shader": str(dfg)}, progress=False))
     assert metal == pytest.approx(0.5, rel=2e-3)  # F0 = 1: specular = prefiltered (1 in a furnace) x A
     ec = write(tmp_path, "vec3 hook_energy_compensation(vec3 F0, float A, float B, float r) { return vec3(2.0); }\n",
                "ec.glsl")
-    metal, _ = _object_means(render_realtime(two, f"default+{ec}", progress=False))
+    metal, _ = _object_means(render_realtime(two, "default", {"shader": str(ec)}, progress=False))
     assert metal == pytest.approx(2 * base_metal, rel=1e-5)
 
 
@@ -128,7 +128,7 @@ def test_compile_errors_name_the_users_file_and_line(spheres, tmp_path):
     f = write(tmp_path, "// line 1\nfloat hook_lod(float roughness, float max_lod, float cube_log2) {\n"
                         "    return undefined_thing;\n}\n")
     with pytest.raises(ShaderCompileError, match=re.escape(f"{f}:3")):
-        render_realtime(spheres, f"default+{f}", progress=False)
+        render_realtime(spheres, "default", {"shader": str(f)}, progress=False)
 
 
 @pytest.mark.parametrize("text, match", [
@@ -146,10 +146,19 @@ def test_bad_hook_files_are_rejected_naming_file_and_line(tmp_path, text, match)
 def test_hooks_need_the_material_shading_and_an_existing_file(tmp_path):
     f = write(tmp_path, "vec3 hook_diffuse_ibl(vec3 n) { return vec3(0.0); }\n")
     with pytest.raises(OptionError, match="shading=article000"):
-        resolve_options(f"splitsum_basic+{f}")
+        resolve_options("splitsum_basic", {"shader": str(f)})
     with pytest.raises(OptionError, match="no such file"):
-        resolve_options("default+nope.glsl")
-    assert resolve_options(f"default+{f}")["shader"] == str(f)
+        resolve_options("default", {"shader": "nope.glsl"})
+    assert resolve_options("default", {"shader": str(f)}).shader == str(f)
+    # the renderer name PRESET+FILE.glsl: split once where it is read (RendererSpec.parse)
+    from compare.renderers import RendererSpec
+    with pytest.raises(OptionError, match="shading=article000"):
+        RendererSpec.parse(f"splitsum_basic+{f}")
+    with pytest.raises(OptionError, match="no such file"):
+        RendererSpec.parse("default+nope.glsl")
+    spec = RendererSpec.parse(f"default+{f}")
+    assert (spec.text, spec.name, spec.options.shader, spec.override_dict["shader"]) == (
+        f"default+{f}", "default", str(f), str(f))
 
 
 def test_cli_realtime_shader_and_gate_shader_key(tmp_path, capsys):

@@ -185,13 +185,13 @@ def test_a_corrupt_entry_is_rendered_again(scene, counted, tmp_cache):
 
 
 def test_the_seam_caches_only_with_a_caching_context(scene, counted, tmp_cache):
-    renderers.render_under_test(scene, "default", SMALL)
-    renderers.render_under_test(scene, "default", SMALL, context=renderers.DIRECT)
+    renderers.render_under_test(scene, renderers.RendererSpec.parse("default", SMALL))
+    renderers.render_under_test(scene, renderers.RendererSpec.parse("default", SMALL), context=renderers.DIRECT)
     assert len(counted) == 0  # the default context: render_realtime itself, never the cache
     cached = renderers.RenderContext(cache=True)
-    a = renderers.render_under_test(scene, "default", SMALL, context=cached)
-    b = renderers.render_under_test(scene, "default", SMALL, context=cached)
-    c = renderers.render_under_test(scene, "default", SMALL, context=renderers.RenderContext(cache=False))
+    a = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", SMALL), context=cached)
+    b = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", SMALL), context=cached)
+    c = renderers.render_under_test(scene, renderers.RendererSpec.parse("default", SMALL), context=renderers.RenderContext(cache=False))
     assert (a.meta["cache"], b.meta["cache"]) == ("miss", "hit") and "cache" not in c.meta
     assert len(counted) == 1
 

@@ -60,9 +60,9 @@ def test_bake_is_its_numpy_and_drjit_twins(ndf):
 @pytest.mark.parametrize("geometry", LUT_GEOMETRIES)
 def test_default_lut_meets_the_accuracy_goal(geometry):
     o = resolve_options("default")
-    assert o["lut_format"] == "f32"
-    N = o["lut_size"]
-    lut = read_lut(dfg_lut(N, o["lut_samples"], "f32", geometry, "ggx", o["lut_sampling"]))
+    assert o.lut_format == "f32"
+    N = o.lut_size
+    lut = read_lut(dfg_lut(N, o.lut_samples, "f32", geometry, "ggx", o.lut_sampling))
     rows = _rows(N)
     err = np.abs(lut[rows] - _reference(geometry, N, rows))
     assert err.max() <= GOAL_MAX_ABS, f"max {err.max():.2e} at {np.unravel_index(err.argmax(), err.shape)}"
@@ -73,7 +73,7 @@ def test_article000_lut_misses_the_goal_at_grazing_angles():
     """1024 GGX half-vector samples (article 000's LUT): several times the goal at grazing n.v."""
     o = resolve_options("splitsum_basic")
     N = 64
-    lut = read_lut(dfg_lut(N, o["lut_samples"], "f32", "schlick_ggx_direct", "ggx", o["lut_sampling"]))
+    lut = read_lut(dfg_lut(N, o.lut_samples, "f32", "schlick_ggx_direct", "ggx", o.lut_sampling))
     rows = _rows(N)
     err = np.abs(lut[rows] - _reference("schlick_ggx_direct", N, rows))
     assert err.max() > 2 * GOAL_MAX_ABS

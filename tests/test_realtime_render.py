@@ -180,7 +180,7 @@ def test_roughness_extremes_and_grazing_passes_are_finite(tmp_path):
     img = render_realtime(scene, "default", opts, progress=False)
     finite(img)
     o = resolve_options("default", opts)
-    cube = env_cube(env, o["cube_size"], "f32", {})
+    cube = env_cube(env, o.cube_size, "f32", {})
     pre = prefiltered_cube(env, cube, o, "f32", {})
     irr = irradiance_cube(env, cube, o, "f32", {})
     rng = np.random.default_rng(0)
@@ -219,9 +219,9 @@ def test_option_validation():
     with pytest.raises(OptionError, match="key=value"):
         parse_sets(["lut_size"])
     o = resolve_options("splitsum_basic", parse_sets(["lut_size=32", "prefilter_filtered=true"]))
-    assert o["lut_size"] == 32 and o["prefilter_filtered"] is True and o["lut_format"] == "f16"
-    assert resolve_options("runtime_is20")["runtime_samples"] == 20
-    assert resolve_options("runtime_is256")["runtime_samples"] == 256
+    assert o.lut_size == 32 and o.prefilter_filtered is True and o.lut_format == "f16"
+    assert resolve_options("runtime_is20").runtime_samples == 20
+    assert resolve_options("runtime_is256").runtime_samples == 256
 
 
 def test_cli_bad_set_exits_2(capsys):

@@ -15,6 +15,11 @@ from clients.run import RendererError
 from pbrcheck.exr import Image
 from pbrcheck.scene import load_scene
 
+# External renderers that no renderers.toml defines (the fixture replaces their render): specs made
+# directly, as RendererSpec.parse would make them for a configured name.
+ONE = renderers.RendererSpec("ext:one", "ext:one")
+BROKEN = renderers.RendererSpec("ext:broken", "ext:broken")
+
 
 @pytest.fixture
 def fake_external(monkeypatch):
@@ -35,38 +40,37 @@ def fake_external(monkeypatch):
 def test_prefetched_images_come_from_the_background_thread(fake_external):
     a = load_scene("spheres").with_camera(width=16, height=12)
     b = a.with_camera(width=20, height=12)
-    with renderers.prefetch_external([(a, "ext:one"), (b, "ext:one"), (a, "default")]) as pre:
+    with renderers.prefetch_external([(a, ONE), (b, ONE), (a, renderers.RendererSpec.parse("default"))]) as pre:
         ctx = renderers.RenderContext(prefetch=pre)
-        img = renderers.render_under_test(a, "ext:one", context=ctx)
-        img2 = renderers.render_under_test(load_scene("spheres").with_camera(width=20, height=12), "ext:one",
-                                           context=ctx)
+        img = renderers.render_under_test(a, ONE, context=ctx)
+        img2 = renderers.render_under_test(load_scene("spheres").with_camera(width=20, height=12), ONE, context=ctx)
         # used once: a second request renders (through the renderer's own cache) in this thread
-        again = renderers.render_under_test(a, "ext:one", context=ctx)
+        again = renderers.render_under_test(a, ONE, context=ctx)
     assert img.shape == (12, 16) and img2.shape == (12, 20) and again.shape == (12, 16)
     threads = [t for _, _, t in fake_external]
     assert threads[:2] == ["pbrcheck-prefetch_0"] * 2 and threads[2] == threading.current_thread().name
     assert [c[0] for c in fake_external] == [16, 20, 16]  # only the external renderers were prefetched
-    assert pre.take(b, "ext:one") is None  # nothing is left behind after the block
+    assert pre.take(b, ONE) is None  # nothing is left behind after the block
 
 
 def test_without_the_prefetch_in_its_context_a_render_renders(fake_external):
     a = load_scene("spheres").with_camera(width=16, height=12)
-    with renderers.prefetch_external([(a, "ext:one")]) as pre:
-        renderers.render_under_test(a, "ext:one")  # DIRECT: this thread renders
-        assert pre.take(a, "ext:one") is not None  # the background render is still there
+    with renderers.prefetch_external([(a, ONE)]) as pre:
+        renderers.render_under_test(a, ONE)  # DIRECT: this thread renders
+        assert pre.take(a, ONE) is not None  # the background render is still there
     assert [t for _, _, t in fake_external].count(threading.current_thread().name) == 1
 
 
 def test_a_failed_prefetch_raises_where_the_image_is_used(fake_external):
     a = load_scene("spheres").with_camera(width=16, height=12)
-    with renderers.prefetch_external([(a, "ext:broken")]) as pre:
+    with renderers.prefetch_external([(a, BROKEN)]) as pre:
         with pytest.raises(RendererError, match="exited with status 1"):
-            renderers.render_under_test(a, "ext:broken", context=renderers.RenderContext(prefetch=pre))
+            renderers.render_under_test(a, BROKEN, context=renderers.RenderContext(prefetch=pre))
 
 
 def test_unused_prefetches_are_cancelled_or_finished_on_exit(fake_external):
     scenes = [load_scene("spheres").with_camera(width=8 + k, height=8) for k in range(6)]
-    with renderers.prefetch_external([(s, "ext:one") for s in scenes]):
+    with renderers.prefetch_external([(s, ONE) for s in scenes]):
         pass
     # the context waited for what had started and cancelled the rest: no thread left running
     assert len(fake_external) < len(scenes)

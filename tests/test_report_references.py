@@ -67,7 +67,7 @@ def test_an_asset_scene_has_no_random_walk(tmp_path):
 
 def test_a_compensating_engine_is_right_against_the_walk(compensating):
     s = scene_from_dict(SCENE)
-    [p] = measure_references(s, ["ext:pfm"], 512)
+    [p] = measure_references(s, [renderers.RendererSpec.parse("ext:pfm")], 512)
     assert p.vs_single["relmse"] > 0.1                     # 1.0 against 0.6
     assert p.vs_random_walk["relmse"] < 1e-3 and p.share > 0.99
     assert p.spp_single == 512 and p.spp_random_walk == RANDOM_WALK_MAX_SPP
@@ -78,13 +78,14 @@ def test_a_compensating_engine_is_right_against_the_walk(compensating):
 
 def test_a_scene_without_a_walk_says_why(compensating):
     s = scene_from_dict({**SCENE, "brdf": {"ndf": "blinn_phong", "geometry": "smith_ggx"}})
-    [p] = measure_references(s, ["ext:pfm"], 8)
+    [p] = measure_references(s, [renderers.RendererSpec.parse("ext:pfm")], 8)
     assert p.vs_random_walk is None and p.share is None and "blinn_phong" in p.note
     assert all(m == "none" for m, _ in SPP_SEEN)
 
 
 def test_no_external_renderer_no_section(tmp_path):
-    assert references_sections([], [], ["default", "filament"], tmp_path) == []
+    assert references_sections([], [], [renderers.RendererSpec.parse(p) for p in ("default", "filament")],
+                               tmp_path) == []
 
 
 def test_report_shows_both_references_for_every_external_renderer(compensating, tmp_path):
@@ -119,6 +120,6 @@ def test_threejs_furnace_is_explained_by_the_random_walk(tmp_cache):
     from pbrcheck.scene import load_scene
 
     s = load_scene("furnace").with_camera(width=96, height=24)
-    [p] = measure_references(s, ["ext:threejs"], 32)
+    [p] = measure_references(s, [renderers.RendererSpec.parse("ext:threejs")], 32)
     assert p.vs_single["relmse"] > 0.05
     assert p.share > 0.9, p.to_dict()

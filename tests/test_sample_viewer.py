@@ -113,7 +113,7 @@ def test_version_line_names_the_pinned_package():
 @pytest.mark.slow
 def test_white_furnace_sample_viewer_keeps_energy_reference_loses_it(sample_viewer):
     scene = load_scene(str(ROOT / "compare" / "budgets" / "furnace_ci.toml"))
-    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "furnace_ci.exr")
     assert img.meta["version"].startswith(f"@khronosgroup/gltf-viewer {PINNED}")
     stdout = json.loads(img.meta["renderer_stdout"])
@@ -145,7 +145,7 @@ def _centroids_in(rgb: np.ndarray, mask: np.ndarray, min_pixels: int = 4) -> dic
 @pytest.mark.slow
 def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radiance(sample_viewer, tmp_path):
     scene = probe_scene(tmp_path)
-    viewer = renderers.render_under_test(scene, "ext:sample-viewer")
+    viewer = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     # 64 spp: at 16 a marker's thresholded centroid moved up to 1.7 px with the sampler's noise alone
     # (measured: the green marker at y 70.8 with qmc, 70.3 independent, 70.0 / 69.1 at 64 spp).
     ref = renderers.render_reference(scene, spp=64, use_cache=False)
@@ -234,7 +234,7 @@ def test_point_spot_and_directional_lights_match_the_reference(sample_viewer):
         "environment": {"type": "none"}, "lights": LIT_LIGHTS,
         "objects": [{"type": "sphere", "radius": 1.0, "material": {
             "base_color": [LAMBERT_ALBEDO] * 3, "metallic": 0.0, "roughness": 1.0}}]})
-    engine = renderers.render_under_test(scene, "ext:sample-viewer")
+    engine = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     (spot, sun, lamp), nv = _lambert_at_pixel_centres(scene, spot_attenuation)
 
@@ -267,7 +267,7 @@ def test_diagnose_names_a_model_difference_not_a_convention(sample_viewer):
 
     scene = load_scene(str(ROOT / "compare" / "budgets" / "spheres_ci.toml"))
     ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "spheres_ci.exr")
-    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     d = dg.diagnose(ref, img, scene, spp=32)
     assert d.likely == "multiple_scattering" and "a model difference" in d.line, dg.table_markdown(d)
     rows = {r.hypothesis: r for r in d.rows if r.skipped is None}
@@ -293,7 +293,7 @@ def test_draco_asset_is_decoded_and_drawn(sample_viewer):
     if not (ROOT / "clients" / "threejs" / "node_modules" / "three").is_dir():
         pytest.skip("the three.js client (its vendored Draco decoder) is not installed: npm ci in clients/threejs")
     scene = asset_scene(box, size=(32, 24), env=str(env))
-    img = renderers.render_under_test(scene, "ext:sample-viewer")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     ref = render_reference(scene, spp=16, progress=False)
     bg = render_reference(dataclasses.replace(scene, objects=(), assets=()), spp=2, progress=False)
     box_px = ref.channels["coverage"] == 1

@@ -46,7 +46,7 @@ def needs_threejs(tmp_cache):
 
 def test_white_furnace_threejs_keeps_energy_reference_loses_it():
     scene = load_scene(str(ROOT / "compare" / "budgets" / "furnace_ci.toml"))
-    img = renderers.render_under_test(scene, "ext:threejs")
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"))
     ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "furnace_ci.exr")
     assert img.meta["version"].startswith("three 0.187.0")
     ids = img.channels["object"]
@@ -105,7 +105,7 @@ def probe_scene(tmp_path):
 
 def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):
     scene = probe_scene(tmp_path)
-    three = renderers.render_under_test(scene, "ext:threejs")
+    three = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"))
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     a, b = centroids(three.rgb), centroids(ref.rgb)
     seen = 0
@@ -129,7 +129,7 @@ def assert_one_candela_is_one_watt_per_steradian(renderer: str) -> None:
         "objects": [{"type": "sphere", "radius": 1.0,
                      "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
     })
-    engine = renderers.render_under_test(scene, renderer)
+    engine = renderers.render_under_test(scene, renderers.RendererSpec.parse(renderer))
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     c = (slice(28, 36), slice(28, 36))                # facing the light: n.l = 1, distance 4
     expect = 0.8 / np.pi * 10.0 / 16.0                 # Lambert: albedo/pi * I / d^2 (~0.159)
@@ -154,7 +154,7 @@ def test_spot_and_directional_lights_match_the_reference():
         "objects": [{"type": "sphere", "radius": 1.0,
                      "material": {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}}],
     })
-    engine = renderers.render_under_test(scene, "ext:threejs")
+    engine = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"))
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     for crop in ((slice(14, 18), slice(14, 18)),    # the centre: the spot alone (the sun at 90 degrees)
                  (slice(14, 18), slice(7, 10))):     # the left limb: the sun's E cos and the spot's
@@ -188,10 +188,10 @@ def test_a_browser_that_dies_before_the_page_is_started_once_more(tmp_path, monk
     scene = load_scene("furnace")
     (tmp_path / "once").mkdir()
     monkeypatch.setenv("PBRCHECK_CHROMIUM", str(_crashing_chromium(tmp_path / "once", 1)))
-    img = renderers.render_under_test(scene, "ext:threejs", use_cache=False)
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"), use_cache=False)
     assert np.isfinite(img.rgb).all() and (tmp_path / "once" / "launches").read_text().strip() == "2"
 
     (tmp_path / "always").mkdir()
     monkeypatch.setenv("PBRCHECK_CHROMIUM", str(_crashing_chromium(tmp_path / "always", 99)))
     with pytest.raises(RendererError, match="2 launches"):
-        renderers.render_under_test(scene, "ext:threejs", use_cache=False)
+        renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:threejs"), use_cache=False)

@@ -210,16 +210,18 @@ def test_external_cache_key_changes_only_for_scenes_with_unmodelled_features(tmp
     from pbrcheck.environment import scene_hash
     from pbrcheck.export import EXPORT_FORMAT_VERSION
     from clients.config import load_renderers
-    from clients.run import cache_key_for
+    from clients.run import cache_key_for, renderer_version
 
     cfg = load_renderers()["threejs"]
     plain = load_scene(quad_scene(tmp_path, coated_asset(tmp_path / "p.gltf", used=(), coat=False), name="p.toml"))
     coated = load_scene(quad_scene(tmp_path, coated_asset(tmp_path / "c.gltf")))
     # a scene without unmodelled features keeps the key it had (its cached renders stay valid)
     assert cache_key_for(plain, cfg, "e") == cache_key(kind="external", scene=scene_hash(plain, "e"),
-                                                       renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION)
+                                                       renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION,
+                                                       version=renderer_version(cfg))
     assert cache_key_for(coated, cfg, "e") != cache_key(kind="external", scene=scene_hash(coated, "e"),
-                                                        renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION)
+                                                        renderer=cfg.cache_dict(), export_format=EXPORT_FORMAT_VERSION,
+                                                        version=renderer_version(cfg))
 
 
 @pytest.mark.slow

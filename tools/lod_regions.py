@@ -37,11 +37,12 @@ def main(argv: list[str]) -> int:
     ref = read_exr(BUDGETS / "refs" / "spheres_ci.exr")
     base = load_baseline(BUDGETS, "spheres-default")
     names = {i: o.name for i, o in enumerate(scene.objects) if o.name}
-    levels = renderers.resolve_options("default", {})["prefilter_levels"]
+    spec = renderers.RendererSpec.parse("default")
+    levels = spec.options.prefilter_levels
     scan = np.arange(0.0, levels - 1 + 1e-9, step)
     rows = {}  # object -> [(L, d_relmse, sigma_d, relmse_before)]
     for L in scan:
-        img = renderers.render_under_test(scene, "default", {"lod_override": float(L)})
+        img = renderers.render_under_test(scene, spec.with_options(lod_override=float(L)))
         ch = compare_to_baseline(ref, base, img, names)
         for x in ch.regions:
             if x.name.startswith("object "):

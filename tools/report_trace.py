@@ -70,12 +70,12 @@ def _install() -> None:
     _runlog.RunLog.stage = named_stage
     baked = _rt._baked
 
-    def traced_baked(name, key, timings, run):
+    def traced_baked(key, timings, run):  # key: realtime.presets.bake_key, its first element the bake
         if key in _rt._cache:
-            return baked(name, key, timings, run)
+            return baked(key, timings, run)
         c, w = time.process_time(), time.perf_counter()
-        out = baked(name, key, timings, run)
-        _entry("bake:" + name, repr(key), time.process_time() - c, time.perf_counter() - w)
+        out = baked(key, timings, run)
+        _entry("bake:" + key[0], repr(key), time.process_time() - c, time.perf_counter() - w)
         return out
 
     _rt._baked = traced_baked

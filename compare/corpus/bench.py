@@ -31,7 +31,8 @@ from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import Environment, load_scene
 
 from .scheduler import Task, open_executor, parse_scheduler
-from .study import CorpusSettings, RendererSpec, run_corpus
+from ..renderers import RendererSpec
+from .study import CorpusSettings, run_corpus
 
 #: Scheduling overhead goal, as a fraction of the mean task time.
 OVERHEAD_GOAL = 0.05
@@ -65,7 +66,7 @@ def run_bench(*, envs: int = 6, presets: tuple[str, ...] = ("default", "runtime_
     """Run the benchmark (see the module docstring); returns the figures."""
     from distributed import get_task_stream  # local: Dask only for this benchmark
 
-    st = CorpusSettings(load_scene(scene), tuple(RendererSpec(p) for p in presets), spp=spp)
+    st = CorpusSettings(load_scene(scene), tuple(RendererSpec.parse(p) for p in presets), spp=spp)
     old_cache = os.environ.get(CACHE_ENV)
     with tempfile.TemporaryDirectory(prefix="pbrcheck-bench-corpus-") as tmp:
         tmp = Path(tmp)

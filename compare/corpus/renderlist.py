@@ -9,7 +9,7 @@ here, as the same render would without a scheduler.
 
 API
 ---
-- :func:`render_images` -- images of (renderer, options) pairs.
+- :func:`render_images` -- images of renderers (:class:`compare.renderers.RendererSpec`).
 - :func:`sweep_metrics` -- per option set: the metrics against the reference and the timings.
 """
 
@@ -42,7 +42,7 @@ def _raise(value):
     return value
 
 
-def _render_tasks(scene: Scene, jobs: list[tuple[str, dict | None]],
+def _render_tasks(scene: Scene, jobs: list[renderers.RendererSpec],
                   context: renderers.RenderContext) -> list[Task]:
     # Keyed by content: the scene with its environment's pixels (not the file's path) and each
     # renderer's code (:func:`compare.corpus.study.code_identity`). A long-lived Dask scheduler
@@ -51,13 +51,13 @@ def _render_tasks(scene: Scene, jobs: list[tuple[str, dict | None]],
     base = scene_hash(scene)
     code_identity.cache_clear()  # this call's code
     local = context.local()  # a worker process cannot reach this process's background renders
-    return [Task(f"render-{cache_key(base=base, renderer=n, options=o or {}, code=code_identity(n))}", T.render_task,
-                 (_ENV_OK, scene, n, o or None, local), "render", deliver=True) for n, o in jobs]
+    return [Task(f"render-{cache_key(base=base, renderer=r.text, options=dict(r.overrides), code=code_identity(r.name))}",
+                 T.render_task, (_ENV_OK, scene, r, local), "render", deliver=True) for r in jobs]
 
 
-def render_images(executor, scene: Scene, jobs: list[tuple[str, dict | None]], progress=None, *,
+def render_images(executor, scene: Scene, jobs: list[renderers.RendererSpec], progress=None, *,
                   context: renderers.RenderContext = renderers.DIRECT) -> list:
-    """The images of ``scene`` for each (renderer name, options) of ``jobs``, rendered by ``executor``
+    """The images of ``scene`` for each renderer of ``jobs``, rendered by ``executor``
     (with ``context``'s cache setting: :class:`compare.renderers.RenderContext`).
 
     Raises
@@ -92,9 +92,10 @@ def _sweep_row(ref, img, scene, flip_cache: bool = False):
     return {"metrics": dict(cmp.metrics), "precompute_s": pre, "frame_s": frame, "timed_on": timed_on(img)}
 
 
-def sweep_metrics(executor, scene: Scene, ref, jobs: list[tuple[str, dict | None]], progress=None, *,
+def sweep_metrics(executor, scene: Scene, ref, jobs: list[renderers.RendererSpec], progress=None, *,
                   context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
-    """Per (renderer, options) of ``jobs``: ``{"metrics", "precompute_s", "frame_s", "timed_on"}`` of its render
+    """Per renderer of ``jobs`` (:class:`compare.renderers.RendererSpec`): ``{"metrics", "precompute_s",
+    "frame_s", "timed_on"}`` of its render
     against ``ref`` (no noise simulation, as the sweep), computed by ``executor``.
 
     Raises

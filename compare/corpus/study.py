@@ -30,7 +30,7 @@ message. Neither stops the corpus.
 API
 ---
 - :class:`Entry`, :func:`discover` -- the corpus's environment files.
-- :class:`RendererSpec`, :class:`CorpusSettings` -- what is rendered.
+- :class:`CorpusSettings` -- what is rendered (renderers as :class:`compare.renderers.RendererSpec`).
 - :func:`plan` -- the task graph and the rows it yields.
 - :func:`code_identity` -- what of a renderer's (or the reference's) code its pixels depend on.
 - :func:`run_corpus` -- run, write rows as they arrive, then the tables and plots; returns a
@@ -150,14 +150,6 @@ def discover(source: str | Path) -> list[Entry]:
 
 
 @dataclass(frozen=True)
-class RendererSpec:
-    """A renderer under test: a real-time preset or ``ext:NAME``, with option overrides."""
-
-    name: str
-    options: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
 class CorpusSettings:
     """The scene (its environment is replaced by each corpus file), the renderers, the reference's
     spp and seed; ``rank_metric`` orders the worst environments in the summary."""
@@ -176,16 +168,16 @@ class CorpusSettings:
             raise CorpusError("corpus: no renderer under test")
         if self.rank_metric not in METRICS:
             raise CorpusError(f"corpus: --rank-metric {self.rank_metric!r}: expected one of {', '.join(METRICS)}")
-        names = [r.name for r in self.renderers]
+        names = [r.text for r in self.renderers]
         if len(set(names)) != len(names):
             raise CorpusError(f"corpus: a renderer is named twice in {', '.join(names)}")
-        for r in self.renderers:  # a preset's options, or that an external renderer exists
-            renderers.resolve_options(r.name, r.options)
+        # each spec was validated where it was parsed (RendererSpec.parse: its options, or that an
+        # external renderer exists)
 
     def to_json(self) -> dict:
         return {"scene": self.scene.name, "scene_source": self.scene.source, "spp": self.spp, "seed": self.seed,
                 "mode": REFERENCE_MODE, "rank_metric": self.rank_metric,
-                "renderers": [{"name": r.name, "options": r.options} for r in self.renderers],
+                "renderers": [{"name": r.text, "options": dict(r.overrides)} for r in self.renderers],
                 "pbrcheck": __version__}
 
 
@@ -244,7 +236,7 @@ def _keys(st: CorpusSettings, entry: Entry, r: RendererSpec) -> tuple[str, str, 
     env_k = "environment-" + cache_key(kind="environment", **common)
     ref_k = "reference-" + cache_key(kind="reference", spp=st.spp, seed=st.seed, mode=REFERENCE_MODE,
                                      code=code_identity(REFERENCE), **common)
-    ren_k = "render-" + cache_key(kind="render", renderer=r.name, options=r.options, code=code_identity(r.name),
+    ren_k = "render-" + cache_key(kind="render", renderer=r.text, options=dict(r.overrides), code=code_identity(r.name),
                                   **common)
     cmp_k = "compare-" + cache_key(kind="compare", reference=ref_k, render=ren_k)
     return env_k, ref_k, ren_k, cmp_k
@@ -267,7 +259,7 @@ def plan(entries: list[Entry], st: CorpusSettings, done: set[str] = frozenset())
                 continue
             tasks += [Task(env_k, T.environment_task, (sc,), "environment", deliver=True),
                       Task(ref_k, T.reference_task, (Dep(env_k), sc, st.spp, st.seed, REFERENCE_MODE), "reference"),
-                      Task(ren_k, T.render_task, (Dep(env_k), sc, r.name, r.options or None), "render"),
+                      Task(ren_k, T.render_task, (Dep(env_k), sc, r), "render"),
                       Task(cmp_k, T.compare_task, (Dep(env_k), Dep(ref_k), Dep(ren_k), sc), "compare", deliver=True)]
     return unique_tasks(tasks), slots
 
@@ -276,7 +268,7 @@ def make_row(slot: RowSlot, value) -> dict:
     """The row of ``slot`` from its comparison's value (a dict of :func:`~compare.corpus.tasks.compare_task`
     or a :class:`Failed`)."""
     row = {c: None for c in ROW_COLUMNS}
-    row.update(environment=slot.entry.name, renderer=slot.renderer.name, path=slot.entry.path, key=slot.row_key)
+    row.update(environment=slot.entry.name, renderer=slot.renderer.text, path=slot.entry.path, key=slot.row_key)
     if isinstance(value, Failed):
         row.update(status="error", stage=value.stage, error=value.message)
         return row

@@ -76,20 +76,20 @@ def reference_task(env: dict | Failed, scene: Scene, spp: int, seed: int, mode: 
         return failure_of("reference", e)
 
 
-def _render_bounded(scene: Scene, name: str, options: dict | None, context: renderers.RenderContext):
+def _render_bounded(scene: Scene, spec: renderers.RendererSpec, context: renderers.RenderContext):
     renderers.trim_caches(KEEP_ENVIRONMENTS)
-    return renderers.render_under_test(scene, name, options, progress=False, context=context)
+    return renderers.render_under_test(scene, spec, progress=False, context=context)
 
 
-def render_task(env: dict | Failed, scene: Scene, name: str, options: dict | None,
+def render_task(env: dict | Failed, scene: Scene, spec: renderers.RendererSpec,
                 context: renderers.RenderContext = renderers.DIRECT):
-    """The image of renderer ``name`` with ``options`` (rendered in ``context``: the report's cache
-    setting); ``meta["render_seconds"]`` is its wall time."""
+    """The image of renderer ``spec`` (rendered in ``context``: the report's cache setting);
+    ``meta["render_seconds"]`` is its wall time."""
     if isinstance(env, Failed):
         return env
     try:
         t0 = time.perf_counter()
-        img = on_render_thread(_render_bounded, scene, name, options, context)
+        img = on_render_thread(_render_bounded, scene, spec, context)
         img.meta["render_seconds"] = f"{time.perf_counter() - t0:.6f}"
         return img
     except PbrcheckError as e:

@@ -47,9 +47,10 @@ BUDGET_NOISE_FACTOR = 10.0
 def render_test(check: Check, scene, *, options: dict | None = None, progress: bool = True,
                 use_cache: bool = True) -> Image:
     """Render ``scene`` with ``check``'s renderer under test (its preset and options, or ``options``
-    instead): the one call of :func:`compare.renderers.render_under_test` in the gate."""
-    opts = check.options if options is None else options
-    return renderers.render_under_test(scene, check.preset, opts or None, progress=progress, use_cache=use_cache)
+    instead), parsed once into a :class:`compare.renderers.RendererSpec`: the one call of
+    :func:`compare.renderers.render_under_test` in the gate."""
+    spec = renderers.RendererSpec.parse(check.preset, check.options if options is None else options)
+    return renderers.render_under_test(scene, spec, progress=progress, use_cache=use_cache)
 
 
 def takes_hooks(check: Check) -> bool:
@@ -60,10 +61,10 @@ def takes_hooks(check: Check) -> bool:
     if check.test is not None or renderers.is_external(check.preset):
         return False
     try:
-        o = renderers.resolve_options(check.preset, {k: v for k, v in check.options.items() if k != "shader"})
+        o = renderers.RendererSpec.parse(check.preset, {k: v for k, v in check.options.items() if k != "shader"}).options
     except PbrcheckError:
         return False
-    if not SHADINGS[o["shading"]].extra.get("hooks"):
+    if not SHADINGS[o.shading].extra.get("hooks"):
         return False
     shader = check.options.get("shader")
     if not shader:

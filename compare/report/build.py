@@ -29,6 +29,7 @@ from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -80,6 +81,8 @@ class ReportConfig:
     scheduler: str | None = None
     cache: bool = True
     progress: bool = True
+    #: ``--env`` / ``--size WxH`` of the glTF asset scene arguments (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
 
 
 @dataclass
@@ -96,21 +99,22 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
     bar's total (:mod:`compare.report.stages`)."""
     presets = st.presets
     sections = lambda: [w.section for w in works]  # noqa: E731  (filled in as the scenes' stages run)
-    n_ext = sum(renderers.is_external(p) for p in presets)
+    n_ext = sum(st.spec(p).external for p in presets)
 
     def summary(prog):
         page.top += [summary_section(sections())]
         if cfg.furnace:
-            page.top.append(furnace_section(list(presets), st.spp, prog, context=st.context))
+            page.top.append(furnace_section([st.spec(p) for p in presets], st.spp, prog, context=st.context))
 
     def references(prog):  # ext:NAME against both references
-        page.top += references_sections(scenes, sections(), list(presets), out_dir, prog, context=st.context)
+        page.top += references_sections(scenes, sections(), [st.spec(p) for p in presets], out_dir, prog,
+                                        context=st.context, assets=cfg.assets)
 
 
     def hardcases(prog):
         # The shipped shaders' robustness: real-time presets only (an external engine's hard cases
         # cost a browser start each; `pbrcheck hardcases --presets ext:NAME` runs them on their own).
-        page.extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not renderers.is_external(p)],
+        page.extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not st.spec(p).external],
                                              cfg.progress, context=st.context))
 
     out = [s for w in works for s in w.stages()]
@@ -118,6 +122,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
             ReportStage("both references", len(scenes) * n_ext, references)]
     if cfg.research:  # at the first scene's trusted-verdict spp (the reference its sections compare against)
         parts = research_parts(scenes[0], out_dir / "research", presets, report_spp=lambda: works[0].verdict.spp,
+                               st=ResearchSettings(assets=cfg.assets),
                                progress=cfg.progress, context=st.context)
         out += [ReportStage(name, 0, lambda prog, make=make: page.extras.append(make())) for name, make in parts]
     if cfg.hardcases:
@@ -165,8 +170,9 @@ def render_page(scenes: list[SceneSection], top: list[Section], extras: list[Sec
         generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
 
 
-def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | None]:
-    """The presets and the parsed ``vary``; raises before anything is rendered or written."""
+def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict, dict | None]:
+    """The presets, each parsed once (name -> :class:`compare.renderers.RendererSpec`), and the parsed
+    ``vary``; raises before anything is rendered or written."""
     presets = list(cfg.presets) if cfg.presets is not None else renderers.preset_names()
     if not presets:
         raise PbrcheckError("report: no preset to compare")
@@ -174,27 +180,27 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | 
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {cfg.spp}")
     vary_d = parse_vary(cfg.vary) if cfg.vary else None
     for s in scenes:
-        load_scene(s)
-    for p in presets:
-        renderers.resolve_options(p, {})
-        renderers.check_backend_limits(p, {})
+        load_scene(s, cfg.assets)
+    specs = {p: renderers.RendererSpec.parse(p) for p in presets}
+    for spec in specs.values():
+        renderers.check_backend_limits(spec)
     for combo in combinations(vary_d) if vary_d else []:
-        renderers.resolve_options(presets[0], combo)
-        renderers.check_backend_limits(presets[0], combo)
+        renderers.check_backend_limits(specs[presets[0]].with_options(**combo))
     if cfg.scheduler:
         parse_scheduler(cfg.scheduler)
-    return presets, vary_d
+    return presets, specs, vary_d
 
 
-def _prefetch_jobs(scenes: list[str], presets: list[str], cfg: ReportConfig) -> list:
+def _prefetch_jobs(scenes: list[str], specs: dict, cfg: ReportConfig) -> list:
     """The external renderers' images, in the order the sections use them (rendered in a background
     thread while this process renders the presets, references and maps)."""
-    ext = [p for p in presets if renderers.is_external(p)]
+    ext = [r for r in specs.values() if r.external]
     if cfg.scheduler:
         return []
-    jobs = [(load_scene(s), p) for s in scenes for p in ext] + ([(furnace_scene(), p) for p in ext] if cfg.furnace else [])
+    jobs = [(load_scene(s, cfg.assets), p) for s in scenes for p in ext]
+    jobs += [(furnace_scene(), p) for p in ext] if cfg.furnace else []
     if cfg.research:  # fit-roughness's targets (the first scene at its fit size)
-        jobs += [(fit_scene(load_scene(scenes[0]), ResearchSettings().fitrough_size), p) for p in ext]
+        jobs += [(fit_scene(load_scene(scenes[0], cfg.assets), ResearchSettings().fitrough_size), p) for p in ext]
     return jobs
 
 
@@ -228,16 +234,16 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
         No preset, ``spp`` below 2, an unknown scene, preset or swept option: raised before anything
         is rendered or written."""
     cfg = config
-    presets, vary_d = _validated(scenes, cfg)
+    presets, specs, vary_d = _validated(scenes, cfg)
     spec = parse_scheduler(cfg.scheduler) if cfg.scheduler else None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     page = _Page(extras=list(extras or []))
     log = RunLog()
-    with renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
+    with renderers.prefetch_external(_prefetch_jobs(scenes, specs, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
-                            approximations=cfg.approximations,
+                            approximations=cfg.approximations, specs=specs, assets=cfg.assets,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

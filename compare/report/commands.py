@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pbrcheck.args import split_list
 from pbrcheck.atomic import check_output_path, staged_folder
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import DEFAULT_SCENE
 from realtime.presets import SHADER_SEP
 
@@ -37,7 +38,7 @@ def _cmd_report(args) -> int:
                           convergence=not args.no_convergence, sweep=not args.no_sweep,
                           approximations=not args.no_approximations, furnace=not args.no_furnace,
                           hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
-                          cache=not args.no_cache, progress=not args.quiet)
+                          cache=not args.no_cache, progress=not args.quiet, assets=asset_options_of(args))
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
     # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
     with staged_folder(args.out) as stage:
@@ -56,7 +57,7 @@ def _cmd_sweep(args) -> int:
     with staged_folder(args.out) as stage:  # all of its files, or none
         staged = run_sweep(args.scene, vary, preset=args.preset, out_dir=stage, spp=args.spp,
                            progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler,
-                           mode=args.mode, approximations=args.approximations)
+                           mode=args.mode, approximations=args.approximations, assets=asset_options_of(args))
     paths = {k: Path(args.out) / Path(p).relative_to(stage) for k, p in staged.items()}
     for k, p in paths.items():
         print(f"{k}: {p}")

@@ -10,22 +10,24 @@ from pathlib import Path
 
 from pbrcheck.args import positive_int, split_list
 from pbrcheck.atomic import check_output_path
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import DEFAULT_SCENE, load_scene
 from realtime.presets import parse_sets
 
 from .. import renderers
 from ..corpus.bench import run_bench
 from ..corpus.scheduler import SCHEDULER_HELP, parse_scheduler
-from ..corpus.study import CorpusSettings, RendererSpec, run_corpus
+from ..corpus.study import CorpusSettings, run_corpus
+from ..renderers import RendererSpec
 from .corpus_section import write_corpus_page
 
 
 def _cmd_corpus(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     names = split_list(args.presets) or renderers.preset_names()
     options = parse_sets(args.set)
     # --set is for the real-time presets; external renderers take their options from renderers.toml.
-    settings = CorpusSettings(scene, tuple(RendererSpec(n, {} if renderers.is_external(n) else dict(options))
+    settings = CorpusSettings(scene, tuple(RendererSpec.parse(n, None if renderers.is_external(n) else options)
                                            for n in names), spp=args.spp,
                               seed=args.seed, rank_metric=args.rank_metric)
     spec = parse_scheduler(args.scheduler, default="local")

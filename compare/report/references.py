@@ -42,6 +42,7 @@ from pathlib import Path
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.registry import MULTISCATTER_GEOMETRY
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import Scene, load_scene
 
 from .. import renderers
@@ -121,7 +122,7 @@ def _within(cmp) -> dict:
     return {m: bool(noise and noise["within_noise"].get(m)) for m in REFERENCE_METRICS}
 
 
-def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None,
+def measure_references(scene: Scene, externals: list[renderers.RendererSpec], spp: int, *, progress=None,
                        context: renderers.RenderContext = renderers.DIRECT) -> list[ReferencePair]:
     """Every renderer of ``externals`` on ``scene`` against the single-scattering reference at
     ``spp`` and the random-walk one at ``min(spp, RANDOM_WALK_MAX_SPP)`` (both through
@@ -132,8 +133,9 @@ def measure_references(scene: Scene, externals: list[str], spp: int, *, progress
     rw = None if rw_scene is None else renderers.render_reference(rw_scene, spp=rw_spp, use_cache=True,
                                                                   progress=False)
     out = []
-    for name in externals:
-        img = renderers.render_under_test(scene, name, None, progress=False, context=context)
+    for spec in externals:
+        name = spec.text
+        img = renderers.render_under_test(scene, spec, progress=False, context=context)
         c1 = compare_images(ss, img, scene=scene, ref_name="single-scattering reference", test_name=name,
                             flip_cache=context.flip_cache)
         pair = ReferencePair(scene.name, name, {m: c1.metrics.get(m) for m in REFERENCE_METRICS}, _within(c1),
@@ -156,19 +158,21 @@ def _cell(metrics: dict | None, within: dict, m: str) -> str:
     return ("\u2248" if within.get(m) else "") + _fmt(metrics.get(m))
 
 
-def references_sections(scene_args: list, scene_sections, presets: list[str], out_dir: Path,
-                        progress=None, context: renderers.RenderContext = renderers.DIRECT) -> list:
+def references_sections(scene_args: list, scene_sections, presets: list[renderers.RendererSpec], out_dir: Path,
+                        progress=None, context: renderers.RenderContext = renderers.DIRECT,
+                        assets: AssetOptions | None = None) -> list:
     """The report's "both references" section (``[]`` when ``presets`` name no external renderer).
 
     ``scene_args`` are the report's scene arguments and ``scene_sections`` its
     :class:`~compare.report.results.SceneSection` s, in the same order (their ``verdict.spp``, else
-    ``spp``, is the single-scattering reference's spp). Writes ``OUT/<section id>/references.json``."""
-    externals = [p for p in presets if renderers.is_external(p)]
+    ``spp``, is the single-scattering reference's spp; ``assets``: an asset argument's ``--env`` and
+    ``--size``). Writes ``OUT/<section id>/references.json``."""
+    externals = [p for p in presets if p.external]
     if not externals:
         return []
     pairs = []
     for arg, sec in zip(scene_args, scene_sections):
-        scene = load_scene(arg)
+        scene = load_scene(arg, assets)
         spp = sec.verdict.spp if getattr(sec, "verdict", None) is not None else int(sec.spp)
         got = measure_references(scene, externals, spp, progress=progress, context=context)
         write_json_atomic(Path(out_dir) / sec.id / "references.json", [p.to_dict() for p in got], indent=1)

@@ -20,6 +20,7 @@ from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.lodmap import LodMapping, builtin_lod
 from pbrcheck.progress import Progress
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS
 from pbrcheck.scene import load_scene
 
@@ -58,6 +59,8 @@ class ResearchSettings:
     energy_spp: int = 128
     energy_size: int = 64
     energy_scenes: tuple = ("furnace", "spheres")
+    #: ``--env`` / ``--size WxH`` of a glTF asset scene (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
 
 
 def _fmt(v) -> str:
@@ -80,19 +83,20 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
                     context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-lod`` on ``scene_name``, then the report scene rendered by ``preset`` before
     (its own mapping) and after (``lod_mapping=fitted:FILE``) against the report's reference."""
-    scene = load_scene(scene_name)
+    scene = load_scene(scene_name, st.assets)
     out = out_dir / "fit_lod.json"
     opts = dict(st.options)
     res = run_fit_lod(scene, preset=preset, options=opts, spp=st.fitlod_spp, size=st.fitlod_size, out=out,
                       progress=progress, context=context)
-    o = renderers.resolve_options(preset, opts)
-    own = o["lod_mapping"]
+    spec = renderers.RendererSpec.parse(preset, opts)  # once: before and after are variants of it
+    o = spec.options
+    own = o.lod_mapping
     # Before / after on the report's own render (full size, point lights on, report spp).
     ref = renderers.render_reference(scene, spp=report_spp, use_cache=True, progress=False)
     # The table reads ``keys`` only (no Delta E ITP: its map is not computed).
-    before = compare_images(ref, renderers.render_under_test(scene, preset, opts, context=context), noise=False,
+    before = compare_images(ref, renderers.render_under_test(scene, spec, context=context), noise=False,
                             itp=False, flip_cache=context.flip_cache).metrics
-    after = compare_images(ref, renderers.render_under_test(scene, preset, {**opts, "lod_mapping": f"fitted:{out}"},
+    after = compare_images(ref, renderers.render_under_test(scene, spec.with_options(lod_mapping=f"fitted:{out}"),
                                                             context=context), noise=False, itp=False,
                            flip_cache=context.flip_cache).metrics
     m = res.mappings
@@ -119,7 +123,7 @@ def fit_lod_section(scene_name: str, out_dir: Path, *, preset: str = "default", 
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     rr = np.linspace(0, 1, 201)
     fm = LodMapping.from_json(m["fitted"].to_json())
-    M, cube_log2 = o["prefilter_levels"] - 1, float(np.log2(o["cube_size"]))
+    M, cube_log2 = o.prefilter_levels - 1, float(np.log2(o.cube_size))
     colour = {k: f"C{i}" for i, k in enumerate(BUILTIN_LOD_MAPPINGS)}  # a chain's line and its optima alike
     for k in BUILTIN_LOD_MAPPINGS:
         ax.plot(rr, builtin_lod(k, rr, M, cube_log2), lw=1, color=colour[k], label=f"{k} (relmse {_fmt(m[k].relmse)})")
@@ -145,7 +149,7 @@ def explain_section(scene_name: str, out_dir: Path, *, preset: str = "default",
                     st: ResearchSettings = ResearchSettings(), progress: bool = False,
                     context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck explain`` of ``preset`` on ``scene_name`` (with the LOD fit's file when present)."""
-    res = run_explain(load_scene(scene_name), preset=preset, options=dict(st.options), spp=st.explain_spp,
+    res = run_explain(load_scene(scene_name, st.assets), preset=preset, options=dict(st.options), spp=st.explain_spp,
                       size=st.explain_size, cube_max=st.cube_max, samples_scale=st.samples_scale,
                       fitted=str(out_dir / "fit_lod.json") if (out_dir / "fit_lod.json").exists() else None,
                       progress=progress, context=context)
@@ -181,7 +185,7 @@ def fit_roughness_section(scene_name: str, out_dir: Path, presets: list[str], *,
                           st: ResearchSettings = ResearchSettings(), progress: bool = False,
                           context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """``pbrcheck fit-roughness`` of every preset on ``scene_name``: plot and table of r* against r."""
-    scene = load_scene(scene_name)
+    scene = load_scene(scene_name, st.assets)
     results = {}
     scans: dict = {}  # the scan's renders do not depend on the preset: made once for all of them
     with Progress("fit-roughness", total=len(presets), enabled=progress) as prog:

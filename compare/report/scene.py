@@ -20,6 +20,7 @@ from functools import partial
 from pathlib import Path
 
 from pbrcheck.jsonio import write_json_atomic
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import builtin_scene_names, builtin_scene_path, load_scene
 
 from .. import renderers
@@ -85,7 +86,9 @@ def convergence_spps(spp: int) -> list[int]:
 class ReportSettings:
     """What every scene section renders: the renderers under test, the reference spp, the sweep
     (``vary``: option -> values, every combination; else the default sweep when ``sweep``), the
-    reference convergence study, and how the renderers under test render (``context``)."""
+    reference convergence study, and how the renderers under test render (``context``).
+    ``specs``: each name of ``presets`` parsed once (:class:`compare.renderers.RendererSpec`), what
+    every stage renders; the names label the outputs."""
 
     presets: list[str]
     spp: int
@@ -100,17 +103,26 @@ class ReportSettings:
     #: Asset scenes drawn by a real-time preset: every approximation option against its truth
     #: (compare.approximations; one ``path`` reference at ``spp`` and 13 raster frames).
     approximations: bool = True
+    specs: dict = field(default_factory=dict)
+    #: ``--env`` / ``--size WxH`` of a glTF asset scene argument (:func:`pbrcheck.scene.load_scene`).
+    assets: AssetOptions = field(default_factory=AssetOptions)
+
+    def spec(self, name: str) -> renderers.RendererSpec:
+        """The parsed renderer of preset name ``name`` (a name the report was not given: KeyError)."""
+        return self.specs[name]
 
     def combos(self) -> list[dict]:
         """The sweep's option sets (over the first preset)."""
-        return combinations(self.vary) if self.vary else (default_sweep(self.presets[0]) if self.sweep else [])
+        if self.vary:
+            return combinations(self.vary)
+        return default_sweep(self.spec(self.presets[0])) if self.sweep else []
 
 
 class SceneWork:
     """One scene of the report: its stages (:meth:`stages`) and, once they ran, its :attr:`section`."""
 
     def __init__(self, scene_arg, out_dir: Path, st: ReportSettings):
-        self.scene = load_scene(scene_arg)
+        self.scene = load_scene(scene_arg, st.assets)
         self.st = st
         self.sid = safe_name(self.scene.name)
         self.sd = Path(out_dir) / self.sid
@@ -125,7 +137,8 @@ class SceneWork:
         self.provenance: list[tuple[str, str]] = []
         self.material_rows: list[dict] = []
         self.sweep_table: list[dict] = []
-        self.approx_preset = approximation_preset(self.scene, st.presets) if st.approximations else None
+        self.approx_preset = (approximation_preset(self.scene, [st.spec(p) for p in st.presets])
+                              if st.approximations else None)
         self.approx_rows: list[dict] = []
         self.conv: list[dict] = []
         self.section: SceneSection | None = None
@@ -151,10 +164,11 @@ class SceneWork:
         self.sd.mkdir(parents=True, exist_ok=True)
         st = self.st
         if st.executor is not None:  # --scheduler: the renders run as the executor's tasks
-            imgs = renderlist.render_images(st.executor, self.scene, [(p, None) for p in st.presets], context=st.context)
+            imgs = renderlist.render_images(st.executor, self.scene, [st.spec(p) for p in st.presets],
+                                            context=st.context)
             self.images = dict(zip(st.presets, imgs))
         else:
-            self.images = {p: renderers.render_under_test(self.scene, p, None, progress=False, context=st.context)
+            self.images = {p: renderers.render_under_test(self.scene, st.spec(p), progress=False, context=st.context)
                            for p in st.presets}
 
     def _reference(self, prog) -> None:
@@ -172,8 +186,9 @@ class SceneWork:
     def _measure(self, preset: str, prog) -> None:
         """Compare ``preset``'s image, write its images (and diagnose an external renderer)."""
         scene, ref, sd, sid, img = self.scene, self.ref, self.sd, self.sid, self.images[preset]
+        external = self.st.spec(preset).external
         cmp = compare_images(ref, img, scene=scene, ref_name="reference",
-                             test_name=preset if renderers.is_external(preset) else f"real-time {preset}",
+                             test_name=preset if external else f"real-time {preset}",
                              flip_cache=self.st.context.flip_cache)
         p = safe_name(preset)
         options = img.meta_json("options", None) if "options" in img.meta else None
@@ -186,7 +201,7 @@ class SceneWork:
                            {m: bool(noise and noise["within_noise"].get(m)) for m in METRICS}, pre, frame,
                            f"{sid}/rt_{p}.png", f"{sid}/flip_{p}.png", f"{sid}/rel_{p}.png",
                            (cmp.metrics["rmse"] or 0.0) ** 2, timed_on_text(img.meta), cmp.summary["space"])
-        if renderers.is_external(preset):
+        if external:
             res.diagnosis, res.diagnosis_json = self._diagnose(img, p, res.space)
         if noise is not None:
             self.noise_floor = noise["mean_variance"]
@@ -216,7 +231,7 @@ class SceneWork:
     def _sweep(self, prog) -> None:
         """The sweep over the cost knobs (from the first preset)."""
         st = self.st
-        srows = sweep_rows(self.scene, self.ref, self.combos, preset=st.presets[0], progress=prog,
+        srows = sweep_rows(self.scene, self.ref, self.combos, spec=st.spec(st.presets[0]), progress=prog,
                            executor=st.executor, context=st.context)
         write_table(self.sd, srows, sorted({k for c in self.combos for k in c}))
         for r in srows:
@@ -278,17 +293,16 @@ class SceneWork:
                                     unmodelled_banner(scene))
 
 
-def approximation_preset(scene, presets) -> str | None:
-    """The first real-time preset that draws ``scene`` with the raster pipeline, for an asset scene
-    (None otherwise: no asset section)."""
+def approximation_preset(scene, specs: list[renderers.RendererSpec]) -> str | None:
+    """The first real-time preset (of the parsed renderers ``specs``) that draws ``scene`` with the
+    raster pipeline, for an asset scene (None otherwise: no asset section)."""
     from pbrcheck.gltf_scene import scene_has_assets
-    from realtime.presets import PRESETS, resolve_options
     from realtime.render import resolved_pipeline
     if not scene_has_assets(scene):
         return None
-    for p in presets:   # named presets only (not external renderers, not hook files)
-        if p in PRESETS and resolved_pipeline(scene, resolve_options(p, {})) == "raster":
-            return p
+    for r in specs:   # named presets only (not external renderers, not hook files nor overrides)
+        if not r.external and not r.overrides and resolved_pipeline(scene, r.options) == "raster":
+            return r.name
     return None
 
 

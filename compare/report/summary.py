@@ -89,7 +89,8 @@ def furnace_scene():
     return load_scene("furnace").with_camera(width=FURNACE_SIZE[0], height=FURNACE_SIZE[1])
 
 
-def furnace_section(presets: list[str], spp: int, progress=None, context: renderers.RenderContext = renderers.DIRECT) -> Section:
+def furnace_section(presets: list[renderers.RendererSpec], spp: int, progress=None,
+                    context: renderers.RenderContext = renderers.DIRECT) -> Section:
     """The white furnace through the reference and every renderer of ``presets`` (rendered in
     ``context``; see the module docstring); one row per renderer: the mean radiance of each sphere,
     roughness 0 to 1."""
@@ -103,11 +104,11 @@ def furnace_section(presets: list[str], spp: int, progress=None, context: render
     rows = [["reference (single scattering)", *[_fmt(v) for v in ref_means]]]
     notes = []
     for p in presets:
-        img = renderers.render_under_test(scene, p, None, progress=False, context=context)
+        img = renderers.render_under_test(scene, p, progress=False, context=context)
         means = _sphere_means(img, ids, covered, n)
-        rows.append([p, *[_fmt(v) for v in means]])
+        rows.append([p.text, *[_fmt(v) for v in means]])
         if progress is not None:
-            progress.update(1, f"furnace: {p}")
+            progress.update(1, f"furnace: {p.text}")
         last, ref_last = means[-1], ref_means[-1]
         if last is None or ref_last is None:
             continue

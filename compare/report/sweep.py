@@ -23,6 +23,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.fmt import csv_cell
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
+from pbrcheck.gltf_objects import AssetOptions
 from realtime.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
@@ -129,20 +130,19 @@ DEFAULT_SWEEP = (
 )
 
 
-def default_sweep(preset: str = "default") -> list[dict]:
-    """:data:`DEFAULT_SWEEP` less the entries the renderer rejects or that repeat ``preset`` itself."""
-    try:
-        base = renderers.resolve_options(preset, {})
-    except PbrcheckError:  # a renderer without these options: no sweep
+def default_sweep(spec: renderers.RendererSpec) -> list[dict]:
+    """:data:`DEFAULT_SWEEP` less the entries the renderer ``spec`` rejects or that repeat ``spec`` itself."""
+    if spec.external:  # a renderer without these options: no sweep
         return []
-    out = []
+    out, seen = [], [spec.options]
     for combo in DEFAULT_SWEEP:
         try:
-            opts = renderers.resolve_options(preset, combo)
+            opts = spec.with_options(**combo).options
         except PbrcheckError:  # an option this renderer does not have
             continue
-        if opts != base and opts not in [renderers.resolve_options(preset, c) for c in out]:
+        if opts not in seen:
             out.append(combo)
+            seen.append(opts)
     return out
 
 
@@ -158,19 +158,20 @@ def approximation_groups() -> list[tuple[str, list[dict]]]:
     return [(mode, [{**base, **opts, "pipeline": "raster"} for _, opts in rows]) for mode, (rows, base) in TRUTHS.items()]
 
 
-def sweep_rows(scene, ref, combos: list[dict], *, preset: str = "default", progress=None,
+def sweep_rows(scene, ref, combos: list[dict], *, spec: renderers.RendererSpec, progress=None,
                executor=None, context: renderers.RenderContext = renderers.DIRECT) -> list[dict]:
-    """Render and compare each option dict of ``combos`` (over ``preset``, rendered in ``context``);
-    one row each. With an ``executor`` (``--scheduler``) the renders and comparisons run as its tasks
-    (:func:`compare.corpus.renderlist.sweep_metrics`)."""
+    """Render and compare each option dict of ``combos`` (variants of renderer ``spec``, rendered in
+    ``context``); one row each. With an ``executor`` (``--scheduler``) the renders and comparisons run
+    as its tasks (:func:`compare.corpus.renderlist.sweep_metrics`)."""
+    preset = spec.text
+    variants = [spec.with_options(**o) for o in combos]
     if executor is not None:
-        res = renderlist.sweep_metrics(executor, scene, ref, [(preset, o) for o in combos], progress,
-                                       context=context)
+        res = renderlist.sweep_metrics(executor, scene, ref, variants, progress, context=context)
         return [{"preset": preset, "options": o, "precompute_s": r["precompute_s"], "frame_s": r["frame_s"],
                  **r["timed_on"], **r["metrics"]} for o, r in zip(combos, res)]
     rows = []
-    for options in combos:
-        img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
+    for options, variant in zip(combos, variants):
+        img = renderers.render_under_test(scene, variant, progress=False, context=context)
         cmp = compare_images(ref, img, scene=scene, noise=False, flip_cache=context.flip_cache)
         pre, frame = image_timings(img)
         rows.append({"preset": preset, "options": options, "precompute_s": pre, "frame_s": frame,
@@ -201,7 +202,8 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 
 def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "default", out_dir: Path,
               spp: int = 64, progress: bool = True, also: list[str] | None = None,
-              scheduler: str | None = None, mode: str = "local", approximations: bool = False) -> dict[str, Path]:
+              scheduler: str | None = None, mode: str = "local", approximations: bool = False,
+              assets: AssetOptions | None = None) -> dict[str, Path]:
     """Render the reference (``mode``) and every combination of ``vary`` over ``preset``; write the
     table and the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
     ``approximations``: the asset approximations instead (:func:`approximation_groups`), each group
@@ -221,17 +223,17 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
                          f"got {spp}")
     if vary is None and not approximations:
         raise SweepError("sweep: --vary KEY=V1,V2,... or --approximations is needed")
-    scene = load_scene(scene_arg)
+    scene = load_scene(scene_arg, assets)
     # vary {}: the preset as it is (one row); None: no --vary rows (only the approximations)
     groups = ([] if vary is None else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
+    base = renderers.RendererSpec.parse(preset)  # the renderer names, parsed once
     for _, combos in groups:  # every option and value is checked before rendering
         for combo in combos:
-            renderers.resolve_options(preset, combo)
-            renderers.check_backend_limits(preset, combo)   # this GL's limits too (msaa), before any render
-    also = list(also or [])
+            # this GL's limits too (msaa), before any render
+            renderers.check_backend_limits(base.with_options(**combo))
+    also = [renderers.RendererSpec.parse(other) for other in also or []]
     for other in also:
-        renderers.resolve_options(other, {})
-        renderers.check_backend_limits(other, {})
+        renderers.check_backend_limits(other)
     n = sum(len(c) + 1 for _, c in groups) + len(also)
     spec = parse_scheduler(scheduler) if scheduler else None
     rows = []
@@ -240,10 +242,10 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
         for i, (m, combos) in enumerate(groups):
             ref = renderers.render_reference(scene, spp=spp, mode=m, use_cache=True, progress=False)
             p.update(1, f"reference ({m})")
-            new = sweep_rows(scene, ref, combos, preset=preset, progress=p, executor=ex)
+            new = sweep_rows(scene, ref, combos, spec=base, progress=p, executor=ex)
             if i == 0:
                 for other in also:
-                    new += sweep_rows(scene, ref, [{}], preset=other, progress=p, executor=ex)
+                    new += sweep_rows(scene, ref, [{}], spec=other, progress=p, executor=ex)
             if approximations:
                 for r in new:
                     r["truth"] = m

@@ -10,6 +10,7 @@ from pathlib import Path
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.args import split_list
+from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 from realtime.presets import overrides_from_args
 
@@ -38,7 +39,7 @@ def _cmd_hardcases(args) -> int:
 
 
 def _cmd_fit_lod(args) -> int:
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, asset_options_of(args))
     rough = None
     if args.roughness:
         try:
@@ -56,7 +57,7 @@ def _cmd_fit_lod(args) -> int:
 
 def _cmd_fit_normal_roughness(args) -> int:
     res = fit_normal_roughness.run_fit_normal_roughness(
-        load_scene(args.scene), method=args.method, preset=args.preset,
+        load_scene(args.scene, asset_options_of(args)), method=args.method, preset=args.preset,
         options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size, out=Path(args.out),
         iterations=args.iterations, fit_spp=args.fit_spp, spp_cap=args.spp_cap, progress=not args.quiet)
     print(fit_normal_roughness.table_markdown(res), end="")
@@ -65,9 +66,10 @@ def _cmd_fit_normal_roughness(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    res = explain.run_explain(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader), spp=args.spp,
-                      size=args.size or None, fitted=args.fitted, spp_cap=args.spp_cap,
-                      only=tuple(split_list(args.sources)) if args.sources else None, progress=not args.quiet)
+    res = explain.run_explain(
+        load_scene(args.scene, asset_options_of(args)), preset=args.preset,
+        options=overrides_from_args(args.set, args.shader), spp=args.spp, size=args.size or None, fitted=args.fitted,
+        spp_cap=args.spp_cap, only=tuple(split_list(args.sources)) if args.sources else None, progress=not args.quiet)
     out = explain.write_explain(res, Path(args.out))
     print(explain.table_markdown(res), end="")
     print(f"json: {out}\ntable: {out.with_suffix('.md')}")
@@ -75,9 +77,10 @@ def _cmd_explain(args) -> int:
 
 
 def _cmd_fit_roughness(args) -> int:
-    res = fit_roughness.run_fit_roughness(load_scene(args.scene), preset=args.preset, options=overrides_from_args(args.set, args.shader),
-                            size=args.size or None, iterations=args.iterations, spp=args.spp,
-                            scan=not args.no_scan)
+    res = fit_roughness.run_fit_roughness(
+        load_scene(args.scene, asset_options_of(args)), preset=args.preset,
+        options=overrides_from_args(args.set, args.shader), size=args.size or None, iterations=args.iterations,
+        spp=args.spp, scan=not args.no_scan)
     out = write_json_atomic(args.out, res)
     print(fit_roughness.table_markdown(res), end="")
     print(f"json: {out}")
@@ -96,7 +99,7 @@ def _read_image(path: str) -> Image:
 
 def _cmd_diagnose(args) -> int:
     ref, test = _read_image(args.reference), _read_image(args.test)
-    scene = load_scene(args.scene) if args.scene else None
+    scene = load_scene(args.scene, asset_options_of(args)) if args.scene else None
     res = diagnose.diagnose(ref, test, scene, spp=args.spp, progress=not args.quiet)
     print(diagnose.table_markdown(res), end="")
     if args.json:

@@ -139,6 +139,7 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
 
     rows: list[ImageRow] = []
     comps = ENERGY_COMPENSATIONS.names
+    spec = renderers.RendererSpec.parse(preset, options)  # once; each compensation a variant of it
     with Progress("energy images", total=len(scenes) * (2 + len(comps)), enabled=progress) as prog:
         for name in scenes:
             s = load_scene(name)
@@ -162,8 +163,7 @@ def _images(scenes, *, preset, options, spp, size, out_dir, progress, context):
                                  _sphere_means(ref_ss) if furnace else None,
                                  f"energy_{name}_reference_single.png" if out_dir is not None else None))
             for c in comps:
-                img = renderers.render_under_test(s, preset, {**options, "energy_compensation": c},
-                                                  context=context)
+                img = renderers.render_under_test(s, spec.with_options(energy_compensation=c), context=context)
                 png = None
                 if out_dir is not None:
                     png = f"energy_{name}_{c}.png"

@@ -111,21 +111,21 @@ ASSET_SOURCES = {
 PATH_TRUTH_SOURCES = ("occlusion",)
 
 
-def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx",
+def sources(o: renderers.RealtimeOptions, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx",
             asset: bool = False) -> dict[str, dict]:
     """Option overrides that make each approximation exact (``samples_scale`` < 1 for tests;
     ``asset``: also :data:`ASSET_SOURCES`)."""
     cube = min(cube_max, 4096)
-    levels = max(1, min(cube.bit_length(), o["prefilter_levels"] + int(math.log2(cube / o["cube_size"]))))
-    irr_src = min(64, o["cube_size"])
+    levels = max(1, min(cube.bit_length(), o.prefilter_levels + int(math.log2(cube / o.cube_size))))
+    irr_src = min(64, o.cube_size)
     s = lambda n: max(16, int(n * samples_scale))  # noqa: E731
     composition = {"shading": "material", "reflect_bug": False, "min_roughness": 0.0}
-    ndf = o["ndf"] if o["ndf"] != "scene" else scene_ndf
+    ndf = o.ndf if o.ndf != "scene" else scene_ndf
     # Not scaled by samples_scale: fewer samples mean coarser mip-filtered lookups (GPU Gems 3 ch. 20
     # picks the level from the pdf and the sample count), i.e. a blur bias, not just noise.
     vnr = {"ibl": "runtime", "runtime_samples": RUNTIME_SAMPLES, "runtime_lod": True, "runtime_rotate": True,
            "runtime_sampling": NDFS[ndf].extra.get("runtime_sampling", NO_RUNTIME_SAMPLING)}
-    if o["shading"] != "material":
+    if o.shading != "material":
         vnr.update(composition)
     return {
         "lut": {"dfg": "lut", "lut_size": 256 if samples_scale >= 1 else 64, "lut_format": "f32",
@@ -137,7 +137,7 @@ def sources(o: dict, *, cube_max: int = 512, samples_scale: float = 1.0, scene_n
                        "irradiance_source_size": irr_src},
         "cube": {"cube_size": cube, "cube_format": "f32",
                  "prefilter_levels": levels,
-                 "irradiance_source_size": min(o["irradiance_source_size"], cube)},
+                 "irradiance_source_size": min(o.irradiance_source_size, cube)},
         "geometry": {"geometry": "scene", "lut_geometry": "scene"},
         "ndf_fresnel": {"ndf": "scene", "fresnel": "scene"},
         "composition": composition,
@@ -187,13 +187,14 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         The baseline, one :class:`ExplainRow` per source, ``all_but_vnr`` and ``all_exact``.
     """
     base = dict(options or {})
-    o = renderers.resolve_options(preset, base)
+    spec = renderers.RendererSpec.parse(preset, base)  # once: every render below is a variant of it
+    o = spec.options
     if size is not None:
         scene = scene.with_camera(width=max(8, int(round(size * scene.camera.width / scene.camera.height))),
                                   height=int(size))
     # The sources first: an unknown name is an error before any render.
     asset = scene_has_assets(scene)
-    srcs = {} if renderers.is_external(preset) else sources(o, cube_max=cube_max, samples_scale=samples_scale,
+    srcs = {} if spec.external else sources(o, cube_max=cube_max, samples_scale=samples_scale,
                                                              scene_ndf=scene.brdf.ndf, asset=asset)
     if only is not None and srcs:
         unknown = sorted(set(only) - set(srcs) - {"lod_mapping"})
@@ -202,7 +203,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
                                 f"{', '.join([*srcs, 'lod_mapping'])}")
         srcs = {k: v for k, v in srcs.items() if k in only}
     # The baseline first: the reference's spp is chosen so its noise floor sits 10x below its error.
-    base_img = renderers.render_under_test(scene, preset, base, progress=False, context=context)
+    base_img = renderers.render_under_test(scene, spec, progress=False, context=context)
     ref, verdict = reference_for_verdict(scene, [base_img], spp=spp, cap=spp_cap, mode="local", metric=PRIMARY,
                                          probe=RESEARCH_PROBE, tails=False, progress=progress)
     spp = verdict.spp
@@ -211,7 +212,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
 
     def measure(over: dict, img=None) -> dict:
         nonlocal valid
-        img = img if img is not None else renderers.render_under_test(scene, preset, {**base, **over}, progress=False,
+        img = img if img is not None else renderers.render_under_test(scene, spec.with_options(**over), progress=False,
                                                                       context=context)
         # KEEP has no Delta E ITP: its map is not computed.
         c = compare_images(ref, img, scene=scene, noise=False, itp=False, flip_cache=context.flip_cache)
@@ -225,12 +226,12 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
         r64 = ref.rgb.astype(np.float64)
         noise_relmse = float((np.clip(ref.variance, 0, None) / (r64 * r64 + REL_EPS))[valid].mean())
     rows = []
-    if renderers.is_external(preset):
+    if spec.external:
         # An external renderer (ext:NAME) has no options to swap for exact counterparts: its
         # error against the reference is the whole result (the baseline).
         return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
                              baseline, noise_relmse, rows, reference_spp=verdict.to_dict())
-    if o["ibl"] == "runtime":
+    if o.ibl == "runtime":
         # Already runtime sampling: its exact counterpart is the same estimator at many samples in
         # the material composition (composition is then part of this row).
         srcs.pop("lut", None)
@@ -247,7 +248,7 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
             continue
         rows.append(ExplainRow(name, over, m, baseline[PRIMARY] - m[PRIMARY]))
     # LOD mapping: the best measured built-in (or the fitted file).
-    if o["ibl"] == "splitsum" and (only is None or "lod_mapping" in only):
+    if o.ibl == "splitsum" and (only is None or "lod_mapping" in only):
         cands = {n: {"lod_mapping": n} for n in BUILTIN_LOD_MAPPINGS}
         if fitted:
             cands["fitted"] = {"lod_mapping": f"fitted:{fitted}"}
@@ -267,19 +268,19 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
             if r.source in skip or r.metrics is None or (fitted_lod and r.source == "cube"):
                 continue  # a fitted mapping holds for its own cube size and mip count only
             allo.update(r.options)
-        if o["ibl"] == "runtime" and label == "all_but_vnr":
+        if o.ibl == "runtime" and label == "all_but_vnr":
             continue  # a runtime-sampling preset has no split sum to keep
         m = measure(allo)
         combined[label] = ExplainCombined(allo, m, baseline[PRIMARY] - m[PRIMARY])
     truths = None
     if asset and path_truth and any(n in srcs for n in PATH_TRUTH_SOURCES):
-        truths = _path_truth(scene, preset, base, base_img, srcs, spp, context, progress)
+        truths = _path_truth(scene, spec, base_img, srcs, spp, context, progress)
     return ExplainResult(scene.name, preset, base, spp, [scene.camera.width, scene.camera.height], PRIMARY,
                          baseline, noise_relmse, rows, **combined, reference_spp=verdict.to_dict(),
                          path_truth=truths)
 
 
-def _path_truth(scene: Scene, preset: str, base: dict, base_img, srcs: dict, spp: int,
+def _path_truth(scene: Scene, spec: renderers.RendererSpec, base_img, srcs: dict, spp: int,
                 context: renderers.RenderContext, progress: bool) -> list[ExplainPathTruth]:
     """:data:`PATH_TRUTH_SOURCES` against a ``path`` reference of ``spp`` samples per pixel."""
     ref = renderers.render_reference(scene, spp=spp, mode="path", use_cache=True, progress=progress)
@@ -292,7 +293,7 @@ def _path_truth(scene: Scene, preset: str, base: dict, base_img, srcs: dict, spp
     out = []
     for name in (n for n in PATH_TRUTH_SOURCES if n in srcs):
         over = srcs[name]
-        m = measure(renderers.render_under_test(scene, preset, {**base, **over}, progress=False, context=context))
+        m = measure(renderers.render_under_test(scene, spec.with_options(**over), progress=False, context=context))
         out.append(ExplainPathTruth(name, over, spp, before, m, before[PRIMARY] - m[PRIMARY]))
     return out
 

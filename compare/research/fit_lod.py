@@ -127,15 +127,15 @@ def _parabola_min(x: np.ndarray, y: np.ndarray, k: int) -> tuple[float, float]:
     return float(x1 + t * h), float(y1 - 0.25 * (y0 - y2) * t)
 
 
-def _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog, context) -> tuple[list[LodSample], np.ndarray, dict]:
+def _scan_chain(fit_scene, ref, spec, chain, lods, groups, prog, context) -> tuple[list[LodSample], np.ndarray, dict]:
     """Render ``fit_scene`` at every LOD of ``lods`` on the prefiltered chain baked with ``chain``;
     per roughness group the error curve, its refined minimum and the group's pixel count."""
     curves = {r: [] for r in groups}
     valid = ids = None
     counts = {}
     for L in lods:
-        img = renderers.render_under_test(fit_scene, preset,
-                                          {**base, "lod_mapping": chain, "lod_override": float(L)}, context=context)
+        img = renderers.render_under_test(fit_scene, spec.with_options(lod_mapping=chain, lod_override=float(L)),
+                                          context=context)
         if valid is None:
             valid, _, _ = pixel_classes(ref, img)
             ids = np.rint(ref.channels["object"]).astype(np.int64)
@@ -202,9 +202,12 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     """
     base = dict(options or {})
     base.pop("lod_override", None)
-    o = renderers.resolve_options(preset, base)
-    if o["ibl"] != "splitsum":
-        raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o['ibl']})")
+    spec = renderers.RendererSpec.parse(preset, base)  # once: every render below is a variant of it
+    if spec.external:
+        raise PbrcheckError(f"fit-lod: {preset!r} is an external renderer: it has no prefiltered map to fit")
+    o = spec.options
+    if o.ibl != "splitsum":
+        raise PbrcheckError(f"fit-lod: preset {preset!r} does not use the prefiltered map (ibl={o.ibl})")
     if o.fitted is not None:
         raise PbrcheckError("fit-lod: start from a built-in lod_mapping, not a fitted one")
     chains = tuple(chains)
@@ -223,29 +226,29 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
     groups = _groups(fit_scene)
     # The reference's spp: its noise floor 10x below the preset's own error on the fit scene (the
     # error every scanned level is measured against; compare.verdict_spp), at most spp_cap.
-    own_img = renderers.render_under_test(fit_scene, preset, base, progress=False, context=context)
+    own_img = renderers.render_under_test(fit_scene, spec, progress=False, context=context)
     ref, verdict = reference_for_verdict(fit_scene, [own_img], spp=spp, cap=spp_cap, mode="local",
                                          metric="relmse", probe=RESEARCH_PROBE, tails=False, progress=progress)
     spp = verdict.spp
-    M = o["prefilter_levels"] - 1
-    cube_log2 = math.log2(o["cube_size"])
+    M = o.prefilter_levels - 1
+    cube_log2 = math.log2(o.cube_size)
     lods = np.arange(0.0, M + 1e-9, lod_step)
     per_chain = {}
     valid = None
     with Progress("fit-lod scan", total=len(chains) * len(lods) + len(BUILTIN) + 1, enabled=progress) as prog:
         for chain in chains:
-            samples, valid, _ = _scan_chain(fit_scene, ref, preset, base, chain, lods, groups, prog, context)
+            samples, valid, _ = _scan_chain(fit_scene, ref, spec, chain, lods, groups, prog, context)
             if len(samples) < 2:
                 raise PbrcheckError(f"fit-lod: need >= 2 roughness values with valid pixels, found {len(samples)}")
             rr = np.array([s.roughness for s in samples])
             table = np.array([s.scan for s in samples])
             table = np.where(np.isfinite(table), table, np.nanmax(table))
             weights = [s.pixels for s in samples]
-            starts = [fit_lod_mapping(rr, builtin_lod(n, rr, M, cube_log2), cube_size=o["cube_size"],
-                                      mip_count=o["prefilter_levels"]).coefficients for n in BUILTIN]
+            starts = [fit_lod_mapping(rr, builtin_lod(n, rr, M, cube_log2), cube_size=o.cube_size,
+                                      mip_count=o.prefilter_levels).coefficients for n in BUILTIN]
             starts += [c for c in (basis_coefficients(n, M) for n in BUILTIN) if c is not None]
-            fitted = replace(fit_lod_to_error(rr, lods, table, cube_size=o["cube_size"],
-                                              mip_count=o["prefilter_levels"], weights=weights, starts=starts),
+            fitted = replace(fit_lod_to_error(rr, lods, table, cube_size=o.cube_size,
+                                              mip_count=o.prefilter_levels, weights=weights, starts=starts),
                              chain=chain)
             per_chain[chain] = {
                 "samples": samples, "mapping": fitted,
@@ -268,12 +271,12 @@ def run_fit_lod(scene: Scene, *, roughness=None, preset: str = "default", option
             mappings={"fitted": MappingEval(None, mapping=fitted.to_json())}, reference_spp=verdict.to_dict())
         for name in BUILTIN:
             # the preset's own mapping is the image the spp rule already rendered
-            img = own_img if name == o["lod_mapping"] else renderers.render_under_test(
-                fit_scene, preset, {**base, "lod_mapping": name}, context=context)
+            img = own_img if name == o.lod_mapping else renderers.render_under_test(
+                fit_scene, spec.with_options(lod_mapping=name), context=context)
             result.mappings[name] = MappingEval(_scene_relmse(ref, img, valid),
                                                 [float(v) for v in builtin_lod(name, rr, M, cube_log2)])
             prog.update(1, f"evaluate {name}")
-        img = renderers.render_under_test(fit_scene, preset, {**base, "lod_mapping": fitted}, context=context)
+        img = renderers.render_under_test(fit_scene, spec.with_options(lod_mapping=fitted), context=context)
         prog.update(1, "evaluate fitted")
     result.mappings["fitted"].relmse = _scene_relmse(ref, img, valid)
     result.mappings["fitted"].lod = [float(v) for v in fitted(rr)]

@@ -213,7 +213,8 @@ def run_fit_normal_roughness(scene: Scene, *, method: str = "ad", preset: str = 
     closed = [level_closed_forms(m, n_levels) for m in maps]
     tok = [float(np.mean([c["toksvig"][k] for c in closed])) for k in range(n_levels)]
     lean = [float(np.mean([c["lean"][k] for c in closed])) for k in range(n_levels)]
-    none_img = renderers.render_under_test(scene, preset, {**base, "specular_aa": "none"}, context=context)
+    spec = renderers.RendererSpec.parse(preset, base)  # once; every render below a variant of it
+    none_img = renderers.render_under_test(scene, spec.with_options(specular_aa="none"), context=context)
     used = json.loads(none_img.meta.get("options", "{}"))
     if method == "ad":
         if float(used.get("anisotropy", 1.0)) > 1.0 or used.get("normal_sampling", "mip") != "mip":
@@ -246,7 +247,7 @@ def run_fit_normal_roughness(scene: Scene, *, method: str = "ad", preset: str = 
                 scene, ref, valid, tok, lean, supersample=int(used.get("supersample", 1)), iterations=iterations,
                 fit_spp=fit_spp, start=start, paired=target is None, prog=prog)
         else:
-            rows, cur, start_name, start_err = _fit_scan(scene, preset, base, ref, valid, tok, lean, tmp,
+            rows, cur, start_name, start_err = _fit_scan(scene, spec, ref, valid, tok, lean, tmp,
                                                          scan_step, refine_steps, prog, context)
         table = NormalRoughnessTable(tuple(float(x) for x in cur))
         evals = {"none": {"specular_aa": "none"}, "toksvig": {"specular_aa": "toksvig"},
@@ -255,7 +256,7 @@ def run_fit_normal_roughness(scene: Scene, *, method: str = "ad", preset: str = 
                  "prefiltered": {"specular_aa": "prefiltered"}, "fitted": {"shader": _write(tmp, table)}}
         rel = {}
         for name, o in evals.items():
-            img = none_img if name == "none" else renderers.render_under_test(scene, preset, {**base, **o},
+            img = none_img if name == "none" else renderers.render_under_test(scene, spec.with_options(**o),
                                                                               context=context)
             rel[name] = float(_rel_map(ref, img)[valid].mean())
             prog.update(1, f"evaluate {name}")
@@ -329,17 +330,16 @@ def _fit_ad(scene, ref: Image, valid, tok, lean, *, supersample: int, iterations
     return rows, cur, name, {}, extra
 
 
-def _fit_scan(scene, preset, base, ref, valid, tok, lean, tmp, scan_step, refine_steps, prog, context):
+def _fit_scan(scene, spec, ref, valid, tok, lean, tmp, scan_step, refine_steps, prog, context):
     """Method ``scan`` (module docstring): (rows, table, start name, start relmse per start)."""
     n_levels = len(tok)
     us = np.arange(0.0, 1.0 + 1e-9, scan_step)
-    plain = renderers.render_under_test(scene, preset, {**base, "shader": _constant_hook(tmp, 0.0)},
-                                        context=context)
+    plain = renderers.render_under_test(scene, spec.with_options(shader=_constant_hook(tmp, 0.0)), context=context)
     prog.update(1, "groups")
     change = []
     for k in range(n_levels):
-        img = renderers.render_under_test(scene, preset, {**base, "shader": _hook(
-            tmp, f"level_{k}", f"return abs(normal_lod - {float(k):.1f}) < 0.5 ? 1.0 : roughness;")},
+        img = renderers.render_under_test(scene, spec.with_options(shader=_hook(
+            tmp, f"level_{k}", f"return abs(normal_lod - {float(k):.1f}) < 0.5 ? 1.0 : roughness;")),
             context=context)
         change.append(np.abs(img.rgb.astype(np.float64) - plain.rgb).sum(axis=-1))
         prog.update(1, f"group level {k}")
@@ -348,7 +348,7 @@ def _fit_scan(scene, preset, base, ref, valid, tok, lean, tmp, scan_step, refine
     level = np.where(valid, level, -1)
     curves = []
     for u in us:
-        img = renderers.render_under_test(scene, preset, {**base, "shader": _constant_hook(tmp, float(u * u))},
+        img = renderers.render_under_test(scene, spec.with_options(shader=_constant_hook(tmp, float(u * u))),
                                           context=context)
         e = _rel_map(ref, img)
         curves.append([float(e[level == k].mean()) if (level == k).any() else float("nan")
@@ -374,8 +374,8 @@ def _fit_scan(scene, preset, base, ref, valid, tok, lean, tmp, scan_step, refine
             fitted[k] = fitted[min(have, key=lambda j: (abs(j - k), j))]
 
     def scene_error(entries, name):
-        o = {**base, "shader": _write(tmp, NormalRoughnessTable(tuple(float(x) for x in entries)))}
-        err = float(_rel_map(ref, renderers.render_under_test(scene, preset, o, context=context))[valid].mean())
+        o = spec.with_options(shader=_write(tmp, NormalRoughnessTable(tuple(float(x) for x in entries))))
+        err = float(_rel_map(ref, renderers.render_under_test(scene, o, context=context))[valid].mean())
         prog.update(1, name)
         return err
 

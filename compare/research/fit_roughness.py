@@ -267,7 +267,8 @@ def run_fit_roughness(scene: Scene, *, preset: str = "default", options: dict | 
     pixels), ``pixels`` and, with ``scan``, ``range`` and ``scan`` (``[[r, loss, se], ...]``).
     ``scan_cache``: one dict passed to every preset's fit on the same scene shares the scan's renders."""
     scene = fit_scene(scene, size)
-    img = renderers.render_under_test(scene, preset, options, progress=False, context=context)
+    img = renderers.render_under_test(scene, renderers.RendererSpec.parse(preset, options), progress=False,
+                                      context=context)
     rows, trace = fit_roughness(scene, img.rgb, img.channels["object"], iterations=iterations, lr=lr, spp=spp,
                                 scan=scan, scan_cache=scan_cache)
     return FitRoughnessResult(scene.name, preset, dict(options or {}), iterations, lr, min(lr, LR_FINAL),

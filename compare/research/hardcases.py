@@ -142,15 +142,15 @@ def _nonfinite(img) -> int:
     return n
 
 
-def small_cube_options(preset: str, cube_size: int) -> dict:
-    """Overrides that bake a ``cube_size`` cube for ``preset`` (mip count capped to fit); none for an
-    external renderer (``ext:NAME`` takes no options)."""
-    if renderers.is_external(preset):
+def small_cube_options(spec: renderers.RendererSpec, cube_size: int) -> dict:
+    """Overrides that bake a ``cube_size`` cube for renderer ``spec`` (mip count capped to fit); none
+    for an external renderer (``ext:NAME`` takes no options)."""
+    if spec.external:
         return {}
-    o = renderers.resolve_options(preset, {})
-    levels = min(o["prefilter_levels"], int(cube_size).bit_length())
+    o = spec.options
+    levels = min(o.prefilter_levels, int(cube_size).bit_length())
     return {"cube_size": int(cube_size), "prefilter_levels": levels,
-            "irradiance_source_size": min(o["irradiance_source_size"], int(cube_size))}
+            "irradiance_source_size": min(o.irradiance_source_size, int(cube_size))}
 
 
 def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: list[str] | None = None,
@@ -191,9 +191,10 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
         An unknown preset or case (before any render).
     """
     presets = renderers.preset_names() if presets is None else presets
-    for p in presets:  # presets, PRESET+FILE.glsl and ext:NAME, through the seam (raises for unknown ones)
+    specs = {}
+    for p in presets:  # presets, PRESET+FILE.glsl and ext:NAME, parsed once (raises for unknown ones)
         try:
-            renderers.resolve_options(p, {})
+            specs[p] = renderers.RendererSpec.parse(p)
         except PbrcheckError as e:
             raise PbrcheckError(f"hardcases: {e}") from None
     rows = []
@@ -209,10 +210,11 @@ def run_hardcases(*, size: int = DEFAULT_SIZE, spp: int = DEFAULT_SPP, presets: 
             # below the smallest of their errors (compare.verdict_spp), at most spp_cap.
             imgs, prow = {}, []
             for p in presets:
-                o = dict(small_cube_options(p, cube_size) if cube_size else {})
+                o = dict(small_cube_options(specs[p], cube_size) if cube_size else {})
                 o.update(options or {})
                 try:
-                    img = renderers.render_under_test(sc, p, o, progress=progress, context=context)
+                    img = renderers.render_under_test(sc, specs[p].with_options(**o), progress=progress,
+                                                      context=context)
                 except PbrcheckError as e:
                     prow.append(HardcaseRow(name, "realtime", p, finite=False, nonfinite=None,
                                             error=f"{type(e).__name__}: {e}"))
