@@ -1,5 +1,5 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``export``, ``render``,
-``import-scenario``, ``renderers`` and ``bench client``. Library errors propagate; only pbrcheck.cli maps them to exit
+"""CLI subcommands of this package (registered by pbrcheck_cli): ``export``, ``render``,
+``import-scenario``, ``renderers`` and ``bench client``. Library errors propagate; only pbrcheck_cli maps them to exit
 codes."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""CLI subcommands of the comparator (registered by :mod:`pbrcheck.cli`): ``compare`` and ``gate``.
-Library errors propagate; only :mod:`pbrcheck.cli` maps them to exit codes."""
+"""CLI subcommands of the comparator (registered by :mod:`pbrcheck_cli`): ``compare`` and ``gate``.
+Library errors propagate; only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ makes 0600 files), and then replaces the destination. A folder of outputs is sta
 (:func:`staged_folder`): written whole into a sibling temporary folder, then renamed into place.
 
 Every :class:`OSError` raised here names the destination (``err.filename``), never a temporary
-file, so the CLI's one error boundary (:mod:`pbrcheck.cli`) prints ``PATH: reason``.
+file, so the CLI's one error boundary (:mod:`pbrcheck_cli`) prints ``PATH: reason``.
 
 API
 ---

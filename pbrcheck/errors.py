@@ -1,6 +1,6 @@
 """Typed errors of pbrcheck.
 
-Library code raises these; only the CLI (:mod:`pbrcheck.cli`) turns them into one line on stderr
+Library code raises these; only the CLI (:mod:`pbrcheck_cli`) turns them into one line on stderr
 and an exit code (2 for bad input). Every error names the file and, where there is one, the field.
 """
 

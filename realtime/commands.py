@@ -1,5 +1,5 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``realtime``, ``lut``, ``shaders``
-and ``bench realtime``. Library errors propagate; only pbrcheck.cli maps them to exit codes."""
+"""CLI subcommands of this package (registered by pbrcheck_cli): ``realtime``, ``lut``, ``shaders``
+and ``bench realtime``. Library errors propagate; only pbrcheck_cli maps them to exit codes."""
 
 from __future__ import annotations
 

@@ -17,7 +17,7 @@ API
 :func:`shader_sources_hash`, :data:`DEFINES_FILE`.
 
 Long GL work and signals: a signal that arrives during a GL call waits until the call returns (the
-interpreter runs a handler between two bytecodes; pbrcheck.cli's SIGTERM handler raises
+interpreter runs a handler between two bytecodes; pbrcheck_cli's SIGTERM handler raises
 :class:`pbrcheck.errors.Terminated`, exit 143). One dispatch of an 8192^2 ray-cast frame held a
 SIGTERM for 44 s on llvmpipe (issue 34). :func:`in_bands` cuts a large frame (the ray-cast dispatch,
 the raster colour pass under a scissor) into bands of rows with ``glFinish`` between two, each

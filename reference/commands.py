@@ -1,4 +1,4 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``reference``, ``bench reference``
+"""CLI subcommands of this package (registered by pbrcheck_cli): ``reference``, ``bench reference``
 and ``bench multiscatter``."""
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import pbrcheck.gltf_objects as gltf_objects
-from pbrcheck.cli import build_parser, main
+from pbrcheck_cli import build_parser, main
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.gltf_build import panel_asset
 from pbrcheck.gltf_objects import DEFAULT_ASSET_SIZE, AssetOptions, asset_options_of

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.gltf import load_asset
 from pbrcheck.gltf_build import panel_asset

@@ -51,7 +51,7 @@ def test_a_failed_run_is_a_typed_error_with_its_output(tmp_path):
 
 @pytest.mark.slow
 def test_bench_report_runs_the_report_twice(capsys):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     assert main(["bench", "report", "--", *TINY]) == 0
     res = json.loads(capsys.readouterr().out)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import cache
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.errors import CacheError
 from pbrcheck.exr import Image
 

@@ -18,7 +18,7 @@ import compare.renderers as renderers
 from clients import config as C
 from clients import run as R
 from compare.gate import run_gate
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import read_exr
 from pbrcheck.hdrimage import write_hdr, write_pfm
 from pbrcheck.scene import scene_from_dict
@@ -360,7 +360,7 @@ def test_renderers_option_does_not_outlive_its_call(tmp_path):
     """``--renderers FILE`` names the file of one ``main()`` call: a later in-process call (a test, a
     script) must not read it (it once leaked a broken file into every later external render)."""
     from clients.config import user_renderers_file
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     bad = tmp_path / "renderers.toml"
     bad.write_bytes(b"[renderer.x]\ncommand = '\xe9'\n")

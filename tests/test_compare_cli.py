@@ -1,4 +1,4 @@
-"""``pbrcheck compare`` and ``pbrcheck gate`` through pbrcheck.cli.main: outputs and exit codes."""
+"""``pbrcheck compare`` and ``pbrcheck gate`` through pbrcheck_cli.main: outputs and exit codes."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image, write_exr
 
 H, W = 20, 24

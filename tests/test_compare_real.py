@@ -10,7 +10,7 @@ import json
 
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from pbrcheck.camera import primary_rays
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image
 
 SCENE = """
@@ -355,7 +355,7 @@ def test_gate_renderer_crash_is_an_error_not_a_failure(fakes, scene_file, tmp_pa
 def test_report_cli_with_and_shader_add_renderers_after_the_presets(monkeypatch, tmp_path):
     """`--with R,...` and `--shader FILE` append renderers to the presets (all of them by default)."""
     import compare.report.commands as rc
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     seen = {}
 

@@ -26,7 +26,7 @@ from compare.corpus.study import (TIMING_COLUMNS, CorpusError, CorpusSettings, d
                                   run_corpus)
 from compare.report.corpus_section import corpus_section, write_corpus_page
 from compare.renderers import RendererSpec
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.environment import EnvMap, load_environment
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image, write_exr

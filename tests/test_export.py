@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.environment import load_environment
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.export import (ENV_MAX_WIDTH, SILHOUETTE_TOLERANCE_PX, equirect_image, export_scene, export_width,

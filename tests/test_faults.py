@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.hdrimage import write_hdr
 
@@ -302,7 +302,7 @@ def test_disk_full_half_way_leaves_no_part(work, tmp_path, capfd, monkeypatch, f
 
 DRIVER = textwrap.dedent('''
     import json, os, sys, tempfile
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
     results = {}
     for name, argv in json.loads(sys.argv[1]).items():
         with tempfile.TemporaryFile() as cap:
@@ -373,7 +373,7 @@ def _marked(marker: str) -> list[int]:
 
 def _run_and_signal(argv: list[str], sig: int, ready, tmp: Path, marker: str, timeout: float = 120):
     env = {**os.environ, "PBRCHECK_FAULT_TEST": marker, "TMPDIR": str(tmp), "PYTHONPATH": str(ROOT)}
-    p = subprocess.Popen([sys.executable, "-m", "pbrcheck.cli", *argv], env=env, stdout=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "pbrcheck_cli", *argv], env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     deadline = time.time() + timeout
     try:
@@ -502,7 +502,7 @@ def test_closed_stdout_is_not_an_error(work, tmp_path, argv):
     r, w = os.pipe()
     os.close(r)  # the reader is gone before the first line (`| head -0`): every write meets EPIPE
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PBRCHECK_CACHE": str(tmp_path / "cache")}
-    p = subprocess.run([sys.executable, "-m", "pbrcheck.cli", *argv, *(["--maps", str(tmp_path / "m")]
+    p = subprocess.run([sys.executable, "-m", "pbrcheck_cli", *argv, *(["--maps", str(tmp_path / "m")]
                                                                         if argv[0] == "gate" else [])],
                        cwd=work, env=env, stdout=w, stderr=subprocess.PIPE, text=True, timeout=120)
     os.close(w)
@@ -679,7 +679,7 @@ def test_interrupted_rerun_leaves_no_stale_table(work, tmp_path, monkeypatch):
 def test_an_interrupt_inside_an_extension_import_is_an_interrupt(monkeypatch, capsys):
     """Ctrl-C while a C extension imports (Mitsuba's set_variant) arrives as a SystemError whose
     context is the KeyboardInterrupt: exit 130 and one line, no traceback."""
-    import pbrcheck.cli as cli
+    import pbrcheck_cli as cli
 
     def boom(args):
         try:

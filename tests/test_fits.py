@@ -269,7 +269,7 @@ roughness = 0.4
 
 @pytest.mark.parametrize("extra", [[], ["--no-scan"]])
 def test_fit_roughness_cli_writes_json_and_table(tmp_path, capsys, extra):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     scene = tmp_path / "one.toml"
     scene.write_text(SPHERE_TOML)
@@ -291,7 +291,7 @@ def test_fit_roughness_cli_writes_json_and_table(tmp_path, capsys, extra):
 
 def test_bench_fit_roughness_prints_the_self_check(capsys):
     """``pbrcheck bench fit-roughness``: JSON with a row per roughness and the summary figures."""
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     rc = main(["bench", "fit-roughness", "--size", "12", "--roughness", "0.35", "--target-spp", "64",
                "--sun", "20", "--sun-radiance", "5"])

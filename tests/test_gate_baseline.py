@@ -14,7 +14,7 @@ import pytest
 from compare.baseline import (BIAS_FLOOR, Baseline, compare_to_baseline, load_baseline, region_masks, sensitivity,
                               spread_of)
 from compare.gate import BudgetError, Check, CheckResult, Verdict, budget_noise, load_budget, noise_note
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image, write_exr
 
 H, W = 64, 64

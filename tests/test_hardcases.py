@@ -93,7 +93,7 @@ def test_scale_invariance(rows):
 def test_cli_exits_1_on_non_finite(tmp_path, monkeypatch, capsys):
     """A renderer that returns NaN is reported and the command exits 1 (the check can fail)."""
     import realtime.render as rr
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     real = rr.render_realtime
 

@@ -2,7 +2,8 @@
 
 Layers, lowest first: core ``pbrcheck`` (0) <- renderers ``reference``, ``realtime``, ``clients`` (1) <- the
 comparator ``compare`` (2) <- ``compare.research`` (3) <- ``compare.report`` (4) <- the CLI
-(``pbrcheck.cli``, the one module allowed to import upward). A module may import its own layer and
+(package ``pbrcheck_cli``, the top, outside the core: the one package allowed to import upward, and
+no other imports it). A module may import its own layer and
 the layers below it; the two renderers never import each other. Any import cycle between modules
 is an error too. Each failure names the importing module, the imported one and the line.
 """
@@ -15,13 +16,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("pbrcheck", "reference", "realtime", "clients", "compare")
-#: The only module that may import every layer.
-ENTRY = "pbrcheck.cli"
+PACKAGES = ("pbrcheck", "reference", "realtime", "clients", "compare", "pbrcheck_cli")
+#: The only package that may import every layer.
+ENTRY = "pbrcheck_cli"
 
 
 def layer(module: str) -> tuple[int, str]:
     """(rank, group) of a project module; renderers share a rank but not a group."""
+    if module == ENTRY or module.startswith(ENTRY + "."):
+        return 5, "cli"
     if module.startswith("compare.report"):
         return 4, "report"
     if module.startswith("compare.research"):
@@ -73,11 +76,11 @@ def imports_of(name: str, path: Path) -> list[tuple[str, int]]:
 def violations(mods: dict[str, Path]) -> list[str]:
     bad = []
     for name, path in mods.items():
-        if name == ENTRY:
-            continue
         rank, group = layer(name)
+        if group == "cli":
+            continue
         for dep, line in imports_of(name, path):
-            if dep == ENTRY:
+            if layer(dep)[1] == "cli":
                 bad.append(f"{name} imports the CLI {dep} (line {line})")
                 continue
             drank, dgroup = layer(dep)
@@ -125,7 +128,7 @@ def test_no_import_cycle():
 @pytest.mark.parametrize("source,expect", [
     ("from compare.metrics import compare_images\n", "pbrcheck.scene (core) imports compare.metrics (compare)"),
     ("import realtime.render\n", "pbrcheck.scene (core) imports realtime.render (realtime)"),
-    ("from pbrcheck.cli import main\n", "pbrcheck.scene imports the CLI pbrcheck.cli"),
+    ("from pbrcheck_cli import main\n", "pbrcheck.scene imports the CLI pbrcheck_cli"),
 ])
 def test_the_check_catches_an_upward_import(tmp_path, monkeypatch, source, expect):
     """A core module that imports upward is named with the module it imports."""
@@ -177,3 +180,13 @@ def test_gate_package_modules_import_downward_only(tmp_path):
     mods = {**mods, "compare.gate.budget": fake}
     assert gate_order_violations(mods) == [f"compare.gate.budget imports compare.gate.verdict, a later module of "
                                            f"the gate (line {len(fake.read_text().splitlines())})"]
+
+
+def test_the_core_holds_no_cli():
+    """The command line is its own top-level package: no module of the core parses a command line
+    into subcommands or maps errors to exit codes (issue 33: the core held the CLI, the only upward
+    arrows of the import graph)."""
+    assert not (ROOT / "pbrcheck" / "cli.py").exists() and (ROOT / ENTRY / "__init__.py").is_file()
+    for name, path in modules().items():
+        if layer(name)[1] != "cli":
+            assert "add_subparsers(" not in path.read_text(), name

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pbrcheck.camera import primary_rays
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.errors import SceneError
 from pbrcheck.gltf import AssetError
 from pbrcheck.scene import load_scene, scene_from_dict

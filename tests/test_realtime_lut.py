@@ -117,7 +117,7 @@ def test_envbrdf_approx_is_rough_but_bounded():
 
 
 def test_lut_command_writes_channels_A_and_B(tmp_path):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     out = tmp_path / "lut.exr"
     assert main(["lut", "--size", "8", "--samples", "256", "--format", "f16", "--out", str(out)]) == 0

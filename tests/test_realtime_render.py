@@ -225,7 +225,7 @@ def test_option_validation():
 
 
 def test_cli_bad_set_exits_2(capsys):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     assert main(["realtime", "spheres", "--set", "lut_sise=3"]) == 2
     assert "lut_sise" in capsys.readouterr().err

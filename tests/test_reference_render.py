@@ -240,7 +240,7 @@ def test_cache_hit_miss_corruption(tmp_cache, monkeypatch):
 
 
 def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     toml = tmp_path / "s.toml"
     toml.write_text('[camera]\nwidth = 16\nheight = 12\n[environment]\ntype = "constant"\n'

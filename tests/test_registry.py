@@ -481,7 +481,7 @@ def test_shaders_dump_writes_what_every_program_compiles(tmp_path):
     """``pbrcheck shaders --dump DIR`` writes every shader file, every generated include and the
     registries' defines: each entry program assembled from the dumped folder alone is the text
     realtime.gl.assemble compiles; a second dump replaces the files; a file in the way is exit 2."""
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
     from realtime.gl import DEFINES_FILE
     out = tmp_path / "glsl"
     assert main(["shaders", "--dump", str(out)]) == 0

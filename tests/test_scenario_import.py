@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.environment import load_environment
 from pbrcheck.gltf import srgb_to_linear
 from pbrcheck.scenario_import import RF_DEFAULTS, ScenarioError, config_scenes, scenario_scene

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.errors import SceneError
 from pbrcheck.environment import scene_hash
 from pbrcheck.scene import builtin_scene_names, dump_toml, load_scene, plane_frame, scene_from_dict

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import limits
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.gltf import AssetError, load_asset
 from pbrcheck.gltf_build import png_bytes
 from pbrcheck.scene import load_scene
@@ -92,7 +92,7 @@ def cli_process(*argv: str, timeout: float) -> tuple[int, str]:
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": str(root)}
     try:
-        r = subprocess.run([sys.executable, "-m", "pbrcheck.cli", *argv], cwd=root, env=env, capture_output=True,
+        r = subprocess.run([sys.executable, "-m", "pbrcheck_cli", *argv], cwd=root, env=env, capture_output=True,
                            text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         pytest.fail(f"pbrcheck {' '.join(argv)} still running after {timeout} s")
@@ -514,7 +514,7 @@ def test_raster_texture_side_asked_from_gl(tmp_path, capsys):
 def test_limit_flags_on_every_command_that_reads_a_scene():
     import argparse
 
-    from pbrcheck.cli import build_parser
+    from pbrcheck_cli import build_parser
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     for name in ("check-scene", "reference", "realtime", "export", "render", "report", "corpus"):

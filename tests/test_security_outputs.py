@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import cache
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image
 from pbrcheck.gltf_build import Doc, png_bytes
 from pbrcheck.scene import load_scene, toml_string
@@ -281,7 +281,7 @@ _DRIVER = textwrap.dedent("""
             flag.write_text("frame")
         return p
     R.compute_program = marked
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
     sys.exit(main(sys.argv[2:]))
 """)
 

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from pbrcheck.cli import main
+from pbrcheck_cli import main
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.gltf import load_asset
 from pbrcheck.scene import load_scene

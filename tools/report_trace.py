@@ -183,7 +183,7 @@ def main(argv=None) -> int:
     ext = _ExternalCpu() if a.external_cpu else None
     if ext:
         ext.thread.start()
-    from pbrcheck.cli import main as cli_main
+    from pbrcheck_cli import main as cli_main
     try:
         rc = cli_main(["report", *rargs])
     finally:

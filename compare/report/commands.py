@@ -1,5 +1,5 @@
-"""CLI subcommands of the report layer (registered by :mod:`pbrcheck.cli`): ``report``, ``sweep``,
-``demo`` (the main job) and ``bench report``. Library errors propagate; only :mod:`pbrcheck.cli` maps them to exit codes."""
+"""CLI subcommands of the report layer (registered by :mod:`pbrcheck_cli`): ``report``, ``sweep``,
+``demo`` (the main job) and ``bench report``. Library errors propagate; only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 

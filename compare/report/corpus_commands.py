@@ -1,6 +1,6 @@
-"""CLI subcommands of corpus studies (registered by :mod:`pbrcheck.cli`): ``corpus`` and
+"""CLI subcommands of corpus studies (registered by :mod:`pbrcheck_cli`): ``corpus`` and
 ``bench corpus``. They live in the report layer because ``corpus`` writes the report page of the
-corpus (:mod:`compare.report.corpus_section`). Library errors propagate; only :mod:`pbrcheck.cli`
+corpus (:mod:`compare.report.corpus_section`). Library errors propagate; only :mod:`pbrcheck_cli`
 maps them to exit codes."""
 
 from __future__ import annotations

@@ -197,7 +197,7 @@ class BenchReportError(PbrcheckError):
 def _run(args: list[str], out: Path, env: dict, progress: bool = False) -> dict:
     """One report run in a new process; with ``progress`` its progress bars go to this stderr (and a
     failure points there), else its output is captured and a failure quotes its end."""
-    cmd = [sys.executable, "-m", "pbrcheck.cli", "report", *args, "--out", str(out)] + ([] if progress else ["--quiet"])
+    cmd = [sys.executable, "-m", "pbrcheck_cli", "report", *args, "--out", str(out)] + ([] if progress else ["--quiet"])
     load_before = _load()
     t = time.perf_counter()
     p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=None if progress else subprocess.PIPE, text=True)

@@ -1,6 +1,6 @@
-"""CLI subcommands of the research layer (registered by :mod:`pbrcheck.cli`): ``hardcases``,
+"""CLI subcommands of the research layer (registered by :mod:`pbrcheck_cli`): ``hardcases``,
 ``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
-only :mod:`pbrcheck.cli` maps them to exit codes."""
+only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The ``pbrcheck`` command line: the one module that imports every layer.
+"""The ``pbrcheck`` command line (package ``pbrcheck_cli``, the top of the stack): the one package that
+imports every layer; no layer imports it (the core ``pbrcheck`` holds no CLI).
 
 Library code raises :class:`~pbrcheck.errors.PbrcheckError`; this module alone maps errors to exit
 codes: 0 success, 1 a check failed (``gate``), 2 bad input (one line on stderr, no traceback,
@@ -32,14 +33,14 @@ import compare.research.commands
 import realtime.commands
 import reference.commands
 
-from . import __version__, cache, unmodelled
-from .args import add_limit_flags_to_scene_commands
-from .environment import load_environment, scene_hash
-from .errors import CacheError, PbrcheckError, Terminated, os_reason
-from .fmt import terminal_safe
-from .gltf_objects import add_asset_arguments, asset_options_of
-from .limits import reset_limits, set_limits_from_args
-from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
+from pbrcheck import __version__, cache, unmodelled
+from pbrcheck.args import add_limit_flags_to_scene_commands
+from pbrcheck.environment import load_environment, scene_hash
+from pbrcheck.errors import CacheError, PbrcheckError, Terminated, os_reason
+from pbrcheck.fmt import terminal_safe
+from pbrcheck.gltf_objects import add_asset_arguments, asset_options_of
+from pbrcheck.limits import reset_limits, set_limits_from_args
+from pbrcheck.scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
 COMMAND_MODULES = (reference.commands, realtime.commands, clients.commands, compare.commands, compare.research.commands,
@@ -69,7 +70,7 @@ def _cmd_check_scene(args) -> int:
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g})")
     print(f"# scene hash {scene_hash(scene, env.content_hash)}")
     if getattr(scene, "assets", ()):
-        from .gltf_scene import describe
+        from pbrcheck.gltf_scene import describe
         print("\n".join(terminal_safe(line) for line in describe(scene)))
     print(dump_toml(scene.to_dict()), end="")
     return 0
