@@ -18,7 +18,7 @@ import pytest
 
 from compare import renderers
 from compare.research import diagnose as dg
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.environment import load_environment
 from pbrcheck.exr import Image, read_exr, write_exr
 from pbrcheck.scene import load_scene

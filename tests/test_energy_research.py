@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from compare.research import energy
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from realtime.registry import ENERGY_COMPENSATIONS
 
 

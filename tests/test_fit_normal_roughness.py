@@ -139,7 +139,7 @@ def test_written_hook_renders_and_reduces_the_error(stripe_fit):
 
 
 def test_cli_refuses_a_scene_without_normal_map_and_a_hook(tmp_path, capsys):
-    from pbrcheck import cli
+    import pbrcheck_cli as cli
     out = tmp_path / "fit.json"
     assert cli.main(["fit-normal-roughness", "spheres", "--size", "8", "--out", str(out), "--quiet"]) == 2
     assert "no object has a normal map" in capsys.readouterr().err

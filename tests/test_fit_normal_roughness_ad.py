@@ -209,7 +209,7 @@ def test_ad_bad_input_changes_nothing(sphere, tmp_path):
 
 
 def test_cli_method_and_iterations(tmp_path, capsys):
-    from pbrcheck import cli
+    import pbrcheck_cli as cli
     out = tmp_path / "fit.json"
     assert cli.main(["fit-normal-roughness", "spheres", "--size", "8", "--iterations", "0", "--out", str(out),
                      "--quiet"]) == 2

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.gltf import AssetError, load_asset, texture_transform_matrix
 from pbrcheck.scene import load_scene
 

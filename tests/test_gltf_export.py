@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.export import export_scene
 from pbrcheck.scenario_import import scenario_scene
 from pbrcheck.scene import load_scene

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.gltf import AssetError, load_asset
 from pbrcheck.scene import load_scene
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.exr import read_exr
 from pbrcheck.scene import load_scene, scene_from_dict
 from realtime.gl import ShaderCompileError, is_software_renderer

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrcheck import cli
+import pbrcheck_cli as cli
 from pbrcheck.gltf import srgb_to_linear
 from pbrcheck.gltf_export import mesh_object_ids
 from pbrcheck.gltf_scene import UnsupportedSceneError
