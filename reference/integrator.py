@@ -93,6 +93,7 @@ from mitsuba.python.ad.integrators.common import RBIntegrator
 from .bsdf import MaterialView, SceneCalls
 from .env_radiance import bind_environment, exact_environment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
+from .opaque_sampler import OpaqueMultijitter
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -220,7 +221,8 @@ def camera_rays(sensor, sampler, per_pixel: int, pixels=None):
     film = sensor.film()
     size = film.crop_size()
     m = int(size[0]) * int(size[1]) if pixels is None else dr.width(pixels)
-    idx = dr.arange(mi.UInt32, m * per_pixel) // per_pixel
+    # per_pixel opaque: one kernel for every count (an adaptive render's levels)
+    idx = dr.arange(mi.UInt32, m * per_pixel) // dr.opaque(mi.UInt32, per_pixel)
     if pixels is not None:
         idx = dr.gather(mi.UInt32, pixels, idx)
     y = idx // int(size[0])
@@ -420,6 +422,8 @@ class ReferenceIntegrator(RBIntegrator):
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
+        # the local estimator's replicates draw from OpaqueMultijitter (a multijitter sensor only)
+        self.opaque_sampler = bool(props.get("opaque_sampler", True))
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
@@ -747,6 +751,23 @@ class ReferenceIntegrator(RBIntegrator):
             dr.scatter(out, mi.Float(hits / spp), base + 6)
             return mi.TensorXf(out, (H, W, len(MOMENT_CHANNELS)))
 
+    def _replicate_sampler(self, sensor, n: int):
+        """The sampler of a replicate of ``n`` samples: the sensor's, or, for the local estimator
+        and a ``multijitter`` sensor, :class:`reference.opaque_sampler.OpaqueMultijitter` (the same
+        samples, bit for bit, with the count opaque: one kernel for every count, property
+        ``opaque_sampler``; the ``path`` mode hands its sampler to Mitsuba's C++ integrator)."""
+        base = sensor.sampler()
+        if self.mode == "local" and self.opaque_sampler and base.class_name() == "MultijitterSampler":
+            if not multijitter_count_ok(n):
+                raise ValueError(f"{INTEGRATOR_NAME}: multijitter does not take {n} samples per pixel as they are")
+            return OpaqueMultijitter(n)
+        sampler = base.clone()
+        sampler.set_sample_count(n)
+        if int(sampler.sample_count()) != n:
+            raise ValueError(f"{INTEGRATOR_NAME}: the sampler takes {int(sampler.sample_count())} "
+                             f"samples per pixel, not the replicate's {n}")
+        return sampler
+
     def _render_replicates(self, scene, sensor, seed, spp, W, H):
         """Moments render from K independent replicates of ``spp / K`` samples (:func:`replicate_plan`)."""
         K, n = replicate_plan(spp, self.replicates)
@@ -788,11 +809,7 @@ class ReferenceIntegrator(RBIntegrator):
                 for c, r0 in enumerate(range(0, K, R)):
                     r1 = min(K, r0 + R)
                     ids = mi.UInt32(np.tile(pix, r1 - r0))
-                    sampler = sensor.sampler().clone()
-                    sampler.set_sample_count(n)
-                    if int(sampler.sample_count()) != n:
-                        raise ValueError(f"{INTEGRATOR_NAME}: the sampler takes {int(sampler.sample_count())} "
-                                         f"samples per pixel, not the replicate's {n}")
+                    sampler = self._replicate_sampler(sensor, n)
                     sampler.set_samples_per_wavefront(per)
                     sampler.seed(pass_seed(seed, stream + c), (r1 - r0) * m * per)
                     for j in range(parts):
