@@ -773,7 +773,7 @@ class ReferenceIntegrator(RBIntegrator):
         K, n = replicate_plan(spp, self.replicates)
         return self.render_groups(scene, sensor, [(None, K, n, 0)], seed, W, H)
 
-    def render_groups(self, scene, sensor, groups, seed, W, H):
+    def render_groups(self, scene, sensor, groups, seed, W, H, variance: bool = True):
         """``(H, W, 7)`` moments (:data:`MOMENT_CHANNELS`) from independent replicates, by groups of
         pixels: ``groups`` = ``[(pixels, K, n, stream), ...]``, ``pixels`` a numpy array of pixel
         indices (row-major; None: every pixel), rendered as K replicates of n samples each.
@@ -787,7 +787,8 @@ class ReferenceIntegrator(RBIntegrator):
         :func:`replicate_parts` passes (``advance`` between them: one point set). The pixel means
         ``Y_r`` of the replicates give the estimate ``mean(Y)`` and its variance ``s^2(Y) / K``,
         unbiased because the replicates are i.i.d. A pixel in no group is 0 with variance 0 and
-        coverage 0."""
+        coverage 0. ``variance`` False (no error bars asked for): K may be 1, the variance channels
+        are 0."""
         self._to_view = sensor.world_transform().inverse()
         npix = W * H
         nch = len(MOMENT_CHANNELS)
@@ -795,7 +796,7 @@ class ReferenceIntegrator(RBIntegrator):
         lanes = max_lanes()
         with dr.suspend_grad():
             for pixels, K, n, stream in groups:
-                if K < 2:
+                if K < (2 if variance else 1):
                     raise ValueError(f"{INTEGRATOR_NAME}: a replicate render needs K >= 2 replicates, not {K}")
                 pix = np.arange(npix, dtype=np.uint32) if pixels is None else np.asarray(pixels, dtype=np.uint32)
                 m = len(pix)
@@ -833,7 +834,8 @@ class ReferenceIntegrator(RBIntegrator):
                             self.progress(per * m * (r1 - r0) / npix)
                 y /= n
                 out[pix, 0:3] = y.mean(1).T
-                out[pix, 3:6] = y.var(1, ddof=1).T / K
+                if variance:
+                    out[pix, 3:6] = y.var(1, ddof=1).T / K
                 out[pix, 6] = hits / (K * n)
             return mi.TensorXf(mi.Float(out.ravel().astype(np.float32)), (H, W, nch))
 
