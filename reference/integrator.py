@@ -424,6 +424,10 @@ class ReferenceIntegrator(RBIntegrator):
         self.replicates = int(props.get("replicates", 0))
         # the local estimator's replicates draw from OpaqueMultijitter (a multijitter sensor only)
         self.opaque_sampler = bool(props.get("opaque_sampler", True))
+        # render_groups' passes replayed by dr.freeze (reference.frozen; opt-in: no gain measured on the CPU)
+        self.freeze = bool(props.get("freeze", False))
+        self._frozen = None  # the frozen pass (dr.freeze), made on first use
+        self._warm = None  # the shapes of the scene whose caches a traced pass filled
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
@@ -751,6 +755,36 @@ class ReferenceIntegrator(RBIntegrator):
             dr.scatter(out, mi.Float(hits / spp), base + 6)
             return mi.TensorXf(out, (H, W, len(MOMENT_CHANNELS)))
 
+    def _estimate(self, scene, sensor, sampler, per: int, ids):
+        """(L x weight, hit) of one pass of :meth:`render_groups`: ``per`` lanes per pixel of ``ids``."""
+        ray, weight = camera_rays(sensor, sampler, per, ids)
+        L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
+        # A scene that cannot emit (black environment, no light) makes L a width-1 literal and
+        # block_sum would then return one block, not one per pixel: widen to the rays' width
+        # (adding a zero literal changes no value).
+        lanes_now = dr.width(ray.o)
+        return mi.Color3f(L * weight) + dr.zeros(mi.Color3f, lanes_now), mi.Bool(hit) | dr.zeros(mi.Bool, lanes_now)
+
+    def _pass(self, scene, sensor, sampler, per: int, ids):
+        """:meth:`_estimate`, traced, or with ``freeze`` (property; opt-in) replayed by ``dr.freeze``
+        (:mod:`reference.frozen`) once a traced pass has filled this integrator's caches for the
+        scene's shapes; ``per`` and the wavefront's width are part of the recording's key (a
+        Python-int size is baked into it)."""
+        shapes = tuple(scene.shapes())
+        if not self.freeze or self._warm is None or len(self._warm) != len(shapes) or any(
+                a is not b for a, b in zip(self._warm, shapes)):
+            out = self._estimate(scene, sensor, sampler, per, ids)
+            self._warm = shapes if self.freeze else None
+            return out
+        if self._frozen is None:
+            self._frozen = dr.freeze(lambda scene, sensor, sampler, per, ids, width, state:
+                                     self._estimate(scene, sensor, sampler, per, ids))
+        from .frozen import jit_state
+
+        state = jit_state([{k: v for k, v in vars(self).items() if k not in ("progress", "_frozen", "_warm")},
+                           list(scene.emitters()), [s.bsdf() for s in shapes], sensor])
+        return self._frozen(scene, sensor, sampler, per, ids, dr.width(ids) * per, state)
+
     def _replicate_sampler(self, sensor, n: int):
         """The sampler of a replicate of ``n`` samples: the sensor's, or, for the local estimator
         and a ``multijitter`` sensor, :class:`reference.opaque_sampler.OpaqueMultijitter` (the same
@@ -816,14 +850,7 @@ class ReferenceIntegrator(RBIntegrator):
                     for j in range(parts):
                         if j:
                             sampler.advance()
-                        ray, weight = camera_rays(sensor, sampler, per, ids)
-                        L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
-                        # A scene that cannot emit (black environment, no light) makes L a width-1 literal
-                        # and block_sum would then return one block, not one per pixel: widen to the rays'
-                        # width (adding a zero literal changes no value).
-                        lanes_now = dr.width(ray.o)
-                        L = mi.Color3f(L * weight) + dr.zeros(mi.Color3f, lanes_now)
-                        hit = mi.Bool(hit) | dr.zeros(mi.Bool, lanes_now)
+                        L, hit = self._pass(scene, sensor, sampler, per, ids)
                         dr.eval(L, hit)  # one kernel (see render)
                         p1 = dr.block_sum(L, per)
                         ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), per)
