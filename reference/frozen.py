@@ -11,10 +11,11 @@ recursively. A changed scene (other shapes, materials or environment) has other 
 frozen function sees other inputs: it replays with their values, or records anew where their
 layout differs (never a stale image: ``tests/test_reference_speed.py``).
 
-Measured (CPU, spheres 48 x 40, 16 replicates of 4 and 16 samples, under load): a replay takes as
-long as tracing and launching (0.35-0.65 s against 0.25-0.5 s): on the CPU the pass is bound by its
-kernel, and the replay's traversal of the inputs costs what the trace saved. Hence opt-in
-(``ReferenceIntegrator.freeze``), for GPU measurements (issue 39).
+Measured on the CPU (2 threads, spheres, ``render_groups`` of 16 replicates x 4 samples, median
+process CPU seconds of warm runs): 90 x 75: traced 0.063, frozen 0.063; 180 x 150: traced 0.228,
+frozen 0.209. On the CPU the pass is bound by its kernel and the replay's traversal of the inputs
+costs about what the trace saved; hence opt-in (``ReferenceIntegrator.freeze``) until a GPU, where
+tracing is the larger share, measures it (issue 39).
 
 API: :func:`jit_state`.
 """
