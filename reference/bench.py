@@ -68,7 +68,8 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   the ratio is clearly above 1 (docs/reference.md records the measurements).
 
 * ``throughput`` (issue 39): the work users run, at several sizes: the reference's default render
-  (``render_uncached``: local, qmc adaptive, error bars and AOVs) against ``mi.render`` + Mitsuba's
+  (``render_uncached``: local, qmc adaptive, error bars and AOVs; ``pbrcheck_lean``: qmc uniform
+  without error bars or AOVs, a film like ``path``'s) against ``mi.render`` + Mitsuba's
   ``path`` (max depth 2, film only) with the same BSDF (``pbr_material``) and with Mitsuba's C++
   ``roughconductor``, at 64, 1024 and 4096 spp (:data:`THROUGHPUT_SPP`) and two image sizes by backend
   (:data:`THROUGHPUT_SIZES`; CPU: 90 x 75 and 180 x 150, so 4096 spp stays minutes), alternating,
@@ -99,7 +100,7 @@ from pathlib import Path
 from pbrcheck.environment import load_environment
 from pbrcheck.scene import Environment, load_scene
 
-from .render import _mi, load_mitsuba_scene, render_uncached, scene_dict
+from .render import LEAN_OUTPUTS, _mi, load_mitsuba_scene, render_uncached, scene_dict
 
 #: Coverage from which a pixel counts in the noise floor (compare.metrics.FULL_COVERAGE; this layer
 #: cannot import the comparator).
@@ -142,8 +143,8 @@ SECTIONS = ("samplers", "variance_reduction", "throughput")
 #: ``throughput``: the spp (the goal applies at the middle one), the two image sizes by backend (CPU:
 #: a quarter and a half of spheres' 360 x 300, so that 4096 spp stays minutes), timed runs per
 #: render, and the goal of pbrcheck over ``mi.render`` + ``path`` + the same BSDF by backend (issue 39).
-THROUGHPUT_SPP, THROUGHPUT_SPP_QUICK = (64, 1024, 4096), (16, 64, 256)
-THROUGHPUT_SIZES = {"cuda": ((360, 300), (720, 600)), "llvm": ((90, 75), (180, 150)), "quick": ((24, 20), (48, 40))}
+THROUGHPUT_SPP, THROUGHPUT_SPP_QUICK = (64, 1024, 4096), (8, 16, 32)
+THROUGHPUT_SIZES = {"cuda": ((360, 300), (720, 600)), "llvm": ((90, 75), (180, 150)), "quick": ((16, 12), (24, 20))}
 THROUGHPUT_REPEATS = 3
 THROUGHPUT_GOAL = {"cuda": 1.0, "llvm": 1.5}
 #: ``variance_reduction``: spp and seeds per candidate (independent sampler, uniform spp), and the
@@ -337,12 +338,13 @@ def _throughput(quick: bool = False) -> dict:
         mscene = load_mitsuba_scene(scene, env)
         for spp in spps:
             peers = _peer_scenes(scene, env, spp)
-            runs = {"pbrcheck": [], **{k: [] for k in peers}}
+            runs = {"pbrcheck": [], "pbrcheck_lean": [], **{k: [] for k in peers}}
 
             def one(name, seed):
-                if name == "pbrcheck":
+                if name.startswith("pbrcheck"):
+                    kw = {"adaptive": False, **LEAN_OUTPUTS} if name == "pbrcheck_lean" else {}
                     return _timed_render(lambda: render_uncached(scene, spp=spp, seed=seed, mscene=mscene, env=env,
-                                                                 progress=False))
+                                                                 progress=False, **kw))
                 return _timed_render(lambda: (dr.eval(mi.render(peers[name], spp=spp, seed=seed)), dr.sync_thread()))
 
             for k in range(repeats + 1):
@@ -359,6 +361,7 @@ def _throughput(quick: bool = False) -> dict:
             for peer in peers:
                 row[f"vs_path_{peer}"] = med[peer][0] / med["pbrcheck"][0]
                 row[f"vs_path_{peer}_cpu"] = med[peer][1] / med["pbrcheck"][1]
+                row[f"lean_vs_path_{peer}_cpu"] = med[peer][1] / med["pbrcheck_lean"][1]
             rows.append(row)
     goal_spp = spps[len(spps) // 2]
     at_goal = [r for r in rows if r["spp"] == goal_spp]
@@ -369,7 +372,8 @@ def _throughput(quick: bool = False) -> dict:
             "goal_met": min(r["vs_path_same_bsdf"] for r in at_goal) >= goal,
             "repeats": repeats,
             "note": "pbrcheck: render_uncached's default (local, qmc adaptive, error bars and AOVs: what users "
-                    "run; samples = pixels x spp, the pilot not counted); path: mi.render + Mitsuba's path "
+                    "run; samples = pixels x spp, the pilot not counted); pbrcheck_lean: qmc uniform without "
+                    "error bars and AOVs (LEAN_OUTPUTS: a film, like path's); path: mi.render + Mitsuba's path "
                     f"(max depth {PATH_DEPTH}, film only, independent sampler); ratios = the peer's seconds over "
                     "pbrcheck's (> 1: pbrcheck faster); wall seconds are under the machine's load, CPU seconds "
                     "are this process's"}
