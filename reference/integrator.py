@@ -93,7 +93,7 @@ from mitsuba.python.ad.integrators.common import RBIntegrator
 from .bsdf import MaterialView, SceneCalls
 from .env_radiance import bind_environment, exact_environment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
-from .opaque_sampler import OpaqueMultijitter
+from .opaque_sampler import Divisor, OpaqueMultijitter
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -222,7 +222,7 @@ def camera_rays(sensor, sampler, per_pixel: int, pixels=None):
     size = film.crop_size()
     m = int(size[0]) * int(size[1]) if pixels is None else dr.width(pixels)
     # per_pixel opaque: one kernel for every count (an adaptive render's levels)
-    idx = dr.arange(mi.UInt32, m * per_pixel) // dr.opaque(mi.UInt32, per_pixel)
+    idx = Divisor(per_pixel).div(dr.arange(mi.UInt32, m * per_pixel))
     if pixels is not None:
         idx = dr.gather(mi.UInt32, pixels, idx)
     y = idx // int(size[0])

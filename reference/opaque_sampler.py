@@ -21,8 +21,9 @@ Only the local estimator uses it (the ``path`` mode hands its sampler to Mitsuba
 integrator, which needs a ``mi.Sampler``; it keeps ``multijitter``). The sampler is a Dr.Jit
 ``DRJIT_STRUCT``, so it is loop state in ``dr.while_loop`` as Mitsuba's samplers are.
 
-API: :class:`OpaqueMultijitter`, :func:`permute_kensler`, :func:`grid`.
-References: Kensler 2013 (Pixar technical memo 13-01); Mitsuba 3.9.1's sources above.
+API: :class:`OpaqueMultijitter`, :class:`Divisor`, :func:`permute_kensler`, :func:`grid`.
+References: Kensler 2013 (Pixar technical memo 13-01); Mitsuba 3.9.1's sources above; Granlund &
+Montgomery 1994, "Division by invariant integers using multiplication" (PLDI).
 """
 
 from __future__ import annotations
@@ -59,10 +60,40 @@ def _rcp32(v: int) -> float:
     return float(np.float32(1.0) / np.float32(v))
 
 
+class Divisor:
+    """Division by an opaque ``d`` without a division instruction (none is vectorized on a CPU: a
+    divide by a kernel input runs lane by lane, which made these kernels a third slower than
+    ``multijitter``'s, whose literal divisors LLVM turns into multiplications): the round-up method
+    of Granlund & Montgomery 1994 (Hacker's Delight, 10-8): with ``l = ceil(log2 d)``,
+    ``m = floor(2^32 (2^l - d) / d) + 1``, ``t = mul_hi(m, x)``, the quotient is
+    ``(t + ((x - t) >> min(l, 1))) >> max(l - 1, 0)``, exact for every 32-bit ``x`` and ``d >= 1``
+    (tested against ``//``). ``d``, ``m`` and the shifts are opaque: one kernel for every ``d``."""
+
+    DRJIT_STRUCT = {"d": mi.UInt32, "m": mi.UInt32, "s1": mi.UInt32, "s2": mi.UInt32}
+
+    def __init__(self, d: int = 1):
+        d = int(d)
+        if not 1 <= d < 1 << 32:
+            raise ValueError(f"Divisor: {d} is not a 32-bit divisor")
+        ln = (d - 1).bit_length()  # ceil(log2 d)
+        self.d = dr.opaque(mi.UInt32, d)
+        self.m = dr.opaque(mi.UInt32, ((1 << 32) * ((1 << ln) - d)) // d + 1)
+        self.s1 = dr.opaque(mi.UInt32, min(ln, 1))
+        self.s2 = dr.opaque(mi.UInt32, max(ln - 1, 0))
+
+    def div(self, x):
+        t = dr.mul_hi(self.m, x)
+        return (t + ((x - t) >> self.s1)) >> self.s2
+
+    def mod(self, x):
+        return x - self.div(x) * self.d
+
+
 def permute_kensler(index, n, w, seed, active):
     """Mitsuba's ``permute_kensler(index, n, seed, active)`` with ``n`` and its mask ``w``
     (:func:`_mask`) as Dr.Jit variables (opaque: the kernel does not depend on them): a cycle walk
-    of Kensler's hash until the index lies below ``n``; lanes not ``active`` keep their index."""
+    of Kensler's hash until the index lies below ``n`` (a :class:`Divisor`); lanes not ``active``
+    keep their index."""
     def body(active, index):
         tmp = index ^ seed
         tmp *= _KENSLER[0]
@@ -83,11 +114,11 @@ def permute_kensler(index, n, w, seed, active):
         tmp &= w
         tmp ^= tmp >> 5
         index = dr.select(active, tmp, index)
-        return active & (index >= n), index
+        return active & (index >= n.d), index
 
     _, index = dr.while_loop((mi.Bool(active), mi.UInt32(index)), lambda a, i: dr.detach(a), body,
                              label="perm")
-    return (index + seed) % n
+    return n.mod(index + seed)
 
 
 class OpaqueMultijitter:
@@ -97,8 +128,8 @@ class OpaqueMultijitter:
     :meth:`sample_count`, :meth:`clone`."""
 
     DRJIT_STRUCT = {"rng": mi.PCG32, "dim": mi.UInt32, "sample_index": mi.UInt32, "perm_seed": mi.UInt32,
-                    "n": mi.UInt32, "w": mi.UInt32, "res_x": mi.UInt32, "w_x": mi.UInt32, "res_y": mi.UInt32,
-                    "w_y": mi.UInt32, "per": mi.UInt32, "offsets": mi.UInt32, "inv_n": mi.Float, "inv_res_x": mi.Float,
+                    "n": Divisor, "w": mi.UInt32, "res_x": Divisor, "w_x": mi.UInt32, "res_y": Divisor,
+                    "w_y": mi.UInt32, "per": Divisor, "offsets": mi.UInt32, "inv_n": mi.Float, "inv_res_x": mi.Float,
                     "inv_res_y": mi.Float}
 
     def __init__(self, n: int = 4, per: int | None = None):
@@ -119,9 +150,9 @@ class OpaqueMultijitter:
         if rx * ry != int(n):
             raise ValueError(f"OpaqueMultijitter: multijitter rounds {n} samples up to {rx * ry}")
         self._count = int(n)
-        self.n, self.w = dr.opaque(mi.UInt32, n), dr.opaque(mi.UInt32, _mask(n))
-        self.res_x, self.w_x = dr.opaque(mi.UInt32, rx), dr.opaque(mi.UInt32, _mask(rx))
-        self.res_y, self.w_y = dr.opaque(mi.UInt32, ry), dr.opaque(mi.UInt32, _mask(ry))
+        self.n, self.w = Divisor(n), dr.opaque(mi.UInt32, _mask(n))
+        self.res_x, self.w_x = Divisor(rx), dr.opaque(mi.UInt32, _mask(rx))
+        self.res_y, self.w_y = Divisor(ry), dr.opaque(mi.UInt32, _mask(ry))
         self.inv_n = dr.opaque(mi.Float, _rcp32(n))
         self.inv_res_x, self.inv_res_y = dr.opaque(mi.Float, _rcp32(rx)), dr.opaque(mi.Float, _rcp32(ry))
 
@@ -129,7 +160,7 @@ class OpaqueMultijitter:
         if self._count % int(per):
             raise ValueError(f"OpaqueMultijitter: {self._count} samples are not a multiple of {per} per wavefront")
         self._per = int(per)
-        self.per = dr.opaque(mi.UInt32, per)
+        self.per = Divisor(per)
 
     def sample_count(self) -> int:
         return self._count
@@ -147,11 +178,11 @@ class OpaqueMultijitter:
         v0, v1 = mi.sample_tea_32(s, idx)
         self.rng = mi.PCG32()
         self.rng.seed(mi.UInt64(v0), mi.UInt64(v1))
-        self.perm_seed = mi.sample_tea_32(dr.opaque(mi.UInt32, 0), self.per * (idx // self.per) + s)[0]
+        self.perm_seed = mi.sample_tea_32(dr.opaque(mi.UInt32, 0), self.per.d * self.per.div(idx) + s)[0]
         self.dim = dr.opaque(mi.UInt32, 0)
         self.sample_index = dr.opaque(mi.UInt32, 0)
         # each lane's sample within its sequence in this pass (current_sample_index's offsets)
-        self.offsets = idx % self.per
+        self.offsets = self.per.mod(idx)
 
     def advance(self) -> None:
         self.dim = dr.opaque(mi.UInt32, 0)
@@ -159,7 +190,7 @@ class OpaqueMultijitter:
 
     def _index(self):
         """``current_sample_index``: the pass's sample index times ``per`` plus the lane's offset."""
-        return dr.fma(self.sample_index, self.per, self.offsets)
+        return dr.fma(self.sample_index, self.per.d, self.offsets)
 
     def _next_seed(self):
         ps = self.perm_seed + self.dim
@@ -179,8 +210,8 @@ class OpaqueMultijitter:
         idx = self._index()
         ps = self._next_seed()
         s = permute_kensler(idx, self.n, self.w, ps * _SEED_2D, active)
-        y = s // self.res_x
-        x = s - y * self.res_x
+        y = self.res_x.div(s)
+        x = s - y * self.res_x.d
         sx = permute_kensler(x, self.res_x, self.w_x, ps * _SEED_X, active)
         sy = permute_kensler(y, self.res_y, self.w_y, ps * _SEED_Y, active)
         jx = self.rng.next_float32(active)
@@ -189,4 +220,4 @@ class OpaqueMultijitter:
                           (mi.Float(y) + (mi.Float(sx) + jy) * self.inv_res_x) * self.inv_res_y)
 
 
-__all__ = ["OpaqueMultijitter", "grid", "permute_kensler"]
+__all__ = ["Divisor", "OpaqueMultijitter", "grid", "permute_kensler"]

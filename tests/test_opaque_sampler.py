@@ -88,3 +88,18 @@ def test_one_kernel_for_every_level_and_the_same_pixels():
     for a, b in ((uni_a, uni_b), (ada_a, ada_b)):
         for c in ("R", "G", "B", "variance.R", "variance.G", "variance.B", "coverage"):
             np.testing.assert_array_equal(a.channels[c], b.channels[c], err_msg=c)
+
+
+def test_divisor_is_exact_division():
+    """Divisor (no division instruction): the quotient and remainder of // and % for every divisor
+    kind (1, powers of two, odd, the largest) and the extreme dividends."""
+    from reference.opaque_sampler import Divisor
+
+    rng = np.random.default_rng(3)
+    x = np.concatenate([[0, 1, 2, 3, 2**31 - 1, 2**31, 2**32 - 2, 2**32 - 1],
+                        rng.integers(0, 2**32, 2000, dtype=np.uint64)]).astype(np.uint32)
+    for d in (1, 2, 3, 5, 7, 8, 35, 256, 641, 2**16 + 1, 2**31, 2**31 + 1, 2**32 - 1):
+        dv = Divisor(d)
+        xs = mi.UInt32(x)
+        np.testing.assert_array_equal(np.array(dv.div(xs)), x // np.uint32(d), err_msg=str(d))
+        np.testing.assert_array_equal(np.array(dv.mod(xs)), x % np.uint32(d), err_msg=str(d))
