@@ -1,6 +1,7 @@
 """Error maps and display images: false-colour PNGs, tone-mapped PNGs, signed-difference EXRs.
 
-PNGs are written with matplotlib's Agg backend (no display needed). Pixels outside the valid mask
+Figures are written with matplotlib's Agg backend (no display needed), images (display images, error
+maps) with Pillow alone (:func:`png_bytes`: no figure, no pyplot import). Pixels outside the valid mask
 are drawn in :data:`MASKED_GREY` so that excluded background and silhouettes are obvious. Display
 images apply a renderer's own display transform where it has one (:func:`display_rgb`); metrics
 never see it.
@@ -9,7 +10,7 @@ API
 ---
 :func:`write_maps`, :func:`write_rel_png`, :func:`write_flip_png`, :func:`write_diff_exr`,
 :func:`write_tonemapped`, :func:`display_rgb`, :func:`tonemap`, :func:`tonemap_aces`,
-:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`, :func:`safe_name` (a
+:func:`srgb_oetf`, :func:`false_colour`, :func:`pyplot`, :func:`save_figure`, :func:`png_bytes`, :func:`safe_name` (a
 renderer's, scene's or check's name as a file or folder name: the gate's and the report's).
 """
 
@@ -29,6 +30,8 @@ from .worktime import work
 REL_MAP_MAX = 1.0
 #: Grey (sRGB, 0..1) for pixels outside the valid mask.
 MASKED_GREY = (0.35, 0.35, 0.35)
+#: The resolution a PNG records (pyplot.imsave's default).
+PNG_DPI = 100
 #: Exposure of the tone-mapped display images: scales linear radiance before the curve.
 DISPLAY_EXPOSURE = 1.0
 
@@ -70,19 +73,32 @@ def save_figure(fig, path: Path, dpi: int = 80) -> str:
     return Path(path).name
 
 
+def png_bytes(rgb: np.ndarray) -> bytes:
+    """``rgb`` (H, W, 3) in [0, 1] as PNG bytes, without matplotlib (an image needs no figure, and
+    pyplot's import is most of a small plot's cost): Pillow, RGBA, 8 bits, the values truncated as
+    ``matplotlib.pyplot.imsave`` does (``uint8(255 x)``), so the pixels are the ones it wrote (tested)."""
+    from PIL import Image as PILImage  # local: only PNG writers need it (a matplotlib dependency)
+
+    a = np.clip(np.asarray(rgb, dtype=np.float64), 0.0, 1.0)
+    rgba = np.empty(a.shape[:2] + (4,), dtype=np.uint8)
+    rgba[..., :3] = (a[..., :3] * 255).astype(np.uint8)
+    rgba[..., 3] = 255
+    buf = io.BytesIO()
+    PILImage.fromarray(rgba, "RGBA").save(buf, format="png", dpi=(PNG_DPI, PNG_DPI))
+    return buf.getvalue()
+
+
 def _save_rgb(path: Path, rgb: np.ndarray) -> Path:
-    """``rgb`` in [0, 1] as a PNG at ``path``, encoded in memory and written atomically."""
-    _, plt = _mpl()
+    """``rgb`` in [0, 1] as a PNG at ``path`` (:func:`png_bytes`), encoded in memory and written atomically."""
     with work("plots"):
-        buf = io.BytesIO()
-        plt.imsave(buf, np.clip(rgb, 0.0, 1.0), format="png")
-        return write_bytes_atomic(path, buf.getvalue())
+        return write_bytes_atomic(path, png_bytes(rgb))
 
 
 def false_colour(values: np.ndarray, vmax: float, cmap: str, mask: np.ndarray | None = None) -> np.ndarray:
     """(H, W) values to (H, W, 3) colours of ``cmap`` over [0, vmax]; masked-out pixels grey."""
-    matplotlib, _ = _mpl()
-    cm = matplotlib.colormaps[cmap]
+    from matplotlib import colormaps  # local: the colour maps alone, not pyplot (heavy)
+
+    cm = colormaps[cmap]
     rgb = cm(np.clip(values / vmax, 0.0, 1.0))[..., :3]
     if mask is not None:
         rgb[~mask] = MASKED_GREY

@@ -20,6 +20,8 @@ import contextlib
 import threading
 import time
 
+from reference import kernel_stats
+
 #: The kinds of work counted (in the order the run log shows them).
 KINDS = ("reference", "realtime", "flip", "plots", "clients")
 #: kind -> {"wall_s", "cpu_s", "calls"}: exclusive seconds of this process so far.
@@ -48,6 +50,7 @@ def work(kind: str):
         if stack:
             stack[-1][0] += dw
             stack[-1][1] += dc
+        kernel_stats.drain()  # Dr.Jit's kernel history, where it is on: its IR freed as it goes
         with _LOCK:
             row = WORK[kind]
             row["wall_s"] += dw - frame[0]

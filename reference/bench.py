@@ -67,9 +67,21 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   :func:`reference.integrator.resampled_estimate`); scenes :data:`VR_SCENES` and the real-HDR one. Adopted only when
   the ratio is clearly above 1 (docs/reference.md records the measurements).
 
-``--section samplers`` / ``--section variance_reduction`` (:func:`run_sections`): those figures alone.
+* ``throughput`` (issue 39): the work users run, at several sizes: the reference's default render
+  (``render_uncached``: local, qmc adaptive, error bars and AOVs; ``pbrcheck_lean``: qmc uniform
+  without error bars or AOVs, a film like ``path``'s) against ``mi.render`` + Mitsuba's
+  ``path`` (max depth 2, film only) with the same BSDF (``pbr_material``) and with Mitsuba's C++
+  ``roughconductor``, at 64, 1024 and 4096 spp (:data:`THROUGHPUT_SPP`) and two image sizes by backend
+  (:data:`THROUGHPUT_SIZES`; CPU: 90 x 75 and 180 x 150, so 4096 spp stays minutes), alternating,
+  median of :data:`THROUGHPUT_REPEATS` runs after a compile run each: seconds, CPU seconds, M samples/s
+  and the ratios ``vs_path_same_bsdf`` / ``vs_path_roughconductor`` (the peer's seconds over pbrcheck's;
+  ``_cpu``: of CPU seconds), with the machine named (:func:`machine`); the goal applies at 1024 spp
+  (:data:`THROUGHPUT_GOAL`: >= 1.0 on a GPU, >= 1.5 on the CPU; the smallest ratio of the two sizes).
 
-API: :func:`run_bench`, :func:`run_sections`, :func:`run_asset_bench`, :data:`SAMPLER_CONFIGS`,
+``--section samplers`` / ``--section variance_reduction`` / ``--section throughput``
+(:func:`run_sections`): those figures alone.
+
+API: :func:`run_bench`, :func:`run_sections`, :func:`run_asset_bench`, :func:`machine`, :data:`SAMPLER_CONFIGS`,
 :data:`VR_CANDIDATES`, :data:`SECTIONS`.
 """
 
@@ -88,7 +100,7 @@ from pathlib import Path
 from pbrcheck.environment import load_environment
 from pbrcheck.scene import Environment, load_scene
 
-from .render import _mi, load_mitsuba_scene, render_uncached, scene_dict
+from .render import LEAN_OUTPUTS, _mi, load_mitsuba_scene, render_uncached, scene_dict
 
 #: Coverage from which a pixel counts in the noise floor (compare.metrics.FULL_COVERAGE; this layer
 #: cannot import the comparator).
@@ -127,7 +139,14 @@ ENVMAP_NAMES = ("royal_esplanade_1k.hdr", "venice_sunset_1k.hdr", "chinese_garde
 #: The real-HDR scene's target: independent's floor at FLOOR_SPP over this (about 10^4 spp).
 HDR_TARGET_FACTOR = 8.0
 #: The sections :func:`run_sections` runs alone (``--section``).
-SECTIONS = ("samplers", "variance_reduction")
+SECTIONS = ("samplers", "variance_reduction", "throughput")
+#: ``throughput``: the spp (the goal applies at the middle one), the two image sizes by backend (CPU:
+#: a quarter and a half of spheres' 360 x 300, so that 4096 spp stays minutes), timed runs per
+#: render, and the goal of pbrcheck over ``mi.render`` + ``path`` + the same BSDF by backend (issue 39).
+THROUGHPUT_SPP, THROUGHPUT_SPP_QUICK = (64, 1024, 4096), (8, 16, 32)
+THROUGHPUT_SIZES = {"cuda": ((360, 300), (720, 600)), "llvm": ((90, 75), (180, 150)), "quick": ((16, 12), (24, 20))}
+THROUGHPUT_REPEATS = 3
+THROUGHPUT_GOAL = {"cuda": 1.0, "llvm": 1.5}
 #: ``variance_reduction``: spp and seeds per candidate (independent sampler, uniform spp), and the
 #: candidates, (label, ``render_uncached`` keyword arguments); the first is the default.
 VR_SPP, VR_SPP_QUICK = 128, 32
@@ -258,6 +277,106 @@ def _time_gather(scene, repeats):
     out["size"] = [small.camera.width, small.camera.height]
     out["spp"] = SMALL_SPP
     return out
+
+
+def machine() -> str:
+    """The machine the reference ran on, in words: the variant and the CPU model (LLVM, with Dr.Jit's
+    thread count) or the GPU's name (CUDA)."""
+    mi, dr = _mi()
+    import platform
+    import subprocess
+
+    if mi.variant().startswith("cuda"):
+        try:
+            name = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
+                                  text=True, timeout=20).stdout.strip().splitlines()[0]
+        except (OSError, IndexError, subprocess.SubprocessError):
+            name = "a CUDA GPU"
+        return f"{mi.variant()} on {name}"
+    model = platform.processor() or platform.machine()
+    try:
+        model = next(ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                     if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{mi.variant()} on {model} ({dr.thread_count()} threads)"
+
+
+def _peer_scenes(scene, env, spp: int):
+    """Mitsuba scenes rendering ``scene`` with ``mi.render`` and Mitsuba's ``path`` (max depth
+    :data:`PATH_DEPTH`, film only, ``spp`` independent samples): ``same_bsdf`` (the project's
+    ``pbr_material``) and ``roughconductor`` (Mitsuba's C++ GGX conductor, alpha =
+    :data:`PEER_ROUGHNESS` squared, on every object)."""
+    mi, _ = _mi()
+    from .integrator import sensor_dict  # local: importing it loads Mitsuba (variant set first)
+
+    rough = {"type": "roughconductor", "distribution": "ggx", "material": "none", "alpha": PEER_ROUGHNESS ** 2}
+    out = {}
+    for name, override in (("same_bsdf", None), ("roughconductor", rough)):
+        d = scene_dict(scene, env, bsdf_override=override)
+        d["sensor"] = sensor_dict(scene.camera, spp)
+        d["integrator"] = {"type": "path", "max_depth": PATH_DEPTH}
+        out[name] = mi.load_dict(d)
+    return out
+
+
+def _throughput(quick: bool = False) -> dict:
+    """``throughput`` (module docstring): pbrcheck's default reference against ``mi.render`` + ``path``
+    with the same BSDF and with ``roughconductor``, at each of :data:`THROUGHPUT_SPP` and two image
+    sizes (:data:`THROUGHPUT_SIZES` by backend), alternating, median of the timed runs after a compile
+    run each; ratios of wall and of CPU seconds (> 1: pbrcheck faster)."""
+    mi, dr = _mi()
+    backend = "cuda" if mi.variant().startswith("cuda") else "llvm"
+    sizes = THROUGHPUT_SIZES["quick" if quick else backend]
+    spps = THROUGHPUT_SPP_QUICK if quick else THROUGHPUT_SPP
+    repeats = 1 if quick else THROUGHPUT_REPEATS
+    base = load_scene("spheres")
+    rows = []
+    for W, H in sizes:
+        scene = base.with_camera(width=W, height=H)
+        env = load_environment(scene)
+        mscene = load_mitsuba_scene(scene, env)
+        for spp in spps:
+            peers = _peer_scenes(scene, env, spp)
+            runs = {"pbrcheck": [], "pbrcheck_lean": [], **{k: [] for k in peers}}
+
+            def one(name, seed):
+                if name.startswith("pbrcheck"):
+                    kw = {"adaptive": False, **LEAN_OUTPUTS} if name == "pbrcheck_lean" else {}
+                    return _timed_render(lambda: render_uncached(scene, spp=spp, seed=seed, mscene=mscene, env=env,
+                                                                 progress=False, **kw))
+                return _timed_render(lambda: (dr.eval(mi.render(peers[name], spp=spp, seed=seed)), dr.sync_thread()))
+
+            for k in range(repeats + 1):
+                for name in runs:
+                    _, t, c = one(name, k)
+                    if k:  # the first run compiles
+                        runs[name].append((t, c))
+            med = {n: (statistics.median(x[0] for x in r), statistics.median(x[1] for x in r)) for n, r in runs.items()}
+            samples = W * H * spp
+            row = {"resolution": [W, H], "spp": spp,
+                   **{f"{n}_seconds": v[0] for n, v in med.items()},
+                   **{f"{n}_cpu_seconds": v[1] for n, v in med.items()},
+                   **{f"{n}_msamples_per_s": samples / v[0] / 1e6 for n, v in med.items()}}
+            for peer in peers:
+                row[f"vs_path_{peer}"] = med[peer][0] / med["pbrcheck"][0]
+                row[f"vs_path_{peer}_cpu"] = med[peer][1] / med["pbrcheck"][1]
+                row[f"lean_vs_path_{peer}_cpu"] = med[peer][1] / med["pbrcheck_lean"][1]
+            rows.append(row)
+    goal_spp = spps[len(spps) // 2]
+    at_goal = [r for r in rows if r["spp"] == goal_spp]
+    goal = THROUGHPUT_GOAL[backend]
+    return {"machine": machine(), "rows": rows, "goal_spp": goal_spp, "goal": goal,
+            "vs_path_same_bsdf_at_goal_spp": min(r["vs_path_same_bsdf"] for r in at_goal),
+            "vs_path_same_bsdf_cpu_at_goal_spp": min(r["vs_path_same_bsdf_cpu"] for r in at_goal),
+            "goal_met": min(r["vs_path_same_bsdf"] for r in at_goal) >= goal,
+            "repeats": repeats,
+            "note": "pbrcheck: render_uncached's default (local, qmc adaptive, error bars and AOVs: what users "
+                    "run; samples = pixels x spp, the pilot not counted); pbrcheck_lean: qmc uniform without "
+                    "error bars and AOVs (LEAN_OUTPUTS: a film, like path's); path: mi.render + Mitsuba's path "
+                    f"(max depth {PATH_DEPTH}, film only, independent sampler); ratios = the peer's seconds over "
+                    "pbrcheck's (> 1: pbrcheck faster); wall seconds are under the machine's load, CPU seconds "
+                    "are this process's"}
 
 
 def _floor_of(img) -> float:
@@ -396,6 +515,8 @@ def run_sections(sections: tuple[str, ...] = SECTIONS, quick: bool = False, envm
                                         vspp, VR_SEEDS) for name in VR_SCENES}
         vr["spheres_hdr"] = _variance_reduction(hscene, vspp, VR_SEEDS) if hscene is not None else skipped
         out["variance_reduction"] = vr
+    if "throughput" in sections:
+        out["throughput"] = _throughput(quick)
     return out
 
 
@@ -434,7 +555,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     asset = bench_asset(scene, spp, max(rep, 1 if quick else ASSET_REPEATS), quick=quick)
 
     sections = run_sections(quick=quick, envmap=envmap)
-    samplers, vr = sections["samplers"], sections["variance_reduction"]
+    samplers, vr, tp = sections["samplers"], sections["variance_reduction"], sections["throughput"]
 
     # Time to a trusted verdict: per-sample variance sigma^2 = mean pixel variance (covered pixels,
     # as the comparator's noise floor) x spp.
@@ -463,9 +584,16 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     }
     goals = {f"{k}_goal": v for k, v in GOALS.items()}
     met = {k: figures[k] >= v for k, v in GOALS.items()}
+    # the throughput goal at the users' spp (issue 39: 1024), by backend
+    key = f"vs_path_same_bsdf_at_{tp['goal_spp']}spp"
+    figures[key] = tp["vs_path_same_bsdf_at_goal_spp"]
+    goals[f"{key}_goal"] = tp["goal"]
+    met[key] = tp["goal_met"]
     return {
         **figures, **goals, "goals_met": met,
         "variant": mi.variant(),
+        "machine": machine(),
+        "throughput": tp,
         "scene": "spheres",
         "resolution": [W, H],
         "resolution_note": "the scene's own resolution" if not quick else "quick: reduced",

@@ -81,7 +81,7 @@ def register(sub, bench_sub) -> None:
     b.add_argument("--asset-only", action="store_true",
                    help="only the asset row: the ~50k-triangle textured asset and spheres, rendered alternately")
     b.add_argument("--section", action="append", choices=SECTIONS, default=None,
-                   help="only this section's figures (samplers, variance_reduction; repeatable)")
+                   help="only this section's figures (samplers, variance_reduction, throughput; repeatable)")
     b.set_defaults(func=_cmd_bench)
 
     b = bench_sub.add_parser("multiscatter", help="BSDF samples per second: random_walk against single "

@@ -93,6 +93,7 @@ from mitsuba.python.ad.integrators.common import RBIntegrator
 from .bsdf import MaterialView, SceneCalls
 from .env_radiance import bind_environment, exact_environment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
+from .opaque_sampler import Divisor, OpaqueMultijitter
 
 INTEGRATOR_NAME = "pbrcheck_reference"
 MODES = ("local", "path")
@@ -220,7 +221,8 @@ def camera_rays(sensor, sampler, per_pixel: int, pixels=None):
     film = sensor.film()
     size = film.crop_size()
     m = int(size[0]) * int(size[1]) if pixels is None else dr.width(pixels)
-    idx = dr.arange(mi.UInt32, m * per_pixel) // per_pixel
+    # per_pixel opaque: one kernel for every count (an adaptive render's levels)
+    idx = Divisor(per_pixel).div(dr.arange(mi.UInt32, m * per_pixel))
     if pixels is not None:
         idx = dr.gather(mi.UInt32, pixels, idx)
     y = idx // int(size[0])
@@ -420,6 +422,12 @@ class ReferenceIntegrator(RBIntegrator):
         # > 0: the variance channels from independent replicates of the sensor's sampler (a QMC
         # sampler's samples are not independent), at least this many (replicate_plan); 0: per-sample moments
         self.replicates = int(props.get("replicates", 0))
+        # the local estimator's replicates draw from OpaqueMultijitter (a multijitter sensor only)
+        self.opaque_sampler = bool(props.get("opaque_sampler", True))
+        # render_groups' passes replayed by dr.freeze (reference.frozen; opt-in: no gain measured on the CPU)
+        self.freeze = bool(props.get("freeze", False))
+        self._frozen = None  # the frozen pass (dr.freeze), made on first use
+        self._warm = None  # the shapes of the scene whose caches a traced pass filled
         # local: the BSDFs' parameters gathered per lane, the lobes traced once (bsdf.MaterialView)
         self.gather_materials = bool(props.get("gather_materials", True))
         self._table = None  # (the scene's shapes, MaterialView.table(scene))
@@ -747,12 +755,59 @@ class ReferenceIntegrator(RBIntegrator):
             dr.scatter(out, mi.Float(hits / spp), base + 6)
             return mi.TensorXf(out, (H, W, len(MOMENT_CHANNELS)))
 
+    def _estimate(self, scene, sensor, sampler, per: int, ids):
+        """(L x weight, hit) of one pass of :meth:`render_groups`: ``per`` lanes per pixel of ``ids``."""
+        ray, weight = camera_rays(sensor, sampler, per, ids)
+        L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
+        # A scene that cannot emit (black environment, no light) makes L a width-1 literal and
+        # block_sum would then return one block, not one per pixel: widen to the rays' width
+        # (adding a zero literal changes no value).
+        lanes_now = dr.width(ray.o)
+        return mi.Color3f(L * weight) + dr.zeros(mi.Color3f, lanes_now), mi.Bool(hit) | dr.zeros(mi.Bool, lanes_now)
+
+    def _pass(self, scene, sensor, sampler, per: int, ids):
+        """:meth:`_estimate`, traced, or with ``freeze`` (property; opt-in) replayed by ``dr.freeze``
+        (:mod:`reference.frozen`) once a traced pass has filled this integrator's caches for the
+        scene's shapes; ``per`` and the wavefront's width are part of the recording's key (a
+        Python-int size is baked into it)."""
+        shapes = tuple(scene.shapes())
+        if not self.freeze or self._warm is None or len(self._warm) != len(shapes) or any(
+                a is not b for a, b in zip(self._warm, shapes)):
+            out = self._estimate(scene, sensor, sampler, per, ids)
+            self._warm = shapes if self.freeze else None
+            return out
+        if self._frozen is None:
+            self._frozen = dr.freeze(lambda scene, sensor, sampler, per, ids, width, state:
+                                     self._estimate(scene, sensor, sampler, per, ids))
+        from .frozen import jit_state
+
+        state = jit_state([{k: v for k, v in vars(self).items() if k not in ("progress", "_frozen", "_warm")},
+                           list(scene.emitters()), [s.bsdf() for s in shapes], sensor])
+        return self._frozen(scene, sensor, sampler, per, ids, dr.width(ids) * per, state)
+
+    def _replicate_sampler(self, sensor, n: int):
+        """The sampler of a replicate of ``n`` samples: the sensor's, or, for the local estimator
+        and a ``multijitter`` sensor, :class:`reference.opaque_sampler.OpaqueMultijitter` (the same
+        samples, bit for bit, with the count opaque: one kernel for every count, property
+        ``opaque_sampler``; the ``path`` mode hands its sampler to Mitsuba's C++ integrator)."""
+        base = sensor.sampler()
+        if self.mode == "local" and self.opaque_sampler and base.class_name() == "MultijitterSampler":
+            if not multijitter_count_ok(n):
+                raise ValueError(f"{INTEGRATOR_NAME}: multijitter does not take {n} samples per pixel as they are")
+            return OpaqueMultijitter(n)
+        sampler = base.clone()
+        sampler.set_sample_count(n)
+        if int(sampler.sample_count()) != n:
+            raise ValueError(f"{INTEGRATOR_NAME}: the sampler takes {int(sampler.sample_count())} "
+                             f"samples per pixel, not the replicate's {n}")
+        return sampler
+
     def _render_replicates(self, scene, sensor, seed, spp, W, H):
         """Moments render from K independent replicates of ``spp / K`` samples (:func:`replicate_plan`)."""
         K, n = replicate_plan(spp, self.replicates)
         return self.render_groups(scene, sensor, [(None, K, n, 0)], seed, W, H)
 
-    def render_groups(self, scene, sensor, groups, seed, W, H):
+    def render_groups(self, scene, sensor, groups, seed, W, H, variance: bool = True):
         """``(H, W, 7)`` moments (:data:`MOMENT_CHANNELS`) from independent replicates, by groups of
         pixels: ``groups`` = ``[(pixels, K, n, stream), ...]``, ``pixels`` a numpy array of pixel
         indices (row-major; None: every pixel), rendered as K replicates of n samples each.
@@ -766,7 +821,8 @@ class ReferenceIntegrator(RBIntegrator):
         :func:`replicate_parts` passes (``advance`` between them: one point set). The pixel means
         ``Y_r`` of the replicates give the estimate ``mean(Y)`` and its variance ``s^2(Y) / K``,
         unbiased because the replicates are i.i.d. A pixel in no group is 0 with variance 0 and
-        coverage 0."""
+        coverage 0. ``variance`` False (no error bars asked for): K may be 1, the variance channels
+        are 0."""
         self._to_view = sensor.world_transform().inverse()
         npix = W * H
         nch = len(MOMENT_CHANNELS)
@@ -774,7 +830,7 @@ class ReferenceIntegrator(RBIntegrator):
         lanes = max_lanes()
         with dr.suspend_grad():
             for pixels, K, n, stream in groups:
-                if K < 2:
+                if K < (2 if variance else 1):
                     raise ValueError(f"{INTEGRATOR_NAME}: a replicate render needs K >= 2 replicates, not {K}")
                 pix = np.arange(npix, dtype=np.uint32) if pixels is None else np.asarray(pixels, dtype=np.uint32)
                 m = len(pix)
@@ -788,24 +844,13 @@ class ReferenceIntegrator(RBIntegrator):
                 for c, r0 in enumerate(range(0, K, R)):
                     r1 = min(K, r0 + R)
                     ids = mi.UInt32(np.tile(pix, r1 - r0))
-                    sampler = sensor.sampler().clone()
-                    sampler.set_sample_count(n)
-                    if int(sampler.sample_count()) != n:
-                        raise ValueError(f"{INTEGRATOR_NAME}: the sampler takes {int(sampler.sample_count())} "
-                                         f"samples per pixel, not the replicate's {n}")
+                    sampler = self._replicate_sampler(sensor, n)
                     sampler.set_samples_per_wavefront(per)
                     sampler.seed(pass_seed(seed, stream + c), (r1 - r0) * m * per)
                     for j in range(parts):
                         if j:
                             sampler.advance()
-                        ray, weight = camera_rays(sensor, sampler, per, ids)
-                        L, hit = self.radiance(scene, sampler, ray, mi.Bool(True))
-                        # A scene that cannot emit (black environment, no light) makes L a width-1 literal
-                        # and block_sum would then return one block, not one per pixel: widen to the rays'
-                        # width (adding a zero literal changes no value).
-                        lanes_now = dr.width(ray.o)
-                        L = mi.Color3f(L * weight) + dr.zeros(mi.Color3f, lanes_now)
-                        hit = mi.Bool(hit) | dr.zeros(mi.Bool, lanes_now)
+                        L, hit = self._pass(scene, sensor, sampler, per, ids)
                         dr.eval(L, hit)  # one kernel (see render)
                         p1 = dr.block_sum(L, per)
                         ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), per)
@@ -816,7 +861,8 @@ class ReferenceIntegrator(RBIntegrator):
                             self.progress(per * m * (r1 - r0) / npix)
                 y /= n
                 out[pix, 0:3] = y.mean(1).T
-                out[pix, 3:6] = y.var(1, ddof=1).T / K
+                if variance:
+                    out[pix, 3:6] = y.var(1, ddof=1).T / K
                 out[pix, 6] = hits / (K * n)
             return mi.TensorXf(mi.Float(out.ravel().astype(np.float32)), (H, W, nch))
 

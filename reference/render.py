@@ -40,7 +40,7 @@ glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_texture
 
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`check_budget` (pixels, samples), :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
-:func:`adaptive_allocation`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
+:func:`adaptive_allocation`, :func:`lean_plan`, :data:`LEAN_OUTPUTS`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
 :data:`ASSET_CODE_VERSION`,
 :data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
 References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
@@ -260,6 +260,18 @@ def adaptive_allocation(mean: np.ndarray, var: np.ndarray, pilot_spp: int, spp: 
     return quantize(lo)
 
 
+#: What :func:`render_uncached` computes for a caller that reads the radiance alone.
+LEAN_OUTPUTS = {"error_bars": False, "aovs": False}
+
+
+def lean_plan(spp: int) -> tuple[int, int]:
+    """(K, n) of a ``qmc`` render without error bars: the fewest replicates (1, else 2, ...) whose
+    count multijitter takes (:func:`reference.integrator.replicate_plan` with one replicate)."""
+    from .integrator import replicate_plan  # local: needs the variant set
+
+    return replicate_plan(int(spp), 1)
+
+
 def load_integrator(mode: str = "local", max_depth: int | None = None, *, moments: bool = True,
                     sampler: str = "independent", mis: str = "power", env_sampling: str | None = None,
                     env_candidates: int | None = None):
@@ -348,8 +360,13 @@ def check_budget(scene: Scene, spp: int) -> None:
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
-                    mis: str = "power", env_sampling: str | None = None, env_candidates: int | None = None) -> Image:
-    """Render without the cache (see :func:`render_reference`); ``mis``: the local estimator's MIS
+                    mis: str = "power", env_sampling: str | None = None, env_candidates: int | None = None,
+                    error_bars: bool = True, aovs: bool = True) -> Image:
+    """Render without the cache (see :func:`render_reference`). ``error_bars`` False (``qmc``
+    only): no variance channels, the final image one QMC sequence per pixel where multijitter takes
+    the count (:func:`lean_plan`: lower variance, no replicate accumulation; other samples than the
+    default's); ``aovs`` False: no AOV pass (``N.*``, ``NdotV``, ``object``): what a caller that
+    reads the radiance alone needs (:data:`LEAN_OUTPUTS`). ``mis``: the local estimator's MIS
     heuristic, ``env_sampling``: its environment proposal (``reference.env_sampling``),
     ``env_candidates``: RIS of the env sample (:func:`load_integrator`), all for measurements only
     (not part of the cache key: :func:`render_reference` always renders the defaults,
@@ -386,8 +403,12 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
                   total=spp + pilot_spp, unit="spp", enabled=progress) as prog:
         integrator.progress = prog.update
         r_wall, r_cpu = time.perf_counter(), time.process_time()
+        lean = not error_bars and sampler == "qmc"
         try:
-            if not adaptive:
+            if not adaptive and lean:
+                out = np.array(integrator.render_groups(mscene, sensor, [(None, *lean_plan(spp), 0)], seed, W, H,
+                                                        variance=False), dtype=np.float64)
+            elif not adaptive:
                 out = np.array(mi.render(mscene, sensor=sensor, integrator=integrator, spp=spp, seed=seed),
                                dtype=np.float64)
             else:
@@ -397,18 +418,22 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
                                            seed=seed), dtype=np.float64)
                 alloc = adaptive_allocation(pilot[..., :3], pilot[..., 3:6], pilot_spp, spp)
                 levels = np.unique(alloc)
-                groups = [(np.flatnonzero(alloc == lv), *replicate_plan(int(lv)), (g + 1) << 20)
+                plan = lean_plan if lean else replicate_plan
+                groups = [(np.flatnonzero(alloc == lv), *plan(int(lv)), (g + 1) << 20)
                           for g, lv in enumerate(levels)]
-                out = np.array(integrator.render_groups(mscene, sensor, groups, seed, W, H), dtype=np.float64)
+                out = np.array(integrator.render_groups(mscene, sensor, groups, seed, W, H, variance=not lean),
+                               dtype=np.float64)
         finally:
             integrator.progress = None
         # The render alone (no scene load, no AOV pass): its wall time, and the CPU time of this
         # process's threads over it, which other processes sharing the cores do not inflate
         # (compare.verdict_spp.seconds_per_spp sizes the report's reference budget from it).
         r_wall, r_cpu = time.perf_counter() - r_wall, time.process_time() - r_cpu
-    ch = {c: out[..., i] for i, c in enumerate(MOMENT_CHANNELS)}
-    shape_index = {shape_id(i): i for i in range(len(scene.objects))}
-    ch.update(_aovs(mi, dr, mscene, sensor, scene, shape_index))
+    ch = {c: out[..., i] for i, c in enumerate(MOMENT_CHANNELS)
+          if error_bars or sampler != "qmc" or not c.startswith("variance.")}
+    if aovs:
+        shape_index = {shape_id(i): i for i in range(len(scene.objects))}
+        ch.update(_aovs(mi, dr, mscene, sensor, scene, shape_index))
     import drjit  # already imported by _mi(); local like there
     import mitsuba
 
@@ -437,9 +462,11 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "render_cpu_seconds": f"{r_cpu:.3f}",
         "threads": str(dr.thread_count()),
     }
+    meta["outputs"] = "+".join(["radiance", "coverage"] + (["variance"] if "variance.R" in ch else [])
+                               + (["aovs"] if aovs else []))
     if sampler == "qmc":
-        K, n = replicate_plan(spp) if not adaptive else (None, 0)
-        meta["replicates"] = str(K) if K else "16 or 32 by level"
+        K, n = (lean_plan if lean else replicate_plan)(spp) if not adaptive else (None, 0)
+        meta["replicates"] = str(K) if K else ("1 or 2 by level (no error bars)" if lean else "16 or 32 by level")
         meta["adaptive"] = "off"
         if not adaptive:
             meta["samples_per_replicate"] = str(n)

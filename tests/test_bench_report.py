@@ -33,6 +33,7 @@ def test_goal_follows_the_reference_backend(monkeypatch):
     # both runs share one temporary cache and HOME, neither the user's
     assert e1["PBRCHECK_CACHE"] == e2["PBRCHECK_CACHE"] and "pbrcheck-bench-report-" in e1["PBRCHECK_CACHE"]
     assert e1["HOME"] == e2["HOME"] and "pbrcheck-bench-report-" in e1["HOME"]
+    assert e1["PBRCHECK_KERNEL_HISTORY"] == "1"  # the runs count their Dr.Jit kernels per stage
     seen.clear()
     variant = "cuda_ad_rgb"
     res = runlog.bench_report(None, fresh_home=False, progress=False)
@@ -72,6 +73,11 @@ def test_bench_report_runs_the_report_twice(capsys):
     assert {"reference", "realtime", "flip"} <= set(first["work"])
     assert sum(v["wall_s"] for v in first["work"].values()) <= first["wall_s"]
     assert "flip" not in again["work"]
+    # Dr.Jit kernels per stage (reference.kernel_stats): the first run compiles the reference's
+    ref = next(s for s in first["stages"] if s["name"] == "furnace: reference")
+    assert ref["kernels"]["launched"] >= 1 and ref["kernels"]["compiled"] >= 1
+    assert res["first_kernels"]["compiled"] >= ref["kernels"]["compiled"]
+    assert res["compiled_kernels_goal"] == runlog.COMPILED_KERNELS_GOAL
 
 
 def test_work_is_counted_by_kind_exclusive_of_nested_kinds():
@@ -107,6 +113,36 @@ def test_stage_table_prints_wall_and_cpu_per_stage_and_kind():
     assert row["(none of these)"][-2:] == ["4.0", "4.0"]
     section = runlog.run_section({**run, "backends": {}, "caches": {}})
     assert [r[0] for r in section.tables[1].rows] == ["reference"]
+
+
+def test_stages_count_dr_jit_kernels_where_asked(monkeypatch):
+    """With PBRCHECK_KERNEL_HISTORY=1 a run log counts each stage's Dr.Jit kernels, launched and compiled
+    (a new kernel: compiled once, launched twice), and the terminal table shows them."""
+    import drjit as dr
+
+    from reference import kernel_stats
+    from reference.render import _mi
+
+    mi, _ = _mi()
+    monkeypatch.setenv(kernel_stats.ENV, "1")
+    try:
+        log = runlog.RunLog()
+        with log.stage("one"):
+            seed = float(__import__("time").time_ns() % 100003)  # a kernel no other test compiled
+            for k in range(2):
+                dr.eval(dr.arange(mi.Float, 7) * seed + dr.opaque(mi.Float, k))
+        with log.stage("none"):
+            pass
+        run = log.to_dict()
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    one, none = run["stages"]
+    assert one["kernels"]["launched"] == 2 and one["kernels"]["compiled"] == 1
+    assert none["kernels"] == {"launched": 0, "compiled": 0, "disk": 0, "compiled_ops": 0}
+    assert run["kernels"]["launched"] >= 2
+    table = runlog.stage_table({**run, "wall_s": 1.0, "cpu_s": 1.0})
+    row = next(ln for ln in table.splitlines() if ln.startswith("one"))
+    assert row.split()[-2:] == ["2", "1"] and "Dr.Jit kernels:" in table
 
 
 def test_first_run_says_whether_the_machine_was_quiet(monkeypatch, tmp_path):

@@ -269,6 +269,16 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
             assert np.isfinite(a[label][k]) and (k == "mean_z" or a[label][k] > 0), (label, k)
     assert a["independent"]["variance_ratio"] == 1.0 and a["target_floor"] > 0
     assert "ris4" in res["variance_reduction"]["spheres"]  # the RIS candidate (reference.integrator.resampled_estimate)
+    # throughput (issue 39): pbrcheck against mi.render + path, same BSDF and roughconductor, 3 spp x 2 sizes
+    t = res["throughput"]
+    assert len(t["rows"]) == 6 and {tuple(r["resolution"]) for r in t["rows"]} == {(16, 12), (24, 20)}
+    assert t["machine"] == res["machine"] and res["variant"] in t["machine"]
+    for r in t["rows"]:
+        for k in ("vs_path_same_bsdf", "vs_path_roughconductor", "vs_path_same_bsdf_cpu", "lean_vs_path_same_bsdf_cpu"):
+            assert np.isfinite(r[k]) and r[k] > 0, k
+    key = f"vs_path_same_bsdf_at_{t['goal_spp']}spp"
+    assert t["goal_spp"] == 16 and res[key] == t["vs_path_same_bsdf_at_goal_spp"]
+    assert res[f"{key}_goal"] == t["goal"] and key in res["goals_met"]
     from reference.bench import run_sections
     with pytest.raises(ValueError, match="section must be one of"):
         run_sections(("samplers", "everything"), quick=True)

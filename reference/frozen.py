@@ -1,0 +1,58 @@
+"""``dr.freeze`` of the reference's render pass: the Dr.Jit state a pass reads, as the frozen function's inputs.
+
+A frozen function (Dr.Jit 1.5, ``dr.freeze``) records its kernels once and replays them for inputs
+of the same layout, without Python tracing. Every Dr.Jit variable it reads must be one of its
+inputs; the local estimator reads, besides the scene (a Mitsuba object, traversable), the
+integrator's cached tables (gathered materials, the environment's exact lookup and its proposal,
+the scene's dispatch tables: plain Python objects) and the Python BSDFs' and emitters' own arrays.
+:func:`jit_state` collects them: Dr.Jit arrays and structs, Mitsuba objects and
+``mi.DiscreteDistribution`` (traversable), and the attributes of the project's own Python objects,
+recursively. A changed scene (other shapes, materials or environment) has other arrays, so the
+frozen function sees other inputs: it replays with their values, or records anew where their
+layout differs (never a stale image: ``tests/test_reference_speed.py``).
+
+Measured on the CPU (2 threads, spheres, ``render_groups`` of 16 replicates x 4 samples, median
+process CPU seconds of warm runs): 90 x 75: traced 0.063, frozen 0.063; 180 x 150: traced 0.228,
+frozen 0.209. On the CPU the pass is bound by its kernel and the replay's traversal of the inputs
+costs about what the trace saved; hence opt-in (``ReferenceIntegrator.freeze``) until a GPU, where
+tracing is the larger share, measures it (issue 39).
+
+API: :func:`jit_state`.
+"""
+
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+
+#: Modules whose objects' attributes :func:`jit_state` walks (the project's own classes).
+OWN_MODULES = ("reference", "pbrcheck")
+
+
+def jit_state(obj, out: list | None = None, seen: set | None = None) -> list:
+    """The Dr.Jit arrays, structs and traversable Mitsuba objects reachable from ``obj`` (dicts,
+    lists, tuples and the attributes of the project's own objects), each once."""
+    out = [] if out is None else out
+    seen = set() if seen is None else seen
+    if obj is None or isinstance(obj, (bool, int, float, str, bytes)) or id(obj) in seen:
+        return out
+    seen.add(id(obj))
+    if isinstance(obj, mi.DiscreteDistribution) or dr.is_array_v(obj) or hasattr(type(obj), "DRJIT_STRUCT"):
+        out.append(obj)
+        return out
+    if isinstance(obj, dict):
+        for v in obj.values():
+            jit_state(v, out, seen)
+        return out
+    if isinstance(obj, (list, tuple)):
+        for v in obj:
+            jit_state(v, out, seen)
+        return out
+    if isinstance(obj, mi.Object):
+        out.append(obj)
+    if hasattr(obj, "__dict__") and type(obj).__module__.startswith(OWN_MODULES):
+        jit_state(vars(obj), out, seen)
+    return out
+
+
+__all__ = ["OWN_MODULES", "jit_state"]

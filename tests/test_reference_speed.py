@@ -1,0 +1,70 @@
+"""Issue 39: the reference computes only what its caller uses (no error bars, no AOVs)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import pbrcheck  # noqa: F401
+from pbrcheck.scene import load_scene
+from reference.variant import ensure_variant
+
+ensure_variant()
+from reference import render as rr  # noqa: E402  (needs the variant set)
+from reference.render import render_uncached  # noqa: E402
+
+#: Share of pixel-channels within 1.96 standard deviations that two unbiased, calibrated estimates
+#: reach at least (0.95 expected; 0.85 leaves room for the variance channels' own noise, K = 16).
+WITHIN_MIN = 0.85
+
+
+def test_lean_render_has_no_error_bars_or_aovs_and_agrees():
+    """error_bars=False, aovs=False: radiance and coverage only, one QMC sequence per pixel (K = 1 where
+    multijitter takes the count), the same image as the default within the default's error bars."""
+    scene = load_scene("spheres").with_camera(width=32, height=24)
+    full = render_uncached(scene, spp=256, seed=1, progress=False, adaptive=False)
+    lean = render_uncached(scene, spp=256, seed=2, progress=False, adaptive=False, **rr.LEAN_OUTPUTS)
+    assert sorted(lean.channels) == ["B", "G", "R", "coverage"]
+    assert lean.meta["outputs"] == "radiance+coverage" and full.meta["outputs"] == "radiance+coverage+variance+aovs"
+    assert lean.meta["replicates"] == "1" and lean.meta["samples_per_replicate"] == "256"
+    assert rr.lean_plan(256) == (1, 256) and rr.lean_plan(128) == (2, 64)
+    d = np.stack([lean.channels[c] - full.channels[c] for c in "RGB"])
+    v = np.stack([full.channels[f"variance.{c}"] for c in "RGB"])
+    # the lean image's variance is at most the default's (same spp, QMC over all of them): 2 v bounds the sum
+    within = np.mean(np.abs(d) <= 1.96 * np.sqrt(2 * v) + 1e-7)
+    assert within >= WITHIN_MIN, within
+    np.testing.assert_allclose(lean.channels["coverage"], full.channels["coverage"], atol=0.15)
+    # adaptive: the pilot keeps its variance (the allocation needs it), the levels none
+    ada = render_uncached(scene, spp=256, seed=3, progress=False, error_bars=False)
+    assert "variance.R" not in ada.channels and "N.X" in ada.channels
+    assert ada.meta["replicates"].startswith("1 or 2")
+
+
+def test_frozen_pass_equals_the_traced_one_and_a_changed_scene_is_not_stale():
+    """ReferenceIntegrator.freeze: render_groups' passes replayed by dr.freeze give the traced pixels bit
+    for bit (one recording for repeated passes of one layout); another scene (other materials) gives its
+    own traced pixels, not a replay of the first one's."""
+    from dataclasses import replace
+
+    from reference.integrator import sensor_dict
+
+    mi, _ = rr._mi()
+    scene = load_scene("spheres").with_camera(width=24, height=20)
+    objs = [replace(o, material=replace(o.material, roughness=min(1.0, o.material.roughness + 0.3),
+                                        base_color=tuple(0.5 * c for c in o.material.base_color)))
+            for o in scene.objects]
+    other = replace(scene, objects=objs)
+    sensor = mi.load_dict(sensor_dict(scene.camera, 16, "qmc"))
+    groups = [(None, 16, 4, 0)]
+    traced = rr.load_integrator("local", sampler="qmc")
+    frozen = rr.load_integrator("local", sampler="qmc")
+    frozen.freeze = True
+    outs = {}
+    for name, sc in (("first", scene), ("other", other)):
+        ms = rr.load_mitsuba_scene(sc)
+        want = np.array(traced.render_groups(ms, sensor, groups, 5, 24, 20))
+        got = [np.array(frozen.render_groups(ms, sensor, groups, 5, 24, 20)) for _ in range(3)]
+        for g in got:  # the first traced (it fills the caches), the next two replayed
+            np.testing.assert_array_equal(g, want)
+        outs[name] = want
+    assert frozen._frozen is not None and frozen._frozen.n_recordings >= 1
+    assert np.abs(outs["first"][..., :3] - outs["other"][..., :3]).max() > 0.05  # the replay is not stale
