@@ -92,7 +92,7 @@ from pbrcheck.scene import Environment, Scene
 
 from .. import renderers
 from ..maps import srgb_oetf
-from ..metrics import NOISE_EXPLAINS_FACTOR, NOISE_SEED, REL_EPS, validate_pair
+from ..metrics import NOISE_EXPLAINS_FACTOR, NOISE_SEED, REL_EPS, TEST_VARIANCE_META, validate_pair
 
 #: A hypothesis "explains" the difference when undoing it leaves at most this fraction of the error
 #: (the error at least halves). Generous enough that a correct image's residual approximation error
@@ -417,6 +417,25 @@ def _relmse(r: np.ndarray, t: np.ndarray) -> float:
     return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
 
 
+#: Image-space hypotheses that only move pixels or channels: the test's variance moves with them.
+PERMUTATIONS = ("flip_vertical", "flip_horizontal", "swap_rb")
+
+
+def _test_variance_after(h: "Hypothesis", r: np.ndarray, t: np.ndarray, t2: np.ndarray, tvar: np.ndarray | None,
+                         fitted: dict) -> np.ndarray | None:
+    """The variance of the test after hypothesis ``h`` undid its mismatch (``tvar``: a Monte Carlo
+    engine's own, :data:`compare.metrics.TEST_VARIANCE_META`): unchanged where ``h`` leaves the
+    test alone (scene-space rows, clamps of the reference), moved with the pixels by a permutation,
+    times ``k^2`` by an exposure ``k``; None (not subtracted) through a non-linear transfer (sRGB)."""
+    if tvar is None or t2 is t:
+        return tvar
+    if h.name in PERMUTATIONS:
+        return h.apply(r, tvar, None)[1]
+    if h.name == "exposure":
+        return tvar * fitted["factor"] ** 2
+    return None
+
+
 def _error(r: np.ndarray, t: np.ndarray, var: np.ndarray | None, w: np.ndarray) -> float:
     """Noise-corrected relative MSE of ``t`` against the estimate ``r`` whose per-pixel variance is
     ``var``, weighted by ``w = 1 / (ref^2 + eps)`` of the *original* reference (fixed for every
@@ -485,11 +504,20 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
                             f"the images are {ref.shape[1]}x{ref.shape[0]}")
     r, t = ref.rgb.astype(np.float64), test.rgb.astype(np.float64)
     var = ref.variance
+    # A Monte Carlo engine's own noise (the renderer contract's variance) is subtracted like the
+    # reference's: the two variances add (independent noises).
+    tvar = test.variance if TEST_VARIANCE_META in test.meta else None
+    tvar = None if tvar is None else np.clip(tvar.astype(np.float64), 0.0, None)
+
+    def total(v, tv):
+        return v if tv is None else (tv if v is None else np.clip(v, 0.0, None) + tv)
+
     w = 1.0 / (r * r + REL_EPS)  # the relative-error weight of every row: the reference's
-    before = _error(r, t, var, w)
+    before = _error(r, t, total(var, tvar), w)
     per_pixel = ((t - r) ** 2 * w).sum(axis=-1)
     bulk = per_pixel <= np.quantile(per_pixel, 1.0 - BULK_OUTLIERS)
-    before_bulk = _error(r[bulk], t[bulk], None if var is None else var[bulk], w[bulk])
+    v0 = total(var, tvar)
+    before_bulk = _error(r[bulk], t[bulk], None if v0 is None else v0[bulk], w[bulk])
     noise = _noise_error(ref)
     cov = ref.channels.get("coverage")
     if scene is not None:
@@ -517,6 +545,7 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
                 rows.append(HypothesisRow(h.name, h.kind, h.description, None, None, False, {}, skipped))
             else:
                 r2, t2, var2, fitted = undo(h, Path(tmp))
+                var2 = total(var2, _test_variance_after(h, r, t, t2, tvar, fitted))
                 err = _error(r2, t2, var2, w)
                 red = 1.0 - err / before if before > 0 else 0.0
                 err_bulk = _error(r2[bulk], t2[bulk], None if var2 is None else var2[bulk], w[bulk])
