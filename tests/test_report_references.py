@@ -122,3 +122,77 @@ def test_threejs_furnace_is_explained_by_the_random_walk(tmp_cache):
     [p] = measure_references(s, ["ext:threejs"], 32)
     assert p.vs_single["relmse"] > 0.05
     assert p.share > 0.9, p.to_dict()
+
+
+# --- the model-matched truth: report --reference-mode path (issue 40) ------------------------------
+
+MODES_SEEN: list = []
+
+
+def matched_references(scene, **kw):
+    """The plain truth (single scattering, local) 0.6 on the sphere; the walk in path mode, the
+    model-matched truth, 1.0 (what the compensating fake engine renders); any other 0.8."""
+    mode = kw.get("mode", "local")
+    MODES_SEEN.append((scene.brdf.multiscatter, mode))
+    img = fake_reference(scene, **{k: v for k, v in kw.items() if k != "mode"})
+    ids = np.rint(img.channels["object"])
+    walk = scene.brdf.multiscatter == "random_walk"
+    val = 1.0 if (walk and mode == "path") else (0.6 if (not walk and mode == "local") else 0.8)
+    for c in "RGB":
+        img.channels[c] = np.where(ids >= 0, val, 1.0).astype(np.float32)
+    img.meta["mode"] = mode
+    return img
+
+
+@pytest.fixture
+def matched(compensating, monkeypatch):
+    monkeypatch.setattr(renderers, "render_reference", matched_references)
+    MODES_SEEN.clear()
+    return compensating
+
+
+def test_path_mode_sets_the_engine_against_the_model_matched_truth_per_material(matched):
+    s = scene_from_dict(SCENE)
+    [p] = measure_references(s, ["ext:pfm"], 64, mode="path")
+    assert p.physics == ["multiple scattering (random walk)", "visibility and interreflection (path)"]
+    assert ("none", "local") in MODES_SEEN and ("random_walk", "path") in MODES_SEEN
+    assert p.vs_single["relmse"] > 0.1 and p.share > 0.99
+    [m] = p.materials                                       # one sphere: one row
+    assert m["relmse_plain"] == pytest.approx(p.vs_single["relmse"]) and m["share"] > 0.99
+    # local mode: the walk alone (as before the option), its share and per-object rows too
+    MODES_SEEN.clear()
+    [q] = measure_references(s, ["ext:pfm"], 64)
+    assert q.physics == ["multiple scattering (random walk)"] and set(MODES_SEEN) == {("none", "local"),
+                                                                                      ("random_walk", "local")}
+    assert q.share == pytest.approx(1 - (0.2 ** 2 / 0.65) / (0.4 ** 2 / 0.37), abs=1e-3)   # 0.8 vs 0.6: part of it
+
+
+def test_an_asset_scene_is_matched_by_visibility_alone_in_path_mode(tmp_path):
+    from gltf_build import quad_asset, quad_scene
+    from compare.report.references import matched_scene
+    from pbrcheck.scene import load_scene
+    asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
+    s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
+    none, physics, why = matched_scene(s, "local")
+    assert none is None and physics == [] and "glTF assets" in why
+    got, physics, why = matched_scene(s, "path")
+    assert got is s and physics == ["visibility and interreflection (path)"]
+
+
+def test_report_states_the_reference_mode_and_the_share_per_material(matched, tmp_path):
+    from compare.report.build import ReportConfig, build_report
+
+    (tmp_path / "tiny.toml").write_text(dump_toml(SCENE))
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm"], spp=4, convergence=False, sweep=False,
+                                      furnace=False, progress=False, reference_mode="path"))
+    html = index.read_text()
+    assert "set against the reference in mode <code>path</code>" in html and "visibility (shadows)" in html
+    assert ("none", "path") in MODES_SEEN          # the scene's own reference: path
+    sec = html[html.index('id="references"'):]
+    assert "model-matched (walk, path)" in sec and "Per material" in sec and "100 %" in sec
+    rows = json.loads((tmp_path / "r" / "tiny" / "references.json").read_text())
+    assert rows[0]["materials"][0]["share"] > 0.99 and "visibility" in rows[0]["model_matched_physics"][-1]
+    with pytest.raises(Exception, match="reference-mode"):
+        build_report([str(tmp_path / "tiny.toml")], tmp_path / "r2", ReportConfig(presets=["ext:pfm"],
+                                                                                  reference_mode="walk"))

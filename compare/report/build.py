@@ -38,7 +38,7 @@ from ..research.fit_roughness import fit_scene
 from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import MIN_REFERENCE_SPP, VerdictSpp
-from .references import references_sections
+from .references import REFERENCE_MODES, references_sections
 from .research_sections import ResearchSettings, research_parts
 from .results import SceneSection
 from .runlog import RUN_FILE, RunLog, run_section
@@ -80,6 +80,9 @@ class ReportConfig:
     scheduler: str | None = None
     cache: bool = True
     progress: bool = True
+    #: The reference mode every renderer is set against (``local``: first hit, no shadows or
+    #: interreflection; ``path``: visibility and interreflection); the page states it per scene.
+    reference_mode: str = "local"
 
 
 @dataclass
@@ -104,7 +107,8 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
             page.top.append(furnace_section(list(presets), st.spp, prog, context=st.context))
 
     def references(prog):  # ext:NAME against both references
-        page.top += references_sections(scenes, sections(), list(presets), out_dir, prog, context=st.context)
+        page.top += references_sections(scenes, sections(), list(presets), out_dir, prog, context=st.context,
+                                        mode=cfg.reference_mode)
 
 
     def hardcases(prog):
@@ -170,6 +174,9 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict | 
     presets = list(cfg.presets) if cfg.presets is not None else renderers.preset_names()
     if not presets:
         raise PbrcheckError("report: no preset to compare")
+    if cfg.reference_mode not in REFERENCE_MODES:
+        raise PbrcheckError(f"report: --reference-mode must be one of {', '.join(REFERENCE_MODES)}, "
+                            f"not {cfg.reference_mode!r}")
     if cfg.spp < MIN_REFERENCE_SPP:
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {cfg.spp}")
     vary_d = parse_vary(cfg.vary) if cfg.vary else None
@@ -237,7 +244,7 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     with renderers.prefetch_external(_prefetch_jobs(scenes, presets, cfg)) as prefetched, \
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
-                            approximations=cfg.approximations,
+                            approximations=cfg.approximations, reference_mode=cfg.reference_mode,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

@@ -17,6 +17,17 @@ The share of an engine's error that is the reference's physics is ``1 - relmse_r
 (``relmse``: compare/metrics.py): near 1 when the engine matches the true multiple-scattering BSDF
 and differs from the single-scattering one only there; negative when the walk is further from it.
 
+**The model-matched truth** (``pbrcheck report --reference-mode path``): the second reference is
+the random walk rendered in the report's reference mode, so in ``path`` mode it carries both
+pieces of physics the plain truth lacks (multiple scattering and visibility: shadows and
+interreflection), and the share column is the part of each engine's error that is the plain
+truth's missing physics. A glTF asset scene has no walk (its textured material is
+single-scattering): in ``path`` mode its model-matched truth is the path reference (visibility
+only); in ``local`` mode it has none, as before. The first reference (the plain truth) is always
+the single-scattering ``local`` one. The same share per material (glTF assets: per material; other
+scenes: per object) is the ``materials`` list of ``references.json`` and the section's second table.
+The metallic blend is not yet part of the model-matched truth (issue 40 item 4).
+
 A scene whose BRDF has no random walk (``brdf.ndf`` / ``brdf.geometry`` outside
 :data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`) gets a row saying so; a display-referred engine
 (``png-srgb``) is compared in display space as everywhere in the report.
@@ -25,7 +36,10 @@ API
 ---
 - :func:`random_walk_scene` -- the scene with the random walk, or the reason it has none.
 - :func:`single_scattering_scene` -- the scene with ``multiscatter = "none"``.
+- :func:`matched_scene` -- the model-matched truth's scene and the physics it adds, for a mode.
 - :func:`measure_references` -- one :class:`ReferencePair` per external renderer of one scene.
+- :func:`share_of` -- ``1 - matched / plain``.
+- :data:`REFERENCE_MODES` -- the reference modes of ``report --reference-mode`` and what each truth has.
 - :func:`references_sections` -- the report section (``[]`` without an external renderer) and
   ``OUT/<scene>/references.json``.
 
@@ -53,6 +67,15 @@ from .section import Section, Table
 RANDOM_WALK_MAX_SPP = 256
 #: The metrics shown for each reference (the gate's three).
 REFERENCE_METRICS = ("relmse", "flip_mean", "delta_e_itp_mean")
+#: The reference modes a report may set its renderers against, and what each truth has (the page's words).
+REFERENCE_MODES = {
+    "local": "first hit only, the environment and the lights unshadowed (no visibility, no interreflection): "
+             "the model of a real-time shader",
+    "path": "a path tracer's truth: visibility (shadows) and interreflection, up to the reference's max_depth",
+}
+#: Most materials (or objects) listed per renderer in the per-material share table of the page
+#: (all of them are in references.json).
+MATERIAL_ROWS_SHOWN = 40
 
 
 def _fmt(v) -> str:
@@ -97,23 +120,46 @@ class ReferencePair:
     spp_single: int = 0
     spp_random_walk: int = 0
     note: str = ""
+    #: What the second (model-matched) reference adds to the plain one: "multiple scattering
+    #: (random walk)", "visibility (path)"; empty: no second reference.
+    physics: list = field(default_factory=list)
+    #: Per material (glTF assets) or object: ``{"material", "pixels", "relmse_plain", "relmse_matched", "share"}``.
+    materials: list = field(default_factory=list)
 
     @property
     def share(self) -> float | None:
         """``1 - relmse_rw / relmse_ss``: the share of the error that is the reference's physics."""
         if not self.vs_random_walk:
             return None
-        a, b = self.vs_single.get("relmse"), self.vs_random_walk.get("relmse")
-        if a is None or b is None or a <= 0:
-            return None
-        return 1.0 - b / a
+        return share_of(self.vs_single.get("relmse"), self.vs_random_walk.get("relmse"))
 
     def to_dict(self) -> dict:
         return {"scene": self.scene, "renderer": self.renderer, "spp_single": self.spp_single,
                 "spp_random_walk": self.spp_random_walk, "vs_single": self.vs_single,
                 "within_noise_single": self.within_single, "vs_random_walk": self.vs_random_walk,
                 "within_noise_random_walk": self.within_random_walk, "share_of_error_from_reference": self.share,
-                "note": self.note}
+                "note": self.note, "model_matched_physics": self.physics, "materials": self.materials}
+
+
+def share_of(plain: float | None, matched: float | None) -> float | None:
+    """``1 - matched / plain``: the share of an error against the plain truth that its missing
+    physics accounts for (None where either is missing or the plain error is 0)."""
+    if plain is None or matched is None or plain <= 0:
+        return None
+    return 1.0 - matched / plain
+
+
+def _per_material(c_plain, c_matched) -> list[dict]:
+    """Per glTF material (else per object) of two comparisons of one engine: relmse against the
+    plain and the model-matched truth and the share."""
+    def rows(cmp):
+        if cmp.summary.get("materials"):
+            return {m["material"]: (m["pixels"], m["metrics"].get("relmse")) for m in cmp.summary["materials"]}
+        return {(o["name"] or f"object {o['id']}"): (o["pixels"], o["metrics"].get("relmse"))
+                for o in cmp.summary["objects"]}
+    a, b = rows(c_plain), rows(c_matched)
+    return [{"material": k, "pixels": a[k][0], "relmse_plain": a[k][1], "relmse_matched": b[k][1],
+             "share": share_of(a[k][1], b[k][1])} for k in a if k in b]
 
 
 def _within(cmp) -> dict:
@@ -121,16 +167,31 @@ def _within(cmp) -> dict:
     return {m: bool(noise and noise["within_noise"].get(m)) for m in REFERENCE_METRICS}
 
 
-def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None,
-                       context: renderers.RenderContext = renderers.DIRECT) -> list[ReferencePair]:
-    """Every renderer of ``externals`` on ``scene`` against the single-scattering reference at
-    ``spp`` and the random-walk one at ``min(spp, RANDOM_WALK_MAX_SPP)`` (both through
-    :mod:`compare.renderers` with the cache; the external images from the clients' cache)."""
-    ss = renderers.render_reference(single_scattering_scene(scene), spp=int(spp), use_cache=True, progress=False)
+def matched_scene(scene: Scene, mode: str = "local") -> tuple[Scene | None, list[str], str]:
+    """(the model-matched truth's scene, the physics it adds to the plain truth, why it lacks some):
+    the random walk where the scene has one, and in ``path`` mode visibility too (an asset scene:
+    visibility only); None in ``local`` mode without a walk."""
     rw_scene, why = random_walk_scene(scene)
+    physics = [] if rw_scene is None else ["multiple scattering (random walk)"]
+    if mode == "path":
+        physics.append("visibility and interreflection (path)")
+        if rw_scene is None:
+            rw_scene = single_scattering_scene(scene)
+    return rw_scene, physics, why
+
+
+def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None,
+                       context: renderers.RenderContext = renderers.DIRECT, mode: str = "local") -> list[ReferencePair]:
+    """Every renderer of ``externals`` on ``scene`` against the single-scattering ``local`` reference at
+    ``spp`` (the plain truth) and the model-matched one (:func:`matched_scene`: the random walk,
+    rendered in ``mode``) at ``min(spp, RANDOM_WALK_MAX_SPP)`` (both through :mod:`compare.renderers`
+    with the cache; the external images from the clients' cache)."""
+    ss = renderers.render_reference(single_scattering_scene(scene), spp=int(spp), use_cache=True, progress=False)
+    rw_scene, physics, why = matched_scene(scene, mode)
     rw_spp = min(int(spp), RANDOM_WALK_MAX_SPP)
+    kw = {} if mode == "local" else {"mode": mode}  # local: the calls (and cache keys) as before
     rw = None if rw_scene is None else renderers.render_reference(rw_scene, spp=rw_spp, use_cache=True,
-                                                                  progress=False)
+                                                                  progress=False, **kw)
     out = []
     for name in externals:
         img = renderers.render_under_test(scene, name, None, progress=False, context=context)
@@ -139,11 +200,13 @@ def measure_references(scene: Scene, externals: list[str], spp: int, *, progress
         pair = ReferencePair(scene.name, name, {m: c1.metrics.get(m) for m in REFERENCE_METRICS}, _within(c1),
                              spp_single=int(spp), note=why)
         if rw is not None:
-            c2 = compare_images(rw, img, scene=scene, ref_name="random-walk reference", test_name=name,
+            c2 = compare_images(rw, img, scene=scene, ref_name="model-matched reference", test_name=name,
                                 flip_cache=context.flip_cache)
             pair.vs_random_walk = {m: c2.metrics.get(m) for m in REFERENCE_METRICS}
             pair.within_random_walk = _within(c2)
             pair.spp_random_walk = rw_spp
+            pair.physics = physics
+            pair.materials = _per_material(c1, c2)
         out.append(pair)
         if progress is not None:
             progress.update(1, f"{scene.name}: {name} against both references")
@@ -157,7 +220,8 @@ def _cell(metrics: dict | None, within: dict, m: str) -> str:
 
 
 def references_sections(scene_args: list, scene_sections, presets: list[str], out_dir: Path,
-                        progress=None, context: renderers.RenderContext = renderers.DIRECT) -> list:
+                        progress=None, context: renderers.RenderContext = renderers.DIRECT,
+                        mode: str = "local") -> list:
     """The report's "both references" section (``[]`` when ``presets`` name no external renderer).
 
     ``scene_args`` are the report's scene arguments and ``scene_sections`` its
@@ -170,13 +234,14 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
     for arg, sec in zip(scene_args, scene_sections):
         scene = load_scene(arg)
         spp = sec.verdict.spp if getattr(sec, "verdict", None) is not None else int(sec.spp)
-        got = measure_references(scene, externals, spp, progress=progress, context=context)
+        got = measure_references(scene, externals, spp, progress=progress, context=context, mode=mode)
         write_json_atomic(Path(out_dir) / sec.id / "references.json", [p.to_dict() for p in got], indent=1)
         pairs += got
+    second = "random walk" if mode == "local" else "model-matched (walk, path)"
     headers = ["scene", "renderer"]
     for m in REFERENCE_METRICS:
-        headers += [f"{m} vs single", f"{m} vs random walk"]
-    headers += ["share of relmse from the reference's physics", "reference spp (single / walk)", "note"]
+        headers += [f"{m} vs single", f"{m} vs {second}"]
+    headers += ["share of relmse from the reference's physics", f"reference spp (single / {second})", "note"]
     rows = []
     for p in pairs:
         row = [p.scene, p.renderer]
@@ -195,9 +260,22 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
             "that is the reference's model. \u2248: within the reference's own Monte Carlo noise. The walk is "
             f"rendered at the scene's reference spp, at most {RANDOM_WALK_MAX_SPP}. Files: "
             "SCENE/references.json.")
-    return [Section("references", "External renderers against both references", note,
-                    [Table("", headers, rows)])]
+    tables = [Table("", headers, rows)]
+    if mode != "local":
+        note = (f"Model-matched truth (--reference-mode {mode}): the second reference is the random walk rendered "
+                f"in mode {mode}, {REFERENCE_MODES[mode]}; a glTF asset scene (no walk) gets the {mode} reference "
+                "alone. The share column is then the part of the engine's error that is the plain truth's missing "
+                "physics (single scattering, no visibility) and the table below gives it per material (glTF assets) "
+                "or object. The metallic blend is not yet matched (glTF's mix of two BRDFs: issue 40). " + note)
+        mrows = [[p.scene, p.renderer, m["material"], str(m["pixels"]), _fmt(m["relmse_plain"]), _fmt(m["relmse_matched"]),
+                  "-" if m["share"] is None else f"{100 * m['share']:.0f} %"]
+                 for p in pairs for m in p.materials[:MATERIAL_ROWS_SHOWN]]
+        tables.append(Table("Per material: the share of each engine's error that is the plain truth's missing "
+                            "physics (" + ", ".join(sorted({x for p in pairs for x in p.physics})) + ")",
+                            ["scene", "renderer", "material / object", "pixels", "relmse vs plain (local, single)",
+                             "relmse vs model-matched", "share"], mrows))
+    return [Section("references", "External renderers against both references", note, tables)]
 
 
-__all__ = ["RANDOM_WALK_MAX_SPP", "REFERENCE_METRICS", "ReferencePair", "measure_references", "random_walk_scene",
-           "references_sections", "single_scattering_scene"]
+__all__ = ["RANDOM_WALK_MAX_SPP", "REFERENCE_METRICS", "REFERENCE_MODES", "ReferencePair", "matched_scene",
+           "measure_references", "random_walk_scene", "references_sections", "share_of", "single_scattering_scene"]
