@@ -46,6 +46,11 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
   Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term.
+- ``metallic_blend``: also a model difference: the renderer mixes metallic as glTF 2.0 Appendix B
+  does (``mix(dielectric_brdf, metal_brdf, metallic)``, the diffuse under the dielectric's own
+  Fresnel) where the scene uses pbrcheck's F0 mix, or the reverse; the reference re-rendered with the
+  other ``[brdf] metallic_blend``. Only where something is partially metallic (the blends agree at 0
+  and 1); on glTF assets too.
 
 Decision
 --------
@@ -339,6 +344,20 @@ def _both(*rules):
     return applies
 
 
+def _needs_partial_metal(ref: Image, scene: Scene) -> str | None:
+    """The metallic blends differ only at 0 < metallic < 1 (a glTF asset: wherever a metallic texture
+    or factor is fractional, so always tested there)."""
+    if getattr(scene, "assets", ()) or any(0.0 < o.material.metallic < 1.0 for o in scene.objects):
+        return None
+    return "no partially metallic object: the two metallic blends agree at metallic 0 and 1"
+
+
+def _other_blend(scene: Scene, directory: Path) -> tuple[Scene, dict]:
+    """Scene edit: the other ``[brdf] metallic_blend`` (the engine's, if it is not the scene's)."""
+    other = "gltf" if scene.brdf.metallic_blend == "f0" else "f0"
+    return replace(scene, brdf=replace(scene.brdf, metallic_blend=other)), {}
+
+
 def _needs_single_scattering_pair(ref: Image, scene: Scene) -> str | None:
     if scene.brdf.multiscatter != "none":
         return "the reference already scatters multiply"
@@ -405,6 +424,9 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
                "the renderer keeps the energy of multiple scattering (energy compensation)",
                lambda scene, directory: (replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), {}),
                _both(_analytic_materials, _needs_single_scattering_pair), model=True),
+    Hypothesis("metallic_blend", "scene",
+               "the renderer mixes metallic the other way (glTF's mix of two BRDFs, or pbrcheck's F0 mix)",
+               _other_blend, _needs_partial_metal, model=True),
 )
 
 
