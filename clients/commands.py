@@ -15,7 +15,7 @@ from pbrcheck.atomic import check_output_path
 from pbrcheck.export import OUTPUT_FORMATS, export_scene
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.exr import write_exr
-from pbrcheck.fmt import terminal_safe
+from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.scenario_import import INDEX, import_scenario, import_to_folder
 from pbrcheck.scene import load_scene
 
@@ -32,8 +32,8 @@ def _cmd_export(args) -> int:
         print(f"pbrcheck: export: {terminal_safe(feature)} {what}: materials {', '.join(map(terminal_safe, materials))}",
               file=sys.stderr)
     segs = sorted(set(exp.segments.values()))
-    print(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
-          + (f", sphere segments {segs[0]}-{segs[-1]}" if segs else "") + ")")
+    print(terminal_safe(f"{exp.out_dir}: {', '.join(exp.files)} ({len(scene.objects)} object(s), {exp.triangles} triangles"
+                        + (f", sphere segments {segs[0]}-{segs[-1]}" if segs else "") + ")"))
     return 0
 
 
@@ -41,11 +41,11 @@ def _cmd_render(args) -> int:
     if args.renderers_file:
         set_renderers_file(args.renderers_file)
     scene = load_scene(args.scene)
-    out = Path(args.out or f"out/render/{scene.name}_{args.renderer.replace(':', '_')}.exr")
+    out = Path(args.out or f"out/render/{file_name_part(scene.name)}_{file_name_part(args.renderer)}.exr")
     check_output_path(out)  # before the render
     img = render_external(scene, args.renderer, use_cache=not args.no_cache, progress=True)
     write_exr(out, img)
-    print(f"{out}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
+    print(f"{terminal_safe(out)}: {scene.camera.width}x{scene.camera.height}, {img.meta['renderer']} "
           f"({img.meta['version']}), {float(img.meta['seconds']):.2f}s")
     return 0
 

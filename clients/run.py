@@ -331,15 +331,18 @@ def object_ids(scene: Scene) -> np.ndarray:
 
 
 def cache_key_for(scene: Scene, cfg: RendererConfig, env_hash: str) -> str:
-    """The cache key of one external render: scene hash, renderer config (with the lockfile's
-    hash) and the export format."""
+    """The cache key of one external render: scene hash, renderer config (with the lockfile's and
+    the inputs' hashes), the export format and the renderer's version line (:func:`renderer_version`,
+    once per process: the built-in clients print the engine's, Chromium's and node's versions).
+    The version is there for what no lockfile pins: the system's Chromium (its SwiftShader rasterizes
+    the pixels), upgraded by the package manager under an unchanged lockfile."""
     # a scene with unmodelled features: its export has their material extensions removed (since
     # pbrcheck.unmodelled), so its renders are not those of an earlier, unstripped export; every
     # other scene keeps its key (and its cached renders)
     um = getattr(scene, "unmodelled", ())
     stripped = {"unmodelled_removed": sorted({u.feature for u in um})} if um else {}
     return cache_key(kind="external", scene=scene_hash(scene, env_hash), renderer=cfg.cache_dict(),
-                     export_format=EXPORT_FORMAT_VERSION, **stripped)
+                     export_format=EXPORT_FORMAT_VERSION, version=renderer_version(cfg), **stripped)
 
 
 def render_external(scene: Scene, name: str, *, renderers_file: str | Path | None = None,

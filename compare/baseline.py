@@ -52,9 +52,12 @@ API
 - :func:`compare_to_baseline` -- per-region statistics and the verdict (:class:`Change`).
 - :func:`sensitivity` -- the smallest detected brightness change and LOD shift.
 - :func:`region_masks` -- the objects and tiles of an image pair.
-- :func:`stage_baseline` -- write a baseline into a staging folder (the gate renames it into place).
+- :func:`begin_accept`, :func:`stage_baseline`, :func:`commit_accept`, :func:`abandon_accept` -- an
+  accept: stage every baseline and the budget's new text, then switch them in one rename.
+- :func:`finish_accepts` -- complete a committed accept a stop interrupted (run by every read).
 - :func:`spread_of` -- the per-pixel run-to-run standard deviation of repeated renders.
-- :func:`shader_sources_hash` -- SHA-256 over the real-time shader sources.
+- :func:`shader_sources_hash` -- SHA-256 over every file the GL programs read
+  (:func:`realtime.gl.shader_sources_hash`: one rule for the baselines and the real-time cache).
 - :data:`LOD_PROBE_HOOK` -- the hook file text of the LOD probe.
 
 References: the significance test is a z-test on first-order noise propagation (the delta method);
@@ -63,9 +66,12 @@ golden-image CI for comparison: Filament's renderdiff, model-viewer's fidelity t
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 import json
 import math
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,6 +80,7 @@ import numpy as np
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import RGB, Image, read_exr, write_exr
+from realtime.gl import shader_sources_hash  # noqa: F401 (re-exported: the gate records it per baseline)
 
 from .metrics import LUMA, REL_EPS, pixel_classes
 
@@ -125,7 +132,9 @@ class Baseline:
 
 def load_baseline(base: Path, safe_name: str) -> Baseline | None:
     """The check's baseline, or None when there is none; raises :class:`BaselineError` when one
-    exists but cannot be read."""
+    exists but cannot be read. A committed accept left unfinished is completed first
+    (:func:`finish_accepts`)."""
+    finish_accepts(base)
     exr, js = baseline_paths(base, safe_name)
     if not exr.exists() and not js.exists():
         return None
@@ -139,16 +148,6 @@ def load_baseline(base: Path, safe_name: str) -> Baseline | None:
     sp = [img.channels.get(f"spread.{c}") for c in RGB]
     spread = np.stack(sp, -1).astype(np.float64) if all(s is not None for s in sp) else np.zeros(img.rgb.shape)
     return Baseline(img, spread, record, exr)
-
-
-def shader_sources_hash() -> str:
-    """SHA-256 over the real-time renderer's GLSL sources (names and contents, sorted)."""
-    root = Path(__file__).resolve().parents[1] / "realtime" / "shaders"
-    h = hashlib.sha256()
-    for p in sorted(root.glob("*")):
-        if p.is_file():
-            h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
-    return h.hexdigest()
 
 
 def spread_of(images: list[np.ndarray]) -> np.ndarray:
@@ -339,6 +338,72 @@ def sensitivity(ref: Image, base: Baseline, names: dict[int, str] | None = None)
                 best_l, best_ln = min(cand), name
     return {"brightness": best_k, "brightness_region": best_kn, "lod_probed": bool(probe),
             "lod": best_l if math.isfinite(best_l) else None, "lod_region": best_ln}
+
+
+#: Prefix of an ``--accept`` being staged in the baselines folder: incomplete, ignored by readers,
+#: removed by the accept that made it (a staging folder left by ``kill -9`` is inert).
+STAGING_PREFIX = ".staging-"
+#: Prefix of a committed ``--accept``: complete, rolled forward by :func:`finish_accepts`.
+COMMIT_PREFIX = ".commit-"
+#: In a staged accept: the budget file's new text and the budget file's name.
+_JOURNAL_BUDGET, _JOURNAL_TARGET = "budget.toml", "budget-name"
+
+
+def begin_accept(base: Path) -> Path:
+    """A new staging folder in ``base/baselines``; :func:`stage_baseline` writes into the returned
+    folder, :func:`commit_accept` commits it."""
+    target = Path(base) / BASELINE_DIR
+    target.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=target))
+    (staging / BASELINE_DIR).mkdir()
+    return staging / BASELINE_DIR
+
+
+def commit_accept(staged: Path, budget: Path, budget_text: str) -> None:
+    """Commit a staged accept: write the budget's new text (its ``[[history]]`` line) beside the
+    staged baselines, then rename the staging folder to ``.commit-*`` -- the one rename that
+    switches the set -- and put its files in place (:func:`finish_accepts`).
+
+    A stop (SIGTERM, an error) before the rename leaves the old baselines and budget untouched; after
+    it, the new set is complete on disk and the next :func:`finish_accepts` (every budget load and
+    baseline read runs it) completes what the stop interrupted. Either way a reader sees the old set
+    or the new one, never a mix."""
+    staging = Path(staged).parent
+    write_text_atomic(staging / _JOURNAL_BUDGET, budget_text)
+    write_text_atomic(staging / _JOURNAL_TARGET, Path(budget).name)
+    committed = staging.with_name(COMMIT_PREFIX + staging.name[len(STAGING_PREFIX):])
+    os.replace(staging, committed)  # the commit point
+    finish_accepts(Path(budget).parent)
+
+
+def finish_accepts(base: Path) -> int:
+    """Roll every committed accept in ``base/baselines`` forward: move its baselines into place,
+    then its budget text over the budget file, then remove it. Idempotent (a file already moved is
+    no longer in the commit folder), so a stop during it is completed by the next call. Returns the
+    number of accepts finished."""
+    folder = Path(base) / BASELINE_DIR
+    if not folder.is_dir():
+        return 0
+    done = 0
+    for commit in sorted(folder.glob(COMMIT_PREFIX + "*")):
+        # Another process finishing the same commit may move a file first: a missing one is done.
+        staged = commit / BASELINE_DIR
+        for p in sorted(staged.iterdir()) if staged.is_dir() else []:
+            with contextlib.suppress(FileNotFoundError):
+                os.replace(p, folder / p.name)
+        with contextlib.suppress(FileNotFoundError):
+            name = (commit / _JOURNAL_TARGET).read_text(encoding="utf-8").strip()
+            os.replace(commit / _JOURNAL_BUDGET, Path(base) / Path(name).name)
+        shutil.rmtree(commit, ignore_errors=True)
+        done += 1
+    return done
+
+
+def abandon_accept(staged: Path) -> None:
+    """Remove a staging folder that was not committed (nothing of it reached the baselines)."""
+    staging = Path(staged).parent
+    if staging.name.startswith(STAGING_PREFIX):
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def stage_baseline(folder: Path, safe_name: str, image: Image, spread: np.ndarray, record: dict) -> tuple[Path, Path]:

@@ -59,6 +59,10 @@ their ``within_noise`` flags carry the test's noise: the simulated pair is
 variance is subtracted when the test carries :data:`TEST_VARIANCE_META` (the renderer contract's
 mark) or the caller asks (``subtract_test_noise=True``); a pbrcheck reference compared as a test keeps
 its raw figures unless asked (the convergence study compares them with its variance prediction).
+
+The metric registry :data:`METRICS` (name -> :class:`Metric`: reduction, better direction, noise
+power) is the one place a metric's properties live: the comparator computes its entries, the gate
+(:mod:`compare.gate`) validates budgets and scales noise with it, the report's tables list it.
 """
 
 from __future__ import annotations
@@ -107,8 +111,46 @@ NDOTV_BINS = 10
 #: Luminance weights (Rec.709 / sRGB primaries), also what FLIP uses.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
-METRICS = ("mean_abs", "rmse", "relmse", "smape", "rel_p50", "rel_p95", "rel_p99", "rel_max",
-           "psnr", "flip_mean", "delta_e_itp_mean", "delta_e_itp_p95")
+
+@dataclass(frozen=True)
+class Metric:
+    """One image metric, as the comparator computes it and the gate and the report read it.
+
+    ``reduction``: how the per-pixel error becomes one number (the formulas: module docstring).
+    ``higher_is_better``: the better direction (``psnr``; every other metric: smaller is better).
+    ``noise_power``: the metric of a noise-only pair scales as ``var ** (1 / noise_power)``, i.e. as
+    ``spp ** (-1 / noise_power)``: 1 for a metric of squared errors normalised per pixel (``relmse``
+    is a mean of ``(t - r)^2 / (r^2 + eps)``: the variance itself, 1 / spp), 2 for one of absolute
+    errors or their root (a standard deviation: 1 / sqrt(spp)). The gate's budget-against-noise
+    figures (:func:`compare.gate.evaluate.budget_noise`) read it.
+    """
+
+    name: str
+    reduction: str
+    higher_is_better: bool = False
+    noise_power: float = 2.0
+
+
+#: The metric registry, in table order: name -> :class:`Metric`. The comparator computes exactly
+#: these (:func:`summarize`), budgets may name only these, the report's tables show them.
+METRICS: dict[str, Metric] = {m.name: m for m in (
+    Metric("mean_abs", "mean |t - r|"),
+    Metric("rmse", "sqrt(mean (t - r)^2)"),
+    Metric("relmse", "mean (t - r)^2 / (r^2 + eps)", noise_power=1.0),
+    Metric("smape", "mean |t - r| / (|t| + |r| + eps)"),
+    Metric("rel_p50", "50th percentile of |t - r| / (r + eps)"),
+    Metric("rel_p95", "95th percentile of |t - r| / (r + eps)"),
+    Metric("rel_p99", "99th percentile of |t - r| / (r + eps)"),
+    Metric("rel_max", "max |t - r| / (r + eps)"),
+    Metric("psnr", "10 log10(peak^2 / mean (t - r)^2)", higher_is_better=True),
+    Metric("flip_mean", "mean HDR-FLIP"),
+    Metric("delta_e_itp_mean", "mean Delta E_ITP"),
+    Metric("delta_e_itp_p95", "95th percentile of Delta E_ITP"),
+)}
+#: The relative MSE: the metric the gate's baseline comparison measures per region (compare.baseline).
+RELMSE = METRICS["relmse"]
+#: Names of the metrics where larger means better (read off :data:`METRICS`).
+HIGHER_IS_BETTER = frozenset(m.name for m in METRICS.values() if m.higher_is_better)
 #: The metrics from which the variance of a noisy image under test is subtracted (module docstring):
 #: those that are means of squared differences (``psnr`` through its MSE).
 TEST_NOISE_CORRECTED = ("relmse", "rmse", "psnr")
@@ -116,8 +158,6 @@ TEST_NOISE_CORRECTED = ("relmse", "rmse", "psnr")
 #: renderer contract, clients/run.py: its value says how the variance was obtained); such a test's
 #: variance is subtracted by default.
 TEST_VARIANCE_META = ENGINE_VARIANCE_META
-#: Metrics where larger means better (everything else: smaller is better).
-HIGHER_IS_BETTER = frozenset({"psnr"})
 
 
 class ComparisonError(PbrcheckError):
@@ -445,7 +485,7 @@ class Comparison:
 
     def worst_objects(self, metric: str, n: int = 3) -> list[dict]:
         objs = [o for o in self.summary["objects"] if o["metrics"].get(metric) is not None]
-        sign = -1 if metric in HIGHER_IS_BETTER else 1
+        sign = -1 if METRICS[metric].higher_is_better else 1
         objs.sort(key=lambda o: sign * o["metrics"][metric], reverse=True)
         return objs[:n]
 
@@ -613,7 +653,7 @@ def engine_noise(m: PixelMaps, valid: np.ndarray, peak: float) -> dict:
 def _within(metric: str, value, sim) -> bool:
     if value is None or sim is None:
         return False
-    if metric in HIGHER_IS_BETTER:
+    if METRICS[metric].higher_is_better:
         if math.isinf(value):
             return True
         return value >= sim - 10.0 * math.log10(NOISE_EXPLAINS_FACTOR)

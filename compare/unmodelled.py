@@ -9,7 +9,8 @@ the check's budget allows that feature by name::
 
 API: :func:`unjudged_reason` (the reason a check is not judged, or None), :func:`allowed_features`
 (the ``allow_unmodelled`` value of a check's table, validated), :data:`ALLOW_KEY`,
-:data:`NOT_JUDGED`, :data:`NOT_JUDGED_EXIT`, :class:`AllowError`.
+:class:`AllowError`. The gate raises :class:`compare.gate.NotJudged` with the reason (verdict
+``NOT_JUDGED``, exit 2).
 """
 
 from __future__ import annotations
@@ -22,10 +23,6 @@ from pbrcheck.fmt import terminal_safe
 
 #: The key of a budget's check that allows unmodelled features by name.
 ALLOW_KEY = "allow_unmodelled"
-#: The status (and outcome) of a check that is not judged.
-NOT_JUDGED = "not judged"
-#: The exit status of a check that is not judged (as an error: never a pass on what is not modelled).
-NOT_JUDGED_EXIT = 2
 
 
 class AllowError(PbrcheckError):

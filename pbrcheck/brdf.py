@@ -1,7 +1,12 @@
 """BRDF terms in numpy: the ground truth both renderers are checked against.
 
-Every function here has a GLSL twin of the *same name* in ``realtime/shaders/brdf.glsl`` (the test
-harness runs both on the same grids). Arguments are cosines clamped by the caller to [0, 1];
+The terms are classes of :mod:`pbrcheck.terms` (one per NDF, G and Fresnel term), which the scene's
+registries hold (:mod:`pbrcheck.registry`); here the dispatch by name (:func:`ndf_term`,
+:func:`geometry_term`, :func:`fresnel_term`), the material's lobes as objects (:class:`SpecularLobe`,
+:class:`DiffuseLobe`: eval, sample, pdf, albedo), the full material BRDF (:func:`brdf_eval`, the two
+lobes' sum) and the albedo quadrature. Every
+function here (and each term under its GLSL name: ``D_GGX = GGX.eval``) has a GLSL twin of the *same
+name* in ``realtime/shaders/brdf.glsl`` (the test harness runs both on the same grids). Arguments are cosines clamped by the caller to [0, 1];
 ``alpha`` is the GGX width ``roughness^2``.
 
 The material model both renderers implement (README, "Material model")::
@@ -22,220 +27,60 @@ References
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .registry import FRESNELS, GEOMETRIES, NDFS
+from .terms import (COS_EPS, MIN_ALPHA, PI, G1_SchlickGGX, G1_SmithGGX, alpha_from_roughness,  # noqa: F401
+                    blinn_phong_exponent, erfcx_nr, k_schlick_direct, k_schlick_ibl)
+from .terms import (GGX, Beckmann, BlinnPhong, NoFresnel, SchlickBeckmann, SchlickGGXIBL, Schlick,
+                    SmithBeckmannCorrelated, SmithGGX, SmithGGXCorrelated)
 
-# Smallest alpha the term functions evaluate with. alpha = 0 is a delta distribution that no
-# function can evaluate; renderers treat roughness 0 as a perfect mirror explicitly. 1e-7 keeps
-# alpha^2 = 1e-14 well inside float32's normal range and D_GGX(1) = 1/(pi alpha^2) finite (3e13).
-MIN_ALPHA = 1e-7
 # Below this alpha the quadrature uses the mirror limit of the lobe: at alpha ~ 1e-5 the lobe is
 # ~1e-5 rad wide and 1 - cos(theta_h) ~ 1e-10 nears float64's resolution of cos near 1. The limit
 # differs from alpha = 1e-4 by < 1e-7 in A + B.
 DELTA_LOBE_ALPHA = 1e-4
-# Guard for divisions by cosines that reach 0 at grazing angles (n.v, n.l -> 0).
-COS_EPS = 1e-8
 
-PI = np.pi
-
-
-def alpha_from_roughness(roughness):
-    """alpha = roughness^2 ([Karis13] p. 3: perceptually linear roughness), clamped to MIN_ALPHA."""
-    r = np.asarray(roughness, dtype=np.float64)
-    return np.maximum(r * r, MIN_ALPHA)
+# The GLSL twins' names (brdf.glsl): the term classes' functions (pbrcheck.terms).
+D_GGX, D_Beckmann, D_BlinnPhong = GGX.eval, Beckmann.eval, BlinnPhong.eval
+Lambda_GGX, Lambda_Beckmann = GGX.Lambda, Beckmann.Lambda
+G_SmithGGXCorrelated, G_SmithGGX, G_SchlickGGX = SmithGGXCorrelated.eval, SmithGGX.eval, SchlickGGXIBL.eval
+G_SchlickBeckmann, G_SmithBeckmannCorrelated = SchlickBeckmann.eval, SmithBeckmannCorrelated.eval
+F_Schlick, F_None = Schlick.eval, NoFresnel.eval
 
 
-# ------------------------------------------------------------------------------------------------
-# Normal distribution functions. Each is normalized so that the projected area is one:
-#   integral over the hemisphere of D(h) (n.h) dw_h = 1.
-# ------------------------------------------------------------------------------------------------
-
-def D_GGX(NoH, alpha):
-    """GGX / Trowbridge-Reitz NDF, [Walter07] eq. 33:
-    ``D = alpha^2 / (pi ((n.h)^2 (alpha^2 - 1) + 1)^2)``."""
-    NoH = np.asarray(NoH, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    d = NoH * NoH * (a2 - 1.0) + 1.0
-    return np.where(NoH > 0, a2 / (PI * d * d), 0.0)
-
-
-def D_Beckmann(NoH, alpha):
-    """Beckmann NDF, [Walter07] eq. 25:
-    ``D = exp(-tan^2(theta_h) / alpha^2) / (pi alpha^2 cos^4(theta_h))``."""
-    NoH = np.asarray(NoH, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    c2 = np.maximum(NoH * NoH, COS_EPS)
-    tan2 = (1.0 - c2) / c2
-    with np.errstate(over="ignore", under="ignore"):
-        v = np.exp(-tan2 / a2) / (PI * a2 * c2 * c2)
-    return np.where(NoH > 0, v, 0.0)
-
-
-def blinn_phong_exponent(alpha):
-    """Phong exponent equivalent to a Beckmann alpha, [Walter07] sec. 5.2: ``n = 2 / alpha^2 - 2``."""
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    return np.maximum(2.0 / a2 - 2.0, 0.0)
-
-
-def D_BlinnPhong(NoH, alpha):
-    """Normalized Blinn-Phong NDF, [Walter07] eq. 30: ``D = (n + 2) / (2 pi) (n.h)^n`` with
-    ``n = 2 / alpha^2 - 2`` (so alpha = 1 is the uniform D = 1/pi)."""
-    NoH = np.asarray(NoH, dtype=np.float64)
-    n = blinn_phong_exponent(alpha)
-    with np.errstate(under="ignore"):
-        v = (n + 2.0) / (2.0 * PI) * np.power(np.clip(NoH, 0.0, 1.0), n)
-    return np.where(NoH > 0, v, 0.0)
-
-
-
-
-# ------------------------------------------------------------------------------------------------
-# Geometry (masking-shadowing) terms G(l, v), each in [0, 1].
-# ------------------------------------------------------------------------------------------------
-
-def Lambda_GGX(NoX, alpha):
-    """Smith Lambda of GGX, [Heitz14] eq. 72: ``(-1 + sqrt(1 + alpha^2 tan^2)) / 2``, written as
-    ``(sqrt(alpha^2 + (1 - alpha^2) c^2) / c - 1) / 2`` which stays accurate as c -> 1."""
-    c = np.maximum(np.asarray(NoX, dtype=np.float64), COS_EPS)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    return 0.5 * (np.sqrt(a2 + (1.0 - a2) * c * c) / c - 1.0)
-
-
-def G1_SmithGGX(NoX, alpha):
-    """Smith masking of GGX, [Heitz14] eq. 43 with eq. 72: ``G1 = 1 / (1 + Lambda) =
-    2 c / (c + sqrt(alpha^2 + (1 - alpha^2) c^2))``."""
-    c = np.clip(np.asarray(NoX, dtype=np.float64), 0.0, 1.0)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    return 2.0 * c / np.maximum(c + np.sqrt(a2 + (1.0 - a2) * c * c), COS_EPS)
-
-
-def G_SmithGGX(NoV, NoL, alpha):
-    """Separable Smith, [Heitz14] eq. 98: ``G1(v) G1(l)`` (Mitsuba's ``roughconductor``)."""
-    return G1_SmithGGX(NoV, alpha) * G1_SmithGGX(NoL, alpha)
-
-
-def G_SmithGGXCorrelated(NoV, NoL, alpha):
-    """Height-correlated Smith, [Heitz14] eq. 99: ``G = 1 / (1 + Lambda(v) + Lambda(l))``, i.e.
-    ``2 (n.v)(n.l) / ((n.l) sqrt(a2 + (1-a2)(n.v)^2) + (n.v) sqrt(a2 + (1-a2)(n.l)^2))``.
-    The guard keeps 0/0 at n.v = n.l = 0 at 0."""
-    v = np.clip(np.asarray(NoV, dtype=np.float64), 0.0, 1.0)
-    l = np.clip(np.asarray(NoL, dtype=np.float64), 0.0, 1.0)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    den = l * np.sqrt(a2 + (1.0 - a2) * v * v) + v * np.sqrt(a2 + (1.0 - a2) * l * l)
-    return 2.0 * v * l / np.maximum(den, COS_EPS)
-
-
-_erfc = np.vectorize(math.erfc, otypes=[np.float64])
-
-
-def erfcx_nr(z):
-    """``exp(z^2) erfc(z)`` for ``z >= 0`` by Numerical Recipes' erfcc Chebyshev fit (Press et al.,
-    "Numerical Recipes in C", 2nd ed., sec. 6.2; fractional error < 1.2e-7) without its
-    ``exp(-z^2)`` factor: the GLSL twin's erfc (GLSL has none); checked against ``math.erfc``."""
-    z = np.maximum(np.asarray(z, dtype=np.float64), 0.0)
-    t = 1.0 / (1.0 + 0.5 * z)
-    p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
-        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
-            -0.82215223 + t * 0.17087277))))))))
-    return t * np.exp(p)
-
-
-def Lambda_Beckmann(NoX, alpha):
-    """Smith Lambda of Beckmann, [Heitz14] eq. 80 ([Walter07] eq. 27 before its rational fit):
-    ``Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi))`` with ``a = c / (alpha sqrt(1 - c^2))``;
-    written ``(exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2`` (exact erfc, float64). 0 at c = 1."""
-    c = np.clip(np.asarray(NoX, dtype=np.float64), COS_EPS, 1.0)
-    al = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA)
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        a = np.minimum(c / (al * np.sqrt(np.maximum(1.0 - c * c, 0.0))), 1e15)
-        lam = 0.5 * (np.exp(-a * a) / (a * np.sqrt(PI)) - _erfc(a))
-    return np.maximum(lam, 0.0)
-
-
-def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
-    """Height-correlated Smith for Beckmann, [Heitz14] eq. 99 with eq. 80:
-    ``G = 1 / (1 + Lambda(v) + Lambda(l))``; 0 at n.v = 0 or n.l = 0. The first bounce of the
-    Beckmann random walk (reference/multiscatter.py)."""
-    v = np.clip(np.asarray(NoV, dtype=np.float64), 0.0, 1.0)
-    l = np.clip(np.asarray(NoL, dtype=np.float64), 0.0, 1.0)
-    g = 1.0 / (1.0 + Lambda_Beckmann(v, alpha) + Lambda_Beckmann(l, alpha))
-    return np.where((v > 0) & (l > 0), g, 0.0)
-
-
-def G1_SchlickGGX(NoX, k):
-    """Schlick's approximation of Smith G1, [Schlick94] eq. 19 with [Karis13]'s k:
-    ``G1 = c / (c (1 - k) + k)``."""
-    c = np.clip(np.asarray(NoX, dtype=np.float64), 0.0, 1.0)
-    k = np.asarray(k, dtype=np.float64)
-    return c / np.maximum(c * (1.0 - k) + k, COS_EPS)
-
-
-def G_SchlickGGX(NoV, NoL, k):
-    """Separable Schlick-GGX: ``G1_SchlickGGX(v, k) G1_SchlickGGX(l, k)``."""
-    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
-
-
-def k_schlick_ibl(roughness):
-    """[Karis13] eq. 4 footnote, image-based lighting: ``k = alpha / 2``."""
-    return alpha_from_roughness(roughness) / 2.0
-
-
-def k_schlick_direct(roughness):
-    """[Karis13] eq. 4, analytic lights ("Disney's remapping"): ``k = (roughness + 1)^2 / 8``."""
-    r = np.asarray(roughness, dtype=np.float64)
-    return (r + 1.0) ** 2 / 8.0
-
-
-def _term(registry, name: str):
-    """The numpy function of member ``name`` of a term registry and its width function (None for a
-    term without one); ValueError naming the list for an unknown member."""
+def term(registry, name: str):
+    """The term class of member ``name`` of a term registry (:data:`pbrcheck.registry.NDFS`,
+    ``GEOMETRIES``, ``FRESNELS``); ValueError naming the list for an unknown member."""
     if name not in registry:
         raise ValueError(f"unknown {registry.define.lower()} term {name!r}; terms are: {', '.join(registry.names)}")
-    impl = registry[name].impl
-    return globals()[impl.numpy], (globals()[impl.width] if impl.width else None)
+    return registry[name].term
 
 
 def geometry_term(geometry: str, NoV, NoL, roughness):
     """Dispatch on the scene's ``[brdf] geometry`` name (:data:`pbrcheck.registry.GEOMETRIES`: the
     member's function at its width); ``roughness`` is perceptual."""
-    g, width = _term(GEOMETRIES, geometry)
-    return g(NoV, NoL, width(roughness))
+    g = term(GEOMETRIES, geometry)
+    return g.eval(NoV, NoL, g.width(roughness))
 
 
 def ndf_term(ndf: str, NoH, roughness):
     """Dispatch on ``[brdf] ndf`` (:data:`pbrcheck.registry.NDFS`); ``roughness`` is perceptual."""
-    d, width = _term(NDFS, ndf)
-    return d(NoH, width(roughness))
+    d = term(NDFS, ndf)
+    return d.eval(NoH, d.width(roughness))
 
 
 # ------------------------------------------------------------------------------------------------
 # Fresnel and diffuse
 # ------------------------------------------------------------------------------------------------
 
-def F_Schlick(VoH, F0, F90=1.0):
-    """Schlick's Fresnel, [Schlick94] eq. 15: ``F = F0 + (F90 - F0) (1 - v.h)^5``. Broadcasts F0
-    (e.g. RGB in a trailing axis: pass ``VoH[..., None]``)."""
-    c = np.clip(np.asarray(VoH, dtype=np.float64), 0.0, 1.0)
-    f = (1.0 - c) ** 5
-    return np.asarray(F0, dtype=np.float64) + (np.asarray(F90, dtype=np.float64) - F0) * f
-
-
 def Fd_Lambert():
     """Lambertian diffuse: ``1 / pi``."""
     return 1.0 / PI
 
 
-def F_None(VoH, F0):
-    """No Fresnel factor: ``F = 1``, broadcast to the shapes of ``VoH`` and ``F0``."""
-    return np.ones(np.broadcast_shapes(np.shape(VoH), np.shape(F0)))
-
-
 def fresnel_term(fresnel: str, VoH, F0):
     """Dispatch on ``[brdf] fresnel`` (:data:`pbrcheck.registry.FRESNELS`): Schlick, or ``none`` (F = 1)."""
-    return _term(FRESNELS, fresnel)[0](VoH, F0)
+    return term(FRESNELS, fresnel).eval(VoH, F0)
 
 
 def material_f0(base_color, metallic, specular):
@@ -263,12 +108,10 @@ def brdf_eval(n, v, l, base_color, metallic, roughness, specular, *, ndf="ggx",
     NoH = np.clip(np.sum(n * h, axis=-1), 0.0, 1.0)
     VoH = np.clip(np.sum(v * h, axis=-1), 0.0, 1.0)
     F0 = material_f0(base_color, metallic, specular)
-    F = fresnel_term(fresnel, VoH[..., None], F0)
-    D = ndf_term(ndf, NoH, roughness)
-    G = geometry_term(geometry, np.clip(NoV, 0, 1), np.clip(NoL, 0, 1), roughness)
-    spec = (D * G)[..., None] * F / (4.0 * np.maximum(NoV, COS_EPS) * np.maximum(NoL, COS_EPS))[..., None]
-    m = np.asarray(metallic, dtype=np.float64)[..., None]
-    diff = (1.0 - F) * (1.0 - m) * np.asarray(base_color, dtype=np.float64) * Fd_Lambert()
+    spec_lobe = SpecularLobe(ndf, geometry, fresnel)
+    F = spec_lobe.F.eval(VoH[..., None], F0)  # shared by the two lobes
+    spec = spec_lobe.eval(NoV, NoL, NoH, F, roughness)
+    diff = DiffuseLobe(fresnel).eval(F, metallic, base_color)
     valid = ((NoV > 0) & (NoL > 0))[..., None]
     return np.where(valid, diff + spec, 0.0)
 
@@ -282,52 +125,12 @@ def _gauss(n, a, b):
     return 0.5 * (b - a) * x + 0.5 * (b + a), 0.5 * (b - a) * w
 
 
-def _theta_h_GGX(u, a):
-    """[Walter07] eq. 35: the inverse CDF of ``D_GGX cos(theta_h)`` in theta_h."""
-    return np.arctan(a * np.sqrt(u / (1.0 - u)))
-
-
-def _theta_h_Beckmann(u, a):
-    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u)``."""
-    return np.arctan(np.sqrt(-a * a * np.log1p(-u)))
-
-
-def _theta_h_BlinnPhong(u, a):
-    """pdf ``cos^(n+1) sin``: ``cos theta_h = (1 - u)^(1 / (n + 2))``."""
-    n = float(blinn_phong_exponent(a))
-    return np.arccos(np.power(1.0 - u, 1.0 / (n + 2.0)))
-
-
-def _cdf_theta_h_GGX(theta, a):
-    """The CDF of ``D_GGX cos(theta_h)`` at theta_h < pi/2: ``t / (1 + t)``, ``t = tan^2 / alpha^2``."""
-    t2 = np.tan(theta) ** 2 / (a * a)
-    return t2 / (1.0 + t2)
-
-
-def _cdf_theta_h_Beckmann(theta, a):
-    """``1 - exp(-tan^2 / alpha^2)``."""
-    return -np.expm1(-np.tan(theta) ** 2 / (a * a))
-
-
-def _cdf_theta_h_BlinnPhong(theta, a):
-    """``1 - cos^(n+2)``."""
-    return 1.0 - np.cos(theta) ** (float(blinn_phong_exponent(a)) + 2.0)
-
-
-def _ndf_quadrature(ndf: str, kind: str):
-    """The NDF's ``_theta_h_<D>`` or ``_cdf_theta_h_<D>`` (``kind`` ``theta_h`` or ``cdf_theta_h``;
-    ``<D>`` its registry function's name without ``D_``): a new NDF adds its pair under that name."""
-    if ndf not in NDFS:
-        raise ValueError(f"unknown ndf {ndf!r}; NDFs are: {', '.join(NDFS.names)}")
-    return globals()[f"_{kind}_{NDFS[ndf].impl.numpy[2:]}"]
-
-
 def _ndf_theta_from_u(ndf, u, alpha):
     """theta_h as the inverse CDF of ``D(h) cos(theta_h)`` at u (the quadrature's variable), so
     that nodes crowd where the lobe is; ``pdf(theta) = 2 pi D cos sin`` is the Jacobian's inverse."""
     a = max(float(alpha), MIN_ALPHA)
     u = np.clip(u, 0.0, 1.0 - 1e-16)
-    return _ndf_quadrature(ndf, "theta_h")(u, a)
+    return term(NDFS, ndf).theta_h(u, a)
 
 
 def _ndf_u_from_theta(ndf, theta, alpha):
@@ -335,7 +138,7 @@ def _ndf_u_from_theta(ndf, theta, alpha):
     a = max(float(alpha), MIN_ALPHA)
     if theta >= np.pi / 2:
         return 1.0
-    return _ndf_quadrature(ndf, "cdf_theta_h")(theta, a)
+    return term(NDFS, ndf).cdf_theta_h(theta, a)
 
 
 def specular_dfg(NoV, roughness, *, ndf="ggx", geometry="smith_ggx_correlated", n_theta=24, n_phi=48):
@@ -428,15 +231,70 @@ def diffuse_albedo(NoV, roughness, F0, *, fresnel="schlick", n_theta=48, n_phi=6
 
 
 # ------------------------------------------------------------------------------------------------
-# Terms the real-time renderer adds (twins of realtime/shaders/brdf.glsl and ibl.glsl).
+# The material's two lobes (pbrt-v4's BxDF shape): each with its eval, density and albedo.
 # ------------------------------------------------------------------------------------------------
 
-def G_SchlickBeckmann(NoV, NoL, alpha):
-    """Schlick's approximation of Smith-Beckmann (article 001's catalogue):
-    ``k = alpha sqrt(2 / pi)``, ``G = G1_SchlickGGX(v, k) G1_SchlickGGX(l, k)``."""
-    k = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) * np.sqrt(2.0 / PI)
-    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
+class SpecularLobe:
+    """The microfacet specular lobe ``D G F / (4 (n.l)(n.v))`` of the scene's terms ``ndf``,
+    ``geometry``, ``fresnel`` (members of the registries; their classes ``D``, ``G``, ``F``):
+    :meth:`eval`, the half vector's :meth:`sample` from its NDF's ``D (n.h)`` and the density of l
+    :meth:`pdf` (``D (n.h) / (4 v.h)``, [Walter07] eq. 14), the split sum's :meth:`dfg` terms and the
+    directional :meth:`albedo` (:func:`specular_dfg`, :func:`specular_albedo`)."""
 
+    def __init__(self, ndf: str = "ggx", geometry: str = "smith_ggx_correlated", fresnel: str = "schlick"):
+        self.ndf, self.geometry, self.fresnel = ndf, geometry, fresnel
+        self.D, self.G, self.F = term(NDFS, ndf), term(GEOMETRIES, geometry), term(FRESNELS, fresnel)
+
+    def eval(self, NoV, NoL, NoH, F, roughness):
+        """The lobe's value (..., 3) with the Fresnel factor ``F`` (..., 3) of the half vector."""
+        D = self.D.eval(NoH, self.D.width(roughness))
+        G = self.G.eval(np.clip(NoV, 0, 1), np.clip(NoL, 0, 1), self.G.width(roughness))
+        return (D * G)[..., None] * F / (4.0 * np.maximum(NoV, COS_EPS) * np.maximum(NoL, COS_EPS))[..., None]
+
+    def sample(self, u, roughness):
+        """A half vector (tangent space) from the NDF's ``D (n.h)``; l is v reflected about it."""
+        return self.D.sample(u, self.D.width(roughness))
+
+    def pdf(self, NoH, VoH, roughness):
+        """The density in l of :meth:`sample`'s reflections: ``D (n.h) / (4 v.h)``."""
+        return self.D.pdf(NoH, self.D.width(roughness)) / np.maximum(4.0 * np.asarray(VoH, dtype=np.float64), COS_EPS)
+
+    def dfg(self, NoV, roughness, **quad):
+        """The split sum's ``(A, B)`` at n.v (:func:`specular_dfg`)."""
+        return specular_dfg(NoV, roughness, ndf=self.ndf, geometry=self.geometry, **quad)
+
+    def albedo(self, NoV, roughness, F0=1.0, **quad):
+        """The directional albedo for a scalar F0 (:func:`specular_albedo`)."""
+        return specular_albedo(NoV, roughness, F0, ndf=self.ndf, geometry=self.geometry, fresnel=self.fresnel, **quad)
+
+
+class DiffuseLobe:
+    """Lambert's lobe weighted by ``(1 - F(v.h)) (1 - metallic)`` (none without Fresnel: the diffuse
+    term vanishes with F = 1): :meth:`eval`, the cosine density :meth:`pdf` and :meth:`albedo`
+    (:func:`diffuse_albedo`)."""
+
+    def __init__(self, fresnel: str = "schlick"):
+        self.fresnel = fresnel
+
+    @staticmethod
+    def eval(F, metallic, base_color):
+        """``(1 - F) (1 - metallic) base_color / pi`` (..., 3)."""
+        m = np.asarray(metallic, dtype=np.float64)[..., None]
+        return (1.0 - F) * (1.0 - m) * np.asarray(base_color, dtype=np.float64) * Fd_Lambert()
+
+    @staticmethod
+    def pdf(NoL):
+        """The cosine density ``max(n.l, 0) / pi`` (Malley's sampler, :func:`pbrcheck.sampling.sample_cosine`)."""
+        return np.maximum(np.asarray(NoL, dtype=np.float64), 0.0) / PI
+
+    def albedo(self, NoV, roughness, F0, **quad):
+        """Per unit ``(1 - metallic) base_color`` (:func:`diffuse_albedo`)."""
+        return diffuse_albedo(NoV, roughness, F0, fresnel=self.fresnel, **quad)
+
+
+# ------------------------------------------------------------------------------------------------
+# Terms the real-time renderer adds (twins of realtime/shaders/brdf.glsl and ibl.glsl).
+# ------------------------------------------------------------------------------------------------
 
 def EnvBRDFApprox(NoV, roughness):
     """[Karis14] "Physically Based Shading on Mobile": analytic fit of the DFG terms, returns (A, B)

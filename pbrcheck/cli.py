@@ -33,8 +33,11 @@ import realtime.commands
 import reference.commands
 
 from . import __version__, cache, unmodelled
+from .args import add_limit_flags_to_scene_commands
 from .environment import load_environment, scene_hash
 from .errors import CacheError, PbrcheckError, Terminated, os_reason
+from .fmt import terminal_safe
+from .limits import reset_limits, set_limits_from_args
 from .scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_scene
 
 #: Modules that contribute subcommands, in help order.
@@ -55,16 +58,18 @@ def _cmd_scenes(args) -> int:
 def _cmd_check_scene(args) -> int:
     scene = load_scene(args.scene)
     env = load_environment(scene)  # validates the environment's pixels too
-    if args.json:
+    if args.json or args.format == "json":  # ensure_ascii: every control character is a \u escape
         print(json.dumps(scene.to_dict(), indent=2))
         return 0
-    print(f"# {scene.source}: valid")
+    # TOML: the comment lines escaped for the terminal (one line each, no escape sequence reaches it),
+    # the values by dump_toml's own escaping (the output parses whatever the names hold)
+    print(terminal_safe(f"# {scene.source}: valid"))
     print(f"# {len(scene.objects)} object(s), {len(scene.lights)} light(s), environment "
           f"{env.width}x{env.height} (max radiance {env.max_radiance:.4g})")
     print(f"# scene hash {scene_hash(scene, env.content_hash)}")
     if getattr(scene, "assets", ()):
         from .gltf_scene import describe
-        print("\n".join(describe(scene)))
+        print("\n".join(terminal_safe(line) for line in describe(scene)))
     print(dump_toml(scene.to_dict()), end="")
     return 0
 
@@ -101,24 +106,26 @@ def _cmd_cache(args) -> int:
 
 
 def _asset_options(argv: list[str]) -> list[str]:
-    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE`` and ``--size WxH`` out of
-    ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every command that takes a SCENE
-    accepts an asset that way; an integer ``--size`` stays the command's own)."""
+    """Where a SCENE argument is a .gltf/.glb file, take ``--env FILE``, ``--size WxH`` and
+    ``--variant NAME`` out of ``argv`` for :func:`pbrcheck.gltf_scene.set_asset_options` (every
+    command that takes a SCENE accepts an asset that way; an integer ``--size`` stays the command's own)."""
     from .gltf_scene import is_asset_path, parse_size, set_asset_options
 
     if not any(is_asset_path(a) for a in argv if not a.startswith("-")):
         set_asset_options()
         return argv
-    env = size = None
+    env = size = variant = None
     out: list[str] = []
     i = 0
     while i < len(argv):
         a = argv[i]
         key, eq, val = a.partition("=")
-        if key in ("--env", "--size") and (eq or i + 1 < len(argv)):
+        if key in ("--env", "--size", "--variant") and (eq or i + 1 < len(argv)):
             v = val if eq else argv[i + 1]
-            if key == "--env" or "x" in v.lower():
-                if key == "--env":
+            if key != "--size" or "x" in v.lower():
+                if key == "--variant":
+                    variant = v
+                elif key == "--env":
                     env = v
                 else:
                     size = parse_size(v)
@@ -126,7 +133,7 @@ def _asset_options(argv: list[str]) -> list[str]:
                 continue
         out.append(a)
         i += 1
-    set_asset_options(env, size)
+    set_asset_options(env, size, variant)
     return out
 
 
@@ -147,7 +154,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("check-scene", help="validate a scene and print it resolved")
     s.add_argument("scene", help="built-in scene name or path to a TOML scene file")
-    s.add_argument("--json", action="store_true", help="print the resolved scene as JSON")
+    s.add_argument("--format", choices=("toml", "json"), default="toml",
+                   help="toml (default): comment lines describing it, then the resolved scene as TOML; json: the resolved scene")
+    s.add_argument("--json", action="store_true", help="the same as --format json")
     s.set_defaults(func=_cmd_check_scene)
 
     s = sub.add_parser("cache", help="what the render cache holds ($PBRCHECK_CACHE), prune or clear it")
@@ -169,6 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for mod in COMMAND_MODULES:
         mod.register(sub, bench_sub)
+    add_limit_flags_to_scene_commands(sub)  # --max-* on every command that reads a scene
     return p
 
 
@@ -233,9 +243,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         argv = _asset_options(argv)
     except ValueError as e:
-        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return 2
     args = parser.parse_args(argv)
+    set_limits_from_args(args)
     # --renderers names the file of this call only: an in-process caller (tests, scripts calling
     # main() again) must not inherit it, so the previous choice is restored on the way out.
     prev_renderers = clients.config.user_renderers_file()
@@ -255,6 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()  # a reader that left early: the rest goes to /dev/null here, not at exit
         sys.stdout = stdout
         clients.config.set_renderers_file(prev_renderers)
+        reset_limits()  # the --max-* values of this call only, as --renderers
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
 
@@ -263,10 +275,10 @@ def _run(args) -> int:
     try:
         return int(args.func(args) or 0)
     except PbrcheckError as e:
-        print(f"pbrcheck: error: {e}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return e.exit_code
     except OSError as e:
-        print(f"pbrcheck: error: {_describe_os_error(e)}", file=sys.stderr)
+        print(f"pbrcheck: error: {terminal_safe(_describe_os_error(e))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
         return _interrupted(e)

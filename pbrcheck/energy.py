@@ -5,7 +5,7 @@ Single-scattering microfacet BRDFs lose the energy of the light that bounces mor
 microfacets: a white metal (F0 = 1) reflects ``E(mu) = A + B < 1`` of a white furnace (A, B: the
 split sum's DFG terms at F0 = 1, ``E`` = ``Ess``). Engines add it back with one of these
 (``energy_compensation`` option of the real-time renderer; registry
-:data:`pbrcheck.registry.ENERGY_COMPENSATIONS`). The truth they approximate is the random walk of
+:data:`realtime.registry.ENERGY_COMPENSATIONS`). The truth they approximate is the random walk of
 Heitz et al. 2016 (``[brdf] multiscatter = "random_walk"`` in the reference).
 
 * ``filament`` -- Filament's documentation, "Energy loss in specular reflectance" (sec. 4.7.2) and
@@ -28,11 +28,12 @@ Heitz et al. 2016 (``[brdf] multiscatter = "random_walk"`` in the reference).
   irradiance (``int (1 - E(mu_i)) L cos dw_i ~ (1 - E_avg) E(n)``), so the multiply scattered
   radiance is ``F_ms (1 - E(mu_o)) E(n) / pi``: :func:`ms_kulla_conty`.
 
-Each member of the registry names its role functions (``energy_scale_<name>``, ``energy_ms_<name>``,
-``energy_direct_<name>``; a member without a role is the identity there) and the dispatch here, in
-Dr.Jit and in the generated GLSL loops over it.
+Each member of the registry holds its role functions here (``energy_scale_<name>``,
+``energy_ms_<name>``, ``energy_direct_<name>``; a member without a role is the identity there); the
+dispatch by name in numpy (:mod:`realtime.dispatch`), in Dr.Jit (:mod:`reference.energy`) and in the
+generated GLSL loops over it.
 
-Point lights (:func:`energy_direct`): Filament scales its direct specular lobe by the same factor;
+Point lights (``energy_direct``): Filament scales its direct specular lobe by the same factor;
 Kulla-Conty add their lobe ``f_ms`` (:func:`f_ms_kulla_conty`, ``E(mu_i)`` from the DFG terms at
 n.l); Fdez-Agüera's paper covers image-based lighting only (nothing added). The compensation needs
 the split sum's DFG terms: ``shading = material`` and ``ibl = splitsum`` only.
@@ -49,10 +50,11 @@ API
 :func:`F_avg_Schlick`, :func:`energy_filament`, :func:`ms_fdez_aguera`, :func:`ms_kulla_conty`,
 :func:`f_ms_kulla_conty`, :func:`kc_eavg`; the registry members' role functions
 :func:`energy_scale_filament`, :func:`energy_direct_filament`, :func:`energy_ms_fdez_aguera`,
-:func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty`; the dispatch looping
-:data:`pbrcheck.registry.ENERGY_COMPENSATIONS` :func:`energy_scale`, :func:`energy_ms`,
-:func:`energy_direct`; :func:`specular_albedo_compensated`, :func:`bake_kc_eavg`, :data:`KC_EAVG`,
-:data:`KC_EAVG_SIZE`. Dr.Jit twins of the same names: :mod:`reference.energy`.
+:func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty` (held by the entries of
+:data:`realtime.registry.ENERGY_COMPENSATIONS`; the dispatch by name ``energy_scale``, ``energy_ms``,
+``energy_direct``, ``specular_albedo_compensated`` is :mod:`realtime.dispatch`'s); :func:`bake_kc_eavg`,
+:data:`KC_EAVG`, :data:`KC_EAVG_SIZE`, :data:`SCENE_COMPENSATION`. Dr.Jit twins of the same names:
+:mod:`reference.energy`.
 """
 
 from __future__ import annotations
@@ -60,7 +62,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import brdf as _brdf
-from .registry import ENERGY_COMPENSATIONS
 
 #: Entries of the E_avg table, at roughness j / (KC_EAVG_SIZE - 1).
 KC_EAVG_SIZE = 17
@@ -135,7 +136,7 @@ def kc_eavg(roughness):
     return np.interp(r, np.linspace(0.0, 1.0, KC_EAVG_SIZE), np.asarray(KC_EAVG))
 
 
-# ---- the registry members' role functions (pbrcheck.registry.ENERGY_COMPENSATIONS) --------------
+# ---- the registry members' role functions (realtime.registry.ENERGY_COMPENSATIONS) ---------------
 
 def energy_scale_filament(F0, A, B):
     """Filament: the split sum's specular factor ``1 + F0 (1 / (A + B) - 1)``."""
@@ -160,47 +161,6 @@ def energy_ms_kulla_conty(F0, A, B, roughness):
 def energy_direct_kulla_conty(f_spec, F0, A, B, El, roughness):
     """Kulla-Conty: adds the lobe :func:`f_ms_kulla_conty` (``E(mu_o) = A + B``, ``E(mu_i) = El``)."""
     return f_ms_kulla_conty(F0, np.asarray(A) + np.asarray(B), El, kc_eavg(roughness))
-
-
-def _role(role: str, compensation: str):
-    """The member's numpy function for ``role``, None where the member has not that role (its
-    identity); ValueError naming an unknown compensation."""
-    if compensation not in ENERGY_COMPENSATIONS:
-        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})")
-    impl = ENERGY_COMPENSATIONS[compensation].roles.get(role)
-    return None if impl is None else globals()[impl.numpy]
-
-
-def energy_scale(F0, A, B, compensation: str):
-    """Factor of the split sum's specular term ``prefiltered (F0 A + B)``: the member's
-    ``energy_scale_<name>``, 1 for a member without one."""
-    f = _role("energy_scale", compensation)
-    return np.ones(np.broadcast_shapes(np.shape(F0), np.shape(A))) if f is None else f(F0, A, B)
-
-
-def energy_ms(F0, A, B, roughness, compensation: str):
-    """Multiply scattered albedo added times ``E(n) / pi``: the member's ``energy_ms_<name>``, 0 for a
-    member without one."""
-    f = _role("energy_ms", compensation)
-    return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A))) if f is None else f(F0, A, B, roughness)
-
-
-def energy_direct(f_spec, F0, A, B, El, roughness, compensation: str):
-    """What the compensation adds to the single-scattering BRDF for a point light: the member's
-    ``energy_direct_<name>`` (Filament's ``(scale - 1) f_spec``, Kulla-Conty's lobe), 0 for a member
-    without one (``fdez_aguera``: image-based lighting only; ``none``)."""
-    f = _role("energy_direct", compensation)
-    if f is None:
-        return np.zeros(np.broadcast_shapes(np.shape(F0), np.shape(A), np.shape(f_spec)))
-    return f(f_spec, F0, A, B, El, roughness)
-
-
-def specular_albedo_compensated(F0, A, B, roughness, compensation: str):
-    """Directional albedo of the compensated specular lobe under a white furnace (E(n)/pi = 1):
-    ``(F0 A + B) energy_scale + energy_ms``."""
-    F0 = np.asarray(F0, dtype=np.float64)
-    ss = F0 * A + B
-    return ss * energy_scale(F0, A, B, compensation) + energy_ms(F0, A, B, roughness, compensation)
 
 
 def bake_kc_eavg(size: int = KC_EAVG_SIZE, mu_nodes: int = KC_EAVG_MU_NODES) -> np.ndarray:

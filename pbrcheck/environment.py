@@ -23,6 +23,10 @@ Procedural environments are rasterized at these resolutions: ``constant`` and ``
 (exact at any size), ``sky`` at ``resolution`` (default 1024 x 512), each texel the average of 8 x 8
 point samples over its footprint for the sun disk (so the sun keeps its energy), and one point sample
 of the smooth sky gradient.
+
+Size: a file's pixels (from its header, before decoding: :func:`check_environment_size`) and a sky's
+resolution are held to the ``env_pixels`` budget (:data:`pbrcheck.limits.MAX_ENV_PIXELS`,
+``--max-env-pixels``).
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import EnvironmentMapError
+from .errors import EnvironmentMapError, PbrcheckError
 from .exr import read_exr
 from .scene import LDR_ENVIRONMENT_SUFFIXES, Environment, Scene
 
@@ -197,6 +201,7 @@ def read_image_file(path: str | Path) -> np.ndarray:
     if not p.is_file():
         raise EnvironmentMapError(str(p), "no such file")
     suffix = p.suffix.lower()
+    check_environment_size(p)  # the env_pixels budget, from the header, before decoding
     try:
         if suffix == ".exr":
             img = read_exr(p)
@@ -218,6 +223,21 @@ def read_image_file(path: str | Path) -> np.ndarray:
         raise EnvironmentMapError(str(p), f"unreadable image ({type(e).__name__}: {e})".splitlines()[0]) from None
     raise EnvironmentMapError(str(p), f"unsupported image type {suffix!r} (expected .exr, .hdr, "
                               + ", ".join(LDR_SUFFIXES) + ")")
+
+
+def check_environment_size(p: Path) -> None:
+    """The ``env_pixels`` budget (:mod:`pbrcheck.limits`, ``--max-env-pixels``) of an .exr / .hdr
+    file, from its header alone; an unreadable header is left to the decoder's error."""
+    from .exr import exr_size
+    from .hdrimage import hdr_size
+    from .limits import check
+
+    size = {".exr": exr_size, ".hdr": hdr_size}.get(p.suffix.lower())
+    try:
+        W, H = size(p) if size else (0, 0)
+    except PbrcheckError:
+        return
+    check("env_pixels", W * H, str(p), f"environment map of {W}x{H}")
 
 
 def rasterize_sky(env: Environment) -> np.ndarray:
@@ -264,6 +284,9 @@ def load_environment(scene_or_env: Scene | Environment) -> EnvMap:
     elif env.type == "none":
         data, src = np.zeros((H, W, 3), np.float32), "<none>"
     elif env.type == "sky":
+        from .limits import check
+        check("env_pixels", env.resolution[0] * env.resolution[1], "<sky>",
+              f"sky environment resolution {env.resolution[0]}x{env.resolution[1]}")
         data, src = rasterize_sky(env), "<sky>"
     elif env.type == "file":
         src = str(env.path)

@@ -30,6 +30,18 @@ class SceneError(PbrcheckError):
         super().__init__(message)
 
 
+class AssetError(PbrcheckError):
+    """A glTF asset that cannot be used: names the file and the JSON pointer (``/accessors/3/byteStride``);
+    raised by :mod:`pbrcheck.gltf` and :mod:`pbrcheck.asset_guard`, importable from both."""
+
+    def __init__(self, file, pointer: str, problem: str):
+        self.file = str(file)
+        self.pointer = pointer
+        self.problem = problem
+        where = f"{self.file}: {pointer}" if pointer else self.file
+        super().__init__(f"{where}: {problem}")
+
+
 class EnvironmentMapError(PbrcheckError):
     """An unusable environment: unreadable file, wrong shape, NaN, Inf or negative radiance."""
 

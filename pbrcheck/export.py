@@ -371,7 +371,9 @@ def _asset_document(scene: Scene, bin_name: str):
     from .gltf_export import asset_document
 
     node, cam = _camera(scene)
-    doc, files = asset_document(scene, node, cam, bin_name)
+    # the export's own files (and the objects' buffer) are never an asset resource's name
+    reserved = tuple(f for f in FILES if f != bin_name) + (OBJECTS_BIN,)
+    doc, files = asset_document(scene, node, cam, bin_name, reserved=reserved)
     doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.own_lights()))
     triangles = sum(o.triangles for o in scene.objects if o.type == "mesh")
     analytic = [o for o in scene.objects if o.type != "mesh"]

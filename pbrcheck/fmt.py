@@ -11,6 +11,7 @@ API
   an untrusted scene or asset made safe for one output format (a terminal line, XML 1.0 character
   data, a Markdown table cell, a spreadsheet cell). Every writer of a name into such an output goes
   through one of these (docs/security.md).
+- :func:`file_name_part` -- a name made one part of a file name (a command's default output path).
 
 References
 ----------
@@ -104,3 +105,16 @@ def csv_cell(v):
     if isinstance(v, str) and v.startswith(_FORMULA_START):
         return "'" + v
     return v
+
+
+#: What a file name made from a name keeps: letters and digits (any script), ``_ . + -``.
+_FILE_NAME_DROP = re.compile(r"[^\w.+-]")
+
+
+def file_name_part(s: str, default: str = "scene") -> str:
+    """``s`` as one part of a file name (a default output path such as ``out/realtime/NAME_PRESET.exr``):
+    every other character (a path separator, a control character) becomes ``_``, leading dots are
+    removed (no ``..``, no hidden file); ``default`` when nothing is left. A scene named
+    ``../../x`` cannot write outside the output folder."""
+    out = _FILE_NAME_DROP.sub("_", str(s)).lstrip(".")
+    return out or default

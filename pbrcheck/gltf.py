@@ -8,14 +8,21 @@ API
   :class:`GltfLight`, :class:`GltfCamera` -- the resolved asset (immutable dataclasses, numpy arrays).
 - :class:`AssetError` -- every problem, naming the file and the JSON pointer
   (``/meshes/0/primitives/1/attributes/NORMAL``); the CLI maps it to exit 2.
-- :data:`SUPPORTED_EXTENSIONS` -- the extensions implemented (any other one in ``extensionsRequired``
-  is an error; an optional one is listed in :attr:`Asset.extensions_ignored`, and recorded with the
+- :data:`MODELLED_EXTENSIONS` (formerly ``SUPPORTED_EXTENSIONS``, kept as an alias) -- the
+  extensions modelled (any other one in ``extensionsRequired`` is an error; an optional one is
+  listed in :attr:`Asset.extensions_ignored`, and recorded with the
   materials and primitives it touches in :attr:`Asset.unmodelled`: :mod:`pbrcheck.unmodelled`).
+- :data:`DECODED_FORMATS` -- the image formats Pillow decodes (PNG, JPEG, WEBP; KTX2 is
+  :func:`pbrcheck.gltf_features.decode_ktx2`'s).
 - :func:`texture_transform_matrix` -- ``KHR_texture_transform``'s 3x3 UV matrix (T R S).
 - :func:`srgb_to_linear` -- the sRGB decoding of colour textures (IEC 61966-2-1).
 - :func:`wrap_mirror` -- ``MIRRORED_REPEAT`` of one texture coordinate (numpy twin of
   ``realtime/shaders/texcoord.glsl``'s, compared by the GLSL harness in ``tests/test_gltf_wrap.py``).
 - :func:`content_hash` -- sha256 of the asset file and every external resource it names.
+- :func:`read_resource`, :func:`resource_cap` -- an external buffer or image through the one resolver
+  of untrusted paths (:mod:`pbrcheck.untrusted`: relative, inside the asset's folder after symlinks,
+  a regular file, at most its declared size); the loader checks the document
+  (:mod:`pbrcheck.asset_guard`) and the budgets (:mod:`pbrcheck.limits`) before the work.
 
 Conventions (glTF 2.0 specification, sections 3.5 accessors, 3.7 geometry, 3.9 materials, 3.8
 textures; the extensions' specifications): world = the node hierarchy's product of local matrices
@@ -29,14 +36,18 @@ pixel ``(v H, u W)`` without a flip. Where ``NORMAL`` is absent every triangle g
 (the vertices are unwelded); where ``TANGENT`` is absent and the material has a normal texture,
 tangents are generated (:func:`generate_tangents`: the reference MikkTSpace C implementation,
 :mod:`pbrcheck.mikktspace`, per face corner, vertices split where it splits them; ``w`` its sign
-negated for glTF's v-down UVs). Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
+negated for glTF's v-down UVs). Skins (the default pose), morph targets (default weights), GPU
+instances, node visibility, material variants and the image a texture reads are
+:mod:`pbrcheck.gltf_features`'s; only images a material's texture reads are decoded. Primitive names are ``node/mesh/primitive`` (the node's and mesh's names,
 or their indices where unnamed, and the primitive's index).
 
 The reader is pygltflib (GLB chunks, JSON, data URIs); accessors are numpy views of its buffers;
 ``KHR_draco_mesh_compression`` is decoded with DracoPy (Google's Draco); images with Pillow.
 References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_materials_ior,
 KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
-(integer attributes: any component type, decoded as above); Mikkelsen 2008,
+(integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
+KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp, KHR_texture_basisu, EXT_meshopt_compression
+(:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
@@ -47,42 +58,37 @@ import hashlib
 import io
 import json
 import math
+import re
 import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .errors import PbrcheckError
+from . import asset_guard, gltf_features, limits, untrusted
+from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
 from .unmodelled import announce, asset_unmodelled
 
-#: Extensions pbrcheck implements (an ``extensionsRequired`` entry outside this list is an error).
-SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
-                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization")
+#: Extensions pbrcheck models (an ``extensionsRequired`` entry outside this list is an error; an
+#: optional one is listed in :attr:`Asset.extensions_ignored`). Scene features: :mod:`pbrcheck.gltf_features`.
+MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
+                       "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization",
+                       *gltf_features.MODELLED_SCENE_EXTENSIONS)
+#: The former name of :data:`MODELLED_EXTENSIONS`.
+SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
 #: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
-#: named as unmodelled where an asset uses them).
-MODELLED_CORE_FEATURES: tuple[str, ...] = ()
+#: named as unmodelled where an asset uses them): skins and morph targets (pbrcheck.gltf_features).
+MODELLED_CORE_FEATURES: tuple[str, ...] = ("skins", "morph targets")
 COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                     5126: np.float32}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0")
 WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR = 10497, 33071, 33648
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
-#: Largest triangle count accepted in one asset (a corrupt count guard: 2^27).
-MAX_TRIANGLES = 1 << 27
-
-
-class AssetError(PbrcheckError):
-    """A glTF asset that cannot be used: names the file and the JSON pointer."""
-
-    def __init__(self, file: str | Path, pointer: str, problem: str):
-        self.file = str(file)
-        self.pointer = pointer
-        self.problem = problem
-        where = f"{self.file}: {pointer}" if pointer else self.file
-        super().__init__(f"{where}: {problem}")
+#: Largest asset file read (a .gltf or a .glb): a GLB's length field is a uint32 (glTF 2.0, 4.4.3).
+MAX_ASSET_FILE_BYTES = 1 << 32
 
 
 @dataclass(frozen=True)
@@ -115,6 +121,7 @@ class GltfMaterial:
     alpha_cutoff: float = 0.5
     double_sided: bool = False
     ior: float = 1.5
+    unlit: bool = False       # KHR_materials_unlit: the base colour (x texture x COLOR_0), no lighting
 
     @property
     def specular(self) -> float:
@@ -141,6 +148,7 @@ class GltfImage:
     source: str          # the uri, "data URI" or "bufferView k"
     mime: str
     pixels: np.ndarray
+    decoded: bool = True  # False: no used texture reads it; not decoded (``pixels`` empty)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -181,6 +189,9 @@ class Primitive:
     color: np.ndarray | None = None      # COLOR_0 (N, 4) linear
     flat_normals: bool = False
     generated_tangents: bool = False
+    instances: int = 1                   # EXT_mesh_gpu_instancing: copies concatenated in the arrays
+    skinned: bool = False                # posed by its node's skin (pbrcheck.gltf_features.deform)
+    morph_weights: tuple[float, ...] = ()  # the default morph weights applied
 
     @property
     def triangles(self) -> int:
@@ -229,6 +240,8 @@ class Asset:
     resources: tuple[str, ...] = ()          # external files (absolute), for the exporter
     scene: int = 0
     unmodelled: tuple = ()                   # pbrcheck.unmodelled.Unmodelled: features not modelled
+    variants: tuple[str, ...] = ()           # KHR_materials_variants' names, in index order
+    variant: str | None = None               # the selected one (None: the file's default materials)
 
     def material(self, index: int) -> GltfMaterial:
         return DEFAULT_MATERIAL if index < 0 else self.materials[index]
@@ -281,25 +294,25 @@ def texture_transform_matrix(offset=(0.0, 0.0), rotation: float = 0.0, scale=(1.
 # ------------------------------------------------------------------------------------------------
 
 def _file_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
+    try:  # a regular file only, read with a bound (pbrcheck.untrusted): never /dev/zero or a FIFO
+        return untrusted.read_regular(path, MAX_ASSET_FILE_BYTES)
     except OSError as e:
         raise AssetError(path, "", f"cannot read: {e.strerror}") from None
+    except ValueError as e:
+        raise AssetError(path, "", f"cannot read: {e}") from None
 
 
 def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
     """(glTF JSON, GLB binary chunk or None) via pygltflib."""
     import pygltflib
 
+    if raw[:4] == b"glTF":
+        asset_guard.check_glb_header(path, raw)
     try:
-        if raw[:4] == b"glTF":
-            g = pygltflib.GLTF2.load_from_bytes(raw)
-            blob = g.binary_blob()
-        else:
-            json.loads(raw.decode("utf-8"))   # pygltflib's own error on bad JSON is not one line
-            g = pygltflib.GLTF2.from_json(raw.decode("utf-8"))
-            blob = None
+        with asset_guard.quiet_library():  # pygltflib's own warnings are never printed
+            g, blob = _pygltflib_read(pygltflib, raw)
         doc = json.loads(g.to_json())
+        gltf_features.restore_node_weights(doc, raw)
     except AssetError:
         raise
     except Exception as e:  # noqa: BLE001 - pygltflib raises anything on corrupt input
@@ -310,19 +323,60 @@ def _parse(path: Path, raw: bytes) -> tuple[dict, bytes | None]:
     return doc, blob
 
 
+def _pygltflib_read(pygltflib, raw: bytes):
+    """(pygltflib document, GLB binary chunk or None)."""
+    if raw[:4] == b"glTF":
+        g = pygltflib.GLTF2.load_from_bytes(raw)
+        return g, g.binary_blob()
+    json.loads(raw.decode("utf-8"))   # pygltflib's own error on bad JSON is not one line
+    return pygltflib.GLTF2.from_json(raw.decode("utf-8")), None
+
+
 def content_hash(path: str | Path) -> str:
     """sha256 of the file and of every external resource (buffers, images) it names."""
     p = Path(path)
     raw = _file_bytes(p)
     h = hashlib.sha256(raw)
-    for uri in _external_uris(p, raw):
-        f = p.parent / urllib.parse.unquote(uri)
+    for pointer, uri, cap in _external_uris(p, raw):
         h.update(uri.encode())
-        h.update(f.read_bytes() if f.is_file() else b"<missing>")
+        try:  # the one resolver (pbrcheck.untrusted): a refusal is the loader's, raised here first
+            h.update(read_resource(p, uri, pointer, cap, pointer.split("/")[1][:-1]))
+        except AssetError as e:
+            if not isinstance(e.__cause__, FileNotFoundError):
+                raise
+            h.update(b"<missing>")  # the loader names the missing file
     return h.hexdigest()
 
 
-def _external_uris(p: Path, raw: bytes) -> list[str]:
+def resource_cap(key: str, entry: dict) -> int:
+    """Most bytes read of an external resource: a buffer's declared ``byteLength`` plus
+    :data:`pbrcheck.untrusted.READ_SLACK`; an image the ``texture_bytes`` budget plus the slack (an
+    encoded image larger than its decoded budget is refused by the budget anyway)."""
+    if key == "buffers":
+        n = entry.get("byteLength", 0)
+        n = n if isinstance(n, int) and not isinstance(n, bool) and n >= 0 else 0
+        return n + untrusted.READ_SLACK
+    return limits.limit("texture_bytes") + untrusted.READ_SLACK
+
+
+def read_resource(asset: Path, uri: str, pointer: str, cap: int, what: str = "resource") -> bytes:
+    """The bytes of an external resource ``uri`` of ``asset`` (``pointer`` its JSON pointer, ``/uri``
+    included) through :mod:`pbrcheck.untrusted`: a relative path, percent-decoded, inside the asset's
+    folder after symlinks, a regular file, at most ``cap`` bytes; :class:`AssetError` otherwise
+    (a missing file's error has the :class:`FileNotFoundError` as its cause)."""
+    try:
+        rel = untrusted.uri_path(uri)
+        f = untrusted.contained_path(asset.parent, rel)
+        return untrusted.read_regular(f, cap)
+    except ValueError as e:
+        raise AssetError(asset, pointer, f"refused {what} {uri!r}: {e}") from None
+    except OSError as e:
+        f = asset.parent / urllib.parse.unquote(uri)
+        raise AssetError(asset, pointer, f"missing or unreadable {what} {str(f)!r} ({os_reason(e)})") from e
+
+
+def _external_uris(p: Path, raw: bytes) -> list[tuple[str, str, int]]:
+    """(JSON pointer of the uri, uri, read cap) of every external buffer and image."""
     if raw[:4] == b"glTF":
         try:
             n = int.from_bytes(raw[12:16], "little")
@@ -336,10 +390,10 @@ def _external_uris(p: Path, raw: bytes) -> list[str]:
             return []
     uris = []
     for key in ("buffers", "images"):
-        for b in doc.get(key, []) if isinstance(doc, dict) else []:
+        for k, b in enumerate(doc.get(key, []) if isinstance(doc, dict) else []):
             u = b.get("uri") if isinstance(b, dict) else None
             if isinstance(u, str) and not u.startswith("data:"):
-                uris.append(u)
+                uris.append((f"/{key}/{k}/uri", u, resource_cap(key, b)))
     return uris
 
 
@@ -349,6 +403,7 @@ class _Reader:
     def __init__(self, path: Path, doc: dict, blob: bytes | None):
         self.path, self.doc, self.blob = path, doc, blob
         self._buffers: dict[int, bytes] = {}
+        self._image_bytes: dict[int, tuple[bytes, str]] = {}
         self.resources: list[str] = []
 
     def err(self, pointer: str, problem: str) -> AssetError:
@@ -360,19 +415,15 @@ class _Reader:
             raise self.err(pointer, f"index {index!r} out of range (the file has {len(arr)} {key})")
         return arr[index]
 
-    def _uri_bytes(self, uri: str, pointer: str, what: str) -> bytes:
+    def _uri_bytes(self, uri: str, pointer: str, what: str, cap: int) -> bytes:
         if uri.startswith("data:"):
             head, _, data = uri.partition(",")
             try:
                 return base64.b64decode(data) if head.endswith(";base64") else urllib.parse.unquote_to_bytes(data)
             except Exception:  # noqa: BLE001
                 raise self.err(pointer + "/uri", f"undecodable data URI of a {what}") from None
-        f = self.path.parent / urllib.parse.unquote(uri)
-        try:
-            data = f.read_bytes()
-        except OSError as e:
-            raise self.err(pointer + "/uri", f"missing or unreadable {what} {str(f)!r} ({e.strerror})") from None
-        self.resources.append(str(f.resolve()))
+        data = read_resource(self.path, uri, pointer + "/uri", cap, what)
+        self.resources.append(str(untrusted.contained_path(self.path.parent, untrusted.uri_path(uri))))
         return data
 
     def buffer(self, index: int, pointer: str) -> bytes:
@@ -380,7 +431,7 @@ class _Reader:
             p = f"/buffers/{index}"
             b = self.get("buffers", index, pointer)
             if "uri" in b:
-                data = self._uri_bytes(b["uri"], p, "buffer")
+                data = self._uri_bytes(b["uri"], p, "buffer", resource_cap("buffers", b))
             elif index == 0 and self.blob is not None:
                 data = self.blob
             else:
@@ -393,6 +444,9 @@ class _Reader:
     def view(self, index: int, pointer: str) -> tuple[bytes, int, int, int | None]:
         """(buffer bytes, byte offset, byte length, byte stride) of a buffer view."""
         v = self.get("bufferViews", index, pointer)
+        decoded = gltf_features.meshopt_view(self, v, index)   # EXT_meshopt_compression
+        if decoded is not None:
+            return decoded
         p = f"/bufferViews/{index}"
         data = self.buffer(v.get("buffer", -1), p + "/buffer")
         off, length = int(v.get("byteOffset", 0)), int(v.get("byteLength", 0))
@@ -454,11 +508,28 @@ class _Reader:
                 x = x.astype(np.float32) / float(2 ** bits - 1)
         return x
 
-    def image(self, index: int) -> GltfImage:
+    def image_undecoded(self, index: int) -> GltfImage:
+        """An image no used texture reads: named, its format sniffed from the file name or
+        ``mimeType`` alone, its data neither read nor decoded (``decoded`` False)."""
+        im = self.get("images", index, f"/images/{index}")
+        uri = im.get("uri") if isinstance(im.get("uri"), str) else None
+        source = (uri if not uri.startswith("data:") else "data URI") if uri else f"bufferView {im.get('bufferView')}"
+        mime = im.get("mimeType") or (uri.partition(";")[0][5:] if uri and uri.startswith("data:") else
+                                      _MIME_BY_SUFFIX.get(Path(urllib.parse.unquote(uri or "")).suffix.lower(), "unknown"))
+        return GltfImage(im.get("name", f"image{index}"), source, str(mime), np.zeros((0, 0, 4), np.uint8),
+                         decoded=False)
+
+    def image_bytes(self, index: int) -> tuple[bytes, str]:
+        """(encoded bytes, source) of image ``index``, read once (the budget reads the headers first)."""
+        if index not in self._image_bytes:
+            self._image_bytes[index] = self._read_image(index)
+        return self._image_bytes[index]
+
+    def _read_image(self, index: int) -> tuple[bytes, str]:
         p = f"/images/{index}"
         im = self.get("images", index, p)
         if "uri" in im:
-            data = self._uri_bytes(im["uri"], p, "texture image")
+            data = self._uri_bytes(im["uri"], p, "texture image", resource_cap("images", im))
             source = im["uri"] if not im["uri"].startswith("data:") else "data URI"
         elif "bufferView" in im:
             buf, off, length, _ = self.view(im["bufferView"], p + "/bufferView")
@@ -466,13 +537,25 @@ class _Reader:
             source = f"bufferView {im['bufferView']}"
         else:
             raise self.err(p, "an image without uri or bufferView")
+        return data, source
+
+    def image(self, index: int) -> GltfImage:
+        p = f"/images/{index}"
+        im = self.get("images", index, p)
+        data, source = self.image_bytes(index)
         from PIL import Image as PILImage
 
+        sniffed = _sniff_format(bytes(data[:16]))
+        if sniffed == "KTX2":   # KHR_texture_basisu (pbrcheck.gltf_features.decode_ktx2)
+            return GltfImage(im.get("name", f"image{index}"), source, "image/ktx2",
+                             gltf_features.decode_ktx2(self, data, p, source))
+        if sniffed not in (None, "PNG", "JPEG", "WEBP"):
+            raise self.err(p, f"unsupported image format {sniffed} of {source!r} (PNG, JPEG, WEBP and KTX2 are)")
         try:
-            with PILImage.open(io.BytesIO(data)) as pim:
+            with asset_guard.pillow_unbounded(), PILImage.open(io.BytesIO(data)) as pim:
                 fmt = pim.format
-                if fmt not in ("PNG", "JPEG"):
-                    raise self.err(p, f"unsupported image format {fmt} (PNG and JPEG are)")
+                if fmt not in DECODED_FORMATS:
+                    raise self.err(p, f"unsupported image format {fmt} (PNG, JPEG and WEBP are)")
                 if pim.mode in ("P", "PA"):
                     pim = pim.convert("RGBA")
                 elif pim.mode == "CMYK":
@@ -484,12 +567,37 @@ class _Reader:
         except AssetError:
             raise
         except Exception as e:  # noqa: BLE001 - Pillow raises many types on corrupt data
-            raise self.err(p, f"unreadable texture image {source!r} ({type(e).__name__}: {e})") from None
+            # Pillow's messages embed its stream's repr (<_io.BytesIO object at 0x...>): name the format instead
+            what = sniffed or "an unrecognized format"
+            msg = _PIL_STREAM.sub("", str(e)).strip().splitlines()
+            raise self.err(p, f"unreadable texture image {source!r} ({what}; {type(e).__name__}"
+                           + (f": {msg[0]}" if msg else "") + ")") from None
         if pixels.dtype == bool:
             pixels = pixels.astype(np.uint8) * 255
-        mime = "image/png" if fmt == "PNG" else "image/jpeg"
+        mime = DECODED_FORMATS[fmt]
         return GltfImage(im.get("name", source if not source.startswith("data") else f"image{index}"), source, mime,
                          np.ascontiguousarray(pixels))
+
+
+#: Image formats Pillow decodes (its format name -> MIME type): glTF's core PNG and JPEG, EXT_texture_webp's
+#: WEBP (KHR_texture_basisu's KTX2: :func:`pbrcheck.gltf_features.decode_ktx2`).
+DECODED_FORMATS = {"PNG": "image/png", "JPEG": "image/jpeg", "WEBP": "image/webp"}
+_MIME_BY_SUFFIX = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".webp": "image/webp",
+                   ".ktx2": "image/ktx2"}
+#: Leading bytes of image formats (their specifications' signatures), to name a format in errors.
+_SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "PNG"), (b"\xff\xd8\xff", "JPEG"), (b"\xabKTX 20\xbb\r\n\x1a\n", "KTX2"),
+               (b"\xabKTX 11\xbb\r\n\x1a\n", "KTX1"), (b"DDS ", "DDS"), (b"GIF8", "GIF"), (b"BM", "BMP"))
+
+
+#: Pillow's repr of the stream it was given, in its error messages (dropped: it names no file).
+_PIL_STREAM = re.compile(r"\s*<_io\.BytesIO object at 0x[0-9a-fA-F]+>")
+
+
+def _sniff_format(head: bytes) -> str | None:
+    """The format an image's first bytes announce (WEBP: RIFF....WEBP), or None."""
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        return "WEBP"
+    return next((name for sig, name in _SIGNATURES if head.startswith(sig)), None)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -553,10 +661,7 @@ def _texture_ref(r: _Reader, t: dict, pointer: str, *, scale_key: str | None = N
         raise r.err(pointer, "a textureInfo with an index")
     tex = r.get("textures", t["index"], pointer + "/index")
     tp = f"/textures/{t['index']}"
-    if "source" not in tex:
-        raise r.err(tp, "a texture without source (only PNG and JPEG sources are supported)")
-    image = tex["source"]
-    r.get("images", image, tp + "/source")
+    image = gltf_features.texture_source(r, tex, tp)
     wrap = (WRAP_REPEAT, WRAP_REPEAT)
     mag = mn = None
     if "sampler" in tex:
@@ -608,6 +713,7 @@ def _material(r: _Reader, index: int) -> GltfMaterial:
         emissive=em, emissive_texture=tex(m, "emissiveTexture", p),
         alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
         ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
+        unlit="KHR_materials_unlit" in ext,
     )
 
 
@@ -637,7 +743,12 @@ def _draco(r: _Reader, prim: dict, pp: str) -> dict[str, np.ndarray]:
 
 
 def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, prim_i: int, prim: dict,
-               world: np.ndarray, materials: tuple[GltfMaterial, ...]) -> Primitive:
+               world: np.ndarray, materials: tuple[GltfMaterial, ...], *, weights: np.ndarray | None = None,
+               joint_mats: np.ndarray | None = None, worlds: list[np.ndarray] | None = None,
+               variant: int | None = None) -> Primitive:
+    """One (node, primitive) in world space: morph ``weights`` and the skin's ``joint_mats`` applied
+    (:func:`pbrcheck.gltf_features.deform`; skinned: world space, ``world`` ignored), placed by
+    ``worlds`` (GPU instances; default ``[world]``), drawn with ``variant``'s material."""
     pp = f"/meshes/{mesh_i}/primitives/{prim_i}"
     mode = prim.get("mode", 4)
     if mode != 4:
@@ -663,20 +774,28 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
     if bad.any():
         raise r.err(pp + "/attributes/POSITION", f"{int(bad.sum())} non-finite (NaN or infinite) position(s), "
                     f"first at vertex {int(np.argmax(bad))}")
+    asset_guard.check_positions(r.path, pp + "/attributes/POSITION", pos, "")  # before normals square them
     for k, v in data.items():
         if v.shape[0] != n:
             raise r.err(f"{pp}/attributes/{k}", f"count {v.shape[0]} differs from POSITION's {n}")
+    if weights is not None or joint_mats is not None:
+        data = gltf_features.deform(r, prim, pp, data, weights, joint_mats)
+        pos = data["POSITION"]
+        if joint_mats is not None:   # skinned: world space already (spec 3.7.3.3)
+            worlds = [np.eye(4)]
     if idx is None:
         idx = np.arange(n, dtype=np.uint32)
     idx = idx.astype(np.int64)
     if idx.size % 3:
         raise r.err(pp + "/indices", f"{idx.size} indices, not a multiple of 3")
-    if idx.size and (idx.min() < 0 or idx.max() >= n):
+    if idx.size and idx.min() < 0:
+        raise r.err(pp + "/indices", f"negative index {int(idx.min())} (indices are unsigned)")
+    if idx.size and idx.max() >= n:
         raise r.err(pp + "/indices", f"index {int(idx.max())} out of range ({n} vertices)")
     tri = idx.reshape(-1, 3)
-    if tri.shape[0] > MAX_TRIANGLES:
-        raise r.err(pp + "/indices", f"{tri.shape[0]} triangles (more than {MAX_TRIANGLES})")
-    mat_i = int(prim.get("material", -1))
+    # declared counts were checked before decoding (asset_guard.expansion); a Draco stream may decode more
+    limits.check("triangles", tri.shape[0], f"{r.path}: {pp}", "triangles of one decoded primitive")
+    mat_i = gltf_features.variant_material(r, prim, pp, variant)
     if mat_i >= 0:
         r.get("materials", mat_i, pp + "/material")
     mat = DEFAULT_MATERIAL if mat_i < 0 else materials[mat_i]
@@ -707,22 +826,16 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
         pos, nrm = data["POSITION"], nrm[src]
         generated = True
 
-    # to world
-    M = world[:3, :3]
-    det = float(np.linalg.det(M))
-    if abs(det) < 1e-30:
-        raise r.err(f"/nodes/{node_i}", "a singular world transform (zero scale)")
-    wpos = (pos.astype(np.float64) @ M.T + world[:3, 3]).astype(np.float32)
-    wn = nrm @ np.linalg.inv(M)
-    wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
-    wt = None
-    if tan is not None:
-        t3 = tan[:, :3].astype(np.float64) @ M.T
-        t3 /= np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-30)
-        w = np.where(tan[:, 3] < 0, -1.0, 1.0) * (1.0 if det > 0 else -1.0)
-        wt = np.concatenate([t3, w[:, None]], axis=1).astype(np.float32)
-    if det < 0:
-        tri = tri[:, [0, 2, 1]]
+    # to world, once per GPU instance
+    worlds = [world] if worlds is None else worlds
+    limits.check("triangles", tri.shape[0] * len(worlds), f"{r.path}: /nodes/{node_i}",
+                 "triangles of one primitive's GPU instances")
+    for w in worlds:  # before the float32 cast of the placed positions overflows
+        asset_guard.check_positions(r.path, f"/nodes/{node_i}", pos.astype(np.float64) @ w[:3, :3].T + w[:3, 3],
+                                    "world-space ")
+    wpos, wn, wt, tri = gltf_features.place(r, node_i, pos, nrm, tan, tri, worlds)
+    if len(worlds) > 1:
+        data = {k: np.tile(v, (len(worlds), 1)) for k, v in data.items()}
     color = data.get("COLOR_0")
     if color is not None:
         color = color.astype(np.float32)
@@ -734,7 +847,8 @@ def _primitive(r: _Reader, node_i: int, node: dict, mesh_i: int, mesh: dict, pri
         name=f"{nname}/{mname}/{prim_i}", node=node_i, mesh=mesh_i, primitive=prim_i, material=mat_i,
         positions=wpos, normals=wn.astype(np.float32), indices=np.ascontiguousarray(tri, dtype=np.uint32),
         tangents=wt, texcoords=(data.get("TEXCOORD_0"), data.get("TEXCOORD_1")), color=color,
-        flat_normals=flat, generated_tangents=generated)
+        flat_normals=flat, generated_tangents=generated, instances=len(worlds), skinned=joint_mats is not None,
+        morph_weights=tuple(float(w) for w in weights) if weights is not None else ())
 
 
 def _light(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfLight:
@@ -791,29 +905,32 @@ def _camera(r: _Reader, index: int, world: np.ndarray, node_i: int) -> GltfCamer
                       znear=float(per.get("znear", 0.01)))
 
 
-_CACHE: dict[tuple[str, str, int], Asset] = {}
+_CACHE: dict[tuple, Asset] = {}
 
 
-def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
+def load_asset(path: str | Path, *, scene: int | None = None, variant: str | None = None) -> Asset:
     """Read ``path`` (.gltf or .glb) and resolve glTF scene ``scene`` (default: the file's ``scene``,
-    else 0) into an :class:`Asset`. Raises :class:`AssetError`. Cached by content in this process."""
+    else 0) into an :class:`Asset`, its primitives drawn with ``KHR_materials_variants``' ``variant``
+    (None: the file's default materials). Raises :class:`AssetError`. Cached by content in this process."""
     p = Path(path)
     raw = _file_bytes(p)
     h = content_hash(p)
-    key = (str(p.resolve()), h, -1 if scene is None else int(scene))
+    key = (str(p.resolve()), h, -1 if scene is None else int(scene), variant, asset_guard.budgets_key())
     if key in _CACHE:
         return announce(_CACHE[key])
     doc, blob = _parse(p, raw)
+    asset_guard.check_document(p, doc)  # malformed fields, before any is used
     r = _Reader(p, doc, blob)
     used = tuple(doc.get("extensionsUsed", []))
     required = doc.get("extensionsRequired", [])
     for k, e in enumerate(required):
-        if e not in SUPPORTED_EXTENSIONS:
+        if e not in MODELLED_EXTENSIONS:
             raise r.err(f"/extensionsRequired/{k}", f"required extension {e} is not supported by pbrcheck "
-                        f"(supported: {', '.join(SUPPORTED_EXTENSIONS)})")
-    ignored = tuple(e for e in used if e not in SUPPORTED_EXTENSIONS)
+                        f"(supported: {', '.join(MODELLED_EXTENSIONS)})")
+    ignored = tuple(e for e in used if e not in MODELLED_EXTENSIONS)
+    variant_i = gltf_features.variant_index(r, variant)
     materials = tuple(_material(r, i) for i in range(len(doc.get("materials", []))))
-    images = tuple(r.image(i) for i in range(len(doc.get("images", []))))
+    wanted = gltf_features.used_images(materials)
     scenes = doc.get("scenes", [])
     si = int(scene if scene is not None else doc.get("scene", 0))
     if scenes:
@@ -824,37 +941,65 @@ def load_asset(path: str | Path, *, scene: int | None = None) -> Asset:
     else:  # no scenes: every root node
         children = {c for n in doc.get("nodes", []) for c in n.get("children", [])}
         roots = [i for i in range(len(doc.get("nodes", []))) if i not in children]
+    # the budgets judged from the JSON and the image headers, before any decoding (pbrcheck.limits)
+    asset_guard.expansion(p, doc, roots, f"/scenes/{si}/nodes" if scenes else "/nodes")
+    # every node's world matrix, for the joints of skins (only where a node has a skin)
+    skinned = any(isinstance(n, dict) and "skin" in n for n in doc.get("nodes", []))
+    worlds = gltf_features.node_worlds(r, node_matrix) if skinned else {}
+    # only the images a used texture reads are read and decoded (the others named, not decoded)
+    n_images = len(doc.get("images", []))
+    asset_guard.check_texture_bytes(p, [asset_guard.image_header_bytes(r.image_bytes(i)[0])
+                                        for i in range(n_images) if i in wanted])
+    images = tuple(r.image(i) if i in wanted else r.image_undecoded(i) for i in range(n_images))
     prims: list[Primitive] = []
     lights: list[GltfLight] = []
     cameras: list[GltfCamera] = []
-    stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes") for n in roots]
+    hidden = 0   # meshes of nodes KHR_node_visibility hides
+    stack = [(int(n), np.eye(4), (), f"/scenes/{si}/nodes", True) for n in roots]
     while stack:
-        ni, parent, seen, ptr = stack.pop(0)
+        ni, parent, seen, ptr, visible = stack.pop(0)
         node = r.get("nodes", ni, ptr)
         if ni in seen:
             raise r.err(f"/nodes/{ni}/children", "a cycle in the node hierarchy")
         world = parent @ node_matrix(node)
         if not np.isfinite(world).all():
             raise r.err(f"/nodes/{ni}", "a non-finite transform")
-        if "mesh" in node:
+        asset_guard.check_world_matrix(p, f"/nodes/{ni}", world)
+        visible = visible and gltf_features.node_visible(r, node, ni)   # KHR_node_visibility
+        hidden += int("mesh" in node and not visible)
+        if "mesh" in node and visible:
             mesh = r.get("meshes", node["mesh"], f"/nodes/{ni}/mesh")
+            joints = None
+            inst = gltf_features.instance_matrices(r, node, ni, world, _quat_matrix)
             for pi, prim in enumerate(mesh.get("primitives", [])):
-                prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials))
+                targets = prim.get("targets", []) if isinstance(prim, dict) else []
+                weights = (gltf_features.morph_weights(r, node, ni, mesh, node["mesh"], len(targets))
+                           if targets else None)
+                # a skin poses the primitives that have joints (as engines do: without JOINTS_0 a
+                # primitive is an ordinary mesh at its node's transform)
+                skinned = "skin" in node and "JOINTS_0" in (prim.get("attributes", {}) if isinstance(prim, dict) else {})
+                if skinned and joints is None:
+                    joints = gltf_features.skin_matrices(r, node["skin"], ni, worlds)
+                prims.append(_primitive(r, ni, node, node["mesh"], mesh, pi, prim, world, materials,
+                                        weights=weights, joint_mats=joints if skinned else None, worlds=inst,
+                                        variant=variant_i))
         if "camera" in node:
             c = _camera(r, node["camera"], world, ni)
             if c is not None:
                 cameras.append(c)
         le = node.get("extensions", {}).get("KHR_lights_punctual")
-        if le is not None:
+        if le is not None and visible:
             lights.append(_light(r, le.get("light"), world, ni))
         for c in node.get("children", []):
-            stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children"))
+            stack.append((int(c), world, seen + (ni,), f"/nodes/{ni}/children", visible))
     if not prims:
-        raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render")
+        raise r.err(f"/scenes/{si}" if scenes else "/nodes", "no mesh primitive to render"
+                    + (f" ({hidden} mesh node(s) hidden by KHR_node_visibility)" if hidden else ""))
     asset = Asset(path=str(p.resolve()), primitives=tuple(prims), materials=materials, images=images,
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
                   content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,
-                  unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], SUPPORTED_EXTENSIONS,
-                                               MODELLED_CORE_FEATURES))
+                  unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], MODELLED_EXTENSIONS,
+                                               MODELLED_CORE_FEATURES),
+                  variants=gltf_features.variant_names(doc), variant=variant)
     _CACHE[key] = asset
     return announce(asset)

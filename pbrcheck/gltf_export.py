@@ -6,14 +6,21 @@ The written ``scene.gltf`` is the asset's own JSON with: the chosen glTF scene o
 under one node ``pbrcheck_root`` carrying the scene file's placement (``matrix``, column-major;
 omitted when the identity), pbrcheck's camera first in ``cameras`` (the asset's cameras follow,
 their nodes re-indexed) on a node ``camera``; a GLB's binary chunk becomes ``scene.bin``; external
-buffers and images are copied beside it under their own relative URIs; data URIs stay. Analytic
+buffers and images are copied beside it under their own relative URIs, except one that would take
+the name of a file the export writes itself (``reserved``: ``scenario.json``, ``scene.gltf``,
+``environment.*``, the objects' buffer; compared case-insensitively) or a name already taken: that
+copy goes into a sub-folder :data:`RENAMED_FOLDER` (``_asset/scenario.json``), its URI rewritten, so
+no file of the asset is overwritten by the export's own; data URIs stay. Analytic
 objects of the same scene are added by :func:`pbrcheck.export.gltf_document`, tessellated as in an
 analytic scene's export (nodes ``object_<k>_<name>``, a buffer ``pbrcheck_objects.bin`` of their
-own). The scene file's own lights are added there too (root nodes ``light_<k>`` beside
+own). The asset's ``KHR_materials_variants`` variant drawn becomes its default material, and nodes
+hidden by ``KHR_node_visibility`` lose their meshes and lights
+(:func:`pbrcheck.gltf_features.export_selection`); skins, morph targets and GPU instances are kept
+for the engines to apply. The scene file's own lights are added there too (root nodes ``light_<k>`` beside
 ``pbrcheck_root``, after the asset's ``KHR_lights_punctual`` lights). One asset per exported scene
 (:class:`~pbrcheck.gltf.AssetError` otherwise).
 
-API: :func:`asset_document` (the JSON, the files to write beside it), :func:`mesh_object_ids`
+API: :func:`asset_document` (the JSON, the files to write beside it), :data:`RENAMED_FOLDER`, :func:`mesh_object_ids`
 (the ``object`` AOV of a scene's meshes by rasterizing pixel centres in numpy).
 """
 
@@ -27,8 +34,12 @@ from pathlib import Path
 import numpy as np
 
 from .camera import camera_frame, tan_half_fov
-from .gltf import AssetError
+from . import gltf_features
+from .gltf import AssetError, read_resource, resource_cap
 
+#: The sub-folder of an asset's resource whose name an export file takes (:func:`asset_document`);
+#: ``_asset2``, ``_asset3``, ... when that path is taken too.
+RENAMED_FOLDER = "_asset"
 #: Most candidate (triangle, pixel) pairs rasterized at once by :func:`mesh_object_ids`.
 RASTER_CHUNK = 1 << 22
 
@@ -47,17 +58,30 @@ def _read_doc(path: Path) -> tuple[dict, bytes | None]:
     return json.loads(raw.decode("utf-8")), None
 
 
-def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scene.bin") -> tuple[dict, dict[str, bytes]]:
+def _free_path(rel: str, taken: set[str]) -> str:
+    """``rel``, or ``_asset/rel`` (``_asset2/rel``, ...) when ``rel`` is taken (case-insensitively)."""
+    out, n = rel, 1
+    while out.casefold() in taken:
+        out = f"{RENAMED_FOLDER}{n if n > 1 else ''}/{rel}"
+        n += 1
+    return out
+
+
+def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scene.bin",
+                   reserved: tuple[str, ...] = ()) -> tuple[dict, dict[str, bytes]]:
     """(glTF JSON, {relative path: bytes}) of the scene's one asset (its analytic objects, if any, are
-    :func:`pbrcheck.export.gltf_document`'s to add)."""
+    :func:`pbrcheck.export.gltf_document`'s to add); no resource takes a name in ``reserved`` (the
+    export's own files) or another resource's (module docstring)."""
     if len(scene.assets) != 1:
         raise AssetError(scene.source, "objects", "an exported scene holds at most one glTF asset "
                          f"(this one has {len(scene.assets)})")
     inst = scene.assets[0]
     src = Path(inst.path)
     doc, blob = _read_doc(src)
-    doc = copy.deepcopy(doc)
+    doc = gltf_features.export_selection(copy.deepcopy(doc), inst.variant)   # the variant and visibility drawn
     files: dict[str, bytes] = {}
+    taken = {r.casefold() for r in reserved}
+    placed: dict[str, str] = {}  # the asset's relative path -> where its copy goes
     for key in ("buffers", "images"):
         for k, b in enumerate(doc.get(key, [])):
             uri = b.get("uri")
@@ -65,13 +89,19 @@ def asset_document(scene, camera_node: dict, camera: dict, bin_name: str = "scen
                 if key == "buffers" and k == 0 and blob is not None:
                     b["uri"] = bin_name
                     files[bin_name] = bytes(blob)
+                    taken.add(bin_name.casefold())
                 continue
             if uri.startswith("data:"):
                 continue
             rel = urllib.parse.unquote(uri)
-            if Path(rel).is_absolute() or ".." in Path(rel).parts:
-                raise AssetError(src, f"/{key}/{k}/uri", f"a resource outside the asset's folder ({uri!r})")
-            files[rel] = (src.parent / rel).read_bytes()
+            norm = Path(rel).as_posix()
+            if norm not in placed:
+                placed[norm] = _free_path(norm, taken)
+                taken.add(placed[norm].casefold())
+                # the loader's resolver: a symlink out of the asset's folder is refused, never its target copied
+                files[placed[norm]] = read_resource(src, uri, f"/{key}/{k}/uri", resource_cap(key, b), key[:-1])
+            if placed[norm] != norm:
+                b["uri"] = urllib.parse.quote(placed[norm])
     si = inst.asset.scene
     roots = doc["scenes"][si]["nodes"] if doc.get("scenes") else inst.asset and [
         i for i in range(len(doc.get("nodes", [])))

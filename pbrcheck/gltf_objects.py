@@ -8,7 +8,8 @@ API
 - :class:`AssetInstance` -- one ``gltf`` object of a scene: the file, its placement, the loaded asset.
 - :class:`Mesh` -- one (node, primitive) of an instance as a scene object (id, ``node/mesh/primitive``).
 - :func:`expand_gltf_object` -- a scene file's ``gltf`` table -> (instance, meshes, lights).
-- :func:`set_asset_options` / :func:`asset_options` -- ``--env`` and ``--size`` for asset paths (the CLI).
+- :func:`set_asset_options` / :func:`asset_options` -- ``--env``, ``--size`` and ``--variant`` for asset
+  paths (the CLI).
 - :func:`framing` -- model-viewer's default framing of a bounding box (origin, target, horizontal fov).
 - :func:`is_asset_path`, :func:`parse_size`.
 
@@ -51,12 +52,13 @@ DEFAULT_ASSET_SIZE = (512, 512)
 NEUTRAL_RADIANCE = (1.0, 1.0, 1.0)
 ASSET_SUFFIXES = (".gltf", ".glb")
 
-_OPTIONS: dict = {"env": None, "size": None}
+_OPTIONS: dict = {"env": None, "size": None, "variant": None}
 
 
-def set_asset_options(env: str | None = None, size: tuple[int, int] | None = None) -> None:
-    """Environment file and image size for scenes made from an asset path (set by the CLI)."""
-    _OPTIONS["env"], _OPTIONS["size"] = env, size
+def set_asset_options(env: str | None = None, size: tuple[int, int] | None = None, variant: str | None = None) -> None:
+    """Environment file, image size and ``KHR_materials_variants`` variant (None: the file's default
+    materials) for scenes made from an asset path (set by the CLI)."""
+    _OPTIONS["env"], _OPTIONS["size"], _OPTIONS["variant"] = env, size, variant
 
 
 def asset_options() -> dict:
@@ -86,6 +88,7 @@ class AssetInstance:
     rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     scene: int | None = None
+    variant: str | None = None       # KHR_materials_variants' variant drawn (None: the default materials)
     content_hash: str = ""
     first_id: int = 0
     lights: int = 0          # point lights of the asset appended to the scene's lights
@@ -121,7 +124,8 @@ class AssetInstance:
     def to_dict(self) -> dict:
         return {"type": "gltf", "path": self.path, "translation": list(self.translation),
                 "rotation": list(self.rotation), "scale": list(self.scale),
-                **({"scene": self.scene} if self.scene is not None else {}), "content_hash": self.content_hash}
+                **({"scene": self.scene} if self.scene is not None else {}),
+                **({"variant": self.variant} if self.variant is not None else {}), "content_hash": self.content_hash}
 
 
 @dataclass(frozen=True)
@@ -146,13 +150,12 @@ def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: 
     ``material_cls`` its Material."""
     _check_keys, _num, _vec3 = check_keys, num, vec3
 
-    _check_keys(ctx, t, {"type", "name", "path", "translation", "rotation", "scale", "scene", "content_hash"}, where)
+    _check_keys(ctx, t, {"type", "name", "path", "translation", "rotation", "scale", "scene", "variant", "content_hash"},
+                where)
     p = t.get("path")
     if not isinstance(p, str) or not p:
         raise ctx.err(f"{where}.path", "the path of a .gltf or .glb file (required)", p)
-    path = Path(p)
-    if not path.is_absolute():
-        path = (ctx.base_dir or Path.cwd()) / path
+    path = ctx.path(f"{where}.path", p)  # a scene file's path stays in its folder (pbrcheck.untrusted)
     if not path.is_file():
         raise ctx.err(f"{where}.path", "an existing .gltf or .glb file", str(path))
     if not is_asset_path(path):
@@ -164,10 +167,14 @@ def expand_gltf_object(ctx, t: dict, where: str, first_id: int, instance_index: 
             or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or x == 0 for x in sc)):
         raise ctx.err(f"{where}.scale", "a non-zero number or 3 non-zero numbers", t.get("scale"))
     scene_i = _num(ctx, t, "scene", where, -1, lo=0, integer=True) if "scene" in t else None
-    asset = load_asset(path, scene=scene_i)
+    variant = t.get("variant")
+    if variant is not None and not isinstance(variant, str):
+        raise ctx.err(f"{where}.variant", "the name of one of the asset's KHR_materials_variants variants", variant)
+    asset = load_asset(path, scene=scene_i, variant=variant)
     inst = AssetInstance(path=str(path.resolve()), translation=_vec3(ctx, t, "translation", where, (0.0, 0.0, 0.0)),
                          rotation=_vec3(ctx, t, "rotation", where, (0.0, 0.0, 0.0)),
-                         scale=tuple(float(x) for x in sc), scene=scene_i, content_hash=asset.content_hash,
+                         scale=tuple(float(x) for x in sc), scene=scene_i, variant=variant,
+                         content_hash=asset.content_hash,
                          first_id=first_id, asset=asset)
     meshes = [Mesh(id=first_id + k, name=prim.name, instance=instance_index, primitive=k,
                    gltf_material=prim.material, material=_summary(material_cls, asset, prim.material),

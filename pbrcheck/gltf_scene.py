@@ -47,7 +47,9 @@ def describe(scene: Scene) -> list[str]:
                 p = a.primitives[o.primitive]
                 extra = [s for s, on in (("flat normals", p.flat_normals), ("generated tangents", p.generated_tangents),
                                          ("TANGENT", p.tangents is not None and not p.generated_tangents),
-                                         ("TEXCOORD_1", p.texcoords[1] is not None), ("COLOR_0", p.color is not None)) if on]
+                                         ("TEXCOORD_1", p.texcoords[1] is not None), ("COLOR_0", p.color is not None),
+                                         ("skinned", p.skinned), (f"morph weights {list(p.morph_weights)}", p.morph_weights),
+                                         (f"{p.instances} instances", p.instances > 1)) if on]
                 out.append(f"#     object {o.id} {o.name}: {p.triangles} triangles, material "
                            f"{a.material(p.material).name!r}" + (f" ({', '.join(extra)})" if extra else ""))
         out.append(f"#   {len(a.materials)} material(s):")
@@ -57,7 +59,8 @@ def describe(scene: Scene) -> list[str]:
             out.append(f"#     {i} {m.name!r}: baseColor {list(m.base_color)}, metallic {m.metallic}, roughness "
                        f"{m.roughness}, emissive {list(m.emissive)}, ior {m.ior}, alpha {m.alpha_mode}"
                        + (f" (cutoff {m.alpha_cutoff})" if m.alpha_mode == "MASK" else "")
-                       + (", double-sided" if m.double_sided else "") + (f"; textures {tex}" if tex else ""))
+                       + (", double-sided" if m.double_sided else "") + (", unlit" if m.unlit else "")
+                       + (f"; textures {tex}" if tex else ""))
         slots = a.texture_slots()
         out.append(f"#   {len(a.images)} texture image(s):")
         for i, im in enumerate(a.images):
@@ -65,11 +68,19 @@ def describe(scene: Scene) -> list[str]:
             srgb = any(u.split(":")[-1] in SRGB_SLOTS for u in used)
             lin = any(u.split(":")[-1] not in SRGB_SLOTS for u in used)
             space = "sRGB and linear" if srgb and lin else "sRGB" if srgb else "linear" if lin else "unused"
+            if not im.decoded:
+                out.append(f"#     image{i} {im.source} ({im.mime}): not decoded (no modelled texture reads it)")
+                continue
             out.append(f"#     image{i} {im.source} ({im.mime}): {im.size[0]}x{im.size[1]}, {im.pixels.shape[2] if im.pixels.ndim == 3 else 1} "
                        f"channel(s), {space}; slots {', '.join(used) or 'none'}")
         out.append(f"#   lights: {len(a.lights)}" + "".join(f"; {_light_line(L)}" for L in a.lights))
         out.append(f"#   cameras: {len(a.cameras)}" + (f" (the first, {a.cameras[0].name!r}, is the scene's camera "
                                                        "when the asset is the scene)" if a.cameras else ""))
+        if a.variants:
+            from .fmt import terminal_safe
+            shown = terminal_safe(a.variant) if a.variant is not None else "none: the default materials"
+            out.append(f"#   material variants (--variant NAME): {', '.join(terminal_safe(v) for v in a.variants)}; "
+                       f"drawn: {shown}")
         out.append(f"#   extensions used: {', '.join(a.extensions_used) or 'none'}; ignored: "
                    f"{', '.join(a.extensions_ignored) or 'none'}")
     c = scene.camera

@@ -5,6 +5,7 @@ API
 ---
 - :func:`write_hdr` -- Radiance RGBE, new-style run-length scanlines (every reader accepts them).
 - :func:`read_hdr` -- Radiance RGBE through Mitsuba's ``Bitmap`` reader (flat and RLE scanlines).
+- :func:`hdr_size` -- (width, height) of a Radiance file from its header alone (no pixel read).
 - :func:`write_pfm` / :func:`read_pfm` -- Portable Float Map (``PF`` colour, little or big endian).
 - :func:`read_png_srgb` -- an 8-bit PNG as display values in [0, 1] (the sRGB code values / 255).
 - :func:`read_float_image` -- any of .exr, .hdr, .pfm as float32 (H, W, 3), row 0 at the top.
@@ -84,6 +85,32 @@ def write_hdr(path: str | Path, rgb: np.ndarray) -> Path:
     else:
         parts.append(px.tobytes())
     return write_bytes_atomic(path, b"".join(parts))
+
+
+#: Bytes of a Radiance header read at most by :func:`hdr_size` (the header is a few lines of text).
+HDR_HEADER_MAX_BYTES = 1 << 16
+
+
+def hdr_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) of a Radiance ``.hdr`` from its header: the text lines up to the empty line,
+    then the resolution string (``-Y H +X W``; the other orientations ``+Y``/``-X``, and X first,
+    are read too). Raises :class:`ImageIOError` for a file without one in its first
+    :data:`HDR_HEADER_MAX_BYTES` bytes."""
+    import re
+
+    from .untrusted import read_regular_prefix
+
+    path = Path(path)
+    try:
+        head = read_regular_prefix(path, HDR_HEADER_MAX_BYTES)
+    except (OSError, ValueError) as e:
+        raise ImageIOError(str(path), f"not a readable Radiance HDR ({getattr(e, 'strerror', None) or e})") from None
+    _, sep, rest = head.partition(b"\n\n")
+    m = re.match(rb"\s*([-+])([XY]) (\d+) ([-+])([XY]) (\d+)\s*\n", rest) if sep else None
+    if m is None or m.group(2) == m.group(5):
+        raise ImageIOError(str(path), "not a readable Radiance HDR (no resolution line after the header)")
+    a, b = int(m.group(3)), int(m.group(6))
+    return (b, a) if m.group(2) == b"Y" else (a, b)
 
 
 def read_hdr(path: str | Path) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Roughness -> prefiltered-LOD mappings: the built-in ones (numpy twins of ``realtime/shaders/lod.glsl``)
 and the fitted monotone mapping's file format (:class:`LodMapping`).
 
-Built-in mappings (:data:`pbrcheck.registry.LOD_MAPPINGS`), each a pair of functions of the same
+Built-in mappings (:data:`LOD_MAPPINGS`), each a pair of functions of the same
 name as its GLSL twin, ``M`` the last level of the prefiltered chain and ``cube_log2`` log2 of the
 cube's face size:
 
@@ -20,7 +20,7 @@ The fitted mapping (``pbrcheck fit-lod``) is
 Every basis function is increasing on [0, 1] with ``b_k(0) = 0``, so non-negative coefficients make
 the mapping monotone non-decreasing with ``lod(0) = 0``; ``r (2 - r)`` makes both smooth built-in
 mappings members of the family (``linear`` = M r, ``quadratic`` = M r (2 - r); their coefficients
-are :data:`pbrcheck.registry.LOD_MAPPINGS`' ``basis``). It is clamped to ``[0, mip_count - 1]`` when
+are :data:`LOD_MAPPINGS`' ``basis``). It is clamped to ``[0, mip_count - 1]`` when
 evaluated, as the GPU's ``textureLod`` does. It holds only for the cube size, mip count and
 prefiltered chain it was measured with (``chain``: the built-in mapping whose inverse baked the
 levels); all three are kept with the coefficients and checked when it is loaded.
@@ -29,7 +29,8 @@ API
 ---
 :func:`lod_linear`, :func:`lod_quadratic`, :func:`lod_log2` and their inverses
 :func:`roughness_linear`, :func:`roughness_quadratic`, :func:`roughness_log2`;
-:func:`builtin_lod` (dispatch by name); :data:`BASIS_NAMES`, :func:`basis`,
+:data:`LOD_MAPPINGS` (the registry, a built-in mapping's entry holding its pair),
+:data:`BUILTIN_LOD_MAPPINGS`, :func:`builtin_lod` (dispatch by name); :data:`BASIS_NAMES`, :func:`basis`,
 :func:`basis_coefficients`; :class:`LodMapping` (``__call__``, ``to_json``, ``from_json``,
 ``load``, ``glsl_expr``, ``glsl``); :class:`LodFitError`.
 """
@@ -43,7 +44,7 @@ import numpy as np
 
 from .errors import PbrcheckError
 from .jsonio import read_json
-from .registry import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS
+from .registry import Entry, Registry, role
 
 #: log2's smallest roughness (log2 of 0 is -inf; 1e-6 is far below the first level's roughness).
 LOG2_MIN_ROUGHNESS = 1e-6
@@ -82,13 +83,36 @@ def roughness_log2(lod, max_lod, cube_log2):
     return np.clip(np.exp2((np.asarray(lod, dtype=np.float64) - cube_log2 + 1.0) / 1.2), 0.0, 1.0)
 
 
+#: Roughness -> prefiltered mip level. ``extra["basis"]``: the mapping as coefficients of
+#: :data:`pbrcheck.lodmap.BASIS_NAMES` times the last level ``M`` (None: not a member of the fit's
+#: family); ``extra["builtin"]``: bakes a prefiltered chain (``fitted`` reads a built-in chain);
+#: a built-in mapping's roles: its ``lod`` of roughness and its inverse ``roughness`` of the level.
+LOD_MAPPINGS = Registry("LOD_MAPPING", applies_to=(
+    "the real-time renderer's prefiltered chain only (the reference has none): a built-in mapping's roles lod and "
+    "roughness (numpy here, GLSL twins of the same names in lod.glsl)"), entries=[
+    Entry("linear", "article 000: lod = r M", extra={"builtin": True, "basis": (1, 0, 0, 0, 0, 0)},
+          roles={"lod": role(lod_linear), "roughness": role(roughness_linear)}),
+    Entry("quadratic", "Filament's perceptualRoughnessToLod: lod = M r (2 - r)",
+          extra={"builtin": True, "basis": (0, 0, 0, 0, 0, 1)},
+          roles={"lod": role(lod_quadratic), "roughness": role(roughness_quadratic)}),
+    Entry("log2", "UE4's ComputeReflectionCaptureMipFromRoughness (article 002): "
+                  "lod = log2(size) - (1 - 1.2 log2 r)", extra={"builtin": True, "basis": None},
+          roles={"lod": role(lod_log2), "roughness": role(roughness_log2)}),
+    Entry("fitted", "pbrcheck fit-lod's fitted monotone mapping (lod_mapping=fitted:FILE)",
+          extra={"builtin": False, "basis": None}),
+])
+
+#: The built-in mappings (each bakes its own prefiltered chain).
+BUILTIN_LOD_MAPPINGS = tuple(e.name for e in LOD_MAPPINGS if e.extra["builtin"])
+
+
 def builtin_lod(name: str, r, max_lod: float, cube_log2: float) -> np.ndarray:
     """The built-in mapping ``name``'s LOD of roughness ``r``.
 
     Parameters
     ----------
     name : str
-        A built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`.
+        A built-in member of :data:`LOD_MAPPINGS`.
     r : array_like
         Perceptual roughness in [0, 1].
     max_lod : float
@@ -108,7 +132,8 @@ def builtin_lod(name: str, r, max_lod: float, cube_log2: float) -> np.ndarray:
     """
     if name not in BUILTIN_LOD_MAPPINGS:
         raise LodFitError(f"lod_mapping: expected one of {', '.join(BUILTIN_LOD_MAPPINGS)}, found {name!r}")
-    return np.asarray(globals()[f"lod_{name}"](np.asarray(r, dtype=np.float64), max_lod, cube_log2), np.float64)
+    lod = LOD_MAPPINGS[name].roles["lod"].numpy
+    return np.asarray(lod(np.asarray(r, dtype=np.float64), max_lod, cube_log2), np.float64)
 
 
 def basis_coefficients(name: str, max_lod: float) -> list[float] | None:

@@ -26,8 +26,8 @@ API
   Mapped Reflections", the form Jimenez et al. 2016 also use: ``saturate(1 + HORIZON_FADE r.n_g)^2``
   with ``n_g`` the geometric (interpolated vertex) normal: a normal map's reflection below the
   surface's horizon fades out; 1 wherever r is above it.
-- :func:`specular_occlusion`, :func:`horizon_occlusion` -- the dispatches: each looks up the member's
-  function in :data:`pbrcheck.registry.SPECULAR_OCCLUSIONS` / :data:`~pbrcheck.registry.HORIZON_OCCLUSIONS`.
+The registries :data:`realtime.registry.SPECULAR_OCCLUSIONS` / ``HORIZON_OCCLUSIONS`` hold these
+functions; their dispatch by name is :func:`realtime.dispatch.specular_occlusion` / ``horizon_occlusion``.
 
 Conventions: ``ao`` in [0, 1] (1: unoccluded), ``NoV`` in [0, 1], ``roughness`` perceptual in [0, 1],
 ``alpha = roughness^2``; ``RoNg`` the cosine between the reflection and the geometric normal.
@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS, role_impl
 
 #: Marmoset's horizon fade (Russell 2015): the reflection fades out over the 1 / 1.3 of r.n_g below 0.
 HORIZON_FADE = 1.3
@@ -84,25 +83,7 @@ def specular_occlusion_gtso(NoV, ao, roughness):
     return np.where(occluded >= free, 1.0, np.clip(occluded / np.maximum(free, 1e-6), 0.0, 1.0))
 
 
-def specular_occlusion(NoV, ao, roughness, method: str):
-    """The specular occlusion factor of ``method``: its registry entry's ``specular_occlusion_<name>``
-    (:data:`pbrcheck.registry.SPECULAR_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
-    impl = role_impl(SPECULAR_OCCLUSIONS, method, "specular_occlusion", "specular occlusion")
-    if impl is None:
-        return np.ones(np.broadcast(np.asarray(NoV), np.asarray(ao), np.asarray(roughness)).shape)
-    return globals()[impl.numpy](NoV, ao, roughness)
-
-
 def horizon_occlusion_marmoset(RoNg):
     """[Russell15]: ``clip(1 + HORIZON_FADE r.n_g, 0, 1)^2``."""
     h = np.clip(1.0 + HORIZON_FADE * np.asarray(RoNg, np.float64), 0.0, 1.0)
     return h * h
-
-
-def horizon_occlusion(RoNg, method: str):
-    """The horizon occlusion factor of ``method``: its registry entry's ``horizon_occlusion_<name>``
-    (:data:`pbrcheck.registry.HORIZON_OCCLUSIONS`), 1 for ``none``; KeyError for an unknown method."""
-    impl = role_impl(HORIZON_OCCLUSIONS, method, "horizon_occlusion", "horizon occlusion")
-    if impl is None:
-        return np.ones(np.shape(RoNg))
-    return globals()[impl.numpy](RoNg)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import sys
 import time
 
+from .fmt import terminal_safe
+
 
 class Progress:
     """``with Progress("reference spheres", total=64) as p: p.update(8)``.
@@ -15,7 +17,8 @@ class Progress:
 
     def __init__(self, label: str, total: float, unit: str = "", *, quiet_s: float = 2.0,
                  log_every_s: float = 10.0, stream=None, enabled: bool = True):
-        self.label, self.total, self.unit = label, max(float(total), 1e-12), unit
+        # the label names a scene (untrusted): escaped, so no control character reaches the terminal
+        self.label, self.total, self.unit = terminal_safe(label), max(float(total), 1e-12), unit
         self.done = 0.0
         self.stream = stream or sys.stderr
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()

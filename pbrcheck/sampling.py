@@ -3,10 +3,10 @@
 Tangent space: z is the normal. ``u`` is (..., 2) in [0, 1)^2. References as in :mod:`pbrcheck.brdf`
 plus [Dammertz12] H. Dammertz, "Hammersley Points on the Hemisphere", 2012.
 
-The runtime importance sampling's strategies (:data:`pbrcheck.registry.RUNTIME_SAMPLINGS`): each
+The runtime importance sampling's strategies (:data:`realtime.registry.RUNTIME_SAMPLINGS`): each
 member's ``runtime_half_vector_<name>`` and its ``runtime_estimate_*``, dispatched by
-:func:`runtime_half_vector` / :func:`runtime_estimate`. The DFG LUT's sampling strategies
-(:data:`pbrcheck.registry.LUT_SAMPLINGS`): each member's
+:func:`realtime.dispatch.runtime_half_vector` / ``runtime_estimate``. The DFG LUT's sampling strategies
+(:data:`LUT_SAMPLINGS`): each member's
 ``lut_half_vector_<name>`` and ``lut_weight_<name>`` (the GLSL NDF switch is the ``ndf`` argument
 here), the dispatch :func:`lut_half_vector` / :func:`lut_weight` looping the registry, and
 :func:`dfg_lut_texel`, the numpy twin of ``dfg_lut.comp``'s texel (same points, same estimator).
@@ -18,16 +18,17 @@ API
 :func:`sample_ndf`, :func:`lut_half_vector_vndf`, :func:`lut_weight_vndf`, :func:`lut_half_vector_ndf`,
 :func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut_texel`,
 :func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
-:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
-:func:`runtime_estimate`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
+:func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`; the registry :data:`LUT_SAMPLINGS` (its entries
+holding these role functions; the reference's LUT bake shares it) and :func:`lut_sampling_for`. Dr.Jit twins of the same names: :mod:`reference.sampling`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, blinn_phong_exponent, geometry_term
-from .registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
+from .brdf import COS_EPS, MIN_ALPHA, D_GGX, G1_SmithGGX, alpha_from_roughness, geometry_term
+from .terms import GGX, Beckmann, BlinnPhong
+from .registry import NDFS, Entry, Registry, role
 
 
 def radical_inverse(i):
@@ -45,36 +46,8 @@ def hammersley(i, n):
     return np.stack([i.astype(np.float64) / float(n), radical_inverse(i)], axis=-1)
 
 
-def _dir(ct, st, phi):
-    return np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=-1)
-
-
-def sample_GGX(u, alpha):
-    """[Walter07] eq. 35-36 (Karis's form): ``phi = 2 pi u0``,
-    ``cos theta_h = sqrt((1 - u1) / (1 + (alpha^2 - 1) u1))``; pdf_h = D_GGX (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    den = np.maximum(1.0 + (a2 - 1.0) * u[..., 1], COS_EPS)
-    ct = np.sqrt(np.clip((1.0 - u[..., 1]) / den, 0.0, 1.0))
-    st = np.sqrt(np.clip(a2 * u[..., 1] / den, 0.0, 1.0))
-    return _dir(ct, st, 2 * np.pi * u[..., 0])
-
-
-def sample_Beckmann(u, alpha):
-    """[Walter07] eq. 28: ``tan^2 theta_h = -alpha^2 log(1 - u1)``; pdf_h = D_Beckmann (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    a2 = np.maximum(np.asarray(alpha, dtype=np.float64), MIN_ALPHA) ** 2
-    t2 = -a2 * np.log(np.maximum(1.0 - u[..., 1], 1e-12))
-    ct = 1.0 / np.sqrt(1.0 + t2)
-    return _dir(ct, np.sqrt(t2) * ct, 2 * np.pi * u[..., 0])
-
-
-def sample_BlinnPhong(u, alpha):
-    """[Walter07] sec. 5.2: ``cos theta_h = (1 - u1)^(1/(n+2))``; pdf_h = D_BlinnPhong (n.h)."""
-    u = np.asarray(u, dtype=np.float64)
-    n = blinn_phong_exponent(alpha)
-    ct = np.power(np.maximum(1.0 - u[..., 1], 1e-12), 1.0 / (n + 2.0))
-    return _dir(ct, np.sqrt(np.maximum(1.0 - ct * ct, 0.0)), 2 * np.pi * u[..., 0])
+#: The NDFs' samplers of ``D (n.h)`` (their term classes', :mod:`pbrcheck.terms`), by their GLSL twins' names.
+sample_GGX, sample_Beckmann, sample_BlinnPhong = GGX.sample, Beckmann.sample, BlinnPhong.sample
 
 
 def sample_GGX_VNDF(u, v, alpha):
@@ -116,11 +89,11 @@ def sample_cosine(u):
 
 
 def sample_ndf(u, alpha, ndf: str = "ggx"):
-    """A half vector drawn from ``D (n.h)`` of the NDF ``ndf`` (its registry entry's ``sample``)."""
-    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+    """A half vector drawn from ``D (n.h)`` of the NDF ``ndf`` (its registry entry's term's ``sample``)."""
+    return NDFS[ndf].term.sample(u, alpha)
 
 
-# ---- the DFG LUT's sampling strategies (pbrcheck.registry.LUT_SAMPLINGS) --------------------------
+# ---- the DFG LUT's sampling strategies (LUT_SAMPLINGS) --------------------------
 
 def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
     """[Heitz18]: GGX visible normals seen from ``v`` (the GLSL passes ``u.yx``)."""
@@ -144,21 +117,43 @@ def lut_weight_ndf(G, v, h, alpha):
     return np.asarray(G) * np.sum(v * h, -1) / np.maximum(h[..., 2] * v[..., 2], COS_EPS)
 
 
+#: The DFG LUT's sampling strategies (realtime/shaders/dfg_lut.comp): each draws the half vector
+#: (``lut_half_vector_<name>``) and weighs the sample (``lut_weight_<name>``, the estimator of
+#: ``f_s cos / pdf`` up to the Fresnel factor); numpy in :mod:`pbrcheck.sampling`, Dr.Jit in
+#: :mod:`reference.sampling`, GLSL in ``sampling.glsl``. ``extra["ndfs"]``: the NDFs it is defined for
+#: (another NDF bakes with ``ndf``, :func:`lut_sampling_for`).
+LUT_SAMPLINGS = Registry("LUT_SAMPLING", [
+    Entry("vndf", "GGX visible normals, Heitz 2018 (GGX NDF only)", extra={"ndfs": ("ggx",)},
+          roles={"lut_half_vector": role(lut_half_vector_vndf), "lut_weight": role(lut_weight_vndf)},
+          applies_to="the GGX NDF only (its visible normals); other NDFs bake with ndf"),
+    Entry("ndf", "half vectors drawn from the NDF, Walter et al. 2007", extra={"ndfs": None},
+          roles={"lut_half_vector": role(lut_half_vector_ndf), "lut_weight": role(lut_weight_ndf)}, applies_to="every NDF (its own D (n.h) sampler)"),
+])
+
+
+def lut_sampling_for(sampling: str, ndf: str) -> str:
+    """The LUT sampling strategy used for ``ndf``: ``sampling`` where it is defined for that NDF,
+    else ``ndf`` (KeyError for an unknown strategy)."""
+    ndfs = LUT_SAMPLINGS[sampling].extra["ndfs"]
+    return sampling if ndfs is None or ndf in ndfs else "ndf"
+
+
+
 def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
     """The strategy ``sampling``'s half vector (KeyError for an unknown one)."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].numpy](u, v, alpha, ndf)
+    return LUT_SAMPLINGS[sampling].roles["lut_half_vector"].numpy(u, v, alpha, ndf)
 
 
 def lut_weight(G, v, h, alpha, sampling: str):
     """The strategy ``sampling``'s weight of the sample ``h``."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].numpy](G, v, h, alpha)
+    return LUT_SAMPLINGS[sampling].roles["lut_weight"].numpy(G, v, h, alpha)
 
 
 def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf: str = "ggx",
                   sampling: str = "vndf") -> tuple[float, float]:
     """``(A, B)`` of ``dfg_lut.comp``'s texel at ``(n.v, roughness)``: the same Hammersley points with
     the half-cell offset, the same strategy and estimator (``sampling`` as the bake uses it for
-    ``ndf``, :func:`pbrcheck.registry.lut_sampling_for`)."""
+    ``ndf``, :func:`lut_sampling_for`)."""
     sampling = lut_sampling_for(sampling, ndf)
     alpha = alpha_from_roughness(roughness)
     v = np.array([np.sqrt(1.0 - NoV * NoV), 0.0, NoV])
@@ -174,7 +169,7 @@ def dfg_lut_texel(NoV: float, roughness: float, samples: int, geometry: str, ndf
     return float(np.sum(w * (1.0 - Fc)) / samples), float(np.sum(w * Fc) / samples)
 
 
-# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (realtime.registry.RUNTIME_SAMPLINGS) ---------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -199,13 +194,3 @@ def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
 def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     """[Heitz18] eq. 17: ``F G L / G1(v)``."""
     return np.asarray(F) * G / np.maximum(G1_SmithGGX(NoV, alpha), COS_EPS) * np.asarray(L)
-
-
-def runtime_half_vector(u, vt, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s half vector (KeyError for an unknown one)."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].numpy](u, vt, alpha)
-
-
-def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s estimate of one sample."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].numpy](F, G, L, NoV, NoH, VoH, alpha)

@@ -12,12 +12,16 @@ expected and what was found. Loading never writes anything.
 
 Object ids are the index in :attr:`Scene.objects` after expansion (the ``object`` AOV of both
 renderers); ``-1`` is the background.
+
+Writing: :func:`dump_toml` (a resolved scene as TOML), with :func:`toml_string` and :func:`toml_key`
+escaping every string and key, so the text parses whatever an untrusted name holds (docs/security.md).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
@@ -293,9 +297,18 @@ def plane_frame(normal: Vec3) -> tuple[Vec3, Vec3, Vec3]:
 class _Ctx:
     """Where we are: the file (for messages) and its directory (for relative paths)."""
 
-    def __init__(self, file: str, base_dir: Path | None):
+    def __init__(self, file: str, base_dir: Path | None, contained: bool = False):
         self.file = file
         self.base_dir = base_dir
+        self.contained = contained  # a scene file's own paths stay in its folder (pbrcheck.untrusted)
+
+    def path(self, fieldname: str, p: str) -> Path:
+        """A path written in the scene, resolved (:func:`pbrcheck.untrusted.scene_file_path`)."""
+        from .untrusted import scene_file_path
+        try:
+            return scene_file_path(self.base_dir, p, self.contained)
+        except ValueError as e:
+            raise SceneError(self.file, fieldname, "", message=f"{self.file}: {fieldname}: refused: {e}") from None
 
     def err(self, fieldname: str, expected: str, found: object = None) -> SceneError:
         return SceneError(self.file, fieldname, expected, found)
@@ -417,9 +430,7 @@ def _environment(ctx, t) -> Environment:
         kw["radiance"] = _vec3(ctx, t, "radiance", "environment", (1.0, 1.0, 1.0), nonneg=True)
     elif typ == "file":
         p = _str(ctx, t, "path", "environment")
-        path = Path(p)
-        if not path.is_absolute():
-            path = (ctx.base_dir or Path.cwd()) / path
+        path = ctx.path("environment.path", p)
         if not path.is_file():
             raise ctx.err("environment.path", "an existing .exr or .hdr file", str(path))
         if path.suffix.lower() not in (".exr", ".hdr") + LDR_ENVIRONMENT_SUFFIXES:
@@ -584,9 +595,12 @@ def _objects(ctx, lst):
     return tuple(objects), tuple(grids), tuple(assets), tuple(asset_lights)
 
 
-def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None) -> Scene:
-    """Validate a parsed scene table; raise :class:`SceneError` on the first problem."""
-    ctx = _Ctx(file, base_dir)
+def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None = None,
+                    contained: bool = False) -> Scene:
+    """Validate a parsed scene table; raise :class:`SceneError` on the first problem. ``contained``
+    (a scene read from a file, :func:`load_scene`): every path it names must resolve inside
+    ``base_dir`` (docs/assets.md, "Paths an asset or a scene may name")."""
+    ctx = _Ctx(file, base_dir, contained)
     if not isinstance(data, dict):
         raise ctx.err("", "a table", data)
     _check_keys(ctx, data, {"name", "description", "camera", "environment", "lights", "brdf", "objects"}, "")
@@ -644,7 +658,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(str(p), None, "valid TOML", message=f"{p}: invalid TOML: {e}") from None
-    return scene_from_dict(data, file=str(p), base_dir=p.parent)
+    return scene_from_dict(data, file=str(p), base_dir=p.parent, contained=True)
 
 
 def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, int] | None = None) -> Scene:
@@ -657,7 +671,8 @@ def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, in
     env = env if env is not None else opts["env"]
     size = size if size is not None else opts["size"]
     data: dict = {"name": p.stem, "description": f"glTF asset {p.name}",
-                  "objects": [{"type": "gltf", "path": str(p.resolve())}],
+                  "objects": [{"type": "gltf", "path": str(p.resolve()),
+                               **({"variant": opts["variant"]} if opts.get("variant") is not None else {})}],
                   "environment": {"type": "file", "path": str(Path(env).resolve())} if env is not None
                   else {"type": "constant", "radiance": list(NEUTRAL_RADIANCE)}}
     scene = scene_from_dict(data, file=str(p), base_dir=p.parent)
@@ -680,8 +695,35 @@ def asset_scene(path: str | Path, *, env: str | None = None, size: tuple[int, in
     return replace(scene, camera=camera)
 
 
+#: Characters a TOML basic string must escape (TOML 1.0: U+0000-U+001F but tab, and U+007F), the C1
+#: controls a terminal would act on (U+0080-U+009F, valid TOML but printed by check-scene), and the
+#: surrogates (no Unicode scalar value: TOML cannot hold them, so they become U+FFFD).
+_TOML_ESCAPE = re.compile("[\x00-\x08\x0a-\x1f\x7f-\x9f\\\\\"\ud800-\udfff]")
+_TOML_SHORT = {"\b": "\\b", "\n": "\\n", "\f": "\\f", "\r": "\\r", '"': '\\"', "\\": "\\\\"}
+_TOML_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def toml_string(s: str) -> str:
+    """``s`` as a TOML basic string: quotes, backslashes and control characters escaped, so that any
+    name (a scene's or an asset's: untrusted) reads back as itself (lone surrogates as U+FFFD)."""
+    def esc(m):
+        c = m.group()
+        if "\ud800" <= c <= "\udfff":
+            return "\ufffd"
+        return _TOML_SHORT.get(c) or f"\\u{ord(c):04x}"
+    return '"' + _TOML_ESCAPE.sub(esc, s) + '"'
+
+
+def toml_key(k: str) -> str:
+    """A TOML key: bare when it may be, else a quoted :func:`toml_string`."""
+    k = str(k)
+    return k if _TOML_BARE_KEY.match(k) else toml_string(k)
+
+
 def dump_toml(d: dict) -> str:
-    """Minimal TOML writer for resolved scenes (tables, arrays of tables, scalars, flat arrays)."""
+    """Minimal TOML writer for resolved scenes (tables, arrays of tables, scalars, flat arrays).
+    Strings and keys are escaped (:func:`toml_string`, :func:`toml_key`): the output parses with
+    ``tomllib`` whatever a name holds."""
     lines: list[str] = []
 
     def val(v):
@@ -690,7 +732,7 @@ def dump_toml(d: dict) -> str:
         if isinstance(v, (int, float)):
             return repr(v)
         if isinstance(v, str):
-            return json.dumps(v)
+            return toml_string(v)
         if isinstance(v, list):
             return "[" + ", ".join(val(x) for x in v) + "]"
         if v is None:
@@ -705,9 +747,9 @@ def dump_toml(d: dict) -> str:
             elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
                 subs.append(("a", k, v))
             else:
-                lines.append(f"{k} = {val(v)}")
+                lines.append(f"{toml_key(k)} = {val(v)}")
         for kind, k, v in subs:
-            name = f"{prefix}.{k}" if prefix else k
+            name = f"{prefix}.{toml_key(k)}" if prefix else toml_key(k)
             if kind == "t":
                 lines.append(f"\n[{name}]")
                 table(name, v)

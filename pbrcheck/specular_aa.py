@@ -27,7 +27,8 @@ API
   I3D: per texel of mip k, ``var(s_x) + var(s_y)`` of the slopes ``s = (n_x, n_y) / n_z`` of the unit
   level-0 normals it covers), times ``normal_scale^2``.
 - :func:`specular_aa_widen` -- ``min(alpha^2 + v, 1)^(1/4)``, the roughness itself where ``v = 0``.
-- :func:`specular_aa` -- the dispatch: the member's function of :data:`pbrcheck.registry.SPECULAR_AAS`.
+The registry :data:`realtime.registry.SPECULAR_AAS` holds these functions; its dispatch by name is
+:func:`realtime.dispatch.specular_aa`.
 
 Conventions: roughness perceptual in [0, 1]; ``normal_length`` the length of the tangent-space
 normal ``2 t - 1`` read through the mip chain before its normalisation (and before ``normal_scale``).
@@ -37,7 +38,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .registry import SPECULAR_AAS, role_impl
 
 #: Filament's ``specularAntiAliasingVariance`` default (screen-space variance of the normal's kernel).
 SCREEN_SPACE_VARIANCE = 0.15
@@ -69,18 +69,6 @@ def specular_aa_screen_space(roughness, dn2):
 def specular_aa_prefiltered(roughness, variance):
     """[Olano10]: ``alpha'^2 = alpha^2 + variance`` (the baked slope variance)."""
     return specular_aa_widen(roughness, variance)
-
-
-def specular_aa(roughness, normal_length, variance, dn2, method: str):
-    """The filtered perceptual roughness of ``method``: its registry entry's ``specular_aa_<name>``
-    (:data:`pbrcheck.registry.SPECULAR_AAS`) of the inputs it reads (:attr:`~pbrcheck.registry.Impl.args`),
-    the roughness unchanged for ``none``; KeyError for an unknown method."""
-    impl = role_impl(SPECULAR_AAS, method, "specular_aa", "specular anti-aliasing")
-    inputs = {"roughness": roughness, "normal_length": normal_length, "variance": variance, "dn2": dn2}
-    if impl is None:
-        return np.broadcast_to(np.asarray(roughness, np.float64),
-                               np.broadcast(*(np.asarray(x) for x in inputs.values())).shape)
-    return globals()[impl.numpy](*(inputs[a] for a in impl.args))
 
 
 def slope_variance_mips(texels: np.ndarray, levels: int) -> list[np.ndarray]:

@@ -11,9 +11,14 @@ entry is a miss):
   (``fitted:PATH``: its coefficients, cube size, mip count and chain; the file's other fields are the
   fit's record), by content only (the same file in another folder is a hit; the hit's ``options`` and
   ``shader`` metadata name this call's paths);
-* :func:`code_hash`: the SHA-256 of every source the pixels can depend on (``realtime/``'s Python,
-  GLSL and compute shaders, and the core package ``pbrcheck/``): any edit of a shader or of the
-  code that drives it is a miss, with no version number to forget;
+* :func:`realtime.gl.shader_sources_hash`: every file the GL programs read (``realtime/shaders/``
+  whatever its suffix: ``.glsl``, ``.comp``, ``.vert``, ``.frag``; the registry's generated sources
+  and defines), computed per call (the same rule as the gate's baselines, :mod:`compare.baseline`);
+* :func:`code_hash`: the SHA-256 of every other file the pixels can depend on, whatever its suffix
+  (``realtime/``'s and the core package ``pbrcheck/``'s Python, and the MikkTSpace C sources and
+  library that make an asset's tangents): any edit of a shader or of the code that drives it is a
+  miss, with no version number to forget. A suffix list is how the raster shaders (``raster.vert``,
+  ``raster.frag``, ``raster_background.frag``, ``fullscreen.vert``) were once missed;
 * the GL renderer and version strings (llvmpipe and a GPU round differently; Mesa's version is in
   ``GL_VERSION``) and moderngl's version.
 
@@ -23,7 +28,8 @@ render printed are printed again. Callers choose: :func:`compare.renderers.rende
 it only with a caching :class:`compare.renderers.RenderContext` (the report), so a test or a
 benchmark of the renderer always renders.
 
-API: :data:`NAMESPACE`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`.
+API: :data:`NAMESPACE`, :func:`code_files`, :func:`code_hash`, :func:`realtime_cache_key`, :func:`render_cached`
+(:func:`realtime.gl.shader_sources_hash` re-exported).
 """
 
 from __future__ import annotations
@@ -40,32 +46,37 @@ from pbrcheck.cache import Cache, cache_key
 from pbrcheck.environment import scene_hash
 from pbrcheck.scene import Scene
 
-from .gl import get_context, renderer_name
+from .gl import get_context, renderer_name, shader_sources_hash
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, resolve_options
 from .render import environment_of, render_realtime
 
 #: Cache namespace of real-time renders (``$PBRCHECK_CACHE/realtime``).
 NAMESPACE = "realtime"
-#: Sources whose content keys every entry: this package and the core it reads (relative to the
-#: repository root; suffixes hashed).
+#: Folders whose every file keys every entry: this package and the core it reads (relative to the
+#: repository root; every suffix, less ``__pycache__`` and the shader folder, which
+#: :func:`realtime.gl.shader_sources_hash` hashes).
 _CODE_DIRS = ("realtime", "pbrcheck")
-_CODE_SUFFIXES = (".py", ".glsl", ".comp", ".toml")
+
+
+def code_files() -> list[Path]:
+    """The files :func:`code_hash` reads, sorted: every file under :data:`_CODE_DIRS` but
+    ``__pycache__`` and :data:`realtime.gl.SHADER_DIR`."""
+    root = Path(__file__).resolve().parent.parent
+    shaders = Path(__file__).resolve().parent / "shaders"
+    return [p for d in _CODE_DIRS for p in sorted((root / d).rglob("*"))
+            if p.is_file() and "__pycache__" not in p.parts and shaders not in p.parents]
 
 
 @lru_cache(maxsize=1)
 def code_hash() -> str:
-    """SHA-256 over the relative path and bytes of every source under :data:`_CODE_DIRS` (once per
-    process: the code does not change under a running process)."""
+    """SHA-256 over the relative path and bytes of every file of :func:`code_files` (once per
+    process: the Python of a running process does not change under it; the shaders, read at every
+    compile, are :func:`realtime.gl.shader_sources_hash`, computed per key)."""
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for d in _CODE_DIRS:
-        for p in sorted((root / d).rglob("*")):
-            if p.is_file() and p.suffix in _CODE_SUFFIXES and "__pycache__" not in p.parts:
-                h.update(str(p.relative_to(root)).encode())
-                h.update(b"\0")
-                h.update(p.read_bytes())
-                h.update(b"\0")
+    for p in code_files():
+        h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
     return h.hexdigest()
 
 
@@ -87,7 +98,7 @@ def _key(scene: Scene, preset: str, o: RealtimeOptions) -> str:
     keyed = {**o.as_dict(), **({"lod_mapping": "fitted:"} if fitted else {}), **({"shader": "hooks"} if hooks else {})}
     return cache_key(kind="realtime", scene_hash=scene_hash(scene, env.content_hash), preset=preset,
                      options=json.dumps(keyed, sort_keys=True, default=str), shader_hooks=hooks, fitted_lod=fitted,
-                     code=code_hash(), gl_renderer=renderer_name(),
+                     code=code_hash(), shaders=shader_sources_hash(), gl_renderer=renderer_name(),
                      gl_version=str(get_context().info.get("GL_VERSION", "?")), moderngl=moderngl.__version__)
 
 
@@ -116,4 +127,4 @@ def render_cached(scene: Scene, preset: str = "default", options: dict | None = 
     return img
 
 
-__all__ = ["NAMESPACE", "code_hash", "realtime_cache_key", "render_cached"]
+__all__ = ["NAMESPACE", "code_files", "code_hash", "realtime_cache_key", "render_cached", "shader_sources_hash"]

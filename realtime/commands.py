@@ -1,5 +1,5 @@
-"""CLI subcommands of this package (registered by pbrcheck.cli): ``realtime``, ``lut`` and
-``bench realtime``. Library errors propagate; only pbrcheck.cli maps them to exit codes."""
+"""CLI subcommands of this package (registered by pbrcheck.cli): ``realtime``, ``lut``, ``shaders``
+and ``bench realtime``. Library errors propagate; only pbrcheck.cli maps them to exit codes."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from pbrcheck.atomic import check_output_path
+from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import load_scene
 
 from . import render as R
-from .gl import renderer_name, timing_clock
+from .gl import dump_sources, renderer_name, timing_clock
 from .hooks import load_hook_file
 from .presets import PRESETS, overrides_from_args, parse_value, resolve_options
 from .render import dfg_lut, read_lut, render_realtime
@@ -26,16 +27,16 @@ def _cmd_realtime(args) -> int:
     if args.shader:
         load_hook_file(args.shader)  # a hook file that cannot be read or parsed: before any work
     scene = load_scene(args.scene)
-    out = Path(args.out or f"out/realtime/{scene.name}_{args.preset}.exr")
+    out = Path(args.out or f"out/realtime/{file_name_part(scene.name)}_{args.preset}.exr")
     check_output_path(out)  # before the render
     img = render_realtime(scene, args.preset, overrides, progress=True)
     write_exr(out, img)
     t = json.loads(img.meta["timings"])
-    print(f"{out}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
+    print(f"{terminal_safe(out)}: {scene.camera.width}x{scene.camera.height}, preset {args.preset}, "
           f"frame {t['frame']:.3f}s, passes " + ", ".join(f"{k} {v:.3f}s" for k, v in sorted(t.items())
                                                          if k != "frame"))
     for w in json.loads(img.meta["warnings"]):
-        print(f"warning: {w}")
+        print(terminal_safe(f"warning: {w}"))
     return 0
 
 
@@ -58,6 +59,13 @@ def _cmd_lut(args) -> int:
     write_exr(args.out, Image({"A": lut[..., 0], "B": lut[..., 1]}, meta))
     print(f"{args.out}: {size}x{size} DFG LUT ({geometry}, {samples} samples, {fmt}) in {dt:.3f}s; "
           f"A in [{np.min(lut[..., 0]):.4f}, {np.max(lut[..., 0]):.4f}]")
+    return 0
+
+
+def _cmd_shaders(args) -> int:
+    check_output_path(args.dump, folder=True)
+    names = dump_sources(args.dump)
+    print(f"{args.dump}: {len(names)} files (README.txt says how they compile)")
     return 0
 
 
@@ -122,6 +130,10 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--ndf", default="ggx", choices=("ggx", "beckmann", "blinn_phong"))
     s.add_argument("--out", required=True)
     s.set_defaults(func=_cmd_lut)
+
+    s = sub.add_parser("shaders", help="write the GLSL the real-time programs compile (generated includes too)")
+    s.add_argument("--dump", required=True, metavar="DIR", help="folder to write (created; files replaced)")
+    s.set_defaults(func=_cmd_shaders)
 
     b = bench_sub.add_parser("realtime", help="JSON: wall time of each precompute pass and one frame per preset")
     b.add_argument("--size", type=int, default=512)

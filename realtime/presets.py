@@ -23,25 +23,12 @@ from dataclasses import replace as _replace
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.lodmap import LodMapping
-from pbrcheck.registry import (
-    BUILTIN_LOD_MAPPINGS,
-    DFGS,
-    ENERGY_COMPENSATIONS,
-    Entry,
-    FRESNELS,
-    GEOMETRIES,
-    HORIZON_OCCLUSIONS,
-    IRRADIANCE_METHODS,
-    IRRADIANCES,
-    LOD_MAPPINGS,
-    LUT_SAMPLINGS,
-    NDFS,
-    RUNTIME_SAMPLINGS,
-    SHADINGS,
-    SPECULAR_AAS,
-    SPECULAR_OCCLUSIONS,
-)
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
+from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
+from pbrcheck.sampling import LUT_SAMPLINGS
+
+from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
+                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
 
 
 #: Separates a preset from a shader hook file in a renderer name: ``default+hooks/ue4.glsl``.

@@ -54,7 +54,9 @@ API
 :func:`draw_items` (the scene's primitives as vertex arrays and materials), :func:`raster_frame`
 (one frame: colour, AOV and object images), :func:`graphics_program`, :data:`VERTEX_LAYOUT`,
 :data:`SPHERE_SEGMENTS`, :func:`tessellate_sphere`, :func:`normal_variance_texture`, :func:`max_msaa`,
-:func:`check_msaa`.
+:func:`check_msaa`, :func:`max_target_side`, :func:`check_target_size` (the colour pass's size against
+this GL's limits, supersampling counted, before any bake: :class:`pbrcheck.limits.OutputSizeError`),
+:func:`check_texture_sizes` (the assets' texture images against ``GL_MAX_TEXTURE_SIZE``).
 
 References: Khronos glTF 2.0 specification (2021) sections 3.7, 3.8, 3.9; OpenGL 4.5 core
 specification sections 14.6 (polygon rasterization, culling), 8.14 (mipmapping).
@@ -74,7 +76,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
 from pbrcheck.scene import Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
-from .gl import ShaderCompileError, assemble, get_context, map_errors, timed
+from .gl import ShaderCompileError, assemble, get_context, in_bands, map_errors, timed
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -117,6 +119,7 @@ class DrawItem:
     flip_backface: bool = False
     normal_scale: float = 1.0
     textures: dict = field(default_factory=dict)   # slot -> (GltfImage, TextureRef, srgb)
+    unlit: bool = False                             # KHR_materials_unlit (raster.frag's UNLIT_MATERIALS)
 
     @property
     def centre(self) -> np.ndarray:
@@ -126,10 +129,10 @@ class DrawItem:
 
 def graphics_program(vert: str, frag: str, defines: dict | None = None, user: tuple[str, str] | None = None):
     """Compiled (cached) vertex + fragment program (sources assembled as :func:`realtime.gl.assemble`)."""
-    key = (vert, frag, tuple(sorted((defines or {}).items())), user)
+    vs, fs = assemble(vert, defines), assemble(frag, defines, user)
+    key = (vs.text, fs.text)  # the texts, not the file names: an edited file is compiled again
     if key in _programs:
         return _programs[key]
-    vs, fs = assemble(vert, defines), assemble(frag, defines, user)
     try:
         prog = get_context().program(vertex_shader=vs.text, fragment_shader=fs.text)
     except Exception as e:
@@ -204,7 +207,8 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                 np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
                 tuple(m.emissive), m.alpha_mode, m.alpha_cutoff, cull=not m.double_sided,
                 flip_backface=m.double_sided,
-                normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex))
+                normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex,
+                unlit=m.unlit))
             continue
         mat = ob.material
         common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
@@ -335,6 +339,7 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
     _set(prog, "normal_scale", float(it.normal_scale))
     _set(prog, "flip_backface", int(it.flip_backface))
     _set(prog, "object_id", float(it.object_id))
+    _set(prog, "unlit", int(it.unlit))   # only in programs compiled with UNLIT_MATERIALS
     has, sets, mirror, xf = [], [], [], []
     for k, ((slot, _), name) in enumerate(zip(TEXTURE_SLOTS, ("tex_base", "tex_mr", "tex_normal", "tex_emissive"))):
         entry = it.textures.get(slot)
@@ -403,39 +408,107 @@ def check_msaa(msaa: int) -> None:
                                f"offers at most {most} (GL_MAX_SAMPLES)")
 
 
+#: The GL limits a colour pass's render targets must fit (OpenGL 4.6 core, table 23.53): its
+#: textures, renderbuffers, framebuffer and viewport.
+TARGET_SIZE_LIMITS = ("GL_MAX_TEXTURE_SIZE", "GL_MAX_RENDERBUFFER_SIZE", "GL_MAX_FRAMEBUFFER_WIDTH",
+                      "GL_MAX_FRAMEBUFFER_HEIGHT", "GL_MAX_VIEWPORT_DIMS")
+
+
+def max_target_side() -> tuple[int, str]:
+    """(largest side of a colour-pass target, the GL limit that sets it) of this GL context
+    (llvmpipe: 16384, GL_MAX_TEXTURE_SIZE)."""
+    info = get_context().info
+    best = None
+    for name in TARGET_SIZE_LIMITS:
+        v = info.get(name)
+        if v is None:
+            continue
+        v = min(v) if isinstance(v, (tuple, list)) else int(v)
+        if best is None or v < best[0]:
+            best = (int(v), name)
+    return best or (16384, "GL_MAX_TEXTURE_SIZE")
+
+
+def check_target_size(width: int, height: int, ss: int) -> None:
+    """Raise :class:`pbrcheck.limits.OutputSizeError` (exit 2) when the colour pass, ``ss`` x the
+    image's sides, exceeds :func:`max_target_side`: GL would answer ``framebuffer is not complete``
+    after the bakes (an asset above 4096 wide at the default supersample 4 on a 16384 GL)."""
+    from pbrcheck.limits import OutputSizeError
+
+    most, name = max_target_side()
+    sw, sh = width * ss, height * ss
+    if max(sw, sh) > most:
+        raise OutputSizeError(f"realtime raster: a colour pass of {sw}x{sh} ({width}x{height} x supersample {ss}) "
+                              f"exceeds this GL's {most} ({name}); lower the size or the supersample option "
+                              f"(at most {most // ss} per side at supersample {ss})")
+
+
+def check_texture_sizes(scene: Scene) -> None:
+    """Raise :class:`pbrcheck.limits.OutputSizeError` (exit 2) when an asset's texture image has a
+    side above this GL's ``GL_MAX_TEXTURE_SIZE`` (it is uploaded as one texture; the decoded-bytes
+    budget allows a 20000 x 1 image), naming the image and its JSON pointer, before any bake."""
+    from pbrcheck.limits import OutputSizeError
+
+    most = int(get_context().info["GL_MAX_TEXTURE_SIZE"])
+    for inst in getattr(scene, "assets", ()):
+        for k in sorted(inst.asset.texture_slots()):   # the images a material samples (the others: never uploaded)
+            im = inst.asset.images[k]
+            if max(im.size) > most:
+                raise OutputSizeError(f"{inst.path}: /images/{k}: a {im.size[0]}x{im.size[1]} texture, above this GL's "
+                                      f"GL_MAX_TEXTURE_SIZE of {most}")
+
+
 def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float,
-                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool) -> None:
+                 occlusion: bool, normal_variance: bool, alpha_to_coverage: bool, msaa: int = 1) -> None:
     """The colour pass's GL commands (:func:`raster_frame`): clear, the background triangle, each
     primitive in order (opaque, then BLEND back to front) with its culling, blending and
-    alpha-to-coverage state, and the MSAA resolve into ``resolved``."""
+    alpha-to-coverage state, and the MSAA resolve into ``resolved``. A large target is drawn in bands
+    of rows under a scissor (:func:`realtime.gl.in_bands`: a SIGTERM is honoured between two): the
+    scissor test only discards fragments outside the band, and each pixel sees the same draws in the
+    same order, so the image is bit-identical to one pass. Not with ``msaa`` > 1: llvmpipe (Mesa 22.3)
+    then loses samples of a band's top row under the scissor (the image differed there), so a
+    multisampled colour pass stays one pass (a SIGTERM waits for it)."""
     import moderngl
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-    ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
-    empty.render(moderngl.TRIANGLES, vertices=3)
-    ctx.enable(moderngl.DEPTH_TEST)
-    ctx.front_face = "ccw"
-    ctx.cull_face = "back"
-    for it, (vao, _, _) in zip(items, vaos):
-        if it.alpha_mode == "BLEND":
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
-                              moderngl.ONE_MINUS_SRC_ALPHA)
-            fbo.depth_mask = False
-        if it.cull:
-            ctx.enable(moderngl.CULL_FACE)
+    sw, sh = fbo.size
+
+    def band(y: int, rows: int) -> None:
+        if rows < sh:
+            fbo.scissor = (0, y, sw, rows)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+        empty.render(moderngl.TRIANGLES, vertices=3)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.front_face = "ccw"
+        ctx.cull_face = "back"
+        for it, (vao, _, _) in zip(items, vaos):
+            if it.alpha_mode == "BLEND":
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                                  moderngl.ONE_MINUS_SRC_ALPHA)
+                fbo.depth_mask = False
+            if it.cull:
+                ctx.enable(moderngl.CULL_FACE)
+            else:
+                ctx.disable(moderngl.CULL_FACE)
+            _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
+            a2c = alpha_to_coverage and it.alpha_mode == "MASK"
+            if a2c:
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+            vao.render(moderngl.TRIANGLES)
+            if a2c:
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
+        fbo.depth_mask = True
+        ctx.disable(moderngl.BLEND)
+
+    try:
+        if msaa > 1:
+            band(0, sh)
         else:
-            ctx.disable(moderngl.CULL_FACE)
-        _set_material(color_prog, it, anisotropy, occlusion, normal_variance)
-        a2c = alpha_to_coverage and it.alpha_mode == "MASK"
-        if a2c:
-            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-            ctx.enable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-        vao.render(moderngl.TRIANGLES)
-        if a2c:
-            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
-            ctx.disable_direct(GL_SAMPLE_ALPHA_TO_ONE)
-    fbo.depth_mask = True
-    ctx.disable(moderngl.BLEND)
+            in_bands(ctx, sh, sw, band)
+    finally:
+        fbo.scissor = None  # the resolve (a blit) and later clears see the whole target
     if resolved is not None:
         ctx.copy_framebuffer(resolved, fbo)
 
@@ -501,7 +574,7 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
             released.extend(v)
         ctx.finish()  # uploads and allocations above stay out of the timed draws
         _, t_draw = timed(ctx, lambda: _draw_colour(ctx, fbo, resolved, empty, color_prog, opaque + blend, vaos,
-                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage))
+                                                    anisotropy, occlusion, normal_variance, alpha_to_coverage, msaa))
         if timings is not None:
             timings["frame"] = t_draw
         color = np.frombuffer((resolved or fbo).read(components=4, dtype="f4"), np.float32).reshape(sh, sw, 4)[::-1]

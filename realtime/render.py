@@ -24,7 +24,7 @@ Conventions at both ends of every baked artifact
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
 
-Compile-time switches are the named constants of :mod:`pbrcheck.registry` (``{"GEOMETRY":
+Compile-time switches are the named constants of the registries (:mod:`realtime.registry`; ``{"GEOMETRY":
 "GEOMETRY_SMITH_GGX"}``); uniforms are set with :func:`_set`, which raises on a uniform the program
 lacks unless the caller declares it optional (a variant's compiler may drop a uniform its code
 does not read; a misspelt or renamed uniform would otherwise render with 0).
@@ -34,7 +34,7 @@ API
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
 :func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
-:func:`chain_mapping`, :func:`effective_cube_format`.
+:func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large).
 """
 
 from __future__ import annotations
@@ -53,30 +53,17 @@ from pbrcheck.errors import BackendError
 from pbrcheck.exr import Image
 from pbrcheck.lights import pack_lights
 from pbrcheck.energy import SCENE_COMPENSATION
+from pbrcheck.lodmap import LOD_MAPPINGS
 from pbrcheck.progress import Progress
-from pbrcheck.registry import (
-    DFGS,
-    ENERGY_COMPENSATIONS,
-    FRESNELS,
-    GEOMETRIES,
-    HORIZON_OCCLUSIONS,
-    IRRADIANCE_METHODS,
-    IRRADIANCES,
-    LOD_MAPPINGS,
-    LUT_SAMPLINGS,
-    NDFS,
-    RUNTIME_SAMPLINGS,
-    SHADINGS,
-    SPECULAR_AAS,
-    SPECULAR_OCCLUSIONS,
-    lut_sampling_for,
-    role_reads,
-)
+from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS
+from pbrcheck.sampling import LUT_SAMPLINGS, lut_sampling_for
 from pbrcheck.scene import Plane, Scene, plane_frame
 
-from .gl import compute_program, get_context, groups, renderer_name, timed, timing_clock
+from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
 from .presets import RealtimeOptions, check_requirements, resolve_options, unmet_requirements
+from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
+                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
 HALF_MAX = 65504.0
 #: Uniforms of the frame pass (render.comp) that some variants do not read, so the compiler drops
@@ -94,7 +81,7 @@ FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "c
 
 def chain_mapping(o: RealtimeOptions) -> str:
     """The built-in mapping whose inverse bakes the prefiltered levels (a fitted mapping's ``chain``):
-    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.registry.LOD_MAPPINGS`."""
+    :attr:`RealtimeOptions.chain`, a built-in member of :data:`pbrcheck.lodmap.LOD_MAPPINGS`."""
     return o.chain
 
 
@@ -153,7 +140,10 @@ def _visible(result):
 def _baked(name: str, key, timings: dict | None, run):
     """A precompute pass baked once per process: ``run()`` timed with :func:`_timed` on a miss and
     kept in ``_cache``; the bake's wall time goes to ``timings[name]`` on a miss and on a hit (a hit
-    reports the original bake, see ``meta["cached_passes"]``)."""
+    reports the original bake, see ``meta["cached_passes"]``). The key ends with the shader sources'
+    hash (:func:`realtime.gl.shader_sources_hash`): a shader edited under a running process bakes
+    afresh, as its program compiles afresh (a key of the options alone served the old bake)."""
+    key = (*key, shader_sources_hash())
     if key not in _cache:
         _cache[key], _timings[key] = _timed(get_context(), lambda: _visible(run()))
     if timings is not None:
@@ -490,7 +480,7 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
     """The frame pass's ``#define``s for resolved options ``o`` and terms ``terms`` (the render's
     :func:`resolved_terms` plus its ``energy_compensation``, see :func:`resolved_energy_compensation`).
 
-    Every switch comes from its registry (:mod:`pbrcheck.registry`), so the GLSL tests named constants;
+    Every switch comes from its registry (:mod:`realtime.registry`), so the GLSL tests named constants;
     a fitted LOD mapping adds its polynomial as the ``LOD_FITTED(r)`` macro.
     """
     shading = o.shading  # its combination with ibl is checked by resolve_options
@@ -622,8 +612,10 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     check_pipeline_options(pipeline, o)
     ctx = get_context()
     if pipeline == "raster":  # this GL's limits, before any bake
-        from .raster import check_msaa
+        from .raster import check_msaa, check_target_size, check_texture_sizes
         check_msaa(int(o.msaa))
+        check_target_size(scene.camera.width, scene.camera.height, int(o.supersample))
+        check_texture_sizes(scene)
     terms = {**resolved_terms(scene, o), "energy_compensation": resolved_energy_compensation(scene, o)}
     timings: dict = {}
     cached_before = {k for k in _cache}
@@ -675,7 +667,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
         out_color, out_aov, out_obj = buffers[2:]
 
         def frame():
-            prog.run(groups(W, 8), groups(H, 8), 1)
+            frame_bands(ctx, prog, W, H, int(o.supersample))
 
         if id(prog) not in _warm:
             # Warm-up: llvmpipe compiles the shader to machine code at its first dispatch; one 8x8
@@ -695,6 +687,20 @@ def render_realtime(scene: Scene, preset: str = "default", options: dict | None 
     meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
     meta["pipeline"] = pipeline
     return _image(color, aov, obj, meta)
+
+
+def frame_bands(ctx, prog, W: int, H: int, ss: int) -> int:
+    """Dispatch the frame pass ``prog`` (render.comp) over the W x H image through
+    :func:`realtime.gl.in_bands`: one dispatch for a frame of at most
+    :data:`~realtime.gl.SINGLE_DISPATCH_SAMPLES` samples, else bands of rows with ``glFinish``
+    between (a SIGTERM is honoured between two). A pixel is computed once, from its own coordinates
+    (``tile_origin`` + the invocation's): the image is bit-identical either way. Returns the number
+    of dispatches."""
+    def band(y: int, rows: int) -> None:
+        _set(prog, "tile_origin", (0, y))
+        prog.run(groups(W, 8), groups(rows, 8), 1)
+
+    return in_bands(ctx, H, W * ss * ss, band)
 
 
 def _image(color, aov, obj, meta) -> Image:
@@ -731,14 +737,17 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
     ctx = get_context()
     user = (hooks.path, hooks.text) if hooks else None
     t0 = time.perf_counter()
+    items = raster.draw_items(scene)
+    timings["geometry"] = time.perf_counter() - t0
+    # KHR_materials_unlit: its path is compiled only into the programs of scenes that draw an unlit material
+    unlit = {"UNLIT_MATERIALS": 1} if any(it.unlit for it in items) else {}
+    t0 = time.perf_counter()
     prog = raster.graphics_program("raster.vert", "raster.frag",
-                                   {**defines, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)}, user)
+                                   {**defines, **unlit, "AOV_PASS": 0, "ALPHA_TO_COVERAGE": int(o.alpha_to_coverage)},
+                                   user)
     aov_prog = raster.graphics_program("raster.vert", "raster.frag", {**defines, "AOV_PASS": 1}, user)
     bg_prog = raster.graphics_program("fullscreen.vert", "raster_background.frag")
     timings["compile_frame"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    items = raster.draw_items(scene)
-    timings["geometry"] = time.perf_counter() - t0
     lbuf = _bind_shading(prog, scene, o, env, baked, sh, raster=True)
     # the specular_aa member reads a baked variance (prefiltered): bind each normal map's slope-variance mips
     variance = role_reads(SPECULAR_AAS, o.specular_aa, "specular_aa", "variance")

@@ -6,19 +6,13 @@ cited there)::
     F0 = mix(specular, base_color, metallic),   alpha = max(roughness^2, MIN_ALPHA)
     f(l, v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
 
-with ``D`` one of D_GGX [Walter07 eq. 33], D_Beckmann [Walter07 eq. 25], D_BlinnPhong [Walter07
-eq. 30, n = 2/alpha^2 - 2]; ``G`` one of G_SmithGGXCorrelated [Heitz14 eq. 99], G_SmithBeckmannCorrelated [Heitz14 eq. 99 with
-eq. 80], G_SmithGGX
-[Heitz14 eq. 98 with eq. 43/72], G_SchlickGGX with k = alpha/2 (ibl) or (roughness+1)^2/8 (direct)
-[Karis13 eq. 4]; ``F`` F_Schlick [Schlick94 eq. 15] or ``none`` (F = 1, so the diffuse (1 - F)
-term vanishes). All computations are in the local shading frame (n = +Z), where the NDFs are written
-in their numerically stable forms (identical functions): with ``s = h.x^2 + h.y^2 = sin^2(theta_h)``,
-
-* D_GGX = 1 / (pi a^2 (s / a^2 + h.z^2)^2)           (= a^2 / (pi (h.z^2 (a^2 - 1) + 1)^2))
-* D_Beckmann = exp(-s / (a^2 h.z^2)) / (pi a^2 h.z^4) (tan^2 = s / h.z^2)
-* D_BlinnPhong = (n + 2) / (2 pi) exp(n/2 log1p(-s))  (h.z^n)
-
-so that narrow lobes stay accurate in float32 (1 - cos(theta_h) underflows, sin^2 does not).
+with the terms of :mod:`reference.terms` (one Dr.Jit class per NDF, G and Fresnel term, chosen by the
+scene's ``[brdf]`` names through that module's registries): ``D`` GGX [Walter07 eq. 33], Beckmann
+[Walter07 eq. 25], BlinnPhong [Walter07 eq. 30, n = 2/alpha^2 - 2]; ``G`` SmithGGXCorrelated [Heitz14
+eq. 99], SmithBeckmannCorrelated [Heitz14 eq. 99 with eq. 80], SmithGGX [Heitz14 eq. 98 with eq.
+43/72], SchlickGGX with k = alpha/2 (ibl) or (roughness+1)^2/8 (direct) [Karis13 eq. 4]; ``F`` Schlick
+[Schlick94 eq. 15] or ``none`` (F = 1, so the diffuse (1 - F) term vanishes). All computations are in
+the local shading frame (n = +Z), the NDFs in their numerically stable forms (reference.terms).
 
 Sampling: the specular lobe is chosen with probability ``P_spec = S / (S + Dif)`` where
 ``S = mean_rgb F(n.v)`` (1 without Fresnel) and ``Dif = mean_rgb (1 - F(n.v)) (1 - metallic)
@@ -54,180 +48,16 @@ from __future__ import annotations
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
-from pbrcheck import registry
 from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import multiscatter
-from .terms import D_GGX, INV_PI, F_None, F_Schlick, fresnel_term  # noqa: F401  (re-exported: this module's API too)
+from . import terms
+from .terms import INV_PI, fresnel_term, geometry_term
 
 import drjit as dr
 import mitsuba as mi
 
 PLUGIN_NAME = "pbr_material"
-
-
-def _log1p_neg(s):
-    """log(1 - s) for s in [0, 1], accurate for small s (series below 1e-2: error < s^5/5)."""
-    series = -s * (1.0 + s * (0.5 + s * (1.0 / 3.0 + s * 0.25)))
-    return dr.select(s < 1e-2, series, dr.log(dr.maximum(1.0 - s, 1e-30)))
-
-
-def _neg_expm1(x):
-    """1 - exp(x) for x <= 0, accurate for small |x|."""
-    series = -x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)))
-    return dr.select(x > -1e-2, series, 1.0 - dr.exp(x))
-
-
-def blinn_phong_exponent(alpha):
-    """[Walter07] sec. 5.2: n = 2 / alpha^2 - 2."""
-    return dr.maximum(2.0 / (alpha * alpha) - 2.0, 0.0)
-
-
-# ---- NDFs D(h), h in the local frame -------------------------------------------------------------
-
-def D_Beckmann(h, alpha):
-    a2 = alpha * alpha
-    s = h.x * h.x + h.y * h.y
-    c2 = dr.maximum(h.z * h.z, COS_EPS)
-    return dr.select(h.z > 0, dr.exp(-s / (a2 * c2)) * INV_PI / (a2 * c2 * c2), 0.0)
-
-
-def D_BlinnPhong(h, alpha):
-    n = blinn_phong_exponent(alpha)
-    s = dr.clip(h.x * h.x + h.y * h.y, 0.0, 1.0)
-    v = (n + 2.0) * (0.5 * INV_PI) * dr.exp(0.5 * n * _log1p_neg(s))
-    return dr.select(h.z > 0, v, 0.0)
-
-
-
-
-# ---- geometry terms G(l, v) (cosines clamped to [0, 1]) ------------------------------------------
-
-def G1_SmithGGX(c, alpha):
-    a2 = alpha * alpha
-    return 2.0 * c / dr.maximum(c + dr.sqrt(a2 + (1.0 - a2) * c * c), COS_EPS)
-
-
-def G_SmithGGX(NoV, NoL, alpha):
-    return G1_SmithGGX(NoV, alpha) * G1_SmithGGX(NoL, alpha)
-
-
-def G_SmithGGXCorrelated(NoV, NoL, alpha):
-    a2 = alpha * alpha
-    den = NoL * dr.sqrt(a2 + (1.0 - a2) * NoV * NoV) + NoV * dr.sqrt(a2 + (1.0 - a2) * NoL * NoL)
-    return 2.0 * NoV * NoL / dr.maximum(den, COS_EPS)
-
-
-def G1_SchlickGGX(c, k):
-    return c / dr.maximum(c * (1.0 - k) + k, COS_EPS)
-
-
-def Lambda_Beckmann(c, alpha):
-    """Smith Lambda of Beckmann for the cosine ``c`` in [0, 1] ([Heitz14] eq. 80; the stable form
-    of :func:`reference.multiscatter.lambda_beckmann_a`, which the random walk uses too)."""
-    s = dr.sqrt(dr.maximum(1.0 - c * c, 0.0))
-    return multiscatter.lambda_beckmann_a(dr.maximum(c, COS_EPS) / dr.maximum(alpha * s, 1e-30))
-
-
-def G_SmithBeckmannCorrelated(NoV, NoL, alpha):
-    g = 1.0 / (1.0 + Lambda_Beckmann(NoV, alpha) + Lambda_Beckmann(NoL, alpha))
-    return dr.select((NoV > 0) & (NoL > 0), g, 0.0)
-
-
-def G_SchlickGGX(NoV, NoL, k):
-    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
-
-
-def G_SchlickBeckmann(NoV, NoL, alpha):
-    """Schlick's approximation of Smith-Beckmann (article 001's catalogue): k = alpha sqrt(2 / pi)."""
-    k = alpha * 0.7978845608
-    return G1_SchlickGGX(NoV, k) * G1_SchlickGGX(NoL, k)
-
-
-# ---- the terms' widths (pbrcheck.registry Impl.width) of the perceptual roughness and its alpha ----
-
-def alpha_from_roughness(roughness, alpha):
-    return alpha
-
-
-def k_schlick_ibl(roughness, alpha):
-    """[Karis13] eq. 4 footnote: k = alpha / 2."""
-    return alpha * 0.5
-
-
-def k_schlick_direct(roughness, alpha):
-    """[Karis13] eq. 4: k = (roughness + 1)^2 / 8."""
-    return (roughness + 1.0) * (roughness + 1.0) * 0.125
-
-
-def geometry_term(geometry, NoV, NoL, roughness, alpha):
-    """The registry's member ``geometry`` (:data:`pbrcheck.registry.GEOMETRIES`): its Dr.Jit function
-    at its width, cosines clamped to [0, 1]."""
-    impl = registry.GEOMETRIES[geometry].impl
-    return globals()[impl.drjit](dr.clip(NoV, 0.0, 1.0), dr.clip(NoL, 0.0, 1.0),
-                                 globals()[impl.width](roughness, alpha))
-
-
-#: Each NDF's Dr.Jit function of the local half vector and alpha, from the registry.
-NDF = {e.name: globals()[e.impl.drjit] for e in registry.NDFS}
-
-
-# ---- the NDFs' half-vector samplers and their densities (local frame) ---------------------------
-
-def sample_h_GGX(wi, u, alpha):
-    """GGX visible normals, [Heitz18] listing 1: stretch, sample the projected hemisphere, unstretch."""
-    vh = dr.normalize(mi.Vector3f(alpha * wi.x, alpha * wi.y, wi.z))
-    lensq = vh.x * vh.x + vh.y * vh.y
-    inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-    T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-    T2 = dr.cross(vh, T1)
-    r = dr.sqrt(u.x)
-    phi = 2.0 * dr.pi * u.y
-    t1 = r * dr.cos(phi)
-    t2 = r * dr.sin(phi)
-    s = 0.5 * (1.0 + vh.z)
-    t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-    nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-    return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 0.0)))
-
-
-def pdf_h_GGX(wi, h, alpha):
-    """[Heitz18] eq. 2/3: D_v(h) = G1(v) max(0, v.h) D(h) / (n.v)."""
-    return G1_SmithGGX(dr.clip(wi.z, 0, 1), alpha) * dr.maximum(dr.dot(wi, h), 0.0) * D_GGX(h, alpha) \
-        / dr.maximum(wi.z, COS_EPS)
-
-
-def _h_from_theta(cos_t, sin_t, u):
-    phi = 2.0 * dr.pi * u.y
-    return mi.Vector3f(sin_t * dr.cos(phi), sin_t * dr.sin(phi), cos_t)
-
-
-def sample_h_Beckmann(wi, u, alpha):
-    """[Walter07] eq. 28: tan^2 theta = -alpha^2 log(1 - u), density D (n.h)."""
-    t2 = -alpha * alpha * _log1p_neg(u.x)
-    cos_t = dr.rsqrt(1.0 + t2)
-    return _h_from_theta(cos_t, dr.sqrt(t2) * cos_t, u)
-
-
-def sample_h_BlinnPhong(wi, u, alpha):
-    """pdf cos^(n+1) sin: cos theta = (1 - u)^(1/(n+2)); sin^2 = 1 - exp(2 log(1-u)/(n+2))."""
-    n = blinn_phong_exponent(alpha)
-    x = _log1p_neg(u.x) / (n + 2.0)
-    return _h_from_theta(dr.exp(x), dr.sqrt(dr.maximum(_neg_expm1(2.0 * x), 0.0)), u)
-
-
-def pdf_h_Beckmann(wi, h, alpha):
-    return D_Beckmann(h, alpha) * dr.maximum(h.z, 0.0)
-
-
-def pdf_h_BlinnPhong(wi, h, alpha):
-    return D_BlinnPhong(h, alpha) * dr.maximum(h.z, 0.0)
-
-
-#: Each NDF's (sampler, density of h) pair: ``sample_h_<D>`` and ``pdf_h_<D>``, ``<D>`` its registry
-#: function's name without ``D_`` (a new NDF adds its pair under that name).
-NDF_SAMPLERS = {e.name: (globals()[f"sample_h_{e.impl.drjit[2:]}"], globals()[f"pdf_h_{e.impl.drjit[2:]}"])
-                for e in registry.NDFS}
 
 
 def _divide(a, b):
@@ -279,10 +109,10 @@ class PBRLobes:
     def _spec_pdf(self, wi, wo, h, alpha):
         """Density in wo of the specular sampler (valid for reflections with v.h > 0)."""
         jac = 1.0 / dr.maximum(4.0 * dr.abs(dr.dot(wo, h)), 1e-20)
-        return NDF_SAMPLERS[self.ndf][1](wi, h, alpha) * jac
+        return terms.ndf(self.ndf).pdf(wi, h, alpha) * jac
 
     def _sample_h(self, wi, u, alpha):
-        return NDF_SAMPLERS[self.ndf][0](wi, u, alpha)
+        return terms.ndf(self.ndf).sample(wi, u, alpha)
 
     def _eval_pdf(self, si, wo, active):
         """(f cos, pdf) of the non-delta part, local frame."""
@@ -303,7 +133,7 @@ class PBRLobes:
         nd = self._nondelta()
         if nd is not False:
             alpha = self._glossy_alpha(nd)
-            D = NDF[self.ndf](h, alpha)
+            D = terms.ndf(self.ndf).eval(h, alpha)
             G = geometry_term(self.geometry, NoV, NoL, self.roughness, alpha)
             spec = F * (D * G / (4.0 * dr.maximum(NoV, COS_EPS)))  # D G F / (4 NoL NoV) * NoL
             spec_pdf = self._spec_pdf(wi, wo, h, alpha)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from pbrcheck.args import positive_int
 from pbrcheck.atomic import check_output_path
+from pbrcheck.fmt import file_name_part, terminal_safe
 from pbrcheck.exr import write_exr
 from pbrcheck.scene import load_scene
 
@@ -19,16 +20,16 @@ from .render import DEFAULT_ADAPTIVE, DEFAULT_SAMPLER, SAMPLER_NAMES, render_ref
 
 def _cmd_reference(args) -> int:
     scene = load_scene(args.scene)
-    out = Path(args.out) if args.out else Path("out") / f"reference_{scene.name}_{args.mode}_{args.spp}spp.exr"
+    out = Path(args.out) if args.out else Path("out") / f"reference_{file_name_part(scene.name)}_{args.mode}_{args.spp}spp.exr"
     check_output_path(out)  # before the render
     img = render_reference(scene, spp=args.spp, mode=args.mode, seed=args.seed, max_depth=args.max_depth,
                            use_cache=not args.no_cache, progress=True, sampler=args.sampler,
                            adaptive=args.adaptive)
     write_exr(out, img)
     m = img.meta
-    print(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, sampler {m.get('sampler')}"
-          + (f" (adaptive: {m['adaptive']})" if m.get("adaptive", "off") != "off" else "")
-          + f", variant {m['variant']}, {m['seconds']} s render, cache {m.get('cache', 'off')}")
+    print(terminal_safe(f"{out}: {scene.name} {m['mode']} {m['spp']} spp seed {m['seed']}, sampler {m.get('sampler')}"
+                        + (f" (adaptive: {m['adaptive']})" if m.get("adaptive", "off") != "off" else "")
+                        + f", variant {m['variant']}, {m['seconds']} s render, cache {m.get('cache', 'off')}"))
     return 0
 
 

@@ -1,9 +1,8 @@
 """Multiple-scattering energy compensations in Dr.Jit: the twins of :mod:`pbrcheck.energy` (same
 function names, same formulas; ``realtime/shaders/energy.glsl`` is the third language).
 
-Each member of :data:`pbrcheck.registry.ENERGY_COMPENSATIONS` names its role functions
-(``energy_scale_<name>``, ``energy_ms_<name>``, ``energy_direct_<name>``); the core names them as
-strings and this module resolves them (:func:`energy_scale`, :func:`energy_ms`,
+Each member of :data:`realtime.registry.ENERGY_COMPENSATIONS` has its role functions
+(``energy_scale_<name>``, ``energy_ms_<name>``, ``energy_direct_<name>``); this module's :data:`ROLES` holds their Dr.Jit twins by member (:func:`energy_scale`, :func:`energy_ms`,
 :func:`energy_direct` loop the registry), so the reference can evaluate a compensation exactly as
 the real-time renderer does, e.g. the compensated albedo of a single-scattering lobe
 (:func:`specular_albedo_compensated`). Arguments are Dr.Jit arrays (``mi.Float`` or ``mi.Color3f``
@@ -17,7 +16,7 @@ API
 :func:`F_avg_Schlick`, :func:`energy_filament`, :func:`ms_fdez_aguera`, :func:`ms_kulla_conty`,
 :func:`f_ms_kulla_conty`, :func:`kc_eavg`, :func:`energy_scale_filament`, :func:`energy_direct_filament`,
 :func:`energy_ms_fdez_aguera`, :func:`energy_ms_kulla_conty`, :func:`energy_direct_kulla_conty`,
-:func:`energy_scale`, :func:`energy_ms`, :func:`energy_direct`, :func:`specular_albedo_compensated`.
+:func:`energy_scale`, :func:`energy_ms`, :func:`energy_direct`, :func:`specular_albedo_compensated`, :data:`ROLES`.
 """
 
 from __future__ import annotations
@@ -26,7 +25,6 @@ import math
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.energy import KC_EAVG, KC_EAVG_SIZE
-from pbrcheck.registry import ENERGY_COMPENSATIONS
 
 import drjit as dr
 import mitsuba as mi
@@ -72,7 +70,7 @@ def kc_eavg(roughness):
     return dr.lerp(lo, hi, x - mi.Float(i))
 
 
-# ---- the registry members' role functions (pbrcheck.registry.ENERGY_COMPENSATIONS) --------------
+# ---- the registry members' role functions (realtime.registry.ENERGY_COMPENSATIONS) ---------------
 
 def energy_scale_filament(F0, A, B):
     return energy_filament(F0, A + B)
@@ -94,13 +92,20 @@ def energy_direct_kulla_conty(f_spec, F0, A, B, El, roughness):
     return f_ms_kulla_conty(F0, A + B, El, kc_eavg(roughness))
 
 
+#: The reference's table of :data:`realtime.registry.ENERGY_COMPENSATIONS` (keyed by its members; the
+#: reference may not import the real-time renderer): each member's Dr.Jit role
+#: functions by role (``tests/test_registry.py``: the registry's members and roles, each the twin of
+#: the member's numpy function of the same name).
+ROLES = {"none": {}, "filament": {"energy_scale": energy_scale_filament, "energy_direct": energy_direct_filament},
+         "fdez_aguera": {"energy_ms": energy_ms_fdez_aguera},
+         "kulla_conty": {"energy_ms": energy_ms_kulla_conty, "energy_direct": energy_direct_kulla_conty}}
+
+
 def _role(role: str, compensation: str):
-    """The member's Dr.Jit function for ``role`` (the registry's name resolved here), None where the
-    member has not that role."""
-    if compensation not in ENERGY_COMPENSATIONS:
-        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ENERGY_COMPENSATIONS.names)})")
-    impl = ENERGY_COMPENSATIONS[compensation].roles.get(role)
-    return None if impl is None else globals()[impl.drjit]
+    """The member's Dr.Jit function for ``role`` (:data:`ROLES`), None where the member has not that role."""
+    if compensation not in ROLES:
+        raise ValueError(f"unknown energy compensation {compensation!r} (one of {', '.join(ROLES)})")
+    return ROLES[compensation].get(role)
 
 
 def energy_scale(F0, A, B, compensation: str):

@@ -12,8 +12,8 @@ The walk [Heitz16, sec. 4 and 5, algorithms 1-3]
 NDFs: GGX and Beckmann, each with its own height-correlated Smith term as the first bounce
 (:data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`: ``smith_ggx_correlated``,
 ``smith_beckmann_correlated``). The walk only needs the NDF's ``Lambda`` (both signs of ``w.z``),
-``D`` and a sampler of visible normals for any direction (:data:`WALK_NDFS`, named after the NDF's
-registry entry: ``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``); everything else is shared.
+``D`` and a sampler of visible normals for any direction (:data:`WALK_NDFS`: the NDF's Dr.Jit class of
+:mod:`reference.terms`, its ``Lambda``, ``eval`` and ``sample_visible``); everything else is shared.
 
 Heights: any height distribution gives the same BSDF [Heitz16 sec. 4.2]; we take the uniform one on
 [-1, 1] and track ``L = log C1(h)`` (``C1`` its CDF, ``L`` in (-inf, 0], 0 above the surface) so
@@ -28,7 +28,7 @@ Beckmann's [Heitz14 eq. 80, Walter07 eq. 27] with ``a = 1 / (alpha tan theta)`` 
               = exp(-a^2) (1 / (a sqrt(pi)) - erfcx(a)) / 2      (a > 0; erfcx(a) = exp(a^2) erfc(a))
 
 which satisfies ``Lambda(-a) = -1 - Lambda(a)`` as written; the second form (with the scaled
-complementary error function of :func:`erfcx_pos`) avoids ``erf(a) - 1`` cancelling for large ``a``.
+complementary error function of :func:`reference.terms.erfcx_pos`) avoids ``erf(a) - 1`` cancelling for large ``a``.
 
 Next height along a ray of direction ``w`` from log-height ``L`` [Heitz16 eq. 17-18, alg. 2] with
 ``U`` uniform in (0, 1]: the probability of leaving (``w.z > 0``) is the height-dependent masking
@@ -42,7 +42,7 @@ which also holds for directions below the horizon: the visible region of the hem
 is then the half-disk minus a half-ellipse, still a column-wise linear image of the disk], and the
 path throughput is multiplied by the Fresnel of that bounce ``F(w_in . m)``.
 
-Beckmann's visible normals (:func:`sample_vndf_Beckmann`; Heitz and d'Eon 2014, "Importance Sampling
+Beckmann's visible normals (:meth:`reference.terms.Beckmann.sample_visible`; Heitz and d'Eon 2014, "Importance Sampling
 Microfacet-Based BSDFs using the Distribution of Visible Normals", sec. 4 and appendix): stretch
 ``v`` by alpha to the alpha = 1 configuration, rotate it into the xz-plane at angle ``theta``, draw
 the slopes ``(x, y)``: ``y`` is independent of ``v`` (a Gaussian, ``y = erfinv(2 u - 1)``) and ``x``
@@ -52,9 +52,9 @@ has the density ``(cos theta - x sin theta) exp(-x^2) / sqrt(pi)`` on ``x < cot 
     F(x) = (cos theta (1 + erf x) + sin theta exp(-x^2) / sqrt(pi)) / 2,   F(cot theta) = A(v),
 
 valid for both signs of ``cos theta`` (directions below the horizon: ``cot theta < 0``). ``x``
-solves ``F(x) = u F(cot theta)`` by :data:`VNDF_BISECTION_STEPS` bisection steps on ``log F`` (for
+solves ``F(x) = u F(cot theta)`` by :data:`reference.terms.VNDF_BISECTION_STEPS` bisection steps on ``log F`` (for
 ``x < 0`` written ``-x^2 + log(cos theta erfcx(-x) + sin theta / sqrt(pi))``, free of underflow);
-``cot theta`` is clamped to [:data:`VNDF_COT_MIN`, :data:`VNDF_COT_MAX`] (outside it the dropped
+``cot theta`` is clamped to [``VNDF_COT_MIN``, ``VNDF_COT_MAX``] of :mod:`reference.terms` (outside it the dropped
 mass is below 1e-17 for the upper end; the lower end only concerns rays within 7 degrees of straight
 up that still hit the microsurface, a vanishing fraction of walks). Rotate the slopes back, unstretch
 by alpha, ``m = normalize(-x, -y, 1)``.
@@ -105,9 +105,7 @@ dropped (at alpha = 1, F0 = 1 and n.v = 0.05 it is below 1e-4 of the albedo: mea
 
 API
 ---
-:func:`lambda_GGX`, :func:`lambda_Beckmann`, :func:`D_Beckmann`, :func:`sample_vndf_GGX`,
-:func:`sample_vndf_Beckmann`, :data:`WALK_NDFS`, :data:`WALK_GEOMETRY`, :func:`lambda_ndf`, :func:`D_ndf`,
-:func:`sample_vndf_ndf`, :func:`erfcx_pos`, :func:`walk_sample`,
+:data:`WALK_NDFS`, :data:`WALK_GEOMETRY`, :func:`walk_sample`,
 :func:`walk_eval`, :func:`query_key`, :func:`approx_spec_pdf`, :func:`eval_pdf_hook`,
 :func:`sample_hook`, :func:`check_model`.
 
@@ -128,16 +126,15 @@ References
 
 from __future__ import annotations
 
-import math
-
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
-from pbrcheck.registry import MULTISCATTER_GEOMETRY, NDFS
+from pbrcheck.registry import MULTISCATTER_GEOMETRY
 
 import drjit as dr
 import mitsuba as mi
 
-from .terms import D_GGX, INV_PI, fresnel_term
+from . import terms
+from .terms import INV_PI, fresnel_term
 
 #: Walks longer than this are cut (their remaining energy dropped; see the module docstring).
 MAX_SCATTERING_ORDER = 256
@@ -147,15 +144,9 @@ GRAZING_Z = 1e-4
 MS_PDF_WEIGHT = 0.25
 #: The models the walk is defined for: NDF -> its height-correlated Smith term (the first bounce).
 WALK_GEOMETRY = MULTISCATTER_GEOMETRY
-#: Bisection steps of the Beckmann visible-slope inversion (bracket <= 14 wide: 14 / 2^30 is below
-#: float32's resolution there).
-VNDF_BISECTION_STEPS = 30
-#: Clamp of cot(theta) in the Beckmann visible-slope sampler (module docstring).
-VNDF_COT_MIN = -8.0
-VNDF_COT_MAX = 6.0
-#: Width of the Beckmann slope bracket below min(cot theta, 0): exp(-36) of the mass lies beyond.
-VNDF_SLOPE_SPAN = 6.0
-INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
+#: The walk's NDFs: each with its Dr.Jit class (reference.terms), which has the signed ``Lambda`` and
+#: ``sample_visible`` of any direction the walk needs.
+WALK_NDFS = {name: terms.ndf(name) for name in WALK_GEOMETRY}
 
 _U24 = 1.0 / float(1 << 24)
 
@@ -214,128 +205,9 @@ def _uniforms(state):
     return (*us, _hash(state + 0x9E3779B9))
 
 
-# ---- Smith GGX microsurface ------------------------------------------------------------------
-
-def lambda_GGX(w, alpha):
-    """Signed Smith Lambda of GGX for any direction ``w`` (unit, local frame) [Heitz16 eq. 12]:
-    ``(-1 + sign(z) sqrt(z^2 + alpha^2 (x^2 + y^2)) / |z|) / 2``; huge (+-) near the horizon."""
-    z = w.z
-    s2 = dr.maximum(w.x * w.x + w.y * w.y, 0.0)
-    r = dr.sqrt(z * z + alpha * alpha * s2) / dr.maximum(dr.abs(z), 1e-20)
-    return 0.5 * (-1.0 + dr.select(z >= 0, r, -r))
-
-
-def erfcx_pos(z):
-    """``exp(z^2) erfc(z)`` for ``z >= 0`` [NR92 erfcc without its exp(-z^2) factor]: fractional
-    error below 1.2e-7; finite for every z (1 / (z sqrt(pi)) asymptotically)."""
-    t = 1.0 / (1.0 + 0.5 * z)
-    p = -1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
-        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (
-            -0.82215223 + t * 0.17087277))))))))
-    return t * dr.exp(p)
-
-
-def lambda_beckmann_a(a):
-    """Beckmann's Smith Lambda of the signed ``a = cot(theta) / alpha`` (module docstring):
-    ``exp(-a^2) (1/(a sqrt(pi)) - erfcx(a)) / 2`` for ``a > 0``, ``-1 - Lambda(-a)`` below."""
-    b = dr.clip(dr.abs(a), 1e-20, 1e15)
-    up = dr.maximum(0.5 * dr.exp(-b * b) * (INV_SQRT_PI / b - erfcx_pos(b)), 0.0)
-    return dr.select(a >= 0, up, -1.0 - up)
-
-
-def lambda_Beckmann(w, alpha):
-    """Signed Smith Lambda of Beckmann for any direction ``w`` (unit, local frame) [Heitz14 eq. 80
-    extended by Heitz16 eq. 12]; 0 straight up, -1 straight down, huge (+-) near the horizon."""
-    s = dr.sqrt(dr.maximum(w.x * w.x + w.y * w.y, 0.0))
-    return lambda_beckmann_a(w.z / dr.maximum(alpha * s, 1e-30))
-
-
-def D_Beckmann(m, alpha):
-    """Beckmann NDF on the local normal ``m`` [Walter07 eq. 25]:
-    ``exp(-tan^2 / alpha^2) / (pi alpha^2 cos^4)``."""
-    a2 = alpha * alpha
-    z2 = dr.maximum(m.z * m.z, 1e-30)
-    t2 = (m.x * m.x + m.y * m.y) / z2
-    return dr.select(m.z > 0, dr.exp(-t2 / a2) * INV_PI / (a2 * z2 * z2), 0.0)
-
-
-def lambda_ndf(w, alpha, ndf):
-    """The signed Lambda of the walk's NDF ``ndf`` (:data:`WALK_NDFS`: ``lambda_<D>``)."""
-    return WALK_NDFS[ndf][0](w, alpha)
-
-
-def D_ndf(m, alpha, ndf):
-    """The walk's NDF ``ndf`` on the local normal ``m`` (:data:`WALK_NDFS`: ``D_<D>``)."""
-    return WALK_NDFS[ndf][1](m, alpha)
-
-
-def _log_slope_cdf(x, c, s):
-    """``log(2 F(x))`` of the Beckmann visible-slope CDF (module docstring) at ``x``."""
-    neg = -x * x + dr.log(dr.maximum(c * erfcx_pos(dr.maximum(-x, 0.0)) + s * INV_SQRT_PI, 1e-30))
-    pos = dr.log(dr.maximum(c * (1.0 + dr.erf(x)) + s * dr.exp(-x * x) * INV_SQRT_PI, 1e-30))
-    return dr.select(x < 0, neg, pos)
-
-
-def sample_vndf_Beckmann(v, u1, u2, alpha):
-    """A Beckmann normal visible from direction ``v`` (any sign of ``v.z``) [HdE14]; see the
-    module docstring for the slope inversion."""
-    vs = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
-    sin_t = dr.sqrt(dr.maximum(vs.x * vs.x + vs.y * vs.y, 0.0))
-    cos_t = vs.z
-    ok = sin_t > 1e-7
-    inv = 1.0 / dr.maximum(sin_t, 1e-7)
-    cphi = dr.select(ok, vs.x * inv, 1.0)
-    sphi = dr.select(ok, vs.y * inv, 0.0)
-    cot = dr.select(ok, cos_t * inv, VNDF_COT_MAX)
-    hi = dr.clip(cot, VNDF_COT_MIN, VNDF_COT_MAX)
-    lo = dr.minimum(hi, 0.0) - VNDF_SLOPE_SPAN
-    target = dr.log(u1) + _log_slope_cdf(hi, cos_t, sin_t)
-    for _ in range(VNDF_BISECTION_STEPS):  # unrolled: the bracket halves each step
-        mid = 0.5 * (lo + hi)
-        below = _log_slope_cdf(mid, cos_t, sin_t) < target
-        lo = dr.select(below, mid, lo)
-        hi = dr.select(below, hi, mid)
-    x = 0.5 * (lo + hi)
-    y = dr.erfinv(2.0 * u2 - 1.0)
-    sx = cphi * x - sphi * y
-    sy = sphi * x + cphi * y
-    return dr.normalize(mi.Vector3f(-alpha * sx, -alpha * sy, 1.0))
-
-
-def sample_vndf_ndf(v, u1, u2, alpha, ndf):
-    """A normal of the walk's NDF ``ndf`` visible from ``v`` (any sign of ``v.z``; :data:`WALK_NDFS`:
-    ``sample_vndf_<D>``)."""
-    return WALK_NDFS[ndf][2](v, u1, u2, alpha)
-
-
-def sample_vndf_GGX(v, u1, u2, alpha):
-    """A GGX normal visible from direction ``v`` (any sign of ``v.z``) [Heitz18 listing 1]."""
-    vh = dr.normalize(mi.Vector3f(alpha * v.x, alpha * v.y, v.z))
-    lensq = vh.x * vh.x + vh.y * vh.y
-    inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-    T1 = dr.select(lensq > 1e-14, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-    T2 = dr.cross(vh, T1)
-    r = dr.sqrt(u1)
-    phi = 2.0 * dr.pi * u2
-    t1 = r * dr.cos(phi)
-    t2 = r * dr.sin(phi)
-    s = 0.5 * (1.0 + vh.z)
-    t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-    nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-    return dr.normalize(mi.Vector3f(alpha * nh.x, alpha * nh.y, dr.maximum(nh.z, 1e-7)))
-
-
-#: Each NDF the walk is defined for (:data:`WALK_GEOMETRY`) with its signed Lambda, its D and its
-#: sampler of visible normals for any direction: ``lambda_<D>``, ``D_<D>``, ``sample_vndf_<D>``,
-#: ``<D>`` the NDF's registry function name without ``D_`` (:data:`pbrcheck.registry.NDFS`, as
-#: :data:`reference.bsdf.NDF_SAMPLERS`); a new NDF's walk adds its three under that name.
-WALK_NDFS = {name: tuple(globals()[f"{fn}_{NDFS[name].impl.drjit[2:]}"] for fn in ("lambda", "D", "sample_vndf"))
-             for name in WALK_GEOMETRY}
-
-
 def _next_height(w, L, u, alpha, ndf="ggx"):
     """(escaped, L') for a ray of direction ``w`` from log-height ``L`` [Heitz16 alg. 2]."""
-    lam = lambda_ndf(w, alpha, ndf)
+    lam = WALK_NDFS[ndf].Lambda(w, alpha)
     horizontal = dr.abs(w.z) < GRAZING_Z
     # Up: leave with probability G1(w, L) = exp(Lambda L) (L = 0 above the surface: always).
     g1 = dr.exp(dr.minimum(lam * L, 0.0))
@@ -348,9 +220,10 @@ def _phase_shadowed(wi, wo, L, alpha, ndf="ggx"):
     """Next-event estimate without Fresnel: ``p(wi -> wo) G1(wo, L)`` with
     ``p = D(h) / (4 A(wi))``, ``A(wi) = wi.z (1 + Lambda(wi))`` (>= 0 for both signs of wi.z)."""
     h = dr.normalize(wi + wo)
-    area = wi.z * (1.0 + lambda_ndf(wi, alpha, ndf))
-    p = D_ndf(h, alpha, ndf) / dr.maximum(4.0 * area, 1e-20)
-    lam_o = lambda_ndf(wo, alpha, ndf)
+    D = WALK_NDFS[ndf]
+    area = wi.z * (1.0 + D.Lambda(wi, alpha))
+    p = D.eval(h, alpha) / dr.maximum(4.0 * area, 1e-20)
+    lam_o = D.Lambda(wo, alpha)
     shadow = dr.exp(dr.minimum(lam_o * L, 0.0))
     ok = (dr.dot(wi, h) > 0) & (wo.z > 0) & (area > 0)
     return dr.select(ok, p * shadow, 0.0), h
@@ -384,7 +257,7 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True
         running = running & ~escaped
         order = dr.select(running, order + 1, order)
         v = -wr
-        m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
+        m = WALK_NDFS[ndf].sample_visible(v, u2, u3, alpha)
         c = dr.dot(v, m)
         wn = 2.0 * c * m - v
         energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
@@ -427,7 +300,7 @@ def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_ord
         contrib = energy * fresnel_term(fresnel, dr.dot(v, h), F0) * ps
         use = running & (order >= min_order) & dr.isfinite(ps)
         total = dr.select(use, total + contrib, total)
-        m = sample_vndf_ndf(v, u2, u3, alpha, ndf)
+        m = WALK_NDFS[ndf].sample_visible(v, u2, u3, alpha)
         c = dr.dot(v, m)
         energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
         wr = dr.select(running, 2.0 * c * m - v, wr)

@@ -38,7 +38,7 @@ geometry.
 glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_textured`` BSDF
 (:mod:`reference.textured`), shape ids ``object<k>`` like every object.
 
-API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`scene_dict`,
+API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`check_budget` (pixels, samples), :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
 :func:`adaptive_allocation`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
 :data:`ASSET_CODE_VERSION`,
@@ -63,7 +63,7 @@ from pbrcheck.exr import Image
 from pbrcheck.progress import Progress
 from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
 
-from .variant import ensure_variant
+from .variant import backend_identity, ensure_variant
 
 # Bump when a change of this package changes the pixels: it is part of every cache key.
 # 2: rendered by mi.render with pbrcheck_reference; 3: samplers, replicates, adaptive; 4: the
@@ -333,6 +333,18 @@ def geometric_roughness_image(scene: Scene) -> np.ndarray:
     return np.array(g, dtype=np.float64).reshape(H, W)
 
 
+def check_budget(scene: Scene, spp: int) -> None:
+    """The reference's resource budgets (:mod:`pbrcheck.limits`), before any work: the image's pixels
+    (``reference_pixels``, ``--max-reference-pixels``) and its samples, spp x width x height
+    (``samples``, ``--max-samples``; an adaptive render's mean spp is ``spp``). Raises
+    :class:`pbrcheck.limits.LimitError` (exit 2)."""
+    from pbrcheck.limits import check
+
+    W, H = scene.camera.width, scene.camera.height
+    check("reference_pixels", W * H, scene.source, f"reference image of {W}x{H}")
+    check("samples", int(spp) * W * H, scene.source, f"reference samples ({spp} spp x {W}x{H} pixels)")
+
+
 def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
                     max_depth: int | None = None, progress: bool = True, env: EnvMap | None = None,
                     mscene=None, sampler: str = DEFAULT_SAMPLER, adaptive: bool = DEFAULT_ADAPTIVE,
@@ -348,6 +360,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
     if spp < 2:
         raise ValueError("spp must be >= 2 (the variance channels need two samples per pixel)")
+    check_budget(scene, spp)
     t0 = time.perf_counter()
     variant = ensure_variant()
     mi, dr = _mi()
@@ -448,7 +461,7 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
-                     sampler=check_sampler(sampler), adaptive=adaptive, **assets)
+                     sampler=check_sampler(sampler), adaptive=adaptive, backend=backend_identity(), **assets)
 
 
 def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: int = 0,
@@ -457,7 +470,11 @@ def render_reference(scene: Scene, *, spp: int = 64, mode: str = "local", seed: 
     """Render the reference image of ``scene`` (channels R, G, B, variance.*, N.*, NdotV, object,
     coverage; metadata as in the module docstring). Cached in the ``reference`` namespace of
     :class:`pbrcheck.cache.Cache` by scene content (environment pixels included), spp, mode, seed,
-    max depth and :data:`REFERENCE_CODE_VERSION`; ``meta["cache"]`` says ``hit`` or ``miss``."""
+    max depth, sampler, :data:`REFERENCE_CODE_VERSION` and the backend (Mitsuba variant and the
+    Mitsuba and Dr.Jit versions, :func:`reference.variant.backend_identity`); ``meta["cache"]`` says
+    ``hit`` or ``miss``.
+    The budgets (:func:`check_budget`) are checked first."""
+    check_budget(scene, spp)
     env = load_environment(scene)
     cache = Cache("reference") if use_cache else None
     key = None

@@ -1,16 +1,15 @@
 """The real-time renderer's sampling strategies in Dr.Jit: the twins of :mod:`pbrcheck.sampling`'s
 runtime importance sampling (``runtime_half_vector_<name>``, ``runtime_estimate_*``) and DFG LUT
 strategies (``lut_half_vector_<name>`` / ``lut_weight_<name>``), same names, same formulas (the GLSL
-ones are in ``realtime/shaders/sampling.glsl``), resolved here from the names that
-:data:`pbrcheck.registry.RUNTIME_SAMPLINGS` and :data:`pbrcheck.registry.LUT_SAMPLINGS` hold, and
+ones are in ``realtime/shaders/sampling.glsl``), dispatched by this module's tables of :data:`realtime.registry.RUNTIME_SAMPLINGS` and
+:data:`pbrcheck.sampling.LUT_SAMPLINGS` (:data:`RUNTIME_ROLES`, :data:`LUT_ROLES`), and
 :func:`dfg_lut`, the Dr.Jit bake of
 ``dfg_lut.comp`` (same points, same estimator) that the reference can use to separate the split
 sum's LUT error from its own.
 
 Tangent space, ``z`` = the normal; ``u`` is a ``mi.Point2f`` with GLSL's convention (``u.x`` the
 azimuth of an NDF sample). The ``ndf`` strategy draws ``D (n.h)`` by the NDF's sampler, named by its
-registry entry (``extra["sample"]``): :func:`sample_GGX` here, Beckmann and Blinn-Phong through
-:mod:`reference.bsdf`'s samplers. References: [Heitz18] E. Heitz, "Sampling the GGX Distribution of
+Dr.Jit class (:mod:`reference.terms`, ``sample_cos``). References: [Heitz18] E. Heitz, "Sampling the GGX Distribution of
 Visible Normals", JCGT 7(4) 2018 (listing 1, eq. 17); [Walter07] Walter et al., "Microfacet Models
 for Refraction through Rough Surfaces", EGSR 2007 (eq. 35-38); [Karis13] B. Karis, "Real Shading in
 Unreal Engine 4", 2013 (eq. 8).
@@ -22,7 +21,7 @@ API
 :func:`lut_weight_ndf`, :func:`lut_half_vector`, :func:`lut_weight`, :func:`dfg_lut`,
 :func:`runtime_half_vector_beckmann`, :func:`runtime_half_vector_ggx`, :func:`runtime_half_vector_vndf`,
 :func:`runtime_estimate_ndf`, :func:`runtime_estimate_vndf`, :func:`runtime_half_vector`,
-:func:`runtime_estimate`.
+:func:`runtime_estimate`, :data:`LUT_ROLES`, :data:`RUNTIME_ROLES`.
 """
 
 from __future__ import annotations
@@ -31,50 +30,34 @@ import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, MIN_ALPHA
-from pbrcheck.registry import LUT_SAMPLINGS, NDFS, RUNTIME_SAMPLINGS, lut_sampling_for
-from pbrcheck.sampling import hammersley
+from pbrcheck.sampling import hammersley, lut_sampling_for
 
 import drjit as dr
 import mitsuba as mi
 
-from . import bsdf
+from . import terms
 
 
-def sample_GGX(u, alpha):
-    """[Walter07] eq. 35-36 in Karis's form: ``cos theta_h = sqrt((1 - u.y) / (1 + (a^2 - 1) u.y))``."""
-    a2 = dr.square(dr.maximum(alpha, MIN_ALPHA))
-    den = dr.maximum(1.0 + (a2 - 1.0) * u.y, COS_EPS)
-    ct = dr.sqrt(dr.clip((1.0 - u.y) / den, 0.0, 1.0))
-    st = dr.sqrt(dr.clip(a2 * u.y / den, 0.0, 1.0))
-    phi = 2.0 * dr.pi * u.x
-    return mi.Vector3f(st * dr.cos(phi), st * dr.sin(phi), ct)
-
-
-def sample_Beckmann(u, alpha):
-    """[Walter07] eq. 28 (:func:`reference.bsdf.sample_h_Beckmann`, GLSL's ``u`` order)."""
-    return bsdf.sample_h_Beckmann(None, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
-
-
-def sample_BlinnPhong(u, alpha):
-    """[Walter07] sec. 5.2 (:func:`reference.bsdf.sample_h_BlinnPhong`, GLSL's ``u`` order)."""
-    return bsdf.sample_h_BlinnPhong(None, mi.Point2f(u.y, u.x), alpha)
+#: The NDFs' samplers of ``D (n.h)`` in GLSL's ``u`` order (their Dr.Jit classes', reference.terms),
+#: by their GLSL twins' names.
+sample_GGX, sample_Beckmann, sample_BlinnPhong = terms.GGX.sample_cos, terms.Beckmann.sample_cos, terms.BlinnPhong.sample_cos
 
 
 def sample_ndf(u, alpha, ndf: str = "ggx"):
-    """A half vector from ``D (n.h)`` of ``ndf`` (its registry entry's ``extra["sample"]``)."""
-    return globals()[NDFS[ndf].extra["sample"]](u, alpha)
+    """A half vector from ``D (n.h)`` of ``ndf`` (its Dr.Jit class's ``sample_cos``)."""
+    return terms.ndf(ndf).sample_cos(u, alpha)
 
 
-# ---- the registry members' role functions (pbrcheck.registry.LUT_SAMPLINGS) ----------------------
+# ---- the registry members' role functions (pbrcheck.sampling.LUT_SAMPLINGS) ----------------------
 
 def lut_half_vector_vndf(u, v, alpha, ndf: str = "ggx"):
-    """[Heitz18] listing 1: GGX visible normals (:func:`reference.bsdf.sample_h_GGX`, ``u.yx``)."""
-    return bsdf.sample_h_GGX(v, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
+    """[Heitz18] listing 1: GGX visible normals (:meth:`reference.terms.GGX.sample`, ``u.yx``)."""
+    return terms.GGX.sample(v, mi.Point2f(u.y, u.x), dr.maximum(alpha, MIN_ALPHA))
 
 
 def lut_weight_vndf(G, v, h, alpha):
     """[Heitz18] eq. 17: ``G2 / G1(v)``."""
-    return G / dr.maximum(bsdf.G1_SmithGGX(v.z, alpha), COS_EPS)
+    return G / dr.maximum(terms.G1_SmithGGX(v.z, alpha), COS_EPS)
 
 
 def lut_half_vector_ndf(u, v, alpha, ndf: str = "ggx"):
@@ -88,13 +71,13 @@ def lut_weight_ndf(G, v, h, alpha):
 
 
 def lut_half_vector(u, v, alpha, sampling: str, ndf: str = "ggx"):
-    """The strategy ``sampling``'s half vector (the registry's name, resolved here)."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_half_vector"].drjit](u, v, alpha, ndf)
+    """The strategy ``sampling``'s half vector (:data:`LUT_ROLES`; KeyError for an unknown one)."""
+    return LUT_ROLES[sampling]["lut_half_vector"](u, v, alpha, ndf)
 
 
 def lut_weight(G, v, h, alpha, sampling: str):
     """The strategy ``sampling``'s weight of the sample ``h``."""
-    return globals()[LUT_SAMPLINGS[sampling].roles["lut_weight"].drjit](G, v, h, alpha)
+    return LUT_ROLES[sampling]["lut_weight"](G, v, h, alpha)
 
 
 def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: str = "vndf") -> np.ndarray:
@@ -112,7 +95,7 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     h = lut_half_vector(u, v, alpha, sampling, ndf)
     VoH = dr.dot(v, h)
     NoL = 2.0 * VoH * h.z - NoV
-    G = bsdf.geometry_term(geometry, NoV, NoL, roughness, alpha)
+    G = terms.geometry_term(geometry, NoV, NoL, roughness, alpha)
     w = dr.select((NoL > 0.0) & (VoH > 0.0), lut_weight(G, v, h, alpha, sampling), 0.0)
     Fc = dr.power(1.0 - VoH, 5)
     A = np.asarray(w * (1.0 - Fc), dtype=np.float64).reshape(size, size, samples).sum(-1) / samples
@@ -120,7 +103,7 @@ def dfg_lut(size: int, samples: int, geometry: str, ndf: str = "ggx", sampling: 
     return np.stack([A, B], axis=-1)
 
 
-# ---- runtime importance sampling's strategies (pbrcheck.registry.RUNTIME_SAMPLINGS) ----------------
+# ---- runtime importance sampling's strategies (realtime.registry.RUNTIME_SAMPLINGS) ---------------
 
 def runtime_half_vector_beckmann(u, vt, alpha):
     """[Walter07] eq. 28: Beckmann half vectors (article 001, for the GGX D)."""
@@ -144,14 +127,24 @@ def runtime_estimate_ndf(F, G, L, NoV, NoH, VoH, alpha):
 
 def runtime_estimate_vndf(F, G, L, NoV, NoH, VoH, alpha):
     """[Heitz18] eq. 17: ``F G L / G1(v)``."""
-    return F * G / dr.maximum(bsdf.G1_SmithGGX(NoV, alpha), COS_EPS) * L
+    return F * G / dr.maximum(terms.G1_SmithGGX(NoV, alpha), COS_EPS) * L
+
+
+#: The reference's tables of :data:`pbrcheck.sampling.LUT_SAMPLINGS` and ``realtime.registry.RUNTIME_SAMPLINGS``: each
+#: member's Dr.Jit role functions by role (``tests/test_registry.py``: the registries' members and
+#: roles, each the twin of the member's numpy function of the same name).
+LUT_ROLES = {"vndf": {"lut_half_vector": lut_half_vector_vndf, "lut_weight": lut_weight_vndf},
+             "ndf": {"lut_half_vector": lut_half_vector_ndf, "lut_weight": lut_weight_ndf}}
+RUNTIME_ROLES = {"beckmann": {"runtime_half_vector": runtime_half_vector_beckmann, "runtime_estimate": runtime_estimate_ndf},
+                 "ggx": {"runtime_half_vector": runtime_half_vector_ggx, "runtime_estimate": runtime_estimate_ndf},
+                 "vndf": {"runtime_half_vector": runtime_half_vector_vndf, "runtime_estimate": runtime_estimate_vndf}}
 
 
 def runtime_half_vector(u, vt, alpha, sampling: str):
-    """The runtime strategy ``sampling``'s half vector (the registry's name, resolved here)."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_half_vector"].drjit](u, vt, alpha)
+    """The runtime strategy ``sampling``'s half vector (:data:`RUNTIME_ROLES`; KeyError for an unknown one)."""
+    return RUNTIME_ROLES[sampling]["runtime_half_vector"](u, vt, alpha)
 
 
 def runtime_estimate(F, G, L, NoV, NoH, VoH, alpha, sampling: str):
     """The runtime strategy ``sampling``'s estimate of one sample."""
-    return globals()[RUNTIME_SAMPLINGS[sampling].roles["runtime_estimate"].drjit](F, G, L, NoV, NoH, VoH, alpha)
+    return RUNTIME_ROLES[sampling]["runtime_estimate"](F, G, L, NoV, NoH, VoH, alpha)

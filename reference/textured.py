@@ -36,6 +36,11 @@ not).
 
 ``COLOR_0`` (linear RGB; its alpha is not used) multiplies the base colour, as the specification says.
 
+``KHR_materials_unlit`` (``"unlit": true``): the material reflects nothing (``eval``, ``pdf`` 0, a
+sample's weight 0; its null pass-through for alpha and culled back faces kept) and the shape's
+emitter is :class:`reference.unlit.UnlitEmitter`, whose radiance is the base colour above (that
+module); the emissive properties are ignored, as the extension says.
+
 UVs: glTF's, origin at the image's top-left, v down, which is Mitsuba's bitmap lookup (row 0 at v =
 0). Each texture slot reads its own ``texCoord`` set: the mesh's texcoords (``si.uv``) hold the
 emissive texture's set (:func:`primary_texcoord`: the area emitter can read no other, also where it
@@ -199,6 +204,7 @@ class TexturedMaterial(mi.BSDF):
         self.alpha_mode = int(props.get("alpha_mode", 0))
         self.alpha_cutoff = float(props.get("alpha_cutoff", 0.5))
         self.alpha = float(props.get("alpha", 1.0))
+        self.unlit = bool(props.get("unlit", False))   # KHR_materials_unlit (reference.unlit)
         # the TEXCOORD set in the mesh's own texcoords (si.uv); the other set is the mesh attribute
         # vertex_uv<k> (asset_shapes: the emissive texture's set, which the area emitter reads as si.uv)
         self.primary_texcoord = int(props.get("primary_texcoord", 0))
@@ -369,6 +375,8 @@ class TexturedMaterial(mi.BSDF):
         same = mi.Frame3f.cos_theta(si.wi) * mi.Frame3f.cos_theta(wo) > 0
         front = self.double_sided | (mi.Frame3f.cos_theta(si.wi) > 0)
         f, pdf = view.eval_pdf(ctx, s2, wo2, active & same & front)
+        if self.unlit:   # KHR_materials_unlit: no reflection (its base colour is emitted: reference.unlit)
+            return mi.Spectrum(0.0), mi.Float(0.0)
         if self.alpha_mode and self._null_enabled(ctx):  # the surface is there with probability opacity
             op = self.opacity(si, active)
             f, pdf = f * op, pdf * op
@@ -398,6 +406,8 @@ class TexturedMaterial(mi.BSDF):
             bs.sampled_type = dr.select(through, mi.UInt32(+mi.BSDFFlags.Null), bs.sampled_type)
             bs.sampled_component = dr.select(through, mi.UInt32(1), bs.sampled_component)
             w = dr.select(through, 1.0, w)
+        if self.unlit:   # KHR_materials_unlit: no reflection; the pass-through of alpha and culling kept
+            w = dr.select(through, 1.0, 0.0) if mixed else mi.Spectrum(0.0)
         return bs, w
 
     def eval_diffuse_reflectance(self, si, active=True):
@@ -512,6 +522,8 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
          "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
+    if m.unlit:
+        d["unlit"] = True
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),
                             ("normal", m.normal_texture, False)):
@@ -592,9 +604,13 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
                                                         vertex_color=prim.color is not None, primary=primary))
             bsdf = mats[key]
         props["bsdf"] = bsdf
-        em = _emitter_dict(inst.asset, obj.gltf_material, textures)
-        if em is not None:
-            props["emitter"] = mi.load_dict(em)
+        if bsdf_for is None and inst.asset.material(obj.gltf_material).unlit:
+            from .unlit import unlit_emitter
+            props["emitter"] = unlit_emitter(bsdf)   # KHR_materials_unlit: the base colour, unshaded
+        else:
+            em = _emitter_dict(inst.asset, obj.gltf_material, textures)
+            if em is not None:
+                props["emitter"] = mi.load_dict(em)
         mesh = mi.Mesh(shape_id(obj.id), int(pos.shape[0]), int(tri.shape[0]), props,
                        has_vertex_normals=True, has_vertex_texcoords=uv0 is not None)
         params = mi.traverse(mesh)

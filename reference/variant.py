@@ -1,5 +1,8 @@
 """Choosing the Mitsuba variant: ``cuda_ad_rgb`` where a CUDA GPU works, else ``llvm_ad_rgb``, else
-``scalar_rgb`` (with a warning: ~50x slower, and without wavefront rendering)."""
+``scalar_rgb`` (with a warning: ~50x slower, and without wavefront rendering).
+
+API: :func:`ensure_variant`, :func:`chosen_variant`, :func:`backend_identity` (what of the backend
+a reference's pixels depend on: part of every reference cache key)."""
 
 from __future__ import annotations
 
@@ -57,3 +60,10 @@ def ensure_variant() -> str:
     register_lights()
     register_envmap()
     return _chosen
+
+
+def backend_identity() -> dict:
+    """The variant (:func:`ensure_variant`) and the Mitsuba and Dr.Jit versions: the same scene, spp
+    and seed give other samples on another variant (CUDA and LLVM round differently) or release, so
+    a reference cache key holds them (a cached ``llvm_ad_rgb`` render is not a ``cuda_ad_rgb`` one)."""
+    return {"variant": ensure_variant(), "mitsuba": mi.__version__, "drjit": dr.__version__}

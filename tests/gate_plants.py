@@ -40,7 +40,7 @@ BUDGETS = ROOT / "compare" / "budgets"
 CLIENTS = BUDGETS / "clients.toml"
 CLIENTS_DIR = ROOT / "clients"
 SCENES = {"spheres": ("spheres_ci.toml", "refs/spheres_ci.exr", {"relmse": 0.0023, "flip_mean": 0.074, "delta_e_itp_mean": 3}),
-          "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 0.00031, "flip_mean": 0.0078, "delta_e_itp_mean": 1.1}),
+          "furnace": ("furnace_ci.toml", "refs/furnace_ci.exr", {"relmse": 3e-07, "flip_mean": 0.0045, "delta_e_itp_mean": 0.12}),
           "panel": ("panel_ci.toml", "refs/panel_ci.exr", {"relmse": 0.029, "flip_mean": 0.33, "delta_e_itp_mean": 15})}
 
 
@@ -244,7 +244,7 @@ def client_checks(preset: str) -> dict:
     (model-matched references, budgets and committed baselines of the shipped gate)."""
     from compare.gate import load_budget
 
-    checks, _ = load_budget(CLIENTS)
+    checks = load_budget(CLIENTS).checks
     return {s: c for s in SCENES for c in checks if c.preset == preset and c.scene == SCENES[s][0]}
 
 
@@ -383,7 +383,8 @@ def rerun_checks(budget: Path, names, runs: int, workdir: Path, stream=None) -> 
     from compare.gate import load_budget, run_check
     from pbrcheck.cache import CACHE_ENV
 
-    checks, base = load_budget(budget)
+    budget_ = load_budget(budget)
+    checks, base = budget_.checks, budget_.base
     checks = [c for c in checks if c.name in set(names)]
     old = os.environ.get(CACHE_ENV)
     out = []
@@ -394,7 +395,7 @@ def rerun_checks(budget: Path, names, runs: int, workdir: Path, stream=None) -> 
             renderers.trim_caches(0)
             t = time.perf_counter()
             res = {c.name: run_check(c, base, progress=False) for c in checks}
-            out.append({"run": i, "outcomes": {n: r.outcome for n, r in res.items()},
+            out.append({"run": i, "outcomes": {n: r.verdict.label for n, r in res.items()},
                         "errors": {n: r.error for n, r in res.items() if r.error},
                         "seconds": time.perf_counter() - t})
             shutil.rmtree(cache, ignore_errors=True)
@@ -414,7 +415,7 @@ def detection_table(folder: Path, preset: str = "default", *, plants=None, scene
     verdict per CI scene and the region that caught it (the most significant one)."""
     import dataclasses
 
-    from compare.gate import load_budget, run_check
+    from compare.gate import Verdict, load_budget, run_check
 
     accept_baselines(folder, preset, scenes)
     plants = plants or (PLANTS + CLIENT_PLANTS[:4] + [IMPROVEMENT, FITTED_LOD, FITTED_LOD_CI] if preset == "default"
@@ -423,7 +424,8 @@ def detection_table(folder: Path, preset: str = "default", *, plants=None, scene
     rows = ["| planted change | made by | " + " | ".join(f"{x}_ci" for x in scenes)
             + " | caught by (most significant region) | likely term |", "|---|---|" + "---|" * len(scenes) + "---|---|"]
     for p in plants:
-        checks, base = load_budget(plant_budget(folder, p))
+        budget = load_budget(plant_budget(folder, p))
+        checks, base = budget.checks, budget.base
         res = {c.name.split("-")[0]: run_check(c, base, progress=False) for c in checks}
         cells, best, likely = [], "", ""
         for s in scenes:
@@ -431,13 +433,13 @@ def detection_table(folder: Path, preset: str = "default", *, plants=None, scene
             if r is None:
                 cells.append("(not run)")
                 continue
-            if r.status == "error" or r.change is None:
-                cells.append(f"**error**: {r.error}" if r.status == "error" else "(no baseline)")
+            if not r.verdict.judged or r.change is None:
+                cells.append(f"**error**: {r.error}" if not r.verdict.judged else "(no baseline)")
                 continue
             ch = r.change
             n = {k: len(ch.by_state(k)) for k in ("worse", "better", "changed")}
             cells.append(f"**{ch.verdict}** ({n['worse']} worse, {n['better']} better, {n['changed']} changed"
-                         f" of {len(ch.regions)})" + (f"; budget fail" if r.status == "fail" else ""))
+                         f" of {len(ch.regions)})" + (f"; budget fail" if r.verdict is Verdict.OVER_BUDGET else ""))
             state = {"regressed": "worse", "improved": "better", "changed": "changed"}.get(ch.verdict)
             if state and not best:
                 x = ch.by_state(state)[0]

@@ -63,8 +63,8 @@ def test_prune_by_size_removes_the_least_recently_used_and_a_hit_refreshes(fille
 
 def test_clear_and_stale_temporary_files(filled):
     root, paths = filled
-    stale = paths["new_rt"].parent / ".x.exr.abc123.tmp"
-    fresh = paths["new_rt"].parent / ".y.exr.def456.tmp"
+    stale = paths["new_rt"].parent / f".{paths['new_rt'].name}.abc123.tmp.exr"   # pbrcheck.atomic.temp_beside's names
+    fresh = paths["new_rt"].parent / f".{paths['new_rt'].stem}.exr.def456.tmp"
     for t, age in ((stale, 2 * cache.STALE_TEMP_S), (fresh, 0)):
         t.write_bytes(b"partial")
         os.utime(t, (time.time() - age, time.time() - age))

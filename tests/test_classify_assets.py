@@ -18,9 +18,9 @@ _spec.loader.exec_module(classify_assets)
 def test_classify_a_folder(tmp_path, capsys):
     coated_asset(tmp_path / "plain.gltf", used=("KHR_xmp",), coat=False)       # metadata only: faithful
     coated_asset(tmp_path / "sub" / "coated.gltf")
-    req = coated_asset(tmp_path / "required.gltf", used=("KHR_materials_unlit",), coat=False)
+    req = coated_asset(tmp_path / "required.gltf", used=("KHR_materials_sheen",), coat=False)
     doc = json.loads(req.read_text())
-    doc["extensionsRequired"] = ["KHR_materials_unlit"]
+    doc["extensionsRequired"] = ["KHR_materials_sheen"]
     req.write_text(json.dumps(doc))
     (tmp_path / "junk.glb").write_bytes(b"glTF\x02\x00\x00\x00junk")
     (tmp_path / "notes.txt").write_text("not an asset")
@@ -28,7 +28,7 @@ def test_classify_a_folder(tmp_path, capsys):
     assert [(r["asset"], r["class"]) for r in rows] == [
         ("junk.glb", "refused"), ("plain.gltf", "faithful"), ("required.gltf", "refused"), ("sub/coated.gltf", "named")]
     assert rows[3]["features"] == [(COAT, ("coated",))] and rows[3]["triangles"] == 4 and rows[1]["features"] == []
-    assert "required extension KHR_materials_unlit is not supported" in rows[2]["reason"]
+    assert "required extension KHR_materials_sheen is not supported" in rows[2]["reason"]
     assert classify_assets.main([str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "| sub/coated.gltf | named | 4 | KHR\\_materials\\_clearcoat (coated) |" in out

@@ -262,9 +262,10 @@ def test_object_ids_match_the_scene(scene):
 
 
 def test_committed_clients_budget_is_well_formed():
-    from compare.gate import _scene_arg, load_budget
+    from compare.gate import load_budget, scene_arg
 
-    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
+    budget = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml")
+    checks, base = budget.checks, budget.base
     # Every built-in client is gated on both CI scenes (sample-viewer-full: the same client as
     # sample-viewer with slower settings, minutes per run).
     clients = {f"ext:{n}" for n, cfg in C.load_renderers().items() if cfg.builtin} - {"ext:sample-viewer-full"}
@@ -272,7 +273,7 @@ def test_committed_clients_budget_is_well_formed():
     assert {(c.preset, c.scene) for c in checks} == {(p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml")}
     for c in checks:
         assert c.max and (base / c.reference).is_file()
-        scene = _scene_arg(base, c.scene)
+        scene = scene_arg(base, c.scene)
         assert scene.camera.width * scene.camera.height <= 200 * 200  # CI size
 
 

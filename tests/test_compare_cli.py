@@ -176,10 +176,11 @@ def test_gate_min_bound_for_psnr(exrs, tmp_path, capsys):
 def test_committed_ci_budget_is_well_formed():
     from pathlib import Path
 
-    from compare.gate import _scene_arg, load_budget
+    from compare.gate import load_budget, scene_arg
 
-    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    budget = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    checks, base = budget.checks, budget.base
     assert len(checks) >= 2 and all(c.max for c in checks)
     for c in checks:
-        scene = _scene_arg(base, c.scene)
+        scene = scene_arg(base, c.scene)
         assert scene.camera.width * scene.camera.height <= 200 * 200  # CI size

@@ -96,7 +96,7 @@ def fake_reference(scene, *, spp=64, mode="local", seed=0, use_cache=True, progr
                           **var, **aovs)
 
 
-def fake_realtime(scene, preset="default", options=None, *, progress=True, context=None):
+def fake_realtime(scene, preset="default", options=None, *, progress=True, context=None, use_cache=True):
     CALLS["realtime"].append((preset, dict(options or {})))
     CALLS["cached"].append(bool(context and context.cache))
     rgb, aovs = raycast(scene)

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from pbrcheck import brdf, energy, registry
+from realtime import dispatch
+from realtime import registry as rt_registry
 from realtime.glsl_harness import run_glsl
 
 # float32 GLSL against float64 numpy.
@@ -53,21 +55,21 @@ def test_twins_same_grid():
     _close(run_glsl("kc_eavg(x0)", rr), energy.kc_eavg(rr))
 
 
-@pytest.mark.parametrize("name", registry.ENERGY_COMPENSATIONS.names)
+@pytest.mark.parametrize("name", rt_registry.ENERGY_COMPENSATIONS.names)
 def test_dispatch_twins(name):
     F0, r, mu, A, B = GRID
-    d = registry.ENERGY_COMPENSATIONS.select(name)
-    _close(run_glsl("energy_scale(vec3(x0), x1, x2).x", F0, A, B, defines=d), energy.energy_scale(F0, A, B, name))
+    d = rt_registry.ENERGY_COMPENSATIONS.select(name)
+    _close(run_glsl("energy_scale(vec3(x0), x1, x2).x", F0, A, B, defines=d), dispatch.energy_scale(F0, A, B, name))
     _close(run_glsl("energy_ms(vec3(x0), x1, x2, x3).x", F0, A, B, r, defines=d),
-           energy.energy_ms(F0, A, B, r, name))
+           dispatch.energy_ms(F0, A, B, r, name))
     fs = np.linspace(0.0, 3.0, F0.size)
     El = (A + B).reshape(-1, NOV.size)[:, ::-1].ravel()
     np.testing.assert_allclose(
         run_glsl("energy_direct(vec3(x4), vec3(x0), x1, x2, x5, x3).x", F0, A, B, r, fs, El, defines=d),
-        energy.energy_direct(fs, F0, A, B, El, r, name), rtol=RTOL_F32, atol=FMS_ATOL_F32)
+        dispatch.energy_direct(fs, F0, A, B, El, r, name), rtol=RTOL_F32, atol=FMS_ATOL_F32)
 
 
-ROLE_PAIRS = [(e.name, r) for e in registry.ENERGY_COMPENSATIONS for r in e.roles]
+ROLE_PAIRS = [(e.name, r) for e in rt_registry.ENERGY_COMPENSATIONS for r in e.roles]
 
 
 def _role_args(role):
@@ -94,7 +96,7 @@ def test_role_twins(name, role):
     import mitsuba as mi
 
     from reference import energy as drjit_energy
-    fn = registry.ENERGY_COMPENSATIONS[name].roles[role].glsl
+    fn = rt_registry.ENERGY_COMPENSATIONS[name].roles[role].glsl
     args = _role_args(role)
     want = getattr(energy, fn)(*args)
     atol = FMS_ATOL_F32 if role == "energy_direct" else ATOL_F32  # f_ms's float32 cancellations
@@ -103,7 +105,7 @@ def test_role_twins(name, role):
     np.testing.assert_allclose(np.array(got), want, rtol=RTOL_F32, atol=atol)
 
 
-@pytest.mark.parametrize("name", registry.ENERGY_COMPENSATIONS.names)
+@pytest.mark.parametrize("name", rt_registry.ENERGY_COMPENSATIONS.names)
 def test_drjit_dispatch_matches_numpy(name):
     """reference.energy's dispatch loops the registry as pbrcheck.energy's does (identity included),
     on Color3f F0 as the reference would pass it."""
@@ -118,17 +120,17 @@ def test_drjit_dispatch_matches_numpy(name):
     f = [mi.Float(x) for x in (A, B, r, El)]
     close = dict(rtol=RTOL_F32, atol=FMS_ATOL_F32)
     np.testing.assert_allclose(np.array(drjit_energy.energy_scale(c3, f[0], f[1], name))[0],
-                               energy.energy_scale(F0, A, B, name), **close)
+                               dispatch.energy_scale(F0, A, B, name), **close)
     np.testing.assert_allclose(np.array(drjit_energy.energy_ms(c3, f[0], f[1], f[2], name))[0],
-                               energy.energy_ms(F0, A, B, r, name), **close)
+                               dispatch.energy_ms(F0, A, B, r, name), **close)
     np.testing.assert_allclose(np.array(drjit_energy.energy_direct(c3, c3, f[0], f[1], f[3], f[2], name))[0],
-                               energy.energy_direct(F0, F0, A, B, El, r, name), **close)
+                               dispatch.energy_direct(F0, F0, A, B, El, r, name), **close)
     np.testing.assert_allclose(np.array(drjit_energy.specular_albedo_compensated(c3, f[0], f[1], f[2], name))[0],
-                               energy.specular_albedo_compensated(F0, A, B, r, name), **close)
+                               dispatch.specular_albedo_compensated(F0, A, B, r, name), **close)
     with pytest.raises(ValueError, match="unknown energy compensation 'nope'"):
         drjit_energy.energy_scale(c3, f[0], f[1], "nope")
     with pytest.raises(ValueError, match="unknown energy compensation 'nope'"):
-        energy.energy_ms(F0, A, B, r, "nope")
+        dispatch.energy_ms(F0, A, B, r, "nope")
 
 
 def test_glsl_table_is_the_numpy_table():
@@ -149,23 +151,23 @@ def test_white_metal_furnace_is_one(name):
     """F0 = 1 under a white furnace: every compensation restores the albedo to 1 (by construction;
     Kulla-Conty through its table's E_avg only at F0 < 1)."""
     F0, r, mu, A, B = GRID
-    got = energy.specular_albedo_compensated(np.ones_like(A), A, B, r, name)
+    got = dispatch.specular_albedo_compensated(np.ones_like(A), A, B, r, name)
     np.testing.assert_allclose(got, 1.0, atol=1e-9)
 
 
 def test_none_is_single_scattering_and_compensations_add_energy():
     F0, r, mu, A, B = GRID
     ss = F0 * A + B
-    np.testing.assert_allclose(energy.specular_albedo_compensated(F0, A, B, r, "none"), ss)
+    np.testing.assert_allclose(dispatch.specular_albedo_compensated(F0, A, B, r, "none"), ss)
     for name in ("filament", "fdez_aguera", "kulla_conty"):
-        got = energy.specular_albedo_compensated(F0, A, B, r, name)
+        got = dispatch.specular_albedo_compensated(F0, A, B, r, name)
         assert np.all(got >= ss - 1e-12) and np.all(got <= 1.0 + 1e-9), name
 
 
 def test_presets_offer_the_compensations():
     from realtime.presets import OPTIONS, PRESETS, resolve_options
 
-    assert OPTIONS["energy_compensation"].choices == ("scene", *registry.ENERGY_COMPENSATIONS.names)
+    assert OPTIONS["energy_compensation"].choices == ("scene", *rt_registry.ENERGY_COMPENSATIONS.names)
     assert set(energy.SCENE_COMPENSATION) == set(registry.MULTISCATTERS.names)
     assert energy.SCENE_COMPENSATION["none"] == "none"
     assert PRESETS["default"]["energy_compensation"] == "scene"

@@ -10,7 +10,7 @@ import pytest
 
 from compare.research import energy
 from pbrcheck import cli
-from pbrcheck.registry import ENERGY_COMPENSATIONS
+from realtime.registry import ENERGY_COMPENSATIONS
 
 
 def test_albedo_grid_small(tmp_path):

@@ -13,7 +13,7 @@ import pytest
 
 from compare.baseline import (BIAS_FLOOR, Baseline, compare_to_baseline, load_baseline, region_masks, sensitivity,
                               spread_of)
-from compare.gate import BudgetError, Check, Result, budget_noise, load_budget, noise_note
+from compare.gate import BudgetError, Check, CheckResult, Verdict, budget_noise, load_budget, noise_note
 from pbrcheck.cli import main
 from pbrcheck.exr import Image, write_exr
 
@@ -223,8 +223,7 @@ def test_budget_bounds_finite_and_non_negative(tmp_path, bound, msg):
 
 def test_zero_budget_noise_note_does_not_crash():
     c = Check(name="z", max={"relmse": 0.0}, min={}, reference="r.exr")
-    r = Result(c, "pass")
-    r.budget_noise = budget_noise(c, {"simulated": {"relmse": 1e-4}}, 64)
+    r = CheckResult(c, Verdict.PASS, budget_noise=budget_noise(c, {"simulated": {"relmse": 1e-4}}, 64))
     assert math.isinf(r.budget_noise[0]["spp_needed"])
     assert "a budget of 0" in noise_note(r)
 
@@ -250,14 +249,13 @@ def test_a_change_names_a_different_renderer_version(gate_dir, capsys):
 def test_shipped_budgets_require_and_have_baselines(budget):
     from pathlib import Path
 
-    from compare.gate import budget_settings
     from compare.maps import safe_name as _safe
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / budget
-    checks, base = load_budget(path)
-    assert budget_settings(path)["require_baselines"]
-    for c in checks:
-        b = load_baseline(base, _safe(c.name))
+    budget = load_budget(path)
+    assert budget.require_baselines
+    for c in budget.checks:
+        b = load_baseline(budget.base, _safe(c.name))
         assert b is not None, c.name
         assert b.record["check"] == c.name and b.record["bit_exact"] and b.record["runs"] >= 3
 

@@ -33,15 +33,15 @@ def accepted(tmp_path_factory):
 
 
 def verdicts(budget):
-    checks, base = load_budget(budget)
-    return {c.name: run_check(c, base, progress=False) for c in checks}
+    b = load_budget(budget)
+    return {c.name: run_check(c, b.base, progress=False) for c in b.checks}
 
 
 @pytest.mark.parametrize("plant", PLANTS + [IMPROVEMENT, FITTED_LOD, FITTED_LOD_CI], ids=lambda p: p.name)
 def test_planted_change_is_caught(accepted, plant):
     results = verdicts(plant_budget(accepted, plant))
     got = {name: r.change.verdict for name, r in results.items()}
-    assert all(r.status != "error" for r in results.values()), {n: r.error for n, r in results.items()}
+    assert all(r.verdict.judged for r in results.values()), {n: r.error for n, r in results.items()}
     if plant.caught == ("improved",):
         assert set(got.values()) <= {"improved", "pass"} and "improved" in got.values(), got
     else:
@@ -68,7 +68,7 @@ def test_asset_plant_is_caught(tmp_path, plant):
     read without sRGB decoding and a normal map with its green channel flipped are regressed."""
     accept_baselines(tmp_path, scenes=("panel",), committed=True)
     results = verdicts(plant_budget(tmp_path, plant))
-    assert all(r.status != "error" for r in results.values()), {n: r.error for n, r in results.items()}
+    assert all(r.verdict.judged for r in results.values()), {n: r.error for n, r in results.items()}
     assert [r.change.verdict for r in results.values()] == ["regressed"], results
 
 
@@ -98,7 +98,7 @@ def test_planted_change_is_caught_for_threejs(accepted_threejs, plant):
     """Against clients.toml's own check: the model-matched reference and the committed baseline."""
     results = verdicts(plant_budget(accepted_threejs, dataclasses.replace(plant, preset="ext:threejs"),
                                     scenes=("spheres",)))
-    assert all(r.status != "error" for r in results.values()), {n: r.error for n, r in results.items()}
+    assert all(r.verdict.judged for r in results.values()), {n: r.error for n, r in results.items()}
     got = {name: r.change.verdict for name, r in results.items()}
     assert any(v in plant.caught for v in got.values()), got
 

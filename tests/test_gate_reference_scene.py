@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from compare.gate import BudgetError, load_budget, run_check
+from compare.gate import BudgetError, Verdict, load_budget, run_check
 from pbrcheck.environment import scene_hash
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.scene import load_scene
@@ -54,23 +54,26 @@ MS = SCENE.format(name="s_ms", width=8, brdf='[brdf]\nmultiscatter = "random_wal
 
 
 def test_the_reference_is_checked_against_the_reference_scene(tmp_path):
-    checks, base = load_budget(_write(tmp_path, MS, "s_ms.toml"))
+    budget = load_budget(_write(tmp_path, MS, "s_ms.toml"))
+    checks, base = budget.checks, budget.base
     assert checks[0].reference_scene == "s_ms.toml"
     r = run_check(checks[0], base, progress=False)
-    assert r.status == "pass", r.error
+    assert r.verdict is Verdict.PASS, r.error
 
 
 def test_a_reference_of_the_checks_own_scene_is_refused(tmp_path):
-    checks, base = load_budget(_write(tmp_path, MS, "s.toml"))  # a single-scattering EXR
+    budget = load_budget(_write(tmp_path, MS, "s.toml"))  # a single-scattering EXR
+    checks, base = budget.checks, budget.base
     r = run_check(checks[0], base, progress=False)
-    assert r.status == "error" and "s_ms.toml hashes to" in r.error
+    assert r.verdict is Verdict.ERROR and "s_ms.toml hashes to" in r.error
 
 
 def test_a_reference_scene_that_differs_outside_brdf_is_refused(tmp_path):
     other = SCENE.format(name="s_ms", width=9, brdf='[brdf]\nmultiscatter = "random_walk"\n')
-    checks, base = load_budget(_write(tmp_path, other, "s_ms.toml"))
+    budget = load_budget(_write(tmp_path, other, "s_ms.toml"))
+    checks, base = budget.checks, budget.base
     r = run_check(checks[0], base, progress=False)
-    assert r.status == "error" and "only [brdf] may differ" in r.error and "camera" in r.error
+    assert r.verdict is Verdict.ERROR and "only [brdf] may differ" in r.error and "camera" in r.error
 
 
 def test_reference_scene_needs_scene(tmp_path):
@@ -81,31 +84,34 @@ def test_reference_scene_needs_scene(tmp_path):
 
 
 def test_shipped_client_checks_name_model_matched_references():
-    """clients.toml's existing checks gate three.js and the Sample Viewer against the random-walk
-    reference (three.js's with its roughness floor and geometric roughness), each stored EXR of its
-    reference_scene."""
+    """clients.toml gates every client on both CI scenes against the random-walk reference (three.js's
+    with its roughness floor and geometric roughness, the others with neither), each stored EXR of its
+    reference_scene. Every check is asserted on (no check is skipped): the expected checks exist."""
     from pbrcheck.exr import read_exr
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml"
-    checks, base = load_budget(path)
+    budget = load_budget(path)
+    checks, base = budget.checks, budget.base
+    clients = ("ext:threejs", "ext:sample-viewer", "ext:babylon", "ext:playcanvas", "ext:filament")
+    assert sorted((c.preset, c.scene) for c in checks) == sorted(
+        (p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml"))
     for c in checks:
-        if c.preset not in ("ext:threejs", "ext:sample-viewer"):
-            continue  # other clients' checks choose their own reference
         assert c.reference_scene, c.name
         s = load_scene(base / c.reference_scene)
         assert s.brdf.multiscatter == "random_walk", c.name
         assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(s), c.name
-        if c.preset == "ext:threejs" and c.scene.startswith("spheres"):
-            assert s.brdf.roughness_floor == 0.045
-        if c.preset == "ext:threejs":  # its screen-space geometric roughness, at its 2 x 2 samples
-            assert (s.brdf.geometric_roughness, s.brdf.geometric_roughness_supersample) == ("threejs", 2)
+        three = c.preset == "ext:threejs"  # its floor and screen-space geometric roughness at its 2 x 2 samples
+        assert s.brdf.roughness_floor == (0.045 if three else 0.0), c.name
+        assert (s.brdf.geometric_roughness, s.brdf.geometric_roughness_supersample) == \
+            (("threejs", 2) if three else ("none", 1)), c.name
 
 
 def test_ci_filament_preset_gated_against_the_random_walk():
     """ci.toml's filament preset compensates energy: its checks name the random-walk reference."""
     from pbrcheck.exr import read_exr
 
-    checks, base = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    budget = load_budget(Path(__file__).resolve().parents[1] / "compare" / "budgets" / "ci.toml")
+    checks, base = budget.checks, budget.base
     fil = [c for c in checks if c.preset == "filament"]
     assert len(fil) == 2
     for c in fil:

@@ -149,3 +149,31 @@ def test_the_check_catches_a_renderer_importing_the_other_and_a_cycle(tmp_path):
     mods = dict(modules())
     mods["pbrcheck.environment"], mods["pbrcheck.cache"] = b, c
     assert any("pbrcheck.environment" in cyc and "pbrcheck.cache" in cyc for cyc in cycles(mods)), cycles(mods)
+
+
+#: The gate package's modules, lowest first: each imports only the ones before it (the budget knows
+#: nothing of verdicts, the verdicts nothing of evaluation, the writers nothing of accepting).
+GATE_ORDER = ("compare.gate.budget", "compare.gate.verdict", "compare.gate.evaluate", "compare.gate.text",
+              "compare.gate.writers", "compare.gate.accept", "compare.gate.run")
+
+
+def gate_order_violations(mods: dict[str, Path]) -> list[str]:
+    bad = []
+    for i, name in enumerate(GATE_ORDER):
+        for dep, line in imports_of(name, mods[name]):
+            d = next((m for m in GATE_ORDER if dep == m or dep.startswith(m + ".")), None)
+            if d is not None and GATE_ORDER.index(d) >= i and d != name:
+                bad.append(f"{name} imports {d}, a later module of the gate (line {line})")
+    return bad
+
+
+def test_gate_package_modules_import_downward_only(tmp_path):
+    mods = modules()
+    assert set(GATE_ORDER) == {m for m in mods if m.startswith("compare.gate.")}, "a gate module not in GATE_ORDER"
+    bad = gate_order_violations(mods)
+    assert not bad, "\n".join(bad)
+    fake = tmp_path / "budget.py"  # the check catches a budget that imports the verdicts
+    fake.write_text((ROOT / "compare" / "gate" / "budget.py").read_text() + "\nfrom .verdict import Verdict\n")
+    mods = {**mods, "compare.gate.budget": fake}
+    assert gate_order_violations(mods) == [f"compare.gate.budget imports compare.gate.verdict, a later module of "
+                                           f"the gate (line {len(fake.read_text().splitlines())})"]

@@ -61,7 +61,7 @@ def _mixture_directions(wi, alpha, n, seed, ndf="ggx"):
     """(wo, pdf): VNDF reflections of ``wi`` (VNDF_FRACTION) or cosine; the exact mixture density."""
     rng = np.random.default_rng(seed)
     u = rng.random((3, n)).astype(np.float32)
-    m = ms.sample_vndf_ndf(wi, mi.Float(u[0]), mi.Float(u[1]), max(alpha, 1e-4), ndf)
+    m = ms.WALK_NDFS[ndf].sample_visible(wi, mi.Float(u[0]), mi.Float(u[1]), max(alpha, 1e-4))
     wo_s = 2.0 * dr.dot(wi, m) * m - wi
     wo_c = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(u[0]), mi.Float(u[1])))
     pick = mi.Bool(u[2] < VNDF_FRACTION)
@@ -69,8 +69,8 @@ def _mixture_directions(wi, alpha, n, seed, ndf="ggx"):
     # VNDF reflection density [Heitz18 eq. 17]: G1(v) max(0, v.h) D(h) / (n.v) / (4 v.h)
     a = max(alpha, 1e-4)
     h = dr.normalize(wi + wo)
-    g1 = 1.0 / (1.0 + ms.lambda_ndf(wi, a, ndf))
-    pdf_s = g1 * ms.D_ndf(h, a, ndf) / (4.0 * wi.z)
+    g1 = 1.0 / (1.0 + ms.WALK_NDFS[ndf].Lambda(wi, a))
+    pdf_s = g1 * ms.WALK_NDFS[ndf].eval(h, a) / (4.0 * wi.z)
     pdf = VNDF_FRACTION * pdf_s + (1.0 - VNDF_FRACTION) * dr.maximum(wo.z, 0.0) / math.pi
     return wo, pdf
 
@@ -332,8 +332,8 @@ def test_beckmann_lambda_matches_numpy_and_extends_below_the_horizon():
     mu = np.array([1e-3, 0.05, 0.2, 0.5, 0.8, 0.99, 1.0])
     s = np.sqrt(1 - mu * mu)
     for alpha in (0.01, 0.3, 1.0):
-        up = np.array(ms.lambda_Beckmann(mi.Vector3f(s, 0 * s, mu), alpha), dtype=np.float64)
-        down = np.array(ms.lambda_Beckmann(mi.Vector3f(s, 0 * s, -mu), alpha), dtype=np.float64)
+        up = np.array(ms.terms.Beckmann.Lambda(mi.Vector3f(s, 0 * s, mu), alpha), dtype=np.float64)
+        down = np.array(ms.terms.Beckmann.Lambda(mi.Vector3f(s, 0 * s, -mu), alpha), dtype=np.float64)
         ref = nb.Lambda_Beckmann(mu, alpha)
         assert np.allclose(up, ref, rtol=2e-5, atol=1e-7), (alpha, up, ref)
         assert np.allclose(down, -1.0 - ref, rtol=2e-5, atol=1e-6)
@@ -349,7 +349,7 @@ def test_beckmann_visible_normals_have_the_vndf_density(mu):
     u = rng.random((2, n)).astype(np.float32)
     for alpha in (0.2, 0.7):
         wi = _wi(mu)
-        m = ms.sample_vndf_Beckmann(wi, mi.Float(u[0]), mi.Float(u[1]), alpha)
+        m = ms.terms.Beckmann.sample_visible(wi, mi.Float(u[0]), mi.Float(u[1]), alpha)
         vm = np.array(dr.dot(wi, m), dtype=np.float64)
         assert np.all(vm > -1e-6) and np.all(np.isfinite(vm))
         mz = np.array(m.z, dtype=np.float64)

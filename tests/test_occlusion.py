@@ -10,15 +10,14 @@ import pytest
 from pbrcheck.occlusion import (
     HORIZON_FADE,
     cone_cone_intersection,
-    horizon_occlusion,
     horizon_occlusion_marmoset,
     occlusion_from_texture,
-    specular_occlusion,
     specular_occlusion_gtso,
     specular_occlusion_lagarde,
 )
-from pbrcheck.registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
+from realtime.dispatch import horizon_occlusion, specular_occlusion
 from realtime.gl import is_software_renderer
+from realtime.registry import HORIZON_OCCLUSIONS, SPECULAR_OCCLUSIONS
 from realtime.glsl_harness import run_glsl
 
 #: float32 GLSL against the float64 twins.

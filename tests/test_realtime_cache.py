@@ -6,6 +6,7 @@ a ``compare.renderers.RenderContext(cache=True)`` every call renders."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -13,9 +14,12 @@ import pytest
 
 import compare.renderers as renderers
 import realtime.cache as rc
+import realtime.gl as gl
 from pbrcheck.cache import Cache
+from pbrcheck.exr import Image
 from pbrcheck.scene import load_scene
 
+ROOT_SHADERS = Path(__file__).resolve().parents[1] / "realtime" / "shaders"
 SMALL = {"cube_size": 32, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 4,
          "prefilter_samples": 64, "supersample": 1}
 
@@ -99,13 +103,76 @@ def test_files_enter_the_key_by_content_not_path(scene, tmp_path, counted, tmp_c
     assert rc.realtime_cache_key(scene, "default", paths[0]) != rc.realtime_cache_key(scene, "default", paths[1])
 
 
-def test_code_hash_covers_the_shaders_and_the_python():
+def test_code_hash_covers_the_python_and_the_c_sources():
     h = rc.code_hash()
     assert len(h) == 64 and h == rc.code_hash()
-    root = rc.Path(rc.__file__).resolve().parent.parent
-    files = [p for d in rc._CODE_DIRS for p in (root / d).rglob("*") if p.suffix in rc._CODE_SUFFIXES]
-    names = {p.name for p in files}
-    assert {"render.comp", "brdf.glsl", "render.py", "scene.py"} <= names
+    names = {p.name for p in rc.code_files()}
+    # every suffix: the Python, and the MikkTSpace C sources that make an asset's tangents
+    assert {"render.py", "scene.py", "cache.py", "mikktspace.c", "pbrcheck_mikktspace.c", "furnace.toml"} <= names
+    assert not {p for p in rc.code_files() if "__pycache__" in p.parts or p.parent == gl.SHADER_DIR}
+
+
+@pytest.fixture
+def shader_copy(tmp_path, monkeypatch):
+    """A temp copy of realtime/shaders that the GL programs read (realtime.gl.SHADER_DIR)."""
+    d = tmp_path / "shaders"
+    shutil.copytree(gl.SHADER_DIR, d)
+    monkeypatch.setattr(gl, "SHADER_DIR", d)
+    return d
+
+
+def test_an_edit_of_any_shader_file_is_a_miss_of_the_reports_cache(scene, shader_copy, monkeypatch, tmp_cache):
+    """Every file the GL programs read, whatever its suffix (raster.vert, raster.frag,
+    raster_background.frag and fullscreen.vert were missed by a suffix list), keys the cache: after
+    an edit of each, the report's cached render (render_cached) is a miss, then a hit."""
+    files = sorted(p.name for p in shader_copy.iterdir())
+    assert {"raster.vert", "raster.frag", "raster_background.frag", "fullscreen.vert", "render.comp",
+            "brdf.glsl"} <= set(files) and len(files) >= 25
+    stored = rc.render_realtime(scene, "default", SMALL)  # the pixels do not matter here: the keys do
+    renders = []
+    monkeypatch.setattr(rc, "render_realtime", lambda *a, **k: renders.append(a) or Image(dict(stored.channels), dict(stored.meta)))
+    assert rc.render_cached(scene, "default", SMALL).meta["cache"] == "miss"
+    assert rc.render_cached(scene, "default", SMALL).meta["cache"] == "hit"
+    keys = {rc.realtime_cache_key(scene, "default", SMALL)}
+    for name in files:
+        with open(shader_copy / name, "a", encoding="utf-8") as f:
+            f.write("\n// edited\n")
+        assert rc.render_cached(scene, "default", SMALL).meta["cache"] == "miss", name
+        assert rc.render_cached(scene, "default", SMALL).meta["cache"] == "hit", name
+        keys.add(rc.realtime_cache_key(scene, "default", SMALL))
+    assert len(keys) == len(files) + 1 and len(renders) == len(files) + 1
+    # ... and the gate's baselines record the same hash (one rule, not two)
+    from compare.baseline import shader_sources_hash
+
+    assert shader_sources_hash() == gl.shader_sources_hash(shader_copy) != gl.shader_sources_hash(ROOT_SHADERS)
+
+
+def test_an_edited_shader_is_compiled_again_in_the_same_process(shader_copy):
+    """The compiled-program caches are keyed by the assembled text, not the file name: an edit made
+    under a running process is compiled, not served from the program of the old text."""
+    from realtime.raster import graphics_program
+
+    a = gl.compute_program("sh9.comp")
+    assert gl.compute_program("sh9.comp") is a
+    g = graphics_program("fullscreen.vert", "raster_background.frag")
+    assert graphics_program("fullscreen.vert", "raster_background.frag") is g
+    for name in ("sh9.comp", "raster_background.frag"):
+        with open(shader_copy / name, "a", encoding="utf-8") as f:
+            f.write("\n// edited\n")
+    assert gl.compute_program("sh9.comp") is not a
+    assert graphics_program("fullscreen.vert", "raster_background.frag") is not g
+
+
+def test_an_edited_shader_bakes_again_in_the_same_process(shader_copy):
+    """The bakes kept for the process (cubes, SH, LUTs) are keyed by the shader sources too: after an
+    edit of the bake's shader a render bakes afresh instead of reading the bake of the old text."""
+    from realtime.render import dfg_lut
+
+    a = dfg_lut(8, 16, "f32", "smith_ggx_correlated")
+    assert dfg_lut(8, 16, "f32", "smith_ggx_correlated") is a
+    with open(shader_copy / "dfg_lut.comp", "a", encoding="utf-8") as f:
+        f.write("\n// edited\n")
+    assert dfg_lut(8, 16, "f32", "smith_ggx_correlated") is not a
 
 
 def test_a_corrupt_entry_is_rendered_again(scene, counted, tmp_cache):

@@ -3,11 +3,15 @@ pbrcheck.sampling, pbrcheck.environment), on grids including roughness 0 and 1 a
 
 from __future__ import annotations
 
+import math
+import re
+
 import numpy as np
 import pytest
 
 from pbrcheck import brdf, registry, sampling
 from pbrcheck.environment import EnvMap
+from realtime.gl import SHADER_DIR
 from realtime.glsl_harness import run_glsl
 
 pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
@@ -54,12 +58,13 @@ def close(glsl, ref, rtol=RTOL_F32, atol=ATOL_F32):
 
 # The term twins loop over the registry's entries (tests/test_registry.py checks every entry's three
 # implementations exist and that these loops cover them).
-@pytest.mark.parametrize("name", [e.impl.glsl for e in registry.NDFS])
-def test_ndf_twins(name):
+@pytest.mark.parametrize("entry", list(registry.NDFS), ids=registry.NDFS.names)
+def test_ndf_twins(entry):
     c, r = grid2(COS, ROUGH)
     alpha = f32(brdf.alpha_from_roughness(r))
+    name = entry.term.glsl
     g = run_glsl(f"{name}(x0, x1)", c, alpha)
-    ref = getattr(brdf, name)(c, alpha)
+    ref = entry.term.eval(c, alpha)
     small = alpha < ALPHA_SMALL
     # exp(E) / pow(x, n) amplify float32 rounding by the exponent's size |E| (its condition number):
     # relative error ~ EXP_ULP |E|: llvmpipe's exp2/log2 measured good to ~3e-6.
@@ -91,14 +96,14 @@ def test_g2_twins(entry):
     """Each G term at its width (alpha, or Schlick's k) of every roughness of the grid."""
     v, l = grid2(COS, COS)
     for r in ROUGH:
-        w = float(np.float32(getattr(brdf, entry.impl.width)(r)))
-        close(run_glsl(f"{entry.impl.glsl}(x0, x1, x2)", v, l, w), getattr(brdf, entry.impl.numpy)(v, l, w))
+        w = float(np.float32(entry.term.width(r)))
+        close(run_glsl(f"{entry.term.glsl}(x0, x1, x2)", v, l, w), entry.term.eval(v, l, w))
 
 
 @pytest.mark.parametrize("entry", list(registry.FRESNELS), ids=registry.FRESNELS.names)
 def test_fresnel_twins(entry):
     c, F0 = grid2(COS, np.linspace(0.0, 1.0, 6))
-    close(run_glsl(f"{entry.impl.glsl}(x0, vec3(x1)).x", c, F0), getattr(brdf, entry.impl.numpy)(c, F0))
+    close(run_glsl(f"{entry.term.glsl}(x0, vec3(x1)).x", c, F0), entry.term.eval(c, F0))
 
 
 def test_lambda_beckmann_twins():
@@ -111,6 +116,18 @@ def test_lambda_beckmann_twins():
           atol=1e-6)
     z = f32(np.concatenate([np.linspace(0.0, 8.0, 33), [20.0, 1e3, 1e6]]))
     close(run_glsl("erfcx_nr(x0)", z), brdf.erfcx_nr(z), rtol=1e-5)
+
+
+def test_the_one_erfc_fit():
+    """brdf.glsl's erfcx_nr holds pbrcheck.terms.ERFCC_COEFFS, the fit numpy and Dr.Jit evaluate
+    (terms.erfcx_fit), in the same Horner order; numpy's is within the fit's 1.2e-7 of math.erfc."""
+    from pbrcheck import terms
+    body = re.search(r"float erfcx_nr\(float z\) \{(.*?)\n\}", (SHADER_DIR / "brdf.glsl").read_text(), re.S).group(1)
+    coeffs = [float(x) for x in re.findall(r"-?\d+\.\d+", body.split("float p =")[1].split(";")[0])]
+    assert tuple(coeffs) == terms.ERFCC_COEFFS
+    z = np.linspace(0.0, 6.0, 61)
+    want = np.array([math.exp(x * x) * math.erfc(x) for x in z])
+    np.testing.assert_allclose(terms.erfcx_nr(z), want, rtol=1.2e-7)
 
 
 @pytest.mark.parametrize("kname", ["k_schlick_ibl", "k_schlick_direct"])

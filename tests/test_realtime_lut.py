@@ -47,7 +47,7 @@ def test_bake_is_its_numpy_and_drjit_twins(ndf):
     ensure_variant()
     from reference import sampling as dfg
     N, S, geometry = 6, 32, "schlick_ggx_direct" if ndf == "ggx" else "smith_ggx_correlated"
-    for strategy in registry.LUT_SAMPLINGS.names:
+    for strategy in sampling.LUT_SAMPLINGS.names:
         lut = read_lut(dfg_lut(N, S, "f32", geometry, ndf, strategy))
         want = np.array([[sampling.dfg_lut_texel((i + 0.5) / N, (j + 0.5) / N, S, geometry, ndf, strategy)
                           for i in range(N)] for j in range(N)])

@@ -11,6 +11,7 @@ from scipy import stats
 
 from pbrcheck import brdf, registry, sampling
 from pbrcheck.sampling import pdf_GGX_VNDF
+from realtime import registry as rt_registry
 from realtime.glsl_harness import run_glsl
 
 N_SAMPLES = 20000
@@ -27,7 +28,7 @@ DIR_RTOL = 1e-4
 WEIGHT_RTOL = 2e-5
 WEIGHT_ATOL = 2e-6
 STRATEGIES = ("RUNTIME_SAMPLING", "LUT_SAMPLING")
-STRATEGY_ROLES = [(d, e.name, r) for d in STRATEGIES for e in registry.ROLE_REGISTRIES[d][0] for r in e.roles]
+STRATEGY_ROLES = [(d, e.name, r) for d in STRATEGIES for e in rt_registry.ROLE_REGISTRIES[d][0] for r in e.roles]
 
 
 def _strategy_grid():
@@ -60,7 +61,7 @@ def _half_vector_twins(fn, u, v, alpha, ndf, numpy_args, drjit_args):
 
 @pytest.mark.parametrize("define, name, role", STRATEGY_ROLES)
 def test_strategy_twins(define, name, role):
-    """Each strategy's functions (pbrcheck.registry RUNTIME_SAMPLINGS, LUT_SAMPLINGS): GLSL and Dr.Jit
+    """Each strategy's functions (realtime.registry RUNTIME_SAMPLINGS, pbrcheck.sampling LUT_SAMPLINGS): GLSL and Dr.Jit
     against the numpy twin of the same name; an ``ndf`` LUT strategy for every NDF it applies to
     (GLSL's NDF switch, numpy and Dr.Jit's argument)."""
     from reference.variant import ensure_variant
@@ -68,11 +69,11 @@ def test_strategy_twins(define, name, role):
     import mitsuba as mi
 
     from reference import sampling as drjit_sampling
-    fn = registry.ROLE_REGISTRIES[define][0][name].roles[role].glsl
+    fn = rt_registry.ROLE_REGISTRIES[define][0][name].roles[role].glsl
     u, v, alpha = _strategy_grid()
     F = mi.Float
     if role == "lut_half_vector":
-        for ndf in registry.LUT_SAMPLINGS[name].extra["ndfs"] or registry.NDFS.names:
+        for ndf in sampling.LUT_SAMPLINGS[name].extra["ndfs"] or registry.NDFS.names:
             _half_vector_twins(fn, u, v, alpha, ndf, (ndf,), (ndf,))
         return
     if role == "runtime_half_vector":

@@ -1,6 +1,8 @@
-"""The closed lists live in one registry (pbrcheck.registry): the docs' tables, the options'
-choices, the scene model and the shaders agree with it; each LOD mapping's GLSL pair matches its
-numpy twin of the same name on a grid including roughness 0, 1e-6 and 1."""
+"""The closed lists are registries (pbrcheck.registry, realtime.registry; the LOD mappings' and the DFG
+LUT strategies' beside their numpy functions): the docs' tables, the options' choices, the scene
+model, the three languages' implementations, the generated GLSL and the shaders agree with them;
+each LOD mapping's GLSL pair matches its numpy twin on a grid including roughness 0, 1e-6 and 1;
+``pbrcheck shaders --dump`` writes what every program compiles."""
 
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ import numpy as np
 import pytest
 
 from pbrcheck import lodmap, registry, scene
-from realtime import presets
+from realtime import generated, presets
+from realtime import registry as rt_registry
 from realtime.gl import SHADER_DIR, assemble
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,81 +32,118 @@ def _doc_row(first_cell: str) -> list[str]:
     raise AssertionError(f"docs/realtime.md has no table row for {first_cell}")
 
 
-@pytest.mark.parametrize("define", list(registry.REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.REGISTRIES))
 def test_docs_registry_table_lists_every_member_in_order(define):
     cells = _doc_row(f"`{define}`")
-    assert re.findall(r"`([^`]+)`", cells[1]) == list(registry.REGISTRIES[define].names)
+    assert re.findall(r"`([^`]+)`", cells[1]) == list(rt_registry.REGISTRIES[define].names)
+
+
+def _options_rows() -> dict[str, tuple[int, list[str]]]:
+    """docs/realtime.md's options table: each option named in a row's first cell, with its position
+    among the row's options and the row's cells (a grouped row names several: `lut_size`, ...)."""
+    rows = {}
+    for line in DOC.read_text().splitlines():
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+        names = re.findall(r"`([a-z0-9_]+)`", cells[0]) if len(cells) == 3 else []
+        for i, name in enumerate(names):
+            if name in presets.OPTIONS:
+                rows.setdefault(name, (i, cells))
+    return rows
 
 
 def test_docs_options_table_names_every_choice():
-    """Each single-option row of the options table lists the option's choices (its registry's)."""
-    for name, opt in presets.OPTIONS.items():
-        if opt.kind != "choice":
-            continue
-        try:
-            cells = _doc_row(f"`{name}`")
-        except AssertionError:
-            continue  # documented in a grouped row (e.g. `ndf`, `geometry`, `fresnel`: 'scene')
-        listed = [c.strip() for c in cells[1].split("(")[0].split("\\|")]
-        choices = [c for c in opt.choices if c != "scene"]
-        assert [c for c in listed if c in choices] == choices, (name, listed, choices)
+    """Every choice option has a row of the options table. A row of its own lists the option's
+    choices (its registry's); a grouped row (`ndf`, `geometry`, `fresnel` | scene) gives each
+    option's default at the option's place in the values cell (one value: shared by all)."""
+    rows = _options_rows()
+    choice = [name for name, opt in presets.OPTIONS.items() if opt.kind == "choice"]
+    assert not set(choice) - set(rows), sorted(set(choice) - set(rows))
+    grouped = 0
+    for name in choice:
+        i, cells = rows[name]
+        choices = [c for c in presets.OPTIONS[name].choices if c != "scene"]
+        values = cells[1].split(", ")
+        if len(re.findall(r"`([a-z0-9_]+)`", cells[0])) == 1:
+            listed = [c.strip() for c in cells[1].split("(")[0].split("\\|")]
+            assert [c for c in listed if c in choices] == choices, (name, listed, choices)
+        else:
+            grouped += 1
+            value = values[i] if len(values) > 1 else values[0]
+            listed = [c.strip() for c in value.split("\\|")]
+            assert str(presets.DEFAULT[name]) in listed, (name, value, presets.DEFAULT[name])
+    assert grouped >= 8  # lut_format, lut_geometry, lut_sampling, runtime_sampling, ndf, geometry, fresnel, tonemap
 
 
 def test_options_and_scene_read_the_registry():
-    assert presets.OPTIONS["shading"].choices == registry.SHADINGS.names
-    assert presets.OPTIONS["lod_mapping"].choices == registry.BUILTIN_LOD_MAPPINGS
+    assert presets.OPTIONS["shading"].choices == rt_registry.SHADINGS.names
+    assert presets.OPTIONS["lod_mapping"].choices == lodmap.BUILTIN_LOD_MAPPINGS
     assert presets.OPTIONS["geometry"].choices == ("scene", *registry.GEOMETRIES.names)
     assert scene.NDF_NAMES == registry.NDFS.scene_names
     assert scene.GEOMETRY_NAMES == registry.GEOMETRIES.scene_names and "schlick_beckmann" not in scene.GEOMETRY_NAMES
 
 
+def _switch_comparisons(sources: dict[str, str]) -> tuple[list[str], list[str]]:
+    """(named, bare): each ``#if``/``#elif SWITCH == X`` line on a registry switch of ``sources`` (name
+    -> text), X a constant or an integer."""
+    named, bare = [], []
+    for name, text in sources.items():
+        for i, line in enumerate(text.splitlines(), 1):
+            m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\w+)", line)
+            if m and m.group(2) in rt_registry.REGISTRIES:
+                (bare if m.group(3).isdigit() else named).append(f"{name}:{i}: {line.strip()}")
+    return named, bare
+
+
 def test_shaders_switch_on_named_constants_only():
-    """No ``#if SWITCH == <integer>`` is left in the shaders: every comparison names a constant."""
-    bare = []
-    for p in SHADER_DIR.iterdir():
-        for i, line in enumerate(p.read_text().splitlines(), 1):
-            m = re.match(r"\s*#\s*(el)?if\s+([A-Z_]+)\s*==\s*(\d+)", line)
-            if m and m.group(2) in registry.REGISTRIES:
-                bare.append(f"{p.name}:{i}: {line.strip()}")
+    """No ``#if SWITCH == <integer>`` is left in the shaders or the generated includes: every
+    comparison names a constant (and there are comparisons to check: the check itself finds an
+    integer one)."""
+    sources = {p.name: p.read_text() for p in SHADER_DIR.iterdir()} | generated.glsl_generated()
+    named, bare = _switch_comparisons(sources)
     assert not bare, bare
+    assert len(named) > 40, named  # the generated dispatch alone compares every member of every switch
+    assert _switch_comparisons({"x.glsl": "#if NDF == 1\n"})[1] == ["x.glsl:1: #if NDF == 1"]
 
 
 def test_every_shader_gets_every_constant():
     src = assemble("render.comp", registry.GEOMETRIES.select("smith_ggx")).text
-    for k, v in registry.glsl_defines().items():
+    for k, v in generated.glsl_defines().items():
         assert f"#define {k} {v}\n" in src
     assert "#define GEOMETRY GEOMETRY_SMITH_GGX\n" in src
 
 
 def test_lod_dispatch_is_generated_for_every_builtin_mapping():
-    text = registry.glsl_generated()["lod_dispatch.glsl"]
-    for name in registry.BUILTIN_LOD_MAPPINGS:
+    text = generated.glsl_generated()["lod_dispatch.glsl"]
+    for name in lodmap.BUILTIN_LOD_MAPPINGS:
         assert f"return lod_{name}(r, max_lod, cube_log2);" in text
         assert f"return roughness_{name}(lod, max_lod, cube_log2);" in text
-        assert hasattr(lodmap, f"lod_{name}") and hasattr(lodmap, f"roughness_{name}")
+        roles = lodmap.LOD_MAPPINGS[name].roles
+        assert [roles["lod"].glsl, roles["roughness"].glsl] == [f"lod_{name}", f"roughness_{name}"]
+        assert getattr(lodmap, roles["lod"].glsl) is roles["lod"].numpy
 
 
-@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+@pytest.mark.parametrize("name", lodmap.BUILTIN_LOD_MAPPINGS)
 def test_lod_mapping_glsl_matches_numpy_twin(name):
     from realtime.glsl_harness import run_glsl
 
     r = np.array([0.0, 1e-6, 1e-3, 0.01, 0.1, 0.25, 0.5, 0.75, 0.99, 1.0, 1.5])
     for max_lod, cube_log2 in ((6.0, 8.0), (8.0, 9.0), (4.0, 4.0)):
-        want = getattr(lodmap, f"lod_{name}")(r, max_lod, cube_log2)
+        roles = lodmap.LOD_MAPPINGS[name].roles
+        want = roles["lod"].numpy(r, max_lod, cube_log2)
         got = run_glsl(f"lod_{name}(x0, x1, x2)", r, max_lod, cube_log2)
         np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
         lods = np.linspace(0.0, max_lod, 13)
-        want = getattr(lodmap, f"roughness_{name}")(lods, max_lod, cube_log2)
+        want = roles["roughness"].numpy(lods, max_lod, cube_log2)
         got = run_glsl(f"roughness_{name}(x0, x1, x2)", lods, max_lod, cube_log2)
         np.testing.assert_allclose(got, want, rtol=RTOL_F32, atol=ATOL_F32)
 
 
-@pytest.mark.parametrize("name", registry.BUILTIN_LOD_MAPPINGS)
+@pytest.mark.parametrize("name", lodmap.BUILTIN_LOD_MAPPINGS)
 def test_dispatch_selects_the_mapping(name):
     from realtime.glsl_harness import run_glsl
 
     r = np.array([0.0, 0.3, 1.0])
-    got = run_glsl("lod_from_roughness(x0, x1, x2)", r, 6.0, 8.0, defines=registry.LOD_MAPPINGS.select(name))
+    got = run_glsl("lod_from_roughness(x0, x1, x2)", r, 6.0, 8.0, defines=lodmap.LOD_MAPPINGS.select(name))
     np.testing.assert_allclose(got, lodmap.builtin_lod(name, r, 6.0, 8.0), rtol=RTOL_F32, atol=ATOL_F32)
 
 
@@ -114,72 +154,81 @@ def test_registry_rejects_unknown_members():
         lodmap.builtin_lod("fitted", [0.5], 6.0, 8.0)
 
 
-@pytest.mark.parametrize("define", list(registry.TERM_REGISTRIES))
+#: Each term registry's Dr.Jit twin (reference.terms), by GLSL switch.
+DRJIT_TERMS = {"NDF": "NDFS", "GEOMETRY": "GEOMETRIES", "FRESNEL": "FRESNELS"}
+
+
+@pytest.mark.parametrize("define", list(rt_registry.TERM_REGISTRIES))
 def test_every_term_has_its_three_implementations(define):
-    """Each member of a term registry names a numpy function (pbrcheck.brdf), a Dr.Jit function
-    (reference.bsdf) and a GLSL function (brdf.glsl) that exist, and a width function in each
-    language; the generated GLSL dispatch calls it; the GLSL harness twins it
-    (tests/test_realtime_glsl.py's test_ndf_twins, test_g2_twins and test_fresnel_twins are
-    parametrized by these entries; the GLSL function is the numpy twin of the same name)."""
+    """Each member of a term registry holds its numpy class (pbrcheck.terms) with the methods of its
+    kind; the reference's registry (reference.terms) keys the same members, each with the Dr.Jit class
+    of the numpy class's name and the same methods; the GLSL names the class holds are functions of
+    brdf.glsl (an NDF's sampler of sampling.glsl) that the generated dispatch calls; the GLSL harness
+    twins every member (tests/test_realtime_glsl.py's test_ndf_twins, test_g2_twins and
+    test_fresnel_twins are parametrized by these entries)."""
     import test_realtime_glsl as harness
     from pbrcheck import brdf
     from reference.variant import ensure_variant
     ensure_variant()
-    from reference import bsdf
-    reg = registry.TERM_REGISTRIES[define][0]
+    from reference import terms as drjit_terms
+    reg = rt_registry.TERM_REGISTRIES[define][0]
+    drjit_reg = getattr(drjit_terms, DRJIT_TERMS[define])
+    assert list(drjit_reg) == list(reg.names)
     brdf_glsl = (SHADER_DIR / "brdf.glsl").read_text()
-    dispatch = registry.glsl_generated()["terms_dispatch.glsl"]
+    sampling_glsl = (SHADER_DIR / "sampling.glsl").read_text()
+    dispatch = generated.glsl_generated()["terms_dispatch.glsl"]
+    methods = {"NDF": ("eval", "sample", "pdf", "theta_h", "cdf_theta_h"), "GEOMETRY": ("eval", "width"),
+               "FRESNEL": ("eval",)}[define]
+    drjit_methods = {"NDF": ("eval", "sample", "pdf", "sample_cos"), "GEOMETRY": ("eval", "width"),
+                     "FRESNEL": ("eval",)}[define]
     for e in reg:
-        assert e.impl is not None, e.name
-        assert callable(getattr(brdf, e.impl.numpy, None)), (e.name, e.impl.numpy)
-        assert e.impl.glsl == e.impl.numpy, f"{e.name}: the GLSL twin has the numpy function's name"
-        assert callable(getattr(bsdf, e.impl.drjit, None)), (e.name, e.impl.drjit)
-        assert re.search(rf"^\w+ {e.impl.glsl}\(", brdf_glsl, re.M), (e.name, e.impl.glsl)
-        if e.impl.width:
-            assert callable(getattr(brdf, e.impl.width)) and callable(getattr(bsdf, e.impl.width))
-            assert re.search(rf"^float {e.impl.width}\(", brdf_glsl, re.M), e.impl.width
-        assert f"{reg.constant(e.name)}\n    return {e.impl.glsl}(" in dispatch
-        if define == "NDF":  # its samplers: GLSL (numpy twin in pbrcheck.sampling), quadrature, Dr.Jit
+        t, d = e.term, drjit_reg[e.name]
+        assert isinstance(t, type) and d.__name__ == t.__name__, (e.name, t, d)
+        assert all(callable(getattr(t, m)) for m in methods), (e.name, methods)
+        assert all(callable(getattr(d, m)) for m in drjit_methods), (e.name, drjit_methods)
+        assert re.search(rf"^\w+ {t.glsl}\(", brdf_glsl, re.M), (e.name, t.glsl)
+        assert getattr(brdf, t.glsl, t.eval) is t.eval, f"{e.name}: pbrcheck.brdf's {t.glsl} is another function"
+        if t.glsl_width:
+            assert t.width.__name__ == t.glsl_width and re.search(rf"^float {t.glsl_width}\(", brdf_glsl, re.M)
+        assert f"{reg.constant(e.name)}\n    return {t.glsl}(" in dispatch
+        if define == "NDF":  # its sampler's GLSL twin, explain's exact runtime strategy, the random walk
             from pbrcheck import sampling
-            assert callable(getattr(sampling, e.extra["sample"], None)), e.extra["sample"]
-            assert re.search(rf"^vec3 {e.extra['sample']}\(", (SHADER_DIR / "sampling.glsl").read_text(), re.M)
-            assert brdf._ndf_quadrature(e.name, "theta_h") and brdf._ndf_quadrature(e.name, "cdf_theta_h")
-            assert e.name in bsdf.NDF_SAMPLERS
-            # explain's exact runtime strategy, the random walk's first bounce and its functions
-            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in registry.RUNTIME_SAMPLINGS
-            if "walk_geometry" in e.extra:
-                from reference import multiscatter
-                assert e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
-                assert all(map(callable, multiscatter.WALK_NDFS[e.name])), e.name
+            assert getattr(sampling, t.glsl_sample, t.sample) is t.sample, t.glsl_sample
+            assert re.search(rf"^vec3 {t.glsl_sample}\(", sampling_glsl, re.M), t.glsl_sample
+            assert "runtime_sampling" not in e.extra or e.extra["runtime_sampling"] in rt_registry.RUNTIME_SAMPLINGS
+            walk = "walk_geometry" in e.extra
+            assert not walk or e.extra["walk_geometry"] in registry.GEOMETRIES, e.name
+            assert (t.Lambda is not None) >= walk and (d.Lambda is not None, d.sample_visible is not None) >= (walk, walk)
     twins = {"NDF": harness.test_ndf_twins, "GEOMETRY": harness.test_g2_twins,
              "FRESNEL": harness.test_fresnel_twins}[define]
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
-    covered = {p if isinstance(p, str) else p.name for p in params}
-    assert covered >= ({e.impl.glsl for e in reg} if define == "NDF" else set(reg.names)), covered
+    assert {p.name for p in params} == set(reg.names)
+
 
 def test_term_dispatch_matches_the_registry_in_numpy():
-    """pbrcheck.brdf's dispatch is the registry's: each member's function at its width."""
+    """pbrcheck.brdf's dispatch is the registry's: each member's class at its width."""
     from pbrcheck import brdf
     c, r = np.linspace(0.05, 1.0, 7), np.linspace(0.0, 1.0, 7)
     for e in registry.GEOMETRIES:
-        ref = getattr(brdf, e.impl.numpy)(c, c[::-1], getattr(brdf, e.impl.width)(r))
-        np.testing.assert_array_equal(brdf.geometry_term(e.name, c, c[::-1], r), ref)
+        np.testing.assert_array_equal(brdf.geometry_term(e.name, c, c[::-1], r), e.term.eval(c, c[::-1], e.term.width(r)))
     for e in registry.NDFS:
-        np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), getattr(brdf, e.impl.numpy)(c, brdf.alpha_from_roughness(r)))
+        np.testing.assert_array_equal(brdf.ndf_term(e.name, c, r), e.term.eval(c, brdf.alpha_from_roughness(r)))
     with pytest.raises(ValueError, match="unknown geometry term 'nope'"):
         brdf.geometry_term("nope", c, c, r)
 
 
-# The role registries' languages: numpy module, Dr.Jit module (resolved from the core's names), GLSL file.
-# None: a real-time approximation the reference does not make (no Dr.Jit function).
-ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "reference.energy", "energy.glsl"),
-              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
-              "LUT_SAMPLING": ("pbrcheck.sampling", "reference.sampling", "sampling.glsl"),
-              "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
-              "HORIZON_OCCLUSION": ("pbrcheck.occlusion", None, "occlusion.glsl"),
-              "SPECULAR_AA": ("pbrcheck.specular_aa", None, "specular_aa.glsl")}
+# The role registries' languages: the numpy module of the members' functions, the one of the numpy
+# dispatch by name (the registry's module), the reference's Dr.Jit table (None: a real-time
+# approximation the reference does not make), the GLSL file.
+ROLE_HOMES = {"ENERGY_COMPENSATION": ("pbrcheck.energy", "realtime.dispatch", "reference.energy.ROLES", "energy.glsl"),
+              "RUNTIME_SAMPLING": ("pbrcheck.sampling", "realtime.dispatch", "reference.sampling.RUNTIME_ROLES",
+                                   "sampling.glsl"),
+              "LUT_SAMPLING": ("pbrcheck.sampling", "pbrcheck.sampling", "reference.sampling.LUT_ROLES", "sampling.glsl"),
+              "SPECULAR_OCCLUSION": ("pbrcheck.occlusion", "realtime.dispatch", None, "occlusion.glsl"),
+              "HORIZON_OCCLUSION": ("pbrcheck.occlusion", "realtime.dispatch", None, "occlusion.glsl"),
+              "SPECULAR_AA": ("pbrcheck.specular_aa", "realtime.dispatch", None, "specular_aa.glsl")}
 #: The real-time-only role registries, twinned by test_realtime_role_twins below.
-REALTIME_ROLES = [d for d, (_, dr, _) in ROLE_HOMES.items() if dr is None]
+REALTIME_ROLES = [d for d, (_, _, dr, _) in ROLE_HOMES.items() if dr is None]
 
 
 def _offered(option: str, value) -> bool:
@@ -225,22 +274,26 @@ def test_a_deferred_requirement_is_checked_once_resolved():
 
 
 def test_every_closed_list_owns_its_implementations_or_says_where_it_applies():
-    """Each member of every registry carries its functions (an Impl, or roles) or its list states
+    """Each member of every registry carries its functions (a term class, or roles) or its list states
     where it applies and why it has none (a switch of one renderer's own code)."""
-    assert set(ROLE_HOMES) == set(registry.ROLE_REGISTRIES)
-    for define, reg in registry.REGISTRIES.items():
-        owned = [e.name for e in reg if e.impl is not None or e.roles]
-        if define in registry.TERM_REGISTRIES or define in registry.ROLE_REGISTRIES:
+    assert set(ROLE_HOMES) == set(rt_registry.ROLE_REGISTRIES)
+    for define, reg in rt_registry.REGISTRIES.items():
+        owned = [e.name for e in reg if e.term is not None or e.roles]
+        if define == "LOD_MAPPING":  # the built-in mappings' lod and roughness (the fitted one reads a file)
+            assert owned == list(lodmap.BUILTIN_LOD_MAPPINGS) and len(reg.applies_to) > 20
+        elif define in rt_registry.TERM_REGISTRIES or define in rt_registry.ROLE_REGISTRIES:
             assert not reg.applies_to, define
             assert all(e.name in owned or e.applies_to for e in reg), (define, owned)
         else:
             assert not owned and len(reg.applies_to) > 20, (define, reg.applies_to)
 
 
-@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.ROLE_REGISTRIES))
 def test_every_role_member_has_its_three_implementations(define):
-    """Each role of each member names a numpy, a Dr.Jit and a GLSL function of one name that exist,
-    and the generated GLSL dispatch calls it; a member without a role states where it applies; the
+    """Each role of each member holds its numpy function (in the module that holds the list) and
+    names its GLSL twin of the same name, which the generated dispatch calls; the reference's table
+    (where it has one) keys the same members and roles with Dr.Jit twins of that name; a member
+    without a role states where it applies; the
     GLSL harness twins every (member, role) (tests/test_energy.py's test_role_twins and
     tests/test_realtime_sampling.py's test_strategy_twins are parametrized by these)."""
     import importlib
@@ -249,30 +302,38 @@ def test_every_role_member_has_its_three_implementations(define):
     import test_realtime_sampling
     from reference.variant import ensure_variant
     ensure_variant()
-    reg, include, _, roles = registry.ROLE_REGISTRIES[define]
-    np_mod, dr_mod, glsl_file = ROLE_HOMES[define]
-    numpy_mod, drjit_mod = importlib.import_module(np_mod), dr_mod and importlib.import_module(dr_mod)
+    reg, include, _, roles = rt_registry.ROLE_REGISTRIES[define]
+    np_mod, dispatch_mod, dr_table, glsl_file = ROLE_HOMES[define]
+    numpy_mod, dispatcher = importlib.import_module(np_mod), importlib.import_module(dispatch_mod)
+    drjit_mod, drjit = (None, None)
+    if dr_table:  # the reference's table of the same members (reference.energy.ROLES, ...)
+        mod, table = dr_table.rsplit(".", 1)
+        drjit_mod = importlib.import_module(mod)
+        drjit = getattr(drjit_mod, table)
+        assert list(drjit) == list(reg.names) and all(set(drjit[e.name]) == set(e.roles) for e in reg), define
+    home = "realtime.registry" if dispatch_mod == "realtime.dispatch" else dispatch_mod  # where the list lives
+    assert getattr(importlib.import_module(home), reg.define + "S") is reg
     glsl = (SHADER_DIR / glsl_file).read_text()
-    dispatch = registry.glsl_generated()[include]
+    dispatch = generated.glsl_generated()[include]
     assert f'#include "{include}"' in glsl
     for role, (signature, identity) in roles.items():
         assert signature + " {" in dispatch
-        assert callable(getattr(numpy_mod, role)) and (not drjit_mod or callable(getattr(drjit_mod, role))), role
+        assert callable(getattr(dispatcher, role)) and (not drjit_mod or callable(getattr(drjit_mod, role))), role
     for e in reg:
         assert set(e.roles) <= set(roles), e.name
         missing = set(roles) - set(e.roles)
         assert not missing or (e.applies_to and all(roles[r][1] for r in missing)), (e.name, missing)
-        for role, impl in e.roles.items():
-            assert impl.numpy == impl.glsl and impl.glsl.startswith(f"{role}_"), impl
-            assert callable(getattr(numpy_mod, impl.numpy, None)), impl.numpy
-            if drjit_mod:
-                assert impl.drjit == impl.glsl and callable(getattr(drjit_mod, impl.drjit, None)), impl.drjit
+        for role, r in e.roles.items():
+            assert r.numpy.__name__ == r.glsl and r.glsl.startswith(f"{role}_"), r
+            assert getattr(numpy_mod, r.glsl) is r.numpy, r.glsl
+            if drjit:  # the Dr.Jit twin has the GLSL twin's name
+                assert drjit[e.name][role].__name__ == r.glsl, (e.name, role, drjit[e.name][role])
             else:  # the entry says why the reference has none
-                assert impl.drjit == "" and "no Dr.Jit function" in e.applies_to, (e.name, e.applies_to)
+                assert "no Dr.Jit function" in e.applies_to, (e.name, e.applies_to)
             params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
-            assert [p for p in params if p in impl.args] == list(impl.args), impl.args  # in the dispatch's order
-            assert re.search(rf"^\w+ {impl.glsl}\(", glsl, re.M), impl.glsl
-            assert f"{reg.constant(e.name)}\n    return {impl.glsl}(" in dispatch
+            assert [p for p in params if p in r.args] == list(r.args), r.args  # in the dispatch's order
+            assert re.search(rf"^\w+ {r.glsl}\(", glsl, re.M), r.glsl
+            assert f"{reg.constant(e.name)}\n    return {r.glsl}(" in dispatch
     twins = {"ENERGY_COMPENSATION": test_energy.test_role_twins}.get(
         define, test_realtime_role_twins if define in REALTIME_ROLES else test_realtime_sampling.test_strategy_twins)
     params = [m.args for m in twins.pytestmark if m.name == "parametrize"][0][1]
@@ -290,7 +351,7 @@ PARAM_GRIDS = {"NoV": _UNIT, "ao": _UNIT, "roughness": _UNIT,
 
 
 @pytest.mark.parametrize("define, name, role", [(d, e.name, r) for d in REALTIME_ROLES
-                                                for e in registry.ROLE_REGISTRIES[d][0] for r in e.roles])
+                                                for e in rt_registry.ROLE_REGISTRIES[d][0] for r in e.roles])
 def test_realtime_role_twins(define, name, role):
     """Each real-time approximation's role function (GLSL) against its numpy twin of the same name,
     and the generated GLSL dispatch selecting the member against the numpy dispatch looping the
@@ -300,18 +361,18 @@ def test_realtime_role_twins(define, name, role):
     import test_occlusion
     import test_specular_aa
     from realtime.glsl_harness import run_glsl
-    reg, _, _, roles = registry.ROLE_REGISTRIES[define]
+    reg, _, _, roles = rt_registry.ROLE_REGISTRIES[define]
     impl = reg[name].roles[role]
     params = [p.split()[-1] for p in roles[role][0].split("(")[1][:-1].split(",")]
     grids = dict(zip(params, np.meshgrid(*(PARAM_GRIDS[p] for p in params), indexing="ij")))
-    numpy_mod = importlib.import_module(ROLE_HOMES[define][0])
+    dispatcher = importlib.import_module(ROLE_HOMES[define][1])
     atol = {"gtso": test_occlusion.GTSO_ATOL}.get(name, min(test_occlusion.GLSL_ATOL, test_specular_aa.GLSL_ATOL))
     own = [grids[a] for a in impl.args or params]
     got = run_glsl(f"{impl.glsl}({', '.join(f'x{i}' for i in range(len(own)))})", *own)
-    np.testing.assert_allclose(got, getattr(numpy_mod, impl.numpy)(*own), rtol=0, atol=atol)
+    np.testing.assert_allclose(got, impl.numpy(*own), rtol=0, atol=atol)
     got = run_glsl(f"{role}({', '.join(f'x{i}' for i in range(len(params)))})", *grids.values(),
                    defines=reg.select(name))
-    np.testing.assert_allclose(got, getattr(numpy_mod, role)(*grids.values(), name), rtol=0, atol=atol)
+    np.testing.assert_allclose(got, getattr(dispatcher, role)(*grids.values(), name), rtol=0, atol=atol)
 
 
 #: The real-time approximations' GLSL term files (issue 23): each one's numpy home and the test files
@@ -338,7 +399,7 @@ def test_every_approximation_glsl_function_has_a_harness_compared_twin(glsl_file
     glsl = re.sub(r"//[^\n]*", "", (SHADER_DIR / glsl_file).read_text())
     names = re.findall(r"^\w+\s+(\w+)\s*\([^;{)]*\)\s*\{", glsl, re.M)
     assert names, glsl_file
-    roles = {impl.glsl for d in REALTIME_ROLES for e in registry.ROLE_REGISTRIES[d][0] for impl in e.roles.values()}
+    roles = {impl.glsl for d in REALTIME_ROLES for e in rt_registry.ROLE_REGISTRIES[d][0] for impl in e.roles.values()}
     calls = "\n".join((ROOT / "tests" / f).read_text() for f in test_files)
     for name in names:
         assert callable(getattr(module, name, None)), f"{glsl_file}: {name} has no numpy twin in {np_mod}"
@@ -365,14 +426,14 @@ def test_the_generated_normal_roughness_hook_is_harness_compared():
     assert {0.0, 1.0} <= set(fit.TWIN_ROUGHNESS)
 
 
-@pytest.mark.parametrize("define", list(registry.ROLE_REGISTRIES))
+@pytest.mark.parametrize("define", list(rt_registry.ROLE_REGISTRIES))
 def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
     """The shaders select a role registry's member only in its generated dispatch (no hand
     ``#if SWITCH == MEMBER`` ladder; shading.glsl's ``!= ENERGY_COMPENSATION_NONE`` guard remains)."""
     for p in SHADER_DIR.iterdir():
         assert not re.search(rf"^\s*#\s*(el)?if\b.*\b{define}\s*==", p.read_text(), re.M), p.name
-    reg, include, default, roles = registry.ROLE_REGISTRIES[define]
-    text = registry.glsl_generated()[include]
+    reg, include, default, roles = rt_registry.ROLE_REGISTRIES[define]
+    text = generated.glsl_generated()[include]
     reads = any(i.args for e in reg for i in e.roles.values())  # and the SWITCH_READS_<INPUT> block
     assert text.count(f"== {define}_") == len(reg.names) * (len(roles) + reads)
     assert f"#define {define} {reg.constant(default)}\n" in text
@@ -380,7 +441,7 @@ def test_role_dispatch_selects_each_member_and_no_hand_ladder_is_left(define):
 
 def test_docs_role_table_lists_every_member_and_its_functions():
     """docs/realtime.md's role table: one row per member of a role registry, naming its functions."""
-    for define, (reg, *_rest) in registry.ROLE_REGISTRIES.items():
+    for define, (reg, *_rest) in rt_registry.ROLE_REGISTRIES.items():
         for e in reg:
             cells = _doc_row(f"{define}: {e.name}")
             listed = [f for f in re.findall(r"`([^`]+)`", cells[1]) if "." not in f]
@@ -391,14 +452,49 @@ def test_composition_dispatch_is_generated_and_no_shading_ladder_is_left():
     """shading.glsl defines shade_<name> and light_brdf_<name> for every composition; the generated
     shade_composition / light_brdf call them (the pixel seed to the seeded ones); no shader holds a
     hand ``#if SHADING ==`` ladder."""
-    text = registry.glsl_generated()["shading_dispatch.glsl"]
+    text = generated.glsl_generated()["shading_dispatch.glsl"]
     shading = (SHADER_DIR / "shading.glsl").read_text()
     assert '#include "shading_dispatch.glsl"' in shading
-    for e in registry.SHADINGS:
+    for e in rt_registry.SHADINGS:
         seed = ", pixel_seed" if e.extra["seeded"] else ""
         assert re.search(rf"^vec3 shade_{e.name}\(Shading c{', uint pixel_seed' if seed else ''}\)", shading, re.M)
         assert re.search(rf"^vec3 light_brdf_{e.name}\(Shading c, vec3 l, float NoL\)", shading, re.M)
-        assert f"{registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
-        assert f"{registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
+        assert f"{rt_registry.SHADINGS.constant(e.name)}\n    return shade_{e.name}(c{seed});" in text
+        assert f"{rt_registry.SHADINGS.constant(e.name)}\n    return light_brdf_{e.name}(c, l, NoL);" in text
     for p in SHADER_DIR.iterdir():
         assert not re.search(r"^\s*#\s*(el)?if\b.*\bSHADING\s*==", p.read_text(), re.M), p.name
+
+
+def _expand_from(folder: Path, name: str, seen: set) -> list[str]:
+    """``name``'s lines with every ``#include`` expanded once from ``folder`` alone (assemble's rule)."""
+    if name in seen:
+        return []
+    seen.add(name)
+    out = []
+    for line in (folder / name).read_text().splitlines():
+        m = re.match(r'^\s*#\s*include\s+"([^"]+)"\s*$', line)
+        out += [*_expand_from(folder, m.group(1), seen), f"// end of {m.group(1)}"] if m else [line]
+    return out
+
+
+def test_shaders_dump_writes_what_every_program_compiles(tmp_path):
+    """``pbrcheck shaders --dump DIR`` writes every shader file, every generated include and the
+    registries' defines: each entry program assembled from the dumped folder alone is the text
+    realtime.gl.assemble compiles; a second dump replaces the files; a file in the way is exit 2."""
+    from pbrcheck.cli import main
+    from realtime.gl import DEFINES_FILE
+    out = tmp_path / "glsl"
+    assert main(["shaders", "--dump", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {p.name for p in SHADER_DIR.iterdir()} | set(generated.glsl_generated()) | {DEFINES_FILE, "README.txt"}
+    assert "registry_defines.glsl" in (out / "README.txt").read_text()
+    entries = sorted(p.name for p in SHADER_DIR.iterdir() if p.suffix in (".comp", ".vert", ".frag"))
+    assert len(entries) >= 14
+    for entry in entries:
+        text = (out / DEFINES_FILE).read_text() + "\n".join(_expand_from(out, entry, set())) + "\n"
+        assert text == assemble(entry).text, entry
+    (out / "brdf.glsl").write_text("stale")
+    assert main(["shaders", "--dump", str(out)]) == 0
+    assert (out / "brdf.glsl").read_text() == (SHADER_DIR / "brdf.glsl").read_text()
+    (tmp_path / "file").write_text("x")
+    assert main(["shaders", "--dump", str(tmp_path / "file")]) == 2

@@ -17,7 +17,9 @@ from pbrcheck.cli import main
 from pbrcheck.environment import load_environment
 from pbrcheck.gltf import srgb_to_linear
 from pbrcheck.scenario_import import RF_DEFAULTS, ScenarioError, config_scenes, scenario_scene
+from pbrcheck.errors import SceneError
 from pbrcheck.scene import load_scene
+from pbrcheck.untrusted import allowed_dirs
 from tests.gltf_build import quad_asset
 
 SHARED_RF = Path(__file__).resolve().parents[1].parent / "shared" / "rf" / "config.json"
@@ -100,7 +102,12 @@ def test_whole_config_imports_one_scene_per_scenario(tmp_path, quad, capsys):
     assert [r["name"] for r in index["renderers"]] == ["three", "vray"]
     text = (out / "a_one.toml").read_text()
     assert "# exclude (RF renderers that skip it): vray" in text
-    one, two = load_scene(out / "a_one.toml"), load_scene(out / "two.toml")
+    # the scenes name files outside their folder: refused (docs/security.md) unless the user allows them
+    with pytest.raises(SceneError, match="--allow-dir"):
+        load_scene(out / "a_one.toml")
+    with allowed_dirs(tmp_path):
+        one, two = load_scene(out / "a_one.toml"), load_scene(out / "two.toml")
+    assert main(["check-scene", str(out / "two.toml"), "--allow-dir", str(tmp_path)]) == 0
     assert "grey.png is LDR: sRGB-decoded to linear" in one.description
     assert np.allclose(two.camera.origin, [0.0, 0.0, 4.0], atol=1e-12)
     # the LDR environments: sRGB-decoded 128 and (JPEG, within a code value) 64

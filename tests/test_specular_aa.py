@@ -8,16 +8,16 @@ from __future__ import annotations
 import numpy as np
 
 from pbrcheck.coverage import alpha_to_coverage_sharpen
-from pbrcheck.registry import SPECULAR_AAS
 from pbrcheck.specular_aa import (
     SCREEN_SPACE_THRESHOLD,
     slope_variance_mips,
-    specular_aa,
     specular_aa_prefiltered,
     specular_aa_screen_space,
     specular_aa_toksvig,
     specular_aa_widen,
 )
+from realtime.dispatch import specular_aa
+from realtime.registry import SPECULAR_AAS
 from realtime.glsl_harness import run_glsl
 
 #: float32 GLSL (two square roots of alpha^2 + v) against the float64 twins.

@@ -123,7 +123,7 @@ def test_report_default_cap_follows_the_time_budget(monkeypatch):
 
 
 def test_gate_budget_noise():
-    from compare.gate import BUDGET_NOISE_FACTOR, Check, Result, budget_noise, noise_note
+    from compare.gate import BUDGET_NOISE_FACTOR, Check, CheckResult, Verdict, budget_noise, noise_note
 
     chk = Check(name="c", max={"relmse": 0.01, "flip_mean": 0.05, "psnr_like": 1.0}, min={}, reference="r.exr")
     noise = {"simulated": {"relmse": 0.004, "flip_mean": 0.02 * math.sqrt(2)}}
@@ -135,10 +135,10 @@ def test_gate_budget_noise():
     # flip: 1/sqrt(2) of the pair's value, and it falls as 1/sqrt(spp)
     assert rows["flip_mean"]["noise"] == pytest.approx(0.02) and rows["flip_mean"]["ratio"] == pytest.approx(2.5)
     assert rows["flip_mean"]["spp_needed"] == pytest.approx(1024 * (BUDGET_NOISE_FACTOR / 2.5) ** 2)
-    r = Result(chk, "pass", budget_noise=list(rows.values()))
+    r = CheckResult(chk, Verdict.PASS, budget_noise=tuple(rows.values()))
     note = noise_note(r)
     assert note.startswith(" (noise-limited: relmse budget 0.01 is 5x") and "at 16384 spp" in note
-    assert noise_note(Result(chk, "pass", budget_noise=[{**rows["relmse"], "trusted": True}])) == ""
+    assert noise_note(CheckResult(chk, Verdict.PASS, budget_noise=({**rows["relmse"], "trusted": True},))) == ""
 
 
 def test_flip_and_itp_maps_are_memoized_by_content(monkeypatch):

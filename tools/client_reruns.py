@@ -26,7 +26,7 @@ from gate_plants import CLIENTS, rerun_checks  # noqa: E402
 def main(argv: list[str]) -> int:
     n = int(argv[0]) if argv and argv[0].isdigit() else 20
     wanted = [a for a in argv if not a.isdigit()]
-    checks, _ = load_budget(CLIENTS)
+    checks = load_budget(CLIENTS).checks
     clients = {}
     for c in checks:
         clients.setdefault(c.preset.removeprefix("ext:"), []).append(c.name)

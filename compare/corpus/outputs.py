@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from pbrcheck.atomic import write_bytes_atomic, write_text_atomic
+from pbrcheck.fmt import csv_cell
 from pbrcheck.jsonio import write_json_atomic
 
 from ..maps import pyplot, save_figure
@@ -96,7 +97,9 @@ def write_thumbnail(folder: Path, key: str, rgb8: np.ndarray) -> Path:
 
 
 def write_csv(path: Path, rows: list[dict], columns) -> Path:
-    """The rows as CSV (empty cells for undefined values), written atomically."""
+    """The rows as CSV (empty cells for undefined values), written atomically. A string cell goes through
+    :func:`pbrcheck.fmt.csv_cell` (environment and scene names are a user's files' names: one that
+    begins with ``= + - @`` would be a spreadsheet formula)."""
     buf = io.StringIO(newline="")
     w = csv.writer(buf)
     w.writerow(columns)
@@ -107,7 +110,7 @@ def write_csv(path: Path, rows: list[dict], columns) -> Path:
             if v is None or (isinstance(v, float) and not math.isfinite(v)):
                 cells.append("")
             else:
-                cells.append(v)
+                cells.append(csv_cell(v))
         w.writerow(cells)
     return write_text_atomic(path, buf.getvalue())
 

@@ -16,6 +16,7 @@ API
 from __future__ import annotations
 
 from pbrcheck.cache import cache_key
+from pbrcheck.environment import scene_hash
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.scene import Scene
 
@@ -24,6 +25,7 @@ from ..metrics import compare_images
 from ..timings import image_timings, timed_on
 from . import tasks as T
 from .scheduler import Dep, Failed, Task
+from .study import code_identity
 
 #: ``environment_task`` is not needed for a scene's own environment: the render tasks get this
 #: stand-in for its result.
@@ -42,9 +44,14 @@ def _raise(value):
 
 def _render_tasks(scene: Scene, jobs: list[tuple[str, dict | None]],
                   context: renderers.RenderContext) -> list[Task]:
-    base = cache_key(scene=scene.content_dict(), environment=scene.environment.path)
+    # Keyed by content: the scene with its environment's pixels (not the file's path) and each
+    # renderer's code (:func:`compare.corpus.study.code_identity`). A long-lived Dask scheduler
+    # (tcp://) hands back a task it still holds under the same key: a key of the path and the
+    # options alone gave the render of an environment file or a shader as it was before an edit.
+    base = scene_hash(scene)
+    code_identity.cache_clear()  # this call's code
     local = context.local()  # a worker process cannot reach this process's background renders
-    return [Task(f"render-{cache_key(base=base, renderer=n, options=o or {})}", T.render_task,
+    return [Task(f"render-{cache_key(base=base, renderer=n, options=o or {}, code=code_identity(n))}", T.render_task,
                  (_ENV_OK, scene, n, o or None, local), "render", deliver=True) for n, o in jobs]
 
 

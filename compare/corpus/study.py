@@ -9,9 +9,13 @@ renderer) is collected: every metric, its noise flag, pixel counts, the environm
 Tasks and keys. Per environment: one statistics task, one reference render, one render per renderer
 and one comparison per renderer (:mod:`compare.corpus.tasks`), each named by a SHA-256 over what
 determines its result: the file's bytes, the scene's content less its environment, spp, seed and
-mode (reference), renderer name and options (render), the two render keys (comparison), and the
-pbrcheck version. Identical files therefore share their renders, and a rerun with other settings
-never reuses a stale row.
+mode (reference), renderer name and options (render), the two render keys (comparison), the
+pbrcheck version, and the code that makes the pixels (:func:`code_identity`): a real-time preset's
+sources (:func:`realtime.cache.code_hash` and every shader file, :func:`realtime.gl.shader_sources_hash`),
+an external renderer's configuration with its lockfile and inputs' hashes
+(:meth:`clients.config.RendererConfig.cache_dict`) and the export format, the reference's code
+version and its Mitsuba and Dr.Jit releases. Identical files therefore share their renders, and a
+rerun with other settings, or after an edit of a shader, never reuses a stale row.
 
 Writes. Every finished row is written at once, atomically, to ``OUT/rows/<key>.json`` (key: the
 comparison key and the environment's name); ``--resume`` keeps the rows already there (error rows
@@ -28,6 +32,7 @@ API
 - :class:`Entry`, :func:`discover` -- the corpus's environment files.
 - :class:`RendererSpec`, :class:`CorpusSettings` -- what is rendered.
 - :func:`plan` -- the task graph and the rows it yields.
+- :func:`code_identity` -- what of a renderer's (or the reference's) code its pixels depend on.
 - :func:`run_corpus` -- run, write rows as they arrive, then the tables and plots; returns a
   :class:`CorpusResult`.
 - :data:`ROW_COLUMNS`, :data:`TIMING_COLUMNS` -- the columns of ``corpus.csv``.
@@ -37,8 +42,10 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.metadata
 import json
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable
 
@@ -197,13 +204,48 @@ class RowSlot:
     row_key: str
 
 
+#: :func:`code_identity`'s name for the reference.
+REFERENCE = "reference"
+
+
+@lru_cache(maxsize=None)
+def code_identity(name: str) -> str:
+    """What of the code of renderer ``name`` (a real-time preset, ``ext:NAME``, or :data:`REFERENCE`)
+    its pixels depend on, as a JSON string (a key part; memoized, and cleared at every :func:`plan`:
+    once per renderer and run, whatever the corpus's size). Without it a row rendered before an edit of a shader would be "done" after it (the
+    pbrcheck version does not change with every edit). The reference: its code version and the
+    Mitsuba and Dr.Jit releases (the variant is the worker's: not known here)."""
+    if name == REFERENCE:
+        from reference.render import REFERENCE_CODE_VERSION
+
+        ident = {"code": REFERENCE_CODE_VERSION, "mitsuba": importlib.metadata.version("mitsuba"),
+                 "drjit": importlib.metadata.version("drjit")}
+    elif renderers.is_external(name):
+        from clients.config import get_renderer
+        from pbrcheck.export import EXPORT_FORMAT_VERSION
+
+        try:
+            cfg = get_renderer(name).cache_dict()
+        except PbrcheckError as e:  # an unknown renderer: its render task makes the error row
+            cfg = f"unavailable: {e}"
+        ident = {"external": cfg, "export_format": EXPORT_FORMAT_VERSION}
+    else:
+        from realtime.cache import code_hash
+        from realtime.gl import shader_sources_hash
+
+        ident = {"realtime_code": code_hash(), "shaders": shader_sources_hash()}
+    return json.dumps(ident, sort_keys=True)
+
+
 def _keys(st: CorpusSettings, entry: Entry, r: RendererSpec) -> tuple[str, str, str, str]:
     content = st.scene.content_dict()
     content.pop("environment")
     common = {"scene": content, "environment_sha256": entry.digest, "pbrcheck": __version__}
     env_k = "environment-" + cache_key(kind="environment", **common)
-    ref_k = "reference-" + cache_key(kind="reference", spp=st.spp, seed=st.seed, mode=REFERENCE_MODE, **common)
-    ren_k = "render-" + cache_key(kind="render", renderer=r.name, options=r.options, **common)
+    ref_k = "reference-" + cache_key(kind="reference", spp=st.spp, seed=st.seed, mode=REFERENCE_MODE,
+                                     code=code_identity(REFERENCE), **common)
+    ren_k = "render-" + cache_key(kind="render", renderer=r.name, options=r.options, code=code_identity(r.name),
+                                  **common)
     cmp_k = "compare-" + cache_key(kind="compare", reference=ref_k, render=ren_k)
     return env_k, ref_k, ren_k, cmp_k
 
@@ -212,6 +254,7 @@ def plan(entries: list[Entry], st: CorpusSettings, done: set[str] = frozenset())
     """The tasks of every row whose key is not in ``done``, and every row slot of the corpus.
 
     Entries with a ``problem`` get no task (their rows are error rows made by the client)."""
+    code_identity.cache_clear()  # this run's code (a shader edited since the last plan is seen)
     tasks: list[Task] = []
     slots: list[RowSlot] = []
     for e in entries:

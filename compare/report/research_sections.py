@@ -20,7 +20,7 @@ from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.lodmap import LodMapping, builtin_lod
 from pbrcheck.progress import Progress
-from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS
 from pbrcheck.scene import load_scene
 
 from .. import renderers

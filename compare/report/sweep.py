@@ -20,9 +20,10 @@ from pathlib import Path
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
+from pbrcheck.fmt import csv_cell
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
-from pbrcheck.registry import IRRADIANCES
+from realtime.registry import IRRADIANCES
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -190,8 +191,9 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
     w = csv.writer(buf)
     w.writerow(cols)
     for r in rows:
-        w.writerow([r["preset"], *([r.get("truth", "")] if truth else []), *(r["options"].get(k, "") for k in keys),
-                    *("" if r.get(c) is None else r[c] for c in cols[first:])])
+        w.writerow([csv_cell(c) for c in (r["preset"], *([r.get("truth", "")] if truth else []),
+                                          *(r["options"].get(k, "") for k in keys),
+                                          *("" if r.get(c) is None else r[c] for c in cols[first:]))])
     write_text_atomic(csv_path, buf.getvalue())
     write_json_atomic(json_path, rows)
     return {"csv": csv_path, "json": json_path}

@@ -3,10 +3,10 @@
 The truth is the reference's random walk (``[brdf] multiscatter = "random_walk"``, Heitz et al.
 2016): its directional albedo (specular lobe, grey Schlick F0) is estimated from the walk's exact
 throughput (:func:`compare.renderers.multiscatter_albedo`). Each real-time compensation
-(:data:`pbrcheck.registry.ENERGY_COMPENSATIONS`, formulas in :mod:`pbrcheck.energy`) predicts that
+(:data:`realtime.registry.ENERGY_COMPENSATIONS`, formulas in :mod:`pbrcheck.energy`) predicts that
 albedo from the single-scattering DFG terms ``A, B`` (:func:`pbrcheck.brdf.specular_dfg`, the exact
 quadrature the DFG LUT approximates) under a white furnace (irradiance E(n)/pi = 1):
-:func:`pbrcheck.energy.specular_albedo_compensated`. The grid is roughness x F0 x n.v; the
+:func:`realtime.dispatch.specular_albedo_compensated`. The grid is roughness x F0 x n.v; the
 summary gives each compensation's max and mean absolute error and its worst configuration.
 
 Images (optional): each scene rendered by the real-time preset with each compensation, compared with
@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from pbrcheck import brdf as _brdf
-from pbrcheck import energy as _energy
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
-from pbrcheck.registry import ENERGY_COMPENSATIONS
+from realtime.dispatch import specular_albedo_compensated
+from realtime.registry import ENERGY_COMPENSATIONS
 from pbrcheck.scene import load_scene
 
 from .. import renderers
@@ -210,7 +210,7 @@ def run_energy(*, roughness=DEFAULT_ROUGHNESS, f0=DEFAULT_F0, nov=DEFAULT_NOV, s
     R, F, M, A, B, walk, se = _albedo_grid(roughness, f0, nov, samples, seed)
     albedo, summaries = {}, []
     for c in ENERGY_COMPENSATIONS.names:
-        alb = _energy.specular_albedo_compensated(F, A, B, R, c)
+        alb = specular_albedo_compensated(F, A, B, R, c)
         albedo[c] = alb.tolist()
         summaries.append(_summary(c, alb - walk, R, F, M, roughness))
     rows = _images(list(scenes), preset=preset, options=dict(options or {}), spp=spp, size=size,

@@ -64,10 +64,11 @@ import numpy as np
 
 from pbrcheck.atomic import write_text_atomic
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.fmt import TABLE_DIGITS, format_value
+from pbrcheck.fmt import TABLE_DIGITS, format_value, terminal_safe
 from pbrcheck.gltf_scene import scene_has_assets
 from pbrcheck.jsonio import write_json_atomic
-from pbrcheck.registry import BUILTIN_LOD_MAPPINGS, NDFS
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS
+from pbrcheck.registry import NDFS
 from pbrcheck.scene import Scene
 
 from .. import renderers
@@ -306,7 +307,8 @@ def table_markdown(res: ExplainResult) -> str:
         return format_value(v, TABLE_DIGITS)
 
     b = res.baseline[PRIMARY]
-    lines = [f"scene {res.scene}, preset {res.preset}: {PRIMARY} {f(b)} against the {res.spp}-spp reference",
+    # the scene's name is a user's (printed on a terminal and written to the .md): no control character
+    lines = [f"scene {terminal_safe(res.scene)}, preset {res.preset}: {PRIMARY} {f(b)} against the {res.spp}-spp reference",
              *([f"Reference spp rule: {VerdictSpp(**res.reference_spp).provenance()}"] if res.reference_spp else []),
              "", f"| source made exact | {PRIMARY} after | contribution | share of {PRIMARY} | flip_mean after |",
              "| --- | --- | --- | --- | --- |"]

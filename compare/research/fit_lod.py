@@ -42,7 +42,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.lodmap import basis_coefficients, builtin_lod
 from pbrcheck.progress import Progress
-from pbrcheck.registry import BUILTIN_LOD_MAPPINGS
+from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS
 from pbrcheck.scene import Scene, scene_from_dict
 
 from .. import renderers

@@ -14,6 +14,9 @@
 // (prefiltered). HOOK_SPECULAR_AA (a user hook, realtime/hooks.py) replaces it on normal-mapped
 // fragments, given the mip-filtered length and normal_map_lod(). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
 // (coverage.glsl) for the host's GL_SAMPLE_ALPHA_TO_COVERAGE instead of discarding.
+// UNLIT_MATERIALS (defined only where the scene draws a KHR_materials_unlit material): a material
+// with unlit != 0 writes its base colour (factor x texture x COLOR_0) as the radiance, unshaded
+// (KHR_materials_unlit; alpha as for a lit material).
 #include "env.glsl"
 #include "shading.glsl"
 #include "specular_aa.glsl"
@@ -21,6 +24,9 @@
 #include "texcoord.glsl"
 #ifndef ALPHA_TO_COVERAGE
 #define ALPHA_TO_COVERAGE 0
+#endif
+#ifndef UNLIT_MATERIALS
+#define UNLIT_MATERIALS 0
 #endif
 
 in vec3 v_pos;
@@ -41,6 +47,9 @@ uniform float alpha_cutoff;
 uniform float normal_scale;
 uniform int flip_backface;        // glTF doubleSided: back faces shade with the flipped frame
 uniform float object_id;
+#if UNLIT_MATERIALS
+uniform int unlit;                // KHR_materials_unlit: 1 for an unlit material
+#endif
 
 // Texture slots: 0 baseColor, 1 metallicRoughness, 2 normal, 3 emissive.
 uniform sampler2D tex_base;
@@ -125,6 +134,16 @@ void main() {
     out_aov = vec4(N, max(dot(N, v), 0.0));
     out_obj = vec4(object_id, 0.0, 0.0, 1.0);
 #else
+#if UNLIT_MATERIALS
+    if (unlit != 0) {
+#if ALPHA_TO_COVERAGE
+        out_color = vec4(base.rgb, alpha_mode == 2 ? base.a : (alpha_mode == 1 ? coverage : 1.0));
+#else
+        out_color = vec4(base.rgb, alpha_mode == 2 ? base.a : 1.0);
+#endif
+        return;
+    }
+#endif
     vec3 n = N;
     if (tex_has[2] != 0) {
         vec3 T = v_tan.xyz - dot(v_tan.xyz, N) * N;

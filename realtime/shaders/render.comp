@@ -22,6 +22,10 @@ uniform vec3 cam_right;    // right * tan_x
 uniform vec3 cam_up;       // true_up * tan_y
 uniform vec3 cam_forward;
 uniform ivec2 image_size;
+// The first pixel of this dispatch: a large frame is dispatched in bands of rows (realtime/render.py,
+// frame_bands), so that a signal is honoured between two; a pixel depends on g alone, so the image
+// is the same bit for bit however it is cut.
+uniform ivec2 tile_origin;
 uniform int ss;
 
 const float T_EPS = 1e-4;
@@ -85,7 +89,7 @@ Surface surface_at(int k, vec3 p, vec3 v) {
 }
 
 void main() {
-    ivec2 g = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 g = ivec2(gl_GlobalInvocationID.xy) + tile_origin;
     if (g.x >= image_size.x || g.y >= image_size.y) return;
     vec3 acc = vec3(0.0);
     float covered = 0.0;

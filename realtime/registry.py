@@ -1,0 +1,190 @@
+"""The real-time renderer's registries and switches (:mod:`pbrcheck.registry`'s :class:`Registry`).
+
+The real-time-only closed lists: the compositions (:data:`SHADINGS`) and the image-based lighting's
+switches (:data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`, :data:`DFGS`), which have no numpy or
+Dr.Jit counterpart; the real-time approximations whose entries hold their numpy role functions
+(:data:`RUNTIME_SAMPLINGS`, :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`,
+:data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`: the functions are the core's, the choice among them
+and the real-time options a member requires are the renderer's; the numpy dispatch by name is
+:mod:`realtime.dispatch`); and the GLSL side of every list: each GLSL switch's registry
+(:data:`REGISTRIES`, whose members' named constants :func:`realtime.generated.glsl_defines`
+prepends to every shader), the term registries' generated dispatch functions with their hooks
+(:data:`TERM_REGISTRIES`) and the role registries' (:data:`ROLE_REGISTRIES`). The lists the core
+itself reads stay there: the scene's terms (:mod:`pbrcheck.registry`), the LOD mappings
+(:data:`pbrcheck.lodmap.LOD_MAPPINGS`: a fitted mapping's file names its chain) and the DFG LUT's
+strategies (:data:`pbrcheck.sampling.LUT_SAMPLINGS`, which the reference's LUT bake shares).
+
+API
+---
+:data:`SHADINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`, :data:`DFGS`, :data:`RUNTIME_SAMPLINGS`,
+:data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`,
+:data:`TERM_REGISTRIES`,
+:data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`.
+"""
+
+from __future__ import annotations
+
+from pbrcheck.energy import (energy_direct_filament, energy_direct_kulla_conty, energy_ms_fdez_aguera,
+                             energy_ms_kulla_conty, energy_scale_filament)
+from pbrcheck.lodmap import LOD_MAPPINGS
+from pbrcheck.occlusion import horizon_occlusion_marmoset, specular_occlusion_gtso, specular_occlusion_lagarde
+from pbrcheck.registry import (FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS, REALTIME_APPROXIMATION, Entry, Registry,
+                               role, switch)
+from pbrcheck.sampling import (LUT_SAMPLINGS, runtime_estimate_ndf, runtime_estimate_vndf, runtime_half_vector_beckmann,
+                               runtime_half_vector_ggx, runtime_half_vector_vndf)
+from pbrcheck.specular_aa import specular_aa_prefiltered, specular_aa_screen_space, specular_aa_toksvig
+
+#: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
+#: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.
+#: ``extra["hooks"]``: the composition whose pieces shader hooks replace (docs/hooks.md);
+#: ``extra["seeded"]``: its ``shade_<name>`` takes the pixel seed (it may sample at run time). Each
+#: composition's GLSL functions are ``shade_<name>`` and ``light_brdf_<name>`` (shading.glsl), called
+#: by the generated ``shade_composition`` / ``light_brdf`` (``shading_dispatch.glsl``).
+SHADINGS = Registry("SHADING", applies_to=(
+    "the real-time renderer's compositions (shading.glsl: shade_<name> and light_brdf_<name> each, dispatch "
+    "generated); the reference renders one material model (pbrcheck.brdf, reference.bsdf)"), entries=[
+    Entry("material", "README's material model", extra={"hooks": True, "seeded": True}),
+    Entry("article000", "article 000 (Drevicky 2018)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
+    Entry("article001", "article 001 (runtime importance sampling)", requires={"ibl": ("runtime",)},
+          extra={"seeded": True}),
+    Entry("article002", "article 002 (EnvBRDFApprox, SH9)", requires={"ibl": ("splitsum",)}, extra={"seeded": False}),
+])
+
+_REALTIME_ONLY = "a switch of the real-time renderer's own passes ({}); no numpy or Dr.Jit counterpart"
+
+
+IRRADIANCES = switch("IRRADIANCE", _REALTIME_ONLY.format("irradiance.comp, sh9.comp"), convolution="cube convolution of the environment (E(n) / pi per texel)",
+                      sh9="9 spherical-harmonic coefficients, Ramamoorthi & Hanrahan 2001 (article 002)")
+IRRADIANCE_METHODS = switch("IRRADIANCE_METHOD", _REALTIME_ONLY.format("irradiance.comp"), texel_sum="sum over every source texel, weighted by its solid angle",
+                             polar_steps="article 000's uniform polar / azimuth steps")
+DFGS = switch("DFG", _REALTIME_ONLY.format("ibl.glsl"), lut="baked DFG LUT (split sum's second factor), Karis 2013",
+               analytic="Karis's EnvBRDFApprox fit (mobile, 2014; article 002)")
+
+#: Runtime importance sampling of the environment (article 001, environment_light.glsl): each
+#: strategy's half vector in tangent space (``runtime_half_vector_<name>``) and its estimator of
+#: ``F G L (v.h) / ((n.h)(n.v))``-type terms (``runtime_estimate_*``: ``runtime_estimate_ndf``, correct
+#: when the half vectors follow the shaded NDF's D (n.h), is the article's, shared by beckmann and ggx); numpy in
+#: :mod:`pbrcheck.sampling`, Dr.Jit in :mod:`reference.sampling` (``RUNTIME_ROLES``), GLSL in ``sampling.glsl``.
+RUNTIME_SAMPLINGS = Registry("RUNTIME_SAMPLING", [
+    Entry("beckmann", "Beckmann half vectors (article 001 samples them for the GGX D)",
+          roles={"runtime_half_vector": role(runtime_half_vector_beckmann), "runtime_estimate": role(runtime_estimate_ndf)},
+          applies_to="exact for the Beckmann D it samples; biased for the GGX D article 001 shades with it"),
+    Entry("ggx", "GGX half vectors, Walter et al. 2007 eq. 35-36",
+          roles={"runtime_half_vector": role(runtime_half_vector_ggx), "runtime_estimate": role(runtime_estimate_ndf)},
+          applies_to="any NDF's shading; exact for the GGX D it samples"),
+    Entry("vndf", "GGX visible normals, Heitz 2018", roles={"runtime_half_vector": role(runtime_half_vector_vndf),
+                 "runtime_estimate": role(runtime_estimate_vndf)},
+          applies_to="any NDF's shading; exact for the GGX D (its visible normals, Smith GGX G1)"),
+])
+
+_IBL_ONLY = "image-based lighting only"
+#: The real-time options a compensation needs: the material composition's split sum.
+_SPLIT_SUM_MATERIAL = {"shading": ("material",), "ibl": ("splitsum",)}
+#: Multiple-scattering energy compensation of the real-time specular lobe: each member's functions
+#: for the split sum's specular factor (``energy_scale_<name>``), the multiply scattered albedo added
+#: times the irradiance (``energy_ms_<name>``) and the point lights' added lobe
+#: (``energy_direct_<name>``); numpy in :mod:`pbrcheck.energy`, Dr.Jit in :mod:`reference.energy` (``ROLES``),
+#: GLSL in ``realtime/shaders/energy.glsl``. They apply with ``shading = material`` and
+#: ``ibl = splitsum`` only (they need the split sum's DFG terms, which runtime sampling and the
+#: article compositions do not have): each member but ``none`` requires them (:attr:`Entry.requires`).
+ENERGY_COMPENSATIONS = Registry("ENERGY_COMPENSATION", [
+    Entry("none", "single scattering only", applies_to="nothing is added: scale 1, no lobe"),
+    Entry("filament", "Filament's scale 1 + F0 (1 / (A + B) - 1) (Filament documentation sec. 4.7.2)",
+          roles={"energy_scale": role(energy_scale_filament), "energy_direct": role(energy_direct_filament)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to="a scale of the split sum's specular and of the point lights' specular lobe"),
+    Entry("fdez_aguera", "Fdez-Aguera 2019, JCGT 8(1), eq. 9-13: Fms Ems times the irradiance",
+          roles={"energy_ms": role(energy_ms_fdez_aguera)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to=f"{_IBL_ONLY}: the paper has no point-light lobe; no scale (an added albedo)"),
+    Entry("kulla_conty", "Kulla & Conty 2017 (SIGGRAPH course): F_ms (1 - E(mu)) times the irradiance, E_avg table",
+          roles={"energy_ms": role(energy_ms_kulla_conty), "energy_direct": role(energy_direct_kulla_conty)}, requires=_SPLIT_SUM_MATERIAL,
+          applies_to="an added albedo times the irradiance and an added lobe for point lights; no scale"),
+])
+
+#: Specular occlusion of the split sum's image-based specular from the ambient occlusion: each
+#: member's ``specular_occlusion_<name>(NoV, ao, roughness)``, numpy in :mod:`pbrcheck.occlusion`,
+#: GLSL in ``realtime/shaders/occlusion.glsl`` (dispatch ``specular_occlusion_dispatch.glsl``).
+SPECULAR_OCCLUSIONS = Registry("SPECULAR_OCCLUSION", [
+    Entry("none", "the specular image-based term is not occluded", applies_to="nothing is occluded: factor 1"),
+    Entry("lagarde", "Lagarde & de Rousiers 2014, Moving Frostbite to PBR, listing 26: "
+                     "saturate((n.v + ao)^exp2(-16 alpha - 1) - 1 + ao)",
+          roles={"specular_occlusion": role(specular_occlusion_lagarde)},
+          applies_to=REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
+    Entry("gtso", "Jimenez et al. 2016, Practical Realtime Strategies for Accurate Indirect Occlusion, sec. 6: the "
+                  "visibility cone (cos = sqrt(1 - ao)) intersected with the specular cone (cos = exp2(-3.321928 "
+                  "alpha^2)), Oat & Sander 2007's cap intersection, over the unoccluded hemisphere's",
+          roles={"specular_occlusion": role(specular_occlusion_gtso)},
+          applies_to=REALTIME_APPROXIMATION + "the split sum's specular, from the ambient occlusion"),
+])
+#: Horizon occlusion of normal-mapped reflections: ``horizon_occlusion_<name>(RoNg)``, numpy in
+#: :mod:`pbrcheck.occlusion`, GLSL in ``occlusion.glsl`` (dispatch ``horizon_occlusion_dispatch.glsl``).
+HORIZON_OCCLUSIONS = Registry("HORIZON_OCCLUSION", [
+    Entry("none", "reflections below the geometric normal's horizon are not faded", applies_to="factor 1"),
+    Entry("marmoset", "Russell 2015 (Marmoset), Horizon Occlusion for Normal Mapped Reflections (also Jimenez et "
+                      "al. 2016): saturate(1 + 1.3 r.n_g)^2", roles={"horizon_occlusion": role(horizon_occlusion_marmoset)},
+          applies_to=REALTIME_APPROXIMATION + "the image-based specular of normal-mapped materials"),
+])
+#: Specular anti-aliasing / normal-map filtering, the roughness widened by the normals' variance:
+#: ``specular_aa_<name>`` of the dispatch inputs it reads (:attr:`~pbrcheck.registry.Role.args`), numpy in
+#: :mod:`pbrcheck.specular_aa`, GLSL in ``specular_aa.glsl`` (dispatch ``specular_aa_dispatch.glsl``,
+#: which also defines ``SPECULAR_AA_READS_<INPUT>`` for the inputs the selected member reads, so
+#: that the raster pass computes only those). ``screen_space`` needs the screen derivatives of the
+#: normal, which only the raster pipeline has (:attr:`Entry.requires`).
+SPECULAR_AAS = Registry("SPECULAR_AA", [
+    Entry("none", "no filtering of the normals' variance into the roughness", applies_to="roughness unchanged"),
+    Entry("toksvig", "Toksvig 2005, Mipmapping Normal Maps: alpha^2 + 2 (1 - |n|) / |n| from the mip-filtered "
+                     "normal's length", roles={"specular_aa": role(specular_aa_toksvig, "roughness", "normal_length")},
+          applies_to=REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
+    Entry("screen_space", "Kaplanyan et al. 2016, Tokuyoshi & Kaplanyan 2019 as Filament ships it: alpha^2 + "
+                          "min(2 x 0.15 (|dn/dx|^2 + |dn/dy|^2), 0.2) from the geometric normal's screen derivatives",
+          roles={"specular_aa": role(specular_aa_screen_space, "roughness", "dn2")},
+          requires={"pipeline": ("raster",)},
+          applies_to=REALTIME_APPROXIMATION + "the raster pipeline only: it needs the screen derivatives of the "
+                     "normal, which the ray-cast compute pass (one invocation per pixel, no neighbours) has not"),
+    Entry("prefiltered", "LEAN mapping's slope variance (Olano & Baker 2010) of the normal map, baked per mip beside "
+                         "the mip chain: alpha^2 + var(s_x) + var(s_y)",
+          roles={"specular_aa": role(specular_aa_prefiltered, "roughness", "variance")},
+          applies_to=REALTIME_APPROXIMATION + "normal-mapped materials' roughness, both pipelines"),
+])
+
+#: The term registries (their entries hold their term classes, :mod:`pbrcheck.terms`), by GLSL switch, with
+#: the GLSL dispatch function each generates, its signature and its user hook.
+TERM_REGISTRIES = {"NDF": (NDFS, "float ndf_term(float NoH, float roughness)", "hook_D(NoH, roughness)"),
+                   "GEOMETRY": (GEOMETRIES, "float geometry_term(float NoV, float NoL, float roughness)",
+                                "hook_G(NoV, NoL, roughness)"),
+                   "FRESNEL": (FRESNELS, "vec3 fresnel_term(float VoH, vec3 F0)", "hook_F(VoH, F0)")}
+
+#: The registries whose members implement roles (:attr:`Entry.roles`), by GLSL switch: the generated
+#: include, the member selected where a shader leaves the switch undefined, and each role's GLSL
+#: dispatch signature and the identity a member without the role returns ("": every member has it).
+ROLE_REGISTRIES = {
+    "ENERGY_COMPENSATION": (ENERGY_COMPENSATIONS, "energy_dispatch.glsl", "none", {
+        "energy_scale": ("vec3 energy_scale(vec3 F0, float A, float B)", "vec3(1.0)"),
+        "energy_ms": ("vec3 energy_ms(vec3 F0, float A, float B, float roughness)", "vec3(0.0)"),
+        "energy_direct": ("vec3 energy_direct(vec3 f_spec, vec3 F0, float A, float B, float El, float roughness)",
+                          "vec3(0.0)")}),
+    "RUNTIME_SAMPLING": (RUNTIME_SAMPLINGS, "runtime_sampling_dispatch.glsl", "vndf", {
+        "runtime_half_vector": ("vec3 runtime_half_vector(vec2 u, vec3 vt, float alpha)", ""),
+        "runtime_estimate": ("vec3 runtime_estimate(vec3 F, float G, vec3 L, float NoV, float NoH, float VoH, float alpha)",
+                             "")}),
+    "LUT_SAMPLING": (LUT_SAMPLINGS, "dfg_sampling_dispatch.glsl", "vndf", {
+        "lut_half_vector": ("vec3 lut_half_vector(vec2 u, vec3 v, float alpha)", ""),
+        "lut_weight": ("float lut_weight(float G, vec3 v, vec3 h, float alpha)", "")}),
+    "SPECULAR_OCCLUSION": (SPECULAR_OCCLUSIONS, "specular_occlusion_dispatch.glsl", "none", {
+        "specular_occlusion": ("float specular_occlusion(float NoV, float ao, float roughness)", "1.0")}),
+    "HORIZON_OCCLUSION": (HORIZON_OCCLUSIONS, "horizon_occlusion_dispatch.glsl", "none", {
+        "horizon_occlusion": ("float horizon_occlusion(float RoNg)", "1.0")}),
+    "SPECULAR_AA": (SPECULAR_AAS, "specular_aa_dispatch.glsl", "none", {
+        "specular_aa": ("float specular_aa(float roughness, float normal_length, float variance, float dn2)",
+                        "roughness")}),
+}
+#: Every registry, by its GLSL switch name.
+REGISTRIES = {r.define: r for r in (NDFS, GEOMETRIES, FRESNELS, LOD_MAPPINGS, SHADINGS, RUNTIME_SAMPLINGS,
+                                     IRRADIANCES, IRRADIANCE_METHODS, DFGS, LUT_SAMPLINGS, MULTISCATTERS,
+                                     ENERGY_COMPENSATIONS, SPECULAR_OCCLUSIONS, HORIZON_OCCLUSIONS, SPECULAR_AAS)}
+
+
+def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
+    """Whether member ``name``'s ``role`` function reads the dispatch parameter ``param`` (its
+    :attr:`~pbrcheck.registry.Role.args`, all parameters where empty; False for a member without the role)."""
+    r = registry[name].roles.get(role)
+    return r is not None and (not r.args or param in r.args)
