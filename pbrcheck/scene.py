@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .brdf import METALLIC_BLENDS
 from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, asset_options, expand_gltf_object, framing, scene_light
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
@@ -124,10 +125,6 @@ class BRDFModel:
     # dielectric's diffuse weighted by 1 - F of its own F0 = specular). Schlick is linear in F0, so the
     # specular lobes agree; only the diffuse weight differs, and only at 0 < metallic < 1.
     metallic_blend: str = "f0"
-
-
-#: The values of ``[brdf] metallic_blend`` (:class:`BRDFModel`).
-METALLIC_BLENDS = ("f0", "gltf")
 
 
 @dataclass(frozen=True)
