@@ -154,7 +154,7 @@ def matched(compensating, monkeypatch):
 def test_path_mode_sets_the_engine_against_the_model_matched_truth_per_material(matched):
     s = scene_from_dict(SCENE)
     [p] = measure_references(s, ["ext:pfm"], 64, mode="path")
-    assert p.physics == ["multiple scattering (random walk)", "visibility and interreflection (path)"]
+    assert p.physics == ["multiple scattering (random walk)", "visibility and interreflection (path)"]  # metallic 1
     assert ("none", "local") in MODES_SEEN and ("random_walk", "path") in MODES_SEEN
     assert p.vs_single["relmse"] > 0.1 and p.share > 0.99
     [m] = p.materials                                       # one sphere: one row
@@ -176,7 +176,12 @@ def test_an_asset_scene_is_matched_by_visibility_alone_in_path_mode(tmp_path):
     none, physics, why = matched_scene(s, "local")
     assert none is None and physics == [] and "glTF assets" in why
     got, physics, why = matched_scene(s, "path")
-    assert got is s and physics == ["visibility and interreflection (path)"]
+    assert physics == ["visibility and interreflection (path)", "glTF's metallic blend"]
+    assert got.brdf.metallic_blend == "gltf" and replace(got, brdf=s.brdf) == s
+    half = scene_from_dict({**SCENE, "objects": [{"type": "sphere", "radius": 1.0,
+                                                  "material": {"metallic": 0.5, "roughness": 0.5}}]})
+    assert matched_scene(half, "path")[0].brdf.metallic_blend == "gltf"
+    assert matched_scene(half, "local")[0].brdf.metallic_blend == "f0"   # local: the figures as they were
 
 
 def test_report_states_the_reference_mode_and_the_share_per_material(matched, tmp_path):
@@ -190,7 +195,7 @@ def test_report_states_the_reference_mode_and_the_share_per_material(matched, tm
     assert "set against the reference in mode <code>path</code>" in html and "visibility (shadows)" in html
     assert ("none", "path") in MODES_SEEN          # the scene's own reference: path
     sec = html[html.index('id="references"'):]
-    assert "model-matched (walk, path)" in sec and "Per material" in sec and "100 %" in sec
+    assert "model-matched (walk, path, blend)" in sec and "Per material" in sec and "100 %" in sec
     rows = json.loads((tmp_path / "r" / "tiny" / "references.json").read_text())
     assert rows[0]["materials"][0]["share"] > 0.99 and "visibility" in rows[0]["model_matched_physics"][-1]
     with pytest.raises(Exception, match="reference-mode"):

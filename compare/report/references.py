@@ -26,7 +26,9 @@ single-scattering): in ``path`` mode its model-matched truth is the path referen
 only); in ``local`` mode it has none, as before. The first reference (the plain truth) is always
 the single-scattering ``local`` one. The same share per material (glTF assets: per material; other
 scenes: per object) is the ``materials`` list of ``references.json`` and the section's second table.
-The metallic blend is not yet part of the model-matched truth (issue 40 item 4).
+In ``path`` mode the model-matched truth also takes glTF 2.0's metallic blend (``[brdf]
+metallic_blend = "gltf"``) where something is partially metallic: every external engine is a glTF
+engine (docs/reference.md, "The metallic blend").
 
 A scene whose BRDF has no random walk (``brdf.ndf`` / ``brdf.geometry`` outside
 :data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`) gets a row saying so; a display-referred engine
@@ -169,15 +171,26 @@ def _within(cmp) -> dict:
 
 def matched_scene(scene: Scene, mode: str = "local") -> tuple[Scene | None, list[str], str]:
     """(the model-matched truth's scene, the physics it adds to the plain truth, why it lacks some):
-    the random walk where the scene has one, and in ``path`` mode visibility too (an asset scene:
-    visibility only); None in ``local`` mode without a walk."""
+    the random walk where the scene has one, and in ``path`` mode visibility and glTF's metallic blend
+    (where something is partially metallic) too (an asset scene: no walk); None in ``local`` mode
+    without a walk (``local`` keeps the report's figures as they were)."""
     rw_scene, why = random_walk_scene(scene)
     physics = [] if rw_scene is None else ["multiple scattering (random walk)"]
     if mode == "path":
         physics.append("visibility and interreflection (path)")
         if rw_scene is None:
             rw_scene = single_scattering_scene(scene)
+        if rw_scene.brdf.metallic_blend != "gltf" and _partially_metallic(scene):
+            # every external engine is a glTF engine: glTF 2.0 Appendix B's blend (docs/reference.md)
+            rw_scene = replace(rw_scene, brdf=replace(rw_scene.brdf, metallic_blend="gltf"))
+            physics.append("glTF's metallic blend")
     return rw_scene, physics, why
+
+
+def _partially_metallic(scene: Scene) -> bool:
+    """Whether the blends can differ: an object with 0 < metallic < 1, or a glTF asset (its metallic
+    texture filtered between texels is fractional)."""
+    return bool(scene.assets) or any(0.0 < o.material.metallic < 1.0 for o in scene.objects)
 
 
 def measure_references(scene: Scene, externals: list[str], spp: int, *, progress=None,
@@ -237,7 +250,7 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
         got = measure_references(scene, externals, spp, progress=progress, context=context, mode=mode)
         write_json_atomic(Path(out_dir) / sec.id / "references.json", [p.to_dict() for p in got], indent=1)
         pairs += got
-    second = "random walk" if mode == "local" else "model-matched (walk, path)"
+    second = "random walk" if mode == "local" else "model-matched (walk, path, blend)"
     headers = ["scene", "renderer"]
     for m in REFERENCE_METRICS:
         headers += [f"{m} vs single", f"{m} vs {second}"]
@@ -265,8 +278,8 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
         note = (f"Model-matched truth (--reference-mode {mode}): the second reference is the random walk rendered "
                 f"in mode {mode}, {REFERENCE_MODES[mode]}; a glTF asset scene (no walk) gets the {mode} reference "
                 "alone. The share column is then the part of the engine's error that is the plain truth's missing "
-                "physics (single scattering, no visibility) and the table below gives it per material (glTF assets) "
-                "or object. The metallic blend is not yet matched (glTF's mix of two BRDFs: issue 40). " + note)
+                "physics (single scattering, no visibility, pbrcheck's F0 metallic blend where glTF engines mix two "
+                "BRDFs) and the table below gives it per material (glTF assets) or object. " + note)
         mrows = [[p.scene, p.renderer, m["material"], str(m["pixels"]), _fmt(m["relmse_plain"]), _fmt(m["relmse_matched"]),
                   "-" if m["share"] is None else f"{100 * m['share']:.0f} %"]
                  for p in pairs for m in p.materials[:MATERIAL_ROWS_SHOWN]]
