@@ -604,9 +604,6 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     if "environment" not in data:
         raise ctx.err("environment", "exactly one [environment] table", "nothing")
     objects, grids, assets, asset_lights = _objects(ctx, data.get("objects"))
-    if assets and isinstance(data.get("brdf"), dict) and data["brdf"].get("multiscatter", "none") != "none":
-        raise ctx.err("brdf.multiscatter", '"none" in a scene with glTF assets (their textured material is '
-                      "single-scattering)", data["brdf"]["multiscatter"])
     return Scene(
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),

@@ -53,16 +53,15 @@ def test_random_walk_scene_needs_the_correlated_geometry():
     assert none is None and "blinn_phong" in why
 
 
-def test_an_asset_scene_has_no_random_walk(tmp_path):
-    # the textured material of glTF assets scatters once: a "walk" render of an asset scene was the
-    # single-scattering image again, and the report showed share 0 % against a walk never rendered
+def test_an_asset_scene_has_a_random_walk(tmp_path):
+    # the textured material of glTF assets walks per shading point since issue 40 (tests/test_asset_walk.py)
     from gltf_build import quad_asset, quad_scene
     from pbrcheck.scene import load_scene
     asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
     s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
     assert s.assets and s.brdf.ndf == "ggx"
     rw, why = random_walk_scene(s)
-    assert rw is None and "glTF assets" in why
+    assert rw.brdf.multiscatter == "random_walk" and why == ""
 
 
 def test_a_compensating_engine_is_right_against_the_walk(compensating):
@@ -167,17 +166,18 @@ def test_path_mode_sets_the_engine_against_the_model_matched_truth_per_material(
     assert q.share == pytest.approx(1 - (0.2 ** 2 / 0.65) / (0.4 ** 2 / 0.37), abs=1e-3)   # 0.8 vs 0.6: part of it
 
 
-def test_an_asset_scene_is_matched_by_visibility_alone_in_path_mode(tmp_path):
+def test_an_asset_scene_is_matched_by_walk_visibility_and_blend_in_path_mode(tmp_path):
     from gltf_build import quad_asset, quad_scene
     from compare.report.references import matched_scene
     from pbrcheck.scene import load_scene
     asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
     s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
-    none, physics, why = matched_scene(s, "local")
-    assert none is None and physics == [] and "glTF assets" in why
+    got, physics, why = matched_scene(s, "local")
+    assert physics == ["multiple scattering (random walk)"] and got.brdf.metallic_blend == "f0"
     got, physics, why = matched_scene(s, "path")
-    assert physics == ["visibility and interreflection (path)", "glTF's metallic blend"]
-    assert got.brdf.metallic_blend == "gltf" and replace(got, brdf=s.brdf) == s
+    assert physics == ["multiple scattering (random walk)", "visibility and interreflection (path)",
+                       "glTF's metallic blend"]
+    assert got.brdf.metallic_blend == "gltf" and got.brdf.multiscatter == "random_walk"
     half = scene_from_dict({**SCENE, "objects": [{"type": "sphere", "radius": 1.0,
                                                   "material": {"metallic": 0.5, "roughness": 0.5}}]})
     assert matched_scene(half, "path")[0].brdf.metallic_blend == "gltf"

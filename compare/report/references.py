@@ -21,9 +21,8 @@ and differs from the single-scattering one only there; negative when the walk is
 the random walk rendered in the report's reference mode, so in ``path`` mode it carries both
 pieces of physics the plain truth lacks (multiple scattering and visibility: shadows and
 interreflection), and the share column is the part of each engine's error that is the plain
-truth's missing physics. A glTF asset scene has no walk (its textured material is
-single-scattering): in ``path`` mode its model-matched truth is the path reference (visibility
-only); in ``local`` mode it has none, as before. The first reference (the plain truth) is always
+truth's missing physics. A glTF asset scene has the walk as the analytic ones (per shading
+point: the texel's roughness, metallic, base colour and normal; reference/textured.py). The first reference (the plain truth) is always
 the single-scattering ``local`` one. The same share per material (glTF assets: per material; other
 scenes: per object) is the ``materials`` list of ``references.json`` and the section's second table.
 In ``path`` mode the model-matched truth also takes glTF 2.0's metallic blend (``[brdf]
@@ -93,10 +92,6 @@ def single_scattering_scene(scene: Scene) -> Scene:
 
 def random_walk_scene(scene: Scene) -> tuple[Scene | None, str]:
     """(``scene`` with ``multiscatter = "random_walk"``, "") or (None, why it has no random walk)."""
-    if scene.assets:
-        # The textured material of glTF assets is single-scattering (pbrcheck.scene refuses
-        # multiscatter beside an asset): a "walk" render would be the single one again.
-        return None, "no random walk for glTF assets (their textured material is single-scattering)"
     need = MULTISCATTER_GEOMETRY.get(scene.brdf.ndf)
     if need is None:
         return None, f"no random walk for ndf = {scene.brdf.ndf} (only {', '.join(MULTISCATTER_GEOMETRY)})"
@@ -276,8 +271,8 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
     tables = [Table("", headers, rows)]
     if mode != "local":
         note = (f"Model-matched truth (--reference-mode {mode}): the second reference is the random walk rendered "
-                f"in mode {mode}, {REFERENCE_MODES[mode]}; a glTF asset scene (no walk) gets the {mode} reference "
-                "alone. The share column is then the part of the engine's error that is the plain truth's missing "
+                f"in mode {mode}, {REFERENCE_MODES[mode]} (glTF assets too: the walk per shading point). "
+                "The share column is then the part of the engine's error that is the plain truth's missing "
                 "physics (single scattering, no visibility, pbrcheck's F0 metallic blend where glTF engines mix two "
                 "BRDFs) and the table below gives it per material (glTF assets) or object. " + note)
         mrows = [[p.scene, p.renderer, m["material"], str(m["pixels"]), _fmt(m["relmse_plain"]), _fmt(m["relmse_matched"]),

@@ -45,7 +45,8 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
 - ``multiple_scattering``: not a convention but a model difference engines commonly have: the
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
-  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term.
+  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term;
+  on glTF assets too (the walk per shading point, reference/textured.py).
 - ``metallic_blend``: also a model difference: the renderer mixes metallic as glTF 2.0 Appendix B
   does (``mix(dielectric_brdf, metal_brdf, metallic)``, the diffuse under the dielectric's own
   Fresnel) where the scene uses pbrcheck's F0 mix, or the reverse; the reference re-rendered with the
@@ -423,7 +424,7 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
     Hypothesis("multiple_scattering", "scene",
                "the renderer keeps the energy of multiple scattering (energy compensation)",
                lambda scene, directory: (replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), {}),
-               _both(_analytic_materials, _needs_single_scattering_pair), model=True),
+               _needs_single_scattering_pair, model=True),
     Hypothesis("metallic_blend", "scene",
                "the renderer mixes metallic the other way (glTF's mix of two BRDFs, or pbrcheck's F0 mix)",
                _other_blend, _needs_partial_metal, model=True),
