@@ -201,3 +201,27 @@ def test_report_states_the_reference_mode_and_the_share_per_material(matched, tm
     with pytest.raises(Exception, match="reference-mode"):
         build_report([str(tmp_path / "tiny.toml")], tmp_path / "r2", ReportConfig(presets=["ext:pfm"],
                                                                                   reference_mode="walk"))
+
+
+def test_the_share_is_also_given_less_each_references_own_noise():
+    """A noisy model-matched truth (a path reference: noisier than a local one at the same spp) would
+    count its noise against itself; less each reference's noise the share is the physics'."""
+    from compare.metrics import compare_images
+    from compare.report.references import _per_material, reference_noise_relmse
+    from pbrcheck.exr import Image
+    rng = np.random.default_rng(9)
+    h, w, sigma = 32, 48, 0.1
+    obj = np.zeros((h, w), np.float32)
+    var = {c: np.full((h, w), sigma ** 2, np.float32) for c in ("variance.R", "variance.G", "variance.B")}
+    truth = np.full((h, w, 3), 1.0, np.float32)
+    plain = Image.from_rgb(np.full((h, w, 3), 0.6, np.float32), object=obj,
+                           **{c: np.zeros((h, w), np.float32) for c in var})
+    matched = Image.from_rgb((truth + sigma * rng.standard_normal(truth.shape)).astype(np.float32), object=obj, **var)
+    engine = Image.from_rgb(truth, object=obj)   # renders exactly the matched truth's mean
+    c1, c2 = compare_images(plain, engine, flip=False, itp=False), compare_images(matched, engine, flip=False, itp=False)
+    assert reference_noise_relmse(matched, c2) == pytest.approx(sigma ** 2 / 1.01, rel=0.05)
+    assert reference_noise_relmse(plain, c1) == 0.0
+    [m] = _per_material(c1, c2, plain, matched)
+    assert m["relmse_matched"] > 0.009                       # the matched truth's own noise, raw
+    assert m["relmse_matched_corrected"] == pytest.approx(0.0, abs=1e-3)
+    assert m["share_corrected"] == pytest.approx(1.0, abs=0.01) and m["share"] < 0.985   # raw: 1 - 0.0099 / 0.432

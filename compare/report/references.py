@@ -54,13 +54,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.registry import MULTISCATTER_GEOMETRY
 from pbrcheck.scene import Scene, load_scene
 
 from .. import renderers
-from ..metrics import compare_images
+from ..metrics import REL_EPS, compare_images
 from .section import Section, Table
 
 #: Most samples per pixel of the random-walk reference in the report (a random-walk render costs
@@ -120,8 +122,16 @@ class ReferencePair:
     #: What the second (model-matched) reference adds to the plain one: "multiple scattering
     #: (random walk)", "visibility (path)"; empty: no second reference.
     physics: list = field(default_factory=list)
-    #: Per material (glTF assets) or object: ``{"material", "pixels", "relmse_plain", "relmse_matched", "share"}``.
+    #: Per material (glTF assets) or object: ``{"material", "pixels", "relmse_plain", "relmse_matched", "share"}``
+    #: and, where the references have variance channels, the same less each reference's noise (``*_corrected``).
     materials: list = field(default_factory=list)
+    #: relmse against each reference less that reference's own noise (``relmse_plain``, ``relmse_matched``).
+    corrected: dict = field(default_factory=dict)
+
+    @property
+    def share_corrected(self) -> float | None:
+        """:attr:`share` of the noise-corrected relmse (None without variance channels)."""
+        return share_of(self.corrected.get("relmse_plain"), self.corrected.get("relmse_matched"))
 
     @property
     def share(self) -> float | None:
@@ -135,7 +145,8 @@ class ReferencePair:
                 "spp_random_walk": self.spp_random_walk, "vs_single": self.vs_single,
                 "within_noise_single": self.within_single, "vs_random_walk": self.vs_random_walk,
                 "within_noise_random_walk": self.within_random_walk, "share_of_error_from_reference": self.share,
-                "note": self.note, "model_matched_physics": self.physics, "materials": self.materials}
+                "note": self.note, "model_matched_physics": self.physics, "materials": self.materials,
+                "noise_corrected": {**self.corrected, "share": self.share_corrected}}
 
 
 def share_of(plain: float | None, matched: float | None) -> float | None:
@@ -146,17 +157,48 @@ def share_of(plain: float | None, matched: float | None) -> float | None:
     return 1.0 - matched / plain
 
 
-def _per_material(c_plain, c_matched) -> list[dict]:
+def reference_noise_relmse(ref, cmp, ids=None) -> float | None:
+    """The relmse a reference's own noise adds to a comparison against it, over its valid pixels
+    (and objects ``ids``): ``mean var / (r^2 + eps)`` (``E[(t - r)^2] = (t - mu)^2 + var`` for a
+    noise-free test); None without variance channels or in display space."""
+    if ref.variance is None or cmp.summary["space"] != "linear":
+        return None
+    mask = cmp.valid
+    if ids is not None:
+        mask = mask & np.isin(np.rint(ref.channels["object"]), list(ids))
+    if not mask.any():
+        return None
+    r = cmp.maps.ref[mask]
+    return float((np.clip(ref.variance[mask], 0.0, None) / (r * r + REL_EPS)).mean())
+
+
+def _corrected(relmse, noise) -> float | None:
+    return None if relmse is None or noise is None else max(relmse - noise, 0.0)
+
+
+def _per_material(c_plain, c_matched, plain=None, matched=None) -> list[dict]:
     """Per glTF material (else per object) of two comparisons of one engine: relmse against the
-    plain and the model-matched truth and the share."""
+    plain and the model-matched truth and the share; with the references ``plain`` and ``matched``
+    also each relmse less its reference's own noise (:func:`reference_noise_relmse`) and the share of those."""
     def rows(cmp):
         if cmp.summary.get("materials"):
-            return {m["material"]: (m["pixels"], m["metrics"].get("relmse")) for m in cmp.summary["materials"]}
-        return {(o["name"] or f"object {o['id']}"): (o["pixels"], o["metrics"].get("relmse"))
+            return {m["material"]: (m["pixels"], m["metrics"].get("relmse"), m["objects"])
+                    for m in cmp.summary["materials"]}
+        return {(o["name"] or f"object {o['id']}"): (o["pixels"], o["metrics"].get("relmse"), [o["id"]])
                 for o in cmp.summary["objects"]}
     a, b = rows(c_plain), rows(c_matched)
-    return [{"material": k, "pixels": a[k][0], "relmse_plain": a[k][1], "relmse_matched": b[k][1],
-             "share": share_of(a[k][1], b[k][1])} for k in a if k in b]
+    out = []
+    for k in a:
+        if k not in b:
+            continue
+        row = {"material": k, "pixels": a[k][0], "relmse_plain": a[k][1], "relmse_matched": b[k][1],
+               "share": share_of(a[k][1], b[k][1])}
+        if plain is not None and matched is not None and "object" in plain.channels and "object" in matched.channels:
+            cp = _corrected(a[k][1], reference_noise_relmse(plain, c_plain, a[k][2]))
+            cm = _corrected(b[k][1], reference_noise_relmse(matched, c_matched, b[k][2]))
+            row.update(relmse_plain_corrected=cp, relmse_matched_corrected=cm, share_corrected=share_of(cp, cm))
+        out.append(row)
+    return out
 
 
 def _within(cmp) -> dict:
@@ -214,7 +256,11 @@ def measure_references(scene: Scene, externals: list[str], spp: int, *, progress
             pair.within_random_walk = _within(c2)
             pair.spp_random_walk = rw_spp
             pair.physics = physics
-            pair.materials = _per_material(c1, c2)
+            pair.materials = _per_material(c1, c2, ss, rw)
+            # each relmse less its reference's own noise: a path reference is noisier than a local
+            # one at the same spp, which would count against the model-matched truth
+            pair.corrected = {"relmse_plain": _corrected(c1.metrics.get("relmse"), reference_noise_relmse(ss, c1)),
+                              "relmse_matched": _corrected(c2.metrics.get("relmse"), reference_noise_relmse(rw, c2))}
         out.append(pair)
         if progress is not None:
             progress.update(1, f"{scene.name}: {name} against both references")
@@ -256,6 +302,8 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
         for m in REFERENCE_METRICS:
             row += [_cell(p.vs_single, p.within_single, m), _cell(p.vs_random_walk, p.within_random_walk, m)]
         share = p.share
+        if mode != "local" and p.share_corrected is not None:  # path mode: less each reference's noise
+            share = p.share_corrected
         row += ["-" if share is None else f"{100 * share:.0f} %",
                 f"{p.spp_single} / {p.spp_random_walk}" if p.vs_random_walk else f"{p.spp_single} / -", p.note]
         rows.append(row)
@@ -274,14 +322,19 @@ def references_sections(scene_args: list, scene_sections, presets: list[str], ou
                 f"in mode {mode}, {REFERENCE_MODES[mode]} (glTF assets too: the walk per shading point). "
                 "The share column is then the part of the engine's error that is the plain truth's missing "
                 "physics (single scattering, no visibility, pbrcheck's F0 metallic blend where glTF engines mix two "
-                "BRDFs) and the table below gives it per material (glTF assets) or object. " + note)
+                "BRDFs) and the table below gives it per material (glTF assets) or object. The share column "
+                "above is computed on each relmse less its reference's own noise (mean var / (r^2 + eps): a path "
+                "reference is noisier than a local one at the same spp, which would count against the "
+                "model-matched truth); the table gives both. " + note)
+        def pct(x):
+            return "-" if x is None else f"{100 * x:.0f} %"
         mrows = [[p.scene, p.renderer, m["material"], str(m["pixels"]), _fmt(m["relmse_plain"]), _fmt(m["relmse_matched"]),
-                  "-" if m["share"] is None else f"{100 * m['share']:.0f} %"]
+                  pct(m["share"]), pct(m.get("share_corrected"))]
                  for p in pairs for m in p.materials[:MATERIAL_ROWS_SHOWN]]
         tables.append(Table("Per material: the share of each engine's error that is the plain truth's missing "
                             "physics (" + ", ".join(sorted({x for p in pairs for x in p.physics})) + ")",
                             ["scene", "renderer", "material / object", "pixels", "relmse vs plain (local, single)",
-                             "relmse vs model-matched", "share"], mrows))
+                             "relmse vs model-matched", "share", "share, less each reference's noise"], mrows))
     return [Section("references", "External renderers against both references", note, tables)]
 
 
