@@ -23,10 +23,16 @@ Format::
     inputs = ["adapter.py"]   # optional: further files whose content enters the cache key
     description = "one line"  # optional
     timed_on = "what the time was measured on"     # optional, shown in the report
+    variance = true           # optional, Monte Carlo engines: the command also writes {variance},
+                              # the variance of each pixel's estimate (R G B, the output's float format)
+    renders = 8               # optional, Monte Carlo engines: run the command N times ({seed} = 0..N-1);
+                              # the image is their mean, its variance the sample variance / N
 
 Placeholders: ``{scenario}`` (scenario.json), ``{out}`` (the file to write), ``{dir}`` (the export
 folder), ``{width}``, ``{height}``, ``{clients}`` (the built-in clients' folder), ``{config_dir}``
-(the folder of the file that defines the renderer). Relative paths are resolved against
+(the folder of the file that defines the renderer), ``{variance}`` (the variance file to write: with
+``variance = true`` only, then required), ``{seed}`` (the run's index: with ``renders`` > 1 only,
+then required). Relative paths are resolved against
 ``{config_dir}``, which is also the command's working directory. Every problem is a
 :class:`RendererConfigError` naming the file and the field.
 """
@@ -55,8 +61,14 @@ DEFAULT_TIMEOUT_S = 600.0
 #: The largest ``timeout`` a renderers file may give (seconds: one day; finite, so that every wait
 #: and every kill deadline stays representable).
 MAX_TIMEOUT_S = 86400.0
-PLACEHOLDERS = ("scenario", "out", "dir", "width", "height", "clients", "config_dir")
-KEYS = {"command", "output", "timeout", "version_command", "lockfile", "inputs", "description", "timed_on"}
+PLACEHOLDERS = ("scenario", "out", "dir", "width", "height", "clients", "config_dir", "variance", "seed")
+#: Placeholders only a Monte Carlo renderer's command may use: ``{variance}`` with ``variance = true``,
+#: ``{seed}`` with ``renders`` > 1 (each then required).
+NOISE_PLACEHOLDERS = {"variance": "variance = true", "seed": "renders > 1"}
+KEYS = {"command", "output", "timeout", "version_command", "lockfile", "inputs", "description", "timed_on",
+        "variance", "renders"}
+#: Most independent renders a renderer may ask for (``renders``): each is a full run of the engine.
+MAX_RENDERS = 64
 NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
 
 _user_file: Path | None = None
@@ -81,6 +93,16 @@ class RendererConfig:
     description: str = ""
     timed_on: str = ""
     builtin: bool = False
+    #: The command also writes ``{variance}``: the variance of each pixel's estimate (docs/renderers.md).
+    variance: bool = False
+    #: Independent runs (``{seed}`` = 0..renders-1) whose mean is the image and whose sample variance
+    #: over ``renders`` its variance; 1: one run.
+    renders: int = 1
+
+    @property
+    def noisy(self) -> bool:
+        """Whether the renderer hands pbrcheck its image's variance (a Monte Carlo engine)."""
+        return self.variance or self.renders > 1
 
     @property
     def label(self) -> str:
@@ -120,8 +142,11 @@ class RendererConfig:
 
     def cache_dict(self) -> dict:
         """What about the renderer determines its pixels (part of the cache key)."""
-        return {"name": self.name, "command": list(self.command), "output": self.output,
-                "lockfile": self.lockfile_hash(), "inputs": self.inputs_hash()}
+        d = {"name": self.name, "command": list(self.command), "output": self.output,
+             "lockfile": self.lockfile_hash(), "inputs": self.inputs_hash()}
+        if self.noisy:  # only then: every other renderer keeps its key (and its cached renders)
+            d.update(variance=self.variance, renders=self.renders)
+        return d
 
     def _base_values(self) -> dict[str, str]:
         return {"clients": str(CLIENTS_DIR), "config_dir": str(self.config_dir)}
@@ -194,6 +219,7 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
         if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout <= MAX_TIMEOUT_S:
             raise RendererConfigError(f"{file}: {w}.timeout: expected a number of seconds > 0 and <= "
                                       f"{MAX_TIMEOUT_S:g} (one day), found {timeout!r}")
+        variance, renders = _noise_keys(file, w, t, output, command)
         vc = t.get("version_command")
         if vc is not None:
             vc = _command(file, f"{w}.version_command", vc, need_out=False)
@@ -206,8 +232,36 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
         out[name] = RendererConfig(name=name, command=command, source=file, config_dir=config_dir,
                                    output=output, timeout=float(timeout), version_command=vc,
                                    lockfile=t.get("lockfile"), inputs=tuple(inputs), description=t.get("description", ""),
-                                   timed_on=t.get("timed_on", ""), builtin=builtin)
+                                   timed_on=t.get("timed_on", ""), builtin=builtin, variance=variance,
+                                   renders=renders)
     return out
+
+
+def _noise_keys(file: str, w: str, t: dict, output: str, command: tuple[str, ...]) -> tuple[bool, int]:
+    """(``variance``, ``renders``) of one table, validated against its output and command: a
+    variance needs a float output (an 8-bit ``png-srgb`` image is compared without noise floors),
+    each key its placeholder, and the placeholders their key."""
+    variance = t.get("variance", False)
+    if not isinstance(variance, bool):
+        raise RendererConfigError(f"{file}: {w}.variance: expected true or false, found {variance!r}")
+    renders = t.get("renders", 1)
+    if isinstance(renders, bool) or not isinstance(renders, int) or not 1 <= renders <= MAX_RENDERS:
+        raise RendererConfigError(f"{file}: {w}.renders: expected an integer from 1 to {MAX_RENDERS}, "
+                                  f"found {renders!r}")
+    if variance and renders > 1:
+        raise RendererConfigError(f"{file}: {w}: variance = true and renders = {renders}: give one or the "
+                                  "other (the variance image of one run, or N independent runs)")
+    if (variance or renders > 1) and output == "png-srgb":
+        raise RendererConfigError(f"{file}: {w}.output: png-srgb has no variance (display-referred images "
+                                  "are compared without noise floors); use exr, hdr or pfm")
+    used = set().union(*(_placeholders(a) for a in command))
+    active = {"variance": variance, "seed": renders > 1}
+    for ph, key in NOISE_PLACEHOLDERS.items():
+        if active[ph] and ph not in used:
+            raise RendererConfigError(f"{file}: {w}.command: {key} needs {{{ph}}} in the command")
+        if ph in used and not active[ph]:
+            raise RendererConfigError(f"{file}: {w}.command: {{{ph}}} only with {key}")
+    return variance, renders
 
 
 def _read(path: Path, *, builtin: bool = False) -> dict[str, RendererConfig]:

@@ -42,7 +42,7 @@ from pbrcheck.camera import primary_rays
 from pbrcheck.environment import load_environment, scene_hash
 from pbrcheck.errors import ImageIOError, PbrcheckError
 from pbrcheck.export import EXPORT_FORMAT_VERSION, OUTPUT_SUFFIX, export_scene
-from pbrcheck.exr import Image
+from pbrcheck.exr import ENGINE_VARIANCE_META, VARIANCE, Image
 from pbrcheck.hdrimage import read_float_image, read_png_srgb
 from pbrcheck.progress import Progress
 from pbrcheck.scene import Plane, Scene, Sphere, plane_frame
@@ -256,6 +256,27 @@ def read_output(path: Path, fmt: str, width: int, height: int, label: str) -> np
     return np.ascontiguousarray(rgb, dtype=np.float32)
 
 
+def _estimate(cfg: RendererConfig, images: list[np.ndarray], var_out: Path, width: int, height: int
+              ) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """(image, its per-pixel variance or None, how the variance was obtained) of a renderer's runs:
+    one run as it is (with ``variance = true`` its variance file, validated like the image and
+    refused where negative); N > 1 runs: their mean, and the unbiased sample variance over N (the
+    variance of the mean of N independent estimates)."""
+    label = cfg.label
+    if len(images) > 1:
+        stack = np.stack([x.astype(np.float64) for x in images])
+        n = len(images)
+        return (stack.mean(axis=0).astype(np.float32), (stack.var(axis=0, ddof=1) / n).astype(np.float32),
+                f"{n} independent renders (sample variance / {n})")
+    if not cfg.variance:
+        return images[0], None, ""
+    var = read_output(var_out, cfg.output, width, height, f"{label}: variance")
+    if (var < 0).any():
+        raise RendererError(f"{label}: variance: {int((var < 0).any(axis=-1).sum())} pixel(s) with a negative "
+                            "variance")
+    return images[0], var, "the renderer's variance image"
+
+
 def renderer_version(cfg: RendererConfig) -> str:
     """The first stdout line of the renderer's ``version_command`` ("unknown" without one or when
     it fails: a version is recorded, never required)."""
@@ -368,22 +389,36 @@ def render_external(scene: Scene, name: str, *, renderers_file: str | Path | Non
         folder = Path(tmp) / "scene"
         exp = export_scene(scene, folder, output=cfg.output, env=env)
         prog.update(1, "exported")
-        out = Path(tmp) / f"output{OUTPUT_SUFFIX[cfg.output]}"
-        argv = expand(cfg, cfg.command, scenario=exp.files["scenario.json"], out=out, dir=folder,
-                      width=cam.width, height=cam.height)
-        r = run_process(argv, cwd=cfg.config_dir, timeout=cfg.timeout, label=label)
+        runs = []
+        for k in range(cfg.renders):  # one run, or renders independent ones ({seed} = k)
+            suffix = OUTPUT_SUFFIX[cfg.output]
+            out = Path(tmp) / (f"output{suffix}" if cfg.renders == 1 else f"output_{k}{suffix}")
+            var_out = Path(tmp) / f"variance{suffix}"
+            extra = {"variance": var_out} if cfg.variance else {}
+            if cfg.renders > 1:
+                extra["seed"] = k
+            argv = expand(cfg, cfg.command, scenario=exp.files["scenario.json"], out=out, dir=folder,
+                          width=cam.width, height=cam.height, **extra)
+            r = run_process(argv, cwd=cfg.config_dir, timeout=cfg.timeout, label=label)
+            if r.returncode != 0:
+                raise RendererError(f"{label}: exited with status {r.returncode}; stderr: {stderr_tail(r.stderr)}")
+            runs.append((r, read_output(out, cfg.output, cam.width, cam.height, label)))
         prog.update(1, "rendered")
-        if r.returncode != 0:
-            raise RendererError(f"{label}: exited with status {r.returncode}; stderr: {stderr_tail(r.stderr)}")
-        rgb = read_output(out, cfg.output, cam.width, cam.height, label)
+        rgb, variance, how = _estimate(cfg, [x for _, x in runs], var_out, cam.width, cam.height)
+        r = runs[-1][0]
+        seconds = sum(x.seconds for x, _ in runs)
         prog.update(1, "validated")
     meta = {"renderer": label, "kind": "external", "version": version, "command": json.dumps(list(cfg.command)),
-            "seconds": f"{r.seconds:.3f}", "output": cfg.output,
+            "seconds": f"{seconds:.3f}", "output": cfg.output,
             "display_referred": "1" if cfg.output == "png-srgb" else "0",
-            "timings": json.dumps({"frame": round(r.seconds, 4)}), "timed_on": cfg.timed_on or "unstated",
+            "timings": json.dumps({"frame": round(seconds, 4)}), "timed_on": cfg.timed_on or "unstated",
             "scene_hash": scene_hash(scene, env.content_hash), "pbrcheck_version": __version__,
             "renderer_stdout": r.stdout.strip().splitlines()[-1][:500] if r.stdout.strip() else ""}
-    img = Image.from_rgb(rgb, meta, object=object_ids(scene))
+    extra = {}
+    if variance is not None:  # the engine's own noise: the comparator subtracts it (compare.metrics)
+        meta[ENGINE_VARIANCE_META] = how
+        extra = {c: variance[..., i] for i, c in enumerate(VARIANCE)}
+    img = Image.from_rgb(rgb, meta, object=object_ids(scene), **extra)
     if use_cache:
         cache.put(key, img)
     return img

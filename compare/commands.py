@@ -3,19 +3,22 @@ Library errors propagate; only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 from pbrcheck.atomic import check_output_path
 from pbrcheck.errors import ImageIOError
-from pbrcheck.exr import exr_size, read_exr
+from pbrcheck.exr import exr_size, read_exr, write_exr
 from pbrcheck.fmt import format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import load_scene
 
+from . import renderers
 from .gate import BudgetError, run_gate
 from .maps import write_maps
 from .metrics import compare_images
+from .probe import probe_markdown, run_probe
 
 
 #: The largest image ``compare`` reads (pixels): a comparison holds ~400 bytes per pixel at its peak
@@ -23,6 +26,15 @@ from .metrics import compare_images
 #: the imports), so 2048 x 2048 stays under 2 GB. Larger images are refused before their pixels are
 #: read; ``--max-pixels`` raises the limit knowingly.
 MAX_COMPARE_PIXELS = 2048 * 2048
+
+
+#: ``compare``'s line on the colour space of the comparison (compare.metrics' ``summary["space"]``).
+SPACE_TEXT = {"linear": "linear (scene-referred radiance)",
+              "display-referred": "display-referred (an 8-bit png-srgb image: both images clamped to [0, 1] and "
+                                  "sRGB-encoded, no noise floor)"}
+#: Why ``compare``'s relmse differs from ``diagnose``'s for the same pair.
+RAW_NOTE = ("not noise-corrected but for a test's own variance; pbrcheck diagnose's relmse is over all pixels, "
+            "background included, less the noise")
 
 
 def _check_size(path: str, limit: int) -> None:
@@ -54,7 +66,9 @@ def _cmd_compare(args) -> int:
         write_json_atomic(args.json, summary)
     px = cmp.summary["pixels"]
     noise = cmp.summary["noise"]
-    print(f"pixels: {px['valid']} valid, {px['edge']} edge, {px['background']} background")
+    print(f"colour space: {SPACE_TEXT[cmp.summary['space']]}")
+    print(f"pixels: {px['valid']} valid, {px['edge']} edge, {px['background']} background "
+          f"(the metrics: over the valid pixels, {RAW_NOTE})")
     for k, v in cmp.metrics.items():
         flag = ""
         if noise is not None and noise["within_noise"].get(k):
@@ -63,6 +77,27 @@ def _cmd_compare(args) -> int:
     if noise is not None:
         print(f"noise floor (mean variance) {format_value(noise['mean_variance'])}, "
               f"noise-corrected MSE {format_value(noise['mse_corrected'])}")
+    tn = cmp.summary.get("test_noise")
+    if tn is not None:
+        print(f"the test's own noise ({test.meta.get('engine_variance', 'its variance channels')}): mean variance "
+              f"{format_value(tn['mean_variance'])}, relmse {format_value(tn['relmse'])}, subtracted from "
+              f"{', '.join(tn['corrected'])} (raw relmse {format_value(tn['metrics_raw']['relmse'])})")
+    return 0
+
+
+def _cmd_probe(args) -> int:
+    if args.out:
+        check_output_path(args.out, folder=True)
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-probe-") as tmp:
+        res, img, ref = run_probe(renderers.RendererSpec.parse(args.renderer), Path(tmp), spp=args.spp)
+    print(probe_markdown(res), end="")
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        write_exr(out / "engine.exr", img)
+        write_exr(out / "reference.exr", ref)
+        write_json_atomic(out / "probe.json", res.to_json())
+        print(f"probe: {out}/engine.exr, reference.exr, probe.json")
     return 0
 
 
@@ -88,6 +123,13 @@ def register(sub, bench_sub) -> None:
                    help=f"refuse images above N pixels before reading them (default {MAX_COMPARE_PIXELS}: "
                         "about 400 bytes of memory per pixel)")
     s.set_defaults(func=_cmd_compare)
+
+    s = sub.add_parser("probe", help="an engine's environment orientation, exposure and colour space from one "
+                       "render of the probe scene (docs/renderers.md)")
+    s.add_argument("renderer", help="ext:NAME (renderers.toml) or a real-time preset")
+    s.add_argument("--spp", type=int, default=16, help="reference samples per pixel (default 16)")
+    s.add_argument("--out", metavar="DIR", help="also write engine.exr, reference.exr and probe.json into DIR")
+    s.set_defaults(func=_cmd_probe)
 
     s = sub.add_parser("gate", help="CI error budget: exit 1 when a metric exceeds its budget")
     s.add_argument("budget", help="budget TOML file")

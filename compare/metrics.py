@@ -43,6 +43,23 @@ two independent renders with the reference's variance would show. A metric is fl
 value (for ``psnr``, higher is better: no lower than the simulated value less
 10 log10(NOISE_EXPLAINS_FACTOR) dB).
 
+A noisy image under test (a Monte Carlo engine: ``variance.R/G/B`` channels on the test, the
+variance of its pixel estimate, from the renderer contract's variance image or its N independent
+renders, docs/renderers.md): its own noise is not its error. With ``v_t`` that variance and ``t`` an
+unbiased estimate, ``E[(t - r)^2] = (mu_t - r)^2 + v_t`` for a fixed ``r``, so every squared metric
+subtracts the expected contribution exactly as ``mse_corrected`` subtracts the reference's:
+``relmse`` = mean ((t - r)^2 - v_t) / (r^2 + eps), ``rmse`` = sqrt(max(mean (t - r)^2 - mean v_t, 0))
+and ``psnr`` from that MSE (each clipped at 0; over every mask: objects, materials, NdotV bins).
+``summary["test_noise"]`` says so (``mean_variance``, ``relmse`` of the noise alone, the raw
+``metrics_raw``, and which metrics were corrected: :data:`TEST_NOISE_CORRECTED`); the others
+(``mean_abs``, ``smape``, percentiles, FLIP, Delta E_ITP) have no closed form and stay raw, and
+their ``within_noise`` flags carry the test's noise: the simulated pair is
+``(r, r + sqrt(2 var + v_t) z)``, its squared metrics corrected by ``v_t`` like the test's.
+``mse_corrected`` subtracts both variances. Without a test variance nothing changes. A test's
+variance is subtracted when the test carries :data:`TEST_VARIANCE_META` (the renderer contract's
+mark) or the caller asks (``subtract_test_noise=True``); a pbrcheck reference compared as a test keeps
+its raw figures unless asked (the convergence study compares them with its variance prediction).
+
 The metric registry :data:`METRICS` (name -> :class:`Metric`: reduction, better direction, noise
 power) is the one place a metric's properties live: the comparator computes its entries, the gate
 (:mod:`compare.gate`) validates budgets and scales noise with it, the report's tables list it.
@@ -63,7 +80,7 @@ import numpy as np
 
 from pbrcheck.cache import Cache, cache_key
 from pbrcheck.errors import CacheError, PbrcheckError
-from pbrcheck.exr import RGB, VARIANCE, Image
+from pbrcheck.exr import ENGINE_VARIANCE_META, RGB, VARIANCE, Image
 
 from .maps import srgb_oetf
 from .worktime import work
@@ -93,7 +110,6 @@ NOISE_SEED = 12345
 NDOTV_BINS = 10
 #: Luminance weights (Rec.709 / sRGB primaries), also what FLIP uses.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
-
 
 
 @dataclass(frozen=True)
@@ -135,6 +151,13 @@ METRICS: dict[str, Metric] = {m.name: m for m in (
 RELMSE = METRICS["relmse"]
 #: Names of the metrics where larger means better (read off :data:`METRICS`).
 HIGHER_IS_BETTER = frozenset(m.name for m in METRICS.values() if m.higher_is_better)
+#: The metrics from which the variance of a noisy image under test is subtracted (module docstring):
+#: those that are means of squared differences (``psnr`` through its MSE).
+TEST_NOISE_CORRECTED = ("relmse", "rmse", "psnr")
+#: Metadata key of a test image whose variance channels are its engine's own noise (set by the
+#: renderer contract, clients/run.py: its value says how the variance was obtained); such a test's
+#: variance is subtracted by default.
+TEST_VARIANCE_META = ENGINE_VARIANCE_META
 
 
 class ComparisonError(PbrcheckError):
@@ -353,6 +376,9 @@ class PixelMaps:
     rel: np.ndarray            # |t - r| / (r + eps)
     flip: np.ndarray | None    # (H, W)
     dE: np.ndarray | None      # (H, W)
+    #: (H, W, 3) variance of the test's pixel estimate (a Monte Carlo engine), subtracted from the
+    #: squared metrics (:data:`TEST_NOISE_CORRECTED`); None: a noise-free test.
+    test_var: np.ndarray | None = None
     y_ref: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -360,17 +386,19 @@ class PixelMaps:
 
 
 def pixel_maps(ref_rgb: np.ndarray, test_rgb: np.ndarray, *, flip: bool = True, itp: bool = True,
-               flip_cache: bool = False) -> PixelMaps:
+               flip_cache: bool = False, test_var: np.ndarray | None = None) -> PixelMaps:
     """Per-pixel maps of two (H, W, 3) linear images: the signed difference ``t - r``, the relative
     error ``|t - r| / (r + REL_EPS)``, the reference luminance and (optionally) HDR-FLIP (kept on
-    disk with ``flip_cache``: :func:`flip_map`) and Delta E ITP."""
+    disk with ``flip_cache``: :func:`flip_map`) and Delta E ITP. ``test_var``: the test's per-pixel
+    variance (a noisy test), which :func:`summarize` subtracts from the squared metrics."""
     r = ref_rgb.astype(np.float64)
     t = test_rgb.astype(np.float64)
     d = t - r
     rel = np.abs(d) / (r + REL_EPS)
     return PixelMaps(ref=r, test=t, diff=d, rel=rel,
                      flip=flip_map(ref_rgb, test_rgb, cache=flip_cache) if flip else None,
-                     dE=delta_e_itp_map(ref_rgb, test_rgb) if itp else None)
+                     dE=delta_e_itp_map(ref_rgb, test_rgb) if itp else None,
+                     test_var=None if test_var is None else np.clip(test_var.astype(np.float64), 0.0, None))
 
 
 def _f(x) -> float:
@@ -378,20 +406,23 @@ def _f(x) -> float:
 
 
 def summarize(m: PixelMaps, mask: np.ndarray, *, peak: float | None = None) -> dict[str, float | None]:
-    """Every metric of :data:`METRICS` over ``mask`` (see the module docstring for formulas)."""
+    """Every metric of :data:`METRICS` over ``mask`` (see the module docstring for formulas); with
+    ``m.test_var`` the squared ones (:data:`TEST_NOISE_CORRECTED`) less the test's own noise."""
     n = int(mask.sum())
     if n == 0:
         return {k: None for k in METRICS}
     r, t, d = m.ref[mask], m.test[mask], m.diff[mask]
     sq = d * d
-    mse = _f(sq.mean())
+    if m.test_var is not None:  # E[(t - r)^2] = (mu_t - r)^2 + v_t: the engine's noise is not its error
+        sq = sq - m.test_var[mask]
+    mse = max(_f(sq.mean()), 0.0)
     rel = m.rel[mask]
     if peak is None:
         peak = psnr_peak(m, mask)
     out: dict[str, float | None] = {
         "mean_abs": _f(np.abs(d).mean()),
         "rmse": math.sqrt(mse),
-        "relmse": _f((sq / (r * r + REL_EPS)).mean()),
+        "relmse": max(_f((sq / (r * r + REL_EPS)).mean()), 0.0),
         "smape": _f((np.abs(d) / (np.abs(t) + np.abs(r) + REL_EPS)).mean()),
     }
     p50, p95, p99 = np.percentile(rel, [50, 95, 99])
@@ -514,7 +545,8 @@ def _material_metrics(scene, ids, valid, m, peak) -> list[dict]:
 
 def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
                    ref_name: str = "reference", test_name: str = "test", flip: bool = True,
-                   itp: bool = True, flip_cache: bool = False) -> Comparison:
+                   itp: bool = True, flip_cache: bool = False,
+                   subtract_test_noise: bool | None = None) -> Comparison:
     """Compare ``test`` against ``ref``; raises :class:`ComparisonError` when they cannot be.
 
     When either image is display-referred (an 8-bit ``png-srgb`` engine), both are compared in
@@ -524,6 +556,9 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     skips those maps (the costly part of a comparison); those metrics are then None.
     ``flip_cache``: the FLIP maps (the pair's and the noise simulation's) are also kept on disk by
     content (:func:`flip_map`; the report).
+    ``subtract_test_noise``: subtract the test's variance channels from the squared metrics (module
+    docstring); None (default): when the test carries :data:`TEST_VARIANCE_META` (an external
+    Monte Carlo engine's image through the renderer contract).
     """
     space = "linear"
     if is_display_referred(ref) or is_display_referred(test):
@@ -533,7 +568,13 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
     if not valid.any():
         raise ComparisonError(f"no valid pixel: {int(edge.sum())} edge and {int(background.sum())} "
                               "background pixel(s), no fully covered object pixel in both images")
-    m = pixel_maps(ref.rgb, test.rgb, flip=flip, itp=itp, flip_cache=flip_cache)
+    # A Monte Carlo engine's own noise (None: a noise-free test, or one whose variance is not to be
+    # subtracted: a pbrcheck reference compared as a test keeps its raw figures, the convergence study
+    # compares exactly those with its variance prediction).
+    if subtract_test_noise is None:
+        subtract_test_noise = TEST_VARIANCE_META in test.meta
+    tvar = test.variance if subtract_test_noise else None
+    m = pixel_maps(ref.rgb, test.rgb, flip=flip, itp=itp, flip_cache=flip_cache, test_var=tvar)
     peak = psnr_peak(m, valid)
     summary: dict = {
         "space": space,
@@ -542,6 +583,8 @@ def compare_images(ref: Image, test: Image, *, scene=None, noise: bool = True,
         "psnr_peak": peak,
         "metrics": summarize(m, valid, peak=peak),
     }
+    if tvar is not None:  # only then: a noise-free test's summary keeps its keys
+        summary["test_noise"] = engine_noise(m, valid, peak)
     # Per object (ids from the reference's object AOV, else the test's).
     objects = []
     obj = ref.channels.get("object", test.channels.get("object"))
@@ -580,15 +623,31 @@ def noise_floor(ref: Image, m: PixelMaps, valid: np.ndarray, peak: float, metric
     mean_var = _f(var[valid].mean())
     mse = _f((m.diff[valid] ** 2).mean())
     rng = np.random.default_rng(NOISE_SEED)
-    sim_t = m.ref + np.sqrt(2.0 * var) * rng.standard_normal(m.ref.shape)
+    # A noisy test adds its own variance to the difference's (independent noises add); its squared
+    # metrics subtract it in the simulation as in the measurement (module docstring).
+    sim_var = 2.0 * var if m.test_var is None else 2.0 * var + m.test_var
+    sim_t = m.ref + np.sqrt(sim_var) * rng.standard_normal(m.ref.shape)
     sim = pixel_maps(m.ref.astype(np.float32), sim_t.astype(np.float32), flip=m.flip is not None,
-                     itp=m.dE is not None, flip_cache=flip_cache)
+                     itp=m.dE is not None, flip_cache=flip_cache, test_var=m.test_var)
     sim_metrics = summarize(sim, valid, peak=peak)
     flags = {}
     for k in METRICS:
         flags[k] = _within(k, metrics[k], sim_metrics[k])
-    return {"mean_variance": mean_var, "mse": mse, "mse_corrected": mse - mean_var,
+    corrected = mse - mean_var
+    if m.test_var is not None:
+        corrected -= _f(m.test_var[valid].mean())
+    return {"mean_variance": mean_var, "mse": mse, "mse_corrected": corrected,
             "factor": NOISE_EXPLAINS_FACTOR, "simulated": sim_metrics, "within_noise": flags}
+
+
+def engine_noise(m: PixelMaps, valid: np.ndarray, peak: float) -> dict:
+    """What the test's own noise contributes over the valid pixels (``m.test_var`` set): its mean
+    variance, the relmse it alone adds (``mean v_t / (r^2 + eps)``), the metrics that were corrected
+    (:data:`TEST_NOISE_CORRECTED`) and ``metrics_raw``, every metric before the correction."""
+    raw = summarize(PixelMaps(m.ref, m.test, m.diff, m.rel, m.flip, m.dE), valid, peak=peak)
+    v, r = m.test_var[valid], m.ref[valid]
+    return {"mean_variance": _f(v.mean()), "relmse": _f((v / (r * r + REL_EPS)).mean()),
+            "corrected": list(TEST_NOISE_CORRECTED), "metrics_raw": raw}
 
 
 def _within(metric: str, value, sim) -> bool:

@@ -60,7 +60,7 @@ import numpy as np
 from pbrcheck.exr import Image
 
 from . import renderers
-from .metrics import REL_EPS, is_display_referred, pixel_classes, validate_pair
+from .metrics import REL_EPS, TEST_VARIANCE_META, is_display_referred, pixel_classes, validate_pair
 
 #: The least reference spp anything may ask for: the reference renderer needs two samples per pixel
 #: for its variance channels (the gate's and the report's floor).
@@ -189,6 +189,9 @@ def noise_and_error(ref: Image, tests: list[Image], scene=None,
         v = var[valid] if weight is None else (var * weight)[valid]
         f = float(v.mean())
         d2 = (t.rgb.astype(np.float64) - r64) ** 2
+        if TEST_VARIANCE_META in t.meta and t.variance is not None:
+            # a Monte Carlo engine's own noise is not its error (compare.metrics, "noisy image under test")
+            d2 = d2 - np.clip(t.variance.astype(np.float64), 0.0, None)
         d2 = (d2[valid] if weight is None else (d2 * weight)[valid]).ravel()
         e = float(d2.mean()) - f
         se = float(d2.std() / math.sqrt(max(d2.size, 1)))  # standard error of the MSE estimate

@@ -14,6 +14,9 @@ The material model both renderers implement (README, "Material model")::
     F0    = mix(specular, base_color, metallic),   alpha = roughness^2
     f(l,v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
 
+with ``[brdf] metallic_blend = "gltf"`` (glTF 2.0 Appendix B) the diffuse weight is ``1 - F(v.h)`` of
+``F0 = specular`` instead (:func:`brdf_eval`).
+
 References
 ----------
 [Walter07]  B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet Models for Refraction through
@@ -90,13 +93,32 @@ def material_f0(base_color, metallic, specular):
     return s * (1.0 - m) + np.asarray(base_color, dtype=np.float64) * m
 
 
+#: The values of ``[brdf] metallic_blend`` (:func:`brdf_eval`): ``"f0"`` the seed articles' F0 mix,
+#: ``"gltf"`` glTF 2.0 Appendix B's mix of a dielectric and a metal BRDF.
+METALLIC_BLENDS = ("f0", "gltf")
+
+
+def diffuse_fresnel(spec_lobe, VoH, specular, metallic_blend: str):
+    """The Fresnel factor under which the diffuse lobe is weighted for ``metallic_blend = "gltf"``:
+    ``F(v.h)`` of the dielectric's ``F0 = specular`` (glTF 2.0 Appendix B's ``fresnel_mix``)."""
+    if metallic_blend != "gltf":
+        raise ValueError(f"metallic_blend must be one of {METALLIC_BLENDS}, not {metallic_blend!r}")
+    s = np.asarray(specular, dtype=np.float64)[..., None] * np.ones(3)
+    return spec_lobe.F.eval(np.asarray(VoH)[..., None], s)
+
+
 def brdf_eval(n, v, l, base_color, metallic, roughness, specular, *, ndf="ggx",
-              geometry="smith_ggx_correlated", fresnel="schlick"):
+              geometry="smith_ggx_correlated", fresnel="schlick", metallic_blend="f0"):
     """The full material BRDF f(l, v) (without the cosine), shape (..., 3).
 
     ``n, v, l``: (..., 3) unit vectors (v towards the viewer, l towards the light). Returns 0 where
     either direction is below the surface. Roughness 0 returns the specular lobe evaluated at
     MIN_ALPHA (a finite, very narrow peak): the delta itself is the renderers' business.
+    ``metallic_blend`` (``[brdf] metallic_blend``): ``"f0"`` the diffuse under ``1 - F`` of the mixed
+    F0 (module docstring); ``"gltf"`` glTF 2.0 Appendix B, ``mix(dielectric_brdf, metal_brdf,
+    metallic)``: the diffuse under ``1 - F`` of the dielectric's own ``F0 = specular`` (the specular
+    lobe is the same: Schlick, and F = 1, are linear in F0, so ``mix(F(specular), F(base), m) =
+    F(mix(specular, base, m))``).
     """
     n = np.asarray(n, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
@@ -111,7 +133,8 @@ def brdf_eval(n, v, l, base_color, metallic, roughness, specular, *, ndf="ggx",
     spec_lobe = SpecularLobe(ndf, geometry, fresnel)
     F = spec_lobe.F.eval(VoH[..., None], F0)  # shared by the two lobes
     spec = spec_lobe.eval(NoV, NoL, NoH, F, roughness)
-    diff = DiffuseLobe(fresnel).eval(F, metallic, base_color)
+    Fd = F if metallic_blend == "f0" else diffuse_fresnel(spec_lobe, VoH, specular, metallic_blend)
+    diff = DiffuseLobe(fresnel).eval(Fd, metallic, base_color)
     valid = ((NoV > 0) & (NoL > 0))[..., None]
     return np.where(valid, diff + spec, 0.0)
 

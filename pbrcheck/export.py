@@ -53,6 +53,11 @@ from .gltf import SUPPORTED_EXTENSIONS
 from .scene import Plane, Scene, Sphere, plane_frame
 from .unmodelled import strip_unmodelled
 
+#: scenario.json's words on the metallic blend (its ``metallic_blend`` table).
+METALLIC_BLEND_NOTE = ("f0: pbrcheck's F0 mix (the diffuse under 1 - F of mix(specular, base_color, metallic)); "
+                       "gltf: glTF 2.0 Appendix B, mix(dielectric_brdf, metal_brdf, metallic) (the diffuse under "
+                       "1 - F of the dielectric's F0). They agree at metallic 0 and 1; set [brdf] metallic_blend = "
+                       "\"gltf\" to judge a glTF engine against its own blend.")
 #: Largest distance, in pixels, between a tessellated sphere's silhouette and the true one.
 SILHOUETTE_TOLERANCE_PX = 0.25
 #: Fewest and most segments around a sphere (the rings are half as many).
@@ -557,6 +562,11 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
                         "width": env_shape[1], "height": env_shape[0],
                         "orientation": ENVIRONMENT_ORIENTATION, "as_background": True},
         "lights": [_scenario_light(k if k < len(own) else None, l) for k, l in enumerate(scene.lights)],
+        # the reference's metallic blend ([brdf] metallic_blend): a glTF engine renders glTF's (Appendix B)
+        # whatever it says; the two differ only on partially metallic surfaces (docs/renderers.md)
+        "metallic_blend": {"reference": scene.brdf.metallic_blend, "gltf_engines": "gltf",
+                           "partially_metallic_objects": sum(0.0 < o.material.metallic < 1.0 for o in scene.objects),
+                           "note": METALLIC_BLEND_NOTE},
         "units": "point and spot light intensity: 1 cd is taken as 1 W/sr (radiometric); directional light: "
                  "1 lux as 1 W/m^2; radiance in W/(sr m^2), linear Rec.709 primaries; light directions: "
                  "where the light shines (the glTF node's -Z)",

@@ -35,6 +35,10 @@ from .errors import ImageIOError
 META_PREFIX = "pbrcheck."
 RGB = ("R", "G", "B")
 VARIANCE = ("variance.R", "variance.G", "variance.B")
+#: Metadata key of an image whose ``variance.*`` channels are an external Monte Carlo engine's own
+#: noise (the renderer contract, docs/renderers.md; its value says how it was obtained): the
+#: comparator subtracts that variance (compare.metrics, "noisy image under test").
+ENGINE_VARIANCE_META = "engine_variance"
 NORMAL = ("N.X", "N.Y", "N.Z")
 AOVS = NORMAL + ("NdotV", "object", "coverage")
 

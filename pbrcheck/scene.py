@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .brdf import METALLIC_BLENDS
 from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object, framing, scene_light
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
@@ -118,6 +119,12 @@ class BRDFModel:
     # 2 x 2 samples per pixel: 2). reference/integrator.py, docs/reference.md.
     geometric_roughness: str = "none"
     geometric_roughness_supersample: int = 1
+    # How metallic mixes the material (docs/reference.md, "The metallic blend"): "f0" (default, the
+    # seed articles' model: F0 = mix(specular, base_color, metallic), the diffuse weighted by 1 - F of
+    # that F0) or "gltf" (glTF 2.0 Appendix B: mix(dielectric_brdf, metal_brdf, metallic), the
+    # dielectric's diffuse weighted by 1 - F of its own F0 = specular). Schlick is linear in F0, so the
+    # specular lobes agree; only the diffuse weight differs, and only at 0 < metallic < 1.
+    metallic_blend: str = "f0"
 
 
 @dataclass(frozen=True)
@@ -219,6 +226,8 @@ class Scene:
             d["brdf"].pop("geometric_roughness")  # likewise
         if d["brdf"].get("geometric_roughness_supersample") == 1:
             d["brdf"].pop("geometric_roughness_supersample")  # likewise
+        if d["brdf"].get("metallic_blend") == "f0":
+            d["brdf"].pop("metallic_blend")  # likewise
         for o in d["objects"]:
             o.pop("name", None)
             if o["type"] == "gltf":
@@ -473,7 +482,7 @@ def _lights(ctx, lst) -> tuple[PointLight | SpotLight | DirectionalLight, ...]:
 
 def _brdf(ctx, t) -> BRDFModel:
     _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter", "roughness_floor", "geometric_roughness",
-                         "geometric_roughness_supersample"}, "brdf")
+                         "geometric_roughness_supersample", "metallic_blend"}, "brdf")
     model = BRDFModel(
         ndf=_str(ctx, t, "ndf", "brdf", "ggx", NDF_NAMES),
         geometry=_str(ctx, t, "geometry", "brdf", "smith_ggx_correlated", GEOMETRY_NAMES),
@@ -483,6 +492,7 @@ def _brdf(ctx, t) -> BRDFModel:
         geometric_roughness=_str(ctx, t, "geometric_roughness", "brdf", "none", GEOMETRIC_ROUGHNESS_NAMES),
         geometric_roughness_supersample=int(_num(ctx, t, "geometric_roughness_supersample", "brdf", 1, lo=1, hi=16,
                                                  integer=True)),
+        metallic_blend=_str(ctx, t, "metallic_blend", "brdf", "f0", METALLIC_BLENDS),
     )
     if model.multiscatter != "none":
         # The random walk's first bounce is the NDF's height-correlated Smith term.
@@ -594,9 +604,6 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     if "environment" not in data:
         raise ctx.err("environment", "exactly one [environment] table", "nothing")
     objects, grids, assets, asset_lights = _objects(ctx, data.get("objects"))
-    if assets and isinstance(data.get("brdf"), dict) and data["brdf"].get("multiscatter", "none") != "none":
-        raise ctx.err("brdf.multiscatter", '"none" in a scene with glTF assets (their textured material is '
-                      "single-scattering)", data["brdf"]["multiscatter"])
     return Scene(
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),

@@ -467,13 +467,24 @@ def _object_buffer(scene: Scene) -> np.ndarray:
     return np.asarray(rows, np.float32)
 
 
+#: The shadings (realtime.registry.SHADINGS) that render the scene's ``[brdf] metallic_blend``: the
+#: material composition; the article compositions are their articles' code, F0 mix included.
+BLEND_FOLLOWING_SHADINGS = ("material",)
+
+
 def resolved_terms(scene: Scene, o: RealtimeOptions) -> dict:
     """The D, G, F and LUT-G terms this render uses: an option's value, or the scene's ``[brdf]`` for ``scene``."""
     ndf = scene.brdf.ndf if o.ndf == "scene" else o.ndf
     geometry = scene.brdf.geometry if o.geometry == "scene" else o.geometry
     fresnel = scene.brdf.fresnel if o.fresnel == "scene" else o.fresnel
     lut_geometry = scene.brdf.geometry if o.lut_geometry == "scene" else o.lut_geometry
-    return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry}
+    # The metallic blend is the scene's ([brdf] metallic_blend): the material composition renders it
+    # (brdf.glsl, shading.glsl: METALLIC_BLEND_GLTF); the article compositions keep their articles' F0
+    # mix whatever the scene says (BLEND_FOLLOWING_SHADINGS), and the render's "terms" metadata says
+    # which one it used.
+    blend = scene.brdf.metallic_blend if o.shading in BLEND_FOLLOWING_SHADINGS else "f0"
+    return {"ndf": ndf, "geometry": geometry, "fresnel": fresnel, "lut_geometry": lut_geometry,
+            "metallic_blend": blend}
 
 
 def resolved_energy_compensation(scene: Scene, o: RealtimeOptions) -> str:
@@ -511,6 +522,8 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
     }
     if fm is not None:
         defines["LOD_FITTED(r)"] = fm.glsl_expr("(r)")
+    if terms.get("metallic_blend", "f0") == "gltf":  # glTF 2.0 Appendix B (brdf.glsl, shading.glsl)
+        defines["METALLIC_BLEND_GLTF"] = 1
     if o.shader:
         defines.update(load_hook_file(o.shader).defines)
     return defines

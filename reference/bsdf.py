@@ -6,6 +6,7 @@ cited there)::
     F0 = mix(specular, base_color, metallic),   alpha = max(roughness^2, MIN_ALPHA)
     f(l, v) = (1 - F(v.h)) (1 - metallic) base_color / pi  +  D(h) G(l, v) F(v.h) / (4 (n.l)(n.v))
 
+(``metallic_blend = "gltf"``: the diffuse under ``1 - F`` of ``F0 = specular``, glTF 2.0 Appendix B)
 with the terms of :mod:`reference.terms` (one Dr.Jit class per NDF, G and Fresnel term, chosen by the
 scene's ``[brdf]`` names through that module's registries): ``D`` GGX [Walter07 eq. 33], Beckmann
 [Walter07 eq. 25], BlinnPhong [Walter07 eq. 30, n = 2/alpha^2 - 2]; ``G`` SmithGGXCorrelated [Heitz14
@@ -47,7 +48,7 @@ instead of Mitsuba's process-wide pointer call).
 from __future__ import annotations
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
-from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, MIN_ALPHA
+from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, METALLIC_BLENDS, MIN_ALPHA
 from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import multiscatter
@@ -94,13 +95,19 @@ class PBRLobes:
     def _f0(self):
         return self.specular * (1.0 - self.metallic) + self.base_color * self.metallic
 
+    def _diffuse_f0(self, F0):
+        """The F0 whose Fresnel weights the diffuse lobe: the mixed ``F0`` (``metallic_blend = "f0"``)
+        or the dielectric's own ``specular`` (``"gltf"``: glTF 2.0 Appendix B; pbrcheck.brdf.brdf_eval)."""
+        return F0 if self.metallic_blend == "f0" else mi.Color3f(self.specular)
+
     def _p_spec(self, NoV, F0):
         """Probability of choosing the specular lobe: its albedo estimate over the total."""
         if self.fresnel == "none":
             return dr.full(mi.Float, 1.0, dr.width(NoV))
         F = fresnel_term(self.fresnel, NoV, F0)
         s = _mean(F)
-        d = _mean((1.0 - F) * self.base_color) * (1.0 - self.metallic)
+        Fd = F if self.metallic_blend == "f0" else fresnel_term(self.fresnel, NoV, self._diffuse_f0(F0))
+        d = _mean((1.0 - Fd) * self.base_color) * (1.0 - self.metallic)
         # Exact at the ends, whatever the division's rounding: on CUDA s / s is an approximate
         # reciprocal times s (1 - 1e-7), which gave a delta-only metal a diffuse pdf of ~1e-8.
         ratio = _divide(s, dr.maximum(s + d, 1e-20))
@@ -128,7 +135,8 @@ class PBRLobes:
         value = mi.Color3f(0.0)
         pdf = mi.Float(0.0)
         if self.fresnel != "none":
-            value += (1.0 - F) * (1.0 - self.metallic) * self.base_color * (INV_PI * NoL)
+            Fd = F if self.metallic_blend == "f0" else fresnel_term(self.fresnel, VoH, self._diffuse_f0(F0))
+            value += (1.0 - Fd) * (1.0 - self.metallic) * self.base_color * (INV_PI * NoL)
             pdf += (1.0 - p_spec) * INV_PI * NoL
         nd = self._nondelta()
         if nd is not False:
@@ -264,6 +272,10 @@ class PBRMaterial(mi.BSDF):
         if self.multiscatter not in MULTISCATTER_NAMES:
             raise ValueError(f"pbr_material: bad multiscatter {self.multiscatter!r}")
         multiscatter.check_model(self.ndf, self.geometry, self.multiscatter)
+        # [brdf] metallic_blend: "f0" or "gltf" (PBRLobes._diffuse_f0)
+        self.metallic_blend = str(get("metallic_blend", "f0"))
+        if self.metallic_blend not in METALLIC_BLENDS:
+            raise ValueError(f"pbr_material: bad metallic_blend {self.metallic_blend!r}")
         # [brdf] geometric_roughness (reference.integrator.GEOMETRIC_ROUGHNESS): added per lane by the
         # local estimator, which knows the camera ray's differentials; (name, supersample)
         self.geometric = (str(get("geometric_roughness", "none")), int(get("geometric_roughness_supersample", 1)))
@@ -297,9 +309,10 @@ class PBRMaterial(mi.BSDF):
                 f"roughness={self.roughness}, specular={self.specular}]")
 
     def model(self) -> tuple:
-        """The scene-wide part of the model (equal for every material of a scene); its last member
-        is the geometric roughness (name, supersample)."""
-        return (self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed, self.geometric)
+        """The scene-wide part of the model (equal for every material of a scene): ndf, geometry,
+        fresnel, multiscatter, its seed, the geometric roughness (name, supersample) and the metallic blend."""
+        return (self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed, self.geometric,
+                self.metallic_blend)
 
     def eval_diffuse_reflectance(self, si, active=True):
         return (1.0 - self.metallic) * self.base_color
@@ -307,7 +320,7 @@ class PBRMaterial(mi.BSDF):
 
 # The lobes of PBRMaterial are PBRLobes' functions, shared by reference: a nanobind class takes one
 # base class, so PBRLobes cannot be a mixin of it.
-LOBE_METHODS = ("_nondelta", "_alpha", "_glossy_alpha", "_f0", "_p_spec", "_spec_pdf", "_sample_h", "_eval_pdf",
+LOBE_METHODS = ("_nondelta", "_alpha", "_glossy_alpha", "_f0", "_diffuse_f0", "_p_spec", "_spec_pdf", "_sample_h", "_eval_pdf",
                 "_sample_single", "eval", "pdf", "eval_pdf", "sample")
 for _name in LOBE_METHODS:
     setattr(PBRMaterial, _name, getattr(PBRLobes, _name))
@@ -336,6 +349,7 @@ class MaterialView(PBRLobes):
         self.model = tuple(model)
         self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed = model[:5]
         self.geometric = model[5] if len(model) > 5 else ("none", 1)
+        self.metallic_blend = model[6] if len(model) > 6 else "f0"
         self.base_color, self.metallic, self.roughness, self.specular = base_color, metallic, roughness, specular
         self.delta = dr.detach(is_mirror_limit(roughness))
 
@@ -485,4 +499,5 @@ def material_dict(material, brdf) -> dict:
             "roughness": max(material.roughness, brdf.roughness_floor), "specular": material.specular,
             "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
             "multiscatter": brdf.multiscatter, "geometric_roughness": brdf.geometric_roughness,
-            "geometric_roughness_supersample": brdf.geometric_roughness_supersample}
+            "geometric_roughness_supersample": brdf.geometric_roughness_supersample,
+            "metallic_blend": brdf.metallic_blend}

@@ -321,10 +321,24 @@ def approx_spec_pdf(pdf_ss, NoL, alpha):
 
 # ---- hooks called by reference.bsdf.PBRMaterial -------------------------------------------------
 
+def blend_walk(bsdf, F0, walk):
+    """``walk(F0)`` under the material's metallic blend: the mixed ``F0`` itself (``"f0"``), or glTF
+    2.0 Appendix B's ``mix(dielectric, metal, metallic)`` of two walks, ``F0 = specular`` and
+    ``F0 = base_color`` (``"gltf"``). The walk's energy is a product of Fresnel factors, not linear in
+    F0 beyond its first order, so the glTF blend of the multiply scattered lobe is the mix of the two
+    lobes' walks; both follow the same path (the path is drawn from the key, F0 only weighs it), so
+    the sampled direction is shared and the weights mix."""
+    if bsdf.metallic_blend == "f0":
+        return walk(F0)
+    m = bsdf.metallic
+    return walk(mi.Color3f(bsdf.specular)) * (1.0 - m) + walk(mi.Color3f(bsdf.base_color)) * m
+
+
 def eval_pdf_hook(bsdf, si, wo, spec_pdf, alpha, F0, valid):
     """(orders >= 2 of ``f cos``, approximate specular pdf) for :meth:`PBRMaterial._eval_pdf`."""
     key = query_key(bsdf.ms_seed, si.wi.x, si.wi.y, si.wi.z, wo.x, wo.y, wo.z)
-    ms = walk_eval(si.wi, wo, alpha, F0, key, fresnel=bsdf.fresnel, min_order=2, ndf=bsdf.ndf, active=valid)
+    ms = blend_walk(bsdf, F0, lambda f0: walk_eval(si.wi, wo, alpha, f0, key, fresnel=bsdf.fresnel, min_order=2,
+                                                   ndf=bsdf.ndf, active=valid))
     return ms, approx_spec_pdf(spec_pdf, mi.Frame3f.cos_theta(wo), alpha)
 
 
@@ -342,6 +356,9 @@ def sample_hook(bsdf, ctx, si, sample1, sample2, active):
     key = query_key(bsdf.ms_seed, wi.x, wi.y, wi.z, sample1, sample2.x, sample2.y)
     wo_walk, w_walk, _ = walk_sample(wi, alpha, F0, key, fresnel=bsdf.fresnel, ndf=bsdf.ndf,
                                      active=active & choose_spec)
+    if bsdf.metallic_blend != "f0":  # the same path, the two lobes' weights mixed (blend_walk)
+        w_walk = blend_walk(bsdf, F0, lambda f0: walk_sample(wi, alpha, f0, key, fresnel=bsdf.fresnel, ndf=bsdf.ndf,
+                                                             active=active & choose_spec)[1])
     wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
 
     bs = dr.zeros(mi.BSDFSample3f)
@@ -360,7 +377,8 @@ def sample_hook(bsdf, ctx, si, sample1, sample2, active):
     if bsdf.fresnel != "none":
         pdf += (1.0 - p_spec) * INV_PI * dr.maximum(NoL, 0.0)
         F = fresnel_term(bsdf.fresnel, dr.dot(wi, h), F0)
-        w_diff = (1.0 - F) * (1.0 - bsdf.metallic) * bsdf.base_color / dr.maximum(1.0 - p_spec, 1e-20)
+        Fd = F if bsdf.metallic_blend == "f0" else fresnel_term(bsdf.fresnel, dr.dot(wi, h), bsdf._diffuse_f0(F0))
+        w_diff = (1.0 - Fd) * (1.0 - bsdf.metallic) * bsdf.base_color / dr.maximum(1.0 - p_spec, 1e-20)
     else:
         w_diff = mi.Color3f(0.0)
     bs.pdf = pdf

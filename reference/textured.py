@@ -70,6 +70,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 import drjit as dr
 import mitsuba as mi
 
+from . import multiscatter
 from .bsdf import MaterialView, is_mirror_limit, make_material_opaque, traverse_material
 
 PLUGIN_NAME = "pbr_textured"
@@ -195,8 +196,13 @@ class TexturedMaterial(mi.BSDF):
         # [brdf] roughness_floor: shaded roughness = max(factor * texture.g, floor) (0: none)
         self.roughness_floor = float(props.get("roughness_floor", 0.0))
         self.specular = mi.Float(float(props.get("specular", 0.04)))
+        # the scene-wide model (reference.bsdf.PBRMaterial.model): the random walk per shading point
+        # (multiscatter = "random_walk": the lobes of MaterialView take each hit's texel roughness,
+        # metallic, base colour and normal, reference.multiscatter's hooks the walk at them)
         self.model = (str(props.get("ndf", "ggx")), str(props.get("geometry", "smith_ggx_correlated")),
-                      str(props.get("fresnel", "schlick")), "none", 0)
+                      str(props.get("fresnel", "schlick")), str(props.get("multiscatter", "none")),
+                      int(props.get("multiscatter_seed", 0)), ("none", 1), str(props.get("metallic_blend", "f0")))
+        multiscatter.check_model(self.model[0], self.model[1], self.model[3])
         self.normal_scale = float(props.get("normal_scale", 1.0))
         self.vertex_color = bool(props.get("vertex_color", False))   # COLOR_0 multiplies the base colour
         self.double_sided = bool(props.get("double_sided", False))
@@ -520,6 +526,7 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
+         "metallic_blend": brdf.metallic_blend, "multiscatter": brdf.multiscatter,
          "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     if m.unlit:

@@ -193,6 +193,8 @@ def _broken_scene(name: str, scene, tmp: Path):
                                            for li in scene.lights))
     if name == "multiple_scattering":  # an engine that keeps multiply scattered energy
         return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk"))
+    if name == "metallic_blend":  # a glTF engine: Appendix B's mix of two BRDFs
+        return replace(scene, brdf=replace(scene.brdf, metallic_blend="gltf"))
     raise KeyError(name)
 
 

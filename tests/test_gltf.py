@@ -513,14 +513,19 @@ def test_mesh_quantization_int16_positions(tmp_path):
     assert np.allclose(a.primitives[0].positions, QUAD_POS[QUAD_IDX] * 2, atol=1e-6)   # unwelded: flat normals
 
 
-def test_multiscatter_with_assets_is_refused(tmp_path):
+def test_multiscatter_with_assets_is_the_walk_per_shading_point(tmp_path):
+    # since issue 40 the textured material walks (tests/test_asset_walk.py); the walk's own
+    # requirement (the height-correlated Smith term) still holds
     from pbrcheck.errors import SceneError
 
     quad_asset(tmp_path / "q.gltf", {})
     s = tmp_path / "s.toml"
     s.write_text('[environment]\ntype = "constant"\n[brdf]\nmultiscatter = "random_walk"\n'
                  '[[objects]]\ntype = "gltf"\npath = "q.gltf"\n')
-    with pytest.raises(SceneError, match="brdf.multiscatter"):
+    assert load_scene(s).brdf.multiscatter == "random_walk"
+    s.write_text('[environment]\ntype = "constant"\n[brdf]\nmultiscatter = "random_walk"\ngeometry = "smith_ggx"\n'
+                 '[[objects]]\ntype = "gltf"\npath = "q.gltf"\n')
+    with pytest.raises(SceneError, match="brdf.geometry"):
         load_scene(s)
 
 

@@ -53,16 +53,15 @@ def test_random_walk_scene_needs_the_correlated_geometry():
     assert none is None and "blinn_phong" in why
 
 
-def test_an_asset_scene_has_no_random_walk(tmp_path):
-    # the textured material of glTF assets scatters once: a "walk" render of an asset scene was the
-    # single-scattering image again, and the report showed share 0 % against a walk never rendered
+def test_an_asset_scene_has_a_random_walk(tmp_path):
+    # the textured material of glTF assets walks per shading point since issue 40 (tests/test_asset_walk.py)
     from gltf_build import quad_asset, quad_scene
     from pbrcheck.scene import load_scene
     asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
     s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
     assert s.assets and s.brdf.ndf == "ggx"
     rw, why = random_walk_scene(s)
-    assert rw is None and "glTF assets" in why
+    assert rw.brdf.multiscatter == "random_walk" and why == ""
 
 
 def test_a_compensating_engine_is_right_against_the_walk(compensating):
@@ -123,3 +122,107 @@ def test_threejs_furnace_is_explained_by_the_random_walk(tmp_cache):
     [p] = measure_references(s, [renderers.RendererSpec.parse("ext:threejs")], 32)
     assert p.vs_single["relmse"] > 0.05
     assert p.share > 0.9, p.to_dict()
+
+
+# --- the model-matched truth: report --reference-mode path (issue 40) ------------------------------
+
+MODES_SEEN: list = []
+
+
+def matched_references(scene, **kw):
+    """The plain truth (single scattering, local) 0.6 on the sphere; the walk in path mode, the
+    model-matched truth, 1.0 (what the compensating fake engine renders); any other 0.8."""
+    mode = kw.get("mode", "local")
+    MODES_SEEN.append((scene.brdf.multiscatter, mode))
+    img = fake_reference(scene, **{k: v for k, v in kw.items() if k != "mode"})
+    ids = np.rint(img.channels["object"])
+    walk = scene.brdf.multiscatter == "random_walk"
+    val = 1.0 if (walk and mode == "path") else (0.6 if (not walk and mode == "local") else 0.8)
+    for c in "RGB":
+        img.channels[c] = np.where(ids >= 0, val, 1.0).astype(np.float32)
+    img.meta["mode"] = mode
+    return img
+
+
+@pytest.fixture
+def matched(compensating, monkeypatch):
+    monkeypatch.setattr(renderers, "render_reference", matched_references)
+    MODES_SEEN.clear()
+    return compensating
+
+
+def test_path_mode_sets_the_engine_against_the_model_matched_truth_per_material(matched):
+    s = scene_from_dict(SCENE)
+    [p] = measure_references(s, [renderers.RendererSpec.parse("ext:pfm")], 64, mode="path")
+    assert p.physics == ["multiple scattering (random walk)", "visibility and interreflection (path)"]  # metallic 1
+    assert ("none", "local") in MODES_SEEN and ("random_walk", "path") in MODES_SEEN
+    assert p.vs_single["relmse"] > 0.1 and p.share > 0.99
+    [m] = p.materials                                       # one sphere: one row
+    assert m["relmse_plain"] == pytest.approx(p.vs_single["relmse"]) and m["share"] > 0.99
+    # local mode: the walk alone (as before the option), its share and per-object rows too
+    MODES_SEEN.clear()
+    [q] = measure_references(s, [renderers.RendererSpec.parse("ext:pfm")], 64)
+    assert q.physics == ["multiple scattering (random walk)"] and set(MODES_SEEN) == {("none", "local"),
+                                                                                      ("random_walk", "local")}
+    assert q.share == pytest.approx(1 - (0.2 ** 2 / 0.65) / (0.4 ** 2 / 0.37), abs=1e-3)   # 0.8 vs 0.6: part of it
+
+
+def test_an_asset_scene_is_matched_by_walk_visibility_and_blend_in_path_mode(tmp_path):
+    from gltf_build import quad_asset, quad_scene
+    from compare.report.references import matched_scene
+    from pbrcheck.scene import load_scene
+    asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
+    s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
+    got, physics, why = matched_scene(s, "local")
+    assert physics == ["multiple scattering (random walk)"] and got.brdf.metallic_blend == "f0"
+    got, physics, why = matched_scene(s, "path")
+    assert physics == ["multiple scattering (random walk)", "visibility and interreflection (path)",
+                       "glTF's metallic blend"]
+    assert got.brdf.metallic_blend == "gltf" and got.brdf.multiscatter == "random_walk"
+    half = scene_from_dict({**SCENE, "objects": [{"type": "sphere", "radius": 1.0,
+                                                  "material": {"metallic": 0.5, "roughness": 0.5}}]})
+    assert matched_scene(half, "path")[0].brdf.metallic_blend == "gltf"
+    assert matched_scene(half, "local")[0].brdf.metallic_blend == "f0"   # local: the figures as they were
+
+
+def test_report_states_the_reference_mode_and_the_share_per_material(matched, tmp_path):
+    from compare.report.build import ReportConfig, build_report
+
+    (tmp_path / "tiny.toml").write_text(dump_toml(SCENE))
+    index = build_report([str(tmp_path / "tiny.toml")], tmp_path / "r",
+                         ReportConfig(presets=["ext:pfm"], spp=4, convergence=False, sweep=False,
+                                      furnace=False, progress=False, reference_mode="path"))
+    html = index.read_text()
+    assert "set against the reference in mode <code>path</code>" in html and "visibility (shadows)" in html
+    assert ("none", "path") in MODES_SEEN          # the scene's own reference: path
+    sec = html[html.index('id="references"'):]
+    assert "model-matched (walk, path, blend)" in sec and "Per material" in sec and "100 %" in sec
+    rows = json.loads((tmp_path / "r" / "tiny" / "references.json").read_text())
+    assert rows[0]["materials"][0]["share"] > 0.99 and "visibility" in rows[0]["model_matched_physics"][-1]
+    with pytest.raises(Exception, match="reference-mode"):
+        build_report([str(tmp_path / "tiny.toml")], tmp_path / "r2", ReportConfig(presets=["ext:pfm"],
+                                                                                  reference_mode="walk"))
+
+
+def test_the_share_is_also_given_less_each_references_own_noise():
+    """A noisy model-matched truth (a path reference: noisier than a local one at the same spp) would
+    count its noise against itself; less each reference's noise the share is the physics'."""
+    from compare.metrics import compare_images
+    from compare.report.references import _per_material, reference_noise_relmse
+    from pbrcheck.exr import Image
+    rng = np.random.default_rng(9)
+    h, w, sigma = 32, 48, 0.1
+    obj = np.zeros((h, w), np.float32)
+    var = {c: np.full((h, w), sigma ** 2, np.float32) for c in ("variance.R", "variance.G", "variance.B")}
+    truth = np.full((h, w, 3), 1.0, np.float32)
+    plain = Image.from_rgb(np.full((h, w, 3), 0.6, np.float32), object=obj,
+                           **{c: np.zeros((h, w), np.float32) for c in var})
+    matched = Image.from_rgb((truth + sigma * rng.standard_normal(truth.shape)).astype(np.float32), object=obj, **var)
+    engine = Image.from_rgb(truth, object=obj)   # renders exactly the matched truth's mean
+    c1, c2 = compare_images(plain, engine, flip=False, itp=False), compare_images(matched, engine, flip=False, itp=False)
+    assert reference_noise_relmse(matched, c2) == pytest.approx(sigma ** 2 / 1.01, rel=0.05)
+    assert reference_noise_relmse(plain, c1) == 0.0
+    [m] = _per_material(c1, c2, plain, matched)
+    assert m["relmse_matched"] > 0.009                       # the matched truth's own noise, raw
+    assert m["relmse_matched_corrected"] == pytest.approx(0.0, abs=1e-3)
+    assert m["share_corrected"] == pytest.approx(1.0, abs=0.01) and m["share"] < 0.985   # raw: 1 - 0.0099 / 0.432

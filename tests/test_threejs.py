@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import compare.renderers as renderers
-from pbrcheck.environment import texel_directions
-from pbrcheck.exr import Image, read_exr, write_exr
+from compare import probe
+from pbrcheck.exr import read_exr
 from pbrcheck.scene import load_scene, scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,46 +61,10 @@ def test_white_furnace_threejs_keeps_energy_reference_loses_it():
     assert all(a >= b - 0.01 for a, b in zip(mitsuba, mitsuba[1:]))   # the loss grows with roughness
 
 
-MARKERS = {  # world direction (before the 30-degree rotation) -> colour
-    (-0.45, 0.25, -1.0): (8.0, 0.0, 0.0),
-    (0.45, 0.25, -1.0): (0.0, 8.0, 0.0),
-    (0.0, -0.35, -1.0): (0.0, 0.0, 8.0),
-    (0.6, 0.5, 1.0): (8.0, 8.0, 0.0),       # behind the camera: seen only in the mirror sphere
-    (-0.6, -0.2, 1.0): (0.0, 8.0, 8.0),
-}
-MARKER_COS = np.cos(np.radians(7.0))
-
-
-def probe_env(path: Path) -> None:
-    d = texel_directions(256, 129)
-    img = np.full(d.shape, 0.05, np.float32)
-    for m, c in MARKERS.items():
-        v = np.array(m) / np.linalg.norm(m)
-        img[d @ v > MARKER_COS] = c
-    write_exr(path, Image.from_rgb(img))
-
-
-def centroids(rgb: np.ndarray) -> dict:
-    out = {}
-    for c in {tuple(v) for v in MARKERS.values()}:
-        want = np.array(c) > 0
-        mask = np.all((rgb > 1.0) == want, axis=-1)
-        ys, xs = np.nonzero(mask)
-        out[c] = (ys.mean(), xs.mean(), len(ys)) if len(ys) else None
-    return out
-
-
-def probe_scene(tmp_path):
-    """The orientation probe: the marker environment (rotated 30 degrees about +Y) seen directly and in
-    a mirror sphere, from the origin looking down -Z."""
-    probe_env(tmp_path / "probe.exr")
-    scene = scene_from_dict({
-        "name": "probe", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 80.0, "width": 160, "height": 100},
-        "environment": {"type": "file", "path": "probe.exr", "rotation": 30.0},
-        "objects": [{"type": "sphere", "center": [0.0, 0.0, -4.0], "radius": 0.9,
-                     "material": {"base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.0}}],
-    }, file=str(tmp_path / "probe.toml"), base_dir=tmp_path)
-    return scene
+# The orientation probe lives in compare/probe.py (``pbrcheck probe``); these names stay importable
+# from here for the other client tests.
+MARKERS, MARKER_COS, probe_env, centroids, probe_scene = (probe.MARKERS, probe.MARKER_COS, probe.probe_env,
+                                                          probe.centroids, probe.probe_scene)
 
 
 def test_orientation_probe_markers_land_in_the_same_pixels(tmp_path):

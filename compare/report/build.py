@@ -39,7 +39,7 @@ from ..research.fit_roughness import fit_scene
 from ..research.hardcases import SPP_CAP as HARDCASE_SPP_CAP
 from ..research.hardcases import TABLE_METRICS, run_hardcases, write_hardcases
 from ..verdict_spp import MIN_REFERENCE_SPP, VerdictSpp
-from .references import references_sections
+from .references import REFERENCE_MODES, references_sections
 from .research_sections import ResearchSettings, research_parts
 from .results import SceneSection
 from .runlog import RUN_FILE, RunLog, run_section
@@ -83,6 +83,9 @@ class ReportConfig:
     progress: bool = True
     #: ``--env`` / ``--size WxH`` of the glTF asset scene arguments (:func:`pbrcheck.scene.load_scene`).
     assets: AssetOptions = field(default_factory=AssetOptions)
+    #: The reference mode every renderer is set against (``local``: first hit, no shadows or
+    #: interreflection; ``path``: visibility and interreflection); the page states it per scene.
+    reference_mode: str = "local"
 
 
 @dataclass
@@ -108,7 +111,7 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
 
     def references(prog):  # ext:NAME against both references
         page.top += references_sections(scenes, sections(), [st.spec(p) for p in presets], out_dir, prog,
-                                        context=st.context, assets=cfg.assets)
+                                        context=st.context, assets=cfg.assets, mode=cfg.reference_mode)
 
 
     def hardcases(prog):
@@ -176,6 +179,9 @@ def _validated(scenes: list[str], cfg: ReportConfig) -> tuple[list[str], dict, d
     presets = list(cfg.presets) if cfg.presets is not None else renderers.preset_names()
     if not presets:
         raise PbrcheckError("report: no preset to compare")
+    if cfg.reference_mode not in REFERENCE_MODES:
+        raise PbrcheckError(f"report: --reference-mode must be one of {', '.join(REFERENCE_MODES)}, "
+                            f"not {cfg.reference_mode!r}")
     if cfg.spp < MIN_REFERENCE_SPP:
         raise PbrcheckError(f"report: --spp must be >= {MIN_REFERENCE_SPP}, got {cfg.spp}")
     vary_d = parse_vary(cfg.vary) if cfg.vary else None
@@ -244,6 +250,7 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
             (open_executor(spec) if spec else contextlib.nullcontext()) as ex:
         st = ReportSettings(presets, cfg.spp, vary_d, cfg.convergence, cfg.sweep, executor=ex,
                             approximations=cfg.approximations, specs=specs, assets=cfg.assets,
+                            reference_mode=cfg.reference_mode,
                             spp_cap=None if cfg.spp_cap is None else int(cfg.spp_cap),
                             context=renderers.RenderContext(cache=cfg.cache, prefetch=prefetched,
                                                             flip_cache=cfg.cache))

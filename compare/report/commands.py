@@ -38,7 +38,8 @@ def _cmd_report(args) -> int:
                           convergence=not args.no_convergence, sweep=not args.no_sweep,
                           approximations=not args.no_approximations, furnace=not args.no_furnace,
                           hardcases=args.hardcases, research=args.research, scheduler=args.scheduler,
-                          cache=not args.no_cache, progress=not args.quiet, assets=asset_options_of(args))
+                          cache=not args.no_cache, progress=not args.quiet, assets=asset_options_of(args),
+                          reference_mode=args.reference_mode)
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
     # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
     with staged_folder(args.out) as stage:
@@ -102,6 +103,11 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp-cap", type=int, default=None, metavar="N",
                    help="most reference samples per pixel (default: as many as render in 15 s per scene); "
                         "at the cap a verdict is flagged noise-limited")
+    s.add_argument("--reference-mode", choices=("local", "path"), default="local",
+                   help="the reference every renderer is set against (default local: first hit, no shadows; path: "
+                        "visibility and interreflection); with path the both-references section's second truth is "
+                        "model-matched (random walk and visibility) and gives the share of each engine's error per "
+                        "material")
     s.add_argument("--vary", action="append", metavar="KEY=V1,V2",
                    help="sweep these real-time options (repeatable, every combination); default: the main cost "
                         "knobs one at a time")

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..verdict_spp import VerdictSpp
+from .references import REFERENCE_MODES
 
 
 @dataclass
@@ -52,6 +53,12 @@ class SceneSection:
     approx_preset: str | None = None   # glTF assets: the preset of the approximation rows
     approx_rows: list[dict] = field(default_factory=list)     # compare.approximations.approximation_rows
     unmodelled: list[dict] = field(default_factory=list)      # features not modelled (scene.unmodelled_banner)
+    reference_mode: str = "local"   # the reference every renderer of the scene is set against
+
+    @property
+    def reference_text(self) -> str:
+        """The page's sentence on the reference of this scene's comparisons."""
+        return REFERENCE_MODES.get(self.reference_mode, self.reference_mode)
 
 
 __all__ = ["PresetResult", "SceneSection"]

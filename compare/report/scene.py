@@ -110,6 +110,8 @@ class ReportSettings:
     def spec(self, name: str) -> renderers.RendererSpec:
         """The parsed renderer of preset name ``name`` (a name the report was not given: KeyError)."""
         return self.specs[name]
+    #: The reference's mode (``local`` or ``path``): the truth every renderer is set against.
+    reference_mode: str = "local"
 
     def combos(self) -> list[dict]:
         """The sweep's option sets (over the first preset)."""
@@ -160,6 +162,11 @@ class SceneWork:
         out.append(ReportStage(f"{n}: plots and files", 0, self._write, record=False))
         return out
 
+    def _mode(self) -> dict:
+        """The reference mode as a keyword (none for ``local``, the renderer's default: the calls and
+        their cache keys stay those of a report without ``--reference-mode``)."""
+        return {} if self.st.reference_mode == "local" else {"mode": self.st.reference_mode}
+
     def _render(self, prog) -> None:
         self.sd.mkdir(parents=True, exist_ok=True)
         st = self.st
@@ -173,7 +180,7 @@ class SceneWork:
 
     def _reference(self, prog) -> None:
         self.ref, self.verdict = reference_for_verdict(self.scene, list(self.images.values()), spp=self.st.spp,
-                                                       cap=self.st.spp_cap)
+                                                       cap=self.st.spp_cap, **self._mode())
         prog.update(1, f"{self.scene.name}: reference ({self.verdict.spp} spp)")
         write_tonemapped(self.sd / "reference.png", self.ref.rgb)
         self.provenance = _provenance(self.scene, self.ref)
@@ -250,7 +257,8 @@ class SceneWork:
         """MSE of lower-spp renders (another seed) against the reference, with the variance prediction."""
         scene, ref = self.scene, self.ref
         for s in convergence_spps(self.verdict.spp):
-            low = renderers.render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False)
+            low = renderers.render_reference(scene, spp=s, seed=CONVERGENCE_SEED, use_cache=True, progress=False,
+                                             **self._mode())
             c = compare_images(ref, low, noise=False, flip=False, itp=False)  # reads mse and relmse only
             lv = low.variance
             exp = None
@@ -290,7 +298,7 @@ class SceneWork:
         self.section = SceneSection(sid, scene.name, scene.description, self.ref.meta.get("spp", self.st.spp),
                                     f"{sid}/reference.png", self.results, plots, self.provenance, self.noise_floor,
                                     self.sweep_table, verdict, self.material_rows, self.approx_preset, self.approx_rows,
-                                    unmodelled_banner(scene))
+                                    unmodelled_banner(scene), self.ref.meta.get("mode", "local"))
 
 
 def approximation_preset(scene, specs: list[renderers.RendererSpec]) -> str | None:

@@ -100,7 +100,7 @@ def _read_image(path: str) -> Image:
 def _cmd_diagnose(args) -> int:
     ref, test = _read_image(args.reference), _read_image(args.test)
     scene = load_scene(args.scene, asset_options_of(args)) if args.scene else None
-    res = diagnose.diagnose(ref, test, scene, spp=args.spp, progress=not args.quiet)
+    res = diagnose.diagnose(ref, test, scene, spp=args.spp, progress=not args.quiet, mode=args.reference_mode)
     print(diagnose.table_markdown(res), end="")
     if args.json:
         print(f"json: {write_json_atomic(args.json, res)}")
@@ -220,6 +220,9 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--spp", type=int, default=None,
                    help="spp of the re-rendered references (default: the reference's own)")
     s.add_argument("--json", metavar="FILE.json", help="also write the result as JSON")
+    s.add_argument("--reference-mode", choices=("local", "path"), default=None,
+                   help="reference mode of the scene-space re-renders: the truth the engine is set against "
+                        "(default: the reference image's own mode, else local)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_diagnose)
 

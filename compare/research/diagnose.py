@@ -45,14 +45,25 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
 - ``multiple_scattering``: not a convention but a model difference engines commonly have: the
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
-  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term.
+  Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term;
+  on glTF assets too (the walk per shading point, reference/textured.py).
+- ``metallic_blend``: also a model difference: the renderer mixes metallic as glTF 2.0 Appendix B
+  does (``mix(dielectric_brdf, metal_brdf, metallic)``, the diffuse under the dielectric's own
+  Fresnel) where the scene uses pbrcheck's F0 mix, or the reverse; the reference re-rendered with the
+  other ``[brdf] metallic_blend``. Only where something is partially metallic (the blends agree at 0
+  and 1); on glTF assets too.
 
 Decision
 --------
 The error is the relative MSE (:mod:`compare.metrics`) over every pixel, covered or not (the
 background is part of the contract, and flips and alpha show at silhouettes), less the expected
 contribution of the reference's (or the re-render's) own variance, so that a noisy re-render does
-not count against its hypothesis. The noise
+not count against its hypothesis, and of a Monte Carlo engine's own (the renderer contract's
+variance, :data:`compare.metrics.TEST_VARIANCE_META`), moved with a flip and scaled with an exposure.
+The table says so (:data:`ERROR_LABEL`) and why ``pbrcheck compare`` prints another relmse for the
+same pair (valid object pixels only, raw: :data:`ERROR_NOTE`). A display-referred pair (a
+``png-srgb`` engine, its ``display_referred`` flag) is compared in display space like
+``compare`` does, without the sRGB transfer hypotheses. The noise
 error is the same measure on a simulated pair ``(r, r + sqrt(2 var) z)`` (the reference's variance
 channels; 0 without them). A hypothesis is the *likely cause* when it leaves at most
 :data:`LIKELY_REMAINING` of the error and the error before it was not already within
@@ -92,7 +103,8 @@ from pbrcheck.scene import Environment, Scene
 
 from .. import renderers
 from ..maps import srgb_oetf
-from ..metrics import NOISE_EXPLAINS_FACTOR, NOISE_SEED, REL_EPS, validate_pair
+from ..metrics import (NOISE_EXPLAINS_FACTOR, NOISE_SEED, REL_EPS, TEST_VARIANCE_META, display_referred,
+                       is_display_referred, validate_pair)
 
 #: A hypothesis "explains" the difference when undoing it leaves at most this fraction of the error
 #: (the error at least halves). Generous enough that a correct image's residual approximation error
@@ -121,6 +133,13 @@ DEFAULT_HYPOTHESIS_SPP = 64
 #: Cap on the re-renders' spp when taken from the reference (a 1024-spp reference would make each of
 #: the ~8 re-renders as slow as itself; 256 spp keeps their noise well under a mismatch's error).
 MAX_HYPOTHESIS_SPP = 256
+
+
+#: What diagnose's error is (its table's first line): every pixel, less the images' own noise.
+ERROR_LABEL = "all pixels, noise-corrected"
+#: Why it differs from ``pbrcheck compare``'s relmse for the same pair (printed under it).
+ERROR_NOTE = ("(pbrcheck compare's relmse is over the valid pixels only, fully covered object pixels, and "
+              "not noise-corrected: the background and silhouettes, where flips and alpha show, count here)")
 
 
 class DiagnoseError(PbrcheckError):
@@ -156,6 +175,11 @@ class Diagnosis:
     rows: list[HypothesisRow]
     likely: str | None
     line: str
+    #: How the pair was compared: ``linear`` or ``display-referred`` (a ``png-srgb`` engine: both
+    #: images clamped to [0, 1] and sRGB-encoded, as compare.metrics does; no noise floor).
+    space: str = "linear"
+    #: The reference mode of the scene-space re-renders (``local`` or ``path``; None: no scene).
+    reference_mode: str | None = None
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -268,6 +292,14 @@ def _always(ref: Image, scene: Scene | None) -> None:
     return None
 
 
+def _needs_linear(ref: Image, scene: Scene | None) -> str | None:
+    """A transfer hypothesis means nothing on a display-referred pair: the engine's sRGB encoding
+    is its contract (``output = "png-srgb"``), and the reference is encoded the same way."""
+    if is_display_referred(ref):
+        return "the pair is display-referred (png-srgb): the sRGB transfer is the engine's contract, not a mismatch"
+    return None
+
+
 def _needs_coverage(ref: Image, scene: Scene | None) -> str | None:
     return None if ref.channels.get("coverage") is not None else "the reference has no coverage AOV"
 
@@ -313,6 +345,20 @@ def _both(*rules):
     return applies
 
 
+def _needs_partial_metal(ref: Image, scene: Scene) -> str | None:
+    """The metallic blends differ only at 0 < metallic < 1 (a glTF asset: wherever a metallic texture
+    or factor is fractional, so always tested there)."""
+    if getattr(scene, "assets", ()) or any(0.0 < o.material.metallic < 1.0 for o in scene.objects):
+        return None
+    return "no partially metallic object: the two metallic blends agree at metallic 0 and 1"
+
+
+def _other_blend(scene: Scene, directory: Path) -> tuple[Scene, dict]:
+    """Scene edit: the other ``[brdf] metallic_blend`` (the engine's, if it is not the scene's)."""
+    other = "gltf" if scene.brdf.metallic_blend == "f0" else "f0"
+    return replace(scene, brdf=replace(scene.brdf, metallic_blend=other)), {}
+
+
 def _needs_single_scattering_pair(ref: Image, scene: Scene) -> str | None:
     if scene.brdf.multiscatter != "none":
         return "the reference already scatters multiply"
@@ -350,9 +396,9 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
                _image(lambda r, t: (r, t[::-1]))),
     Hypothesis("flip_horizontal", "image", "image columns reversed", _image(lambda r, t: (r, t[:, ::-1]))),
     Hypothesis("srgb_as_linear", "image", "sRGB-encoded values read as linear",
-               _image(lambda r, t: (r, srgb_eotf(t)))),
+               _image(lambda r, t: (r, srgb_eotf(t))), _needs_linear),
     Hypothesis("linear_as_srgb", "image", "linear values decoded as sRGB",
-               _image(lambda r, t: (r, srgb_oetf(np.clip(t, 0.0, None))))),
+               _image(lambda r, t: (r, srgb_oetf(np.clip(t, 0.0, None)))), _needs_linear),
     Hypothesis("exposure", "image", "a global exposure factor", _exposure, names_cause=_names_exposure),
     Hypothesis("hdr_clamp", "image", "radiance clamped at a level", _hdr_clamp),
     Hypothesis("swap_rb", "image", "red and blue channels swapped", _image(lambda r, t: (r, t[..., ::-1]))),
@@ -378,7 +424,10 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
     Hypothesis("multiple_scattering", "scene",
                "the renderer keeps the energy of multiple scattering (energy compensation)",
                lambda scene, directory: (replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), {}),
-               _both(_analytic_materials, _needs_single_scattering_pair), model=True),
+               _needs_single_scattering_pair, model=True),
+    Hypothesis("metallic_blend", "scene",
+               "the renderer mixes metallic the other way (glTF's mix of two BRDFs, or pbrcheck's F0 mix)",
+               _other_blend, _needs_partial_metal, model=True),
 )
 
 
@@ -417,6 +466,25 @@ def _relmse(r: np.ndarray, t: np.ndarray) -> float:
     return float(((t - r) ** 2 / (r * r + REL_EPS)).mean())
 
 
+#: Image-space hypotheses that only move pixels or channels: the test's variance moves with them.
+PERMUTATIONS = ("flip_vertical", "flip_horizontal", "swap_rb")
+
+
+def _test_variance_after(h: "Hypothesis", r: np.ndarray, t: np.ndarray, t2: np.ndarray, tvar: np.ndarray | None,
+                         fitted: dict) -> np.ndarray | None:
+    """The variance of the test after hypothesis ``h`` undid its mismatch (``tvar``: a Monte Carlo
+    engine's own, :data:`compare.metrics.TEST_VARIANCE_META`): unchanged where ``h`` leaves the
+    test alone (scene-space rows, clamps of the reference), moved with the pixels by a permutation,
+    times ``k^2`` by an exposure ``k``; None (not subtracted) through a non-linear transfer (sRGB)."""
+    if tvar is None or t2 is t:
+        return tvar
+    if h.name in PERMUTATIONS:
+        return h.apply(r, tvar, None)[1]
+    if h.name == "exposure":
+        return tvar * fitted["factor"] ** 2
+    return None
+
+
 def _error(r: np.ndarray, t: np.ndarray, var: np.ndarray | None, w: np.ndarray) -> float:
     """Noise-corrected relative MSE of ``t`` against the estimate ``r`` whose per-pixel variance is
     ``var``, weighted by ``w = 1 / (ref^2 + eps)`` of the *original* reference (fixed for every
@@ -450,7 +518,7 @@ def _within(err: float, noise: float) -> bool:
 
 
 def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | None = None,
-             seed: int | None = None, progress: bool = False) -> Diagnosis:
+             seed: int | None = None, progress: bool = False, mode: str | None = None) -> Diagnosis:
     """Rank the known convention mismatches by how much undoing each reduces the error.
 
     Parameters
@@ -466,6 +534,15 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
         ``spp`` capped at :data:`MAX_HYPOTHESIS_SPP` and ``seed``; else :data:`DEFAULT_HYPOTHESIS_SPP`, 0).
     progress : bool
         Progress on stderr.
+    mode : str, optional
+        Reference mode of the re-renders (``local`` or ``path``; default: the reference image's own
+        ``mode``, else ``local``): the truth the engine is set against (``pbrcheck diagnose
+        --reference-mode``).
+
+    A display-referred pair (either image's ``display_referred`` flag: a ``png-srgb`` engine) is
+    compared in display space as :func:`compare.metrics.compare_images` does (both clamped to
+    [0, 1] and sRGB-encoded, the re-renders too; no noise floor), and the sRGB transfer hypotheses
+    are skipped (the encoding is the engine's contract).
 
     Returns
     -------
@@ -479,23 +556,35 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
     DiagnoseError
         The scene's size differs from the images'.
     """
+    space = "linear"
+    if is_display_referred(ref) or is_display_referred(test):
+        ref, test, space = display_referred(ref), display_referred(test), "display-referred"
     validate_pair(ref, test)
     if scene is not None and (scene.camera.height, scene.camera.width) != ref.shape:
         raise DiagnoseError(f"diagnose: scene {scene.name!r} is {scene.camera.width}x{scene.camera.height}, "
                             f"the images are {ref.shape[1]}x{ref.shape[0]}")
     r, t = ref.rgb.astype(np.float64), test.rgb.astype(np.float64)
     var = ref.variance
+    # A Monte Carlo engine's own noise (the renderer contract's variance) is subtracted like the
+    # reference's: the two variances add (independent noises).
+    tvar = test.variance if TEST_VARIANCE_META in test.meta else None
+    tvar = None if tvar is None else np.clip(tvar.astype(np.float64), 0.0, None)
+
+    def total(v, tv):
+        return v if tv is None else (tv if v is None else np.clip(v, 0.0, None) + tv)
+
     w = 1.0 / (r * r + REL_EPS)  # the relative-error weight of every row: the reference's
-    before = _error(r, t, var, w)
+    before = _error(r, t, total(var, tvar), w)
     per_pixel = ((t - r) ** 2 * w).sum(axis=-1)
     bulk = per_pixel <= np.quantile(per_pixel, 1.0 - BULK_OUTLIERS)
-    before_bulk = _error(r[bulk], t[bulk], None if var is None else var[bulk], w[bulk])
+    v0 = total(var, tvar)
+    before_bulk = _error(r[bulk], t[bulk], None if v0 is None else v0[bulk], w[bulk])
     noise = _noise_error(ref)
     cov = ref.channels.get("coverage")
     if scene is not None:
         spp = spp or min(int(ref.meta.get("spp", DEFAULT_HYPOTHESIS_SPP)), MAX_HYPOTHESIS_SPP)
         seed = int(ref.meta.get("seed", 0)) if seed is None else seed
-        mode = ref.meta.get("mode", "local")
+        mode = mode or ref.meta.get("mode", "local")
 
     def undo(h: Hypothesis, directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, dict]:
         """(reference, test, the reference's variance, fitted) with ``h`` undone: an image transform,
@@ -505,6 +594,8 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
             return r2, t2, var, fitted
         s2, fitted = h.apply(scene, directory)
         img = renderers.render_reference(s2, spp=spp, mode=mode, seed=seed, progress=False)  # the bar below counts
+        if space != "linear":
+            img = display_referred(img)  # compared as the pair is; its variance dropped with it
         return img.rgb.astype(np.float64), t, img.variance, fitted
 
     todo = [h for h in HYPOTHESES if h.kind == "image" or scene is not None]
@@ -517,6 +608,7 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
                 rows.append(HypothesisRow(h.name, h.kind, h.description, None, None, False, {}, skipped))
             else:
                 r2, t2, var2, fitted = undo(h, Path(tmp))
+                var2 = total(var2, _test_variance_after(h, r, t, t2, tvar, fitted))
                 err = _error(r2, t2, var2, w)
                 red = 1.0 - err / before if before > 0 else 0.0
                 err_bulk = _error(r2[bulk], t2[bulk], None if var2 is None else var2[bulk], w[bulk])
@@ -544,12 +636,17 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
         line = (f"likely cause: {kind}{likely.hypothesis} ({likely.description}{fit}): undoing it removes "
                 f"{100 * likely.reduction:.0f} % of the error"
                 + (", what is left is within the reference's noise" if likely.within_noise else ""))
-    return Diagnosis("relmse", before, noise, rows, likely.hypothesis if likely else None, line)
+    return Diagnosis("relmse", before, noise, rows, likely.hypothesis if likely else None, line, space,
+                     mode if scene is not None else None)
 
 
 def table_markdown(d: Diagnosis) -> str:
     """The ranked table (hypothesis, error after, reduction, within noise) and the verdict line."""
-    out = [f"error before: relmse {format_value(d.error_before)} (reference noise {format_value(d.noise_error)})", "",
+    mode = f"; scene-space re-renders in reference mode {d.reference_mode}" if d.reference_mode else ""
+    out = [f"error before: relmse {format_value(d.error_before)} ({ERROR_LABEL}; reference noise "
+           f"{format_value(d.noise_error)})",
+           f"colour space: {d.space}{mode}",
+           ERROR_NOTE, "",
            "| hypothesis | kind | error after | reduction | within noise | fitted |",
            "|---|---|---|---|---|---|"]
     for x in d.rows:

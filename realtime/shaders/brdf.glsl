@@ -151,6 +151,9 @@ float Fd_Lambert() { return 1.0 / PI; }
 
 // Source: README "Material model" (pbrcheck.brdf.brdf_eval). Equation:
 // f = (1 - F(v.h)) (1 - metallic) base_color / pi + D(h) G(l, v) F(v.h) / (4 (n.l)(n.v)); 0 below the horizon.
+// METALLIC_BLEND_GLTF (the scene's [brdf] metallic_blend = "gltf", defined by realtime/gl.py): glTF 2.0
+// Appendix B, mix(dielectric_brdf, metal_brdf, metallic): the diffuse is weighted by 1 - F of the
+// dielectric's own F0 = specular; the specular is F of the mixed F0 in both (Schlick is linear in F0).
 vec3 brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float specular) {
     float NoV = dot(n, v);
     float NoL = dot(n, l);
@@ -164,6 +167,11 @@ vec3 brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float ro
     float D = ndf_term(NoH, roughness);
     float G = geometry_term(NoV, NoL, roughness);
     vec3 spec = D * G * F / (4.0 * max(NoV, COS_EPS) * max(NoL, COS_EPS));
-    vec3 diff = (1.0 - F) * (1.0 - metallic) * base_color * Fd_Lambert();
+#ifdef METALLIC_BLEND_GLTF
+    vec3 Fd = fresnel_term(VoH, vec3(specular));
+#else
+    vec3 Fd = F;
+#endif
+    vec3 diff = (1.0 - Fd) * (1.0 - metallic) * base_color * Fd_Lambert();
     return diff + spec;
 }

@@ -5,7 +5,8 @@
 // through shade_composition() and light_brdf() (shading_dispatch.glsl, generated from the registry):
 //
 // shade_material:: the README material model: split-sum specular prefiltered(r, lod) (F0 A + B),
-//   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi, exact BRDF for point lights. With
+//   diffuse (1 - metallic) base (1 - F0) Kd(n.v) E(n)/pi (METALLIC_BLEND_GLTF: 1 - specular, glTF's
+//   dielectric F0, in place of 1 - F0), exact BRDF for point lights. With
 //   IBL_RUNTIME the specular is runtime importance sampling of the environment instead (the same
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
 //   The surface's occlusion scales the diffuse image-based term (glTF 2.0 3.9.4) and
@@ -152,7 +153,12 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     vec3 color = vec3(0.0);
     c.F0 = mix(vec3(s.specular), s.base_color, s.metallic);
 #if FRESNEL == FRESNEL_SCHLICK
+#ifdef METALLIC_BLEND_GLTF
+    // glTF's blend (brdf.glsl): the diffuse under the dielectric's own Fresnel, F0 = specular
+    vec3 kd = (1.0 - vec3(s.specular)) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#else
     vec3 kd = (1.0 - c.F0) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#endif
     c.F0e = c.F0;
 #else
     vec3 kd = vec3(0.0);
