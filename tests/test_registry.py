@@ -70,7 +70,8 @@ def test_docs_options_table_names_every_choice():
             grouped += 1
             value = values[i] if len(values) > 1 else values[0]
             listed = [c.strip() for c in value.split("\\|")]
-            assert str(presets.DEFAULT[name]) in listed, (name, value, presets.DEFAULT[name])
+            default = presets.OPTIONS[name].default
+            assert str(default) in listed, (name, value, default)
     assert grouped >= 8  # lut_format, lut_geometry, lut_sampling, runtime_sampling, ndf, geometry, fresnel, tonemap
 
 
