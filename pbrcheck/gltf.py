@@ -65,7 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import asset_guard, gltf_features, limits, untrusted
+from . import asset_guard, gltf_features, limits, lobe_params, untrusted
 from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
@@ -122,6 +122,13 @@ class GltfMaterial:
     double_sided: bool = False
     ior: float = 1.5
     unlit: bool = False       # KHR_materials_unlit: the base colour (x texture x COLOR_0), no lighting
+    # The lobes' extensions (pbrcheck.lobe_params; None: absent). Parsed and validated, not yet
+    # rendered: they stay out of MODELLED_EXTENSIONS, so the honesty contract names them.
+    clearcoat: lobe_params.Clearcoat | None = None          # KHR_materials_clearcoat
+    sheen: lobe_params.Sheen | None = None                  # KHR_materials_sheen
+    khr_specular: lobe_params.Specular | None = None        # KHR_materials_specular (``specular`` is the F0)
+    anisotropy: lobe_params.Anisotropy | None = None        # KHR_materials_anisotropy
+    iridescence: lobe_params.Iridescence | None = None      # KHR_materials_iridescence
 
     @property
     def specular(self) -> float:
@@ -132,13 +139,17 @@ class GltfMaterial:
         slots = {"baseColor": self.base_color_texture, "metallicRoughness": self.metallic_roughness_texture,
                  "normal": self.normal_texture, "occlusion": self.occlusion_texture,
                  "emissive": self.emissive_texture}
+        for attr, _ in lobe_params.LOBE_EXTENSIONS.values():   # the lobes' slots (pbrcheck.lobe_params)
+            lobe = getattr(self, attr)
+            if lobe is not None:
+                slots.update(lobe.textures())
         return {k: v for k, v in slots.items() if v is not None}
 
 
 #: The material of primitives without one (glTF spec 3.9.6).
 DEFAULT_MATERIAL = GltfMaterial(name="default")
 #: Slots whose images hold sRGB-encoded colour (the others are linear data).
-SRGB_SLOTS = ("baseColor", "emissive")
+SRGB_SLOTS = ("baseColor", "emissive", *lobe_params.SRGB_SLOTS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -714,6 +725,7 @@ def _material(r: _Reader, index: int) -> GltfMaterial:
         alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
         ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
         unlit="KHR_materials_unlit" in ext,
+        **lobe_params.parse_material_lobes(ext, p, r.err, tex),
     )
 
 

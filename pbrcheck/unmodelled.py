@@ -166,11 +166,26 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
 
 def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     """The unmodelled features of every glTF asset of ``scene``, ``objects`` as scene object ids
-    (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path."""
+    (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path; then
+    those of the scene file's analytic objects: a material whose lobe fields (``clearcoat``,
+    ``sheen_color``, ...: :mod:`pbrcheck.lobe_params`) differ from their neutral values uses that
+    extension, unmodelled while :data:`pbrcheck.gltf.MODELLED_EXTENSIONS` lacks it (``materials``
+    the objects' names, ``asset`` the scene file)."""
+    from .gltf import MODELLED_EXTENSIONS      # here: pbrcheck.gltf imports this module
+    from .lobe_params import scene_features
+
     out = []
     for inst in getattr(scene, "assets", ()):
         for u in getattr(inst.asset, "unmodelled", ()) if inst.asset is not None else ():
             out.append(Unmodelled(u.feature, u.materials, tuple(inst.first_id + k for k in u.objects), inst.path))
+    analytic: dict[str, list] = {}
+    for o in getattr(scene, "objects", ()):
+        if getattr(o, "type", "") in ("sphere", "plane"):
+            for f in scene_features(o.material):
+                if f not in MODELLED_EXTENSIONS:
+                    analytic.setdefault(f, []).append(o)
+    for f, objs in analytic.items():
+        out.append(Unmodelled(f, tuple(o.name for o in objs), tuple(o.id for o in objs), getattr(scene, "source", "")))
     return tuple(out)
 
 
