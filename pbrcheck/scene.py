@@ -38,7 +38,7 @@ from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
-from .unmodelled import scene_unmodelled
+from .unmodelled import announce_scene, scene_unmodelled
 
 Vec3 = tuple[float, float, float]
 
@@ -623,7 +623,7 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     if assets and isinstance(data.get("brdf"), dict) and data["brdf"].get("multiscatter", "none") != "none":
         raise ctx.err("brdf.multiscatter", '"none" in a scene with glTF assets (their textured material is '
                       "single-scattering)", data["brdf"]["multiscatter"])
-    return Scene(
+    return announce_scene(Scene(   # the analytic objects' unmodelled lobes named on stderr (pbrcheck.unmodelled)
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),
         camera=_camera(ctx, data.get("camera", {})),
@@ -634,7 +634,7 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
         source=file,
         grids=grids,
         assets=assets,
-    )
+    ))
 
 
 def builtin_scene_names() -> list[str]:

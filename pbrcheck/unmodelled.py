@@ -25,7 +25,8 @@ API
 - :func:`notice_lines` -- the stderr lines naming an asset's unmodelled features.
 - :func:`start_notices`, :func:`stop_notices`, :func:`announce` -- the one place those lines are
   printed: the CLI starts the notices for one command; the loader announces every asset it returns;
-  each asset (path, content hash) is named once per command.
+  each asset (path, content hash) is named once per command; :func:`announce_scene` likewise for a
+  scene file's analytic objects whose lobe fields use an unmodelled extension.
 - :func:`strip_unmodelled` -- remove the unmodelled material extensions from a glTF document
   (``pbrcheck export`` and the external engines' export, unless ``--keep-unmodelled``).
 
@@ -235,6 +236,24 @@ def announce(asset):
         for line in notice_lines(asset):
             print(line, file=stream)
     return asset
+
+
+def announce_scene(scene):
+    """Print, like :func:`announce`, one line per unmodelled feature of ``scene``'s analytic objects
+    (the lobe fields of :func:`scene_unmodelled`; the assets announce themselves), once per scene
+    file and feature in a command; returns ``scene``."""
+    if not _NOTICES["on"]:
+        return scene
+    stream = _NOTICES["stream"] or sys.stderr
+    name = terminal_safe(Path(getattr(scene, "source", "")).name)
+    for u in scene_unmodelled(scene):
+        key = ("scene", getattr(scene, "source", ""), u.feature)
+        if u.asset != getattr(scene, "source", None) or key in _NOTICES["seen"]:
+            continue
+        _NOTICES["seen"].add(key)
+        print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
+              f"the reference and the real-time image leave it out; a gate check of it is not judged", file=stream)
+    return scene
 
 
 def strip_unmodelled(doc: dict, modelled) -> list[tuple[str, tuple[str, ...]]]:

@@ -284,3 +284,12 @@ def test_neutral_extensions_render_bit_identical_in_both_renderers(tmp_path):
     assert base[0].max() > 0 and base[1].max() > 0
     for label, (rt, ref) in images.items():
         assert np.array_equal(rt, base[0]) and np.array_equal(ref, base[1]), label
+
+
+def test_stderr_names_a_scene_files_lobes_once(tmp_path, capsys):
+    toml = tmp_path / "coat.toml"
+    toml.write_text(dump_toml(scene_from_dict(_scene([{"clearcoat": 1.0}, {}])).to_dict()))
+    assert main(["check-scene", str(toml)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("coat.toml: not modelled: KHR_materials_clearcoat (objects: sphere0)") == 1
+    assert main(["check-scene", "spheres"]) == 0 and "not modelled" not in capsys.readouterr().err
