@@ -47,7 +47,9 @@ References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_ma
 KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
 (integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
 KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp, KHR_texture_basisu, EXT_meshopt_compression
-(:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
+(:mod:`pbrcheck.gltf_features`); KHR_materials_clearcoat, _sheen, _specular, _anisotropy, _iridescence
+(parsed into :class:`GltfMaterial`'s lobe fields by :mod:`pbrcheck.lobe_params`, not yet rendered: not in
+:data:`MODELLED_EXTENSIONS`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
