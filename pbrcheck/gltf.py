@@ -77,7 +77,7 @@ from .unmodelled import announce, asset_unmodelled
 #: optional one is listed in :attr:`Asset.extensions_ignored`). Scene features: :mod:`pbrcheck.gltf_features`.
 MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization",
-                       *gltf_features.MODELLED_SCENE_EXTENSIONS)
+                       *gltf_features.MODELLED_SCENE_EXTENSIONS, *lobe_params.MODELLED_LOBE_EXTENSIONS)
 #: The former name of :data:`MODELLED_EXTENSIONS`.
 SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
 #: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are

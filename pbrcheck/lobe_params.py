@@ -13,7 +13,8 @@ API
   :class:`Iridescence` -- one extension of a glTF material (frozen): every factor with the
   specification's default, every texture a :class:`pbrcheck.gltf.TextureRef` or None;
   ``textures()`` gives ``{slot: TextureRef}``; ``active`` whether the lobe changes the image.
-- :data:`LOBE_EXTENSIONS` -- ``{extension: (GltfMaterial field, class)}``.
+- :data:`LOBE_EXTENSIONS` -- ``{extension: (GltfMaterial field, class)}``;
+  :data:`MODELLED_LOBE_EXTENSIONS` -- those both renderers render (none yet).
 - :data:`TEXTURE_CHANNELS` -- ``{slot: channels read}``; :data:`SRGB_SLOTS` -- the sRGB-encoded ones.
 - :func:`parse_material_lobes` -- the five fields of a :class:`pbrcheck.gltf.GltfMaterial` from a
   material's ``extensions`` object (typed errors naming the file and the JSON pointer).
@@ -144,6 +145,10 @@ class Iridescence:
         return self.factor > 0.0
 
 
+#: The lobe extensions both renderers render (part of :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`):
+#: none yet. An extension joins when the reference and the real-time renderer model it; until then
+#: an asset or a scene file that uses it is named by the honesty contract (:mod:`pbrcheck.unmodelled`).
+MODELLED_LOBE_EXTENSIONS: tuple[str, ...] = ()
 #: extension -> (GltfMaterial field, class); the field is None where the material lacks the extension.
 LOBE_EXTENSIONS = {CLEARCOAT: ("clearcoat", Clearcoat), SHEEN: ("sheen", Sheen), SPECULAR: ("khr_specular", Specular),
                    ANISOTROPY: ("anisotropy", Anisotropy), IRIDESCENCE: ("iridescence", Iridescence)}

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .fmt import terminal_safe
+from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
 
 
 @dataclass(frozen=True)
@@ -170,10 +171,9 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path; then
     those of the scene file's analytic objects: a material whose lobe fields (``clearcoat``,
     ``sheen_color``, ...: :mod:`pbrcheck.lobe_params`) differ from their neutral values uses that
-    extension, unmodelled while :data:`pbrcheck.gltf.MODELLED_EXTENSIONS` lacks it (``materials``
-    the objects' names, ``asset`` the scene file)."""
-    from .gltf import MODELLED_EXTENSIONS      # here: pbrcheck.gltf imports this module
-    from .lobe_params import scene_features
+    extension, unmodelled while :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` (part of
+    :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`) lacks it (``materials`` the objects' names, ``asset``
+    the scene file)."""
 
     out = []
     for inst in getattr(scene, "assets", ()):
@@ -183,7 +183,7 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     for o in getattr(scene, "objects", ()):
         if getattr(o, "type", "") in ("sphere", "plane"):
             for f in scene_features(o.material):
-                if f not in MODELLED_EXTENSIONS:
+                if f not in MODELLED_LOBE_EXTENSIONS:
                     analytic.setdefault(f, []).append(o)
     for f, objs in analytic.items():
         out.append(Unmodelled(f, tuple(o.name for o in objs), tuple(o.id for o in objs), getattr(scene, "source", "")))
