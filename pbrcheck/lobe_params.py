@@ -192,7 +192,46 @@ class _Fields:
         return tuple(float(c) for c in v)  # type: ignore[return-value]
 
     def texture(self, key: str, scale_key: str | None = None):
-        return self.tex(self.ext, key, self.p, scale_key) if key in self.ext else None
+        if key not in self.ext:
+            return None
+        _check_texture_info(self.ext[key], f"{self.p}/{key}", self.err, scale_key)
+        return self.tex(self.ext, key, self.p, scale_key)
+
+
+def _is_index(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+
+def _is_numbers(x, n: int) -> bool:
+    return isinstance(x, list) and len(x) == n and all(_is_number(c) for c in x)
+
+
+def _check_texture_info(t, pointer: str, err, scale_key: str | None) -> None:
+    """The types of a textureInfo inside an extension (the JSON reader checks the core slots'; an
+    extension's are raw JSON): ``index`` and ``texCoord`` integers >= 0, the normalTextureInfo's
+    ``scale`` a number, ``KHR_texture_transform``'s ``offset`` / ``scale`` 2 numbers, ``rotation`` a
+    number, ``texCoord`` an integer >= 0 (the extension's schema)."""
+    if not isinstance(t, dict) or not _is_index(t.get("index")):
+        raise err(pointer, f"a textureInfo with an index (an integer >= 0), found {t!r}")
+    if "texCoord" in t and not _is_index(t["texCoord"]):
+        raise err(f"{pointer}/texCoord", f"an integer >= 0, found {t['texCoord']!r}")
+    if scale_key and scale_key in t and not _is_number(t[scale_key]):
+        raise err(f"{pointer}/{scale_key}", f"a finite number, found {t[scale_key]!r}")
+    exts = t.get("extensions", {})
+    if not isinstance(exts, dict):
+        raise err(f"{pointer}/extensions", f"an object, found {exts!r}")
+    tt = exts.get("KHR_texture_transform")
+    if tt is None:
+        return
+    tp = f"{pointer}/extensions/KHR_texture_transform"
+    if not isinstance(tt, dict):
+        raise err(tp, f"an object, found {tt!r}")
+    for k, ok, what in (("offset", lambda v: _is_numbers(v, 2), "2 finite numbers"),
+                        ("scale", lambda v: _is_numbers(v, 2), "2 finite numbers"),
+                        ("rotation", _is_number, "a finite number (radians)"),
+                        ("texCoord", _is_index, "an integer >= 0")):
+        if k in tt and not ok(tt[k]):
+            raise err(f"{tp}/{k}", f"{what}, found {tt[k]!r}")
 
 
 def parse_material_lobes(ext: dict, pointer: str, err: Callable[[str, str], Exception], tex) -> dict[str, Any]:

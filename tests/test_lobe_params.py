@@ -126,10 +126,27 @@ def test_malformed_extension_object_and_texture_refused(tmp_path):
         load_asset(_asset(tmp_path, {SH: [1]}, name="o.gltf"))
     with pytest.raises(AssetError, match=f"/materials/0/extensions/{AN}/anisotropyTexture/index: index 3 out of range"):
         load_asset(_asset(tmp_path, {AN: {"anisotropyTexture": {"index": 3}}}, 1, name="t.gltf"))
-    with pytest.raises(AssetError, match=f"/materials/0/extensions/{CC}/clearcoatTexture: a textureInfo"):
+    with pytest.raises(AssetError, match=f"/materials/0/extensions/{CC}/clearcoatTexture: a textureInfo with an index"):
         load_asset(_asset(tmp_path, {CC: {"clearcoatTexture": {}}}, 1, name="i.gltf"))
     with pytest.raises(AssetError, match=f"/materials/0/extensions/{IR}/iridescenceTexture/texCoord: TEXCOORD_2"):
         load_asset(_asset(tmp_path, {IR: {"iridescenceTexture": {"index": 0, "texCoord": 2}}}, 1, name="c.gltf"))
+
+
+BAD_TEXTURE = [({"index": "0"}, ""), ({"index": 0, "texCoord": "x"}, "/texCoord"),
+               ({"index": 0, "extensions": {"KHR_texture_transform": {"rotation": "a"}}},
+                "/extensions/KHR_texture_transform/rotation"),
+               ({"index": 0, "extensions": {"KHR_texture_transform": {"offset": [1]}}},
+                "/extensions/KHR_texture_transform/offset"),
+               ({"index": 0, "extensions": {"KHR_texture_transform": {"texCoord": 1.5}}},
+                "/extensions/KHR_texture_transform/texCoord")]
+
+
+@pytest.mark.parametrize("info,where", BAD_TEXTURE, ids=[w or "index" for _, w in BAD_TEXTURE])
+def test_malformed_texture_info_of_an_extension_refused_naming_its_pointer(tmp_path, info, where):
+    with pytest.raises(AssetError, match=f"/materials/0/extensions/{SP}/specularColorTexture{where}: "):
+        load_asset(_asset(tmp_path, {SP: {"specularColorTexture": info}}, 1))
+    with pytest.raises(AssetError, match=f"/materials/0/extensions/{CC}/clearcoatNormalTexture/scale: a finite number"):
+        load_asset(_asset(tmp_path, {CC: {"clearcoatNormalTexture": {"index": 0, "scale": "s"}}}, 1, name="n.gltf"))
 
 
 def test_check_scene_lists_an_assets_lobes(tmp_path, capsys):
@@ -258,7 +275,8 @@ def test_scenes_lists_and_check_scene_shows_the_lobe_scenes(capsys):
 
 # ---- neutral values: today's images, bit for bit ----------------------------------------------------
 
-NEUTRAL = {CC: {"clearcoatFactor": 0.0, "clearcoatRoughnessFactor": 0.0}, SH: {"sheenColorFactor": [0, 0, 0]},
+NEUTRAL = {CC: {"clearcoatFactor": 0.0, "clearcoatRoughnessFactor": 0.0, "clearcoatTexture": {"index": 0}},
+           SH: {"sheenColorFactor": [0, 0, 0], "sheenRoughnessTexture": {"index": 0, "texCoord": 1}},
            SP: {"specularFactor": 1.0, "specularColorFactor": [1, 1, 1]}, AN: {"anisotropyStrength": 0.0},
            IR: {"iridescenceFactor": 0.0}}
 
@@ -276,10 +294,12 @@ def test_neutral_extensions_render_bit_identical_in_both_renderers(tmp_path):
     for label, ext in [("without", None)] + [(e, {e: NEUTRAL[e]}) for e in LOBES]:
         d = tmp_path / label
         d.mkdir()
-        a = _asset(d, ext)
+        a = _asset(d, ext, 1)   # one image: read by the neutral clearcoat / sheen textures, else unused
         sc = load_scene(quad_scene(d, a, size=(8, 8), env="[0.3, 0.5, 0.7]"))
         images[label] = (_rgb(render_realtime(sc, "default", progress=False)),
                          _rgb(render_reference(sc, spp=4, use_cache=False, progress=False)))
+    assert not load_asset(tmp_path / "without" / "a.gltf").images[0].decoded
+    assert load_asset(tmp_path / CC / "a.gltf").images[0].decoded
     base = images.pop("without")
     assert base[0].max() > 0 and base[1].max() > 0
     for label, (rt, ref) in images.items():
