@@ -12,6 +12,10 @@ API
   below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.
 - :func:`uv_sphere` -- the unit sphere mesh (positions = analytic normals, triangle indices).
 - :func:`ior_from_f0` -- ``KHR_materials_ior``'s ior for a dielectric F0.
+- An analytic material's lobe fields (``clearcoat``, ``sheen_color``, ...) are written as their
+  extensions (``KHR_materials_clearcoat``, ...: :func:`pbrcheck.lobe_params.scene_extensions`);
+  until pbrcheck models them they are removed like an asset's unmodelled extensions unless
+  ``keep_unmodelled``.
 - :func:`equirect_image` -- the environment resampled into the exported orientation
   (:data:`ENVIRONMENT_ORIENTATION`).
 - :func:`scenario` -- the ``scenario.json`` content (and the model-viewer render-fidelity scenario).
@@ -51,6 +55,7 @@ from .hdrimage import write_hdr
 from .jsonio import dump_json, write_json_atomic
 from .gltf import SUPPORTED_EXTENSIONS
 from .scene import Plane, Scene, Sphere, plane_frame
+from .lobe_params import scene_extensions
 from .unmodelled import strip_unmodelled
 
 #: scenario.json's words on the metallic blend (its ``metallic_blend`` table).
@@ -213,7 +218,15 @@ def _material(obj) -> dict:
          "doubleSided": False}
     if abs(m.specular - GLTF_DEFAULT_F0) > F0_MATCH_TOLERANCE:
         d["extensions"] = {"KHR_materials_ior": {"ior": ior_from_f0(m.specular)}}
+    lobes = scene_extensions(m)   # the lobes' extensions (pbrcheck.lobe_params), where set
+    if lobes:
+        d.setdefault("extensions", {}).update(lobes)
     return d
+
+
+def _materials_extensions(materials) -> set[str]:
+    """The extensions the exported analytic materials use (for ``extensionsUsed``)."""
+    return {e for m in materials for e in m.get("extensions", {})}
 
 
 def _light(light) -> dict:
@@ -411,7 +424,7 @@ def _asset_document(scene: Scene, bin_name: str):
     doc["nodes"] += nodes
     doc["scenes"][0]["nodes"] += list(range(first, len(doc["nodes"])))
     if any("extensions" in m for m in materials):
-        doc["extensionsUsed"] = sorted(set(doc.get("extensionsUsed", [])) | {"KHR_materials_ior"})
+        doc["extensionsUsed"] = sorted(set(doc.get("extensionsUsed", [])) | _materials_extensions(materials))
     return doc, files, segments, triangles + ntri
 
 
@@ -477,7 +490,7 @@ def gltf_document(scene: Scene, bin_name: str = "scene.bin") -> tuple[dict, byte
         "buffers": [{"uri": bin_name, "byteLength": len(buf.data)}],
     }
     if any("extensions" in m for m in materials):
-        doc["extensionsUsed"] = ["KHR_materials_ior"]
+        doc["extensionsUsed"] = sorted(_materials_extensions(materials))
     doc["scenes"][0]["nodes"].extend(_add_lights(doc, scene.lights))
     if "extensionsUsed" in doc:
         doc["extensionsUsed"].sort()

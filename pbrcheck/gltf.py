@@ -47,7 +47,9 @@ References: Khronos glTF 2.0 specification (2021); KHR_texture_transform, KHR_ma
 KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression, KHR_mesh_quantization
 (integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
 KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp, KHR_texture_basisu, EXT_meshopt_compression
-(:mod:`pbrcheck.gltf_features`); Mikkelsen 2008,
+(:mod:`pbrcheck.gltf_features`); KHR_materials_clearcoat, _sheen, _specular, _anisotropy, _iridescence
+(parsed into :class:`GltfMaterial`'s lobe fields by :mod:`pbrcheck.lobe_params`, not yet rendered: not in
+:data:`MODELLED_EXTENSIONS`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 
@@ -65,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import asset_guard, gltf_features, limits, untrusted
+from . import asset_guard, gltf_features, limits, lobe_params, untrusted
 from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
@@ -75,7 +77,7 @@ from .unmodelled import announce, asset_unmodelled
 #: optional one is listed in :attr:`Asset.extensions_ignored`). Scene features: :mod:`pbrcheck.gltf_features`.
 MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization",
-                       *gltf_features.MODELLED_SCENE_EXTENSIONS)
+                       *gltf_features.MODELLED_SCENE_EXTENSIONS, *lobe_params.MODELLED_LOBE_EXTENSIONS)
 #: The former name of :data:`MODELLED_EXTENSIONS`.
 SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
 #: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
@@ -122,6 +124,13 @@ class GltfMaterial:
     double_sided: bool = False
     ior: float = 1.5
     unlit: bool = False       # KHR_materials_unlit: the base colour (x texture x COLOR_0), no lighting
+    # The lobes' extensions (pbrcheck.lobe_params; None: absent). Parsed and validated, not yet
+    # rendered: they stay out of MODELLED_EXTENSIONS, so the honesty contract names them.
+    clearcoat: lobe_params.Clearcoat | None = None          # KHR_materials_clearcoat
+    sheen: lobe_params.Sheen | None = None                  # KHR_materials_sheen
+    khr_specular: lobe_params.Specular | None = None        # KHR_materials_specular (``specular`` is the F0)
+    anisotropy: lobe_params.Anisotropy | None = None        # KHR_materials_anisotropy
+    iridescence: lobe_params.Iridescence | None = None      # KHR_materials_iridescence
 
     @property
     def specular(self) -> float:
@@ -132,13 +141,17 @@ class GltfMaterial:
         slots = {"baseColor": self.base_color_texture, "metallicRoughness": self.metallic_roughness_texture,
                  "normal": self.normal_texture, "occlusion": self.occlusion_texture,
                  "emissive": self.emissive_texture}
+        for attr, _ in lobe_params.LOBE_EXTENSIONS.values():   # the lobes' slots (pbrcheck.lobe_params)
+            lobe = getattr(self, attr)
+            if lobe is not None:
+                slots.update(lobe.textures())
         return {k: v for k, v in slots.items() if v is not None}
 
 
 #: The material of primitives without one (glTF spec 3.9.6).
 DEFAULT_MATERIAL = GltfMaterial(name="default")
 #: Slots whose images hold sRGB-encoded colour (the others are linear data).
-SRGB_SLOTS = ("baseColor", "emissive")
+SRGB_SLOTS = ("baseColor", "emissive", *lobe_params.SRGB_SLOTS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -714,6 +727,7 @@ def _material(r: _Reader, index: int) -> GltfMaterial:
         alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
         ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
         unlit="KHR_materials_unlit" in ext,
+        **lobe_params.parse_material_lobes(ext, p, r.err, tex),
     )
 
 

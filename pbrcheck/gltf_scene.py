@@ -35,6 +35,7 @@ def describe(scene: Scene) -> list[str]:
     """``check-scene``'s lines for the scene's assets: meshes, triangles, materials, textures (size,
     colour space, slot), lights, camera, extensions used and ignored."""
     from .gltf import SRGB_SLOTS
+    from .lobe_params import describe_lobes
 
     out: list[str] = []
     for k, inst in enumerate(scene.assets):
@@ -61,6 +62,9 @@ def describe(scene: Scene) -> list[str]:
                        + (f" (cutoff {m.alpha_cutoff})" if m.alpha_mode == "MASK" else "")
                        + (", double-sided" if m.double_sided else "") + (", unlit" if m.unlit else "")
                        + (f"; textures {tex}" if tex else ""))
+            lobes = describe_lobes(m)   # KHR_materials_clearcoat, sheen, ... (pbrcheck.lobe_params)
+            if lobes:
+                out.append(f"#       lobes: {lobes}")
         slots = a.texture_slots()
         out.append(f"#   {len(a.images)} texture image(s):")
         for i, im in enumerate(a.images):

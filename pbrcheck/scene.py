@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from . import lobe_params
 from .brdf import METALLIC_BLENDS
 from .errors import SceneError, decode_reason
 from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object, framing, scene_light
@@ -38,7 +39,7 @@ from .registry import GEOMETRIES as _GEOMETRIES
 from .registry import MULTISCATTER_GEOMETRY
 from .registry import MULTISCATTERS as _MULTISCATTERS
 from .registry import NDFS as _NDFS
-from .unmodelled import scene_unmodelled
+from .unmodelled import announce_scene, scene_unmodelled
 
 Vec3 = tuple[float, float, float]
 
@@ -129,12 +130,28 @@ class BRDFModel:
 
 @dataclass(frozen=True)
 class Material:
-    """F0 = mix(specular, base_color, metallic); alpha = roughness^2 (roughness is perceptual)."""
+    """F0 = mix(specular, base_color, metallic); alpha = roughness^2 (roughness is perceptual).
+
+    The lobes of the glTF PBR extensions (:mod:`pbrcheck.lobe_params`; neutral defaults, the
+    specifications'): parsed, validated and exported, not yet rendered (named as unmodelled by
+    :func:`pbrcheck.unmodelled.scene_unmodelled` where set). ``specular`` stays the dielectric F0;
+    ``KHR_materials_specular``'s factor and colour are ``specular_factor`` and ``specular_color``."""
 
     base_color: Vec3 = (1.0, 1.0, 1.0)
     metallic: float = 0.0
     roughness: float = 0.5
     specular: float = 0.04
+    clearcoat: float = 0.0                                   # KHR_materials_clearcoat
+    clearcoat_roughness: float = 0.0
+    sheen_color: Vec3 = (0.0, 0.0, 0.0)                      # KHR_materials_sheen (linear)
+    sheen_roughness: float = 0.0
+    specular_factor: float = 1.0                             # KHR_materials_specular
+    specular_color: Vec3 = (1.0, 1.0, 1.0)
+    anisotropy_strength: float = 0.0                         # KHR_materials_anisotropy
+    anisotropy_rotation: float = 0.0                         # radians, counter-clockwise from the tangent
+    iridescence: float = 0.0                                 # KHR_materials_iridescence
+    iridescence_ior: float = 1.3
+    iridescence_thickness: float = 400.0                     # nm
 
     @property
     def alpha(self) -> float:
@@ -198,7 +215,7 @@ class Scene:
         """Resolved scene as plain data (objects expanded, defaults filled)."""
         # glTF assets: their ``gltf`` table in place of their mesh objects, their lights left out
         # (both come back from the asset when the resolved scene is loaded again)
-        objects = [a.to_dict() if o.type == "mesh" else asdict(o) for o in self.objects
+        objects = [a.to_dict() if o.type == "mesh" else _object_dict(o) for o in self.objects
                    for a in ([self.assets[o.instance]] if o.type == "mesh" else [None])
                    if o.type != "mesh" or o.id == a.first_id]
         d = {
@@ -252,6 +269,14 @@ class Scene:
         """The features of the scene's glTF assets that pbrcheck does not model
         (:class:`pbrcheck.unmodelled.Unmodelled`: feature, material names, object ids, asset path)."""
         return scene_unmodelled(self)
+
+
+def _object_dict(o) -> dict[str, Any]:
+    """An analytic object as plain data, its material's lobe fields at their neutral values left
+    out (a scene that sets none keeps its text and content hash)."""
+    d = asdict(o)
+    d["material"] = lobe_params.neutral_scene_keys(d["material"])
+    return d
 
 
 def _environment_dict(env: Environment) -> dict[str, Any]:
@@ -508,13 +533,14 @@ def _brdf(ctx, t) -> BRDFModel:
 
 def _material(ctx, t, where, *, grid=False) -> Material:
     keys = {"base_color", "specular"} if grid else {"base_color", "metallic", "roughness", "specular"}
-    _check_keys(ctx, t, keys, where)
+    _check_keys(ctx, t, keys | set(lobe_params.SCENE_DEFAULTS), where)
     d = Material()
     return Material(
         base_color=_vec3(ctx, t, "base_color", where, d.base_color, nonneg=True),
         metallic=d.metallic if grid else _num(ctx, t, "metallic", where, d.metallic, lo=0.0, hi=1.0),
         roughness=d.roughness if grid else _num(ctx, t, "roughness", where, d.roughness, lo=0.0, hi=1.0),
         specular=_num(ctx, t, "specular", where, d.specular, lo=0.0, hi=1.0),
+        **lobe_params.scene_material_fields(ctx, t, where, _num, _vec3),
     )
 
 
@@ -604,7 +630,7 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
     if "environment" not in data:
         raise ctx.err("environment", "exactly one [environment] table", "nothing")
     objects, grids, assets, asset_lights = _objects(ctx, data.get("objects"))
-    return Scene(
+    return announce_scene(Scene(   # the analytic objects' unmodelled lobes named on stderr (pbrcheck.unmodelled)
         name=_str(ctx, data, "name", "", Path(file).stem if file != "<dict>" else "scene"),
         description=_str(ctx, data, "description", "", ""),
         camera=_camera(ctx, data.get("camera", {})),
@@ -615,7 +641,7 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
         source=file,
         grids=grids,
         assets=assets,
-    )
+    ))
 
 
 def builtin_scene_names() -> list[str]:

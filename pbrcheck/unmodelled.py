@@ -25,7 +25,8 @@ API
 - :func:`notice_lines` -- the stderr lines naming an asset's unmodelled features.
 - :func:`start_notices`, :func:`stop_notices`, :func:`announce` -- the one place those lines are
   printed: the CLI starts the notices for one command; the loader announces every asset it returns;
-  each asset (path, content hash) is named once per command.
+  each asset (path, content hash) is named once per command; :func:`announce_scene` likewise for a
+  scene file's analytic objects whose lobe fields use an unmodelled extension.
 - :func:`strip_unmodelled` -- remove the unmodelled material extensions from a glTF document
   (``pbrcheck export`` and the external engines' export, unless ``--keep-unmodelled``).
 
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .fmt import terminal_safe
+from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
 
 
 @dataclass(frozen=True)
@@ -166,11 +168,25 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
 
 def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     """The unmodelled features of every glTF asset of ``scene``, ``objects`` as scene object ids
-    (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path."""
+    (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path; then
+    those of the scene file's analytic objects: a material whose lobe fields (``clearcoat``,
+    ``sheen_color``, ...: :mod:`pbrcheck.lobe_params`) differ from their neutral values uses that
+    extension, unmodelled while :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` (part of
+    :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`) lacks it (``materials`` the objects' names, ``asset``
+    the scene file)."""
+
     out = []
     for inst in getattr(scene, "assets", ()):
         for u in getattr(inst.asset, "unmodelled", ()) if inst.asset is not None else ():
             out.append(Unmodelled(u.feature, u.materials, tuple(inst.first_id + k for k in u.objects), inst.path))
+    analytic: dict[str, list] = {}
+    for o in getattr(scene, "objects", ()):
+        if getattr(o, "type", "") in ("sphere", "plane"):
+            for f in scene_features(o.material):
+                if f not in MODELLED_LOBE_EXTENSIONS:
+                    analytic.setdefault(f, []).append(o)
+    for f, objs in analytic.items():
+        out.append(Unmodelled(f, tuple(o.name for o in objs), tuple(o.id for o in objs), getattr(scene, "source", "")))
     return tuple(out)
 
 
@@ -220,6 +236,24 @@ def announce(asset):
         for line in notice_lines(asset):
             print(line, file=stream)
     return asset
+
+
+def announce_scene(scene):
+    """Print, like :func:`announce`, one line per unmodelled feature of ``scene``'s analytic objects
+    (the lobe fields of :func:`scene_unmodelled`; the assets announce themselves), once per scene
+    file and feature in a command; returns ``scene``."""
+    if not _NOTICES["on"]:
+        return scene
+    stream = _NOTICES["stream"] or sys.stderr
+    name = terminal_safe(Path(getattr(scene, "source", "")).name)
+    for u in scene_unmodelled(scene):
+        key = ("scene", getattr(scene, "source", ""), u.feature)
+        if u.asset != getattr(scene, "source", None) or key in _NOTICES["seen"]:
+            continue
+        _NOTICES["seen"].add(key)
+        print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
+              f"the reference and the real-time image leave it out; a gate check of it is not judged", file=stream)
+    return scene
 
 
 def strip_unmodelled(doc: dict, modelled) -> list[tuple[str, tuple[str, ...]]]:

@@ -72,6 +72,8 @@ def _cmd_check_scene(args) -> int:
     if getattr(scene, "assets", ()):
         from pbrcheck.gltf_scene import describe
         print("\n".join(terminal_safe(line) for line in describe(scene)))
+    from pbrcheck.lobe_params import scene_lobe_lines   # the analytic objects' lobe fields (issue 36)
+    print("".join(terminal_safe(line) + "\n" for line in scene_lobe_lines(scene)), end="")
     print(dump_toml(scene.to_dict()), end="")
     return 0
 
