@@ -26,8 +26,8 @@ def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt:
     if key in _sheen_luts:
         return _sheen_luts[key]
     ctx = get_context()
-    prog = compute_program("sheen_lut.comp", {"LUT_FORMAT": "rg16f" if fmt == "f16" else "rg32f"})
-    tex = ctx.texture((size, size), 2, dtype="f2" if fmt == "f16" else "f4")
+    prog = compute_program("sheen_lut.comp", {"LUT_FORMAT": "rgba16f" if fmt == "f16" else "rgba32f"})
+    tex = ctx.texture((size, size), 4, dtype="f2" if fmt == "f16" else "f4")
     tex.filter = (0x2601, 0x2601)  # GL_LINEAR
     tex.repeat_x = tex.repeat_y = False
     tex.bind_to_image(0, read=False, write=True, level=0)
@@ -40,7 +40,7 @@ def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt:
 
 
 def read_sheen_lut(tex) -> np.ndarray:
-    """(N, N, 2) float32: [j, i] = (E_charlie, E_ashikhmin) at n.v (i + 0.5)/N, roughness (j + 0.5)/N."""
+    """(N, N, 3) float32: [j, i] = (E_charlie, E_neubelt, E_ibl_sampler) at n.v (i + 0.5)/N, roughness (j + 0.5)/N."""
     w, h = tex.size
     dt = np.float16 if tex.dtype == "f2" else np.float32
-    return np.frombuffer(tex.read(), dt).reshape(h, w, 2).astype(np.float32)
+    return np.frombuffer(tex.read(), dt).reshape(h, w, 4)[..., :3].astype(np.float32)

@@ -13,10 +13,12 @@ Vectors are ``(..., 3)`` arrays; cosines are clamped to [0, 1] by the caller, as
 API
 ---
 Coat: :func:`coat_f0`, :func:`coat_fresnel`, :func:`coat_attenuation_nov`, :func:`coat_attenuation_voh`,
-:func:`coat_ibl_weight_filament`, :func:`coat_ibl_weight_sample_viewer`, :func:`coat_ibl_weight_threejs`.
+:func:`coat_ibl_weight_filament`, :func:`coat_ibl_weight_sample_viewer`, :func:`coat_ibl_weight_threejs`,
+:func:`coat_ibl_weight_splitsum`.
 Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Neubelt`,
 :func:`sample_Charlie`, :func:`charlie_prefilter_pdf`, :func:`sheen_dg_fit`, :func:`sheen_dfg_threejs`,
-:func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_ashikhmin`,
+:func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_filament`,
+:func:`sheen_dfg_lut_sample_viewer`,
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
 :func:`sheen_albedo_quadrature`.
@@ -134,6 +136,12 @@ def coat_ibl_weight_sample_viewer(NoV, roughness, coat, f0, A, B):
     return coat * (k_s * A + B)
 
 
+def coat_ibl_weight_splitsum(NoV, roughness, coat, f0, A, B):
+    """The plain split sum at the coat's roughness (the Sample Viewer's form before its Fdez-Aguera k_S):
+    coat (F0 A + B)."""
+    return coat * (f0 * A + B)
+
+
 def coat_ibl_weight_threejs(NoV, roughness, coat, f0, A, B):
     """three.js: coat (F0 A + B) with (A, B) Karis's analytic EnvBRDFApprox at the coat's roughness (the
     LUT's A, B unread)."""
@@ -175,8 +183,8 @@ def V_Charlie(NoV, NoL, alpha):
 
 
 def V_Neubelt(NoV, NoL):
-    """[Neubelt13] (Ashikhmin's form; Filament's and PlayCanvas's sheen V, the Sample Viewer's Charlie
-    LUT's): 1 / (4 (n.l + n.v - n.l n.v))."""
+    """[Neubelt13] (Ashikhmin's form; Filament's and PlayCanvas's sheen V; the glTF-IBL-Sampler clamps it
+    to 1 for the Sample Viewer's Charlie LUT): 1 / (4 (n.l + n.v - n.l n.v))."""
     return 1.0 / np.maximum(4.0 * (NoL + NoV - NoL * NoV), COS_EPS)
 
 
@@ -224,10 +232,15 @@ def sheen_dfg_lut_charlie(NoV, roughness, E):
     return np.asarray(E)[..., 0]
 
 
-def sheen_dfg_lut_ashikhmin(NoV, roughness, E):
-    """The sheen LUT's G channel (Charlie D, V_Neubelt): the Sample Viewer's / Babylon's Charlie LUT and
-    Filament's DFG third channel."""
+def sheen_dfg_lut_filament(NoV, roughness, E):
+    """The sheen LUT's G channel (Charlie D at alpha = roughness^2, V_Neubelt): Filament's DFG.z."""
     return np.asarray(E)[..., 1]
+
+
+def sheen_dfg_lut_sample_viewer(NoV, roughness, E):
+    """The sheen LUT's B channel: the Sample Viewer's Charlie LUT as the glTF-IBL-Sampler bakes it (Charlie
+    D at alpha = roughness, not squared; V_Neubelt clamped to 1)."""
+    return np.asarray(E)[..., 2]
 
 
 def _max3(c):
@@ -267,27 +280,29 @@ def lut_bilinear(lut, NoV, roughness):
 
 
 def sheen_lut_lookup(lut, NoV, roughness):
-    """lobes_sheen.glsl sheen_lut_lookup's twin: the sheen LUT's texel pair, bilinear (:func:`lut_bilinear`)."""
+    """lobes_sheen.glsl sheen_lut_lookup's twin: the sheen LUT's three channels, bilinear (:func:`lut_bilinear`)."""
     return lut_bilinear(lut, NoV, roughness)
 
 
 def sheen_albedo_quadrature(NoV, roughness, n_theta: int = 512, n_phi: int = 256):
-    """The sheen LUT's two channels at one (n.v, sheen roughness) by a midpoint quadrature over the
+    """The sheen LUT's three channels at one (n.v, sheen roughness) by a midpoint quadrature over the
     incident hemisphere (theta_l, phi_l), independent of the bake's importance sampling:
-    (int D_Charlie V_Charlie n.l dl, int D_Charlie V_Neubelt n.l dl), alpha = roughness^2."""
+    (int D_Charlie V_Charlie n.l dl, int D_Charlie V_Neubelt n.l dl at alpha = roughness^2, and
+    int D_Charlie min(V_Neubelt, 1) n.l dl at alpha = roughness, the glTF-IBL-Sampler's)."""
     alpha = max(float(roughness) ** 2, SHEEN_MIN_ALPHA)
     v = np.array([np.sqrt(max(1.0 - NoV * NoV, 0.0)), 0.0, NoV])
     th = (np.arange(n_theta) + 0.5) * (0.5 * PI / n_theta)
     ph = (np.arange(n_phi) + 0.5) * (2.0 * PI / n_phi)
     T, P = np.meshgrid(th, ph, indexing="ij")
     l = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
-    h = _normalize(l + v)
+    NoH = _normalize(l + v)[..., 2]
     NoL = l[..., 2]
-    D = D_Charlie(h[..., 2], alpha)
     dw = np.sin(T) * (0.5 * PI / n_theta) * (2.0 * PI / n_phi)
+    D = D_Charlie(NoH, alpha)
     e1 = np.sum(D * V_Charlie(NoV, NoL, alpha) * NoL * dw)
     e2 = np.sum(D * V_Neubelt(NoV, NoL) * NoL * dw)
-    return np.array([e1, e2])
+    e3 = np.sum(D_Charlie(NoH, float(roughness)) * np.minimum(V_Neubelt(NoV, NoL), 1.0) * NoL * dw)
+    return np.array([e1, e2, e3])
 
 
 # ---- anisotropy (KHR_materials_anisotropy) ---------------------------------------------------------
@@ -424,10 +439,11 @@ SHEEN_LUT_CONVENTIONS = {
     "texel_centres": "texel centres at (i + 0.5)/N; read bilinearly between them, linear extrapolation within "
                      "half a texel of 0 and 1 (ibl.glsl dfg_lookup, numpy lut_bilinear)",
     "channels": "R = int D_Charlie V_Charlie n.l dl (the spec's sheen albedo E); "
-                "G = int D_Charlie V_Neubelt n.l dl (Sample Viewer / Babylon Charlie LUT, Filament DFG.z)",
-    "format": "rg16f (f16) or rg32f (f32), N x N, clamp to edge, linear filter (unused: texelFetch)",
+                "G = int D_Charlie V_Neubelt n.l dl (Filament DFG.z); B = the same at alpha = roughness with "
+                "V_Neubelt clamped to 1 (glTF-IBL-Sampler: the Sample Viewer's Charlie LUT); A = 0",
+    "format": "rgba16f (f16) or rgba32f (f32), N x N, clamp to edge, linear filter (unused: texelFetch)",
 }
 #: The sheen LUT's default size and samples per texel (the Charlie sampler's estimate is within
-#: SHEEN_LUT_RTOL of the quadrature at these, tests/test_realtime_lobes.py; 0.14 s on llvmpipe).
+#: SHEEN_LUT_RTOL of the quadrature at these, tests/test_realtime_lobes.py; ~0.3 s on llvmpipe).
 SHEEN_LUT_SIZE = 32
 SHEEN_LUT_SAMPLES = 4096

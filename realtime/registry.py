@@ -215,22 +215,29 @@ COAT_ATTENUATIONS = Registry("COAT_ATTENUATION", [
 COAT_IBLS = Registry("COAT_IBL", [
     Entry("filament", "Filament sec. 4.9.4 (light_indirect.fs): coat Fc(n.v), no DFG",
           roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_filament)}, applies_to=_LOBE + "image-based"),
-    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX at the coat's roughness: coat (k_S A + B), "
+    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX (commit 2c3c5a5) at the coat's roughness: coat (k_S A + B), "
                            "k_S = F0 + (max(1 - r, F0) - F0)(1 - n.v)^5 (Fdez-Aguera 2019)",
           roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_sample_viewer)}, applies_to=_LOBE + "image-based"),
     Entry("threejs", "three.js clearcoatSpecularIndirect: coat (F0 A' + B'), (A', B') = EnvBRDFApprox (Karis 2014)",
           roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_threejs)}, applies_to=_LOBE + "image-based"),
+    Entry("splitsum", "the split sum at the coat's roughness, coat (F0 A + B), Karis 2013 (glTF-Sample-Viewer's ibl.glsl "
+                      "before its Fdez-Aguera form)",
+          roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_splitsum)}, applies_to=_LOBE + "image-based"),
 ])
-#: The sheen lobe's image-based weight ``sheen_dfg(NoV, roughness, E)`` (E: the sheen LUT's texel pair);
+#: The sheen lobe's image-based weight ``sheen_dfg(NoV, roughness, E)`` (E: the sheen LUT's three channels);
 #: ``extra["radiance"]``: what the engine multiplies it with.
 SHEEN_DFGS = Registry("SHEEN_DFG", [
     Entry("lut_charlie", "the sheen LUT's R: int D_Charlie V_Charlie n.l (the spec's own albedo; Estevez & Kulla 2017)",
           roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_charlie)}, extra={"radiance": "charlie_cube"},
           applies_to=_LOBE + "image-based"),
-    Entry("lut_ashikhmin", "glTF-Sample-Viewer getIBLRadianceCharlie / Babylon.js pbrBlockSheen (Charlie LUT), Filament "
-                           "DFG.z: the sheen LUT's G, int D_Charlie V_Neubelt n.l",
-          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_ashikhmin)}, extra={"radiance": "charlie_cube"},
-          applies_to=_LOBE + "image-based (Filament reads its GGX-prefiltered cube at the sheen roughness instead)"),
+    Entry("lut_filament", "Filament light_indirect.fs sheenDFG = DFG.z: the sheen LUT's G, int D_Charlie V_Neubelt n.l "
+                          "(alpha = roughness^2)",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_filament)}, extra={"radiance": "ggx_cube"},
+          applies_to=_LOBE + "image-based (times the GGX-prefiltered cube read at the sheen roughness)"),
+    Entry("lut_sample_viewer", "glTF-Sample-Viewer getIBLRadianceCharlie's u_CharlieLUT as glTF-IBL-Sampler bakes it: "
+                               "the sheen LUT's B, D_Charlie at alpha = roughness (not squared), V_Neubelt clamped to 1",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_sample_viewer)}, extra={"radiance": "charlie_cube"},
+          applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube)"),
     Entry("threejs", "three.js IBLSheenBRDF: saturate(DG / pi), the Enterprise PBR DG fit",
           roles={"sheen_dfg": role(_lobes.sheen_dfg_threejs)}, extra={"radiance": "irradiance"},
           applies_to=_LOBE + "image-based (times the irradiance E(n), not a prefiltered radiance)"),
@@ -273,10 +280,10 @@ LOBE_REGISTRIES = {
         "coat_attenuation": "float coat_attenuation(float NoV, float VoH, float coat, float f0)"}),
     "COAT_IBL": (COAT_IBLS, "lobes_coat.glsl", "sample_viewer", {
         "coat_ibl_weight": "float coat_ibl_weight(float NoV, float roughness, float coat, float f0, float A, float B)"}),
-    "SHEEN_DFG": (SHEEN_DFGS, "lobes_sheen.glsl", "lut_ashikhmin", {
-        "sheen_dfg": "float sheen_dfg(float NoV, float roughness, vec2 E)"}),
+    "SHEEN_DFG": (SHEEN_DFGS, "lobes_sheen.glsl", "lut_sample_viewer", {
+        "sheen_dfg": "float sheen_dfg(float NoV, float roughness, vec3 E)"}),
     "SHEEN_SCALING": (SHEEN_SCALINGS, "lobes_sheen.glsl", "lut", {
-        "sheen_scaling": "float sheen_scaling(vec3 color, vec2 E)"}),
+        "sheen_scaling": "float sheen_scaling(vec3 color, vec3 E)"}),
     "ANISOTROPY_BEND": (ANISOTROPY_BENDS, "lobes_anisotropy.glsl", "sample_viewer", {
         "aniso_reflection": "vec3 aniso_reflection(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r)"}),
     "IRIDESCENCE": (IRIDESCENCES, "lobes_iridescence.glsl", "belcour_rgb", {

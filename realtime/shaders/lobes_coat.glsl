@@ -7,6 +7,7 @@
 #define COAT_IBL_FILAMENT 0
 #define COAT_IBL_SAMPLE_VIEWER 1
 #define COAT_IBL_THREEJS 2
+#define COAT_IBL_SPLITSUM 3
 #define COAT_ATTENUATION_NOV 0
 #define COAT_ATTENUATION_VOH 1
 #ifndef COAT_IBL
@@ -46,12 +47,18 @@ float coat_ibl_weight_filament(float NoV, float roughness, float coat, float f0,
     return coat * coat_fresnel(NoV, f0);
 }
 
-// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX at the coat's roughness, with [FdezAguera19]'s
+// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX (e.g. commit 2c3c5a5) at the coat's roughness, with [FdezAguera19]'s
 // roughness-dependent Schlick. Equation: coat (k_S A + B), k_S = F0 + (max(1 - r, F0) - F0)(1 - n.v)^5,
 // (A, B) = the DFG LUT at (n.v, coat roughness).
 float coat_ibl_weight_sample_viewer(float NoV, float roughness, float coat, float f0, float A, float B) {
     float k_s = f0 + (max(1.0 - roughness, f0) - f0) * pow5(1.0 - NoV);
     return coat * (k_s * A + B);
+}
+
+// Source: the split sum [Karis13] at the coat's roughness: glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX before
+// its Fdez-Aguera form (specularColor * brdf.x + brdf.y). Equation: coat (F0 A + B), (A, B) the DFG LUT.
+float coat_ibl_weight_splitsum(float NoV, float roughness, float coat, float f0, float A, float B) {
+    return coat * (f0 * A + B);
 }
 
 // Source: three.js lights_physical_pars_fragment (clearcoatSpecularIndirect: EnvironmentBRDF = DFGApprox,
@@ -75,6 +82,8 @@ float coat_ibl_weight(float NoV, float roughness, float coat, float f0, float A,
     return coat_ibl_weight_filament(NoV, roughness, coat, f0, A, B);
 #elif COAT_IBL == COAT_IBL_THREEJS
     return coat_ibl_weight_threejs(NoV, roughness, coat, f0, A, B);
+#elif COAT_IBL == COAT_IBL_SPLITSUM
+    return coat_ibl_weight_splitsum(NoV, roughness, coat, f0, A, B);
 #else
     return coat_ibl_weight_sample_viewer(NoV, roughness, coat, f0, A, B);
 #endif

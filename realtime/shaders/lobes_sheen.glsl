@@ -1,27 +1,29 @@
 // lobes_sheen.glsl: the engines' real-time forms of KHR_materials_sheen's image-based term and albedo
 // scaling, the Charlie NDF's sampler for the Charlie-prefiltered cube, and the lookup of the sheen LUT
 // (sheen_lut.comp). Every function has a numpy twin of the same name in realtime/lobes.py.
-// alpha = sheenRoughness^2 throughout (the spec's convention); E = the sheen LUT's texel pair at
+// alpha = sheenRoughness^2 throughout (the spec's convention); E = the sheen LUT's texel at
 // (n.v, sheen roughness): R = int D_Charlie V_Charlie n.l dl (the spec's albedo), G = int D_Charlie
-// V_Neubelt n.l dl (the Sample Viewer's / Babylon's Charlie LUT, Filament's DFG.z).
+// V_Neubelt n.l dl (Filament's DFG.z), B = G with the glTF-IBL-Sampler's alpha = roughness and V <= 1
+// (the Sample Viewer's Charlie LUT).
 // Switches (members of realtime.registry.SHEEN_DFGS / SHEEN_SCALINGS, by index):
 #define SHEEN_DFG_LUT_CHARLIE 0
-#define SHEEN_DFG_LUT_ASHIKHMIN 1
-#define SHEEN_DFG_THREEJS 2
-#define SHEEN_DFG_PLAYCANVAS 3
+#define SHEEN_DFG_LUT_FILAMENT 1
+#define SHEEN_DFG_LUT_SAMPLE_VIEWER 2
+#define SHEEN_DFG_THREEJS 3
+#define SHEEN_DFG_PLAYCANVAS 4
 #define SHEEN_SCALING_LUT 0
 #define SHEEN_SCALING_FILAMENT 1
 #define SHEEN_SCALING_THREEJS 2
 #ifndef SHEEN_DFG
-#define SHEEN_DFG SHEEN_DFG_LUT_ASHIKHMIN
+#define SHEEN_DFG SHEEN_DFG_LUT_SAMPLE_VIEWER
 #endif
 #ifndef SHEEN_SCALING
 #define SHEEN_SCALING SHEEN_SCALING_LUT
 #endif
 #include "ibl.glsl"
 
-// The sheen LUT (sheen_lut.comp; realtime.lobes.SHEEN_LUT_CONVENTIONS): N x N RG, column i n.v = (i + 0.5)/N,
-// row j sheen roughness = (j + 0.5)/N, row 0 smoothest; R = E_charlie, G = E_ashikhmin.
+// The sheen LUT (sheen_lut.comp; realtime.lobes.SHEEN_LUT_CONVENTIONS): N x N RGBA, column i n.v = (i + 0.5)/N,
+// row j sheen roughness = (j + 0.5)/N, row 0 smoothest; R = E_charlie, G = E_neubelt, B = E_ibl_sampler.
 uniform sampler2D sheen_lut;
 
 // The smallest sheen alpha evaluated (realtime.lobes.SHEEN_MIN_ALPHA): exponent 1/alpha <= 1e3.
@@ -97,63 +99,70 @@ float sheen_dg_fit(float NoV, float r) {
 
 // Source: three.js lights_physical_pars_fragment IBLSheenBRDF (times the irradiance).
 // Equation: saturate(DG / pi).
-float sheen_dfg_threejs(float NoV, float roughness, vec2 E) {
+float sheen_dfg_threejs(float NoV, float roughness, vec3 E) {
     return saturate(sheen_dg_fit(NoV, roughness) / PI);
 }
 
 // Source: PlayCanvas reflectionSheen.js (times the environment at the normal, roughest level).
 // Equation: saturate(DG).
-float sheen_dfg_playcanvas(float NoV, float roughness, vec2 E) {
+float sheen_dfg_playcanvas(float NoV, float roughness, vec3 E) {
     return saturate(sheen_dg_fit(NoV, roughness));
 }
 
 // Source: KHR_materials_sheen README (albedo E by the spec's V). Equation: E.r.
-float sheen_dfg_lut_charlie(float NoV, float roughness, vec2 E) {
+float sheen_dfg_lut_charlie(float NoV, float roughness, vec3 E) {
     return E.x;
 }
 
-// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceCharlie (Charlie LUT, V_Ashikhmin), Babylon.js
-// pbrBlockSheen, Filament light_indirect.fs (sheenDFG = DFG.z). Equation: E.g.
-float sheen_dfg_lut_ashikhmin(float NoV, float roughness, vec2 E) {
+// Source: Filament light_indirect.fs (sheenDFG = DFG.z: D_Charlie at alpha = roughness^2, V_Neubelt). Equation: E.g.
+float sheen_dfg_lut_filament(float NoV, float roughness, vec3 E) {
     return E.y;
 }
 
-// The sheen LUT's texel pair at (n.v, sheen roughness): ibl.glsl dfg_lookup's bilinear reading.
-vec2 sheen_lut_lookup(float NoV, float roughness) {
-    return dfg_lookup(sheen_lut, NoV, roughness);
+// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceCharlie (u_CharlieLUT, baked by glTF-IBL-Sampler:
+// D_Charlie at alpha = roughness, V_Ashikhmin clamped to 1). Equation: E.b.
+float sheen_dfg_lut_sample_viewer(float NoV, float roughness, vec3 E) {
+    return E.z;
+}
+
+// The sheen LUT's three channels at (n.v, sheen roughness): ibl.glsl lut_lookup's bilinear reading.
+vec3 sheen_lut_lookup(float NoV, float roughness) {
+    return lut_lookup(sheen_lut, NoV, roughness).rgb;
 }
 
 float max3(vec3 c) { return max(max(c.x, c.y), c.z); }
 
 // Source: KHR_materials_sheen README (albedo scaling), glTF-Sample-Viewer. Equation: 1 - max(c) E.r.
-float sheen_scaling_lut(vec3 color, vec2 E) {
+float sheen_scaling_lut(vec3 color, vec3 E) {
     return 1.0 - max3(color) * E.x;
 }
 
 // Source: Filament shading_model_standard / light_indirect.fs (sheenScaling). Equation: 1 - max(c) E.g.
-float sheen_scaling_filament(vec3 color, vec2 E) {
+float sheen_scaling_filament(vec3 color, vec3 E) {
     return 1.0 - max3(color) * E.y;
 }
 
 // Source: three.js lights_fragment_end (sheenEnergyComp). Equation: 1 - 0.157 max(c).
-float sheen_scaling_threejs(vec3 color, vec2 E) {
+float sheen_scaling_threejs(vec3 color, vec3 E) {
     return 1.0 - THREEJS_SHEEN_ALBEDO * max3(color);
 }
 
 // Dispatch on SHEEN_DFG / SHEEN_SCALING.
-float sheen_dfg(float NoV, float roughness, vec2 E) {
+float sheen_dfg(float NoV, float roughness, vec3 E) {
 #if SHEEN_DFG == SHEEN_DFG_LUT_CHARLIE
     return sheen_dfg_lut_charlie(NoV, roughness, E);
+#elif SHEEN_DFG == SHEEN_DFG_LUT_FILAMENT
+    return sheen_dfg_lut_filament(NoV, roughness, E);
 #elif SHEEN_DFG == SHEEN_DFG_THREEJS
     return sheen_dfg_threejs(NoV, roughness, E);
 #elif SHEEN_DFG == SHEEN_DFG_PLAYCANVAS
     return sheen_dfg_playcanvas(NoV, roughness, E);
 #else
-    return sheen_dfg_lut_ashikhmin(NoV, roughness, E);
+    return sheen_dfg_lut_sample_viewer(NoV, roughness, E);
 #endif
 }
 
-float sheen_scaling(vec3 color, vec2 E) {
+float sheen_scaling(vec3 color, vec3 E) {
 #if SHEEN_SCALING == SHEEN_SCALING_FILAMENT
     return sheen_scaling_filament(color, E);
 #elif SHEEN_SCALING == SHEEN_SCALING_THREEJS
