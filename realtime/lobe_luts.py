@@ -40,7 +40,7 @@ def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt:
 
 
 def read_sheen_lut(tex) -> np.ndarray:
-    """(N, N, 3) float32: [j, i] = (E_charlie, E_neubelt, E_ibl_sampler) at n.v (i + 0.5)/N, roughness (j + 0.5)/N."""
+    """(N, N, 3) float32: [j, i] = (E_charlie, E_neubelt, E_ibl_sampler_legacy) at n.v (i + 0.5)/N, roughness (j + 0.5)/N."""
     w, h = tex.size
     dt = np.float16 if tex.dtype == "f2" else np.float32
     return np.frombuffer(tex.read(), dt).reshape(h, w, 4)[..., :3].astype(np.float32)

@@ -17,8 +17,8 @@ Coat: :func:`coat_f0`, :func:`coat_fresnel`, :func:`coat_attenuation_nov`, :func
 :func:`coat_ibl_weight_splitsum`.
 Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Neubelt`,
 :func:`sample_Charlie`, :func:`charlie_prefilter_pdf`, :func:`sheen_dg_fit`, :func:`sheen_dfg_threejs`,
-:func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_filament`,
-:func:`sheen_dfg_lut_sample_viewer`,
+:func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_neubelt`,
+:func:`sheen_dfg_lut_ibl_sampler_legacy`,
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
 :func:`sheen_albedo_quadrature`.
@@ -183,8 +183,8 @@ def V_Charlie(NoV, NoL, alpha):
 
 
 def V_Neubelt(NoV, NoL):
-    """[Neubelt13] (Ashikhmin's form; Filament's and PlayCanvas's sheen V; the glTF-IBL-Sampler clamps it
-    to 1 for the Sample Viewer's Charlie LUT): 1 / (4 (n.l + n.v - n.l n.v))."""
+    """[Neubelt13] (Ashikhmin's form; Filament's, PlayCanvas's and the glTF-IBL-Sampler's Charlie LUT's sheen
+    V; an older IBL sampler clamped it to 1): 1 / (4 (n.l + n.v - n.l n.v))."""
     return 1.0 / np.maximum(4.0 * (NoL + NoV - NoL * NoV), COS_EPS)
 
 
@@ -232,14 +232,15 @@ def sheen_dfg_lut_charlie(NoV, roughness, E):
     return np.asarray(E)[..., 0]
 
 
-def sheen_dfg_lut_filament(NoV, roughness, E):
-    """The sheen LUT's G channel (Charlie D at alpha = roughness^2, V_Neubelt): Filament's DFG.z."""
+def sheen_dfg_lut_neubelt(NoV, roughness, E):
+    """The sheen LUT's G channel (Charlie D at alpha = roughness^2, V_Neubelt): Filament's DFG.z and the
+    Sample Viewer's Charlie LUT (glTF-IBL-Sampler LUT_CharlieUniform)."""
     return np.asarray(E)[..., 1]
 
 
-def sheen_dfg_lut_sample_viewer(NoV, roughness, E):
-    """The sheen LUT's B channel: the Sample Viewer's Charlie LUT as the glTF-IBL-Sampler bakes it (Charlie
-    D at alpha = roughness, not squared; V_Neubelt clamped to 1)."""
+def sheen_dfg_lut_ibl_sampler_legacy(NoV, roughness, E):
+    """The sheen LUT's B channel: an older glTF-IBL-Sampler's Charlie LUT (commit 203dccf: Charlie D at
+    alpha = roughness, not squared; V_Neubelt clamped to 1; the integral it meant, not its estimator)."""
     return np.asarray(E)[..., 2]
 
 
@@ -288,7 +289,7 @@ def sheen_albedo_quadrature(NoV, roughness, n_theta: int = 512, n_phi: int = 256
     """The sheen LUT's three channels at one (n.v, sheen roughness) by a midpoint quadrature over the
     incident hemisphere (theta_l, phi_l), independent of the bake's importance sampling:
     (int D_Charlie V_Charlie n.l dl, int D_Charlie V_Neubelt n.l dl at alpha = roughness^2, and
-    int D_Charlie min(V_Neubelt, 1) n.l dl at alpha = roughness, the glTF-IBL-Sampler's)."""
+    int D_Charlie min(V_Neubelt, 1) n.l dl at alpha = roughness, an older glTF-IBL-Sampler's)."""
     alpha = max(float(roughness) ** 2, SHEEN_MIN_ALPHA)
     v = np.array([np.sqrt(max(1.0 - NoV * NoV, 0.0)), 0.0, NoV])
     th = (np.arange(n_theta) + 0.5) * (0.5 * PI / n_theta)
@@ -439,8 +440,8 @@ SHEEN_LUT_CONVENTIONS = {
     "texel_centres": "texel centres at (i + 0.5)/N; read bilinearly between them, linear extrapolation within "
                      "half a texel of 0 and 1 (ibl.glsl dfg_lookup, numpy lut_bilinear)",
     "channels": "R = int D_Charlie V_Charlie n.l dl (the spec's sheen albedo E); "
-                "G = int D_Charlie V_Neubelt n.l dl (Filament DFG.z); B = the same at alpha = roughness with "
-                "V_Neubelt clamped to 1 (glTF-IBL-Sampler: the Sample Viewer's Charlie LUT); A = 0",
+                "G = int D_Charlie V_Neubelt n.l dl (Filament DFG.z, the Sample Viewer's Charlie LUT); B = the same "
+                "at alpha = roughness with V_Neubelt clamped to 1 (an older glTF-IBL-Sampler); A = 0",
     "format": "rgba16f (f16) or rgba32f (f32), N x N, clamp to edge, linear filter (unused: texelFetch)",
 }
 #: The sheen LUT's default size and samples per texel (the Charlie sampler's estimate is within

@@ -230,13 +230,15 @@ SHEEN_DFGS = Registry("SHEEN_DFG", [
     Entry("lut_charlie", "the sheen LUT's R: int D_Charlie V_Charlie n.l (the spec's own albedo; Estevez & Kulla 2017)",
           roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_charlie)}, extra={"radiance": "charlie_cube"},
           applies_to=_LOBE + "image-based"),
-    Entry("lut_filament", "Filament light_indirect.fs sheenDFG = DFG.z: the sheen LUT's G, int D_Charlie V_Neubelt n.l "
-                          "(alpha = roughness^2)",
-          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_filament)}, extra={"radiance": "ggx_cube"},
-          applies_to=_LOBE + "image-based (times the GGX-prefiltered cube read at the sheen roughness)"),
-    Entry("lut_sample_viewer", "glTF-Sample-Viewer getIBLRadianceCharlie's u_CharlieLUT as glTF-IBL-Sampler bakes it: "
-                               "the sheen LUT's B, D_Charlie at alpha = roughness (not squared), V_Neubelt clamped to 1",
-          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_sample_viewer)}, extra={"radiance": "charlie_cube"},
+    Entry("lut_neubelt", "the sheen LUT's G, int D_Charlie V_Neubelt n.l (alpha = roughness^2): Filament's sheenDFG = "
+                         "DFG.z, glTF-Sample-Viewer getIBLRadianceCharlie's u_CharlieLUT (glTF-IBL-Sampler "
+                         "LUT_CharlieUniform)",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_neubelt)}, extra={"radiance": "charlie_cube"},
+          applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube; Filament reads its GGX-prefiltered "
+                             "cube at the sheen roughness instead)"),
+    Entry("lut_ibl_sampler_legacy", "an older glTF-IBL-Sampler's Charlie LUT (filter.frag, commit 203dccf): the sheen "
+                                    "LUT's B, D_Charlie at alpha = roughness (not squared), V_Neubelt clamped to 1",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_ibl_sampler_legacy)}, extra={"radiance": "charlie_cube"},
           applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube)"),
     Entry("threejs", "three.js IBLSheenBRDF: saturate(DG / pi), the Enterprise PBR DG fit",
           roles={"sheen_dfg": role(_lobes.sheen_dfg_threejs)}, extra={"radiance": "irradiance"},
@@ -280,7 +282,7 @@ LOBE_REGISTRIES = {
         "coat_attenuation": "float coat_attenuation(float NoV, float VoH, float coat, float f0)"}),
     "COAT_IBL": (COAT_IBLS, "lobes_coat.glsl", "sample_viewer", {
         "coat_ibl_weight": "float coat_ibl_weight(float NoV, float roughness, float coat, float f0, float A, float B)"}),
-    "SHEEN_DFG": (SHEEN_DFGS, "lobes_sheen.glsl", "lut_sample_viewer", {
+    "SHEEN_DFG": (SHEEN_DFGS, "lobes_sheen.glsl", "lut_neubelt", {
         "sheen_dfg": "float sheen_dfg(float NoV, float roughness, vec3 E)"}),
     "SHEEN_SCALING": (SHEEN_SCALINGS, "lobes_sheen.glsl", "lut", {
         "sheen_scaling": "float sheen_scaling(vec3 color, vec3 E)"}),

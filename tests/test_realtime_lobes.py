@@ -241,7 +241,7 @@ def test_sheen_lut_against_quadrature_and_its_reader():
         nv, r = (i + 0.5) / n, (j + 0.5) / n
         np.testing.assert_allclose(L[j, i], lobes.sheen_albedo_quadrature(nv, r), rtol=SHEEN_LUT_RTOL,
                                    atol=SHEEN_LUT_ATOL)
-    # the three conventions differ where they should: the Sample Viewer's alpha = roughness (not squared)
+    # the conventions differ where they should: the older IBL sampler's alpha = roughness (not squared)
     # makes its smooth sheen far brighter (row 3, n.v 0.52: 0.147 against the spec's 0.0012)
     assert L[3, 16, 2] > 50 * L[3, 16, 0]
     c, r = grid(COS, ROUGH)

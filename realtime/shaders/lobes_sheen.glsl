@@ -3,19 +3,19 @@
 // (sheen_lut.comp). Every function has a numpy twin of the same name in realtime/lobes.py.
 // alpha = sheenRoughness^2 throughout (the spec's convention); E = the sheen LUT's texel at
 // (n.v, sheen roughness): R = int D_Charlie V_Charlie n.l dl (the spec's albedo), G = int D_Charlie
-// V_Neubelt n.l dl (Filament's DFG.z), B = G with the glTF-IBL-Sampler's alpha = roughness and V <= 1
-// (the Sample Viewer's Charlie LUT).
+// V_Neubelt n.l dl (Filament's DFG.z; the Sample Viewer's Charlie LUT as glTF-IBL-Sampler bakes it now),
+// B = G with an older glTF-IBL-Sampler's alpha = roughness (not squared) and V clamped to 1.
 // Switches (members of realtime.registry.SHEEN_DFGS / SHEEN_SCALINGS, by index):
 #define SHEEN_DFG_LUT_CHARLIE 0
-#define SHEEN_DFG_LUT_FILAMENT 1
-#define SHEEN_DFG_LUT_SAMPLE_VIEWER 2
+#define SHEEN_DFG_LUT_NEUBELT 1
+#define SHEEN_DFG_LUT_IBL_SAMPLER_LEGACY 2
 #define SHEEN_DFG_THREEJS 3
 #define SHEEN_DFG_PLAYCANVAS 4
 #define SHEEN_SCALING_LUT 0
 #define SHEEN_SCALING_FILAMENT 1
 #define SHEEN_SCALING_THREEJS 2
 #ifndef SHEEN_DFG
-#define SHEEN_DFG SHEEN_DFG_LUT_SAMPLE_VIEWER
+#define SHEEN_DFG SHEEN_DFG_LUT_NEUBELT
 #endif
 #ifndef SHEEN_SCALING
 #define SHEEN_SCALING SHEEN_SCALING_LUT
@@ -114,14 +114,18 @@ float sheen_dfg_lut_charlie(float NoV, float roughness, vec3 E) {
     return E.x;
 }
 
-// Source: Filament light_indirect.fs (sheenDFG = DFG.z: D_Charlie at alpha = roughness^2, V_Neubelt). Equation: E.g.
-float sheen_dfg_lut_filament(float NoV, float roughness, vec3 E) {
+// Source: Filament light_indirect.fs (sheenDFG = DFG.z), glTF-Sample-Viewer ibl.glsl getIBLRadianceCharlie
+// (u_CharlieLUT.b, glTF-IBL-Sampler filter.frag LUT_CharlieUniform): D_Charlie at alpha = roughness^2,
+// V_Neubelt. Equation: E.g.
+float sheen_dfg_lut_neubelt(float NoV, float roughness, vec3 E) {
     return E.y;
 }
 
-// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceCharlie (u_CharlieLUT, baked by glTF-IBL-Sampler:
-// D_Charlie at alpha = roughness, V_Ashikhmin clamped to 1). Equation: E.b.
-float sheen_dfg_lut_sample_viewer(float NoV, float roughness, vec3 E) {
+// Source: glTF-IBL-Sampler lib/source/shaders/filter.frag (commit 203dccf, older): its LUT called D_Charlie
+// with the perceptual roughness as alpha (not squared) and V_Ashikhmin clamped to 1 (the integral it
+// meant; its estimator, a uniform-sampling weight on Charlie-sampled half vectors, is not reproduced).
+// Equation: E.b.
+float sheen_dfg_lut_ibl_sampler_legacy(float NoV, float roughness, vec3 E) {
     return E.z;
 }
 
@@ -151,14 +155,14 @@ float sheen_scaling_threejs(vec3 color, vec3 E) {
 float sheen_dfg(float NoV, float roughness, vec3 E) {
 #if SHEEN_DFG == SHEEN_DFG_LUT_CHARLIE
     return sheen_dfg_lut_charlie(NoV, roughness, E);
-#elif SHEEN_DFG == SHEEN_DFG_LUT_FILAMENT
-    return sheen_dfg_lut_filament(NoV, roughness, E);
+#elif SHEEN_DFG == SHEEN_DFG_LUT_NEUBELT
+    return sheen_dfg_lut_neubelt(NoV, roughness, E);
 #elif SHEEN_DFG == SHEEN_DFG_THREEJS
     return sheen_dfg_threejs(NoV, roughness, E);
 #elif SHEEN_DFG == SHEEN_DFG_PLAYCANVAS
     return sheen_dfg_playcanvas(NoV, roughness, E);
 #else
-    return sheen_dfg_lut_sample_viewer(NoV, roughness, E);
+    return sheen_dfg_lut_ibl_sampler_legacy(NoV, roughness, E);
 #endif
 }
 

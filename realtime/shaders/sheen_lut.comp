@@ -5,10 +5,10 @@
 // (rgba16f or rgba32f; A = 0):
 // R = E_charlie = int D_Charlie V_Charlie n.l dl (KHR_materials_sheen's directional albedo: its
 //     albedo scaling, and the SHEEN_DFG lut_charlie weight),
-// G = E_neubelt = int D_Charlie V_Neubelt n.l dl (Filament's DFG.z: alpha = roughness^2, V unclamped),
-// B = E_ibl_sampler = the same with the Khronos glTF-IBL-Sampler's conventions, which the Sample Viewer's
-//     Charlie LUT is baked with: alpha = roughness (not squared) and V_Neubelt clamped to [0, 1]
-//     (a departure from the spec's alpha = roughness^2; docs/realtime.md).
+// G = E_neubelt = int D_Charlie V_Neubelt n.l dl (Filament's DFG.z and the Sample Viewer's Charlie LUT as
+//     glTF-IBL-Sampler's LUT_CharlieUniform bakes it: alpha = roughness^2, V unclamped),
+// B = E_ibl_sampler_legacy = the same with an older glTF-IBL-Sampler's conventions: alpha = roughness (not
+//     squared) and V_Neubelt clamped to [0, 1] (a departure from the spec's alpha = roughness^2).
 // Estimator: half vectors by sample_Charlie at each channel's alpha (density D (n.h)), l = reflect(-v, h),
 // pdf_l = D (n.h) / (4 v.h), so f n.l / pdf_l = 4 V (n.l)(v.h) / (n.h); Hammersley points with the DFG LUT's
 // half-cell offset; R and G share the alpha = roughness^2 samples, B draws its own at alpha = roughness.
@@ -26,7 +26,7 @@ void main() {
     float roughness = (float(g.y) + 0.5) / float(lut_size);
     float alpha = roughness * roughness;
     vec3 v = vec3(sqrt(1.0 - NoV * NoV), 0.0, NoV);
-    float e_charlie = 0.0, e_neubelt = 0.0, e_ibl_sampler = 0.0;
+    float e_charlie = 0.0, e_neubelt = 0.0, e_ibl_sampler_legacy = 0.0;
     uint ns = uint(n_samples);
     for (uint i = 0u; i < ns; ++i) {
         vec2 u = hammersley(i, ns);
@@ -42,9 +42,9 @@ void main() {
                 e_charlie += w * V_Charlie(NoV, NoL, alpha);
                 e_neubelt += w * V_Neubelt(NoV, NoL);
             } else {
-                e_ibl_sampler += w * min(V_Neubelt(NoV, NoL), 1.0);
+                e_ibl_sampler_legacy += w * min(V_Neubelt(NoV, NoL), 1.0);
             }
         }
     }
-    imageStore(out_lut, g, vec4(e_charlie, e_neubelt, e_ibl_sampler, 0.0) / float(ns));
+    imageStore(out_lut, g, vec4(e_charlie, e_neubelt, e_ibl_sampler_legacy, 0.0) / float(ns));
 }
