@@ -22,7 +22,8 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
 :func:`sheen_albedo_quadrature`.
-Anisotropy: :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_filament`,
+Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
+:func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
 :func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
 Iridescence: :func:`iridescence_sensitivity`, :func:`iridescence_fresnel`, :func:`iridescence_factor`,
@@ -314,12 +315,22 @@ def _mcauley_normal(direction, v):
     return np.cross(np.cross(direction, v), direction)
 
 
+def aniso_bend_weight(anisotropy, roughness):
+    """The Sample Viewer's and three.js's weight of n against the bent plane's normal: (1 - s (1 - r))^4."""
+    return (1.0 - np.asarray(anisotropy, np.float64) * (1.0 - np.asarray(roughness, np.float64))) ** 4
+
+
 def aniso_bent_normal_sample_viewer(n, t, b, v, anisotropy, roughness):
-    """The Sample Viewer (and three.js): normalize(mix(normalize((b x v) x b), n, (1 - s (1 - r))^4)),
-    b the anisotropy bitangent n x t, s the strength, r the roughness."""
-    bent = _normalize(_mcauley_normal(b, v))
-    w = (1.0 - np.asarray(anisotropy) * (1.0 - np.asarray(roughness))) ** 4
-    return _normalize(_mix(bent, n, np.asarray(w)[..., None]))
+    """The Sample Viewer: normalize(mix((b x v) x b, n, (1 - s (1 - r))^4)), the plane's normal
+    unnormalized; b the anisotropy bitangent n x t, s the strength, r the roughness."""
+    w = aniso_bend_weight(anisotropy, roughness)[..., None]
+    return _normalize(_mix(_mcauley_normal(b, v), n, w))
+
+
+def aniso_bent_normal_threejs(n, t, b, v, anisotropy, roughness):
+    """three.js: the Sample Viewer's with the plane's normal normalized first."""
+    w = aniso_bend_weight(anisotropy, roughness)[..., None]
+    return _normalize(_mix(_normalize(_mcauley_normal(b, v)), n, w))
 
 
 def aniso_bent_normal_filament(n, t, b, v, anisotropy, roughness):
@@ -365,8 +376,8 @@ def threejs_reflection(n, v, roughness):
 
 
 def aniso_reflection_threejs(n, t, b, v, anisotropy, roughness):
-    """three.js: the Sample Viewer's bent normal, then its own lean of the reflection toward it."""
-    return threejs_reflection(aniso_bent_normal_sample_viewer(n, t, b, v, anisotropy, roughness), v, roughness)
+    """three.js: its bent normal, then its own lean of the reflection toward it."""
+    return threejs_reflection(aniso_bent_normal_threejs(n, t, b, v, anisotropy, roughness), v, roughness)
 
 
 # ---- iridescence (KHR_materials_iridescence) -------------------------------------------------------

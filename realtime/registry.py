@@ -258,11 +258,11 @@ SHEEN_SCALINGS = Registry("SHEEN_SCALING", [
 ])
 #: The anisotropic image-based lookup's direction ``aniso_reflection(n, t, b, v, s, r)``.
 ANISOTROPY_BENDS = Registry("ANISOTROPY_BEND", [
-    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl: normalize(mix(normalize((b x v) x b), n, (1 - s(1 - r))^4)), "
-                           "McAuley 2015", roles={"aniso_reflection": role(_lobes.aniso_reflection_sample_viewer)},
+    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl getIBLRadianceAnisotropy: normalize(mix((b x v) x b, n, "
+                           "(1 - s(1 - r))^4)), McAuley 2015", roles={"aniso_reflection": role(_lobes.aniso_reflection_sample_viewer)},
           applies_to=_LOBE + "image-based"),
-    Entry("threejs", "three.js getIBLAnisotropyRadiance: the Sample Viewer's bent normal, then the reflection leaned "
-                     "to it by r^2", roles={"aniso_reflection": role(_lobes.aniso_reflection_threejs)},
+    Entry("threejs", "three.js getIBLAnisotropyRadiance: the Sample Viewer's bent normal with (b x v) x b normalized, "
+                     "then the reflection leaned to it by r^2", roles={"aniso_reflection": role(_lobes.aniso_reflection_threejs)},
           applies_to=_LOBE + "image-based"),
     Entry("filament", "Filament sec. 5.3.6: normalize(mix(n, (d x v) x d, |s| saturate(5 r))), d = b (s >= 0) or t",
           roles={"aniso_reflection": role(_lobes.aniso_reflection_filament)}, applies_to=_LOBE + "image-based"),

@@ -289,7 +289,8 @@ def _run_aniso(fn, n, t, v, s, r):
     return out
 
 
-ANISO_FUNCS = ["aniso_bent_normal_sample_viewer", "aniso_bent_normal_filament", "aniso_bent_normal_babylon"]
+ANISO_FUNCS = ["aniso_bent_normal_sample_viewer", "aniso_bent_normal_threejs", "aniso_bent_normal_filament",
+               "aniso_bent_normal_babylon"]
 
 
 @pytest.mark.parametrize("fn", ANISO_FUNCS + [e.roles["aniso_reflection"].glsl for e in rt_registry.ANISOTROPY_BENDS])

@@ -20,13 +20,23 @@ vec3 mcauley_normal(vec3 d, vec3 v) {
     return cross(cross(d, v), d);
 }
 
-// Source: glTF-Sample-Viewer ibl.glsl (anisotropic IBL), three.js getIBLAnisotropyRadiance.
-// Equation: normalize(mix(normalize((b x v) x b), n, (1 - s (1 - r))^4)).
-vec3 aniso_bent_normal_sample_viewer(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
+// The Sample Viewer's and three.js's weight of n against the bent plane's normal: (1 - s (1 - r))^4.
+float aniso_bend_weight(float s, float r) {
     float w = 1.0 - s * (1.0 - r);
     w *= w;
-    w *= w;
-    return normalize(mix(normalize(mcauley_normal(b, v)), n, w));
+    return w * w;
+}
+
+// Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceAnisotropy (called with anisotropicB).
+// Equation: normalize(mix((b x v) x b, n, (1 - s (1 - r))^4)), the plane's normal unnormalized.
+vec3 aniso_bent_normal_sample_viewer(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
+    return normalize(mix(mcauley_normal(b, v), n, aniso_bend_weight(s, r)));
+}
+
+// Source: three.js getIBLAnisotropyRadiance. Equation: as the Sample Viewer's with the plane's normal
+// normalized first: normalize(mix(normalize((b x v) x b), n, (1 - s (1 - r))^4)).
+vec3 aniso_bent_normal_threejs(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
+    return normalize(mix(normalize(mcauley_normal(b, v)), n, aniso_bend_weight(s, r)));
 }
 
 // Source: Filament sec. 5.3.6, light_indirect.fs getReflectedVector. Equation: d = s >= 0 ? b : t;
@@ -62,9 +72,9 @@ vec3 threejs_reflection(vec3 n, vec3 v, float r) {
     return normalize(mix(reflect(-v, n), n, r * r));
 }
 
-// Source: three.js getIBLAnisotropyRadiance: the Sample Viewer's bent normal, then three.js's lean.
+// Source: three.js getIBLAnisotropyRadiance: its bent normal, then its lean of every lookup.
 vec3 aniso_reflection_threejs(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
-    return threejs_reflection(aniso_bent_normal_sample_viewer(n, t, b, v, s, r), v, r);
+    return threejs_reflection(aniso_bent_normal_threejs(n, t, b, v, s, r), v, r);
 }
 
 // Dispatch on ANISOTROPY_BEND.
