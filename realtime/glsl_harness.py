@@ -4,7 +4,8 @@
 the shader as floats ``x0`` .. ``x7`` (and its index as ``uint idx``), evaluates the expression
 (float, vec2, vec3 or vec4) and returns float32 ``(..., 4)`` (or ``(...)`` / ``(..., n)`` with
 ``components``). Every file of ``realtime/shaders`` that defines terms (brdf, sampling, ibl, env,
-energy, lights, occlusion, specular_aa, coverage, texcoord) is included, so the tests compare each GLSL term
+energy, lights, occlusion, specular_aa, coverage, texcoord, lobes_coat, lobes_sheen,
+lobes_anisotropy, lobes_iridescence) is included, so the tests compare each GLSL term
 with its numpy twin of the same name. ``hook`` (a :class:`realtime.hooks.HookFile`, e.g. the table
 ``pbrcheck fit-normal-roughness`` writes) is appended as the frame pass appends it (its
 ``HOOK_<NAME>`` defines set, ``hooks.glsl``'s prototypes declared), so a generated hook is compared

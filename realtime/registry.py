@@ -19,7 +19,9 @@ API
 :data:`SHADINGS`, :data:`IRRADIANCES`, :data:`IRRADIANCE_METHODS`, :data:`DFGS`, :data:`RUNTIME_SAMPLINGS`,
 :data:`ENERGY_COMPENSATIONS`, :data:`SPECULAR_OCCLUSIONS`, :data:`HORIZON_OCCLUSIONS`, :data:`SPECULAR_AAS`,
 :data:`TERM_REGISTRIES`,
-:data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`.
+:data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`; the lobes' approximations (issue 36):
+:data:`COAT_ATTENUATIONS`, :data:`COAT_IBLS`, :data:`SHEEN_DFGS`, :data:`SHEEN_SCALINGS`,
+:data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS`.
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ from pbrcheck.registry import (FRESNELS, GEOMETRIES, MULTISCATTERS, NDFS, REALTI
 from pbrcheck.sampling import (LUT_SAMPLINGS, runtime_estimate_ndf, runtime_estimate_vndf, runtime_half_vector_beckmann,
                                runtime_half_vector_ggx, runtime_half_vector_vndf)
 from pbrcheck.specular_aa import specular_aa_prefiltered, specular_aa_screen_space, specular_aa_toksvig
+
+from . import lobes as _lobes
 
 #: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
 #: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.
@@ -188,3 +192,109 @@ def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
     :attr:`~pbrcheck.registry.Role.args`, all parameters where empty; False for a member without the role)."""
     r = registry[name].roles.get(role)
     return r is not None and (not r.args or param in r.args)
+
+
+# ---- the glTF PBR extensions' lobes: the engines' real-time approximations (issue 36 item 3) ----
+# Each family's members hold their numpy functions (realtime.lobes) and GLSL twins of the same name
+# (realtime/shaders/lobes_*.glsl); each lobe file defines its switch's constants (by member index,
+# tests/test_realtime_lobes.py checks them against these lists) and a dispatch on the switch. They are
+# not yet in REGISTRIES / ROLE_REGISTRIES: no shading composition calls them (the glTF material's
+# wiring comes with the lobes' material parameters).
+_LOBE = "the real-time form of a lobe the reference evaluates exactly (pbrcheck.lobes): no Dr.Jit function; "
+#: The base's attenuation under the coat: ``coat_attenuation(NoV, VoH, coat, f0)``.
+COAT_ATTENUATIONS = Registry("COAT_ATTENUATION", [
+    Entry("nov", "KHR_materials_clearcoat README (fresnel_coat at n.v); Filament sec. 4.9.4; three.js: "
+                 "1 - coat Fc(n_c.v)", roles={"coat_attenuation": role(_lobes.coat_attenuation_nov)},
+          applies_to=_LOBE + "image-based and punctual light alike"),
+    Entry("voh", "glTF-Sample-Viewer's punctual coat BRDF (its Fresnel at v.h): 1 - coat Fc(v.h)",
+          roles={"coat_attenuation": role(_lobes.coat_attenuation_voh)},
+          applies_to=_LOBE + "punctual lights (image-based lighting has no half vector: the Sample Viewer uses n.v there)"),
+])
+#: The weight of the coat's prefiltered lookup (at the coat's roughness, along reflect(-v, n_coat)):
+#: ``coat_ibl_weight(NoV, roughness, coat, f0, A, B)``, (A, B) the DFG LUT at the coat's roughness.
+COAT_IBLS = Registry("COAT_IBL", [
+    Entry("filament", "Filament sec. 4.9.4 (light_indirect.fs): coat Fc(n.v), no DFG",
+          roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_filament)}, applies_to=_LOBE + "image-based"),
+    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl getIBLRadianceGGX (commit 2c3c5a5) at the coat's roughness: coat (k_S A + B), "
+                           "k_S = F0 + (max(1 - r, F0) - F0)(1 - n.v)^5 (Fdez-Aguera 2019)",
+          roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_sample_viewer)}, applies_to=_LOBE + "image-based"),
+    Entry("threejs", "three.js clearcoatSpecularIndirect: coat (F0 A' + B'), (A', B') = EnvBRDFApprox (Karis 2014)",
+          roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_threejs)}, applies_to=_LOBE + "image-based"),
+    Entry("splitsum", "the split sum at the coat's roughness, coat (F0 A + B), Karis 2013 (glTF-Sample-Viewer's ibl.glsl "
+                      "before its Fdez-Aguera form)",
+          roles={"coat_ibl_weight": role(_lobes.coat_ibl_weight_splitsum)}, applies_to=_LOBE + "image-based"),
+])
+#: The sheen lobe's image-based weight ``sheen_dfg(NoV, roughness, E)`` (E: the sheen LUT's three channels);
+#: ``extra["radiance"]``: what the engine multiplies it with.
+SHEEN_DFGS = Registry("SHEEN_DFG", [
+    Entry("lut_charlie", "the sheen LUT's R: int D_Charlie V_Charlie n.l (the spec's own albedo; Estevez & Kulla 2017)",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_charlie)}, extra={"radiance": "charlie_cube"},
+          applies_to=_LOBE + "image-based"),
+    Entry("lut_neubelt", "the sheen LUT's G, int D_Charlie V_Neubelt n.l (alpha = roughness^2): Filament's sheenDFG = "
+                         "DFG.z, glTF-Sample-Viewer getIBLRadianceCharlie's u_CharlieLUT (glTF-IBL-Sampler "
+                         "LUT_CharlieUniform)",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_neubelt)}, extra={"radiance": "charlie_cube"},
+          applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube; Filament reads its GGX-prefiltered "
+                             "cube at the sheen roughness instead)"),
+    Entry("lut_ibl_sampler_legacy", "an older glTF-IBL-Sampler's Charlie LUT (filter.frag, commit 203dccf): the sheen "
+                                    "LUT's B, D_Charlie at alpha = roughness (not squared), V_Neubelt clamped to 1",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_lut_ibl_sampler_legacy)}, extra={"radiance": "charlie_cube"},
+          applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube)"),
+    Entry("threejs", "three.js IBLSheenBRDF: saturate(DG / pi), the Enterprise PBR DG fit",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_threejs)}, extra={"radiance": "irradiance"},
+          applies_to=_LOBE + "image-based (times the irradiance E(n), not a prefiltered radiance)"),
+    Entry("playcanvas", "PlayCanvas reflectionSheen: saturate(DG), the same fit without 1 / pi",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_playcanvas)}, extra={"radiance": "normal_roughest"},
+          applies_to=_LOBE + "image-based (times the environment along n at the roughest level)"),
+])
+#: The layering of the base under the sheen: ``sheen_scaling(color, E)``.
+SHEEN_SCALINGS = Registry("SHEEN_SCALING", [
+    Entry("lut", "KHR_materials_sheen README: 1 - max(sheenColor) E(n.v), E the sheen LUT's R (albedo scaling LUT)",
+          roles={"sheen_scaling": role(_lobes.sheen_scaling_lut)}, applies_to=_LOBE + "the base under the sheen"),
+    Entry("filament", "Filament sheenScaling: 1 - max(sheenColor) DFG.z (the LUT's G)",
+          roles={"sheen_scaling": role(_lobes.sheen_scaling_filament)}, applies_to=_LOBE + "the base under the sheen"),
+    Entry("threejs", "three.js sheenEnergyComp: 1 - 0.157 max(sheenColor)",
+          roles={"sheen_scaling": role(_lobes.sheen_scaling_threejs)}, applies_to=_LOBE + "the base under the sheen"),
+])
+#: The anisotropic image-based lookup's direction ``aniso_reflection(n, t, b, v, s, r)``.
+ANISOTROPY_BENDS = Registry("ANISOTROPY_BEND", [
+    Entry("sample_viewer", "glTF-Sample-Viewer ibl.glsl getIBLRadianceAnisotropy: normalize(mix((b x v) x b, n, "
+                           "(1 - s(1 - r))^4)), McAuley 2015", roles={"aniso_reflection": role(_lobes.aniso_reflection_sample_viewer)},
+          applies_to=_LOBE + "image-based"),
+    Entry("threejs", "three.js getIBLAnisotropyRadiance: the Sample Viewer's bent normal with (b x v) x b normalized, "
+                     "then the reflection leaned to it by r^2", roles={"aniso_reflection": role(_lobes.aniso_reflection_threejs)},
+          applies_to=_LOBE + "image-based"),
+    Entry("filament", "Filament sec. 5.3.6: normalize(mix(n, (d x v) x d, |s| saturate(5 r))), d = b (s >= 0) or t",
+          roles={"aniso_reflection": role(_lobes.aniso_reflection_filament)}, applies_to=_LOBE + "image-based"),
+    Entry("babylon", "Babylon.js getAnisotropicBentNormals (ANISOTROPIC_LEGACY): normalize(mix(n, (d x v) x d, |s|))",
+          roles={"aniso_reflection": role(_lobes.aniso_reflection_babylon)}, applies_to=_LOBE + "image-based"),
+])
+#: The iridescent Fresnel ``iridescence_fresnel(outside_ior, film_ior, cos1, thickness, base_f0)``.
+IRIDESCENCES = Registry("IRIDESCENCE", [
+    Entry("belcour_rgb", "Belcour & Barla 2017, RGB through the Fourier-space XYZ fit, as glTF-Sample-Viewer evaluates it",
+          roles={"iridescence_fresnel": role(_lobes.iridescence_fresnel)},
+          applies_to=_LOBE + "the specular Fresnel (the truth integrates per wavelength)"),
+])
+#: The lobe families, by switch: the registry, its shader file, the default member and each role's
+#: GLSL dispatch signature.
+LOBE_REGISTRIES = {
+    "COAT_ATTENUATION": (COAT_ATTENUATIONS, "lobes_coat.glsl", "nov", {
+        "coat_attenuation": "float coat_attenuation(float NoV, float VoH, float coat, float f0)"}),
+    "COAT_IBL": (COAT_IBLS, "lobes_coat.glsl", "sample_viewer", {
+        "coat_ibl_weight": "float coat_ibl_weight(float NoV, float roughness, float coat, float f0, float A, float B)"}),
+    "SHEEN_DFG": (SHEEN_DFGS, "lobes_sheen.glsl", "lut_neubelt", {
+        "sheen_dfg": "float sheen_dfg(float NoV, float roughness, vec3 E)"}),
+    "SHEEN_SCALING": (SHEEN_SCALINGS, "lobes_sheen.glsl", "lut", {
+        "sheen_scaling": "float sheen_scaling(vec3 color, vec3 E)"}),
+    "ANISOTROPY_BEND": (ANISOTROPY_BENDS, "lobes_anisotropy.glsl", "sample_viewer", {
+        "aniso_reflection": "vec3 aniso_reflection(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r)"}),
+    "IRIDESCENCE": (IRIDESCENCES, "lobes_iridescence.glsl", "belcour_rgb", {
+        "iridescence_fresnel": "vec3 iridescence_fresnel(float outside_ior, float film_ior, float cos1, "
+                               "float thickness, vec3 base_f0)"}),
+}
+#: The lobes' LUT bakes, with the conventions stated at both ends (the shader's header, the reader).
+#: The bake and read-back are named, not held (realtime.lobe_luts imports realtime.gl, which imports this).
+LOBE_LUTS = {"sheen_lut": {"shader": "sheen_lut.comp", "bake": "realtime.lobe_luts.sheen_lut",
+                           "read": "realtime.lobe_luts.read_sheen_lut", "reader_glsl": "sheen_lut_lookup (lobes_sheen.glsl)",
+                           "reader_numpy": _lobes.sheen_lut_lookup,
+                           **_lobes.SHEEN_LUT_CONVENTIONS}}

@@ -11,6 +11,10 @@ layout(local_size_x = 64) in;
 #include "specular_aa.glsl"
 #include "coverage.glsl"
 #include "texcoord.glsl"
+#include "lobes_coat.glsl"
+#include "lobes_sheen.glsl"
+#include "lobes_anisotropy.glsl"
+#include "lobes_iridescence.glsl"
 #include "hooks.glsl"
 layout(std430, binding = 0) readonly buffer InA { vec4 a_in[]; };
 layout(std430, binding = 1) readonly buffer InB { vec4 b_in[]; };

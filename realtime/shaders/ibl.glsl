@@ -14,7 +14,8 @@
 // row 0 smoothest. Bilinear between texel centres (GL coordinates (s, t) = (n.v, roughness) land on
 // them exactly) and, unlike GL's clamp-to-edge, linear extrapolation from the two outermost rows or
 // columns for n.v or roughness within half a texel of 0 or 1 (roughness 1 is common in scenes).
-vec2 dfg_lookup(sampler2D lut, float NoV, float roughness) {
+// lut_lookup reads every channel (the sheen LUT's three, lobes_sheen.glsl); dfg_lookup the DFG LUT's two.
+vec4 lut_lookup(sampler2D lut, float NoV, float roughness) {
     ivec2 size = textureSize(lut, 0);
     vec2 x = vec2(clamp(NoV, 0.0, 1.0), clamp(roughness, 0.0, 1.0)) * vec2(size) - 0.5;
     ivec2 i0 = clamp(ivec2(floor(x)), ivec2(0), max(size - 2, ivec2(0)));
@@ -22,13 +23,18 @@ vec2 dfg_lookup(sampler2D lut, float NoV, float roughness) {
     vec2 f = x - vec2(i0);
     if (size.x < 2) f.x = 0.0;
     if (size.y < 2) f.y = 0.0;
-    vec2 v00 = texelFetch(lut, ivec2(i0.x, i0.y), 0).rg;
-    vec2 v10 = texelFetch(lut, ivec2(i1.x, i0.y), 0).rg;
-    vec2 v01 = texelFetch(lut, ivec2(i0.x, i1.y), 0).rg;
-    vec2 v11 = texelFetch(lut, ivec2(i1.x, i1.y), 0).rg;
-    vec2 v0 = mix(v00, v10, f.x);
-    vec2 v1 = mix(v01, v11, f.x);
-    return max(mix(v0, v1, f.y), vec2(0.0));
+    vec4 v00 = texelFetch(lut, ivec2(i0.x, i0.y), 0);
+    vec4 v10 = texelFetch(lut, ivec2(i1.x, i0.y), 0);
+    vec4 v01 = texelFetch(lut, ivec2(i0.x, i1.y), 0);
+    vec4 v11 = texelFetch(lut, ivec2(i1.x, i1.y), 0);
+    vec4 v0 = mix(v00, v10, f.x);
+    vec4 v1 = mix(v01, v11, f.x);
+    return max(mix(v0, v1, f.y), vec4(0.0));
+}
+
+// The DFG LUT's (A, B): lut_lookup's first two channels.
+vec2 dfg_lookup(sampler2D lut, float NoV, float roughness) {
+    return lut_lookup(lut, NoV, roughness).rg;
 }
 
 // Source: [Karis14] "Physically Based Shading on Mobile" (UE4), quoted by article 002.
