@@ -78,6 +78,9 @@ BASE_F0_GUARD = 1e-4
 #: sheenRoughness 0.01 (tests/test_lobes.py::test_sheen_albedo_converged).
 ALBEDO_N_THETA = 192
 ALBEDO_N_PHI = 96
+#: Nodes per axis of the GGX albedo's midpoint rule in the sampler's u (:meth:`AnisotropicGGX.albedo`):
+#: 512^2 agrees with 2048^2 to 2.7e-4 on the tests' grid (roughness 0.3, n.v 1; 1e-5 elsewhere).
+ALBEDO_U_NODES = 512
 
 
 def f0_from_ior(ior, outside_ior=1.0):
@@ -270,8 +273,8 @@ class AnisotropicGGX:
                          w[..., 2]], axis=-1)
 
     def D(self, h):
-        if self.isotropic:
-            return GGX.eval(h[..., 2], self.alpha)
+        if self.isotropic:  # n.h clipped as pbrcheck.brdf.brdf_eval clips it
+            return GGX.eval(np.clip(h[..., 2], 0.0, 1.0), self.alpha)
         hl = self.local(h)
         t = (hl[..., 0] / self.at) ** 2 + (hl[..., 1] / self.ab) ** 2 + hl[..., 2] ** 2
         return np.where(h[..., 2] > 0, 1.0 / (PI * self.at * self.ab * t * t), 0.0)
@@ -293,7 +296,7 @@ class AnisotropicGGX:
         """``D G2 / (4 (n.v)(n.l))`` (the operations of :meth:`pbrcheck.brdf.SpecularLobe.eval` with F = 1)."""
         cv, cl = np.maximum(v[..., 2], COS_EPS), np.maximum(l[..., 2], COS_EPS)
         h = _half(v, l)
-        return self.D(np.where(h[..., 2:] > 1.0, np.array([0.0, 0.0, 1.0]), h)) * self.G2(v, l) / (4.0 * cv * cl)
+        return self.D(h) * self.G2(v, l) / (4.0 * cv * cl)
 
     def eval(self, v, l):
         """:meth:`brdf` times n.l; 0 below either horizon."""
@@ -332,27 +335,14 @@ class AnisotropicGGX:
         l = _reflect(np.broadcast_to(v, h.shape), h)
         return l, self.pdf(v, l)
 
-    def albedo(self, mu, n_theta=ALBEDO_N_THETA, n_phi=2 * ALBEDO_N_PHI):
-        """``int D G2 / (4 n.v) dl`` by quadrature over the full circle in phi (the anisotropic lobe
-        is not symmetric about the plane of v). Accurate for roughness >= 0.2; narrower lobes need the
-        estimator :func:`albedo_mc`."""
-        x, w = np.polynomial.legendre.leggauss(n_theta)
-        c, wc = 0.5 * (x + 1.0), 0.5 * w
-        phi = (np.arange(n_phi) + 0.5) * 2.0 * PI / n_phi
-        s = np.sqrt(1.0 - c * c)
-        l = np.stack([s[:, None] * np.cos(phi)[None], s[:, None] * np.sin(phi)[None],
-                      np.broadcast_to(c[:, None], (n_theta, n_phi))], axis=-1).reshape(-1, 3)
-        wt = (wc[:, None] * np.full(n_phi, 2.0 * PI / n_phi)[None]).reshape(-1)
-        return float(np.sum(self.eval(_view(mu)[None], l) * wt))
-
-    def albedo_mc(self, mu, n=1 << 18, seed=1):
-        """The albedo by the lobe's own sampler (its weight ``eval / pdf = G2 / G1(v)`` is <= 1 and
-        smooth, so the estimate converges for every roughness, 0.01 included): stratified in u."""
-        rng = np.random.default_rng(seed)
-        m = int(np.sqrt(n))
-        g = (np.arange(m) + 0.5) / m
+    def albedo(self, mu, n=ALBEDO_U_NODES):
+        """``int D G2 / (4 n.v) dl`` by quadrature in the visible-normal sampler's primary space: the
+        midpoint rule on an n x n grid of u, integrand ``eval / pdf = G2 / G1(v)`` (<= 1 and smooth, so
+        the rule converges at every roughness, 0.01 included, and at grazing view, where a quadrature
+        over directions misses the lobe hugging the horizon: 0.778 against 0.907 at roughness 0.3,
+        n.v 0.05 with 192 x 192 nodes)."""
+        g = (np.arange(n) + 0.5) / n
         u = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
-        u = np.clip(u + (rng.random(u.shape) - 0.5) / m, 0.0, np.nextafter(1.0, 0.0))
         v = _view(mu)
         l, pdf = self.sample(v, u)
         f = self.eval(v[None], l)
@@ -403,8 +393,12 @@ class ClearcoatLobe:
         return l, self.pdf(v, l)
 
     def pdf(self, v, l):
+        """The sampler's density of l above the base's horizon: ``G1(v) D(h) / (4 v.n_c)`` in the coat's
+        frame, also where l is below the coat's horizon (the sampler reaches it; eval is 0 there)."""
         vc, lc = to_frame(v, self.normal), to_frame(l, self.normal)
-        return np.where(l[..., 2] > 0, self.ggx.pdf(vc, lc), 0.0)
+        h = _half(vc, lc)
+        val = self.ggx.G1(vc) * self.ggx.D(h) / (4.0 * np.maximum(vc[..., 2], COS_EPS))
+        return np.where((l[..., 2] > 0) & (vc[..., 2] > 0), val, 0.0)
 
     def albedo(self, mu, **quad):
         """The coat lobe's albedo with n_c = n (the GGX quadrature of :class:`AnisotropicGGX`)."""

@@ -48,12 +48,12 @@ def _cosine_sample(u0, u1):
     return mi.Vector3f(r * dr.cos(phi), r * dr.sin(phi), dr.sqrt(dr.maximum(1.0 - u0, 0.0)))
 
 
-def _albedo(lobe, mu, n_theta, n_phi, full_circle):
-    """:func:`pbrcheck.lobes._hemisphere_quadrature`'s nodes (phi over [0, pi] doubled, or the full
-    circle): Gauss-Legendre in cos(theta), midpoint in phi; each node weighs ``w_c 2 pi / n_phi``."""
+def _albedo(lobe, mu, n_theta, n_phi):
+    """:func:`pbrcheck.lobes._hemisphere_quadrature`'s nodes (phi over [0, pi], doubled):
+    Gauss-Legendre in cos(theta), midpoint in phi; each node weighs ``w_c 2 pi / n_phi``."""
     x, w = np.polynomial.legendre.leggauss(n_theta)
     c, wc = 0.5 * (x + 1.0), 0.5 * w
-    phi = (np.arange(n_phi) + 0.5) * (2.0 * PI if full_circle else PI) / n_phi
+    phi = (np.arange(n_phi) + 0.5) * PI / n_phi
     cc, pp = np.meshgrid(c, phi, indexing="ij")
     ss = np.sqrt(1.0 - cc * cc)
     wt = (wc[:, None] * np.full(n_phi, 2.0 * PI / n_phi)[None]).ravel()
@@ -117,7 +117,7 @@ class SheenCharlie:
         return l, self.pdf(v, l)
 
     def albedo(self, mu, n_theta=np_lobes.ALBEDO_N_THETA, n_phi=np_lobes.ALBEDO_N_PHI):
-        return _albedo(self, mu, n_theta, n_phi, False)
+        return _albedo(self, mu, n_theta, n_phi)
 
 
 class AnisotropicGGX:
@@ -189,8 +189,16 @@ class AnisotropicGGX:
         l = _reflect(v, self.sample_h(v, u))
         return l, self.pdf(v, l)
 
-    def albedo(self, mu, n_theta=np_lobes.ALBEDO_N_THETA, n_phi=2 * np_lobes.ALBEDO_N_PHI):
-        return _albedo(self, mu, n_theta, n_phi, True)
+    def albedo(self, mu, n=np_lobes.ALBEDO_U_NODES):
+        """:meth:`pbrcheck.lobes.AnisotropicGGX.albedo`: the midpoint rule in the sampler's u."""
+        g = (np.arange(n) + 0.5) / n
+        uu, vv_ = np.meshgrid(g, g, indexing="ij")
+        u = mi.Point2f(mi.Float(uu.ravel()), mi.Float(vv_.ravel()))
+        vv = np_lobes._view(mu)
+        v = mi.Vector3f(float(vv[0]), float(vv[1]), float(vv[2]))
+        l, pdf = self.sample(v, u)
+        w = dr.select(pdf > 0, self.eval(v, l) / dr.maximum(pdf, 1e-30), 0.0)
+        return float(dr.sum(w)[0]) / (n * n)
 
 
 def _frame(n):
@@ -239,7 +247,9 @@ class ClearcoatLobe:
         return l, self.pdf(v, l)
 
     def pdf(self, v, l):
-        return dr.select(l.z > 0, self.ggx.pdf(to_frame(v, self.normal), to_frame(l, self.normal)), 0.0)
+        vc, lc = to_frame(v, self.normal), to_frame(l, self.normal)
+        val = self.ggx.G1(vc) * self.ggx.D(_half(vc, lc)) / (4.0 * dr.maximum(vc.z, COS_EPS))
+        return dr.select((l.z > 0) & (vc.z > 0), val, 0.0)
 
 
 def coat_layer(base, coat, clearcoat, Fc):
