@@ -14,7 +14,7 @@ towards the light, arrays (..., 3) of unit vectors, float64; ``u`` (..., 2) in [
 
 API
 ---
-Constants :data:`SHEEN_MIN_ALPHA`, :data:`CLEARCOAT_IOR`, :data:`FILM_R123_MIN`, :data:`FILM_R123_MAX`,
+Constants :data:`SHEEN_MIN_ALPHA`, :data:`SHEEN_L_FIT` (:func:`sheen_l`), :data:`CLEARCOAT_IOR`, :data:`FILM_R123_MIN`, :data:`FILM_R123_MAX`,
 :data:`BASE_F0_GUARD`, :data:`CIE_CMFS`, :data:`FILM_WAVELENGTHS`, :data:`XYZ_TO_REC709`;
 :func:`f0_from_ior`, :func:`schlick`, :func:`to_frame`;
 :class:`SheenCharlie` (KHR_materials_sheen) and :func:`sheen_layer`;
@@ -148,6 +148,20 @@ def _view(mu):
 # KHR_materials_sheen
 # ------------------------------------------------------------------------------------------------
 
+#: [Sheen] "Sheen visibility": the fit ``l(x) = a / (1 + b x^c) + d x + e`` of [EK17], each
+#: coefficient ``mix(at alpha 1, at alpha 0, (1 - alpha_g)^2)``: the pairs (a, b, c, d, e).
+SHEEN_L_FIT = ((21.5473, 25.3245), (3.82987, 3.32435), (0.19823, 0.16801), (-1.97760, -1.27393),
+               (-4.32054, -4.85967))
+
+
+def sheen_l(x, alpha, power):
+    """[Sheen]'s ``l(x, alpha_g)`` from :data:`SHEEN_L_FIT`; ``power`` the array library's (``np.power``,
+    ``dr.power``), so numpy and Dr.Jit evaluate the same operations."""
+    t = (1.0 - alpha) ** 2
+    a, b, c, d, e = (p0 * (1 - t) + p1 * t for p0, p1 in SHEEN_L_FIT)
+    return a / (1.0 + b * power(x, c)) + d * x + e
+
+
 class SheenCharlie:
     """The sheen lobe of [Sheen] "Implementation Notes": ``SheenBRDF = V_s D_s`` with the Charlie
     distribution ([EK17] eq. 2, [Sheen] "Sheen distribution": ``alpha_g = sheenRoughness^2``,
@@ -175,13 +189,7 @@ class SheenCharlie:
             return np.where(h[..., 2] > 0, (2.0 + inv_r) * np.power(s2, 0.5 * inv_r) / (2.0 * PI), 0.0)
 
     def _l(self, x):
-        t = (1.0 - self.alpha) ** 2
-        a = 21.5473 * (1 - t) + 25.3245 * t
-        b = 3.82987 * (1 - t) + 3.32435 * t
-        c = 0.19823 * (1 - t) + 0.16801 * t
-        d = -1.97760 * (1 - t) + -1.27393 * t
-        e = -4.32054 * (1 - t) + -4.85967 * t
-        return a / (1.0 + b * np.power(x, c)) + d * x + e
+        return sheen_l(x, self.alpha, np.power)
 
     def Lambda(self, c):
         """[Sheen] ``lambda_sheen`` ([EK17] sec. 3's fit), ``c`` the cosine in [0, 1]."""

@@ -80,13 +80,7 @@ class SheenCharlie:
         return dr.select((h.z > 0) & (s2 > 0), val, 0.0)
 
     def _l(self, x):
-        t = (1.0 - self.alpha) ** 2
-        a = 21.5473 * (1 - t) + 25.3245 * t
-        b = 3.82987 * (1 - t) + 3.32435 * t
-        c = 0.19823 * (1 - t) + 0.16801 * t
-        d = -1.97760 * (1 - t) + -1.27393 * t
-        e = -4.32054 * (1 - t) + -4.85967 * t
-        return a / (1.0 + b * dr.power(x, c)) + d * x + e
+        return np_lobes.sheen_l(x, self.alpha, dr.power)
 
     def Lambda(self, c):
         c = dr.abs(c)
