@@ -28,7 +28,7 @@ CHI2_BINS = (20, 40)
 CHI2_MIN_EXPECTED = 5.0
 CHI2_SIGNIFICANCE = 0.01
 #: White furnace: the quadrature's error at the sheen layering's energy-conserving form (measured
-#: 2e-7 at 192 x 96 nodes) and the sampler-estimated GGX albedo's at roughness 0.01 (n.v = 1).
+#: 2e-7 at 192 x 96 nodes) and the GGX albedo's (the sampler-space midpoint rule) at roughness 0.01, n.v = 1.
 FURNACE_TOL = 1e-4
 GGX_SMOOTH_ALBEDO_TOL = 2e-3
 #: The GGX albedo's midpoint rule at 512^2 against 1024^2 nodes (measured 1.7e-4 at roughness 0.3, n.v 1).
