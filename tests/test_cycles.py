@@ -35,8 +35,10 @@ BPY_VERSION = "4.5.4"
 #: (8 to 13 px markers). Measured 0.07 px and 0.8 px at most (16 spp both).
 BACKGROUND_TOLERANCE_PX = 1.0
 MIRROR_TOLERANCE_PX = 1.5
-#: A sphere's mean radiance against the reference's where the models agree. Measured (64 spp Cycles,
-#: 64 spp reference): see test_spheres_match_where_the_models_agree.
+#: A sphere's mean radiance against the reference's where the models agree (constant environment,
+#: roughness 0.3). Measured (64 spp both, 48 x 32): metallic 0: Cycles/reference 0.966 / 0.961 / 0.968
+#: (R / G / B; Cycles' Principled dielectric scales its diffuse by the specular layer's albedo and uses
+#: the exact dielectric Fresnel, glTF's by 1 - F Schlick); metallic 1: 1.013 / 0.989 / 0.977.
 SPHERE_MEAN_REL_TOLERANCE = 0.05
 
 
@@ -71,9 +73,17 @@ def test_a_missing_scenario_is_one_line_exit_1(tmp_path):
     assert not (tmp_path / "o.exr").exists()
 
 
-def _centroids_in(rgb: np.ndarray, mask: np.ndarray, min_pixels: int) -> dict:
-    out = centroids(np.where(mask[..., None], rgb, 0.0))
-    return {c: v for c, v in out.items() if v is not None and v[2] >= min_pixels}
+def _marker_offsets(img, ref, region: np.ndarray, min_pixels: int) -> tuple[set, set, float]:
+    """The markers (colours) seen in ``region`` of each image, with at least ``min_pixels`` pixels, and
+    the largest distance in pixels (row or column) between the two images' centroids of one marker."""
+    seen = []
+    for rgb in (img.rgb, ref.rgb):
+        found = centroids(np.where(region[..., None], rgb, 0.0))
+        seen.append({c: v for c, v in found.items() if v is not None and v[2] >= min_pixels})
+    a, b = seen
+    both = set(a) & set(b)
+    worst = max((max(abs(a[c][0] - b[c][0]), abs(a[c][1] - b[c][1])) for c in both), default=np.inf)
+    return set(a), set(b), float(worst)
 
 
 @pytest.mark.slow
@@ -84,11 +94,10 @@ def test_orientation_probe_and_linear_radiance(tmp_cache, tmp_path):
     ref = renderers.render_reference(scene, spp=16, use_cache=False)
     assert img.meta["version"].startswith(f"bpy {BPY_VERSION}")
     ids = img.channels["object"]
-    for mask, tol, min_px, at_least in ((ids < 0, BACKGROUND_TOLERANCE_PX, 50, 2), (ids >= 0, MIRROR_TOLERANCE_PX, 4, 5)):
-        a, b = _centroids_in(img.rgb, mask, min_px), _centroids_in(ref.rgb, mask, min_px)
-        assert set(a) == set(b) and len(b) >= at_least, (a, b)
-        for c in b:
-            assert abs(a[c][0] - b[c][0]) < tol and abs(a[c][1] - b[c][1]) < tol, (c, a[c], b[c])
+    cycles_bg, ref_bg, off_bg = _marker_offsets(img, ref, ids < 0, 50)
+    cycles_mirror, ref_mirror, off_mirror = _marker_offsets(img, ref, ids >= 0, 4)
+    assert cycles_bg == ref_bg and len(ref_bg) == 2 and off_bg < BACKGROUND_TOLERANCE_PX
+    assert cycles_mirror == ref_mirror and len(ref_mirror) == 5 and off_mirror < MIRROR_TOLERANCE_PX
     bg = ids < 0
     blue = (img.rgb[..., 2] > 1.0) & (img.rgb[..., 0] < 0.5) & (img.rgb[..., 1] < 0.5) & bg
     assert blue.sum() > 100 and np.median(img.rgb[blue, 2]) == pytest.approx(8.0, rel=0.01)
@@ -104,17 +113,15 @@ def test_point_light_one_candela_is_one_watt_per_steradian(tmp_cache):
 
 @pytest.mark.slow
 def test_spheres_match_where_the_models_agree(tmp_cache, tmp_path):
-    """Metallic 0 and 1 at roughness 0.3 under the probe environment's markers and a 0.05 floor: each
-    sphere's mean radiance within SPHERE_MEAN_REL_TOLERANCE of the reference's."""
+    """Metallic 0 and 1 at roughness 0.3 under a constant environment of radiance 1: each sphere's
+    mean radiance within SPHERE_MEAN_REL_TOLERANCE of the reference's."""
     _skip_without_bpy()
-    from tests.test_threejs import probe_env
-    probe_env(tmp_path / "probe.exr")
     spheres = [{"type": "sphere", "center": [x, 0.0, -4.0], "radius": 0.9,
                 "material": {"base_color": [0.9, 0.6, 0.3], "metallic": m, "roughness": 0.3}}
                for x, m in ((-1.0, 0.0), (1.0, 1.0))]
     scene = scene_from_dict({
         "name": "two", "camera": {"origin": [0, 0, 0.0], "target": [0, 0, -1], "fov": 60.0, "width": 48, "height": 32},
-        "environment": {"type": "file", "path": "probe.exr", "rotation": 30.0},
+        "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]},
         "objects": spheres}, file=str(tmp_path / "two.toml"), base_dir=tmp_path)
     img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:cycles"))
     ref = renderers.render_reference(scene, spp=64, use_cache=False)
