@@ -24,8 +24,10 @@ system-packages:
 
 # The external clients (docs/renderers.md): Debian's nodejs, npm, chromium and `npm ci` in every
 # clients/*/ with a package-lock.json; without root it prints the commands and goes on (their tests skip).
+# The Cycles client: the bpy wheel into clients/cycles/.venv (tools/ensure-cycles.sh; optional too).
 client-packages:
 	@bash tools/ensure-clients.sh
+	@bash tools/ensure-cycles.sh
 
 $(STAMP): pyproject.toml setup.py $(wildcard pbrcheck/mikktspace_c/*.c pbrcheck/mikktspace_c/*.h)
 	@$(PY) -m pip --version >/dev/null 2>&1 || { rm -rf $(VENV); $(PYTHON) -m venv $(VENV); }

@@ -81,5 +81,6 @@ def test_every_python_package_is_in_the_distribution():
     listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     found = {".".join(p.parent.relative_to(root).parts)
              for top in ("pbrcheck", "reference", "realtime", "compare", "clients")
-             for p in (root / top).rglob("__init__.py") if "node_modules" not in p.parts}
+             for p in (root / top).rglob("__init__.py")
+             if "node_modules" not in p.parts and not any(q.startswith(".") for q in p.relative_to(root).parts)}
     assert found - listed == set(), f"packages missing from pyproject.toml: {sorted(found - listed)}"

@@ -45,6 +45,8 @@ def modules() -> dict[str, Path]:
     for pkg in PACKAGES:
         for p in sorted((ROOT / pkg).rglob("*.py")):
             rel = p.relative_to(ROOT).with_suffix("")
+            if any(part.startswith(".") for part in rel.parts):
+                continue            # a client's own environment (clients/cycles/.venv: Blender's scripts)
             parts = list(rel.parts)
             if parts[-1] == "__init__":
                 parts = parts[:-1]
