@@ -15,7 +15,7 @@ SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1 build-ess
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
 
-.PHONY: setup system-packages client-packages test-packages demo test test-fast gate bench report clean
+.PHONY: setup system-packages client-packages test-packages demo test test-fast gate bench report fidelity clean
 
 setup: system-packages client-packages $(STAMP)
 
@@ -72,6 +72,17 @@ REPORT_SCENES := spheres furnace grazing
 REPORT_CLIENTS := ext:threejs,ext:sample-viewer
 report: setup
 	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --with $(REPORT_CLIENTS) --hardcases --research --out reports
+
+# The committed Render Fidelity comparison with the ground truth (reports/fidelity/; docs/fidelity.md):
+# every scenario of ../shared/rf/config.json through the truth (path mode) and every renderer that runs
+# here (the five web clients, three-gpu-pathtracer, the default preset), at a reduced size and spp.
+# Not part of `make test` (about 20 minutes of software WebGL on this machine).
+FIDELITY_CONFIG ?= ../shared/rf/config.json
+FIDELITY_SIZE   ?= 64
+FIDELITY_SPP    ?= 16
+fidelity: setup
+	$(VENV)/bin/pbrcheck fidelity $(FIDELITY_CONFIG) --size $(FIDELITY_SIZE) --spp $(FIDELITY_SPP) \
+		--allow-dir $(dir $(FIDELITY_CONFIG)).. --out reports/fidelity --resume
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -38,7 +38,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -54,7 +54,8 @@ from pbrcheck.unmodelled import scene_unmodelled
 
 from . import renderers
 from .corpus import tasks as T
-from .corpus.scheduler import Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler
+from .corpus.scheduler import (Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler,
+                               unique_tasks)
 from .corpus.study import REFERENCE, code_identity
 from .maps import srgb_oetf
 from .metrics import compare_images, pixel_classes
@@ -169,12 +170,13 @@ def truth_pass(metrics: dict, noise: dict | None) -> bool | None:
 @dataclass(frozen=True)
 class FidelitySettings:
     """The renderers under test (parsed), the truth's spp and seed, the image's longer side
-    (None: the scenario's own size) and the config's path."""
+    (None: the scenario's own size) and the scenarios to run (None: every one)."""
 
     renderers: tuple[renderers.RendererSpec, ...]
     spp: int = 64
     seed: int = 0
     size: int | None = None
+    scenarios: tuple[str, ...] | None = None
 
     def validate(self) -> None:
         if self.spp < MIN_REFERENCE_SPP:
@@ -189,7 +191,7 @@ class FidelitySettings:
 
     def to_json(self) -> dict:
         return {"renderers": [r.text for r in self.renderers], "spp": self.spp, "seed": self.seed,
-                "size": self.size, "truth_mode": TRUTH_MODE, "rf_threshold_db": RF_THRESHOLD_DB,
+                "size": self.size, "scenarios": list(self.scenarios) if self.scenarios else None, "truth_mode": TRUTH_MODE, "rf_threshold_db": RF_THRESHOLD_DB,
                 "truth_flip_pass": TRUTH_FLIP_PASS, "pbrcheck": __version__}
 
 
@@ -217,20 +219,49 @@ def _sized(table: dict, size: int | None) -> dict:
     return {**table, "camera": cam}
 
 
-def load_scenarios(config: str | Path, size: int | None = None) -> list[Scenario]:
-    """Every scenario of the RF config ``config`` as a :class:`Scenario`; one whose scene cannot be
-    built (an asset refused, a missing environment) keeps its ``problem`` (an error row later).
+def load_scenarios(config: str | Path, size: int | None = None, only: tuple[str, ...] | None = None) -> list[Scenario]:
+    """Every scenario of the RF config ``config`` as a :class:`Scenario`; one that the importer
+    refuses or whose scene cannot be built (a missing or refused asset, a missing environment) keeps
+    its ``problem`` (an error row later). ``only``: just these scenarios (by name, the config's order).
 
     Raises
     ------
     ScenarioError
         The config itself is unreadable or malformed.
     """
-    from pbrcheck.scenario_import import config_scenes
+    from pbrcheck.scenario_import import config_scenes, scenario_table
 
     path = Path(config)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        data = None  # config_scenes names the problem
+    entries: list = []
+    if isinstance(data, dict) and isinstance(data.get("scenarios"), list) and "model" not in data:
+        # one scenario at a time: a scenario the importer refuses (a missing model) is that
+        # scenario's error row, not the end of the run
+        for i, s in enumerate(data["scenarios"]):
+            try:
+                entries.append(scenario_table(s, path.parent, str(path), f"scenarios[{i}]"))
+            except PbrcheckError as e:
+                name = s.get("name") if isinstance(s, dict) and isinstance(s.get("name"), str) else f"scenarios[{i}]"
+                entries.append((name, str(e)))
+        entries = [(e[1]["name"], *e) if isinstance(e[0], dict) else e for e in entries]
+    else:
+        entries = config_scenes(path)
+    if only is not None:
+        names = {e[0] for e in entries}
+        unknown = [n for n in only if n not in names]
+        if unknown:
+            raise FidelityError(f"fidelity: --scenarios: {', '.join(unknown)} not in {path} "
+                                f"(it has {', '.join(sorted(names))})")
+        entries = [e for e in entries if e[0] in only]
     out = []
-    for name, table, meta in config_scenes(path):
+    for entry in entries:
+        if len(entry) == 2:
+            out.append(Scenario(entry[0], None, entry[1]))
+            continue
+        name, table, meta = entry
         exclude = tuple(meta.get("exclude", ()))
         try:
             scene = scene_from_dict(_sized(table, size), file=str(path), base_dir=path.parent, contained=True)
@@ -249,8 +280,14 @@ def load_scenarios(config: str | Path, size: int | None = None) -> list[Scenario
 
 
 class _Usage:
-    """Wall time, CPU time (this process and its reaped children) and peak resident memory (this
-    process and its live descendants, polled every :data:`MEMORY_POLL_S` s) of a block."""
+    """Wall time, CPU time and peak resident memory of a block: this process and its descendants
+    (a browser client's node and Chromium processes), polled every :data:`MEMORY_POLL_S` s.
+
+    CPU time: this process's own (``os.times``, children excluded) plus, per descendant process seen
+    during the block, the last user + system time polled (less what it had at the block's start):
+    a descendant's time after its last poll (at most :data:`MEMORY_POLL_S`) is missed.
+    ``RUSAGE_CHILDREN`` alone would miss Chromium's GPU and renderer processes, which this process
+    never reaps. Memory: the largest sum of the resident sets of this process and its descendants."""
 
     def __enter__(self):
         import psutil
@@ -258,37 +295,43 @@ class _Usage:
         self._proc = psutil.Process(os.getpid())
         self._stop = threading.Event()
         self.peak = 0
+        self._cpu_seen: dict[int, float] = {}
+        self._cpu_start: dict[int, float] = {}
+        self._poll_once(start=True)
         self._t0 = time.perf_counter()
-        self._c0 = self._cpu()
+        t = os.times()
+        self._own0 = t.user + t.system
         self._thread = threading.Thread(target=self._poll, daemon=True)
         self._thread.start()
         return self
 
-    @staticmethod
-    def _cpu() -> float:
-        t = os.times()
-        return t.user + t.system + t.children_user + t.children_system
-
-    def _rss(self) -> int:
+    def _poll_once(self, start: bool = False) -> None:
         total = 0
         with contextlib.suppress(Exception):
             total = self._proc.memory_info().rss
             for c in self._proc.children(recursive=True):
                 with contextlib.suppress(Exception):
                     total += c.memory_info().rss
-        return total
+                    ct = c.cpu_times()
+                    v = ct.user + ct.system
+                    key = (c.pid, c.create_time())
+                    if start:
+                        self._cpu_start[key] = v
+                    self._cpu_seen[key] = v
+        self.peak = max(self.peak, total)
 
     def _poll(self):
-        while not self._stop.is_set():
-            self.peak = max(self.peak, self._rss())
-            self._stop.wait(MEMORY_POLL_S)
+        while not self._stop.wait(MEMORY_POLL_S):
+            self._poll_once()
 
     def __exit__(self, *exc):
         self._stop.set()
         self._thread.join()
-        self.peak = max(self.peak, self._rss())
+        self._poll_once()
         self.wall = time.perf_counter() - self._t0
-        self.cpu = self._cpu() - self._c0
+        t = os.times()
+        children = sum(v - self._cpu_start.get(k, 0.0) for k, v in self._cpu_seen.items())
+        self.cpu = t.user + t.system - self._own0 + children
         return False
 
     def meta(self, prefix: str) -> dict:
@@ -389,6 +432,7 @@ def plan(scenarios: list[Scenario], st: FidelitySettings, done=frozenset()) -> t
     tasks, slots = [], []
     golden = next((r for r in st.renderers if r.text == RF_BASELINE), None)
     for sc in scenarios:
+        first = len(tasks)
         for r in st.renderers:
             truth_k, ren_k, cmp_k = _keys(st, sc, r)
             row_k = cache_key(compare=cmp_k, scenario=sc.name)[:40]
@@ -404,11 +448,11 @@ def plan(scenarios: list[Scenario], st: FidelitySettings, done=frozenset()) -> t
                       Task(ren_k, render_task, (sc.scene, r), "render"),
                       Task(cmp_k, compare_task, (Dep(truth_k), Dep(ren_k), gold_dep, sc.scene, r is golden),
                            "compare", deliver=True)]
-    # a golden render must come before the comparisons that read it (the serial executor's order)
-    ordered = [t for t in tasks if t.stage != "compare"] + [t for t in tasks if t.stage == "compare"]
-    from .corpus.scheduler import unique_tasks
-
-    return unique_tasks(ordered), slots
+        # per scenario, its renders before its comparisons (a comparison reads the golden render;
+        # the serial executor runs in list order): each scenario's rows are written as it finishes
+        mine = tasks[first:]
+        tasks[first:] = [t for t in mine if t.stage != "compare"] + [t for t in mine if t.stage == "compare"]
+    return unique_tasks(tasks), slots
 
 
 def make_row(slot: Slot, value) -> dict:
@@ -473,7 +517,7 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
     """
     settings.validate()
     t0 = time.perf_counter()
-    scenarios = load_scenarios(config, settings.size)
+    scenarios = load_scenarios(config, settings.size, settings.scenarios)
     spec = None if executor is not None else (
         scheduler if isinstance(scheduler, SchedulerSpec) else parse_scheduler(scheduler))
     out = Path(out_dir)
@@ -526,7 +570,3 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
         result.files = write_outputs(result, config=str(config), scheduler=str(spec or "executor"))
     return result
 
-
-def with_size(st: FidelitySettings, size: int | None) -> FidelitySettings:
-    """``st`` at another image size."""
-    return replace(st, size=size)

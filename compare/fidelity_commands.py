@@ -30,7 +30,8 @@ def renderer_specs(clients: list[str], presets: list[str]) -> tuple[RendererSpec
 def _cmd_fidelity(args) -> int:
     clients = split_list(args.fidelity_renderers) if args.fidelity_renderers is not None else list(DEFAULT_CLIENTS)
     presets = split_list(args.presets) if args.presets is not None else list(DEFAULT_PRESETS)
-    settings = FidelitySettings(renderer_specs(clients, presets), spp=args.spp, seed=args.seed, size=args.size)
+    settings = FidelitySettings(renderer_specs(clients, presets), spp=args.spp, seed=args.seed, size=args.size,
+                                scenarios=tuple(split_list(args.scenarios)) if args.scenarios else None)
     settings.validate()
     spec = parse_scheduler(args.scheduler, default="serial")
     check_output_path(args.out, folder=True)
@@ -55,6 +56,7 @@ def register(sub, bench_sub) -> None:
                         "'' for none")
     s.add_argument("--presets", metavar="P,...",
                    help=f"real-time presets (default {','.join(DEFAULT_PRESETS)}); '' for none")
+    s.add_argument("--scenarios", metavar="NAME,...", help="only these scenarios of the config (default: all)")
     s.add_argument("--size", type=positive_int(1), default=None, metavar="N",
                    help="the images' longer side in pixels, the aspect kept (default: each scenario's own)")
     s.add_argument("--spp", type=positive_int(2), default=64, help="the truth's samples per pixel (default 64)")

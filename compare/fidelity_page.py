@@ -6,7 +6,7 @@ Delta E ITP; per material where the scene has several) beside RF's score against
 and both verdicts (``not modelled`` where the scene uses a feature pbrcheck does not model: no
 verdict); per engine (with its wall time, CPU time and peak memory) and per extension summaries; and
 "which path tracer is right" per asset. Every name from the config or the assets goes through
-:func:`pbrcheck.fmt.xml_text` (HTML) or :func:`pbrcheck.fmt.csv_cell` (CSV).
+:func:`pbrcheck.fmt.xml_text` and :func:`html.escape` (HTML) or :func:`pbrcheck.fmt.csv_cell` (CSV).
 
 API: :func:`engine_summary`, :func:`extension_summary`, :func:`path_tracer_table`,
 :func:`disagreements`, :func:`render_page`, :func:`write_outputs`.
@@ -14,15 +14,22 @@ API: :func:`engine_summary`, :func:`extension_summary`, :func:`path_tracer_table
 
 from __future__ import annotations
 
+import html
 import statistics
 from pathlib import Path
 
 from pbrcheck.atomic import write_text_atomic
-from pbrcheck.fmt import xml_text
+from pbrcheck.fmt import xml_text as _xml_text
 from pbrcheck.jsonio import dump_json
 
 from .corpus.outputs import write_csv
 from .fidelity import METRIC_NAMES, PATH_TRACERS, RF_BASELINE, RF_THRESHOLD_DB, ROW_COLUMNS, TRUTH_FLIP_PASS
+
+def xml_text(s) -> str:
+    """``s`` for HTML text and attributes: XML-illegal characters made visible
+    (:func:`pbrcheck.fmt.xml_text`), then the markup characters escaped."""
+    return html.escape(_xml_text(str(s)), quote=True)
+
 
 #: The truth's own line in the per-engine table.
 TRUTH_NAME = "reference (truth, path mode)"
