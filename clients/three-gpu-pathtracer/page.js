@@ -1,7 +1,7 @@
 // pbrcheck's three-gpu-pathtracer client, the page: loads the exported scene with three.js's
 // loaders and path traces it with three-gpu-pathtracer's WebGLPathTracer (WebGL2; the package's
 // WebGPU tracer needs WebGPU, which headless Chromium on SwiftShader does not offer), then POSTs
-// the accumulated linear radiance to the runner (render.mjs). See docs/renderers.md, section 10.
+// the accumulated linear radiance to the runner (render.mjs). See docs/renderers.md, "three-gpu-pathtracer".
 //
 // - GLTFLoader (+ DRACOLoader): the materials three.js makes from the file (MeshStandardMaterial /
 //   MeshPhysicalMaterial): what the tracer supports. KHR_lights_punctual lights go to the tracer

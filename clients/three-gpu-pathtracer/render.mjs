@@ -1,4 +1,4 @@
-// pbrcheck's three-gpu-pathtracer client, the runner (docs/renderers.md, section 10).
+// pbrcheck's three-gpu-pathtracer client, the runner (docs/renderers.md, "three-gpu-pathtracer").
 //
 //   node render.mjs SCENARIO.json OUT.pfm [--spp N] [--bounces N] [--timeout SECONDS]
 //   node render.mjs --version
