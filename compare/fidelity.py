@@ -57,6 +57,7 @@ from .corpus import tasks as T
 from .corpus.scheduler import (Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler,
                                unique_tasks)
 from .corpus.study import REFERENCE, code_identity
+from .corpus.study import _read_row  # the corpus's row reader: a row file of this key, else None
 from .maps import srgb_oetf
 from .metrics import compare_images, pixel_classes
 from .verdict_spp import MIN_REFERENCE_SPP
@@ -478,14 +479,6 @@ def make_row(slot: Slot, value) -> dict:
         if row["rf_pass"] is not None and row["truth_pass"] is not None:
             row["disagree"] = row["rf_pass"] != row["truth_pass"]
     return {k: v.item() if isinstance(v, np.generic) else v for k, v in row.items()}
-
-
-def _read_row(path: Path, key: str) -> dict | None:
-    try:
-        row = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return row if isinstance(row, dict) and row.get("key") == key else None
 
 
 @dataclass
