@@ -172,3 +172,28 @@ def test_settings_refuse_bad_values():
         F.FidelitySettings(()).validate()
     with pytest.raises(F.FidelityError, match="named twice"):
         _settings("default", "default").validate()
+
+
+def test_path_tracer_table_and_extension_summary_from_rows():
+    from compare.fidelity_page import NOT_MODELLED, extension_summary, path_tracer_table
+
+    def row(scen, ren, flip, nm="", ext=""):
+        return {"scenario": scen, "renderer": ren, "status": "ok", "flip_mean": flip, "relmse": flip / 2,
+                "flip_mean_noise": False, "not_modelled": nm, "extensions": ext,
+                "rf_pass": True, "truth_pass": flip <= F.TRUTH_FLIP_PASS}
+    rows = [row("a", "ext:three-gpu-pathtracer", 0.20), row("a", "ext:cycles", 0.05),
+            row("b", "ext:three-gpu-pathtracer", 0.03, ext="KHR_texture_transform"),
+            {"scenario": "b", "renderer": "ext:cycles", "status": "error"},
+            row("c", "ext:three-gpu-pathtracer", 0.01, nm="KHR_materials_sheen", ext="KHR_materials_sheen"),
+            row("c", "ext:cycles", 0.30, nm="KHR_materials_sheen", ext="KHR_materials_sheen")]
+    names = ["ext:three-gpu-pathtracer", "ext:cycles"]
+    table = {e["scenario"]: e for e in path_tracer_table(rows, names)}
+    assert table["a"]["closest"] == "ext:cycles" and table["b"]["closest"] == "ext:three-gpu-pathtracer"
+    assert table["b"]["tracers"]["ext:cycles"] is None and table["c"]["closest"] == NOT_MODELLED
+    assert path_tracer_table(rows, ["default"]) == []
+    ext = {(e["extension"], e["renderer"]): e for e in extension_summary(rows, names)}
+    assert ext[("core", "ext:cycles")]["judged"] == 1 and ext[("core", "ext:cycles")]["flip_mean"] == 0.05
+    assert ext[("KHR_materials_sheen", "ext:cycles")] == {
+        "extension": "KHR_materials_sheen", "renderer": "ext:cycles", "judged": 0, "not_modelled": 1,
+        "flip_mean": None, "rf_pass": 0, "truth_pass": 0}
+    assert ext[("KHR_texture_transform", "ext:three-gpu-pathtracer")]["truth_pass"] == 1
