@@ -9,7 +9,8 @@ the truth with its noise flags (relmse, FLIP, Delta E ITP; per material where th
 and, beside it, RF's own metric against the three.js image (:func:`rf_metric_db`), RF's verdict
 (:data:`RF_THRESHOLD_DB`) and the truth's verdict (:func:`truth_pass`); a scene with features
 pbrcheck does not model (:func:`pbrcheck.unmodelled.scene_unmodelled`) is marked ``not modelled`` and
-gets no verdict. :mod:`compare.fidelity_page` writes ``fidelity.csv``, ``fidelity.json`` and the page.
+gets no verdict. :mod:`compare.fidelity_page` writes ``fidelity.csv``, ``fidelity.json`` and the page
+(:func:`compare.fidelity_page.write_outputs`).
 
 RF's metric (reimplemented from its formula). RF's comparison is model-viewer's render-fidelity
 tools: ``ImageComparator.analyze`` and ``toDecibel`` in google/model-viewer
@@ -38,7 +39,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -484,7 +485,7 @@ def make_row(slot: Slot, value) -> dict:
 @dataclass
 class FidelityResult:
     """A finished run: its folder, settings, scenarios, rows (scenario x renderer order), wall time
-    of this run, rows computed by it and the files written."""
+    of this run, rows computed by it and the scheduler it ran on."""
 
     out_dir: Path
     settings: FidelitySettings
@@ -492,16 +493,15 @@ class FidelityResult:
     rows: list[dict]
     wall_s: float = 0.0
     computed: int = 0
-    files: dict = field(default_factory=dict)
+    scheduler: str = "serial"
 
 
 def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | Path, *,
                  scheduler: str | SchedulerSpec | None = "serial", executor=None, resume: bool = False,
-                 progress: bool = True, on_row: Callable[[dict], None] | None = None,
-                 outputs: bool = True) -> FidelityResult:
+                 progress: bool = True, on_row: Callable[[dict], None] | None = None) -> FidelityResult:
     """Run every scenario of ``config`` through the truth and ``settings.renderers``; rows in
-    ``out_dir/rows/`` (``resume``: rows already there are kept), then (``outputs``)
-    ``fidelity.csv``, ``fidelity.json`` and ``index.html`` (:mod:`compare.fidelity_page`).
+    ``out_dir/rows/`` (``resume``: rows already there are kept); the tables and the page are
+    :func:`compare.fidelity_page.write_outputs`'s.
 
     Raises
     ------
@@ -556,10 +556,6 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
             for s in left:
                 write(make_row(s, Failed("task", "no result came back from the scheduler")))
     rows = [done[s.row_key] for s in slots]
-    result = FidelityResult(out, settings, scenarios, rows, time.perf_counter() - t0, computed)
-    if outputs:
-        from .fidelity_page import write_outputs
-
-        result.files = write_outputs(result, config=str(config), scheduler=str(spec or "executor"))
-    return result
+    return FidelityResult(out, settings, scenarios, rows, time.perf_counter() - t0, computed,
+                          scheduler=str(spec or "executor"))
 

@@ -13,6 +13,7 @@ from pbrcheck.fmt import terminal_safe
 from . import renderers
 from .corpus.scheduler import SCHEDULER_HELP, parse_scheduler
 from .fidelity import FidelitySettings, run_fidelity
+from .fidelity_page import write_outputs
 from .renderers import RendererSpec
 
 #: The external clients run when ``--renderers`` is not given: RF's engines that pbrcheck has.
@@ -37,11 +38,12 @@ def _cmd_fidelity(args) -> int:
     check_output_path(args.out, folder=True)
     res = run_fidelity(args.config, settings, Path(args.out), scheduler=spec, resume=args.resume,
                        progress=not args.quiet)
+    files = write_outputs(res, args.config)
     errors = sum(r["status"] != "ok" for r in res.rows)
     dis = sum(1 for r in res.rows if r.get("disagree"))
     print(f"fidelity: {len(res.scenarios)} scenario(s), {len(res.rows)} row(s), {errors} error row(s), "
           f"{dis} RF/truth disagreement(s), {res.computed} computed now on {spec}, {res.wall_s:.0f} s")
-    for k, p in res.files.items():
+    for k, p in files.items():
         print(f"{k}: {terminal_safe(str(p))}")
     return 0
 

@@ -250,7 +250,7 @@ def render_page(result, summaries: dict, config: str, scheduler: str) -> str:
     return "\n".join(p)
 
 
-def write_outputs(result, *, config: str, scheduler: str) -> dict[str, Path]:
+def write_outputs(result, config: str | Path) -> dict[str, Path]:
     """``fidelity.csv`` (:data:`compare.fidelity.ROW_COLUMNS`), ``fidelity.json`` (settings, rows with
     their per-material metrics, summaries) and ``index.html`` in ``result.out_dir``."""
     names = [r.text for r in result.settings.renderers]
@@ -259,6 +259,7 @@ def write_outputs(result, *, config: str, scheduler: str) -> dict[str, Path]:
                  "path_tracers": path_tracer_table(result.rows, names),
                  "disagreements": [{"scenario": r["scenario"], "renderer": r["renderer"]}
                                    for r in disagreements(result.rows)]}
+    config, scheduler = str(config), result.scheduler
     out = result.out_dir
     files = {"csv": write_csv(out / "fidelity.csv", result.rows, ROW_COLUMNS)}
     doc = {"config": config, "settings": result.settings.to_json(), "scheduler": scheduler,

@@ -21,7 +21,7 @@ import pytest
 
 import compare.fidelity as F
 from compare import renderers
-from compare.fidelity_page import disagreements
+from compare.fidelity_page import disagreements, write_outputs
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image
 from tests.gltf_build import quad_asset
@@ -98,6 +98,7 @@ def test_disagreements_error_row_resume_and_escaping(tmp_path, tmp_cache, stand_
     st = _settings("ext:threejs", "ext:filament", "ext:sample-viewer", "default")
     out = tmp_path / "out"
     res = F.run_fidelity(cfg, st, out, progress=False)
+    write_outputs(res, cfg)
     rows = {r["renderer"]: r for r in res.rows}
     assert [r["renderer"] for r in res.rows] == ["ext:threejs", "ext:filament", "ext:sample-viewer", "default"]
     # the failing renderer: an error row naming the stage and the message
@@ -145,6 +146,7 @@ def test_unmodelled_feature_is_marked_and_not_judged(tmp_path, tmp_cache):
     doc["extensionsUsed"] = ["KHR_materials_sheen"]
     cfg.parent.joinpath("assets", "q.gltf").write_text(json.dumps(doc))
     res = F.run_fidelity(cfg, _settings("default"), tmp_path / "out", progress=False)
+    write_outputs(res, cfg)
     (row,) = res.rows
     assert row["status"] == "ok" and "KHR_materials_sheen" in row["not_modelled"]
     assert row["truth_pass"] is None and row["rf_pass"] is None and row["disagree"] is None
