@@ -71,6 +71,7 @@ def engine_summary(rows: list[dict], renderer_names: list[str]) -> list[dict]:
             **{m: _median(r.get(m) for r in judged) for m in METRIC_NAMES},
             "rf_db": _median(r.get("rf_db") for r in judged),
             "rf_pass": sum(1 for r in judged if r.get("rf_pass")),
+            "rf_judged": sum(1 for r in judged if r.get("rf_pass") is not None),
             "truth_pass": sum(1 for r in judged if r.get("truth_pass")),
             "judged": len(judged), "disagree": sum(1 for r in judged if r.get("disagree")),
             "wall_s": _sum(r.get("wall_s") for r in ok), "cpu_s": _sum(r.get("cpu_s") for r in ok),
@@ -102,6 +103,7 @@ def extension_summary(rows: list[dict], renderer_names: list[str]) -> list[dict]
                         "not_modelled": len(rs) - len(judged),
                         "flip_mean": _median(r.get("flip_mean") for r in judged),
                         "rf_pass": sum(1 for r in judged if r.get("rf_pass")),
+            "rf_judged": sum(1 for r in judged if r.get("rf_pass") is not None),
                         "truth_pass": sum(1 for r in judged if r.get("truth_pass"))})
     return out
 
@@ -196,10 +198,11 @@ def render_page(result, summaries: dict, config: str, scheduler: str) -> str:
                         f"<td class='err' colspan='7'>error ({xml_text(r.get('stage') or '')}): "
                         f"{xml_text(r.get('error') or '')}</td></tr>")
             continue
+        golden = "RF's golden" if r["renderer"] == RF_BASELINE else ""
         mark = f"<span class='nm' title='{xml_text(nm)}'>{NOT_MODELLED}: {xml_text(nm)}</span>" if nm else ""
         body.append(f"<tr{cls}><td>{xml_text(r['scenario'])}</td><td>{xml_text(r['renderer'])}</td>"
                     + "".join(_metric_cell(r, m) for m in METRIC_NAMES)
-                    + f"<td>{_fmt(r.get('rf_db'))}</td><td>{mark or _verdict(r.get('rf_pass'))}</td>"
+                    + f"<td>{_fmt(r.get('rf_db'))}</td><td>{mark or golden or _verdict(r.get('rf_pass'))}</td>"
                     f"<td>{mark or _verdict(r.get('truth_pass'))}</td><td>{_fmt(r.get('wall_s'), 3)}</td></tr>")
     p.append(_table(["scenario", "renderer", "relmse", "FLIP", "&Delta;E ITP", "RF dB", "RF verdict",
                      "truth verdict", "wall s"], body))
@@ -214,15 +217,15 @@ def render_page(result, summaries: dict, config: str, scheduler: str) -> str:
     p.append("<h2>Per engine</h2>")
     body = [f"<tr><td>{xml_text(e['renderer'])}</td><td>{e['rows']}</td><td>{_fmt(e.get('errors'))}</td>"
             f"<td>{_fmt(e.get('not_modelled'))}</td>" + "".join(f"<td>{_fmt(e.get(m))}</td>" for m in METRIC_NAMES)
-            + f"<td>{_fmt(e.get('rf_db'))}</td><td>{_fmt(e.get('rf_pass'))}/{_fmt(e.get('judged'))}</td>"
+            + f"<td>{_fmt(e.get('rf_db'))}</td><td>{_fmt(e.get('rf_pass'))}/{_fmt(e.get('rf_judged'))}</td>"
             f"<td>{_fmt(e.get('truth_pass'))}/{_fmt(e.get('judged'))}</td><td>{_fmt(e.get('disagree'))}</td>"
             f"<td>{_fmt(e.get('wall_s'), 4)}</td><td>{_fmt(e.get('cpu_s'), 4)}</td><td>{_fmt(e.get('peak_mib'), 4)}</td></tr>"
             for e in summaries["engines"]]
     p.append(_table(["renderer", "rows", "errors", NOT_MODELLED, "median relmse", "median FLIP",
                      "median &Delta;E ITP", "median RF dB", "RF pass", "truth pass", "disagree",
                      "wall s (sum)", "CPU s (sum)", "peak MiB"], body))
-    p.append("<p>Wall and CPU time: the sum over the renderer's renders (CPU time of this process and its "
-             "reaped children: a browser client's Chromium included); peak memory: the largest resident "
+    p.append("<p>Wall and CPU time: the sum over the renderer's renders (CPU time of the rendering process and "
+             "its descendants, a browser client's node and Chromium processes included, polled every 0.1 s); peak memory: the largest resident "
              "set of the rendering process and its live children during one render, sampled every 0.1 s.</p>")
     p.append("<h2>Per extension</h2>")
     body = [f"<tr><td>{xml_text(e['extension'])}</td><td>{xml_text(e['renderer'])}</td><td>{e['judged']}</td>"

@@ -197,5 +197,5 @@ def test_path_tracer_table_and_extension_summary_from_rows():
     assert ext[("core", "ext:cycles")]["judged"] == 1 and ext[("core", "ext:cycles")]["flip_mean"] == 0.05
     assert ext[("KHR_materials_sheen", "ext:cycles")] == {
         "extension": "KHR_materials_sheen", "renderer": "ext:cycles", "judged": 0, "not_modelled": 1,
-        "flip_mean": None, "rf_pass": 0, "truth_pass": 0}
+        "flip_mean": None, "rf_pass": 0, "rf_judged": 0, "truth_pass": 0}
     assert ext[("KHR_texture_transform", "ext:three-gpu-pathtracer")]["truth_pass"] == 1
