@@ -171,7 +171,7 @@ def render_page(result, summaries: dict, config: str, scheduler: str) -> str:
          f"{len(st.renderers)} renderer(s) ({xml_text(', '.join(r.text for r in st.renderers))}); truth: "
          f"pbrcheck's reference, <code>path</code> mode, {st.spp} spp (seed {st.seed}); image size: "
          f"{'longer side ' + str(st.size) + ' px' if st.size else 'the scenarios own'}; scheduler "
-         f"{xml_text(scheduler)}; run wall time {result.wall_s:.0f} s ({result.computed} row(s) computed, "
+         f"{xml_text(scheduler)}; this invocation: {result.wall_s:.0f} s wall ({result.computed} row(s) computed, "
          "the rest resumed).</p>",
          f"<p>RF's verdict: its own metric (RMS of pixelmatch's YIQ difference over covered pixels, in dB, "
          f"8-bit Khronos PBR Neutral images; compare/fidelity.py cites the code) against "
@@ -179,6 +179,13 @@ def render_page(result, summaries: dict, config: str, scheduler: str) -> str:
          f"verdict: mean HDR-FLIP against the reference at most {TRUTH_FLIP_PASS:g}, or every metric within "
          "the reference's noise (<span class='noise'>~n</span>). Scenes using a feature pbrcheck does not "
          f"model are marked <span class='nm'>{NOT_MODELLED}</span> and get no verdict.</p>"]
+    ok = [r for r in rows if r["status"] == "ok"]
+    truth = {r["scenario"]: r for r in ok}
+    wall = (_sum(r.get("wall_s") for r in ok) or 0.0) + (_sum(r.get("truth_wall_s") for r in truth.values()) or 0.0)
+    cpu = (_sum(r.get("cpu_s") for r in ok) or 0.0) + (_sum(r.get("truth_cpu_s") for r in truth.values()) or 0.0)
+    p.append(f"<p>The rows' renders (this run's and resumed ones; the truth once per scenario, error rows not "
+             f"counted): {wall:.0f} s wall, {cpu:.0f} s CPU, {wall / max(len(truth), 1):.0f} s wall per "
+             "scenario.</p>")
     dis = disagreements(rows)
     p.append(f"<h2>RF and the truth disagree ({len(dis)})</h2>")
     if dis:
