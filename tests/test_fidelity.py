@@ -199,3 +199,14 @@ def test_path_tracer_table_and_extension_summary_from_rows():
         "extension": "KHR_materials_sheen", "renderer": "ext:cycles", "judged": 0, "not_modelled": 1,
         "flip_mean": None, "rf_pass": 0, "rf_judged": 0, "truth_pass": 0}
     assert ext[("KHR_texture_transform", "ext:three-gpu-pathtracer")]["truth_pass"] == 1
+
+
+@pytest.mark.slow
+def test_dask_local_cluster_gives_the_serial_rows(tmp_path, tmp_cache):
+    cfg = _config(tmp_path, [{"name": "q", "model": "assets/q.gltf", "lighting": "neutral", "orbit": {"radius": 3}}])
+    st = _settings("default")
+    serial = F.run_fidelity(cfg, st, tmp_path / "s", progress=False)
+    dask = F.run_fidelity(cfg, st, tmp_path / "d", scheduler="local:1", progress=False)
+    keep = ("key", "status", "relmse", "flip_mean", "delta_e_itp_mean", "truth_pass")
+    assert [{k: r[k] for k in keep} for r in dask.rows] == [{k: r[k] for k in keep} for r in serial.rows]
+    assert dask.rows[0]["status"] == "ok" and dask.scheduler == "local:1"
