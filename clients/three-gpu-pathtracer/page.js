@@ -12,7 +12,8 @@
 //   ever blended in), tiles 1 x 1 (one full-frame sample per update), renderToCanvas off (the
 //   accumulation target is read directly), bounces from ?bounces= (default 8, the package's
 //   default 10 clipped for speed on software WebGL; stated in the metadata), filterGlossyFactor 0
-//   (no path-space roughening: that biases the estimate). Its accumulation target is a FloatType
+//   (no path-space roughening: that biases the estimate), stableNoise on (a run's samples are
+//   the same every run: its image is repeatable, its noise that of one fixed estimate). Its accumulation target is a FloatType
 //   running mean of `samples` frames (sample k blended with opacity 1/(k+1)); its camera rays are
 //   jittered within the pixel, so no supersampling is used. Stops after ?spp= samples. WebGL work
 //   is asynchronous: the tracing's time shows in page_seconds (the read-back waits for it), not in
@@ -66,6 +67,7 @@ async function main() {
   tracer.tiles.set(1, 1);
   tracer.bounces = BOUNCES;
   tracer.filterGlossyFactor = 0;
+  tracer.stableNoise = true;  // the same random sequence every run: a repeatable image
   tracer.setScene(scene, camera);
   const tSetup = performance.now();
   while (tracer.isCompiling) await frame();
