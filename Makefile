@@ -15,7 +15,7 @@ SYSTEM_PACKAGES := libegl1 libgl1 libgl1-mesa-dri libllvm19 libatomic1 build-ess
 # Only for the report's headless-browser test (skipped where it cannot be installed).
 TEST_PACKAGES := chromium
 
-.PHONY: setup system-packages client-packages test-packages demo test test-fast gate bench report clean
+.PHONY: setup system-packages client-packages test-packages demo test test-fast gate bench report fidelity clean
 
 setup: system-packages client-packages $(STAMP)
 
@@ -74,6 +74,21 @@ REPORT_SCENES := spheres furnace grazing
 REPORT_CLIENTS := ext:threejs,ext:sample-viewer
 report: setup
 	$(VENV)/bin/pbrcheck report $(REPORT_SCENES) --spp 256 --with $(REPORT_CLIENTS) --hardcases --research --out reports
+
+# The committed Render Fidelity comparison with the ground truth (reports/fidelity/; docs/fidelity.md):
+# scenarios of ../shared/rf/config.json through the truth (path mode) and every renderer that runs here
+# (the five web clients, three-gpu-pathtracer at 16 spp by reports/fidelity/renderers.toml, the
+# default preset), at a reduced size and spp, on a subset of the scenarios (software WebGL on two
+# shared cores: ~5 minutes a scenario); FIDELITY_SCENARIOS= (empty) runs all of them.
+# Not part of `make test`.
+FIDELITY_CONFIG    ?= ../shared/rf/config.json
+FIDELITY_SIZE      ?= 64
+FIDELITY_SPP       ?= 16
+FIDELITY_SCENARIOS ?= khronos-ClearCoatTest,khronos-MetalRoughSpheresNoTextures,khronos-Duck,khronos-BoxTextured
+fidelity: setup
+	$(VENV)/bin/pbrcheck --renderers reports/fidelity/renderers.toml fidelity $(FIDELITY_CONFIG) \
+		--size $(FIDELITY_SIZE) --spp $(FIDELITY_SPP) $(if $(FIDELITY_SCENARIOS),--scenarios $(FIDELITY_SCENARIOS)) \
+		--allow-dir $(dir $(FIDELITY_CONFIG)).. --out reports/fidelity --resume
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -27,6 +27,7 @@ import time
 import clients.commands
 import clients.config
 import compare.commands
+import compare.fidelity_commands
 import compare.report.corpus_commands
 import compare.report.commands
 import compare.research.commands
@@ -44,7 +45,7 @@ from pbrcheck.scene import DEFAULT_SCENE, builtin_scene_names, dump_toml, load_s
 
 #: Modules that contribute subcommands, in help order.
 COMMAND_MODULES = (reference.commands, realtime.commands, clients.commands, compare.commands, compare.research.commands,
-                   compare.report.commands, compare.report.corpus_commands)
+                   compare.report.commands, compare.report.corpus_commands, compare.fidelity_commands)
 
 
 def _cmd_scenes(args) -> int:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up the external clients (clients/*/ with a package-lock.json: threejs, gltf-sample-viewer,
-# babylon, playcanvas, filament):
+# babylon, playcanvas, filament, three-gpu-pathtracer):
 # Debian's nodejs, npm and chromium, then `npm ci` in each (their packages pinned by
 # package-lock.json; no browser download: Debian's chromium).
 # Installs only what is missing, and only as root; otherwise prints the exact commands and goes on
@@ -24,7 +24,8 @@ if [ ${#missing[@]} -gt 0 ]; then
   fi
 fi
 command -v npm >/dev/null 2>&1 || exit 0
-# Every client with a lockfile (clients/threejs, clients/gltf-sample-viewer, clients/babylon, ...).
+# Every client with a lockfile (clients/threejs, clients/gltf-sample-viewer, clients/babylon, ...,
+# clients/three-gpu-pathtracer).
 for lock in "$root"/clients/*/package-lock.json; do
   dir="$(dirname "$lock")"
   stamp="$dir/node_modules/.package-lock.json"
