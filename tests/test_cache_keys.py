@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 import compare.corpus.study as study
+from compare import renderers
 import realtime.gl as gl
 from pbrcheck.scene import scene_from_dict
 
@@ -78,7 +79,7 @@ def test_a_corpus_row_is_keyed_by_the_shaders_of_its_preset(tmp_path, monkeypatc
     d = tmp_path / "shaders"
     shutil.copytree(gl.SHADER_DIR, d)
     monkeypatch.setattr(gl, "SHADER_DIR", d)
-    st = study.CorpusSettings(scene, (study.RendererSpec("default"),))
+    st = study.CorpusSettings(scene, (renderers.RendererSpec.parse("default"),))
     study.code_identity.cache_clear()
     before = study._keys(st, _entry(tmp_path), st.renderers[0])
     for name in ("raster.frag", "brdf.glsl"):
@@ -94,7 +95,7 @@ def test_a_corpus_row_is_keyed_by_the_shaders_of_its_preset(tmp_path, monkeypatc
 def test_a_corpus_row_is_keyed_by_the_reference_code_and_an_external_renderers_config(tmp_path, monkeypatch, scene):
     import reference.render as rr
 
-    st = study.CorpusSettings(scene, (study.RendererSpec("ext:threejs"),))
+    st = study.CorpusSettings(scene, (renderers.RendererSpec.parse("ext:threejs"),))
     study.code_identity.cache_clear()
     env_k, ref_k, ren_k, cmp_k = study._keys(st, _entry(tmp_path), st.renderers[0])
     assert json.loads(study.code_identity("ext:threejs"))["external"]["name"] == "threejs"
@@ -120,7 +121,7 @@ def test_a_render_lists_task_keys_hold_the_environments_pixels_and_the_code(tmp_
     env = tmp_path / "env.exr"
     write_exr(env, Image.from_rgb(np.full((8, 16, 3), 0.5, np.float32)))
     s = scene_from_dict({**TINY, "environment": {"type": "file", "path": str(env)}})
-    jobs = [("default", None), ("splitsum_basic", {"cube_size": 32})]
+    jobs = [renderers.RendererSpec.parse("default"), renderers.RendererSpec.parse("splitsum_basic", {"cube_size": 32})]
 
     def keys():
         return [t.key for t in _render_tasks(s, jobs, renderers.DIRECT)]

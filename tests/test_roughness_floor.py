@@ -73,7 +73,7 @@ def test_textured_material_gets_the_floor():
             from types import SimpleNamespace
             return SimpleNamespace(base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0, specular=0.04,
                                    normal_texture=None, double_sided=False, base_color_texture=None,
-                                   metallic_roughness_texture=None, alpha_mode="OPAQUE")
+                                   metallic_roughness_texture=None, alpha_mode="OPAQUE", unlit=False)
 
     brdf = replace(_scene().brdf, roughness_floor=THREEJS_FLOOR)
     d = _material_dict(_Asset(), 0, brdf, {})
