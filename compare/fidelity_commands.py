@@ -1,6 +1,6 @@
-"""CLI subcommand ``pbrcheck fidelity CONFIG.json`` (registered by :mod:`pbrcheck.cli`): every RF
+"""CLI subcommand ``pbrcheck fidelity CONFIG.json`` (registered by :mod:`pbrcheck_cli`): every RF
 scenario through the truth and the chosen renderers (:mod:`compare.fidelity`; docs/fidelity.md).
-Library errors propagate; only :mod:`pbrcheck.cli` maps them to exit codes."""
+Library errors propagate; only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 

@@ -156,7 +156,7 @@ def test_unmodelled_feature_is_marked_and_not_judged(tmp_path, tmp_cache):
 
 
 def test_bad_scenario_is_an_error_row_and_the_cli_prints_one_summary(tmp_path, tmp_cache, capsys):
-    from pbrcheck.cli import main
+    from pbrcheck_cli import main
 
     cfg = _config(tmp_path, [{"name": "ok", "model": "assets/q.gltf", "lighting": "neutral", "orbit": {"radius": 3}},
                              {"name": "gone", "model": "assets/missing.gltf", "lighting": "neutral"}])

@@ -269,9 +269,11 @@ def test_diagnose_names_a_model_difference_not_a_convention(sample_viewer):
     ref = read_exr(ROOT / "compare" / "budgets" / "refs" / "spheres_ci.exr")
     img = renderers.render_under_test(scene, renderers.RendererSpec.parse("ext:sample-viewer"))
     d = dg.diagnose(ref, img, scene, spp=32)
-    assert d.likely == "multiple_scattering" and "a model difference" in d.line, dg.table_markdown(d)
+    # the Sample Viewer mixes two BRDFs (glTF's metallic blend) and compensates multiple scattering: both
+    # are model differences of the engine, each explaining about half the error here
+    assert d.likely in ("multiple_scattering", "metallic_blend") and "a model difference" in d.line, dg.table_markdown(d)
     rows = {r.hypothesis: r for r in d.rows if r.skipped is None}
-    assert rows["multiple_scattering"].reduction > 0.4, dg.table_markdown(d)
+    assert rows["multiple_scattering"].reduction > 0.4 and rows["metallic_blend"].reduction > 0.4, dg.table_markdown(d)
     for name in ("flip_vertical", "flip_horizontal", "srgb_as_linear", "linear_as_srgb", "swap_rb",
                  "env_rotate_90", "env_rotate_180", "env_rotate_270", "env_mirror_u", "roughness_as_alpha"):
         assert rows[name].reduction < 0.0, (name, dg.table_markdown(d))
