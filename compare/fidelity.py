@@ -58,7 +58,7 @@ from .corpus import tasks as T
 from .corpus.scheduler import (Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler,
                                unique_tasks)
 from .corpus.study import REFERENCE, code_identity
-from .corpus.study import _read_row  # the corpus's row reader: a row file of this key, else None
+from .corpus.study import resumed_rows  # the corpus's resume: the rows a previous run finished
 from .maps import srgb_oetf
 from .metrics import compare_images, pixel_classes
 from .verdict_spp import MIN_REFERENCE_SPP
@@ -516,12 +516,7 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
     out = Path(out_dir)
     rows_dir = out / "rows"
     _, slots = plan(scenarios, settings)
-    done: dict[str, dict] = {}
-    if resume:
-        for s in slots:
-            row = _read_row(rows_dir / f"{s.row_key}.json", s.row_key)
-            if row is not None:
-                done[s.row_key] = row
+    done = resumed_rows(rows_dir, slots) if resume else {}
     tasks, _ = plan(scenarios, settings, set(done))
     computed = 0
     with contextlib.ExitStack() as stack:

@@ -292,6 +292,18 @@ def _read_row(path: Path, key: str) -> dict | None:
     return row if isinstance(row, dict) and row.get("key") == key else None
 
 
+def resumed_rows(rows_dir: Path, slots) -> dict[str, dict]:
+    """The rows a previous run finished (``--resume``): per slot (anything with a ``row_key``) its
+    row file under ``rows_dir`` where one of that key reads back, keyed by the row key. Shared by
+    ``corpus`` and ``fidelity``."""
+    done: dict[str, dict] = {}
+    for s in slots:
+        row = _read_row(rows_dir / f"{s.row_key}.json", s.row_key)
+        if row is not None:
+            done[s.row_key] = row
+    return done
+
+
 @dataclass
 class CorpusResult:
     """A finished corpus: its folder, settings, rows (corpus order), summary and written files."""
@@ -355,12 +367,7 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
     out = Path(out_dir)
     rows_dir, thumbs_dir = out / "rows", out / "thumbs"
     _, slots = plan(entries, settings)
-    done: dict[str, dict] = {}
-    if resume:
-        for s in slots:
-            row = _read_row(rows_dir / f"{s.row_key}.json", s.row_key)
-            if row is not None:
-                done[s.row_key] = row
+    done = resumed_rows(rows_dir, slots) if resume else {}
     tasks, _ = plan(entries, settings, set(done))
     with contextlib.ExitStack() as stack:
         # The executor first: a scheduler that cannot be reached stops the corpus before any write.
