@@ -46,7 +46,6 @@ from typing import Callable
 import numpy as np
 
 from pbrcheck import __version__
-from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.cache import cache_key
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.progress import Progress
@@ -58,7 +57,7 @@ from .corpus import tasks as T
 from .corpus.scheduler import (Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler,
                                unique_tasks)
 from .corpus.study import REFERENCE, code_identity
-from .corpus.study import resumed_rows  # the corpus's resume: the rows a previous run finished
+from .corpus.study import RowWriter, resumed_rows  # the corpus's resume: the rows a previous run finished
 from .maps import srgb_oetf
 from .metrics import compare_images, pixel_classes
 from .verdict_spp import MIN_REFERENCE_SPP
@@ -518,19 +517,12 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
     _, slots = plan(scenarios, settings)
     done = resumed_rows(rows_dir, slots) if resume else {}
     tasks, _ = plan(scenarios, settings, set(done))
-    computed = 0
     with contextlib.ExitStack() as stack:
         if tasks and executor is None:
             executor = stack.enter_context(open_executor(spec))
         rows_dir.mkdir(parents=True, exist_ok=True)
 
-        def write(row):
-            nonlocal computed
-            write_json_atomic(rows_dir / f"{row['key']}.json", row)
-            done[row["key"]] = row
-            computed += 1
-            if on_row is not None:
-                on_row(row)
+        write = RowWriter(rows_dir, done, on_row)
 
         for s in slots:
             if s.scenario.scene is None and s.row_key not in done:
@@ -551,6 +543,6 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
             for s in left:
                 write(make_row(s, Failed("task", "no result came back from the scheduler")))
     rows = [done[s.row_key] for s in slots]
-    return FidelityResult(out, settings, scenarios, rows, time.perf_counter() - t0, computed,
+    return FidelityResult(out, settings, scenarios, rows, time.perf_counter() - t0, write.computed,
                           scheduler=str(spec or "executor"))
 

@@ -305,6 +305,25 @@ def resumed_rows(rows_dir: Path, slots) -> dict[str, dict]:
 
 
 @dataclass
+class RowWriter:
+    """Writes a run's rows as they finish (``corpus``, ``fidelity``): each atomically to
+    ``rows_dir/<key>.json``, into ``done`` (the run's rows, resumed ones included), counted in
+    ``computed`` and handed to ``on_row`` (progress) if given."""
+
+    rows_dir: Path
+    done: dict
+    on_row: object = None
+    computed: int = 0
+
+    def __call__(self, row: dict) -> None:
+        write_json_atomic(self.rows_dir / f"{row['key']}.json", row)
+        self.done[row["key"]] = row
+        self.computed += 1
+        if self.on_row is not None:
+            self.on_row(row)
+
+
+@dataclass
 class CorpusResult:
     """A finished corpus: its folder, settings, rows (corpus order), summary and written files."""
 
@@ -377,15 +396,7 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
             for name in STALE_ON_RERUN:
                 (out / name).unlink(missing_ok=True)
         rows_dir.mkdir(parents=True, exist_ok=True)
-        computed = 0
-
-        def write(row):
-            nonlocal computed
-            write_json_atomic(rows_dir / f"{row['key']}.json", row)
-            done[row["key"]] = row
-            computed += 1
-            if on_row is not None:
-                on_row(row)
+        write = RowWriter(rows_dir, done, on_row)
 
         for s in slots:  # unreadable entries: error rows without any task
             if s.entry.problem and s.row_key not in done:
@@ -413,4 +424,4 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
     env_keys = {s.entry.name: _keys(settings, s.entry, s.renderer)[0] for s in slots}
     summary = summarize(rows, settings, env_keys)
     files = write_outputs(out, rows, settings, summary, ROW_COLUMNS) if outputs else {}
-    return CorpusResult(out, settings, rows, summary, files, computed, len(tasks))
+    return CorpusResult(out, settings, rows, summary, files, write.computed, len(tasks))
