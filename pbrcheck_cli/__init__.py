@@ -194,8 +194,46 @@ class _ClosedPipeSafe:
         return getattr(self._stream, name)
 
 
+_SIGNALLED: list[int] = []  # the signals received during this call of main(), in order
+
+
 def _on_sigterm(signum, frame):
+    _SIGNALLED.append(signum)
     raise Terminated(signum)
+
+
+def _on_sigint(signum, frame):
+    _SIGNALLED.append(signum)
+    raise KeyboardInterrupt
+
+
+def _resend(signum: int) -> None:
+    time.sleep(_RESEND_DELAY_S)
+    os.kill(os.getpid(), signum)
+
+
+_RESEND_DELAY_S = 0.02  # long enough for the unraisable hook (and the callback it sits in) to return
+
+
+def _unraisable_hook(previous):
+    """``sys.unraisablehook`` for a call of main(): an interrupt raised where Python cannot propagate
+    it (a gc callback such as Dask's ``GCDiagnosis``, a ``__del__``, a weakref callback) is only
+    *printed* by the default hook and the command goes on to the end, as if Ctrl-C had never come.
+    Here it is delivered again, as a fresh signal, so that it lands in the command's own frames at the
+    next bytecode: the same clean-up and exit code as any other interrupt."""
+
+    def hook(u):
+        if isinstance(u.exc_value, KeyboardInterrupt):
+            signum = getattr(u.exc_value, "signum", signal.SIGINT)
+            # Not signal.raise_signal nor _thread.interrupt_main: both run the handler at once, inside
+            # this hook, whose exception Python drops. A thread sends the signal again once this hook
+            # has returned: its handler runs in the main thread at the next bytecode (should that be
+            # inside another callback, the interrupt comes back here and goes round once more).
+            threading.Thread(target=_resend, args=(signum,), daemon=True).start()
+            return
+        previous(u)
+
+    return hook
 
 
 def _describe_os_error(e: OSError) -> str:
@@ -226,9 +264,13 @@ def main(argv: list[str] | None = None) -> int:
     stdout = sys.stdout
     if not isinstance(stdout, _ClosedPipeSafe):
         sys.stdout = _ClosedPipeSafe(stdout)
-    old_term = None
+    old_term = old_int = None
+    old_unraisable = sys.unraisablehook
     if threading.current_thread() is threading.main_thread():
+        _SIGNALLED.clear()
         old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+        old_int = signal.signal(signal.SIGINT, _on_sigint)
+        our_unraisable = sys.unraisablehook = _unraisable_hook(old_unraisable)
     unmodelled.start_notices()  # each asset's unmodelled features named once on stderr
     try:
         return _run(args)
@@ -240,6 +282,9 @@ def main(argv: list[str] | None = None) -> int:
         reset_limits()  # the --max-* values of this call only, as --renderers
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
+            signal.signal(signal.SIGINT, old_int)
+            if sys.unraisablehook is our_unraisable:  # one a command set on its way out stays (the
+                sys.unraisablehook = old_unraisable   # corpus silences Dask's clean-up at exit)
 
 
 def _run(args) -> int:
@@ -255,8 +300,14 @@ def _run(args) -> int:
         return _interrupted(e)
     except Exception as e:
         # A signal inside a C extension's import (Mitsuba's set_variant) surfaces as a SystemError whose
-        # context is the KeyboardInterrupt: still an interrupt, not a crash.
+        # context is the KeyboardInterrupt: still an interrupt, not a crash. One inside a Python
+        # callback that C++ called (Mitsuba's plugin constructors: ``mi.load_dict`` building the
+        # exact envmap) comes back as a RuntimeError whose *text* holds the interrupt's traceback,
+        # with no chain to follow: the handlers' record of the signal tells it apart from a crash.
         cause = _interrupt_in_chain(e)
+        if cause is None and _SIGNALLED:
+            signum = _SIGNALLED[-1]
+            cause = Terminated(signum) if signum != signal.SIGINT else KeyboardInterrupt()
         if cause is None:
             raise
         return _interrupted(cause)

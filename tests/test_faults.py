@@ -690,3 +690,51 @@ def test_an_interrupt_inside_an_extension_import_is_an_interrupt(monkeypatch, ca
     ns = type("A", (), {"func": staticmethod(boom)})()
     assert cli._run(ns) == 130
     assert capsys.readouterr().err.strip() == "pbrcheck: interrupted"
+
+
+# --- an interrupt that Python or C++ swallowed is still an interrupt ----------------------------------
+
+_SWALLOWED = r'''
+import gc, os, signal, sys, time
+import pbrcheck_cli as cli
+
+def swallowed_in_gc(args):
+    # The signal lands in a gc callback (as in Dask's GCDiagnosis): Python can only print it there.
+    def cb(phase, info):
+        if phase == "start":
+            gc.callbacks.remove(cb)
+            os.kill(os.getpid(), signal.SIGNUM)
+            time.sleep(0.05)  # the handler runs here, inside the callback
+    gc.callbacks.append(cb)
+    gc.collect()
+    for _ in range(200):  # the command's own work goes on: the re-delivered interrupt must land here
+        time.sleep(0.01)
+    print("finished", flush=True)
+    return 0
+
+def swallowed_by_cpp(args):
+    # What mi.load_dict gives back when the signal lands in a Python plugin's constructor: a
+    # RuntimeError whose text (not chain) holds the interrupt.
+    try:
+        os.kill(os.getpid(), signal.SIGNUM)
+        time.sleep(1)
+    except KeyboardInterrupt:
+        pass  # C++ caught it ...
+    raise RuntimeError("[PluginManager] Traceback ...\nKeyboardInterrupt: ")  # ... and raised this
+
+cli._cmd_scenes = WHICH
+sys.exit(cli.main(["scenes"]))
+'''
+
+
+@pytest.mark.parametrize("which", ["swallowed_in_gc", "swallowed_by_cpp"])
+@pytest.mark.parametrize("sig", SIGNALS)
+def test_swallowed_interrupt_still_interrupts(which, sig):
+    code = _SWALLOWED.replace("SIGNUM", sig.name).replace("WHICH", which)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, cwd=ROOT)
+    assert r.returncode == 128 + sig, (r.returncode, r.stdout, r.stderr)
+    assert "finished" not in r.stdout
+    assert "Traceback" not in r.stderr, r.stderr
+    lines = [l for l in r.stderr.splitlines() if l.strip()]
+    assert lines[-1] == ("pbrcheck: interrupted" if sig == signal.SIGINT else "pbrcheck: terminated"), r.stderr
