@@ -14,6 +14,7 @@ API
   reads them back from the parsed arguments.
 - :func:`framing` -- model-viewer's default framing of a bounding box (origin, target, horizontal fov).
 - :func:`is_asset_path`, :func:`parse_size`.
+- :data:`ASSET_METALLIC_BLEND` -- the ``[brdf] metallic_blend`` of a scene that holds an asset and sets none.
 
 Placement convention: ``matrix = T(translation) * R * S(scale)`` applied to the asset's world (its
 node hierarchy resolved), with ``R = Rz(rz) * Ry(ry) * Rx(rx)`` for ``rotation = [rx, ry, rz]`` in
@@ -53,6 +54,13 @@ DEFAULT_ASSET_SIZE = (512, 512)
 #: The neutral built-in environment of an asset scene without ``--env``: constant radiance 1.
 NEUTRAL_RADIANCE = (1.0, 1.0, 1.0)
 ASSET_SUFFIXES = (".gltf", ".glb")
+#: ``[brdf] metallic_blend`` of a scene that holds a glTF asset and does not set one (issue 40): glTF 2.0
+#: Appendix B's ``mix(dielectric_brdf, metal_brdf, metallic)``, the blend the asset's own format
+#: specifies and every glTF engine renders, in the reference and in the real-time material
+#: composition alike. Scenes without an asset keep the seed articles' ``"f0"``
+#: (:class:`pbrcheck.scene.BRDFModel`); the blend is the scene's, so analytic objects placed beside an
+#: asset take it too. docs/reference.md, "The metallic blend".
+ASSET_METALLIC_BLEND = "gltf"
 
 
 

@@ -31,7 +31,8 @@ from typing import Any
 from . import lobe_params
 from .brdf import METALLIC_BLENDS
 from .errors import SceneError, decode_reason
-from .gltf_objects import DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object, framing, scene_light
+from .gltf_objects import (ASSET_METALLIC_BLEND, DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object,
+                           framing, scene_light)
 from .lights import LIGHT_TYPES, DirectionalLight, PointLight, SpotLight
 from .registry import FRESNELS as _FRESNELS
 from .registry import GEOMETRIC_ROUGHNESSES as _GEOMETRIC_ROUGHNESSES
@@ -505,7 +506,10 @@ def _lights(ctx, lst) -> tuple[PointLight | SpotLight | DirectionalLight, ...]:
     return tuple(out)
 
 
-def _brdf(ctx, t) -> BRDFModel:
+def _brdf(ctx, t, *, has_assets: bool = False) -> BRDFModel:
+    """The ``[brdf]`` table. ``has_assets``: the scene holds a glTF asset, so its ``metallic_blend``
+    defaults to glTF's (:data:`pbrcheck.gltf_objects.ASSET_METALLIC_BLEND`), not the seeds' ``"f0"``."""
+    blend_default = ASSET_METALLIC_BLEND if has_assets else BRDFModel.metallic_blend
     _check_keys(ctx, t, {"ndf", "geometry", "fresnel", "multiscatter", "roughness_floor", "geometric_roughness",
                          "geometric_roughness_supersample", "metallic_blend"}, "brdf")
     model = BRDFModel(
@@ -517,7 +521,7 @@ def _brdf(ctx, t) -> BRDFModel:
         geometric_roughness=_str(ctx, t, "geometric_roughness", "brdf", "none", GEOMETRIC_ROUGHNESS_NAMES),
         geometric_roughness_supersample=int(_num(ctx, t, "geometric_roughness_supersample", "brdf", 1, lo=1, hi=16,
                                                  integer=True)),
-        metallic_blend=_str(ctx, t, "metallic_blend", "brdf", "f0", METALLIC_BLENDS),
+        metallic_blend=_str(ctx, t, "metallic_blend", "brdf", blend_default, METALLIC_BLENDS),
     )
     if model.multiscatter != "none":
         # The random walk's first bounce is the NDF's height-correlated Smith term.
@@ -636,7 +640,7 @@ def scene_from_dict(data: dict, *, file: str = "<dict>", base_dir: Path | None =
         camera=_camera(ctx, data.get("camera", {})),
         environment=_environment(ctx, data["environment"]),
         lights=_lights(ctx, data.get("lights", [])) + asset_lights,
-        brdf=_brdf(ctx, data.get("brdf", {})),
+        brdf=_brdf(ctx, data.get("brdf", {}), has_assets=bool(assets)),
         objects=objects,
         source=file,
         grids=grids,

@@ -229,6 +229,30 @@ def test_scene_option_hash_and_export(tmp_path):
     assert mb["reference"] == "gltf" and mb["gltf_engines"] == "gltf" and mb["partially_metallic_objects"] == 1
 
 
+def test_a_scene_with_a_gltf_asset_defaults_to_gltfs_blend(tmp_path):
+    """Issue 40: a scene holding a glTF asset (a scene file's ``gltf`` object, an asset path given as
+    the SCENE, an asset beside analytic objects) renders glTF 2.0's blend unless it says otherwise;
+    scenes without one keep the seeds' F0 mix; the choice survives check-scene's resolved TOML."""
+    from gltf_build import quad_asset, quad_scene
+    from pbrcheck.gltf_objects import ASSET_METALLIC_BLEND
+    from pbrcheck.scene import dump_toml
+    assert ASSET_METALLIC_BLEND == "gltf"
+    asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.5}})
+    file_scene = load_scene(quad_scene(tmp_path, asset))
+    assert file_scene.brdf.metallic_blend == "gltf"
+    assert load_scene(asset).brdf.metallic_blend == "gltf"              # the asset path alone
+    mixed = {**SPHERES, "objects": [*SPHERES["objects"], {"type": "gltf", "path": str(asset)}]}
+    assert scene_from_dict(mixed).brdf.metallic_blend == "gltf"        # the blend is the scene's
+    assert scene_from_dict(SPHERES).brdf.metallic_blend == "f0"
+    assert load_scene("spheres").brdf.metallic_blend == "f0"
+    kept = scene_from_dict({**mixed, "brdf": {"metallic_blend": "f0"}})
+    assert kept.brdf.metallic_blend == "f0"
+    again = tmp_path / "resolved.toml"
+    again.write_text(dump_toml(kept.to_dict()))
+    assert load_scene(again).brdf.metallic_blend == "f0"                # not turned back into the default
+    assert kept.content_dict() != scene_from_dict(mixed).content_dict()   # another cache entry
+
+
 def test_a_textured_asset_takes_the_blend_in_both_renderers(tmp_path, tmp_cache):
     """A half-metal glTF quad in a white environment: under glTF's blend both renderers (the
     textured material, the raster pipeline) show it brighter than under the F0 mix, by the closed

@@ -173,12 +173,15 @@ def test_an_asset_scene_is_matched_by_walk_visibility_and_blend_in_path_mode(tmp
     from pbrcheck.scene import load_scene
     asset = quad_asset(tmp_path / "q.gltf", {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.8}})
     s = load_scene(quad_scene(tmp_path, asset, size=(8, 8)))
+    assert s.brdf.metallic_blend == "gltf"   # an asset scene's default (pbrcheck.gltf_objects.ASSET_METALLIC_BLEND)
     got, physics, why = matched_scene(s, "local")
-    assert physics == ["multiple scattering (random walk)"] and got.brdf.metallic_blend == "f0"
+    assert physics == ["multiple scattering (random walk)"] and got.brdf.metallic_blend == "gltf"
     got, physics, why = matched_scene(s, "path")
-    assert physics == ["multiple scattering (random walk)", "visibility and interreflection (path)",
-                       "glTF's metallic blend"]
+    assert physics == ["multiple scattering (random walk)", "visibility and interreflection (path)"]
     assert got.brdf.metallic_blend == "gltf" and got.brdf.multiscatter == "random_walk"
+    f0 = replace(s, brdf=replace(s.brdf, metallic_blend="f0"))   # a scene file that keeps the seeds' mix
+    got, physics, why = matched_scene(f0, "path")
+    assert physics[-1] == "glTF's metallic blend" and got.brdf.metallic_blend == "gltf"
     half = scene_from_dict({**SCENE, "objects": [{"type": "sphere", "radius": 1.0,
                                                   "material": {"metallic": 0.5, "roughness": 0.5}}]})
     assert matched_scene(half, "path")[0].brdf.metallic_blend == "gltf"
