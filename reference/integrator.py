@@ -544,7 +544,8 @@ class ReferenceIntegrator(RBIntegrator):
     def _geometric(self, scene, bsdf, ray, hit):
         """``bsdf`` with ``[brdf] geometric_roughness`` added to its roughness per lane (then at most
         1), or ``bsdf`` itself when the scene's materials name none."""
-        geo = bsdf.geometric if isinstance(bsdf, MaterialView) else None
+        from .textured import GeometricCalls, calls_geometric   # glTF assets (issue 40, model helper's hook)
+        geo = bsdf.geometric if isinstance(bsdf, MaterialView) else calls_geometric(bsdf)
         if geo is None or geo[0] == "none":
             return bsdf
         if self._to_view is None or not isinstance(ray, mi.RayDifferential3f):
@@ -553,6 +554,8 @@ class ReferenceIntegrator(RBIntegrator):
         # the normal's derivatives (dNSdUV) only where asked: the same hit, intersected again
         si_n = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.All | mi.RayFlags.dNSdUV, mi.Bool(True), hit)
         g = GEOMETRIC_ROUGHNESS[geo[0]](si_n, ray, geo[1], self._to_view)
+        if not isinstance(bsdf, MaterialView):   # the textured materials' calls (reference.textured)
+            return GeometricCalls(bsdf, dr.detach(g))
         return bsdf.with_roughness(dr.minimum(bsdf.roughness + dr.detach(g), 1.0))
 
     def _compensated(self, env):

@@ -49,7 +49,9 @@ with ``eval_attribute_3``.
 
 API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's assets), :func:`primary_texcoord`,
 :func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
-:class:`BoundTextured`, :func:`fuse_textures`, :data:`FUSED_CHANNELS`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`.
+:class:`BoundTextured`, :func:`fuse_textures`, :data:`FUSED_CHANNELS`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`,
+:func:`calls_geometric`, :class:`GeometricCalls` (``[brdf] geometric_roughness`` on assets: the local
+estimator adds three.js's screen-space ``g`` to each lane's floored texel roughness, then ``min(., 1)``).
 
 Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
 texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
@@ -64,7 +66,6 @@ from __future__ import annotations
 import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
-from pbrcheck.errors import SceneError
 from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 
 import drjit as dr
@@ -234,6 +235,10 @@ class TexturedMaterial(mi.BSDF):
         self.fused = fuse_textures(self.tex, self.uvset)
         # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
         self.normal_filter = None
+        # [brdf] geometric_roughness (name, supersample): added per lane at the first hit by the local
+        # estimator (reference.integrator, through GeometricCalls below; issue 40)
+        self.geometric = (str(props.get("geometric_roughness", "none")),
+                          int(props.get("geometric_roughness_supersample", 1)))
 
     def traverse(self, callback):
         traverse_material(self, callback)
@@ -449,6 +454,94 @@ class BoundTextured:
         return self.material.eval_null_transmission(si, active)
 
 
+# ---- [brdf] geometric_roughness on glTF assets (issue 40; the model helper's block) ---------------
+
+def calls_geometric(calls):
+    """``(name, supersample)`` of ``[brdf] geometric_roughness`` where a scene's BSDF calls
+    (:class:`reference.bsdf.SceneCalls`) hold a textured material that asks for it, else None (every
+    material of a scene carries the scene's ``[brdf]``)."""
+    for o in getattr(calls, "objects", ()):
+        geo = getattr(o, "geometric", None)
+        if isinstance(o, TexturedMaterial) and geo[0] != "none":
+            return geo
+    return None
+
+
+def _raised(view_frame, g):
+    """A textured material's (view, frame) shading ``min(roughness + g, 1)`` per lane: three.js r187's
+    order (lights_physical_fragment: the floored roughness, ``+= geometryRoughness``, ``min(., 1)``;
+    the view's roughness is already the texel's times the factor, floored)."""
+    view, frame = view_frame
+    return view.with_roughness(dr.minimum(view.roughness + g, 1.0)), frame
+
+
+class GeometricCalls:
+    """A scene's BSDF calls (:class:`reference.bsdf.SceneCalls`) with ``g`` (per lane, the local
+    estimator's :data:`reference.integrator.GEOMETRIC_ROUGHNESS` at the camera ray's hit) added to
+    each material's roughness, then at most 1, as :meth:`reference.bsdf.MaterialView.with_roughness`
+    does for the built-in objects: a textured material through its (view, frame), a
+    ``pbr_material`` beside an asset through a :class:`reference.bsdf.MaterialView` of its values; any
+    other object as it is. ``g`` rides in the calls' arguments (``dr.switch`` passes each callee its
+    lanes of it). Methods: those the local estimator calls (``eval``, ``pdf``, ``eval_pdf``,
+    ``sample``, ``eval_null_transmission``)."""
+
+    def __init__(self, calls, g):
+        self.calls, self.g = calls, g
+        self.one = None   # several objects (or one unbound): dr.switch over _callee
+        if isinstance(calls.one, BoundTextured):   # one material: its bound view, raised once
+            self.one = BoundTextured.__new__(BoundTextured)
+            self.one.material, self.one.view_frame = calls.one.material, _raised(calls.one.view_frame, g)
+
+    @staticmethod
+    def _callee(o, name):
+        """``o``'s ``name`` taking ``g`` just before its mask."""
+        from .bsdf import MaterialView, PBRMaterial
+        if isinstance(o, TexturedMaterial):
+            at = {"eval_pdf": o._eval_pdf_at, "sample": o._sample_at}
+            if name in ("eval", "pdf", "eval_pdf"):
+                def f(ctx, si, wo, g, active):
+                    out = at["eval_pdf"](_raised(o._view(si, active), g), ctx, si, wo, active)
+                    return out if name == "eval_pdf" else out[name == "pdf"]
+                return f
+            if name == "sample":
+                return lambda ctx, si, s1, s2, g, active: at["sample"](_raised(o._view(si, active), g), ctx, si,
+                                                                       s1, s2, active)
+        elif isinstance(o, PBRMaterial) and name != "eval_null_transmission":
+            def f(*args):
+                *a, g, active = args
+                view = MaterialView(o.model(), o.base_color, o.metallic,
+                                    dr.minimum(o.roughness + g, 1.0), o.specular)
+                return getattr(view, name)(*a, active)
+            return f
+        return lambda *args: getattr(o, name)(*args[:-2], args[-1])
+
+    def _call(self, name, args):
+        *args, mask = args
+        mask = self.calls.active & mask
+        if self.one is not None:  # as SceneCalls: zeros outside the mask
+            out = getattr(self.one, name)(*args, mask)
+            zero = (lambda x: dr.select(mask, x, dr.zeros(type(x))))
+            return tuple(zero(x) for x in out) if isinstance(out, tuple) else zero(out)
+        return dr.switch(self.calls.index, [self._callee(o, name) for o in self.calls.objects], *args, self.g, mask)
+
+    def eval(self, ctx, si, wo, active):
+        return self._call("eval", (ctx, si, wo, active))
+
+    def pdf(self, ctx, si, wo, active):
+        return self._call("pdf", (ctx, si, wo, active))
+
+    def eval_pdf(self, ctx, si, wo, active):
+        return self._call("eval_pdf", (ctx, si, wo, active))
+
+    def sample(self, ctx, si, sample1, sample2, active):
+        return self._call("sample", (ctx, si, sample1, sample2, active))
+
+    def eval_null_transmission(self, si, active):
+        return self.calls.eval_null_transmission(si, active)
+
+# ---- end of the geometric_roughness block ---------------------------------------------------------
+
+
 def fuse_textures(tex: dict, uvset: dict) -> list:
     """The slots of :data:`FUSED_CHANNELS` in ``tex`` (``gltf_texture`` each) grouped by texCoord
     set and :meth:`GltfTexture.sampler_key`; each group of two or more becomes one ``Texture2f``
@@ -519,14 +612,13 @@ def register() -> None:
 # ------------------------------------------------------------------------------------------------
 
 def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
-    if brdf.geometric_roughness != "none":
-        raise SceneError(f"[brdf] geometric_roughness = {brdf.geometric_roughness!r} is not implemented for "
-                         "glTF assets (the textured material); only for the built-in objects")
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
          "geometry": brdf.geometry, "fresnel": brdf.fresnel, "roughness_floor": float(brdf.roughness_floor),
          "metallic_blend": brdf.metallic_blend, "multiscatter": brdf.multiscatter,
+         "geometric_roughness": brdf.geometric_roughness,
+         "geometric_roughness_supersample": int(brdf.geometric_roughness_supersample),
          "normal_scale": float(m.normal_texture.scale)
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     if m.unlit:

@@ -110,3 +110,111 @@ def test_render_adds_the_geometric_roughness():
     miss = on.channels["coverage"] == 0
     assert miss.sum() > 100
     np.testing.assert_array_equal(rgb(on)[miss], rgb(off)[miss])
+
+
+# --- glTF assets (issue 40): the textured material takes the geometric roughness too ------------------
+
+#: The quad's vertex normals tilt along x: (+-TILT, 0, 1) at x = +-1, so the interpolated normal is
+#: normalize(TILT x, 0, 1) (barycentric interpolation of a function linear in x is exact).
+TILT = 3.0
+#: Sub-pixel positions per axis of the closed form's box filter (the render's pixel integral).
+SUB = 16
+#: The render (256 spp of box-filter positions, a point light added exactly) against the closed form
+#: averaged over SUB x SUB positions: both integrate the same function over the pixel (measured 0.9 %
+#: per pixel; 6 x 6 positions and 64 spp: 8 %, the highlight of roughness 0.12 is that narrow).
+ASSET_RTOL = 0.03
+
+
+def _tilted_quad(tmp_path, roughness):
+    from gltf_build import QUAD_IDX, QUAD_POS, QUAD_TAN, QUAD_UV, Doc
+    nrm = np.array([[x * TILT, 0.0, 1.0] for x, _, _ in QUAD_POS], np.float32)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    doc = Doc()
+    attrs = {"POSITION": doc.accessor(QUAD_POS, "VEC3", minmax=True), "NORMAL": doc.accessor(nrm, "VEC3"),
+             "TEXCOORD_0": doc.accessor(QUAD_UV, "VEC2"), "TANGENT": doc.accessor(QUAD_TAN, "VEC4")}
+    doc.d["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0], "metallicFactor": 1.0,
+                                                    "roughnessFactor": roughness}}]
+    doc.node(doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0))
+    return doc.write(tmp_path / f"tilted{roughness}.gltf")
+
+
+def _asset_scene(asset, geometric="threejs", ss=2, floor=0.0, more=()):
+    return scene_from_dict({
+        "camera": {"origin": [0.0, 0.0, 4.0], "target": [0.0, 0.0, 0.0], "fov": 36.0, "width": 24, "height": 12},
+        "environment": {"type": "none"},
+        "lights": [{"type": "point", "position": [0.4, 0.3, 3.0], "intensity": [8.0, 8.0, 8.0]}],
+        "brdf": {"geometric_roughness": geometric, "geometric_roughness_supersample": ss, "roughness_floor": floor},
+        "objects": [{"type": "gltf", "path": str(asset)}, *more]}, file="t.toml")
+
+
+def _quad_hit(cam, ox, oy):
+    """numpy: (hit point on the plane z = 0, the interpolated normal there, the direction to the viewer)
+    of the rays through the pixels at sub-pixel offset (ox, oy)."""
+    o, d = primary_rays(cam, (ox, oy))
+    p = o + (-o[2] / d[..., 2])[..., None] * d
+    n = np.stack([TILT * p[..., 0], 0 * p[..., 0], np.ones_like(p[..., 0])], -1)
+    return p, n / np.linalg.norm(n, axis=-1, keepdims=True), -d
+
+
+def _quad_g(scene, ox, oy):
+    """numpy: three.js's g at sub-pixel offset (ox, oy), by central differences of the normal (the
+    camera looks down -z with +y up: view space is world space, up to signs that abs removes)."""
+    cam = scene.camera
+    dx = (_quad_hit(cam, ox + EPS, oy)[1] - _quad_hit(cam, ox - EPS, oy)[1]) / (2 * EPS)
+    dy = (_quad_hit(cam, ox, oy + EPS)[1] - _quad_hit(cam, ox, oy - EPS)[1]) / (2 * EPS)
+    return np.maximum(np.abs(dx), np.abs(dy)).max(axis=-1) / scene.brdf.geometric_roughness_supersample
+
+
+def _asset_closed_form(scene, roughness):
+    """numpy, per pixel: the mean over SUB x SUB sub-pixel positions of the metal's point-lit radiance
+    at ``min(max(roughness, floor) + g, 1)`` (:func:`_quad_g`), and whether every position hits the quad."""
+    from pbrcheck.brdf import brdf_eval
+    cam, (light,) = scene.camera, scene.lights
+    total, inside = 0.0, True
+    for oy in (np.arange(SUB) + 0.5) / SUB:
+        for ox in (np.arange(SUB) + 0.5) / SUB:
+            p, n, v = _quad_hit(cam, ox, oy)
+            r = np.minimum(np.maximum(roughness, scene.brdf.roughness_floor) + _quad_g(scene, ox, oy), 1.0)
+            to_l = np.asarray(light.position) - p
+            dist2 = (to_l ** 2).sum(-1, keepdims=True)
+            l = to_l / np.sqrt(dist2)
+            f = brdf_eval(n, v, l, (0.9, 0.8, 0.7), 1.0, r, 0.04)
+            total = total + f * np.clip((n * l).sum(-1, keepdims=True), 0, None) * np.asarray(light.intensity) / dist2
+            inside = inside & (np.abs(p[..., 0]) < 1) & (np.abs(p[..., 1]) < 1)
+    return total / SUB ** 2, inside
+
+
+def test_a_gltf_asset_shades_the_geometric_roughness(tmp_path):
+    """A glTF quad whose vertex normals tilt along x (a curved surface to three.js's dFdx), a smooth
+    metal lit by a point light: the reference shades min(max(r, floor) + g, 1) per lane with g the
+    closed form's (checked first at the pixel centres), and without the option it does not."""
+    from reference.render import geometric_roughness_image, render_uncached
+
+    asset = _tilted_quad(tmp_path, 0.1)
+    scene = _asset_scene(asset, floor=0.045)
+    got_g = geometric_roughness_image(scene)
+    want_g = _quad_g(scene, 0.5, 0.5)
+    centre = _quad_hit(scene.camera, 0.5, 0.5)[0]
+    on_quad = (np.abs(centre[..., 0]) < 1) & (np.abs(centre[..., 1]) < 1)
+    assert on_quad.sum() >= 150
+    np.testing.assert_allclose(got_g[on_quad], want_g[on_quad], rtol=GEO_RTOL)
+    assert 0.015 < want_g[on_quad].min() and 0.15 < want_g[on_quad].max() < 0.5   # of the order of the roughness
+
+    rgb = lambda im: np.stack([im.channels[c] for c in "RGB"], -1)  # noqa: E731
+    on = rgb(render_uncached(scene, spp=256, progress=False, adaptive=False))
+    off = rgb(render_uncached(_asset_scene(asset, geometric="none", floor=0.045), spp=64, progress=False,
+                              adaptive=False))
+    want, inside = _asset_closed_form(scene, 0.1)
+    assert inside.sum() >= 100
+    np.testing.assert_allclose(on[inside].mean(0), want[inside].mean(0), rtol=ASSET_RTOL)
+    per_pixel = np.abs(on[inside] - want[inside]).sum() / want[inside].sum()
+    assert per_pixel < ASSET_RTOL
+    assert np.abs(off[inside] - want[inside]).sum() / want[inside].sum() > 5 * ASSET_RTOL   # the option shows
+
+    # several materials (a second asset, an analytic sphere; both behind the camera): the calls go
+    # through dr.switch, each callee with its lanes of g; the image is the same
+    behind = ({"type": "gltf", "path": str(asset), "translation": [0.0, 0.0, 9.0]},
+              {"type": "sphere", "center": [0.0, 0.0, 12.0], "radius": 1.0, "material": {"roughness": 0.2}})
+    several = rgb(render_uncached(_asset_scene(asset, floor=0.045, more=behind), spp=256, progress=False,
+                                  adaptive=False))
+    np.testing.assert_allclose(several, on, rtol=1e-4, atol=1e-6)
