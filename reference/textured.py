@@ -72,7 +72,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import multiscatter
-from .bsdf import MaterialView, is_mirror_limit, make_material_opaque, traverse_material
+from .bsdf import MaterialView, SceneCalls, is_mirror_limit, make_material_opaque, traverse_material
 
 PLUGIN_NAME = "pbr_textured"
 TEXTURE_PLUGIN = "gltf_texture"
@@ -475,18 +475,19 @@ def _raised(view_frame, g):
     return view.with_roughness(dr.minimum(view.roughness + g, 1.0)), frame
 
 
-class GeometricCalls:
+class GeometricCalls(SceneCalls):
     """A scene's BSDF calls (:class:`reference.bsdf.SceneCalls`) with ``g`` (per lane, the local
     estimator's :data:`reference.integrator.GEOMETRIC_ROUGHNESS` at the camera ray's hit) added to
     each material's roughness, then at most 1, as :meth:`reference.bsdf.MaterialView.with_roughness`
     does for the built-in objects: a textured material through its (view, frame), a
     ``pbr_material`` beside an asset through a :class:`reference.bsdf.MaterialView` of its values; any
     other object as it is. ``g`` rides in the calls' arguments (``dr.switch`` passes each callee its
-    lanes of it). Methods: those the local estimator calls (``eval``, ``pdf``, ``eval_pdf``,
-    ``sample``, ``eval_null_transmission``)."""
+    lanes of it). Methods: SceneCalls' (``eval``, ``pdf``, ``eval_pdf``, ``sample``,
+    ``eval_null_transmission``), made from ``calls`` (not from a table)."""
 
-    def __init__(self, calls, g):
+    def __init__(self, calls, g):  # not SceneCalls.__init__: calls already hold the lanes, index and objects
         self.calls, self.g = calls, g
+        self.active, self.index, self.objects = calls.active, calls.index, calls.objects
         self.one = None   # several objects (or one unbound): dr.switch over _callee
         if isinstance(calls.one, BoundTextured):   # one material: its bound view, raised once
             self.one = BoundTextured.__new__(BoundTextured)
@@ -495,7 +496,7 @@ class GeometricCalls:
     @staticmethod
     def _callee(o, name):
         """``o``'s ``name`` taking ``g`` just before its mask."""
-        from .bsdf import MaterialView, PBRMaterial
+        from .bsdf import PBRMaterial
         if isinstance(o, TexturedMaterial):
             at = {"eval_pdf": o._eval_pdf_at, "sample": o._sample_at}
             if name in ("eval", "pdf", "eval_pdf"):
@@ -517,27 +518,12 @@ class GeometricCalls:
 
     def _call(self, name, args):
         *args, mask = args
-        mask = self.calls.active & mask
+        mask = self.active & mask
         if self.one is not None:  # as SceneCalls: zeros outside the mask
             out = getattr(self.one, name)(*args, mask)
             zero = (lambda x: dr.select(mask, x, dr.zeros(type(x))))
             return tuple(zero(x) for x in out) if isinstance(out, tuple) else zero(out)
-        return dr.switch(self.calls.index, [self._callee(o, name) for o in self.calls.objects], *args, self.g, mask)
-
-    def eval(self, ctx, si, wo, active):
-        return self._call("eval", (ctx, si, wo, active))
-
-    def pdf(self, ctx, si, wo, active):
-        return self._call("pdf", (ctx, si, wo, active))
-
-    def eval_pdf(self, ctx, si, wo, active):
-        return self._call("eval_pdf", (ctx, si, wo, active))
-
-    def sample(self, ctx, si, sample1, sample2, active):
-        return self._call("sample", (ctx, si, sample1, sample2, active))
-
-    def eval_null_transmission(self, si, active):
-        return self.calls.eval_null_transmission(si, active)
+        return dr.switch(self.index, [self._callee(o, name) for o in self.objects], *args, self.g, mask)
 
 # ---- end of the geometric_roughness block ---------------------------------------------------------
 
