@@ -63,6 +63,54 @@ def test_floor_equals_rendering_the_floored_roughness():
     np.testing.assert_array_equal(rgb(floored)[above], rgb(plain)[above])
 
 
+#: glTF asset: its roughnessFactor times the metallic-roughness texture's G (0 on the left half, 1 on
+#: the right): the mirror (below the floor) | a rough metal (above it).
+ASSET_FACTOR = 0.6
+
+
+def _asset_scene(tmp_path, textured=True, factor=ASSET_FACTOR, **brdf):
+    from gltf_build import quad_asset
+    nearest = {"magFilter": 9728, "minFilter": 9728}   # NEAREST: each half its own texel roughness
+    mr = np.zeros((4, 4, 3), np.uint8)
+    mr[..., 2] = 255                     # B: metallic 1
+    mr[:, 2:, 1] = 255                   # G: roughness texel 0 | 1
+    pbr = {"baseColorFactor": [0.9, 0.8, 0.7, 1.0], "roughnessFactor": factor}
+    if textured:
+        pbr["metallicRoughnessTexture"] = {"index": 0}
+    asset = quad_asset(tmp_path / f"q{textured}{factor}.gltf", {"pbrMetallicRoughness": pbr},
+                       [(mr, nearest)] if textured else [])
+    # the point light's mirror reflection falls on the left half (x = -0.25): the mirror shows none of
+    # it, a floored roughness a narrow highlight
+    return scene_from_dict({
+        "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov": 36, "width": 32, "height": 16},
+        "environment": {"type": "none"}, "brdf": brdf,
+        "lights": [{"type": "point", "position": [-0.5, 0.0, 4.0], "intensity": [10, 10, 10]}],
+        "objects": [{"type": "gltf", "path": str(asset)}]}, file="t.toml")
+
+
+def test_the_floor_applies_per_texel_on_a_textured_asset(tmp_path):
+    """On a glTF asset the floor applies to each texel's roughness (factor x texture, then max(., floor),
+    reference.textured): with a floor of 0.045 the left half (texel roughness 0, a mirror) renders as
+    the untextured quad of roughness 0.045 and the right half (0.6) as without the floor; without
+    the floor the left half is a mirror, which shows the point light nowhere."""
+    from reference.render import render_uncached
+
+    def rgb(scene):
+        im = render_uncached(scene, spp=16, progress=False, adaptive=False)
+        return np.stack([im.channels[c] for c in "RGB"], -1), im.channels["object"] >= 0
+
+    floored, on = rgb(_asset_scene(tmp_path, roughness_floor=THREEJS_FLOOR))
+    plain, _ = rgb(_asset_scene(tmp_path))
+    uniform, _ = rgb(_asset_scene(tmp_path, textured=False, factor=THREEJS_FLOOR))
+    cols = np.arange(on.shape[1])[None, :]
+    left, right = on & (cols < 15), on & (cols > 16)   # the texels' seam (x = 0) between columns 15 and 16
+    assert left.sum() > 100 and right.sum() > 100
+    np.testing.assert_allclose(floored[left], uniform[left], rtol=1e-5, atol=1e-7)
+    np.testing.assert_array_equal(floored[right], plain[right])
+    assert plain[left].max() == 0.0 and floored[left].max() > 0.1   # the mirror vs the floored highlight
+    assert floored[right].max() > 0.01                                # the rough half is lit
+
+
 def test_textured_material_gets_the_floor():
     """The glTF material's Mitsuba dict carries the floor (applied after the metallic-roughness
     texture in reference.textured)."""
