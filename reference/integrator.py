@@ -318,6 +318,8 @@ def threejs_geometric_roughness(si, ray, supersample: int, to_view):
     ``RayFlags.dNSdUV``; ``to_view``: the world-to-camera transform (three.js's view axes up to
     sign, and the sign does not matter here). Returns a Float per lane (0 where the ray has no
     differentials or missed)."""
+    from .textured import uv_normal_partials   # a mesh's dn_du / dn_dv per texture uv (issue 40, model helper)
+    si = uv_normal_partials(si)
     # Mitsuba's differentials are finite (the neighbouring pixel's ray, intersected with the
     # tangent plane): steps of +-1 / GEO_DIFFERENTIAL_STEP pixel, centred, make them the derivative
     dndx, dndy = mi.Vector3f(0.0), mi.Vector3f(0.0)

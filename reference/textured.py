@@ -51,7 +51,8 @@ API: :func:`register`, :func:`asset_shapes` (the Mitsuba shapes of a scene's ass
 :func:`texture_dict`, :func:`back_face`, :func:`culls_back_faces`, :func:`has_alpha`, :class:`GltfTexture`,
 :class:`BoundTextured`, :func:`fuse_textures`, :data:`FUSED_CHANNELS`, :data:`PLUGIN_NAME`, :data:`TEXTURE_PLUGIN`,
 :func:`calls_geometric`, :class:`GeometricCalls` (``[brdf] geometric_roughness`` on assets: the local
-estimator adds three.js's screen-space ``g`` to each lane's floored texel roughness, then ``min(., 1)``).
+estimator adds three.js's screen-space ``g`` to each lane's floored texel roughness, then ``min(., 1)``),
+:func:`uv_normal_partials` (a mesh hit's normal partials in its position partials' parameterisation).
 
 Per hit the base colour, metallic-roughness and normal textures that share a sampler, a size and a
 texCoord set are read as one packed texture (:func:`fuse_textures`: the same values, bit for bit).
@@ -524,6 +525,34 @@ class GeometricCalls(SceneCalls):
             zero = (lambda x: dr.select(mask, x, dr.zeros(type(x))))
             return tuple(zero(x) for x in out) if isinstance(out, tuple) else zero(out)
         return dr.switch(self.index, [self._callee(o, name) for o in self.objects], *args, self.g, mask)
+
+
+def uv_normal_partials(si):
+    """``si`` with a mesh hit's normal partials ``dn_du``, ``dn_dv`` in the parameterisation of its
+    position partials. Mitsuba's mesh (``Mesh::compute_surface_interaction`` under ``dNSdUV``) gives
+    the interpolated normal's derivatives with respect to the triangle's barycentrics ``(b1, b2)``,
+    but ``dp_du``, ``dp_dv`` (and so ``compute_uv_partials``' ``duv_dx``) with respect to the texture
+    coordinates where the mesh has them (and ``det != 0``): ``dn/du dU/dx`` then mixes the two, wrong
+    by the UV layout's scale (on DamagedHelmet's atlas ~40x too small). The chain rule through
+    ``(b1, b2) = M^-1 (uv - uv0)``, ``M = [uv1 - uv0, uv2 - uv0]``, as Mitsuba's own ``dp_du``:
+    ``dn/du = (dn/db1 d1.y - dn/db2 d0.y) / det`` and ``dn/dv = (dn/db2 d0.x - dn/db1 d1.x) / det``
+(``d0 = uv1 - uv0``, ``d1 = uv2 - uv0``, ``det = d0.x d1.y - d0.y d1.x``). Other lanes (analytic
+    shapes, meshes without texcoords, degenerate UVs) keep Mitsuba's, which already agree."""
+    mesh = mi.MeshPtr(si.shape)
+    valid = si.is_valid() & si.shape.is_mesh()
+    valid &= mesh.has_vertex_texcoords()
+    fi = mesh.face_indices(si.prim_index, valid)
+    uv0, uv1, uv2 = (mesh.vertex_texcoord(fi[k], valid) for k in range(3))
+    d0, d1 = uv1 - uv0, uv2 - uv0
+    det = d0.x * d1.y - d0.y * d1.x
+    ok = valid & (det != 0)
+    inv = dr.rcp(dr.select(ok, det, 1.0))
+    # db1/du = d1.y/det, db2/du = -d0.y/det, db1/dv = -d1.x/det, db2/dv = d0.x/det
+    dn_du = (si.dn_du * d1.y - si.dn_dv * d0.y) * inv
+    dn_dv = (si.dn_dv * d0.x - si.dn_du * d1.x) * inv
+    si.dn_du = dr.select(ok, dn_du, si.dn_du)
+    si.dn_dv = dr.select(ok, dn_dv, si.dn_dv)
+    return si
 
 # ---- end of the geometric_roughness block ---------------------------------------------------------
 

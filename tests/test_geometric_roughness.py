@@ -125,17 +125,26 @@ SUB = 16
 ASSET_RTOL = 0.03
 
 
-def _tilted_quad(tmp_path, roughness):
-    from gltf_build import QUAD_IDX, QUAD_POS, QUAD_TAN, QUAD_UV, Doc
+#: UV layouts of the tilted quad (TEXCOORD_0 per corner, tests/gltf_build.QUAD_UV's order): the unit
+#: square, tiled 4 x (Mitsuba's mesh normal partials are per barycentric, its position partials per
+#: texture uv: without reference.textured.uv_normal_partials g came out 4x too small), and u and v
+#: swapped and mirrored (the off-diagonal terms of the chain rule).
+UV_LAYOUTS = {"unit": [[0, 1], [1, 1], [1, 0], [0, 0]], "tiled": [[0, 4], [4, 4], [4, 0], [0, 0]],
+              "swapped": [[1, 0], [1, 1], [0, 1], [0, 0]]}
+
+
+def _tilted_quad(tmp_path, roughness, uv="tiled"):
+    from gltf_build import QUAD_IDX, QUAD_POS, QUAD_TAN, Doc
     nrm = np.array([[x * TILT, 0.0, 1.0] for x, _, _ in QUAD_POS], np.float32)
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     doc = Doc()
     attrs = {"POSITION": doc.accessor(QUAD_POS, "VEC3", minmax=True), "NORMAL": doc.accessor(nrm, "VEC3"),
-             "TEXCOORD_0": doc.accessor(QUAD_UV, "VEC2"), "TANGENT": doc.accessor(QUAD_TAN, "VEC4")}
+             "TEXCOORD_0": doc.accessor(np.asarray(UV_LAYOUTS[uv], np.float32), "VEC2"),
+             "TANGENT": doc.accessor(QUAD_TAN, "VEC4")}
     doc.d["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0], "metallicFactor": 1.0,
                                                     "roughnessFactor": roughness}}]
     doc.node(doc.mesh(attrs, doc.accessor(QUAD_IDX, "SCALAR"), 0))
-    return doc.write(tmp_path / f"tilted{roughness}.gltf")
+    return doc.write(tmp_path / f"tilted{roughness}{uv}.gltf")
 
 
 def _asset_scene(asset, geometric="threejs", ss=2, floor=0.0, more=()):
@@ -184,14 +193,13 @@ def _asset_closed_form(scene, roughness):
     return total / SUB ** 2, inside
 
 
-def test_a_gltf_asset_shades_the_geometric_roughness(tmp_path):
-    """A glTF quad whose vertex normals tilt along x (a curved surface to three.js's dFdx), a smooth
-    metal lit by a point light: the reference shades min(max(r, floor) + g, 1) per lane with g the
-    closed form's (checked first at the pixel centres), and without the option it does not."""
-    from reference.render import geometric_roughness_image, render_uncached
+@pytest.mark.parametrize("uv", sorted(UV_LAYOUTS))
+def test_a_gltf_asset_geometric_roughness_matches_the_closed_form(tmp_path, uv):
+    """g at the pixel centres of the tilted glTF quad, whatever its UV layout (the normal's
+    derivative is the surface's, not the texture's)."""
+    from reference.render import geometric_roughness_image
 
-    asset = _tilted_quad(tmp_path, 0.1)
-    scene = _asset_scene(asset, floor=0.045)
+    scene = _asset_scene(_tilted_quad(tmp_path, 0.1, uv), floor=0.045)
     got_g = geometric_roughness_image(scene)
     want_g = _quad_g(scene, 0.5, 0.5)
     centre = _quad_hit(scene.camera, 0.5, 0.5)[0]
@@ -199,6 +207,15 @@ def test_a_gltf_asset_shades_the_geometric_roughness(tmp_path):
     assert on_quad.sum() >= 150
     np.testing.assert_allclose(got_g[on_quad], want_g[on_quad], rtol=GEO_RTOL)
     assert 0.015 < want_g[on_quad].min() and 0.15 < want_g[on_quad].max() < 0.5   # of the order of the roughness
+
+
+def test_a_gltf_asset_shades_the_geometric_roughness(tmp_path):
+    """The tilted glTF quad (UV tiled 4 x), a smooth metal lit by a point light: the reference shades
+    min(max(r, floor) + g, 1) per lane with g the closed form's, and without the option it does not."""
+    from reference.render import render_uncached
+
+    asset = _tilted_quad(tmp_path, 0.1)
+    scene = _asset_scene(asset, floor=0.045)
 
     rgb = lambda im: np.stack([im.channels[c] for c in "RGB"], -1)  # noqa: E731
     on = rgb(render_uncached(scene, spp=256, progress=False, adaptive=False))
