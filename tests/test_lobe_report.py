@@ -30,39 +30,15 @@ from pbrcheck.exr import Image
 from pbrcheck.export import export_scene
 from pbrcheck.gltf import load_asset
 from pbrcheck.scene import load_scene, scene_from_dict
-from tests.test_compare_report import fake_reference, fakes, raycast  # noqa: F401  (fixture)
+from tests.test_compare_report import SCENE, fake_reference, fakes, raycast  # noqa: F401  (fixture)
 
 ROOT = Path(__file__).resolve().parents[1]
 LOBE_SCENES = ["clearcoat", "sheen", "specular", "anisotropy", "iridescence"]
 
-TINY_LOBES = """
-name = "tinylobes"
-description = "2 x 3 clearcoat sphere grid and one plain sphere, 24 x 24"
-[camera]
-origin = [0.0, 0.0, 8.0]
-fov = 30.0
-width = 24
-height = 24
-[environment]
-type = "constant"
-radiance = [1.0, 1.0, 1.0]
-[[objects]]
-type = "sphere_grid"
-rows = 2
-columns = 3
-radius = 0.6
-spacing = 1.4
-[objects.material]
-base_color = [0.8, 0.5, 0.3]
-clearcoat = 1.0
-clearcoat_roughness = 0.25
-[[objects]]
-type = "sphere"
-center = [0.0, -1.8, 0.0]
-radius = 0.3
-[objects.material]
-base_color = [0.2, 0.5, 0.3]
-"""
+#: test_compare_report's tiny scene, its grid clear-coated, and one plain sphere below it.
+TINY_LOBES = (SCENE.replace('name = "tiny"', 'name = "tinylobes"')
+              + 'clearcoat = 1.0\nclearcoat_roughness = 0.25\n[[objects]]\ntype = "sphere"\ncenter = [0.0, -1.8, 0.0]\n'
+              'radius = 0.3\n[objects.material]\nbase_color = [0.2, 0.5, 0.3]\n')
 
 
 @pytest.fixture
