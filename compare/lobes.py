@@ -23,6 +23,8 @@ API
 - :func:`lobe_variants` -- for a renderer and a scene: one ``{option: member}`` per member of each
   family of the scene's lobes other than the renderer's own choice (what ``sweep`` and ``explain``
   render).
+- :func:`parameter_groups` -- a lobe's objects grouped by the value of each of its parameters (the
+  built-in scenes' grid rows and columns).
 - :func:`pooled_metrics` -- a comparison's metrics pooled over a set of objects (pixel-weighted:
   exact for the means ``relmse``, ``flip_mean``, ``mean_abs``; ``rmse`` from the pooled MSE).
 - :data:`POOLED_METRICS`.
@@ -38,8 +40,8 @@ import math
 from dataclasses import dataclass
 
 from pbrcheck.errors import PbrcheckError
-from pbrcheck.lobe_params import (ANISOTROPY, CLEARCOAT, IRIDESCENCE, LOBE_EXTENSIONS, SHEEN, SPECULAR,
-                                  scene_features)
+from pbrcheck.lobe_params import (ANISOTROPY, CLEARCOAT, IRIDESCENCE, LOBE_EXTENSIONS, SCENE_FIELD_EXTENSION, SHEEN,
+                                  SPECULAR, scene_features)
 
 #: extension -> the short name the report, the tables and the CLI use.
 LOBE_NAMES = {e: e.removeprefix("KHR_materials_") for e in LOBE_EXTENSIONS}
@@ -140,6 +142,25 @@ def lobe_variants(spec, scene, families: list[LobeFamily] | None = None) -> list
     return out
 
 
+def parameter_groups(scene, extension: str) -> dict[str, tuple[int, ...]]:
+    """``{"FIELD=VALUE": object ids}``: the analytic objects carrying ``extension`` grouped by the
+    value of each of its scene-file fields (:data:`pbrcheck.lobe_params.SCENE_FIELD_EXTENSION`;
+    the built-in lobe scenes' grid rows and columns), by field then value; glTF mesh objects (their
+    textures vary the parameters per pixel) are not grouped."""
+    ids = set(object_lobes(scene).get(extension, ()))
+    out: dict[str, list[int]] = {}
+    for fld in (f for f, e in SCENE_FIELD_EXTENSION.items() if e == extension):
+        vals: dict = {}
+        for o in scene.objects:
+            if o.id in ids and getattr(o, "type", "") != "mesh":
+                v = getattr(o.material, fld)
+                vals.setdefault(tuple(v) if isinstance(v, (list, tuple)) else v, []).append(o.id)
+        if len(vals) > 1:   # a field the scene does not vary says nothing per value
+            for v in sorted(vals):
+                out[f"{fld}={list(v) if isinstance(v, tuple) else v}"] = vals[v]
+    return {k: tuple(v) for k, v in out.items()}
+
+
 def pooled_metrics(objects: list[dict], ids) -> dict:
     """:data:`POOLED_METRICS` over the objects ``ids`` of a comparison summary's ``objects`` list
     (each ``{"id", "pixels", "metrics"}``), weighted by their valid pixels; ``pixels`` and
@@ -165,4 +186,4 @@ def pooled_metrics(objects: list[dict], ids) -> dict:
 
 
 __all__ = ["LOBE_NAMES", "LobeFamily", "POOLED_METRICS", "SWITCH_PREFIXES", "lobe_families", "lobe_variants",
-           "object_lobes", "pooled_metrics", "scene_lobes"]
+           "object_lobes", "parameter_groups", "pooled_metrics", "scene_lobes"]

@@ -131,6 +131,28 @@ def test_pooled_metrics_weight_the_objects_by_their_pixels():
                                              "mean_abs": None, "rmse": None, "worst": None}
 
 
+def test_parameter_groups_are_the_grids_rows_and_columns():
+    g = cl.parameter_groups(load_scene("clearcoat"), lp.CLEARCOAT)
+    assert list(g) == [f"clearcoat={v}" for v in (0.0, 0.25, 0.5, 0.75, 1.0)] + \
+        [f"clearcoat_roughness={v}" for v in (0.0, 0.25, 0.5, 0.75, 1.0)]
+    # the neutral corner (both 0) carries no clearcoat: 4 in its row and column, 5 elsewhere
+    assert [len(v) for v in g.values()] == [4, 5, 5, 5, 5] * 2
+    assert set(g["clearcoat=1.0"]) == {20, 21, 22, 23, 24}   # the top row (objects row-major from the bottom)
+    assert cl.parameter_groups(load_scene("clearcoat"), lp.SHEEN) == {}
+
+
+def test_lobe_sections_add_a_by_parameter_table_where_a_scene_varies_them():
+    row = {"renderer": "default", "forms": "-", "objects": 2, "pixels": 40, "relmse": 0.1, "flip_mean": 0.2,
+           "mean_abs": 0.3, "rmse": 0.4, "worst": {"id": 1, "name": "b", "relmse": 0.2},
+           "by_parameter": {"clearcoat=0.5": 0.05, "clearcoat=1.0": 0.2}}
+    (sec,) = ls.lobe_sections([("grid", {lp.CLEARCOAT: [row]}), ("none", {})])
+    assert sec.id == "lobe-clearcoat" and len(sec.tables) == 2
+    assert sec.tables[0].rows == [["grid", "default", "-", "2", "40", "0.1", "0.2", "0.3", "0.4", "b (0.2)"]]
+    assert sec.tables[1].headers == ["scene", "renderer", "clearcoat=0.5", "clearcoat=1.0"]
+    assert sec.tables[1].rows == [["grid", "default", "0.05", "0.2"]]
+    assert ls.lobe_sections([("none", {})]) == []
+
+
 # ---- the export --------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("name", LOBE_SCENES)

@@ -5,7 +5,8 @@ otherwise (a report without lobe scenes is unchanged).
 Per lobe, per scene and per renderer under test (a real-time preset with its lobe forms, or an
 engine ``ext:NAME`` with the forms docs/renderers.md's lobes table reads in its source), the error
 against the scene's reference over the objects that carry the lobe (:func:`compare.lobes.pooled_metrics`:
-pixel-weighted relmse, FLIP, mean |t - r| and rmse; the worst object), then the real-time renderer's
+pixel-weighted relmse, FLIP, mean |t - r| and rmse; the worst object; and the relmse per value of
+each of the lobe's parameters, :func:`compare.lobes.parameter_groups`), then the real-time renderer's
 other lobe forms (:func:`compare.lobes.lobe_variants`: each member of each of the lobe's families
 the renderer takes as an option, on the first real-time preset), measured the same way. The truth
 is whatever the reference renders: the lobe itself once the reference models it
@@ -24,7 +25,7 @@ from pbrcheck.lobe_params import MODELLED_LOBE_EXTENSIONS
 
 from .. import renderers
 from ..lobe_findings import DEPARTURES, ENGINE_OF_RENDERER
-from ..lobes import LOBE_NAMES, POOLED_METRICS, lobe_families, object_lobes, pooled_metrics
+from ..lobes import LOBE_NAMES, POOLED_METRICS, lobe_families, object_lobes, parameter_groups, pooled_metrics
 from ..metrics import compare_images
 from ..timings import image_timings
 from .section import Section, Table
@@ -48,6 +49,13 @@ def forms_of(renderer: str, extension: str, options: dict | None) -> str:
     return ", ".join(vals) if vals else "not an option yet"
 
 
+def _pooled(scene, ext: str, ids, objects: list[dict]) -> dict:
+    """:func:`compare.lobes.pooled_metrics` over the lobe's objects, and ``by_parameter``: the relmse
+    pooled over each :func:`compare.lobes.parameter_groups` group."""
+    return {**pooled_metrics(objects, ids),
+            "by_parameter": {k: pooled_metrics(objects, g)["relmse"] for k, g in parameter_groups(scene, ext).items()}}
+
+
 def lobe_rows(scene, dump: dict) -> dict[str, list[dict]]:
     """``{extension: [row]}`` of one scene: per renderer of ``dump`` (``{renderer: its comparison
     summary with "options"}``, the report's ``metrics.json`` entries) the pooled metrics over the
@@ -57,7 +65,7 @@ def lobe_rows(scene, dump: dict) -> dict[str, list[dict]]:
         rows = []
         for renderer, summary in dump.items():
             rows.append({"renderer": renderer, "forms": forms_of(renderer, ext, summary.get("options")),
-                         **pooled_metrics(summary.get("objects", []), ids)})
+                         **_pooled(scene, ext, ids, summary.get("objects", []))})
         out[ext] = rows
     return out
 
@@ -81,7 +89,7 @@ def lobe_variant_rows(scene, ref, spec: renderers.RendererSpec, variants: list[d
             if ext in lobes:
                 out.setdefault(ext, []).append({"renderer": f"{spec.text} + {label}", "forms": label,
                                                 "precompute_s": pre, "frame_s": frame,
-                                                **pooled_metrics(cmp.summary["objects"], lobes[ext])})
+                                                **_pooled(scene, ext, lobes[ext], cmp.summary["objects"])})
         if progress is not None:
             progress.update(1, f"{scene.name}: {label}")
     return out
@@ -117,7 +125,13 @@ def lobe_sections(scenes: list[tuple[str, dict[str, list[dict]]]]) -> list[Secti
                 "families, on the first real-time preset). Forms: a preset's lobe options; an engine's departures "
                 "from the spec as read in its source (docs/renderers.md, the lobes table; diagnose names one when "
                 "it explains the error). " + _truth_note(ext))
-        out.append(Section(f"lobe-{name}", f"Lobe: {name} ({ext})", note, [Table("", headers, rows)]))
+        tables = [Table("", headers, rows)]
+        keys = list(dict.fromkeys(k for _, by in scenes for r in by.get(ext, []) for k in r.get("by_parameter", {})))
+        if keys:   # the grid's rows and columns: where along each parameter the error lies
+            tables.append(Table("relmse by parameter value (objects pooled per value)", ["scene", "renderer", *keys],
+                                [[scene, r["renderer"], *[_fmt(r.get("by_parameter", {}).get(k)) for k in keys]]
+                                 for scene, by in scenes for r in by.get(ext, [])]))
+        out.append(Section(f"lobe-{name}", f"Lobe: {name} ({ext})", note, tables))
     return out
 
 
