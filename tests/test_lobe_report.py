@@ -86,7 +86,7 @@ def test_lobe_families_are_the_registrys_with_the_option_found_generically(monke
     assert fams["COAT_IBL"].extension == lp.CLEARCOAT and fams["SHEEN_DFG"].extension == lp.SHEEN
     assert fams["ANISOTROPY_BEND"].members == ("sample_viewer", "threejs", "filament", "babylon")
     # an option whose registry is the family's, whatever its name, is the family's option
-    monkeypatch.setitem(presets.OPTION_REGISTRIES, "coat_ibl_form", COAT_IBLS)
+    monkeypatch.setattr(presets, "OPTION_REGISTRIES", {"coat_ibl_form": COAT_IBLS})
     assert {f.switch: f.option for f in cl.lobe_families()}["COAT_IBL"] == "coat_ibl_form"
 
 
