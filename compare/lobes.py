@@ -17,7 +17,8 @@ API
   :data:`pbrcheck.lobe_params.LOBE_EXTENSIONS`' order; :data:`SWITCH_PREFIXES`.
 - :func:`object_lobes` -- ``{extension: object ids}`` of a scene: analytic objects by their
   material's lobe fields, glTF mesh objects by their material's active extensions.
-- :func:`scene_lobes` -- the extensions a scene uses, in order.
+- :func:`scene_lobes` -- the extensions a scene uses, in order; :func:`no_random_walk` -- why a
+  scene with lobes has no random-walk reference.
 - :class:`LobeFamily`, :func:`lobe_families` -- the real-time registry's lobe families with the
   option that chooses among their members (None: not an option yet).
 - :func:`lobe_variants` -- for a renderer and a scene: one ``{option: member}`` per member of each
@@ -82,6 +83,18 @@ def object_lobes(scene) -> dict[str, tuple[int, ...]]:
 def scene_lobes(scene) -> tuple[str, ...]:
     """The lobe extensions ``scene`` uses (:func:`object_lobes`' keys)."""
     return tuple(object_lobes(scene))
+
+
+def no_random_walk(scene) -> str | None:
+    """Why ``scene`` has no random-walk reference because of its lobes (None: no lobe): the
+    reference's glTF lobes are single-scattering layers (reference/lobe_bsdf.py refuses
+    ``multiscatter = "random_walk"`` with them), so the report's second truth and diagnose's
+    ``multiple_scattering`` are not rendered for a scene whose objects carry one."""
+    used = scene_lobes(scene)
+    if not used:
+        return None
+    return (f"the glTF lobes ({', '.join(LOBE_NAMES[e] for e in used)}) are single-scattering layers in the "
+            "reference: no random walk with them")
 
 
 @dataclass(frozen=True)
@@ -186,4 +199,4 @@ def pooled_metrics(objects: list[dict], ids) -> dict:
 
 
 __all__ = ["LOBE_NAMES", "LobeFamily", "POOLED_METRICS", "SWITCH_PREFIXES", "lobe_families", "lobe_variants",
-           "object_lobes", "parameter_groups", "pooled_metrics", "scene_lobes"]
+           "no_random_walk", "object_lobes", "parameter_groups", "pooled_metrics", "scene_lobes"]

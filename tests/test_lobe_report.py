@@ -340,3 +340,47 @@ def test_every_departure_is_a_row_of_the_docs_lobes_table():
         assert f"`{d.name}`" in table, d.name
     for engine in set(ENGINE_OF_RENDERER.values()):
         assert engine in table
+
+
+# ---- the export's tangents (anisotropy) ---------------------------------------------------------------
+
+def _accessor(doc: dict, data: bytes, i: int) -> np.ndarray:
+    acc = doc["accessors"][i]
+    view = doc["bufferViews"][acc["bufferView"]]
+    width = {"VEC3": 3, "VEC4": 4}[acc["type"]]
+    return np.frombuffer(data, np.float32, acc["count"] * width, view["byteOffset"]).reshape(-1, width)
+
+
+def test_anisotropic_objects_carry_the_references_tangent_frame_and_only_they():
+    from pbrcheck.export import gltf_document
+
+    s = scene_from_dict({"environment": {"type": "constant"}, "objects": [
+        {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": {"anisotropy_strength": 0.5}},
+        {"type": "sphere", "center": [3, 0, 0], "radius": 1.0, "material": {}},
+        {"type": "plane", "center": [0, -1, 0], "normal": [0, 1, 0], "size": [4, 4],
+         "material": {"anisotropy_strength": 1.0}}]})
+    doc, data, _, _ = gltf_document(s)
+    prims = [m["primitives"][0]["attributes"] for m in doc["meshes"]]
+    assert "TANGENT" in prims[0] and "TANGENT" not in prims[1] and "TANGENT" in prims[2]
+    n = _accessor(doc, data, prims[0]["NORMAL"])
+    t = _accessor(doc, data, prims[0]["TANGENT"])
+    assert np.all(t[:, 3] == 1.0)                                   # bitangent = n x t
+    side = np.hypot(n[:, 0], n[:, 1]) > 1e-3                       # off the z axis: Mitsuba's dp/du
+    want = np.stack([-n[side, 1], n[side, 0], np.zeros(side.sum())], 1) / np.hypot(n[side, 0], n[side, 1])[:, None]
+    assert np.allclose(t[side, :3], want, atol=1e-6)
+    assert np.allclose((t[:, :3] * n).sum(1), 0.0, atol=1e-6)       # tangent to the sphere everywhere
+    assert np.allclose(_accessor(doc, data, prims[2]["TANGENT"]), [[1, 0, 0, 1]] * 4)   # a floor's: +X
+    # a scene without anisotropy exports no tangent at all (its files as before)
+    plain, _, _, _ = gltf_document(load_scene("clearcoat"))
+    assert not any("TANGENT" in m["primitives"][0]["attributes"] for m in plain["meshes"])
+
+
+def test_a_scene_with_lobes_has_no_random_walk_reference():
+    from compare.report.references import random_walk_scene
+
+    walk, why = random_walk_scene(load_scene("sheen"))
+    assert walk is None and why == "the glTF lobes (sheen) are single-scattering layers in the reference: no random walk with them"
+    assert random_walk_scene(load_scene("spheres"))[0].brdf.multiscatter == "random_walk"
+    ms = dg.hypothesis("multiple_scattering")
+    assert ms.applies_to(None, load_scene("clearcoat")) == cl.no_random_walk(load_scene("clearcoat"))
+    assert ms.applies_to(None, load_scene("spheres")) is None

@@ -372,6 +372,10 @@ def _other_blend(scene: Scene, directory: Path) -> tuple[Scene, dict]:
 def _needs_single_scattering_pair(ref: Image, scene: Scene) -> str | None:
     if scene.brdf.multiscatter != "none":
         return "the reference already scatters multiply"
+    from ..lobes import no_random_walk
+    lobes = no_random_walk(scene)
+    if lobes is not None:
+        return lobes
     if MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != scene.brdf.geometry:
         return ("the random walk needs ndf = ggx with geometry = smith_ggx_correlated or beckmann with "
                 "smith_beckmann_correlated")
