@@ -10,7 +10,9 @@ API
 - :func:`gltf_document` -- the glTF JSON and its binary buffer (no file written).
 - :func:`sphere_segments` -- the tessellation rule: segments around a sphere for a silhouette error
   below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.
-- :func:`uv_sphere` -- the unit sphere mesh (positions = analytic normals, triangle indices).
+- :func:`uv_sphere` -- the unit sphere mesh (positions = analytic normals, triangle indices);
+  :func:`sphere_tangents` -- the reference's sphere tangent, written as ``TANGENT`` for the objects
+  whose material has ``KHR_materials_anisotropy`` (a plane's: its ``plane_frame`` tangent).
 - :func:`ior_from_f0` -- ``KHR_materials_ior``'s ior for a dielectric F0.
 - An analytic material's lobe fields (``clearcoat``, ``sheen_color``, ...) are written as their
   extensions (``KHR_materials_clearcoat``, ...: :func:`pbrcheck.lobe_params.scene_extensions`);
@@ -55,7 +57,7 @@ from .hdrimage import write_hdr
 from .jsonio import dump_json, write_json_atomic
 from .gltf import SUPPORTED_EXTENSIONS
 from .scene import Plane, Scene, Sphere, plane_frame
-from .lobe_params import scene_extensions
+from .lobe_params import ANISOTROPY, scene_extensions, scene_features
 from .unmodelled import strip_unmodelled
 
 #: scenario.json's words on the metallic blend (its ``metallic_blend`` table).
@@ -65,6 +67,9 @@ METALLIC_BLEND_NOTE = ("f0: pbrcheck's F0 mix (the diffuse under 1 - F of mix(sp
                        "\"gltf\" to judge a glTF engine against its own blend.")
 #: Largest distance, in pixels, between a tessellated sphere's silhouette and the true one.
 SILHOUETTE_TOLERANCE_PX = 0.25
+#: Below this length the sphere tangent's (-n.y, n.x) is a pole on the z axis: +X there (as
+#: realtime.lobes.sphere_tangent, whose 1e-6 it is).
+TANGENT_POLE_EPS = 1e-6
 #: Fewest and most segments around a sphere (the rings are half as many).
 MIN_SPHERE_SEGMENTS = 16
 MAX_SPHERE_SEGMENTS = 1024
@@ -177,6 +182,18 @@ def uv_sphere(segments: int) -> tuple[np.ndarray, np.ndarray]:
             tris.append((a, c, b))
             tris.append((b, c, d))
     return pos.astype(np.float32), np.asarray(tris, dtype=np.uint32)
+
+
+def sphere_tangents(normals: np.ndarray) -> np.ndarray:
+    """The reference's tangent of a sphere at unit ``normals`` (V, 3): Mitsuba's sphere dp/du direction
+    ``normalize(-n.y, n.x, 0)`` (the sphere's frame is the world's: the export's nodes translate and
+    scale, never rotate), +X where that vanishes (the points on the z axis); the bitangent is
+    ``n x t`` (sign +1). Written for the spheres whose material has ``KHR_materials_anisotropy``: its
+    direction is in this frame, and an engine without a TANGENT attribute makes up its own."""
+    n = np.asarray(normals, np.float64)
+    t = np.stack([-n[:, 1], n[:, 0], np.zeros(len(n))], axis=1)
+    ln = np.linalg.norm(t, axis=1, keepdims=True)
+    return np.where(ln > TANGENT_POLE_EPS, t / np.maximum(ln, TANGENT_POLE_EPS), np.array([1.0, 0.0, 0.0]))
 
 
 def plane_quad(plane: Plane) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -342,6 +359,11 @@ class _Buffer:
         return (self.add(pos.astype(np.float32), target=34962, component=5126, type_="VEC3", minmax=True),
                 self.add(nrm.astype(np.float32), target=34962, component=5126, type_="VEC3"))
 
+    def tangents(self, tan: np.ndarray) -> int:
+        """A ``TANGENT`` accessor: xyz and the bitangent sign w = +1 (glTF: b = cross(n, t) w)."""
+        t4 = np.concatenate([tan, np.ones((len(tan), 1))], axis=1)
+        return self.add(t4.astype(np.float32), target=34962, component=5126, type_="VEC4")
+
     def indices(self, idx: np.ndarray, n_vertices: int) -> int:
         flat = idx.reshape(-1)
         if n_vertices < 65536:
@@ -435,9 +457,14 @@ def _analytic_objects(scene: Scene, objects, buf: "_Buffer"):
     sphere_geo: dict[int, tuple[int, int, int]] = {}
     segments: dict[int, int] = {}
     triangles = 0
+    sphere_tan: dict[int, int] = {}
     for obj in objects:
         materials.append(_material(obj))
         node = {"name": f"object_{obj.id}_{obj.name}", "mesh": len(meshes), "extras": {"pbrcheck_object": obj.id}}
+        # anisotropy's direction is in the tangent frame: its objects carry the reference's (only they:
+        # every other export stays byte for byte as it was)
+        aniso = ANISOTROPY in scene_features(obj.material)
+        tan = None
         if isinstance(obj, Sphere):
             n = sphere_segments(scene, obj)
             segments[obj.id] = n
@@ -446,17 +473,24 @@ def _analytic_objects(scene: Scene, objects, buf: "_Buffer"):
                 p, nr = buf.vertices(pos, pos)
                 sphere_geo[n] = (p, nr, buf.indices(idx, len(pos)), len(idx))
             p, nr, ix, ntri = sphere_geo[n]
+            if aniso:
+                if n not in sphere_tan:
+                    sphere_tan[n] = buf.tangents(sphere_tangents(uv_sphere(n)[0]))
+                tan = sphere_tan[n]
             node["translation"] = [float(c) for c in obj.center]
             node["scale"] = [float(obj.radius)] * 3
         elif isinstance(obj, Plane):
             pos, nrm, idx = plane_quad(obj)
             p, nr = buf.vertices(pos, nrm)
             ix, ntri = buf.indices(idx, 4), 2
+            if aniso:   # plane_frame's tangent, its bitangent n x t (a right-handed frame)
+                tan = buf.tangents(np.repeat(np.asarray(plane_frame(obj.normal)[0], float)[None, :], 4, axis=0))
         else:  # pragma: no cover - the loader expands grids
             raise ExportError(f"{scene.source}: objects[{obj.id}]: cannot export type {type(obj).__name__}")
         triangles += ntri
+        attrs = {"POSITION": p, "NORMAL": nr, **({"TANGENT": tan} if tan is not None else {})}
         meshes.append({"name": f"mesh_{obj.id}", "primitives": [
-            {"attributes": {"POSITION": p, "NORMAL": nr}, "indices": ix, "material": len(materials) - 1, "mode": 4}]})
+            {"attributes": attrs, "indices": ix, "material": len(materials) - 1, "mode": 4}]})
         nodes.append(node)
     return meshes, nodes, materials, segments, triangles
 

@@ -73,7 +73,7 @@ SCENE_NAMES = [h.name for h in dg.HYPOTHESES if h.kind == "scene"]
 
 def test_hypotheses_are_one_list_of_unique_names_each_found_by_name():
     names = [h.name for h in dg.HYPOTHESES]
-    assert len(names) == len(set(names)) and {h.kind for h in dg.HYPOTHESES} == {"image", "scene"}
+    assert len(names) == len(set(names)) and {h.kind for h in dg.HYPOTHESES} == {"image", "scene", "lobe"}
     assert all(dg.hypothesis(n).name == n for n in names)
     with pytest.raises(dg.DiagnoseError, match="unknown scene hypothesis 'flip_vertical'"):
         dg.hypothesis_scene("flip_vertical", load_scene("furnace"), Path("."))

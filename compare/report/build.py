@@ -44,6 +44,7 @@ from .research_sections import ResearchSettings, research_parts
 from .results import SceneSection
 from .runlog import RUN_FILE, RunLog, run_section
 from .scene import MATERIAL_METRICS, ReportSettings, SceneWork
+from .lobes_section import lobe_sections
 from .section import Section, Table
 from .stages import ReportStage, run_stages
 from .summary import furnace_scene, furnace_section, summary_section
@@ -120,9 +121,14 @@ def report_stages(scenes: list[str], works: list[SceneWork], st: ReportSettings,
         page.extras.append(hardcases_section(out_dir / "hardcases", [p for p in presets if not st.spec(p).external],
                                              cfg.progress, context=st.context))
 
+    def lobes(prog):  # after the summary: one section per lobe the scenes carry
+        page.top += lobe_sections([(w.scene.name, w.lobes) for w in works if w.lobes])
+
     out = [s for w in works for s in w.stages()]
-    out += [ReportStage("summary and furnace", len(presets) if cfg.furnace else 0, summary),
-            ReportStage("both references", len(scenes) * n_ext, references)]
+    out += [ReportStage("summary and furnace", len(presets) if cfg.furnace else 0, summary)]
+    if any(w.has_lobes for w in works):   # a report without lobe scenes keeps its stages
+        out.append(ReportStage("lobe sections", 0, lobes, record=False))
+    out += [ReportStage("both references", len(scenes) * n_ext, references)]
     if cfg.research:  # at the first scene's trusted-verdict spp (the reference its sections compare against)
         parts = research_parts(scenes[0], out_dir / "research", presets, report_spp=lambda: works[0].verdict.spp,
                                st=ResearchSettings(assets=cfg.assets),
@@ -226,7 +232,8 @@ def build_report(scenes: list[str], out_dir: Path, config: ReportConfig = Report
     (:mod:`compare.report.research_sections`; files under ``out_dir/research``). ``extras``: further
     :class:`~compare.report.section.Section` s. The page opens with the summary (one row per
     renderer and scene) and, with ``furnace``, the white furnace per renderer
-    (:mod:`compare.report.summary`), then every external renderer against both the single-scattering
+    (:mod:`compare.report.summary`), a section per glTF PBR extension lobe the scenes carry
+    (:mod:`compare.report.lobes_section`), then every external renderer against both the single-scattering
     and the random-walk reference (:mod:`compare.report.references`). ``scheduler``: the presets'
     and the sweep's renders run there (:mod:`compare.corpus.renderlist`). ``cache``: real-time renders
     come from the content-addressed cache where their scene, options, shader and code are unchanged

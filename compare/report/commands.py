@@ -53,12 +53,13 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    vary = parse_vary(args.vary) if args.vary or not args.approximations else None
+    vary = parse_vary(args.vary) if args.vary or not (args.approximations or args.lobes) else None
     check_output_path(args.out, folder=True)  # before any render
     with staged_folder(args.out) as stage:  # all of its files, or none
         staged = run_sweep(args.scene, vary, preset=args.preset, out_dir=stage, spp=args.spp,
                            progress=not args.quiet, also=split_list(args.also), scheduler=args.scheduler,
-                           mode=args.mode, approximations=args.approximations, assets=asset_options_of(args))
+                           mode=args.mode, approximations=args.approximations, assets=asset_options_of(args),
+                           lobes=args.lobes)
     paths = {k: Path(args.out) / Path(p).relative_to(stage) for k, p in staged.items()}
     for k, p in paths.items():
         print(f"{k}: {p}")
@@ -136,6 +137,9 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--approximations", action="store_true",
                    help="asset scenes: sweep the approximation options (specular_aa, msaa, occlusion), "
                         "each against the reference mode that is its truth (local or path)")
+    s.add_argument("--lobes", action="store_true",
+                   help="also every other real-time form of the lobes the scene's objects carry (clearcoat, sheen, "
+                        "...: each member of each lobe family the renderer takes as an option), one at a time")
     s.add_argument("--mode", choices=("local", "path"), default="local",
                    help="reference mode of the --vary rows (default local)")
     s.add_argument("--preset", default="default", help="preset the variations start from")

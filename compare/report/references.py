@@ -63,6 +63,7 @@ from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.scene import Scene, load_scene
 
 from .. import renderers
+from ..lobes import no_random_walk
 from ..metrics import REL_EPS, compare_images
 from .section import Section, Table
 
@@ -101,6 +102,9 @@ def random_walk_scene(scene: Scene) -> tuple[Scene | None, str]:
     if scene.brdf.geometry != need:
         return None, f"the random walk for ndf = {scene.brdf.ndf} needs geometry = {need} (the scene has " \
                      f"{scene.brdf.geometry})"
+    lobes = no_random_walk(scene)
+    if lobes is not None:
+        return None, lobes
     if scene.brdf.multiscatter == "random_walk":
         return scene, ""
     return replace(scene, brdf=replace(scene.brdf, multiscatter="random_walk")), ""

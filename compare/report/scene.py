@@ -6,7 +6,8 @@ for external renderers), the sweep, the reference's convergence study, the plots
 :class:`~compare.report.results.SceneSection`. Files under ``OUT/<scene>/``: ``reference.png``, per
 renderer ``rt_``, ``flip_`` and ``rel_`` PNGs (and ``diagnose_*.json`` for an external one), the
 plots, ``sweep.csv`` / ``sweep.json`` and ``metrics.json`` (with, for an asset scene, the approximation
-rows of :mod:`compare.approximations`: its ``asset_approximations``).
+rows of :mod:`compare.approximations`: its ``asset_approximations``; for a scene whose objects carry
+glTF PBR extension lobes, ``lobes``: :mod:`compare.report.lobes_section`'s rows per lobe).
 
 API: :class:`ReportSettings`, :class:`SceneWork`, :func:`approximation_preset`, :func:`material_rows`,
 :func:`unmodelled_banner`, :func:`convergence_spps`, :data:`DIAGNOSE_SPP`,
@@ -30,6 +31,8 @@ from ..maps import safe_name, write_flip_png, write_rel_png, write_tonemapped
 from ..metrics import METRICS, compare_images
 from ..research.diagnose import diagnose
 from ..verdict_spp import MIN_REFERENCE_SPP, reference_for_verdict
+from ..lobes import lobe_variants, object_lobes
+from .lobes_section import lobe_rows, lobe_variant_rows
 from .plots import plot_convergence, plot_materials, plot_ndotv
 from .results import PresetResult, SceneSection
 from .stages import ReportStage
@@ -143,6 +146,13 @@ class SceneWork:
                               if st.approximations else None)
         self.approx_rows: list[dict] = []
         self.conv: list[dict] = []
+        # The glTF PBR extensions' lobes its objects carry (none: no lobe stage, metrics.json unchanged)
+        # and the first real-time preset's other lobe forms (compare.lobes.lobe_variants).
+        self.has_lobes = bool(object_lobes(self.scene))
+        rt = next((st.spec(p) for p in st.presets if not st.spec(p).external), None)
+        self.lobe_spec = rt
+        self.lobe_variants = lobe_variants(rt, self.scene) if self.has_lobes and rt is not None else []
+        self.lobes: dict = {}
         self.section: SceneSection | None = None
 
     def stages(self) -> list[ReportStage]:
@@ -153,6 +163,8 @@ class SceneWork:
         out = [ReportStage(f"{n}: renderers under test", 0, self._render),
                ReportStage(f"{n}: reference", 1, self._reference)]
         out += [ReportStage(f"{n}: comparisons and diagnose", 1, partial(self._measure, p)) for p in self.st.presets]
+        if self.has_lobes:
+            out.append(ReportStage(f"{n}: lobes", len(self.lobe_variants), self._lobes))
         if self.combos:
             out.append(ReportStage(f"{n}: sweep", len(self.combos), self._sweep))
         if self.approx_preset:
@@ -235,6 +247,17 @@ class SceneWork:
         write_json_atomic(self.sd / f"diagnose_{p}.json", d)
         return d.line, f"{self.sid}/diagnose_{p}.json"
 
+    def _lobes(self, prog) -> None:
+        """Per lobe the renderers' error over its objects, then the first real-time preset's other
+        forms of it (compare.report.lobes_section)."""
+        self.lobes = lobe_rows(self.scene, self.dump)
+        if self.lobe_variants:
+            more = lobe_variant_rows(self.scene, self.ref, self.lobe_spec, self.lobe_variants, progress=prog,
+                                     context=self.st.context)
+            for ext, rows in more.items():
+                self.lobes.setdefault(ext, []).extend(rows)
+                self.speed_rows += [{**r, "preset": r["renderer"]} for r in rows]
+
     def _sweep(self, prog) -> None:
         """The sweep over the cost knobs (from the first preset)."""
         st = self.st
@@ -293,7 +316,8 @@ class SceneWork:
         write_json_atomic(sd / "metrics.json", {"scene": scene.name, "presets": self.dump, "convergence": self.conv,
                                                 "sweep": self.sweep_table, "reference_spp": verdict.to_dict(),
                                                 "asset_approximations": {"preset": self.approx_preset,
-                                                                         "rows": self.approx_rows}},
+                                                                         "rows": self.approx_rows},
+                                                **({"lobes": self.lobes} if self.lobes else {})},
                           indent=1)
         self.section = SceneSection(sid, scene.name, scene.description, self.ref.meta.get("spp", self.st.spp),
                                     f"{sid}/reference.png", self.results, plots, self.provenance, self.noise_floor,

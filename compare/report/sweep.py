@@ -30,6 +30,7 @@ from pbrcheck.scene import load_scene
 from .. import renderers
 from ..approximations import TRUTHS
 from ..corpus import renderlist
+from ..lobes import LOBE_NAMES, lobe_families, lobe_variants, scene_lobes
 from ..corpus.scheduler import open_executor, parse_scheduler
 from ..maps import pyplot, save_figure
 from ..metrics import METRICS, compare_images
@@ -146,6 +147,24 @@ def default_sweep(spec: renderers.RendererSpec) -> list[dict]:
     return out
 
 
+def lobe_combos(spec: renderers.RendererSpec, scene) -> list[dict]:
+    """``--lobes``: one option dict per other real-time form of each lobe ``scene``'s objects carry
+    (:func:`compare.lobes.lobe_variants`, read from the real-time registry: a family joins once the
+    renderer takes it as an option). Raises :class:`SweepError` where the scene has no lobe or the
+    renderer takes none of its lobes' forms as an option (an external one takes none)."""
+    used = scene_lobes(scene)
+    if not used:
+        raise SweepError(f"sweep --lobes: scene {scene.name!r} has no object with a glTF PBR extension lobe "
+                         f"({', '.join(LOBE_NAMES.values())})")
+    out = lobe_variants(spec, scene)
+    if not out:
+        fams = [f"{f.switch} ({'option ' + f.option if f.option else 'not an option yet'})"
+                for f in lobe_families() if f.extension in used]
+        raise SweepError(f"sweep --lobes: renderer {spec.text} takes none of the forms of "
+                         f"{', '.join(LOBE_NAMES[e] for e in used)} as an option: {', '.join(fams) or 'no family'}")
+    return out
+
+
 def combinations(vary: dict[str, list]) -> list[dict]:
     """Every combination of the varied options (their product), as option dicts."""
     keys = list(vary)
@@ -203,30 +222,36 @@ def write_table(out_dir: Path, rows: list[dict], keys: list[str], stem: str = "s
 def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "default", out_dir: Path,
               spp: int = 64, progress: bool = True, also: list[str] | None = None,
               scheduler: str | None = None, mode: str = "local", approximations: bool = False,
-              assets: AssetOptions | None = None) -> dict[str, Path]:
+              assets: AssetOptions | None = None, lobes: bool = False) -> dict[str, Path]:
     """Render the reference (``mode``) and every combination of ``vary`` over ``preset``; write the
     table and the speed-against-error plot (``pareto.png``) to ``out_dir``; returns their paths.
     ``approximations``: the asset approximations instead (:func:`approximation_groups`), each group
     against a reference in its own mode, a ``truth`` column, one plot per mode (``pareto_MODE.png``).
     ``also``: further renderers (presets or ``ext:NAME``) measured as they are, one row each, on the
     same plot (against the first reference). ``scheduler`` (``local:N``, ``tcp://HOST:PORT``): the
-    combinations run there (:mod:`compare.corpus.scheduler`).
+    combinations run there (:mod:`compare.corpus.scheduler`). ``lobes``: also the preset's other
+    forms of the lobes the scene's objects carry (:func:`lobe_combos`), one at a time, with the
+    preset itself (``vary`` may then be None).
 
     Raises
     ------
     SweepError
-        ``spp`` below 2; ``vary`` None without ``approximations``; ``OptionError`` for an unknown
-        option or value (before any render).
+        ``spp`` below 2; ``vary`` None without ``approximations`` or ``lobes``; ``lobes`` on a scene
+        without lobes or a renderer that takes none of their forms as an option; ``OptionError`` for
+        an unknown option or value (before any render).
     """
     if spp < MIN_REFERENCE_SPP:
         raise SweepError(f"--spp must be >= {MIN_REFERENCE_SPP} (the reference's variance needs two samples), "
                          f"got {spp}")
-    if vary is None and not approximations:
-        raise SweepError("sweep: --vary KEY=V1,V2,... or --approximations is needed")
+    if vary is None and not approximations and not lobes:
+        raise SweepError("sweep: --vary KEY=V1,V2,..., --approximations or --lobes is needed")
     scene = load_scene(scene_arg, assets)
+    base = renderers.RendererSpec.parse(preset)  # the renderer names, parsed once
     # vary {}: the preset as it is (one row); None: no --vary rows (only the approximations)
     groups = ([] if vary is None else [(mode, combinations(vary))]) + (approximation_groups() if approximations else [])
-    base = renderers.RendererSpec.parse(preset)  # the renderer names, parsed once
+    if lobes:   # the lobe forms join the --vary rows (or make them, with the preset itself first)
+        more = lobe_combos(base, scene)
+        groups = [(mode, groups[0][1] + more)] + groups[1:] if vary is not None else [(mode, [{}] + more)] + groups
     for _, combos in groups:  # every option and value is checked before rendering
         for combo in combos:
             # this GL's limits too (msaa), before any render
@@ -250,7 +275,8 @@ def run_sweep(scene_arg: str, vary: dict[str, list] | None, *, preset: str = "de
                 for r in new:
                     r["truth"] = m
             rows += new
-    keys = list(vary) if vary and not approximations else sorted({k for _, c in groups for o in c for k in o})
+    keys = (list(vary) if vary and not approximations and not lobes
+            else sorted({k for _, c in groups for o in c for k in o}))
     paths = write_table(Path(out_dir), rows, keys)
 
     def label(r):

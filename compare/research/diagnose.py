@@ -53,6 +53,15 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
   other ``[brdf] metallic_blend``. Only where something is partially metallic (the blends agree at 0
   and 1); on glTF assets too.
 
+Lobe departures (kind ``lobe``; ``scene`` given, and only for a scene whose objects carry the lobe):
+one per engine form of :data:`compare.lobe_findings.DEPARTURES` that pbrcheck's real-time renderer
+has a twin of (a member of :data:`realtime.registry.LOBE_REGISTRIES`), named ``lobe:<departure>``:
+the reference plus what the form changes in the twin (``RT(member) - RT(spec's member)`` on the
+:data:`LOBE_TWIN_PRESET` preset), or the twin's image where the spec defines no image-based form to
+difference against. A departure from the specification, named so in the verdict; skipped, saying
+why, while the real-time renderer does not take the family as an option, for a form only punctual
+lights see in a scene without one, and on a display-referred pair.
+
 Decision
 --------
 The error is the relative MSE (:mod:`compare.metrics`) over every pixel, covered or not (the
@@ -73,7 +82,8 @@ named, otherwise "no convention mismatch found".
 API
 ---
 - :class:`Hypothesis`, :data:`HYPOTHESES` -- every hypothesis (name, kind, description, the transform or
-  scene edit, where it applies), in table order; :func:`hypothesis` -- one by name. Adding a
+  scene edit, where it applies), in table order; :func:`hypothesis` -- one by name; :func:`offered`
+  -- whether a hypothesis is in a scene's table (a ``lobe`` one: the scene carries its lobe). Adding a
   hypothesis is one entry of :data:`HYPOTHESES`.
 - :func:`diagnose` -- rank the hypotheses for a (reference, test) pair; returns :class:`Diagnosis`.
 - :func:`apply_image_hypothesis` -- the transform of one image-space hypothesis (also used by the
@@ -362,6 +372,10 @@ def _other_blend(scene: Scene, directory: Path) -> tuple[Scene, dict]:
 def _needs_single_scattering_pair(ref: Image, scene: Scene) -> str | None:
     if scene.brdf.multiscatter != "none":
         return "the reference already scatters multiply"
+    from ..lobes import no_random_walk
+    lobes = no_random_walk(scene)
+    if lobes is not None:
+        return lobes
     if MULTISCATTER_GEOMETRY.get(scene.brdf.ndf) != scene.brdf.geometry:
         return ("the random walk needs ndf = ggx with geometry = smith_ggx_correlated or beckmann with "
                 "smith_beckmann_correlated")
@@ -388,6 +402,8 @@ class Hypothesis:
     #: Whether a result with these fitted parameters may be named the likely cause (an exposure
     #: within EXPOSURE_MIN_DEVIATION of 1 is an approximation's bias, not a convention).
     names_cause: Callable[[dict], bool] = lambda fitted: True
+    #: A ``lobe`` hypothesis's extension: offered only for a scene whose objects carry it.
+    lobe: str | None = None
 
 
 #: Every hypothesis, in table order (image space first; scene space only with a scene).
@@ -429,6 +445,80 @@ HYPOTHESES: tuple[Hypothesis, ...] = (
                "the renderer mixes metallic the other way (glTF's mix of two BRDFs, or pbrcheck's F0 mix)",
                _other_blend, _needs_partial_metal, model=True),
 )
+
+
+# --- lobe departures (compare.lobe_findings): kind "lobe" -----------------------------------------
+
+#: The real-time preset whose twin of an engine's lobe form a ``lobe`` hypothesis renders (every
+#: other option at its value, so that the difference of two renders is the form's alone).
+LOBE_TWIN_PRESET = "default"
+
+
+def _lobe_family(switch: str):
+    from ..lobes import lobe_families
+    return next((f for f in lobe_families() if f.switch == switch), None)
+
+
+def _lobe_applies(dep):
+    """Where departure ``dep``'s hypothesis can be tested: why not otherwise."""
+    def applies(ref: Image, scene: Scene) -> str | None:
+        if is_display_referred(ref):
+            return "the pair is display-referred (png-srgb): the real-time twin's difference is linear radiance"
+        if dep.punctual and not scene.lights:
+            return "the form acts on punctual lights only and the scene has none"
+        fam = _lobe_family(dep.switch)
+        if fam is None or fam.option is None:
+            return (f"the real-time renderer has no option for {dep.switch} yet (issue 36 item 3): no twin of "
+                    "the form to render")
+        missing = [m for m in (dep.member, dep.against) if m is not None and m not in fam.members]
+        if missing:
+            return f"{dep.switch} has no member {', '.join(missing)}"
+        return None
+    return applies
+
+
+def _lobe_twin(dep):
+    """``apply(scene, r) -> (r', keeps_variance, fitted)``: the reference plus what the form changes
+    in the real-time twin (``against`` given), else the twin's image (noise-free)."""
+    def apply(scene: Scene, r: np.ndarray) -> tuple[np.ndarray, bool, dict]:
+        fam = _lobe_family(dep.switch)
+        base = renderers.RendererSpec.parse(LOBE_TWIN_PRESET)
+
+        def twin(member: str) -> np.ndarray:
+            img = renderers.render_under_test(scene, base.with_options(**{fam.option: member}), progress=False)
+            return img.rgb.astype(np.float64)
+
+        fitted = {"option": f"{fam.option}={dep.member}"}
+        if dep.against is None:
+            return twin(dep.member), False, fitted
+        return r + twin(dep.member) - twin(dep.against), True, {**fitted, "against": dep.against}
+    return apply
+
+
+def _lobe_hypotheses() -> tuple[Hypothesis, ...]:
+    from ..lobe_findings import DEPARTURES
+    return tuple(Hypothesis(f"lobe:{d.name}", "lobe",
+                            f"{d.extension.removeprefix('KHR_materials_')}: {d.form} ({', '.join(d.engines)}; "
+                            f"departs from the spec: {d.departure})",
+                            _lobe_twin(d), _lobe_applies(d), model=True, lobe=d.extension)
+                 for d in DEPARTURES if d.switch is not None and d.member is not None)
+
+
+HYPOTHESES = HYPOTHESES + _lobe_hypotheses()
+
+
+def offered(h: Hypothesis, scene: Scene | None) -> bool:
+    """Whether ``diagnose`` tests (or lists as skipped) hypothesis ``h`` for ``scene``: image
+    hypotheses always, scene-space ones with a scene, a ``lobe`` one only for a scene whose objects
+    carry its lobe (:func:`compare.lobes.scene_lobes`): other scenes' tables stay as they were."""
+    if h.kind == "image":
+        return True
+    if scene is None:
+        return False
+    if h.lobe is None:
+        return True
+    from ..lobes import scene_lobes
+    return h.lobe in scene_lobes(scene)
 
 
 def hypothesis(name: str, kind: str | None = None) -> Hypothesis:
@@ -592,13 +682,16 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
         if h.kind == "image":
             r2, t2, fitted = h.apply(r, t, cov)
             return r2, t2, var, fitted
+        if h.kind == "lobe":
+            r2, keeps, fitted = h.apply(scene, r)
+            return r2, t, var if keeps else None, fitted
         s2, fitted = h.apply(scene, directory)
         img = renderers.render_reference(s2, spp=spp, mode=mode, seed=seed, progress=False)  # the bar below counts
         if space != "linear":
             img = display_referred(img)  # compared as the pair is; its variance dropped with it
         return img.rgb.astype(np.float64), t, img.variance, fitted
 
-    todo = [h for h in HYPOTHESES if h.kind == "image" or scene is not None]
+    todo = [h for h in HYPOTHESES if offered(h, scene)]
     rows: list[HypothesisRow] = []
     with Progress("diagnose", total=len(todo), enabled=progress) as bar, \
             tempfile.TemporaryDirectory(prefix="pbrcheck-diagnose-") as tmp:
@@ -632,7 +725,9 @@ def diagnose(ref: Image, test: Image, scene: Scene | None = None, *, spp: int | 
             line += " (the difference is within the reference's noise)"
     else:
         fit = "".join(f", {k} {format_value(v)}" for k, v in likely.fitted.items())
-        kind = ("a model difference, not a convention: " if hypothesis(likely.hypothesis).model else "")
+        lh = hypothesis(likely.hypothesis)
+        kind = ("a departure from the extension's specification (docs/renderers.md, lobes): " if lh.kind == "lobe"
+                else "a model difference, not a convention: " if lh.model else "")
         line = (f"likely cause: {kind}{likely.hypothesis} ({likely.description}{fit}): undoing it removes "
                 f"{100 * likely.reduction:.0f} % of the error"
                 + (", what is left is within the reference's noise" if likely.within_noise else ""))
@@ -662,5 +757,5 @@ def table_markdown(d: Diagnosis) -> str:
     return "\n".join(out)
 
 
-__all__ = ["HYPOTHESES", "Hypothesis", "hypothesis", "LIKELY_REMAINING", "Diagnosis", "HypothesisRow", "DiagnoseError",
+__all__ = ["HYPOTHESES", "Hypothesis", "hypothesis", "offered", "LOBE_TWIN_PRESET", "LIKELY_REMAINING", "Diagnosis", "HypothesisRow", "DiagnoseError",
            "diagnose", "apply_image_hypothesis", "hypothesis_scene", "table_markdown", "srgb_eotf"]

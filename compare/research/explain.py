@@ -50,6 +50,14 @@ glTF asset scenes (the raster pipeline) add the approximations engines make on a
   both errors).
 * the split sum is the ``v=n=r`` row (runtime importance sampling of the full integral).
 
+A scene whose objects carry glTF PBR extension lobes (clearcoat, sheen, ...) adds one row per other
+real-time form of each lobe (:func:`compare.lobes.lobe_variants`: every member of each lobe family of
+:data:`realtime.registry.LOBE_REGISTRIES` the preset takes as an option, read generically, so a
+family joins once the renderer takes it), named ``lobe:OPTION=MEMBER`` (:data:`LOBE_ROW_PREFIX`).
+Such a row is not an exact counterpart: its contribution is what that engine's form would change
+(positive: nearer the truth), and it is left out of ``all_but_vnr`` and ``all_exact`` (two forms of
+one lobe do not combine).
+
 What every fix leaves on an asset includes the horizon: the reference cuts light arriving from
 below the geometric surface (a normal-mapped normal tilts its hemisphere under it), the real-time
 shading integrates it (``horizon_occlusion=marmoset`` approximates the cut; no option makes it exact).
@@ -72,6 +80,7 @@ from pbrcheck.registry import NDFS
 from pbrcheck.scene import Scene
 
 from .. import renderers
+from ..lobes import lobe_variants
 from ..metrics import REL_EPS, compare_images
 from ..verdict_spp import RESEARCH_PROBE, DEFAULT_SPP_CAP, VerdictSpp, reference_for_verdict
 from .results import ExplainCombined, ExplainPathTruth, ExplainResult, ExplainRow
@@ -109,6 +118,16 @@ ASSET_SOURCES = {
 }
 #: The asset sources whose truth is the ``path`` reference (:attr:`ExplainResult.path_truth`).
 PATH_TRUTH_SOURCES = ("occlusion",)
+#: The prefix of a lobe-form row's name (``lobe:coat_ibl=threejs``): another form, not an exact
+#: counterpart, so never part of the combined rows.
+LOBE_ROW_PREFIX = "lobe:"
+
+
+def lobe_sources(spec: renderers.RendererSpec, scene: Scene) -> dict[str, dict]:
+    """``{"lobe:OPTION=MEMBER": {option: member}}``: the preset's other forms of the lobes the
+    scene's objects carry (:func:`compare.lobes.lobe_variants`; none for an external renderer)."""
+    return {LOBE_ROW_PREFIX + ",".join(f"{k}={v}" for k, v in over.items()): over
+            for over in lobe_variants(spec, scene)}
 
 
 def sources(o: renderers.RealtimeOptions, *, cube_max: int = 512, samples_scale: float = 1.0, scene_ndf: str = "ggx",
@@ -194,8 +213,8 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
                                   height=int(size))
     # The sources first: an unknown name is an error before any render.
     asset = scene_has_assets(scene)
-    srcs = {} if spec.external else sources(o, cube_max=cube_max, samples_scale=samples_scale,
-                                                             scene_ndf=scene.brdf.ndf, asset=asset)
+    srcs = {} if spec.external else {**sources(o, cube_max=cube_max, samples_scale=samples_scale,
+                                                scene_ndf=scene.brdf.ndf, asset=asset), **lobe_sources(spec, scene)}
     if only is not None and srcs:
         unknown = sorted(set(only) - set(srcs) - {"lod_mapping"})
         if unknown:
@@ -265,8 +284,9 @@ def run_explain(scene: Scene, *, preset: str = "default", options: dict | None =
     for label, skip in (("all_but_vnr", ("v=n=r",)), ("all_exact", ())):
         allo = {}
         for r in rows:
-            if r.source in skip or r.metrics is None or (fitted_lod and r.source == "cube"):
-                continue  # a fitted mapping holds for its own cube size and mip count only
+            if (r.source in skip or r.metrics is None or (fitted_lod and r.source == "cube")
+                    or r.source.startswith(LOBE_ROW_PREFIX)):
+                continue  # a fitted mapping holds for its own cube size and mip count only; a lobe form is no fix
             allo.update(r.options)
         if o.ibl == "runtime" and label == "all_but_vnr":
             continue  # a runtime-sampling preset has no split sum to keep
@@ -321,6 +341,9 @@ def table_markdown(res: ExplainResult) -> str:
         lines.append(f"| {r.source} | {f(m.get(PRIMARY))} | {f(r.contribution)} | "
                      f"{'n/a' if share is None else f'{share:.1f} %'} | {f(m.get('flip_mean'))} |"
                      + (f" {r.error}" if r.error else ""))
+    if any(r.source.startswith(LOBE_ROW_PREFIX) for r in res.sources):
+        lines += ["", f"{LOBE_ROW_PREFIX}OPTION=MEMBER rows: another real-time form of a lobe the scene carries, not an "
+                      "exact counterpart (contribution > 0: that form is nearer the truth); left out of the combined rows."]
     if res.noise_relmse is not None:
         lines += ["", f"The reference's own noise explains relmse {f(res.noise_relmse)} "
                       f"(mean variance / (ref^2 + {REL_EPS}) over valid pixels)."]
