@@ -15,14 +15,17 @@ import numpy as np
 
 from .gl import compute_program, get_context, groups, shader_sources_hash
 from .lobes import SHEEN_LUT_SAMPLES, SHEEN_LUT_SIZE
+from .presets import bake_key
 
 _sheen_luts: dict = {}
 
 
 def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt: str = "f32"):
     """The sheen LUT texture (:data:`realtime.lobes.SHEEN_LUT_CONVENTIONS`), baked once per process and
-    shader sources (an edited shader bakes afresh, as realtime.render._baked)."""
-    key = (size, samples, fmt, shader_sources_hash())
+    shader sources (an edited shader bakes afresh, as realtime.render._baked), keyed by
+    :func:`realtime.presets.bake_key` of bake ``sheen_lut`` (options ``sheen_lut_size``, ``sheen_lut_samples``)
+    with the format as context."""
+    key = (*bake_key("sheen_lut", fmt, sheen_lut_size=size, sheen_lut_samples=samples), shader_sources_hash())
     if key in _sheen_luts:
         return _sheen_luts[key]
     ctx = get_context()

@@ -21,11 +21,13 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 :func:`sheen_dfg_lut_ibl_sampler_legacy`,
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
+:data:`CHARLIE_CUBE_CONVENTIONS` (the bake: :func:`realtime.render.charlie_cube`),
 :func:`sheen_albedo_quadrature`.
 Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
 :func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
 :func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
+:data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
 Iridescence: :func:`iridescence_sensitivity`, :func:`iridescence_fresnel`, :func:`iridescence_factor`,
 :func:`iridescence_mix`.
 
@@ -51,6 +53,12 @@ import numpy as np
 from pbrcheck.brdf import EnvBRDFApprox
 
 PI = np.pi
+#: The lobe extensions the real-time renderer renders (realtime/shaders/material_lobes.glsl, compiled
+#: into the programs of scenes whose materials use them: realtime.material_lobes). The honesty contract's
+#: pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS holds those both renderers render; the lead adds an
+#: extension there once the reference renders it too (its intersection with this set).
+REALTIME_LOBES = frozenset({"KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_specular",
+                            "KHR_materials_anisotropy", "KHR_materials_iridescence"})
 #: The smallest sheen alpha (= sheenRoughness^2) the Charlie terms evaluate with: its exponent
 #: 1/alpha reaches 1e3, where sin^(1/alpha) is already a spike of width ~0.03 rad and float32's
 #: pow still resolves it (pow amplifies the input's rounding by the exponent: 1e3 x 6e-8 = 6e-5).
@@ -454,6 +462,16 @@ SHEEN_LUT_CONVENTIONS = {
                 "G = int D_Charlie V_Neubelt n.l dl (Filament DFG.z, the Sample Viewer's Charlie LUT); B = the same "
                 "at alpha = roughness with V_Neubelt clamped to 1 (an older glTF-IBL-Sampler); A = 0",
     "format": "rgba16f (f16) or rgba32f (f32), N x N, clamp to edge, linear filter (unused: texelFetch)",
+}
+#: The Charlie-prefiltered cube's bake (charlie_prefilter.comp, realtime.render.charlie_cube) and its reader
+#: (material_lobes.glsl sheen_radiance), stated at both ends.
+CHARLIE_CUBE_CONVENTIONS = {
+    "levels": "level L of charlie_levels holds sheen roughness L / (levels - 1) (the Sample Viewer's lod = "
+              "sheenRoughness (mipCount - 1)); read at lod = sheen roughness x (levels - 1), trilinear",
+    "filter": "v = n = r; Hammersley points through sample_Charlie at alpha = roughness^2, l = reflect(-n, h), "
+              "weights n.l, each sample read at its pdf's source level (charlie_prefilter_pdf, filtered_is_lod); "
+              "a texel with no sample above the horizon stores 0",
+    "faces": "GL order +X, -X, +Y, -Y, +Z, -Z; texel directions cube_dir (env.glsl), as every cube of realtime.render",
 }
 #: The sheen LUT's default size and samples per texel (the Charlie sampler's estimate is within
 #: SHEEN_LUT_RTOL of the quadrature at these, tests/test_realtime_lobes.py; ~0.3 s on llvmpipe).

@@ -25,6 +25,9 @@
 #include "energy.glsl"
 #include "lights.glsl"
 #include "occlusion.glsl"
+#ifdef MATERIAL_LOBES
+#include "material_lobes.glsl"
+#endif
 
 layout(std430, binding = 1) readonly buffer Lights { vec4 lights[]; };  // 3 vec4 per light (lights.glsl)
 uniform int n_lights;
@@ -151,11 +154,26 @@ vec3 add_point_lights(vec3 color, Shading c) {
 vec3 shade_material(Shading c, uint pixel_seed) {
     Surface s = c.s;
     vec3 color = vec3(0.0);
+#ifdef MATERIAL_LOBES
+    // the lobes (material_lobes.glsl): KHR_materials_specular's dielectric F0 / F90, the anisotropic
+    // lookup direction
+    vec3 diel_f0;
+    float diel_f90;
+    lobes_dielectric(s.specular, diel_f0, diel_f90);
+    c.F0 = mix(diel_f0, s.base_color, s.metallic);
+    float F90 = diel_f90 + (1.0 - diel_f90) * s.metallic;
+    c.r = lobes_reflection(c.r, s.n, s.v, c.roughness);
+#else
     c.F0 = mix(vec3(s.specular), s.base_color, s.metallic);
+#endif
 #if FRESNEL == FRESNEL_SCHLICK
 #ifdef METALLIC_BLEND_GLTF
     // glTF's blend (brdf.glsl): the diffuse under the dielectric's own Fresnel, F0 = specular
+#ifdef MATERIAL_LOBES
+    vec3 kd = (1.0 - diel_f0) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#else
     vec3 kd = (1.0 - vec3(s.specular)) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#endif
 #else
     vec3 kd = (1.0 - c.F0) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
 #endif
@@ -170,7 +188,9 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     color += runtime_specular(s.n, s.v, c.roughness, c.F0, pixel_seed);
 #else
     c.AB = dfg(c.NoV, c.roughness);
-#if FRESNEL == FRESNEL_SCHLICK
+#if FRESNEL == FRESNEL_SCHLICK && defined(MATERIAL_LOBES)
+    vec3 spec_albedo = lobes_spec_albedo(c.F0, F90, c.NoV, c.AB);
+#elif FRESNEL == FRESNEL_SCHLICK
     vec3 spec_albedo = c.F0 * c.AB.x + c.AB.y;
 #else
     vec3 spec_albedo = vec3(c.AB.x + c.AB.y);
@@ -190,7 +210,12 @@ vec3 shade_material(Shading c, uint pixel_seed) {
 #endif
     // glTF 2.0 (3.9.4): the occlusion texture scales the indirect diffuse light.
     color += (1.0 - s.metallic) * s.base_color * kd * irradiance_over_pi(s.n) * s.occlusion;
+#ifdef MATERIAL_LOBES
+    // sheen and coat over the lit base (material_lobes.glsl)
+    return lobes_layer(add_point_lights(color, c), s.n, s.v, c.NoV);
+#else
     return add_point_lights(color, c);
+#endif
 }
 
 // Article 000, listing 4 (IBL): F = F_Schlick(n.v), kD = (1 - F)(1 - metallic),
