@@ -22,7 +22,8 @@ Conventions, stated again in ``material_lobes.glsl``:
 API
 ---
 :data:`LOBE_DEFINES`, :data:`LOBE_ROW_LAYOUT`, :func:`material_active_lobes`, :func:`scene_material_active_lobes`,
-:func:`scene_lobes`, :func:`lobe_defines`, :func:`object_lobe_rows`, :func:`needs_split_sum_bakes`.
+:func:`scene_lobes`, :func:`lobe_defines`, :func:`object_lobe_rows`, :func:`needs_split_sum_bakes`,
+:func:`needs_charlie_cube`; the raster pass's: :data:`LOBE_TEXTURE_SLOTS`, :func:`gltf_lobe_rows`, :func:`scene_lobe_rows`.
 """
 
 from __future__ import annotations
@@ -133,3 +134,48 @@ def object_lobe_rows(scene) -> np.ndarray:
     pass's ObjectLobes buffer, indexed as its object buffer)."""
     rows = [_row_values(ob.material) for ob in scene.objects]
     return np.concatenate(rows) if rows else np.zeros((4, 4), np.float32)
+
+
+#: The raster pass's lobe texture slots, in raster.frag's ``tex_lobe`` order: (glTF slot, lobe field,
+#: the lobe's texture attribute, sRGB). Channels: pbrcheck.lobe_params.TEXTURE_CHANNELS.
+LOBE_TEXTURE_SLOTS = (("clearcoat", "clearcoat", "texture", False),
+                      ("clearcoatRoughness", "clearcoat", "roughness_texture", False),
+                      ("clearcoatNormal", "clearcoat", "normal_texture", False),
+                      ("sheenColor", "sheen", "color_texture", True),
+                      ("sheenRoughness", "sheen", "roughness_texture", False),
+                      ("specular", "khr_specular", "texture", False),
+                      ("specularColor", "khr_specular", "color_texture", True),
+                      ("anisotropy", "anisotropy", "texture", False),
+                      ("iridescence", "iridescence", "texture", False),
+                      ("iridescenceThickness", "iridescence", "thickness_texture", False))
+
+
+def gltf_lobe_rows(gm) -> tuple[np.ndarray, dict]:
+    """A glTF material's lobe factors as the :data:`LOBE_ROW_LAYOUT` rows (row 3's last entry: the film's
+    ``iridescenceThicknessMinimum``, which raster.frag mixes to with the thickness texture; untextured,
+    the thickness is the maximum) and its lobe textures ``{glTF slot: (TextureRef, sRGB)}`` (only the
+    active lobes': an inactive lobe's texture is never read). The factors of an absent or inactive lobe
+    are the neutral values."""
+    active = set(material_active_lobes(gm))
+    c = gm.clearcoat if lp.CLEARCOAT in active else lp.Clearcoat()
+    s = gm.sheen if lp.SHEEN in active else lp.Sheen()
+    sp = gm.khr_specular if lp.SPECULAR in active else lp.Specular()
+    a = gm.anisotropy if lp.ANISOTROPY in active else lp.Anisotropy()
+    i = gm.iridescence if lp.IRIDESCENCE in active else lp.Iridescence()
+    rows = np.asarray([[c.factor, c.roughness, s.roughness, sp.factor], [*s.color, a.strength],
+                       [*sp.color, a.rotation], [i.factor, i.ior, i.thickness_maximum, i.thickness_minimum]], np.float32)
+    attr_of = {f: e for e, (f, _) in lp.LOBE_EXTENSIONS.items()}
+    tex = {}
+    for slot, field_, tattr, srgb in LOBE_TEXTURE_SLOTS:
+        lobe = getattr(gm, field_, None)
+        if lobe is not None and attr_of[field_] in active and getattr(lobe, tattr) is not None:
+            tex[slot] = (getattr(lobe, tattr), srgb)
+    return rows, tex
+
+
+def scene_lobe_rows(m) -> np.ndarray:
+    """A scene-file material's :data:`LOBE_ROW_LAYOUT` rows for the raster pass (row 3's last entry the
+    thickness: no thickness texture, so minimum = maximum)."""
+    rows = _row_values(m)
+    rows[3, 3] = m.iridescence_thickness
+    return rows
