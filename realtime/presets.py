@@ -196,7 +196,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("anisotropy_bend", "choice", "anisotropy: the prefiltered lookup's bent direction: sample_viewer | "
            "threejs | filament | babylon", ANISOTROPY_BENDS.names, default="sample_viewer"),
     Option("iridescence", "choice", "iridescence: the thin-film Fresnel: belcour_rgb (Belcour & Barla 2017 in "
-           "RGB, the Sample Viewer's)", IRIDESCENCES.names, default="belcour_rgb"),
+           "RGB, the Sample Viewer's) | none (no film, as an engine without the extension)", IRIDESCENCES.names,
+           default="belcour_rgb"),
     Option("sheen_lut_size", "int", "sheen LUT size N (N x N; realtime.lobes.SHEEN_LUT_CONVENTIONS)", lo=2, hi=512,
            default=32, bakes=("sheen_lut",)),
     Option("sheen_lut_samples", "int", "Charlie samples per sheen LUT texel", lo=1, hi=1 << 16, default=4096,
@@ -250,11 +251,13 @@ PRESETS: dict[str, dict] = {
     # Its lobes (light_indirect.fs, shading_model_standard.fs): the coat's prefiltered radiance times
     # Fc(n.v) coat (no DFG), the base times 1 - coat Fc(n.v); the sheen from the GGX-prefiltered cube at
     # the sheen roughness times DFG.z (the LUT's V_Neubelt channel), the base times 1 - max(c) DFG.z;
-    # the anisotropic bent normal mix(n, (d x v) x d, |s| saturate(5 r)).
+    # the anisotropic bent normal mix(n, (d x v) x d, |s| saturate(5 r)); no thin film (Filament's
+    # shading model has no iridescence parameter).
     "filament": _preset(
         irradiance="sh9", lod_mapping="quadratic", dfg="lut", lut_geometry="smith_ggx_correlated",
         lut_sampling="vndf", energy_compensation="filament", coat_ibl="filament", coat_attenuation="nov",
-        sheen_dfg="lut_neubelt", sheen_scaling="filament", sheen_cube="ggx", anisotropy_bend="filament"),
+        sheen_dfg="lut_neubelt", sheen_scaling="filament", sheen_cube="ggx", anisotropy_bend="filament",
+        iridescence="none"),
     # The Khronos glTF Sample Viewer (KhronosGroup/glTF-Sample-Viewer source/Renderer/shaders/ibl.glsl,
     # material_info.glsl, pbr.frag): prefiltered levels at lod = roughness (mipCount - 1) (linear), the
     # GGX LUT (height-correlated Smith), the Fdez-Aguera 2019 single + multiple scattering (k_S A + B with

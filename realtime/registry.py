@@ -274,6 +274,8 @@ IRIDESCENCES = Registry("IRIDESCENCE", [
     Entry("belcour_rgb", "Belcour & Barla 2017, RGB through the Fourier-space XYZ fit, as glTF-Sample-Viewer evaluates it",
           roles={"iridescence_fresnel": role(_lobes.iridescence_fresnel)},
           applies_to=_LOBE + "the specular Fresnel (the truth integrates per wavelength)"),
+    Entry("none", "no thin film: the base's Fresnel (an engine without a thin-film term: Filament's shading model has none)",
+          applies_to=_LOBE + "nothing: the iridescent materials render as their base"),
 ])
 #: The lobe families, by switch: the registry, its shader file, the default member and each role's
 #: GLSL dispatch signature.

@@ -130,7 +130,7 @@ void lobes_dielectric(float f0_ior, out vec3 f0, out float f90) {
 
 // The split sum's specular albedo with the lobes' Fresnel: F A + F90 B, F = F0 or the iridescent mix.
 vec3 lobes_spec_albedo(vec3 F0, float F90, float NoV, vec2 AB) {
-#ifdef LOBE_IRIDESCENCE
+#if defined(LOBE_IRIDESCENCE) && IRIDESCENCE != IRIDESCENCE_NONE
     float k = iridescence_factor(g_lobes.iridescence, g_lobes.iridescence_thickness);
     if (k > 0.0) {
         vec3 Fi = iridescence_fresnel(1.0, g_lobes.iridescence_ior, NoV, g_lobes.iridescence_thickness, F0);
