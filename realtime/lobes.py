@@ -28,6 +28,8 @@ Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, 
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
 :func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
 :data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
+The material composition's own terms (``lobes_material.glsl``): :func:`specular_dielectric_f0`,
+:func:`specular_f90_blend`, :func:`split_sum_albedo_f90`, :func:`aniso_direction`, :func:`sphere_tangent`.
 Iridescence: :func:`iridescence_sensitivity`, :func:`iridescence_fresnel`, :func:`iridescence_factor`,
 :func:`iridescence_mix`.
 
@@ -448,6 +450,41 @@ def iridescence_factor(factor, thickness):
 def iridescence_mix(F, F_iri, factor):
     """The Sample Viewer's use: the specular Fresnel mix(F, F_iridescence, iridescenceFactor)."""
     return _mix(np.asarray(F, np.float64), np.asarray(F_iri, np.float64), np.asarray(factor, np.float64)[..., None])
+
+
+# ---- the material composition's own lobe terms (lobes_material.glsl) -------------------------------
+
+def specular_dielectric_f0(f0_ior, factor, color):
+    """KHR_materials_specular's dielectric F0: min(F0_ior specularColor, 1) specularFactor, RGB
+    (:func:`pbrcheck.lobes.specular_f0`, the truth's, is the same equation)."""
+    c = np.asarray(color, np.float64)
+    return np.minimum(np.asarray(f0_ior, np.float64)[..., None] * c, 1.0) * np.asarray(factor, np.float64)[..., None]
+
+
+def specular_f90_blend(f90, metallic):
+    """The split sum's F90: the dielectric's specularFactor blended to the metal's 1: f90 + (1 - f90) metallic."""
+    f90 = np.asarray(f90, np.float64)
+    return f90 + (1.0 - f90) * np.asarray(metallic, np.float64)
+
+
+def split_sum_albedo_f90(F0, F90, A, B):
+    """The split sum with Schlick's F90 kept: F0 A + F90 B (RGB F0)."""
+    return np.asarray(F0, np.float64) * np.asarray(A)[..., None] + (np.asarray(F90) * np.asarray(B))[..., None]
+
+
+def aniso_direction(T, n, rotation):
+    """The anisotropy direction: the tangent rotated counter-clockwise by ``rotation`` toward n x T."""
+    rot = np.asarray(rotation, np.float64)[..., None]
+    return _normalize(np.cos(rot) * np.asarray(T) + np.sin(rot) * np.cross(n, T))
+
+
+def sphere_tangent(n):
+    """The ray-cast sphere's tangent: Mitsuba's sphere dp/du direction (-n.y, n.x, 0) normalized, +X where
+    its length is at most 1e-6 (the poles on the z axis)."""
+    n = np.asarray(n, np.float64)
+    t = np.stack([-n[..., 1], n[..., 0], np.zeros(n.shape[:-1])], axis=-1)
+    ln = np.linalg.norm(t, axis=-1, keepdims=True)
+    return np.where(ln > 1e-6, t / np.maximum(ln, 1e-30), np.array([1.0, 0.0, 0.0]))
 
 
 # ---- the sheen LUT's bake (sheen_lut.comp) ---------------------------------------------------------

@@ -77,6 +77,7 @@ from pbrcheck.scene import Material, Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
 from .gl import ShaderCompileError, assemble, get_context, in_bands, map_errors, timed
+from .lobes import sphere_tangent
 from .material_lobes import (LOBE_TEXTURE_SLOTS, gltf_lobe_rows, material_active_lobes, scene_lobe_rows,
                              scene_material_active_lobes)
 from .presets import bake_key
@@ -245,18 +246,10 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                                 **common))
         else:
             pos, nrm, tri = tessellate_sphere(ob.center, ob.radius)
-            tan = _sphere_tangents(nrm) if lobed else None   # the ray-cast pass's frame (material_lobes.glsl)
+            # the ray-cast pass's tangent frame (lobes_material.glsl sphere_tangent), w = 1
+            tan = np.concatenate([sphere_tangent(nrm), np.ones((len(nrm), 1))], axis=1) if lobed else None
             out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, nrm, tan), tri, **common))
     return out
-
-
-def _sphere_tangents(nrm: np.ndarray) -> np.ndarray:
-    """(N, 4) tangents of a tessellated sphere: material_lobes.glsl sphere_tangent, (-n.y, n.x, 0)
-    normalized (Mitsuba's sphere dp/du), +X at the poles; w = 1."""
-    t = np.stack([-nrm[:, 1], nrm[:, 0], np.zeros(len(nrm))], axis=1).astype(np.float64)
-    ln = np.linalg.norm(t, axis=1, keepdims=True)
-    t = np.where(ln > 1e-6, t / np.maximum(ln, 1e-30), np.array([1.0, 0.0, 0.0]))
-    return np.concatenate([t, np.ones((len(t), 1))], axis=1).astype(np.float32)
 
 
 def _texture(image, ref, srgb: bool, anisotropy: float, times: dict | None = None):

@@ -32,6 +32,7 @@
 #ifndef SHEEN_RADIANCE
 #define SHEEN_RADIANCE SHEEN_RADIANCE_CHARLIE
 #endif
+#include "lobes_material.glsl"
 #ifdef LOBE_CLEARCOAT
 #include "lobes_coat.glsl"
 #endif
@@ -78,20 +79,11 @@ MaterialLobes lobes_from_rows(vec4 p0, vec4 p1, vec4 p2, vec4 p3, vec3 n, vec3 T
     m.specular_factor = p0.w;
     m.specular_color = p2.rgb;
     m.anisotropy = p1.w;
-    vec3 B = cross(n, T);
-    m.aniso_t = normalize(cos(p2.w) * T + sin(p2.w) * B);
+    m.aniso_t = aniso_direction(T, n, p2.w);
     m.iridescence = p3.x;
     m.iridescence_ior = p3.y;
     m.iridescence_thickness = p3.z;
     return m;
-}
-
-// The tangent of the ray-cast sphere at normal n: Mitsuba's sphere dp/du direction (-n.y, n.x, 0),
-// +X where it vanishes (the poles on the z axis).
-vec3 sphere_tangent(vec3 n) {
-    vec3 t = vec3(-n.y, n.x, 0.0);
-    float l = length(t);
-    return l > 1e-6 ? t / l : vec3(1.0, 0.0, 0.0);
 }
 
 float lobes_max3(vec3 c) { return max(max(c.x, c.y), c.z); }
@@ -120,7 +112,7 @@ vec3 sheen_radiance(vec3 n, vec3 r, float sr) {
 // The dielectric F0 (RGB) and F90 of KHR_materials_specular from the core material's F0 (s.specular).
 void lobes_dielectric(float f0_ior, out vec3 f0, out float f90) {
 #ifdef LOBE_SPECULAR
-    f0 = min(f0_ior * g_lobes.specular_color, vec3(1.0)) * g_lobes.specular_factor;
+    f0 = specular_dielectric_f0(f0_ior, g_lobes.specular_factor, g_lobes.specular_color);
     f90 = g_lobes.specular_factor;
 #else
     f0 = vec3(f0_ior);
@@ -138,7 +130,7 @@ vec3 lobes_spec_albedo(vec3 F0, float F90, float NoV, vec2 AB) {
     }
 #endif
 #ifdef LOBE_SPECULAR
-    return F0 * AB.x + F90 * AB.y;
+    return split_sum_albedo_f90(F0, F90, AB.x, AB.y);
 #else
     return F0 * AB.x + AB.y;   // F90 = 1: the core's split sum, term for term
 #endif

@@ -161,7 +161,7 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     float diel_f90;
     lobes_dielectric(s.specular, diel_f0, diel_f90);
     c.F0 = mix(diel_f0, s.base_color, s.metallic);
-    float F90 = diel_f90 + (1.0 - diel_f90) * s.metallic;
+    float F90 = specular_f90_blend(diel_f90, s.metallic);
     c.r = lobes_reflection(c.r, s.n, s.v, c.roughness);
 #else
     c.F0 = mix(vec3(s.specular), s.base_color, s.metallic);

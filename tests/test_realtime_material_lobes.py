@@ -1,0 +1,352 @@
+"""The glTF PBR extensions' lobes in the real-time renderer's programs (realtime/material_lobes.py,
+realtime/shaders/material_lobes.glsl): the material composition's own lobe terms against their numpy
+twins (lobes_material.glsl) on grids with the extremes; the ``#define`` switches compiled only where a
+scene's materials use a lobe (a lobe-free program's source is the one it had before the lobes, a
+lobe program's is not); every built-in lobe scene changes its lobed objects' pixels against the same
+scene at the lobe's neutral value, and leaves the neutral objects' bit for bit, in both pipelines;
+two known answers under a uniform white environment over a black base (the coat's split-sum
+directional albedo, the sheen's Charlie albedo E); the lobe textures of a glTF asset in the raster
+pipeline (texture 0 = no lobe bit for bit, texture 1 = the factor, a KHR_texture_transform picking a
+half of the texture)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gltf_build import QUAD_UV, quad_asset, quad_scene
+from pbrcheck import lobe_params as lp
+from pbrcheck import lobes as truth
+from pbrcheck.scene import Environment, Material, Sphere, load_scene
+from realtime import gl, lobes
+from realtime import render as R
+from realtime.glsl_harness import run_glsl
+from realtime.material_lobes import lobe_defines, scene_lobes
+from realtime.presets import OPTION_REGISTRIES, PRESETS, resolve_options
+from realtime.registry import LOBE_REGISTRIES
+from realtime.render import render_realtime
+
+pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
+
+SMALL = {"cube_size": 32, "irradiance_source_size": 8, "irradiance_size": 8, "prefilter_levels": 4,
+         "prefilter_samples": 64, "lut_size": 16, "lut_samples": 256, "supersample": 1, "sheen_lut_size": 16,
+         "sheen_lut_samples": 256, "charlie_size": 16, "charlie_levels": 4, "charlie_samples": 64}
+# float32 terms against float64 twins (a few operations; normalize, cos and sin within a few ulp).
+RTOL_F32 = 2e-5
+ATOL_F32 = 1e-6
+DIR_ATOL = 1e-5
+# Known answers under a constant environment of radiance 1 (every prefiltered level and the Charlie
+# cube's hold 1 to float rounding, so the pixel is the weight alone), over n.v >= KNOWN_MIN_NOV: the
+# DFG LUT at 32 x 1024 samples against a 256^2 visible-normal quadrature measured within 0.26 %
+# (roughness 0.3 and 0.7); the sheen LUT at 32 x 4096 against the 256 x 128 quadrature within 0.65 %.
+# The engines' other forms miss these by 19 % to 370 % (coat) and 23 % to 58 % (sheen): docs/realtime.md.
+KNOWN_RTOL = 0.01
+# Pixels used for the known answers: n.v >= this (the silhouette's pixels mix the background, and
+# the LUTs' extrapolation within half a texel of n.v = 0 is the least accurate there).
+KNOWN_MIN_NOV = 0.2
+# Nodes of the expected albedo's table over [KNOWN_MIN_NOV, 1], interpolated linearly at each pixel's n.v:
+# the coat albedo's curvature at roughness 0.3 (0.25 -> 0.07 over n.v 0.2 -> 0.5) needs ~40 for 0.1 %.
+KNOWN_NODES = 41
+# A texture of 1 against its factor: RGBA16F holds 1 exactly; the lobe's uniforms are the same floats.
+TEXTURE_ONE_RTOL = 1e-6
+#: The identifiers of lobe code (material_lobes.glsl, lobes_*.glsl, the pipelines' lobe blocks).
+LOBE_SYMBOLS = re.compile(r"\b(g_lobes|MaterialLobes|obj_lobes|lobe_p\d|tex_lobe|lobes_layer|coat_\w+|sheen_\w+|"
+                          r"aniso_\w+|iridescence_\w+|charlie_\w+|specular_dielectric_f0|split_sum_albedo_f90)\b")
+
+
+def f32(x):
+    return np.asarray(x, np.float32).astype(np.float64)
+
+
+def close(glsl, ref, rtol=RTOL_F32, atol=ATOL_F32):
+    glsl, ref = np.asarray(glsl, np.float64), np.asarray(ref, np.float64)
+    assert glsl.shape == ref.shape and glsl.size > 0, (glsl.shape, ref.shape)
+    assert np.all(np.isfinite(glsl))
+    bad = np.abs(glsl - ref) > atol + rtol * np.abs(ref)
+    assert not bad.any(), f"{bad.sum()} mismatches, worst glsl={glsl[bad][:3]} ref={ref[bad][:3]}"
+
+
+# ---- the material composition's lobe terms (lobes_material.glsl) against their twins ---------------
+
+def test_specular_dielectric_f0_and_f90_twins():
+    f0, fac, c = (g.ravel() for g in np.meshgrid(f32([0.0, 0.04, 0.5, 1.0]), f32([0.0, 0.3, 1.0]),
+                                                  f32([0.0, 0.5, 1.0, 2.0, 30.0]), indexing="ij"))
+    color = np.stack([c, 0.5 * c, np.ones_like(c)], axis=-1)
+    g = run_glsl("specular_dielectric_f0(x0, x1, vec3(x2, x3, x4))", f0, fac, *color.T, components=3)
+    want = lobes.specular_dielectric_f0(f0, fac, color)
+    close(g, want)
+    # the truth's equation (pbrcheck.lobes.specular_f0) is the same, and neutral factors give F0_ior exactly
+    np.testing.assert_array_equal(want, truth.specular_f0(f0, fac, color))
+    np.testing.assert_array_equal(lobes.specular_dielectric_f0(f0, 1.0, (1.0, 1.0, 1.0)), np.stack([f0] * 3, -1))
+    f90, m = (g.ravel() for g in np.meshgrid(f32([0.0, 0.3, 1.0]), f32([0.0, 0.25, 0.5, 1.0]), indexing="ij"))
+    close(run_glsl("specular_f90_blend(x0, x1)", f90, m), lobes.specular_f90_blend(f90, m))
+    assert np.all(run_glsl("specular_f90_blend(1.0, x0)", m) == 1.0)   # F90 = 1 stays exactly 1
+
+
+def test_split_sum_albedo_f90_twin():
+    A, B, f90 = (g.ravel() for g in np.meshgrid(f32([0.0, 0.3, 1.0]), f32([0.0, 0.05, 0.5]), f32([0.0, 0.4, 1.0]),
+                                                 indexing="ij"))
+    F0 = np.stack([A * 0 + 0.04, A * 0 + 0.5, A * 0 + 1.0], axis=-1)
+    g = run_glsl("split_sum_albedo_f90(vec3(x0, x1, x2), x3, x4, x5)", *F0.T, f90, A, B, components=3)
+    close(g, lobes.split_sum_albedo_f90(F0, f90, A, B))
+
+
+def test_aniso_direction_and_sphere_tangent_twins():
+    rng = np.random.default_rng(3)
+    n = lobes._normalize(rng.normal(size=(40, 3)))
+    n = np.concatenate([n, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    n = f32(n)
+    t = lobes.sphere_tangent(n)
+    close(run_glsl("sphere_tangent(vec3(x0, x1, x2))", *n.T, components=3), t, atol=DIR_ATOL)
+    np.testing.assert_array_equal(t[-4:-2], [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])   # the poles: +X
+    assert np.allclose(np.sum(t * n, axis=-1), 0.0, atol=1e-7)                   # in the tangent plane
+    t = f32(t)
+    for rot in (0.0, 0.3, np.pi / 2, -np.pi, 2 * np.pi):
+        r = np.full(len(n), rot)
+        d = lobes.aniso_direction(t, n, r)
+        close(run_glsl("aniso_direction(vec3(x0, x1, x2), vec3(x3, x4, x5), x6)", *t.T, *n.T, f32(r), components=3),
+              d, atol=DIR_ATOL)
+    # counter-clockwise from the tangent toward n x t: a quarter turn is the bitangent
+    np.testing.assert_allclose(lobes.aniso_direction(t, n, np.full(len(n), np.pi / 2)), np.cross(n, t), atol=1e-12)
+
+
+# ---- the switches: compiled only where a scene's materials use a lobe -------------------------------
+
+def test_every_lobe_option_is_a_registry_held_as_an_object():
+    for define, (reg, *_rest) in LOBE_REGISTRIES.items():
+        names = [k for k, v in OPTION_REGISTRIES.items() if v is reg]
+        assert len(names) == 1, define
+        assert PRESETS["default"][names[0]] in reg
+    sv, fil = resolve_options("sample_viewer"), resolve_options("filament")
+    assert (sv.coat_ibl, sv.sheen_dfg, sv.sheen_scaling, sv.sheen_cube, sv.anisotropy_bend) == (
+        "sample_viewer", "lut_neubelt", "lut", "charlie", "sample_viewer")
+    assert (fil.coat_ibl, fil.sheen_dfg, fil.sheen_scaling, fil.sheen_cube, fil.anisotropy_bend, fil.iridescence) == (
+        "filament", "lut_neubelt", "filament", "ggx", "filament", "none")
+
+
+@pytest.mark.parametrize("name,ext,define", [("clearcoat", lp.CLEARCOAT, "LOBE_CLEARCOAT"),
+                                             ("sheen", lp.SHEEN, "LOBE_SHEEN"),
+                                             ("specular", lp.SPECULAR, "LOBE_SPECULAR"),
+                                             ("anisotropy", lp.ANISOTROPY, "LOBE_ANISOTROPY"),
+                                             ("iridescence", lp.IRIDESCENCE, "LOBE_IRIDESCENCE")])
+def test_a_lobe_scene_compiles_its_lobe_alone(name, ext, define):
+    scene = load_scene(name)
+    assert scene_lobes(scene) == (ext,)
+    d = lobe_defines(scene_lobes(scene), resolve_options("default"))
+    assert d["MATERIAL_LOBES"] == 1 and d[define] == 1
+    assert not {k for k in d if k.startswith("LOBE_")} - {define}
+    # an article composition renders no lobe: its program stays the lobe-free one
+    assert lobe_defines(scene_lobes(scene), resolve_options("analytic_mobile")) == {}
+
+
+def test_lobe_switches_follow_the_options():
+    o = resolve_options("sample_viewer")
+    d = lobe_defines((lp.CLEARCOAT, lp.SHEEN, lp.ANISOTROPY), o)
+    assert (d["COAT_IBL"], d["SHEEN_DFG"], d["SHEEN_RADIANCE"], d["ANISOTROPY_BEND"]) == (
+        "COAT_IBL_SAMPLE_VIEWER", "SHEEN_DFG_LUT_NEUBELT", "SHEEN_RADIANCE_CHARLIE", "ANISOTROPY_BEND_SAMPLE_VIEWER")
+    assert lobe_defines((lp.SHEEN,), resolve_options("filament"))["SHEEN_RADIANCE"] == "SHEEN_RADIANCE_GGX"
+    assert lobe_defines((lp.SHEEN,), resolve_options("default", {"sheen_dfg": "threejs"}))["SHEEN_RADIANCE"] == \
+        "SHEEN_RADIANCE_IRRADIANCE"
+    assert lobe_defines((lp.SHEEN,), resolve_options("default", {"sheen_dfg": "playcanvas"}))["SHEEN_RADIANCE"] == \
+        "SHEEN_RADIANCE_NORMAL_ROUGHEST"
+
+
+def _preprocessed(entry: str, defines: dict) -> str:
+    """The assembled source of ``entry`` through the C preprocessor (``#version`` dropped): what the GLSL
+    compiler sees of it."""
+    src = "\n".join(line for line in gl.assemble(entry, defines).text.splitlines() if not line.startswith("#version"))
+    out = subprocess.run(["cpp", "-P", "-undef", "-w"], input=src, capture_output=True, text=True, check=True).stdout
+    return re.sub(r"\s+", " ", out)
+
+
+@pytest.mark.skipif(shutil.which("cpp") is None, reason="needs the C preprocessor (cpp) to see past #ifdef")
+@pytest.mark.parametrize("preset", ["default", "filament", "sample_viewer", "runtime_is20"])
+def test_a_lobe_free_program_has_no_lobe_code(preset):
+    """The spheres scene's frame programs (ray-cast and raster) preprocess to sources that name no lobe
+    symbol; the same programs with a lobe scene's switches do (so the check can fail). Checked once by
+    hand against the sources before the lobes existed (main at 2e96e1f): the preprocessed texts of
+    every preset's render.comp and raster.frag are identical."""
+    o = resolve_options(preset)
+    scene = load_scene("spheres")
+    assert lobe_defines(scene_lobes(scene), o) == {}
+    terms = {**R.resolved_terms(scene, o), "energy_compensation": R.resolved_energy_compensation(scene, o)}
+    base = R.frame_defines(o, terms)
+    every = lobe_defines(tuple(lp.LOBE_EXTENSIONS), resolve_options("default"))
+    for entry, extra in (("render.comp", {}), ("raster.frag", {"AOV_PASS": 0})):
+        assert not LOBE_SYMBOLS.search(_preprocessed(entry, {**base, **extra}))
+        lobed = _preprocessed(entry, {**base, **extra, **every})
+        assert {m.group(1) for m in LOBE_SYMBOLS.finditer(lobed)} >= {"g_lobes", "lobes_layer", "coat_attenuation",
+                                                                      "sheen_dfg", "aniso_reflection",
+                                                                      "iridescence_fresnel"}
+
+
+# ---- renders: the lobed objects change, the neutral ones stay bit for bit ---------------------------
+
+NEUTRAL = {"clearcoat": dict(clearcoat=0.0), "sheen": dict(sheen_color=(0.0, 0.0, 0.0)),
+           "specular": dict(specular_factor=1.0, specular_color=(1.0, 1.0, 1.0)),
+           "anisotropy": dict(anisotropy_strength=0.0), "iridescence": dict(iridescence=0.0)}
+
+
+def _neutralized(scene, name):
+    return replace(scene, objects=tuple(replace(o, material=replace(o.material, **NEUTRAL[name])) for o in scene.objects))
+
+
+@pytest.mark.parametrize("pipeline", ["raycast", pytest.param("raster", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("name", list(NEUTRAL))
+def test_a_built_in_lobe_scene_changes_its_lobed_objects_alone(name, pipeline):
+    scene = load_scene(name).with_camera(width=40, height=40)
+    neutral = _neutralized(scene, name)
+    a = render_realtime(scene, "default", {**SMALL, "pipeline": pipeline}, progress=False)
+    b = render_realtime(neutral, "default", {**SMALL, "pipeline": pipeline}, progress=False)
+    assert "lobes" in a.meta and "lobes" not in b.meta
+    obj = a.channels["object"]
+    assert np.array_equal(obj, b.channels["object"])
+    changed = same = 0
+    for o, o0 in zip(scene.objects, neutral.objects):
+        m = obj == o.id
+        assert m.sum() > 10
+        if o.material == o0.material:   # at the neutral value inside a lobe program: the lobe-free pixels
+            assert np.array_equal(a.rgb[m], b.rgb[m]), o.name
+            same += 1
+        else:
+            assert np.abs(a.rgb[m] - b.rgb[m]).max() > 1e-3, o.name
+            changed += 1
+    assert same >= 1 and changed >= 15   # each grid holds its neutral value (a row, or one sphere), the rest not
+
+
+def test_an_article_composition_renders_no_lobe_and_says_so():
+    scene = load_scene("clearcoat").with_camera(width=16, height=16)
+    img = render_realtime(scene, "analytic_mobile", SMALL, progress=False)
+    assert "lobes" not in img.meta
+    assert "lobes_ignored" in img.meta["warnings"] and lp.CLEARCOAT in img.meta["warnings"]
+
+
+# ---- known answers: a black base under a uniform white environment -----------------------------------
+
+def _one_sphere(material: Material, width: int = 48):
+    scene = load_scene("clearcoat").with_camera(width=width, height=width)
+    return replace(scene, objects=(Sphere(id=0, center=(0.0, 0.0, 0.0), radius=2.0, material=material),),
+                   environment=Environment(type="constant", radiance=(1.0, 1.0, 1.0)))
+
+
+# a base that reflects nothing: black, and KHR_materials_specular's factor 0 (F0 = F90 = 0)
+BLACK = dict(base_color=(0.0, 0.0, 0.0), metallic=0.0, specular_factor=0.0)
+
+
+def _coat_albedo(mu: float, roughness: float, n: int = 256) -> float:
+    """int Fc(v.h) D G2 / (4 n.v) dl, Fc Schlick with F0 0.04 (the split sum's own integrand), by the
+    visible-normal quadrature of pbrcheck.lobes.AnisotropicGGX.albedo with the Fresnel inside."""
+    ggx = truth.AnisotropicGGX(roughness)
+    g = (np.arange(n) + 0.5) / n
+    u = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+    l, pdf = ggx.sample(v, u)
+    h = lobes._normalize(l + v)
+    F = truth.schlick(np.clip(np.sum(h * v, axis=-1), 0, 1), truth.f0_from_ior(1.5))
+    f = ggx.eval(v[None], l) * F
+    return float(np.mean(np.where(pdf > 0, f / np.maximum(pdf, 1e-300), 0.0)))
+
+
+def _check_known(img, expected_of_mu):
+    nov = img.channels["NdotV"]
+    m = (img.channels["object"] == 0) & (nov >= KNOWN_MIN_NOV)
+    assert m.sum() > 200
+    mus = np.linspace(KNOWN_MIN_NOV, 1.0, KNOWN_NODES)
+    table = np.array([expected_of_mu(mu) for mu in mus])
+    want = np.interp(nov[m], mus, table)
+    got = img.rgb[m]
+    assert np.allclose(got, want[:, None], rtol=KNOWN_RTOL, atol=0), (float(np.abs(got / want[:, None] - 1).max()))
+
+
+@pytest.mark.parametrize("roughness", [0.3, 0.7])
+def test_clearcoat_over_black_is_the_coat_albedo(roughness):
+    """coat_ibl = splitsum: clearcoat 1 over a base that reflects nothing, in a uniform white environment,
+    is the coat's directional albedo int Fc(v.h) f cos (the split sum's F0 A + B at the coat's roughness)."""
+    scene = _one_sphere(Material(**BLACK, clearcoat=1.0, clearcoat_roughness=roughness))
+    img = render_realtime(scene, "default", {**SMALL, "lut_size": 32, "lut_samples": 1024}, progress=False)
+    _check_known(img, lambda mu: _coat_albedo(mu, roughness))
+
+
+def test_sheen_over_black_is_the_charlie_albedo():
+    """sheen_dfg = lut_charlie: sheenColor 1 over a base that reflects nothing, in a uniform white
+    environment, is the spec's sheen albedo E(n.v, r) = int D_Charlie V_Charlie n.l dl."""
+    r = 0.5
+    scene = _one_sphere(Material(**BLACK, sheen_color=(1.0, 1.0, 1.0), sheen_roughness=r))
+    img = render_realtime(scene, "default", {**SMALL, "sheen_lut_size": 32, "sheen_lut_samples": 4096},
+                          progress=False)
+    _check_known(img, lambda mu: lobes.sheen_albedo_quadrature(mu, r, 256, 128)[0])
+
+
+def test_sheen_colour_zero_is_the_base_bit_for_bit():
+    base = Material(base_color=(0.6, 0.3, 0.2), roughness=0.4)
+    a = render_realtime(_one_sphere(base, 24), "default", SMALL, progress=False)
+    # a lobe program (the specular lobe keeps it compiled) with sheen at colour 0 and any roughness
+    lobed = _one_sphere(replace(base, sheen_color=(0.0, 0.0, 0.0), sheen_roughness=0.7, specular_color=(1.0, 1.0, 0.999)), 24)
+    two = replace(lobed, objects=(*lobed.objects, Sphere(id=1, center=(0.0, 0.0, -50.0), radius=0.1,
+                                                         material=replace(base, sheen_color=(1.0, 1.0, 1.0)))))
+    b = render_realtime(two, "default", SMALL, progress=False)
+    assert "LOBE_SHEEN" in b.meta["lobes"]
+    m = a.channels["object"] == 0
+    # specular_color 0.999 in blue alone moves blue: red and green are the base's bits
+    assert np.array_equal(a.rgb[m][:, :2], b.rgb[m][:, :2])
+
+
+# ---- the lobe textures of a glTF asset (raster) -----------------------------------------------------
+
+def _quad(tmp_path, name, ext: dict, images=(), **kw):
+    mat = {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.1, 0.1, 1.0], "metallicFactor": 0.0,
+                                    "roughnessFactor": 0.6}}
+    if ext:
+        mat["extensions"] = ext
+    asset = quad_asset(tmp_path / f"{name}.gltf", mat, images, **kw)
+    return render_realtime(load_scene(str(quad_scene(tmp_path, asset, env="[0.5, 0.8, 1.0]", name=f"{name}.toml"))),
+                           "default", SMALL, progress=False)
+
+
+def _grey(v: int, w: int = 8, h: int = 8) -> np.ndarray:
+    px = np.full((h, w, 4), 255, np.uint8)
+    px[..., :3] = v
+    return px
+
+
+def test_clearcoat_texture_scales_the_factor(tmp_path):
+    none = _quad(tmp_path, "none", {})
+    fac = _quad(tmp_path, "fac", {lp.CLEARCOAT: {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 0.2}})
+    black = _quad(tmp_path, "black", {lp.CLEARCOAT: {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 0.2,
+                                                    "clearcoatTexture": {"index": 0}}}, [(_grey(0), None)])
+    white = _quad(tmp_path, "white", {lp.CLEARCOAT: {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 0.2,
+                                                    "clearcoatTexture": {"index": 0}}}, [(_grey(255), None)])
+    m = none.channels["coverage"] == 1
+    assert m.mean() > 0.3 and "lobes" in fac.meta and "lobes" not in none.meta
+    assert np.abs(fac.rgb[m] - none.rgb[m]).max() > 1e-3          # the coat shows
+    assert np.array_equal(black.rgb[m], none.rgb[m])              # texture 0: no coat, bit for bit
+    assert np.allclose(white.rgb[m], fac.rgb[m], rtol=TEXTURE_ONE_RTOL, atol=0)
+
+
+def test_a_lobe_texture_reads_its_texcoord_and_transform(tmp_path):
+    """A sheen colour texture white on its left half and black on its right, on TEXCOORD_1, through
+    KHR_texture_transform scale (0.25, 1) (u in [0, 0.25]: the white half only; clamped, no wrap to
+    the black edge): the image is the untextured sheen's; without the transform, the quad's right
+    half is the unsheened base."""
+    px = np.full((1, 8, 4), 255, np.uint8)
+    px[:, 4:, :3] = 0
+    clamp = {"wrapS": 33071, "wrapT": 33071}
+    sheen = {"sheenColorFactor": [1.0, 1.0, 1.0], "sheenRoughnessFactor": 0.5}
+    fac = _quad(tmp_path, "fac", {lp.SHEEN: sheen})
+    none = _quad(tmp_path, "none", {})
+    xf = _quad(tmp_path, "xf", {lp.SHEEN: {**sheen, "sheenColorTexture": {
+        "index": 0, "texCoord": 1, "extensions": {"KHR_texture_transform": {"scale": [0.25, 1.0]}}}}}, [(px, clamp)],
+        uv0=np.zeros((4, 2), np.float32) + 0.9, uv1=QUAD_UV)   # TEXCOORD_0 on the black half: read set 1
+    half = _quad(tmp_path, "half", {lp.SHEEN: {**sheen, "sheenColorTexture": {"index": 0}}}, [(px, clamp)])
+    m = none.channels["coverage"] == 1
+    assert np.allclose(xf.rgb[m], fac.rgb[m], rtol=TEXTURE_ONE_RTOL, atol=0)
+    W = m.shape[1]
+    right = m & (np.arange(W)[None, :] > W * 0.7)
+    left = m & (np.arange(W)[None, :] < W * 0.3)
+    assert np.array_equal(half.rgb[right], none.rgb[right])      # black texels: no sheen
+    assert np.allclose(half.rgb[left], fac.rgb[left], rtol=TEXTURE_ONE_RTOL, atol=0)
