@@ -198,8 +198,9 @@ def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
 # Each family's members hold their numpy functions (realtime.lobes) and GLSL twins of the same name
 # (realtime/shaders/lobes_*.glsl); each lobe file defines its switch's constants (by member index,
 # tests/test_realtime_lobes.py checks them against these lists) and a dispatch on the switch. They are
-# not yet in REGISTRIES / ROLE_REGISTRIES: no shading composition calls them (the glTF material's
-# wiring comes with the lobes' material parameters).
+# not in REGISTRIES (whose constants every program gets: a lobe-free program's source must not change):
+# the material composition calls them through material_lobes.glsl, compiled only into the programs of
+# scenes whose materials use a lobe (realtime.material_lobes), each switch an option of realtime.presets.
 _LOBE = "the real-time form of a lobe the reference evaluates exactly (pbrcheck.lobes): no Dr.Jit function; "
 #: The base's attenuation under the coat: ``coat_attenuation(NoV, VoH, coat, f0)``.
 COAT_ATTENUATIONS = Registry("COAT_ATTENUATION", [

@@ -23,6 +23,9 @@ Conventions at both ends of every baked artifact
 * DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
+* The lobes' bakes (only for programs whose scene uses the lobe, :mod:`realtime.material_lobes`): the
+  sheen LUT (:data:`realtime.lobes.SHEEN_LUT_CONVENTIONS`, :func:`realtime.lobe_luts.sheen_lut`) and the
+  Charlie-prefiltered cube (:data:`realtime.lobes.CHARLIE_CUBE_CONVENTIONS`, :func:`charlie_cube`).
 
 Compile-time switches are the named constants of the registries (:mod:`realtime.registry`; ``{"GEOMETRY":
 "GEOMETRY_SMITH_GGX"}``); uniforms are set with :func:`_set`, which raises on a uniform the program
@@ -32,7 +35,7 @@ does not read; a misspelt or renamed uniform would otherwise render with 0).
 API
 ---
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
-:func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
+:func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`charlie_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
 :func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large),
 :func:`as_options`.
