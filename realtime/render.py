@@ -647,7 +647,7 @@ def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timi
                 fmt: str, warnings: list, hooks=None) -> dict:
     """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
     shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
-    cached = sorted(p for p in ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut")
+    cached = sorted(p for p in ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut", "charlie_prefilter")
                     if p in timings and any(isinstance(c, tuple) and c[0] == p for c in cached_before))
     return {
         "renderer": "realtime",
@@ -889,7 +889,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
 
 
 #: Cache kinds whose key's second element is an environment's content hash.
-ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irradiance", "sh9", "prefilter")
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irradiance", "sh9", "prefilter", "charlie_prefilter")
 
 
 def trim_environment_caches(keep: int) -> int:
