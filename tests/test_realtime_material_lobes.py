@@ -22,6 +22,7 @@ import pytest
 from gltf_build import QUAD_UV, quad_asset, quad_scene
 from pbrcheck import lobe_params as lp
 from pbrcheck import lobes as truth
+from pbrcheck.lights import DirectionalLight
 from pbrcheck.scene import Environment, Material, Sphere, load_scene
 from realtime import gl, lobes
 from realtime import render as R
@@ -52,6 +53,9 @@ KNOWN_MIN_NOV = 0.2
 # Nodes of the expected albedo's table over [KNOWN_MIN_NOV, 1], interpolated linearly at each pixel's n.v:
 # the coat albedo's curvature at roughness 0.3 (0.25 -> 0.07 over n.v 0.2 -> 0.5) needs ~40 for 0.1 %.
 KNOWN_NODES = 41
+# A point light's lobe against the truth's float64 evaluation: a few dozen float32 operations (the Charlie
+# Lambda's exp of a fit, pow(sin, 1/alpha)).
+LIGHT_RTOL = 1e-4
 # A texture of 1 against its factor: RGBA16F holds 1 exactly; the lobe's uniforms are the same floats.
 TEXTURE_ONE_RTOL = 1e-6
 #: The identifiers of lobe code (material_lobes.glsl, lobes_*.glsl, the pipelines' lobe blocks).
@@ -199,7 +203,10 @@ def _neutralized(scene, name):
 @pytest.mark.parametrize("pipeline", ["raycast", pytest.param("raster", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("name", list(NEUTRAL))
 def test_a_built_in_lobe_scene_changes_its_lobed_objects_alone(name, pipeline):
+    """With a directional light added (the lobes' point-light terms) and glTF's metallic blend."""
     scene = load_scene(name).with_camera(width=40, height=40)
+    scene = replace(scene, lights=(DirectionalLight(direction=(-0.3, -0.5, -0.8), intensity=(2.0, 2.0, 2.0)),),
+                    brdf=replace(scene.brdf, metallic_blend="gltf"))
     neutral = _neutralized(scene, name)
     a = render_realtime(scene, "default", {**SMALL, "pipeline": pipeline}, progress=False)
     b = render_realtime(neutral, "default", {**SMALL, "pipeline": pipeline}, progress=False)
@@ -280,6 +287,29 @@ def test_sheen_over_black_is_the_charlie_albedo():
     img = render_realtime(scene, "default", {**SMALL, "sheen_lut_size": 32, "sheen_lut_samples": 4096},
                           progress=False)
     _check_known(img, lambda mu: lobes.sheen_albedo_quadrature(mu, r, 256, 128)[0])
+
+
+@pytest.mark.parametrize("lobe", ["clearcoat", "sheen"])
+def test_a_directional_light_adds_the_specs_lobe(lobe):
+    """Over a base that reflects nothing, with no environment, a directional light at 40 degrees: the
+    sphere's centre pixel (n = v = +z) is the truth's lobe (pbrcheck.lobes: clearcoat Fc(n.v) times
+    ClearcoatLobe.eval; sheenColor times SheenCharlie.eval) times the light's irradiance."""
+    th = np.radians(40.0)
+    l = np.array([np.sin(th), 0.0, np.cos(th)])
+    mat = Material(**BLACK, **({"clearcoat": 1.0, "clearcoat_roughness": 0.4} if lobe == "clearcoat" else
+                               {"sheen_color": (1.0, 0.5, 0.25), "sheen_roughness": 0.5}))
+    scene = _one_sphere(mat, 49)
+    scene = replace(scene, environment=Environment(type="constant", radiance=(0.0, 0.0, 0.0)),
+                    lights=(DirectionalLight(direction=tuple(-l), intensity=(3.0, 3.0, 3.0)),))
+    img = render_realtime(scene, "default", SMALL, progress=False)
+    got = img.rgb[24, 24]
+    v = np.array([0.0, 0.0, 1.0])
+    if lobe == "clearcoat":
+        want = 3.0 * truth.fresnel_coat(1.0) * truth.ClearcoatLobe(0.4).eval(v, l) * np.ones(3)
+    else:
+        want = 3.0 * truth.SheenCharlie(0.5).eval(v, l) * np.array([1.0, 0.5, 0.25])
+    assert float(np.min(want)) > 1e-3
+    np.testing.assert_allclose(got, want, rtol=LIGHT_RTOL)
 
 
 def test_sheen_colour_zero_is_the_base_bit_for_bit():

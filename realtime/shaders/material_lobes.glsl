@@ -23,8 +23,9 @@
 //   (n.v, r_s), L_sheen by SHEEN_RADIANCE.
 // - clearcoat: base coat_attenuation(n_c.v, n_c.v, k, F0_c) + coat_ibl_weight(n_c.v, r_c, k, F0_c, A, B)
 //   prefiltered(reflect(-v, n_c), r_c); image-based only (no half vector: the voh form reads n.v).
-// Point lights light the base alone (the layered base is attenuated; the coat and sheen lobes of a
-// point light are not added).
+// Point lights: the base's BRDF with KHR_materials_specular's F0 / F90 (lobes_brdf_eval), the sheen's
+// and the coat's lobes (lobes_add_light) layered as the image-based terms; iridescence and anisotropy
+// act on the image-based term only (the base's point-light lobe stays isotropic, its Fresnel Schlick's).
 #define SHEEN_RADIANCE_CHARLIE 0
 #define SHEEN_RADIANCE_GGX 1
 #define SHEEN_RADIANCE_IRRADIANCE 2
@@ -62,6 +63,10 @@ struct MaterialLobes {
     float iridescence_thickness;   // nm
 };
 MaterialLobes g_lobes;
+// The point lights' sheen and coat lobes, summed by shading.glsl add_point_lights (lobes_add_light) and
+// layered by lobes_layer; shade_material zeroes them (lobes_begin) before its lights.
+vec3 g_lobe_sheen_light;
+vec3 g_lobe_coat_light;
 
 // The lobe parameters of one object from its 4 packed rows (realtime.material_lobes.LOBE_ROW_LAYOUT):
 // p0 = (clearcoat, clearcoat_roughness, sheen_roughness, specular_factor), p1 = (sheen_color, anisotropy
@@ -147,6 +152,83 @@ vec3 lobes_reflection(vec3 r, vec3 n, vec3 v, float roughness) {
     return r;
 }
 
+// KHR_materials_specular's point-light BRDF (brdf.glsl brdf_eval with the dielectric's RGB F0 and F90):
+// f = (1 - Fd)(1 - metallic) base / pi + D G F / (4 (n.l)(n.v)), F = Schlick(v.h; mix(F0_d, base, metallic),
+// mix(F90_d, 1, metallic)); Fd = max3 of the dielectric's own Schlick(v.h; F0_d, F90_d) under glTF's
+// blend (the README's dielectric_brdf weights the diffuse by 1 - max3(dielectric_fresnel)), F otherwise.
+vec3 lobes_brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float f0_ior) {
+    float NoV = dot(n, v);
+    float NoL = dot(n, l);
+    if (NoV <= 0.0 || NoL <= 0.0) return vec3(0.0);
+    vec3 f0;
+    float f90;
+    lobes_dielectric(f0_ior, f0, f90);
+    // brdf_eval's operations, term for term (a neutral specular lobe gives its bits)
+    vec3 h = v + l;
+    h = h / max(length(h), COS_EPS);
+    float NoH = clamp(dot(n, h), 0.0, 1.0);
+    float VoH = clamp(dot(v, h), 0.0, 1.0);
+#if FRESNEL == FRESNEL_SCHLICK
+    vec3 F = F_Schlick(VoH, mix(f0, base_color, metallic), specular_f90_blend(f90, metallic));
+#else
+    vec3 F = fresnel_term(VoH, mix(f0, base_color, metallic));
+#endif
+    float D = ndf_term(NoH, roughness);
+    float G = geometry_term(NoV, NoL, roughness);
+    vec3 spec = D * G * F / (4.0 * max(NoV, COS_EPS) * max(NoL, COS_EPS));
+#if defined(METALLIC_BLEND_GLTF) && FRESNEL == FRESNEL_SCHLICK
+    vec3 Fd = vec3(lobes_max3(F_Schlick(VoH, f0, f90)));
+#elif defined(METALLIC_BLEND_GLTF)
+    vec3 Fd = fresnel_term(VoH, f0);
+#else
+    vec3 Fd = F;
+#endif
+    vec3 diff = (1.0 - Fd) * (1.0 - metallic) * base_color * Fd_Lambert();
+    return diff + spec;
+}
+
+void lobes_begin() {
+    g_lobe_sheen_light = vec3(0.0);
+    g_lobe_coat_light = vec3(0.0);
+}
+
+// One light's sheen and coat lobes (direction l, irradiance E at normal incidence): the sheen's
+// sheenColor D_Charlie V_Charlie (n.l) (KHR_materials_sheen, every SHEEN_DFG form: the engines' point-light
+// sheen is the spec's lobe, their forms differ in the image-based term), the coat's clearcoat Fc D_GGX
+// V_GGX (n_c.l) at the coat's alpha (height-correlated Smith), Fc at n_c.v or, with COAT_ATTENUATION_VOH,
+// at v.h (the Sample Viewer's punctual coat).
+void lobes_add_light(vec3 n, vec3 v, vec3 l, vec3 E) {
+#ifdef LOBE_SHEEN
+    if (lobes_max3(g_lobes.sheen_color) > 0.0) {
+        float NoL = dot(n, l);
+        if (NoL > 0.0) {
+            vec3 h = normalize(v + l);
+            float a = max(g_lobes.sheen_roughness * g_lobes.sheen_roughness, SHEEN_MIN_ALPHA);
+            float NoV = clamp(dot(n, v), 1e-4, 1.0);
+            g_lobe_sheen_light += g_lobes.sheen_color * (D_Charlie(max(dot(n, h), 0.0), a) * V_Charlie(NoV, NoL, a) * NoL) * E;
+        }
+    }
+#endif
+#ifdef LOBE_CLEARCOAT
+    if (g_lobes.clearcoat > 0.0) {
+        vec3 nc = g_lobes.coat_n;
+        float NcoL = dot(nc, l);
+        float NcoV = clamp(dot(nc, v), 1e-4, 1.0);
+        if (NcoL > 0.0) {
+            vec3 h = normalize(v + l);
+            float a = alpha_from_roughness(g_lobes.clearcoat_roughness);
+#if COAT_ATTENUATION == COAT_ATTENUATION_VOH
+            float Fc = coat_fresnel(max(dot(v, h), 0.0), coat_f0(1.5));
+#else
+            float Fc = coat_fresnel(NcoV, coat_f0(1.5));
+#endif
+            float f = D_GGX(max(dot(nc, h), 0.0), a) * G_SmithGGXCorrelated(NcoV, NcoL, a) / (4.0 * NcoV * NcoL);
+            g_lobe_coat_light += (g_lobes.clearcoat * Fc * f * NcoL) * E;
+        }
+    }
+#endif
+}
+
 // The layers above the base: sheen, then the coat over both (KHR_materials_sheen / _clearcoat
 // "Layering": coat over sheen over the base). base = the material's outgoing radiance.
 vec3 lobes_layer(vec3 base, vec3 n, vec3 v, float NoV) {
@@ -157,7 +239,7 @@ vec3 lobes_layer(vec3 base, vec3 n, vec3 v, float NoV) {
         vec3 E = sheen_lut_lookup(NoV, sr);
         vec3 r = 2.0 * dot(n, v) * n - v;
         color = color * sheen_scaling(g_lobes.sheen_color, E)
-                + g_lobes.sheen_color * sheen_dfg(NoV, sr, E) * sheen_radiance(n, r, sr);
+                + g_lobes.sheen_color * sheen_dfg(NoV, sr, E) * sheen_radiance(n, r, sr) + g_lobe_sheen_light;
     }
 #endif
 #ifdef LOBE_CLEARCOAT
@@ -170,7 +252,8 @@ vec3 lobes_layer(vec3 base, vec3 n, vec3 v, float NoV) {
         vec2 AB = dfg(NcoV, cr);
         vec3 rc = 2.0 * NcoVr * nc - v;
         color = color * coat_attenuation(NcoV, NcoV, g_lobes.clearcoat, f0)
-                + coat_ibl_weight(NcoV, cr, g_lobes.clearcoat, f0, AB.x, AB.y) * prefiltered_radiance(rc, cr);
+                + coat_ibl_weight(NcoV, cr, g_lobes.clearcoat, f0, AB.x, AB.y) * prefiltered_radiance(rc, cr)
+                + g_lobe_coat_light;
     }
 #endif
     return color;

@@ -66,7 +66,11 @@ struct Shading {
 // (energy.glsl) or the user's hook_energy_compensation scaling the specular lobe as for the IBL.
 vec3 light_brdf_material(Shading c, vec3 l, float NoL) {
     Surface s = c.s;
+#ifdef LOBE_SPECULAR
+    vec3 f = lobes_brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#else
     vec3 f = brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#endif
 #if defined(HOOK_ENERGY_COMPENSATION) && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
     // The user's compensation factor scales the point light's specular lobe as it does the IBL's.
     f += (hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) - 1.0)
@@ -147,6 +151,9 @@ vec3 add_point_lights(vec3 color, Shading c) {
         if (int(pos_type.w) == LIGHT_SPOT) I *= spot_attenuation(dot(dir.xyz, -l), intensity.w, dir.w);
         vec3 f = light_brdf(c, l, NoL);
         color += f * I * (NoL / d2);
+#ifdef MATERIAL_LOBES
+        lobes_add_light(c.s.n, c.s.v, l, I / d2);   // the sheen's and the coat's lobes (material_lobes.glsl)
+#endif
     }
     return color;
 }
@@ -159,6 +166,7 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     // lookup direction
     vec3 diel_f0;
     float diel_f90;
+    lobes_begin();
     lobes_dielectric(s.specular, diel_f0, diel_f90);
     c.F0 = mix(diel_f0, s.base_color, s.metallic);
     float F90 = specular_f90_blend(diel_f90, s.metallic);
@@ -170,7 +178,8 @@ vec3 shade_material(Shading c, uint pixel_seed) {
 #ifdef METALLIC_BLEND_GLTF
     // glTF's blend (brdf.glsl): the diffuse under the dielectric's own Fresnel, F0 = specular
 #ifdef MATERIAL_LOBES
-    vec3 kd = (1.0 - diel_f0) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+    // KHR_materials_specular: the diffuse under 1 - max3 of the dielectric's F0 (= specular when neutral)
+    vec3 kd = (1.0 - vec3(lobes_max3(diel_f0))) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
 #else
     vec3 kd = (1.0 - vec3(s.specular)) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
 #endif
