@@ -11,7 +11,9 @@
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
 //   The surface's occlusion scales the diffuse image-based term (glTF 2.0 3.9.4) and
 //   specular_occlusion() and horizon_occlusion() (occlusion.glsl) the split-sum specular; the article
-//   compositions ignore both.
+//   compositions ignore both. MATERIAL_LOBES (defined only for scenes whose materials use a glTF
+//   PBR extension's lobe, realtime.material_lobes): material_lobes.glsl's specular, iridescence,
+//   anisotropy, sheen and coat around this composition (docs/realtime.md "Lobes in the renderer").
 // shade_article000:: article 000's PBR.frag (listings 1 and 4, with their mistakes).
 // shade_article001:: runtime importance sampling of the environment (article 001).
 // shade_article002:: article 002's lerp composition with EnvBRDFApprox.
