@@ -300,4 +300,8 @@ LOBE_REGISTRIES = {
 LOBE_LUTS = {"sheen_lut": {"shader": "sheen_lut.comp", "bake": "realtime.lobe_luts.sheen_lut",
                            "read": "realtime.lobe_luts.read_sheen_lut", "reader_glsl": "sheen_lut_lookup (lobes_sheen.glsl)",
                            "reader_numpy": _lobes.sheen_lut_lookup,
-                           **_lobes.SHEEN_LUT_CONVENTIONS}}
+                           **_lobes.SHEEN_LUT_CONVENTIONS},
+             "charlie_prefilter": {"shader": "charlie_prefilter.comp", "bake": "realtime.render.charlie_cube",
+                                   "read": "realtime.render.sample_cube",
+                                   "reader_glsl": "sheen_radiance (material_lobes.glsl)", "reader_numpy": None,
+                                   **_lobes.CHARLIE_CUBE_CONVENTIONS}}
