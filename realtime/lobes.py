@@ -505,9 +505,10 @@ SHEEN_LUT_CONVENTIONS = {
 CHARLIE_CUBE_CONVENTIONS = {
     "levels": "level L of charlie_levels holds sheen roughness L / (levels - 1) (the Sample Viewer's lod = "
               "sheenRoughness (mipCount - 1)); read at lod = sheen roughness x (levels - 1), trilinear",
-    "filter": "v = n = r; Hammersley points through sample_Charlie at alpha = roughness^2, l = reflect(-n, h), "
-              "weights n.l, each sample read at its pdf's source level (charlie_prefilter_pdf, filtered_is_lod); "
-              "a texel with no sample above the horizon (sheen roughness 0) stores the source's radiance along n",
+    "filter": "v = n = r; Hammersley points through the Charlie half-vector distribution at alpha = roughness^2 "
+              "conditioned on n.l > 0 (sin theta_h <= sqrt(1/2)), l = reflect(-n, h), weights n.l, each sample read "
+              "at its conditioned density's source level (charlie_prefilter_pdf / p_up, filtered_is_lod); a texel "
+              "with no weight stores the source's radiance along n",
     "faces": "GL order +X, -X, +Y, -Y, +Z, -Z; texel directions cube_dir (env.glsl), as every cube of realtime.render",
 }
 #: The sheen LUT's default size and samples per texel (the Charlie sampler's estimate is within
