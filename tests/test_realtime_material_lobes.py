@@ -28,7 +28,7 @@ from realtime import gl, lobes
 from realtime import render as R
 from realtime.glsl_harness import run_glsl
 from realtime.material_lobes import lobe_defines, scene_lobes
-from realtime.presets import OPTION_REGISTRIES, PRESETS, resolve_options
+from realtime.presets import OPTION_REGISTRIES, OPTIONS, PRESETS, resolve_options
 from realtime.registry import LOBE_REGISTRIES
 from realtime.render import render_realtime
 
@@ -230,6 +230,37 @@ def test_a_built_in_lobe_scene_changes_its_lobed_objects_alone(name, pipeline):
             assert np.abs(a.rgb[m] - b.rgb[m]).max() > 1e-3, o.name
             changed += 1
     assert same >= 1 and changed >= 15   # each grid holds its neutral value (a row, or one sphere), the rest not
+
+
+LOBE_OPTIONS = ("coat_ibl", "coat_attenuation", "sheen_dfg", "sheen_scaling", "sheen_cube", "anisotropy_bend",
+                "iridescence")
+
+
+def _every_lobe_scene():
+    """Six small spheres: one per lobe and one with all five, a directional light (the point-light terms)."""
+    scene = load_scene("clearcoat").with_camera(width=24, height=16)
+    lobes_of = [dict(clearcoat=1.0, clearcoat_roughness=0.3), dict(sheen_color=(1.0, 0.6, 0.3), sheen_roughness=0.5),
+                dict(specular_factor=0.5, specular_color=(1.0, 0.5, 0.2)), dict(anisotropy_strength=0.8, anisotropy_rotation=0.5),
+                dict(iridescence=1.0, iridescence_thickness=300.0)]
+    lobes_of.append({k: v for d in lobes_of for k, v in d.items()})
+    objs = tuple(Sphere(id=i, center=(-2.5 + 1.0 * i, 0.0, 0.0), radius=0.45,
+                        material=Material(base_color=(0.5, 0.3, 0.2), metallic=0.3, roughness=0.4, **d))
+                 for i, d in enumerate(lobes_of))
+    return replace(scene, objects=objs, lights=(DirectionalLight(direction=(-0.3, -0.5, -0.8), intensity=(2.0, 2.0, 2.0)),))
+
+
+@pytest.fixture(scope="module")
+def every_lobe_default():
+    return render_realtime(_every_lobe_scene(), "default", SMALL, progress=False)
+
+
+@pytest.mark.parametrize("option,value", [(o, v) for o in LOBE_OPTIONS for v in OPTIONS[o].choices
+                                          if v != PRESETS["default"][o]])
+def test_every_lobe_form_renders_and_changes_the_image(option, value, every_lobe_default):
+    assert all((every_lobe_default.channels["object"] == i).sum() > 10 for i in range(6))   # every sphere in view
+    img = render_realtime(_every_lobe_scene(), "default", {**SMALL, option: value}, progress=False)
+    assert np.all(np.isfinite(img.rgb))
+    assert np.abs(img.rgb - every_lobe_default.rgb).max() > 1e-4, (option, value)
 
 
 def test_an_article_composition_renders_no_lobe_and_says_so():
