@@ -238,7 +238,7 @@ LOBE_OPTIONS = ("coat_ibl", "coat_attenuation", "sheen_dfg", "sheen_scaling", "s
 
 def _every_lobe_scene():
     """Six small spheres: one per lobe and one with all five, a directional light (the point-light terms)."""
-    scene = load_scene("clearcoat").with_camera(width=24, height=16)
+    scene = load_scene("clearcoat").with_camera(width=48, height=32)
     lobes_of = [dict(clearcoat=1.0, clearcoat_roughness=0.3), dict(sheen_color=(1.0, 0.6, 0.3), sheen_roughness=0.5),
                 dict(specular_factor=0.5, specular_color=(1.0, 0.5, 0.2)), dict(anisotropy_strength=0.8, anisotropy_rotation=0.5),
                 dict(iridescence=1.0, iridescence_thickness=300.0)]
