@@ -400,14 +400,16 @@ def test_charlie_cube_levels_hold_the_charlie_filtered_environment():
 
 # ---- the lobe textures of a glTF asset (raster) -----------------------------------------------------
 
-def _quad(tmp_path, name, ext: dict, images=(), **kw):
+def _quad(tmp_path, name, ext: dict, images=(), sky: bool = False, **kw):
     mat = {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.1, 0.1, 1.0], "metallicFactor": 0.0,
                                     "roughnessFactor": 0.6}}
     if ext:
         mat["extensions"] = ext
     asset = quad_asset(tmp_path / f"{name}.gltf", mat, images, **kw)
-    return render_realtime(load_scene(str(quad_scene(tmp_path, asset, env="[0.5, 0.8, 1.0]", name=f"{name}.toml"))),
-                           "default", SMALL, progress=False)
+    scene = load_scene(str(quad_scene(tmp_path, asset, env="[0.5, 0.8, 1.0]", name=f"{name}.toml")))
+    if sky:   # a direction-dependent environment (the anisotropic lookup's direction shows)
+        scene = replace(scene, environment=load_scene("anisotropy").environment)
+    return render_realtime(scene, "default", SMALL, progress=False)
 
 
 def _grey(v: int, w: int = 8, h: int = 8) -> np.ndarray:
@@ -452,3 +454,35 @@ def test_a_lobe_texture_reads_its_texcoord_and_transform(tmp_path):
     left = m & (np.arange(W)[None, :] < W * 0.3)
     assert np.array_equal(half.rgb[right], none.rgb[right])      # black texels: no sheen
     assert np.allclose(half.rgb[left], fac.rgb[left], rtol=TEXTURE_ONE_RTOL, atol=0)
+
+
+def _channels(zero: str, w: int = 8, h: int = 8) -> np.ndarray:
+    """An RGBA8 image whose channels are 255 but ``zero`` (one of RGBA), which is 0."""
+    px = np.full((h, w, 4), 255, np.uint8)
+    px[..., "RGBA".index(zero)] = 0
+    return px
+
+
+@pytest.mark.parametrize("ext,fields,slot,channel", [
+    (lp.SHEEN, {"sheenColorFactor": [1.0, 0.8, 0.6], "sheenRoughnessFactor": 0.5}, "sheenColorTexture", None),
+    (lp.ANISOTROPY, {"anisotropyStrength": 1.0, "anisotropyRotation": 0.4}, "anisotropyTexture", "B"),
+    (lp.IRIDESCENCE, {"iridescenceFactor": 1.0}, "iridescenceTexture", "R"),
+    (lp.IRIDESCENCE, {"iridescenceFactor": 1.0, "iridescenceThicknessMinimum": 0.0}, "iridescenceThicknessTexture", "G"),
+    (lp.CLEARCOAT, {"clearcoatFactor": 1.0}, "clearcoatTexture", "R"),
+], ids=["sheenColor", "anisotropy.B", "iridescence.R", "iridescenceThickness.G", "clearcoat.R"])
+def test_a_lobe_texture_reads_its_channel(tmp_path, ext, fields, slot, channel):
+    """A texture whose read channel is 0 and every other channel 1 turns the lobe off: the quad is the
+    one without the extension, bit for bit (a lobe at zero strength, factor or film thickness is skipped;
+    reading any other channel would leave it on). sheenColor reads RGB: all three at 0, alpha 1."""
+    px = np.zeros((8, 8, 4), np.uint8) if channel is None else _channels(channel)
+    if channel is None:
+        px[..., 3] = 255
+    sky = ext == lp.ANISOTROPY
+    none = _quad(tmp_path, "none", {}, sky=sky)
+    on = _quad(tmp_path, "on", {ext: fields}, sky=sky)
+    off = _quad(tmp_path, "off", {ext: {**fields, slot: {"index": 0}}}, [(px, None)], sky=sky)
+    m = none.channels["coverage"] == 1
+    assert "lobes" in on.meta and "lobes" in off.meta
+    assert np.abs(on.rgb[m] - none.rgb[m]).max() > 1e-4                # the lobe shows without its texture
+    assert np.array_equal(off.rgb[m], none.rgb[m])
+
