@@ -747,8 +747,8 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         if ldefs:
             from .lobe_luts import sheen_lut
             b = bake_inputs("sheen_lut", o)
-            baked.update(lobes=lobes, sheen_lut=sheen_lut(b.sheen_lut_size, b.sheen_lut_samples) if "LOBE_SHEEN" in ldefs
-                         else None,
+            baked.update(lobes=lobes, sheen_lut=sheen_lut(b.sheen_lut_size, b.sheen_lut_samples, timings=timings)
+                         if "LOBE_SHEEN" in ldefs else None,
                          charlie_cube=charlie_cube(env, cube, o, fmt, timings) if needs_charlie_cube(ldefs) else None)
         if pipeline == "raster":
             color, aov, obj = _raster(scene, o, env, baked, sh, defines, hooks, timings)
