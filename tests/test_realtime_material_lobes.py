@@ -11,10 +11,12 @@ half of the texture)."""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +24,7 @@ import pytest
 from gltf_build import QUAD_UV, quad_asset, quad_scene
 from pbrcheck import lobe_params as lp
 from pbrcheck import lobes as truth
+from pbrcheck.gltf_objects import AssetOptions
 from pbrcheck.lights import DirectionalLight
 from pbrcheck.scene import Environment, Material, Sphere, load_scene
 from realtime import gl, lobes
@@ -485,4 +488,24 @@ def test_a_lobe_texture_reads_its_channel(tmp_path, ext, fields, slot, channel):
     assert "lobes" in on.meta and "lobes" in off.meta
     assert np.abs(on.rgb[m] - none.rgb[m]).max() > 1e-4                # the lobe shows without its texture
     assert np.array_equal(off.rgb[m], none.rgb[m])
+
+
+# ---- the shared Khronos extension assets (skip cleanly where ../shared is absent) --------------------
+
+KHRONOS = Path(__file__).resolve().parents[2] / "shared" / "assets" / "khronos"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,define", [("ClearCoatTest", "LOBE_CLEARCOAT"), ("SheenCloth", "LOBE_SHEEN"),
+                                         ("SpecularTest", "LOBE_SPECULAR"), ("AnisotropyStrengthTest", "LOBE_ANISOTROPY"),
+                                         ("AnisotropyRotationTest", "LOBE_ANISOTROPY"),
+                                         ("IridescenceSuzanne", "LOBE_IRIDESCENCE")])
+def test_a_khronos_extension_asset_renders_its_lobe(name, define):
+    p = KHRONOS / name / f"{name}.gltf"
+    if not p.is_file():
+        pytest.skip(f"{p} is absent (the real assets live in ../shared/assets)")
+    scene = load_scene(str(p), AssetOptions(size=(48, 48)))
+    img = render_realtime(scene, "default", SMALL, progress=False)
+    assert img.meta["pipeline"] == "raster" and define in json.loads(img.meta["lobes"])
+    assert np.all(np.isfinite(img.rgb)) and (img.channels["coverage"] > 0).mean() > 0.05
 
