@@ -2,8 +2,9 @@
 // shade_material), compiled only into the programs of scenes whose materials use a lobe
 // (realtime.material_lobes.lobe_defines, Filament's MATERIAL_HAS_* style): MATERIAL_LOBES and one
 // LOBE_<NAME> per lobe used (LOBE_CLEARCOAT, LOBE_SHEEN, LOBE_SPECULAR, LOBE_ANISOTROPY,
-// LOBE_IRIDESCENCE); a program without them has none of this file, and its source is the one it
-// had before the lobes existed. Each lobe's engine forms are realtime.registry.LOBE_REGISTRIES'
+// LOBE_IRIDESCENCE); a program without them keeps none of this file past the preprocessor (realtime.gl
+// expands the #include textually inside shading.glsl's #ifdef), and its source is the one it had
+// before the lobes existed. Each lobe's engine forms are realtime.registry.LOBE_REGISTRIES'
 // switches (lobes_*.glsl; COAT_IBL, COAT_ATTENUATION, SHEEN_DFG, SHEEN_SCALING, ANISOTROPY_BEND,
 // IRIDESCENCE) and SHEEN_RADIANCE (below), from the options of realtime/presets.py.
 //
@@ -15,14 +16,14 @@
 // Forms (docs/realtime.md "Lobes in the renderer"):
 // - specular (KHR_materials_specular): dielectric F0 = min(F0_ior specularColor, 1) specularFactor,
 //   F90 = specularFactor (F90 = 1 for metals: mix(F90, 1, metallic)); the split sum F0 A + F90 B;
-//   the diffuse under the dielectric's RGB F0.
+//   with glTF's blend the diffuse under 1 - max3(dielectric F0).
 // - iridescence: the split sum's Fresnel mix(F0, F_iri(n.v), k) A + F90 B (the Sample Viewer's
 //   getIBLRadianceGGXIridescence form), F_iri = iridescence_fresnel(1, film ior, n.v, d, F0).
 // - anisotropy: the prefiltered lookup along aniso_reflection(n, t, b, v, s, r) (ANISOTROPY_BEND).
 // - sheen: base sheen_scaling(c, E) + c sheen_dfg(n.v, r_s, E) L_sheen, E the sheen LUT at
 //   (n.v, r_s), L_sheen by SHEEN_RADIANCE.
 // - clearcoat: base coat_attenuation(n_c.v, n_c.v, k, F0_c) + coat_ibl_weight(n_c.v, r_c, k, F0_c, A, B)
-//   prefiltered(reflect(-v, n_c), r_c); image-based only (no half vector: the voh form reads n.v).
+//   prefiltered(reflect(-v, n_c), r_c) (image-based light has no half vector: the voh form reads n.v).
 // Point lights: the base's BRDF with KHR_materials_specular's F0 / F90 (lobes_brdf_eval), the sheen's
 // and the coat's lobes (lobes_add_light) layered as the image-based terms; iridescence and anisotropy
 // act on the image-based term only (the base's point-light lobe stays isotropic, its Fresnel Schlick's).
