@@ -13,17 +13,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gl import compute_program, get_context, groups, shader_sources_hash
+from .gl import compute_program, get_context, groups, shader_sources_hash, timed
 from .lobes import SHEEN_LUT_SAMPLES, SHEEN_LUT_SIZE
+from .presets import bake_key
 
 _sheen_luts: dict = {}
+_sheen_lut_seconds: dict = {}
 
 
-def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt: str = "f32"):
+def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt: str = "f32",
+              timings: dict | None = None):
     """The sheen LUT texture (:data:`realtime.lobes.SHEEN_LUT_CONVENTIONS`), baked once per process and
-    shader sources (an edited shader bakes afresh, as realtime.render._baked)."""
-    key = (size, samples, fmt, shader_sources_hash())
+    shader sources (an edited shader bakes afresh, as realtime.render._baked), keyed by
+    :func:`realtime.presets.bake_key` of bake ``sheen_lut`` (options ``sheen_lut_size``, ``sheen_lut_samples``)
+    with the format as context. ``timings["sheen_lut"]``: the bake's seconds (:func:`realtime.gl.timed`; a
+    cached LUT reports its original bake, as realtime.render's bakes do)."""
+    key = (*bake_key("sheen_lut", fmt, sheen_lut_size=size, sheen_lut_samples=samples), shader_sources_hash())
     if key in _sheen_luts:
+        if timings is not None:
+            timings["sheen_lut"] = _sheen_lut_seconds[key]
         return _sheen_luts[key]
     ctx = get_context()
     prog = compute_program("sheen_lut.comp", {"LUT_FORMAT": "rgba16f" if fmt == "f16" else "rgba32f"})
@@ -33,9 +41,11 @@ def sheen_lut(size: int = SHEEN_LUT_SIZE, samples: int = SHEEN_LUT_SAMPLES, fmt:
     tex.bind_to_image(0, read=False, write=True, level=0)
     prog["lut_size"].value = size
     prog["n_samples"].value = samples
-    prog.run(groups(size, 8), groups(size, 8), 1)
+    _, seconds = timed(ctx, lambda: prog.run(groups(size, 8), groups(size, 8), 1))
     ctx.memory_barrier()  # image stores are incoherent (GL 4.6 core, 7.13.2): visible to the read-back after it
-    _sheen_luts[key] = tex
+    _sheen_luts[key], _sheen_lut_seconds[key] = tex, seconds
+    if timings is not None:
+        timings["sheen_lut"] = seconds
     return tex
 
 

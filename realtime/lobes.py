@@ -21,11 +21,15 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 :func:`sheen_dfg_lut_ibl_sampler_legacy`,
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
+:data:`CHARLIE_CUBE_CONVENTIONS` (the bake: :func:`realtime.render.charlie_cube`),
 :func:`sheen_albedo_quadrature`.
 Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
 :func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
 :func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
+:data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
+The material composition's own terms (``lobes_material.glsl``): :func:`specular_dielectric_f0`,
+:func:`specular_f90_blend`, :func:`split_sum_albedo_f90`, :func:`aniso_direction`, :func:`sphere_tangent`.
 Iridescence: :func:`iridescence_sensitivity`, :func:`iridescence_fresnel`, :func:`iridescence_factor`,
 :func:`iridescence_mix`.
 
@@ -51,6 +55,12 @@ import numpy as np
 from pbrcheck.brdf import EnvBRDFApprox
 
 PI = np.pi
+#: The lobe extensions the real-time renderer renders (realtime/shaders/material_lobes.glsl, compiled
+#: into the programs of scenes whose materials use them: realtime.material_lobes). The honesty contract's
+#: pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS holds those both renderers render; the lead adds an
+#: extension there once the reference renders it too (its intersection with this set).
+REALTIME_LOBES = frozenset({"KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_specular",
+                            "KHR_materials_anisotropy", "KHR_materials_iridescence"})
 #: The smallest sheen alpha (= sheenRoughness^2) the Charlie terms evaluate with: its exponent
 #: 1/alpha reaches 1e3, where sin^(1/alpha) is already a spike of width ~0.03 rad and float32's
 #: pow still resolves it (pow amplifies the input's rounding by the exponent: 1e3 x 6e-8 = 6e-5).
@@ -442,6 +452,41 @@ def iridescence_mix(F, F_iri, factor):
     return _mix(np.asarray(F, np.float64), np.asarray(F_iri, np.float64), np.asarray(factor, np.float64)[..., None])
 
 
+# ---- the material composition's own lobe terms (lobes_material.glsl) -------------------------------
+
+def specular_dielectric_f0(f0_ior, factor, color):
+    """KHR_materials_specular's dielectric F0: min(F0_ior specularColor, 1) specularFactor, RGB
+    (:func:`pbrcheck.lobes.specular_f0`, the truth's, is the same equation)."""
+    c = np.asarray(color, np.float64)
+    return np.minimum(np.asarray(f0_ior, np.float64)[..., None] * c, 1.0) * np.asarray(factor, np.float64)[..., None]
+
+
+def specular_f90_blend(f90, metallic):
+    """The split sum's F90: the dielectric's specularFactor blended to the metal's 1: f90 + (1 - f90) metallic."""
+    f90 = np.asarray(f90, np.float64)
+    return f90 + (1.0 - f90) * np.asarray(metallic, np.float64)
+
+
+def split_sum_albedo_f90(F0, F90, A, B):
+    """The split sum with Schlick's F90 kept: F0 A + F90 B (RGB F0)."""
+    return np.asarray(F0, np.float64) * np.asarray(A)[..., None] + (np.asarray(F90) * np.asarray(B))[..., None]
+
+
+def aniso_direction(T, n, rotation):
+    """The anisotropy direction: the tangent rotated counter-clockwise by ``rotation`` toward n x T."""
+    rot = np.asarray(rotation, np.float64)[..., None]
+    return _normalize(np.cos(rot) * np.asarray(T) + np.sin(rot) * np.cross(n, T))
+
+
+def sphere_tangent(n):
+    """The ray-cast sphere's tangent: Mitsuba's sphere dp/du direction (-n.y, n.x, 0) normalized, +X where
+    its length is at most 1e-6 (the poles on the z axis)."""
+    n = np.asarray(n, np.float64)
+    t = np.stack([-n[..., 1], n[..., 0], np.zeros(n.shape[:-1])], axis=-1)
+    ln = np.linalg.norm(t, axis=-1, keepdims=True)
+    return np.where(ln > 1e-6, t / np.maximum(ln, 1e-30), np.array([1.0, 0.0, 0.0]))
+
+
 # ---- the sheen LUT's bake (sheen_lut.comp) ---------------------------------------------------------
 
 #: The sheen LUT's bake (sheen_lut.comp) and its conventions, stated at both ends (the shader's header
@@ -454,6 +499,17 @@ SHEEN_LUT_CONVENTIONS = {
                 "G = int D_Charlie V_Neubelt n.l dl (Filament DFG.z, the Sample Viewer's Charlie LUT); B = the same "
                 "at alpha = roughness with V_Neubelt clamped to 1 (an older glTF-IBL-Sampler); A = 0",
     "format": "rgba16f (f16) or rgba32f (f32), N x N, clamp to edge, linear filter (unused: texelFetch)",
+}
+#: The Charlie-prefiltered cube's bake (charlie_prefilter.comp, realtime.render.charlie_cube) and its reader
+#: (material_lobes.glsl sheen_radiance), stated at both ends.
+CHARLIE_CUBE_CONVENTIONS = {
+    "levels": "level L of charlie_levels holds sheen roughness L / (levels - 1) (the Sample Viewer's lod = "
+              "sheenRoughness (mipCount - 1)); read at lod = sheen roughness x (levels - 1), trilinear",
+    "filter": "v = n = r; Hammersley points through the Charlie half-vector distribution at alpha = roughness^2 "
+              "conditioned on n.l > 0 (sin theta_h <= sqrt(1/2)), l = reflect(-n, h), weights n.l, each sample read "
+              "at its conditioned density's source level (charlie_prefilter_pdf / p_up, filtered_is_lod); a texel "
+              "with no weight stores the source's radiance along n",
+    "faces": "GL order +X, -X, +Y, -Y, +Z, -Z; texel directions cube_dir (env.glsl), as every cube of realtime.render",
 }
 #: The sheen LUT's default size and samples per texel (the Charlie sampler's estimate is within
 #: SHEEN_LUT_RTOL of the quadrature at these, tests/test_realtime_lobes.py; ~0.3 s on llvmpipe).

@@ -29,8 +29,9 @@ from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
 from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
 from pbrcheck.sampling import LUT_SAMPLINGS
 
-from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
-                       RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
+from .registry import (ANISOTROPY_BENDS, COAT_ATTENUATIONS, COAT_IBLS, DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS,
+                       IRIDESCENCES, IRRADIANCE_METHODS, IRRADIANCES, RUNTIME_SAMPLINGS, SHADINGS, SHEEN_DFGS,
+                       SHEEN_SCALINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
 
 
 #: Separates a preset from a shader hook file in a renderer name: ``default+hooks/ue4.glsl``.
@@ -66,9 +67,10 @@ class Option:
 #: :mod:`realtime.raster`): its cache key holds the values of exactly the options whose
 #: :attr:`Option.bakes` name it (:func:`bake_inputs`, :func:`bake_key`), so an option cannot be
 #: forgotten in a key (a bake reading an option it does not declare raises).
-BAKES = ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut", "material_texture", "normal_variance")
+BAKES = ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut", "material_texture", "normal_variance",
+         "sheen_lut", "charlie_prefilter")
 #: The bakes of the environment cube and of what is filtered from it (they read its size and format).
-CUBE_BAKES = ("env_cube", "irradiance", "sh9", "prefilter")
+CUBE_BAKES = ("env_cube", "irradiance", "sh9", "prefilter", "charlie_prefilter")
 
 #: The ``msaa`` values that multisample (alpha-to-coverage needs one: a single sample has no coverage to dither).
 MULTISAMPLES = (2, 4, 8)
@@ -173,6 +175,39 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            TEXTURE_SAMPLINGS, default="mip"),
     Option("normal_sampling", "choice", "raster: the normal map: mip (trilinear, averaged normals renormalized, as "
            "engines) | lod0 (bilinear at level 0 only, as the reference)", TEXTURE_SAMPLINGS, default="mip"),
+    # The glTF PBR extensions' lobes (issue 36; realtime/shaders/material_lobes.glsl): each engine family's
+    # form a member of its registry (realtime.registry.LOBE_REGISTRIES); compiled only into the programs
+    # of scenes whose materials use the lobe, so these options change nothing else.
+    Option("coat_ibl", "choice", "clearcoat: weight of the coat's prefiltered lookup: splitsum (F0 A + B, the DFG "
+           "LUT at the coat's roughness) | sample_viewer (Fdez-Aguera k_S) | filament (Fc(n.v), no DFG) | threejs "
+           "(EnvBRDFApprox)", COAT_IBLS.names, default="splitsum"),
+    Option("coat_attenuation", "choice", "clearcoat: the base's attenuation 1 - clearcoat Fc: nov (the spec, "
+           "Filament, three.js) | voh (the Sample Viewer's punctual form; image-based light reads n.v)",
+           COAT_ATTENUATIONS.names, default="nov"),
+    Option("sheen_dfg", "choice", "sheen: image-based weight: lut_charlie (the spec's albedo E) | lut_neubelt "
+           "(Filament's DFG.z, the Sample Viewer's Charlie LUT) | lut_ibl_sampler_legacy | threejs (DG fit / pi "
+           "x irradiance) | playcanvas (DG fit x the roughest level along n)", SHEEN_DFGS.names,
+           default="lut_charlie"),
+    Option("sheen_scaling", "choice", "sheen: the base's albedo scaling: lut (1 - max(c) E, the spec) | "
+           "filament (1 - max(c) DFG.z) | threejs (1 - 0.157 max(c))", SHEEN_SCALINGS.names, default="lut"),
+    Option("sheen_cube", "choice", "sheen: the radiance a LUT weight multiplies: charlie (the Charlie-prefiltered "
+           "cube, Sample Viewer) | ggx (the GGX-prefiltered cube at the sheen roughness, Filament)",
+           ("charlie", "ggx"), default="charlie"),
+    Option("anisotropy_bend", "choice", "anisotropy: the prefiltered lookup's bent direction: sample_viewer | "
+           "threejs | filament | babylon", ANISOTROPY_BENDS.names, default="sample_viewer"),
+    Option("iridescence", "choice", "iridescence: the thin-film Fresnel: belcour_rgb (Belcour & Barla 2017 in "
+           "RGB, the Sample Viewer's) | none (no film, as an engine without the extension)", IRIDESCENCES.names,
+           default="belcour_rgb"),
+    Option("sheen_lut_size", "int", "sheen LUT size N (N x N; realtime.lobes.SHEEN_LUT_CONVENTIONS)", lo=2, hi=512,
+           default=32, bakes=("sheen_lut",)),
+    Option("sheen_lut_samples", "int", "Charlie samples per sheen LUT texel", lo=1, hi=1 << 16, default=4096,
+           bakes=("sheen_lut",)),
+    Option("charlie_size", "int", "face size of the Charlie-prefiltered cube (sheen)", lo=4, hi=1024,
+           power_of_two=True, default=64, bakes=("charlie_prefilter",)),
+    Option("charlie_levels", "int", "levels of the Charlie-prefiltered cube (level L at sheen roughness "
+           "L / (levels - 1))", lo=2, hi=11, default=6, bakes=("charlie_prefilter",)),
+    Option("charlie_samples", "int", "Charlie samples per texel of the Charlie-prefiltered cube", lo=1, hi=1 << 14,
+           default=512, bakes=("charlie_prefilter",)),
     Option("tonemap", "choice", "display images only (EXR stays linear): none | aces (article 002's fit)",
            ("none", "aces"), default="none"),
     Option("exposure", "float", "display exposure multiplier (before the tone map)", lo=0.0, hi=1e6, default=1.0),
@@ -213,9 +248,28 @@ PRESETS: dict[str, dict] = {
     # as 9 SH coefficients, prefiltered levels at lod = M r (2 - r) (perceptualRoughnessToLod), its
     # DFG LUT (GGX, height-correlated Smith; the multiscatter form mix(dfg.x, dfg.y, F0) = F0 A + B)
     # and its energy compensation 1 + F0 (1 / dfg.y - 1) of the specular lobe.
+    # Its lobes (light_indirect.fs, shading_model_standard.fs): the coat's prefiltered radiance times
+    # Fc(n.v) coat (no DFG), the base times 1 - coat Fc(n.v); the sheen from the GGX-prefiltered cube at
+    # the sheen roughness times DFG.z (the LUT's V_Neubelt channel), the base times 1 - max(c) DFG.z;
+    # the anisotropic bent normal mix(n, (d x v) x d, |s| saturate(5 r)); no thin film (Filament's
+    # shading model has no iridescence parameter).
     "filament": _preset(
         irradiance="sh9", lod_mapping="quadratic", dfg="lut", lut_geometry="smith_ggx_correlated",
-        lut_sampling="vndf", energy_compensation="filament"),
+        lut_sampling="vndf", energy_compensation="filament", coat_ibl="filament", coat_attenuation="nov",
+        sheen_dfg="lut_neubelt", sheen_scaling="filament", sheen_cube="ggx", anisotropy_bend="filament",
+        iridescence="none"),
+    # The Khronos glTF Sample Viewer (KhronosGroup/glTF-Sample-Viewer source/Renderer/shaders/ibl.glsl,
+    # material_info.glsl, pbr.frag): prefiltered levels at lod = roughness (mipCount - 1) (linear), the
+    # GGX LUT (height-correlated Smith), the Fdez-Aguera 2019 single + multiple scattering (k_S A + B with
+    # its roughness-dependent Fresnel; FmsEms added to the diffuse); its lobes: the coat's split sum with
+    # that k_S at the coat's roughness, the base times 1 - coat Fc(n.v); the sheen from the
+    # Charlie-prefiltered cube times its Charlie LUT (V_Neubelt), the base scaled by the spec's
+    # albedo LUT; the bent normal of getIBLRadianceAnisotropy; Belcour & Barla's RGB thin film.
+    "sample_viewer": _preset(
+        lod_mapping="linear", dfg="lut", lut_geometry="smith_ggx_correlated", lut_sampling="vndf",
+        energy_compensation="fdez_aguera", coat_ibl="sample_viewer", coat_attenuation="nov",
+        sheen_dfg="lut_neubelt", sheen_scaling="lut", sheen_cube="charlie", anisotropy_bend="sample_viewer",
+        iridescence="belcour_rgb"),
     # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
     "analytic_mobile": _preset(
@@ -384,7 +438,9 @@ OPTION_REGISTRIES = {"shading": SHADINGS, "irradiance": IRRADIANCES, "irradiance
                      "lut_sampling": LUT_SAMPLINGS, "runtime_sampling": RUNTIME_SAMPLINGS,
                      "energy_compensation": ENERGY_COMPENSATIONS, "ndf": NDFS, "geometry": GEOMETRIES,
                      "fresnel": FRESNELS, "specular_occlusion": SPECULAR_OCCLUSIONS,
-                     "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS}
+                     "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS,
+                     "coat_ibl": COAT_IBLS, "coat_attenuation": COAT_ATTENUATIONS, "sheen_dfg": SHEEN_DFGS,
+                     "sheen_scaling": SHEEN_SCALINGS, "anisotropy_bend": ANISOTROPY_BENDS, "iridescence": IRIDESCENCES}
 
 
 #: Option values decided at render time (``auto``: by the scene, :func:`realtime.render.resolved_pipeline`):

@@ -73,10 +73,13 @@ import numpy as np
 from pbrcheck.camera import camera_frame, tan_half_fov
 from pbrcheck.errors import BackendError
 from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR
-from pbrcheck.scene import Plane, Scene, plane_frame
+from pbrcheck.scene import Material, Plane, Scene, plane_frame
 from pbrcheck.specular_aa import slope_variance_mips
 
 from .gl import ShaderCompileError, assemble, get_context, in_bands, map_errors, timed
+from .lobes import sphere_tangent
+from .material_lobes import (LOBE_TEXTURE_SLOTS, gltf_lobe_rows, material_active_lobes, scene_lobe_rows,
+                             scene_material_active_lobes)
 from .presets import bake_key
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
@@ -93,6 +96,10 @@ MATERIAL_UNIT0 = 6
 TEXTURE_SLOTS_N = 4
 #: Texture unit of the normal map's slope-variance companion (after the occlusion texture's).
 NORMAL_VAR_UNIT = MATERIAL_UNIT0 + TEXTURE_SLOTS_N + 1
+#: First texture unit of the lobe textures (raster.frag tex_lobe; after realtime.render.LOBE_TEXTURE_UNITS).
+LOBE_UNIT0 = 14
+#: The lobe factor rows of a material without lobes (realtime.material_lobes.LOBE_ROW_LAYOUT at the neutral values).
+NEUTRAL_LOBE_ROWS = scene_lobe_rows(Material())
 #: GL enums moderngl has no flag for (OpenGL 4.5 core, 14.9.3 multisample fragment operations).
 GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
 GL_SAMPLE_ALPHA_TO_ONE = 0x809F
@@ -121,6 +128,9 @@ class DrawItem:
     normal_scale: float = 1.0
     textures: dict = field(default_factory=dict)   # slot -> (GltfImage, TextureRef, srgb)
     unlit: bool = False                             # KHR_materials_unlit (raster.frag's UNLIT_MATERIALS)
+    lobe_rows: np.ndarray | None = None             # (4, 4) lobe factors (material_lobes.LOBE_ROW_LAYOUT); None: no lobe
+    lobe_textures: dict = field(default_factory=dict)   # lobe slot -> (GltfImage, TextureRef, srgb)
+    coat_normal_scale: float = 1.0
 
     @property
     def centre(self) -> np.ndarray:
@@ -203,17 +213,26 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                 ref = refs.get(slot)
                 if ref is not None:
                     tex[slot] = (inst.asset.images[ref.image], ref, srgb)
+            lobes = {}
+            if material_active_lobes(m):
+                rows, ltex = gltf_lobe_rows(m)
+                cn = ltex.get("clearcoatNormal")
+                lobes = dict(lobe_rows=rows, coat_normal_scale=cn[0].scale if cn is not None else 1.0,
+                             lobe_textures={k: (inst.asset.images[r.image], r, srgb) for k, (r, srgb) in ltex.items()})
             out.append(DrawItem(
                 ob.id, ob.name, _vertices(pos, nrm, tan, prim.texcoords[0], prim.texcoords[1], prim.color),
                 np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
                 tuple(m.emissive), m.alpha_mode, m.alpha_cutoff, cull=not m.double_sided,
                 flip_backface=m.double_sided,
                 normal_scale=m.normal_texture.scale if m.normal_texture is not None else 1.0, textures=tex,
-                unlit=m.unlit))
+                unlit=m.unlit, **lobes))
             continue
         mat = ob.material
         common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
                       specular=mat.specular, cull=False, flip_backface=False)
+        lobed = bool(scene_material_active_lobes(mat))
+        if lobed:
+            common["lobe_rows"] = scene_lobe_rows(mat)
         if isinstance(ob, Plane):
             t, b, n = (np.asarray(x, float) for x in plane_frame(ob.normal))
             c = np.asarray(ob.center, float)
@@ -222,10 +241,14 @@ def draw_items(scene: Scene) -> list[DrawItem]:
             tri = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
             if np.dot(np.cross(pos[1] - pos[0], pos[2] - pos[0]), n) < 0:
                 tri = tri[:, ::-1].copy()
-            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, np.tile(n, (4, 1))), tri, **common))
+            tan = np.tile([*t, 1.0], (4, 1)) if lobed else None   # plane_frame's tangent, as the ray-cast pass
+            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, np.tile(n, (4, 1)), tan), tri,
+                                **common))
         else:
             pos, nrm, tri = tessellate_sphere(ob.center, ob.radius)
-            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, nrm), tri, **common))
+            # the ray-cast pass's tangent frame (lobes_material.glsl sphere_tangent), w = 1
+            tan = np.concatenate([sphere_tangent(nrm), np.ones((len(nrm), 1))], axis=1) if lobed else None
+            out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, nrm, tan), tri, **common))
     return out
 
 
@@ -377,6 +400,47 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
     _set(prog, "tex_mirror", tuple(mirror))
     # GLSL mat3 is column-major: write the transposes of the row-major matrices
     _set(prog, "tex_xf", np.ascontiguousarray(np.stack([m.T for m in xf]), np.float32).tobytes())
+    if any(f"lobe_p{k}" in prog for k in range(4)):   # a lobe program (material_lobes.glsl; a variant
+        # keeps only the rows its lobes read): this draw's lobe factors and textures
+        _set_lobes(prog, it, anisotropy)
+
+
+def _set_array(prog, name: str, values: np.ndarray) -> None:
+    """Write the first elements of array uniform ``name`` that the compiler kept (it drops the tail a
+    variant does not read), where the program has it."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    n = getattr(u, "array_length", 1) or 1
+    u.write(np.ascontiguousarray(values[:n]).tobytes())
+
+
+def _set_lobes(prog, it: DrawItem, anisotropy: float) -> None:
+    """raster.frag's lobe uniforms of draw ``it``: its factor rows (the neutral ones for a material
+    without lobes, which then renders as in a lobe-free program) and lobe textures (units from :data:`LOBE_UNIT0`)."""
+    rows = it.lobe_rows if it.lobe_rows is not None else NEUTRAL_LOBE_ROWS
+    for k in range(4):
+        _set(prog, f"lobe_p{k}", tuple(float(x) for x in rows[k]))
+    _set(prog, "lobe_coat_normal_scale", float(it.coat_normal_scale))
+    n = len(LOBE_TEXTURE_SLOTS)
+    has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
+                                    np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
+    for k, (slot, *_rest) in enumerate(LOBE_TEXTURE_SLOTS):
+        units[k] = LOBE_UNIT0 + k
+        entry = it.lobe_textures.get(slot)
+        if entry is None:
+            _white().use(LOBE_UNIT0 + k)
+            continue
+        image, ref, srgb = entry
+        _texture(image, ref, srgb, anisotropy).use(LOBE_UNIT0 + k)
+        sets[k], mirror[k], x = _slot_state(ref)
+        has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
+    _set_array(prog, "tex_lobe", units)
+    _set_array(prog, "lobe_has", has)
+    _set_array(prog, "lobe_set", sets)
+    _set_array(prog, "lobe_mirror", mirror)
+    _set_array(prog, "lobe_xf", xf.astype(np.float32))
 
 
 def _vaos(prog, items: list[DrawItem]):

@@ -198,8 +198,9 @@ def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
 # Each family's members hold their numpy functions (realtime.lobes) and GLSL twins of the same name
 # (realtime/shaders/lobes_*.glsl); each lobe file defines its switch's constants (by member index,
 # tests/test_realtime_lobes.py checks them against these lists) and a dispatch on the switch. They are
-# not yet in REGISTRIES / ROLE_REGISTRIES: no shading composition calls them (the glTF material's
-# wiring comes with the lobes' material parameters).
+# not in REGISTRIES (whose constants every program gets: a lobe-free program's source must not change):
+# the material composition calls them through material_lobes.glsl, compiled only into the programs of
+# scenes whose materials use a lobe (realtime.material_lobes), each switch an option of realtime.presets.
 _LOBE = "the real-time form of a lobe the reference evaluates exactly (pbrcheck.lobes): no Dr.Jit function; "
 #: The base's attenuation under the coat: ``coat_attenuation(NoV, VoH, coat, f0)``.
 COAT_ATTENUATIONS = Registry("COAT_ATTENUATION", [
@@ -274,6 +275,8 @@ IRIDESCENCES = Registry("IRIDESCENCE", [
     Entry("belcour_rgb", "Belcour & Barla 2017, RGB through the Fourier-space XYZ fit, as glTF-Sample-Viewer evaluates it",
           roles={"iridescence_fresnel": role(_lobes.iridescence_fresnel)},
           applies_to=_LOBE + "the specular Fresnel (the truth integrates per wavelength)"),
+    Entry("none", "no thin film: the base's Fresnel (an engine without a thin-film term: Filament's shading model has none)",
+          applies_to=_LOBE + "nothing: the iridescent materials render as their base"),
 ])
 #: The lobe families, by switch: the registry, its shader file, the default member and each role's
 #: GLSL dispatch signature.
@@ -297,4 +300,8 @@ LOBE_REGISTRIES = {
 LOBE_LUTS = {"sheen_lut": {"shader": "sheen_lut.comp", "bake": "realtime.lobe_luts.sheen_lut",
                            "read": "realtime.lobe_luts.read_sheen_lut", "reader_glsl": "sheen_lut_lookup (lobes_sheen.glsl)",
                            "reader_numpy": _lobes.sheen_lut_lookup,
-                           **_lobes.SHEEN_LUT_CONVENTIONS}}
+                           **_lobes.SHEEN_LUT_CONVENTIONS},
+             "charlie_prefilter": {"shader": "charlie_prefilter.comp", "bake": "realtime.render.charlie_cube",
+                                   "read": "realtime.render.sample_cube",
+                                   "reader_glsl": "sheen_radiance (material_lobes.glsl)", "reader_numpy": None,
+                                   **_lobes.CHARLIE_CUBE_CONVENTIONS}}

@@ -23,6 +23,9 @@ Conventions at both ends of every baked artifact
 * DFG LUT: N x N, texel (row j, column i) = (n.v = (i + 0.5)/N, roughness = (j + 0.5)/N), row 0 the
   smoothest; R = A, G = B; sampled with GL coordinates (n.v, roughness), linear, clamp to edge.
 * Kd LUT: N x 1, texel i = n.v (i + 0.5)/N.
+* The lobes' bakes (only for programs whose scene uses the lobe, :mod:`realtime.material_lobes`): the
+  sheen LUT (:data:`realtime.lobes.SHEEN_LUT_CONVENTIONS`, :func:`realtime.lobe_luts.sheen_lut`) and the
+  Charlie-prefiltered cube (:data:`realtime.lobes.CHARLIE_CUBE_CONVENTIONS`, :func:`charlie_cube`).
 
 Compile-time switches are the named constants of the registries (:mod:`realtime.registry`; ``{"GEOMETRY":
 "GEOMETRY_SMITH_GGX"}``); uniforms are set with :func:`_set`, which raises on a uniform the program
@@ -32,7 +35,7 @@ does not read; a misspelt or renamed uniform would otherwise render with 0).
 API
 ---
 :func:`render_realtime`, :func:`environment_of`, :func:`env_texture`, :func:`env_cube`,
-:func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`dfg_lut`,
+:func:`irradiance_cube`, :func:`sh9_coefficients`, :func:`prefiltered_cube`, :func:`charlie_cube`, :func:`dfg_lut`,
 :func:`read_lut`, :func:`kd_lut`, :func:`sample_cube`, :func:`resolved_terms`,
 :func:`chain_mapping`, :func:`effective_cube_format`, :func:`frame_bands` (the frame pass, in bands when large),
 :func:`as_options`.
@@ -62,6 +65,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 
 from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
+from .material_lobes import lobe_defines, needs_charlie_cube, needs_split_sum_bakes, object_lobe_rows, scene_lobes
 from .presets import (
     RealtimeOptions,
     bake_inputs,
@@ -84,7 +88,7 @@ HALF_MAX = 65504.0
 #: required: setting one the program lacks is an error (a renamed uniform would render with 0).
 FRAME_VARIANT_UNIFORMS = frozenset({"prefiltered", "max_lod", "lod_override", "cube_log2", "env_cube",
                                     "env_face_size", "runtime_samples", "dfg_lut", "irradiance_cube", "kd_lut",
-                                    "sh"})
+                                    "sh", "sheen_lut", "charlie_cube", "charlie_max_lod"})
 
 
 def chain_mapping(o: RealtimeOptions) -> str:
@@ -365,6 +369,33 @@ def prefiltered_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: d
     return _baked(key, timings, run)
 
 
+def charlie_cube(env: EnvMap, cube, o: RealtimeOptions, fmt: str, timings: dict):
+    """Bake the Charlie-prefiltered cube of the sheen lobe (``charlie_prefilter.comp``; its conventions
+    :data:`realtime.lobes.CHARLIE_CUBE_CONVENTIONS`): ``charlie_levels`` levels of a ``charlie_size``^2 cube,
+    level L at sheen roughness L / (levels - 1), each texel ``charlie_samples`` Charlie samples of the
+    environment cube read at their pdf's level."""
+    o = bake_inputs("charlie_prefilter", o, cube_format=fmt)
+    key = o.key(env.content_hash)
+    size, levels = o.charlie_size, o.charlie_levels
+    prog = compute_program("charlie_prefilter.comp", {"IMAGE_FORMAT": _image_format(fmt)})
+
+    def run():
+        tex = _cube(size, fmt, min(levels, size.bit_length()))
+        cube.use(1)
+        _set(prog, "src_cube", 1)
+        _set(prog, "src_face_size", float(o.cube_size))
+        _set(prog, "n_samples", int(o.charlie_samples))
+        for L in range(min(levels, size.bit_length())):
+            s = max(size >> L, 1)
+            tex.bind_to_image(0, read=False, write=True, level=L)
+            _set(prog, "face_size", s)
+            _set(prog, "sheen_roughness", L / (levels - 1))
+            prog.run(groups(s, 8), groups(s, 8), 6)
+        return tex
+
+    return _baked(key, timings, run)
+
+
 def dfg_lut(size: int, samples: int, fmt: str, geometry: str, ndf: str = "ggx", sampling: str = "vndf",
             timings: dict | None = None):
     """The DFG LUT texture (RG16F or RG32F), see the module docstring for its axes."""
@@ -532,6 +563,9 @@ def frame_defines(o: RealtimeOptions, terms: dict) -> dict:
 #: Texture unit of each sampler of the frame pass (unit 0 is the equirect environment).
 FRAME_TEXTURE_UNITS = (("prefiltered", 1, "cube"), ("irradiance_cube", 2, "cube"), ("env_cube", 3, "cube"),
                        ("dfg_lut", 4, "2d"), ("kd_lut", 5, "2d"))
+#: Texture units of the lobes' baked inputs (material_lobes.glsl; bound only in lobe programs; after the
+#: raster pass's material units 6-11).
+LOBE_TEXTURE_UNITS = (("sheen_lut", 12, "2d"), ("charlie_cube", 13, "cube"))
 
 
 def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh) -> tuple:
@@ -544,6 +578,10 @@ def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh)
     W, H = scene.camera.width, scene.camera.height
     objs = ctx.buffer(_object_buffer(scene).tobytes())
     objs.bind_to_storage_buffer(0)
+    if textures.get("lobes"):  # the ObjectLobes buffer (render.comp, binding 3), lobe programs only
+        lobes = ctx.buffer(object_lobe_rows(scene).tobytes())
+        lobes.bind_to_storage_buffer(3)
+        objs = _Released(objs, lobes)
     lbuf = _bind_shading(prog, scene, o, env, textures, sh)
     out_color = ctx.texture((W, H), 4, dtype="f4")
     out_aov = ctx.texture((W, H), 4, dtype="f4")
@@ -561,6 +599,17 @@ def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh)
     _set(prog, "image_size", (W, H))
     _set(prog, "ss", int(o.supersample))
     return objs, lbuf, out_color, out_aov, out_obj
+
+
+class _Released:
+    """GL objects released together (the object buffer and, in lobe programs, the ObjectLobes buffer)."""
+
+    def __init__(self, *objs):
+        self.objs = objs
+
+    def release(self):
+        for g in self.objs:
+            g.release()
 
 
 def _bind_shading(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh, raster: bool = False):
@@ -585,6 +634,12 @@ def _bind_shading(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, s
                         ("lod_override", float(o.lod_override))):
         _set(prog, name, value, optional=name in FRAME_VARIANT_UNIFORMS)
     _set(prog, "min_roughness", float(o.min_roughness))
+    if textures.get("lobes"):  # material_lobes.glsl's baked inputs (each read by some lobe programs only)
+        for name, unit, kind in LOBE_TEXTURE_UNITS:
+            tex = textures.get(name)
+            (tex if tex is not None else _dummy(kind)).use(unit)
+            _set(prog, name, unit, optional=True)
+        _set(prog, "charlie_max_lod", float(o.charlie_levels - 1), optional=True)
     return lbuf
 
 
@@ -592,7 +647,7 @@ def _frame_meta(scene: Scene, preset: str, o: RealtimeOptions, terms: dict, timi
                 fmt: str, warnings: list, hooks=None) -> dict:
     """The EXR metadata of a real-time render: preset, options, terms, timings and conventions; with a
     shader hook file, its path, SHA-256 and the hooks it defines (``shader``)."""
-    cached = sorted(p for p in ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut")
+    cached = sorted(p for p in ("env_cube", "irradiance", "sh9", "prefilter", "dfg_lut", "kd_lut", "charlie_prefilter")
                     if p in timings and any(isinstance(c, tuple) and c[0] == p for c in cached_before))
     return {
         "renderer": "realtime",
@@ -666,26 +721,41 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         else:
             irr = irradiance_cube(env, cube, o, fmt, timings)
         bar.update(1, "irradiance")
+        # the lobes the scene's materials use, compiled into this render's programs (material_lobes.glsl);
+        # none: the programs and bakes are exactly the lobe-free ones
+        lobes = scene_lobes(scene)
+        ldefs = lobe_defines(lobes, o)
+        if lobes and not ldefs:
+            warnings.append(f"lobes_ignored: shading={o.shading} renders no lobe ({', '.join(lobes)}); "
+                            f"shading=material does")
+        split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs)
         pre = None
-        if o.ibl == "splitsum":
+        if split:
             pre = prefiltered_cube(env, cube, o, fmt, timings)
         bar.update(1, "prefilter")
         lut = None
-        if o.dfg == "lut" and o.ibl == "splitsum":  # runtime sampling integrates the BRDF itself
+        if o.dfg == "lut" and split:  # runtime sampling integrates the BRDF itself
             lut = dfg_lut(o.lut_size, o.lut_samples, o.lut_format, terms["lut_geometry"], terms["ndf"],
                           o.lut_sampling, timings)
         bar.update(1, "dfg_lut")
         kd = kd_lut(o.lut_size, timings)
         bar.update(1, "kd_lut")
 
-        defines = frame_defines(o, terms)
+        defines = {**frame_defines(o, terms), **ldefs}
         hooks = load_hook_file(o.shader) if o.shader else None
         baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd}
+        if ldefs:
+            from .lobe_luts import sheen_lut
+            b = bake_inputs("sheen_lut", o)
+            baked.update(lobes=lobes, sheen_lut=sheen_lut(b.sheen_lut_size, b.sheen_lut_samples, timings=timings)
+                         if "LOBE_SHEEN" in ldefs else None,
+                         charlie_cube=charlie_cube(env, cube, o, fmt, timings) if needs_charlie_cube(ldefs) else None)
         if pipeline == "raster":
             color, aov, obj = _raster(scene, o, env, baked, sh, defines, hooks, timings)
             bar.update(1, "frame")
             meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
             meta["pipeline"] = pipeline
+            _lobe_meta(meta, ldefs)
             return _image(color, aov, obj, meta)
         t0 = time.perf_counter()
         prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
@@ -714,7 +784,15 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
 
     meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
     meta["pipeline"] = pipeline
+    _lobe_meta(meta, ldefs)
     return _image(color, aov, obj, meta)
+
+
+def _lobe_meta(meta: dict, ldefs: dict) -> None:
+    """``meta["lobes"]``: the lobe switches compiled into the render's programs (JSON), only where there
+    are some (a lobe-free render's metadata is what it was)."""
+    if ldefs:
+        meta["lobes"] = json.dumps(ldefs, sort_keys=True)
 
 
 def frame_bands(ctx, prog, W: int, H: int, ss: int) -> int:
@@ -791,7 +869,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         # upload the material textures and generate their mips before the timed frame, each timed
         timings.update(texture_upload=0.0, texture_mips=0.0)
         for it in items:
-            for image, ref, srgb in it.textures.values():
+            for image, ref, srgb in (*it.textures.values(), *it.lobe_textures.values()):
                 raster._texture(image, ref, srgb, o.anisotropy, timings)
             if variance and "normal" in it.textures:  # and its slope-variance mips
                 t0 = time.perf_counter()
@@ -811,7 +889,7 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
 
 
 #: Cache kinds whose key's second element is an environment's content hash.
-ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irradiance", "sh9", "prefilter")
+ENVIRONMENT_CACHE_KINDS = ("env_tex", "env_cube", "irradiance", "sh9", "prefilter", "charlie_prefilter")
 
 
 def trim_environment_caches(keep: int) -> int:

@@ -3,8 +3,9 @@
 // the CIE matching functions in Fourier space, a Gaussian fit, then to linear Rec. 709). The spec's
 // truth integrates per wavelength (pbrcheck.lobes); this is the real-time form. Numpy twins of the same
 // names in realtime/lobes.py. Thickness in nm; IORs real; base_f0 the base's RGB normal reflectance.
-// Switch (realtime.registry.IRIDESCENCES): one member, belcour_rgb.
+// Switch (realtime.registry.IRIDESCENCES): belcour_rgb, or none (no film: material_lobes.glsl skips it).
 #define IRIDESCENCE_BELCOUR_RGB 0
+#define IRIDESCENCE_NONE 1
 #ifndef IRIDESCENCE
 #define IRIDESCENCE IRIDESCENCE_BELCOUR_RGB
 #endif

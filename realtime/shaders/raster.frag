@@ -70,6 +70,26 @@ uniform float ao_strength;
 // specular_aa = prefiltered: var(s_x) + var(s_y) of the normal map's slopes per mip (R), read with the
 // normal map's coordinates.
 uniform sampler2D tex_normal_var;
+#ifdef MATERIAL_LOBES
+// The glTF PBR extensions' lobes (material_lobes.glsl), in lobe programs only: the material's factor
+// rows (realtime.material_lobes.LOBE_ROW_LAYOUT; row 3's w the film's thickness minimum) and its lobe
+// textures, slot k of realtime.material_lobes.LOBE_TEXTURE_SLOTS (clearcoat R, clearcoatRoughness G,
+// clearcoatNormal, sheenColor RGB (sRGB), sheenRoughness A, specular A, specularColor RGB (sRGB),
+// anisotropy RG direction B strength, iridescence R, iridescenceThickness G), each with its texCoord,
+// KHR_texture_transform and mirror folds as the core slots.
+#define LOBE_SLOTS 10
+uniform vec4 lobe_p0;
+uniform vec4 lobe_p1;
+uniform vec4 lobe_p2;
+uniform vec4 lobe_p3;
+uniform float lobe_coat_normal_scale;
+uniform sampler2D tex_lobe[LOBE_SLOTS];
+uniform int lobe_has[LOBE_SLOTS];
+uniform int lobe_set[LOBE_SLOTS];
+uniform mat3 lobe_xf[LOBE_SLOTS];
+uniform int lobe_mirror[LOBE_SLOTS];
+#define LOBE_SLOT(k, fallback) lookup(tex_lobe[k], lobe_has[k], lobe_set[k], lobe_xf[k], lobe_mirror[k], fallback, TEXTURE_LOD0 != 0)
+#endif
 
 #if AOV_PASS
 layout(location = 0) out vec4 out_aov;     // N.xyz, NdotV
@@ -170,6 +190,41 @@ void main() {
     if (normal_mapped) roughness = hook_specular_aa(roughness, normal_length, normal_map_lod());
 #elif SPECULAR_AA != SPECULAR_AA_NONE
     roughness = specular_aa(roughness, normal_length, normal_var, dn2);
+#endif
+#ifdef MATERIAL_LOBES
+    {
+        // the frame of the lobes' textures and directions: the vertex tangent against the interpolated
+        // normal (any perpendicular where the mesh has none), B = w (N x T)
+        vec3 Tl = v_tan.xyz - dot(v_tan.xyz, N) * N;
+        if (back) Tl = -Tl;
+        float ltl = length(Tl);
+        Tl = ltl > 1e-8 ? Tl / ltl : normalize(cross(abs(N.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0), N));
+        vec3 Bl = (back ? -v_tan.w : v_tan.w) * cross(N, Tl);
+        vec4 p0 = lobe_p0, p1 = lobe_p1, p2 = lobe_p2, p3 = lobe_p3;
+        p0.x *= LOBE_SLOT(0, vec4(1.0)).r;
+        p0.y *= LOBE_SLOT(1, vec4(1.0)).g;
+        p1.rgb *= LOBE_SLOT(3, vec4(1.0)).rgb;
+        p0.z *= LOBE_SLOT(4, vec4(1.0)).a;
+        p0.w *= LOBE_SLOT(5, vec4(1.0)).a;
+        p2.rgb *= LOBE_SLOT(6, vec4(1.0)).rgb;
+        vec3 at = LOBE_SLOT(7, vec4(1.0, 0.5, 1.0, 1.0)).rgb;   // absent: direction +X, strength 1
+        p1.w *= at.b;
+        p3.x *= LOBE_SLOT(8, vec4(1.0)).r;
+        if (lobe_has[9] != 0) p3.z = mix(p3.w, p3.z, LOBE_SLOT(9, vec4(1.0)).g);
+        vec2 dir = at.rg * 2.0 - 1.0;
+        vec3 Ta = dir.x * Tl + dir.y * Bl;
+        Ta = length(Ta) > 1e-8 ? normalize(Ta) : Tl;
+        g_lobes = lobes_from_rows(p0, p1, p2, p3, n, Ta);
+        // the coat's normal: clearcoatNormalTexture in the same frame, else the geometric normal (the
+        // base's normal map does not reach the coat: KHR_materials_clearcoat)
+        if (lobe_has[2] != 0) {
+            vec3 tc = LOBE_SLOT(2, vec4(0.5, 0.5, 1.0, 1.0)).xyz * 2.0 - 1.0;
+            tc.xy *= lobe_coat_normal_scale;
+            g_lobes.coat_n = normalize(mat3(Tl, Bl, N) * tc);
+        } else {
+            g_lobes.coat_n = N;
+        }
+    }
 #endif
     uvec2 px = uvec2(gl_FragCoord.xy);
     uint seed = px.y * 65536u + px.x;

@@ -17,6 +17,10 @@ struct Obj { vec4 a; vec4 b; vec4 c; vec4 d; vec4 e; vec4 f; };
 // d: bitangent.xyz, size.y; e: base_color.rgb, metallic; f: roughness, specular, id, 0
 layout(std430, binding = 0) readonly buffer Objects { Obj objs[]; };
 uniform int n_objects;
+#ifdef MATERIAL_LOBES
+// 4 vec4 per object (material_lobes.glsl lobes_from_rows; realtime.material_lobes.object_lobe_rows)
+layout(std430, binding = 3) readonly buffer ObjectLobes { vec4 obj_lobes[]; };
+#endif
 uniform vec3 cam_origin;
 uniform vec3 cam_right;    // right * tan_x
 uniform vec3 cam_up;       // true_up * tan_y
@@ -85,6 +89,10 @@ vec3 normal_at(int k, vec3 p) {
 Surface surface_at(int k, vec3 p, vec3 v) {
     Obj ob = objs[k];
     vec3 n = normal_at(k, p);
+#ifdef MATERIAL_LOBES
+    g_lobes = lobes_from_rows(obj_lobes[4 * k], obj_lobes[4 * k + 1], obj_lobes[4 * k + 2], obj_lobes[4 * k + 3], n,
+                              ob.a.w < 0.5 ? sphere_tangent(n) : ob.c.xyz);
+#endif
     return Surface(p, n, v, ob.e.rgb, ob.e.a, ob.f.x, ob.f.y, 1.0, n);  // no occlusion, no normal map
 }
 

@@ -11,7 +11,9 @@
 //   integrand, without the split sum's v = n = r and product split: pbrcheck explain's v=n=r row).
 //   The surface's occlusion scales the diffuse image-based term (glTF 2.0 3.9.4) and
 //   specular_occlusion() and horizon_occlusion() (occlusion.glsl) the split-sum specular; the article
-//   compositions ignore both.
+//   compositions ignore both. MATERIAL_LOBES (defined only for scenes whose materials use a glTF
+//   PBR extension's lobe, realtime.material_lobes): material_lobes.glsl's specular, iridescence,
+//   anisotropy, sheen and coat around this composition (docs/realtime.md "Lobes in the renderer").
 // shade_article000:: article 000's PBR.frag (listings 1 and 4, with their mistakes).
 // shade_article001:: runtime importance sampling of the environment (article 001).
 // shade_article002:: article 002's lerp composition with EnvBRDFApprox.
@@ -25,6 +27,9 @@
 #include "energy.glsl"
 #include "lights.glsl"
 #include "occlusion.glsl"
+#ifdef MATERIAL_LOBES
+#include "material_lobes.glsl"
+#endif
 
 layout(std430, binding = 1) readonly buffer Lights { vec4 lights[]; };  // 3 vec4 per light (lights.glsl)
 uniform int n_lights;
@@ -63,7 +68,11 @@ struct Shading {
 // (energy.glsl) or the user's hook_energy_compensation scaling the specular lobe as for the IBL.
 vec3 light_brdf_material(Shading c, vec3 l, float NoL) {
     Surface s = c.s;
+#ifdef LOBE_SPECULAR
+    vec3 f = lobes_brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#else
     vec3 f = brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#endif
 #if defined(HOOK_ENERGY_COMPENSATION) && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
     // The user's compensation factor scales the point light's specular lobe as it does the IBL's.
     f += (hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) - 1.0)
@@ -144,6 +153,9 @@ vec3 add_point_lights(vec3 color, Shading c) {
         if (int(pos_type.w) == LIGHT_SPOT) I *= spot_attenuation(dot(dir.xyz, -l), intensity.w, dir.w);
         vec3 f = light_brdf(c, l, NoL);
         color += f * I * (NoL / d2);
+#ifdef MATERIAL_LOBES
+        lobes_add_light(c.s.n, c.s.v, l, I / d2);   // the sheen's and the coat's lobes (material_lobes.glsl)
+#endif
     }
     return color;
 }
@@ -151,11 +163,28 @@ vec3 add_point_lights(vec3 color, Shading c) {
 vec3 shade_material(Shading c, uint pixel_seed) {
     Surface s = c.s;
     vec3 color = vec3(0.0);
+#ifdef MATERIAL_LOBES
+    // the lobes (material_lobes.glsl): KHR_materials_specular's dielectric F0 / F90, the anisotropic
+    // lookup direction
+    vec3 diel_f0;
+    float diel_f90;
+    lobes_begin();
+    lobes_dielectric(s.specular, diel_f0, diel_f90);
+    c.F0 = mix(diel_f0, s.base_color, s.metallic);
+    float F90 = specular_f90_blend(diel_f90, s.metallic);
+    c.r = lobes_reflection(c.r, s.n, s.v, c.roughness);
+#else
     c.F0 = mix(vec3(s.specular), s.base_color, s.metallic);
+#endif
 #if FRESNEL == FRESNEL_SCHLICK
 #ifdef METALLIC_BLEND_GLTF
     // glTF's blend (brdf.glsl): the diffuse under the dielectric's own Fresnel, F0 = specular
+#ifdef MATERIAL_LOBES
+    // KHR_materials_specular: the diffuse under 1 - max3 of the dielectric's F0 (= specular when neutral)
+    vec3 kd = (1.0 - vec3(lobes_max3(diel_f0))) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#else
     vec3 kd = (1.0 - vec3(s.specular)) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
+#endif
 #else
     vec3 kd = (1.0 - c.F0) * texture(kd_lut, vec2(c.NoV, 0.5)).r;
 #endif
@@ -170,7 +199,9 @@ vec3 shade_material(Shading c, uint pixel_seed) {
     color += runtime_specular(s.n, s.v, c.roughness, c.F0, pixel_seed);
 #else
     c.AB = dfg(c.NoV, c.roughness);
-#if FRESNEL == FRESNEL_SCHLICK
+#if FRESNEL == FRESNEL_SCHLICK && defined(MATERIAL_LOBES)
+    vec3 spec_albedo = lobes_spec_albedo(c.F0, F90, c.NoV, c.AB);
+#elif FRESNEL == FRESNEL_SCHLICK
     vec3 spec_albedo = c.F0 * c.AB.x + c.AB.y;
 #else
     vec3 spec_albedo = vec3(c.AB.x + c.AB.y);
@@ -190,7 +221,12 @@ vec3 shade_material(Shading c, uint pixel_seed) {
 #endif
     // glTF 2.0 (3.9.4): the occlusion texture scales the indirect diffuse light.
     color += (1.0 - s.metallic) * s.base_color * kd * irradiance_over_pi(s.n) * s.occlusion;
+#ifdef MATERIAL_LOBES
+    // sheen and coat over the lit base (material_lobes.glsl)
+    return lobes_layer(add_point_lights(color, c), s.n, s.v, c.NoV);
+#else
     return add_point_lights(color, c);
+#endif
 }
 
 // Article 000, listing 4 (IBL): F = F_Schlick(n.v), kD = (1 - F)(1 - metallic),
