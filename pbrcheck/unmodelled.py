@@ -42,6 +42,7 @@ from pathlib import Path
 
 from .fmt import terminal_safe
 from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
+from .transmission_params import scene_features as transmission_scene_features
 
 
 @dataclass(frozen=True)
@@ -182,7 +183,7 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     analytic: dict[str, list] = {}
     for o in getattr(scene, "objects", ()):
         if getattr(o, "type", "") in ("sphere", "plane"):
-            for f in scene_features(o.material):
+            for f in (*scene_features(o.material), *transmission_scene_features(o.material)):
                 if f not in MODELLED_LOBE_EXTENSIONS:
                     analytic.setdefault(f, []).append(o)
     for f, objs in analytic.items():
