@@ -146,9 +146,11 @@ class MicrofacetGGX:
         self.smooth = self.alpha < SMOOTH_ALPHA
 
     def D(self, h):
+        # cos^2 (a^2 - 1) + 1 in the stable form sin^2 + cos^2 a^2 (sin^2 = h.x^2 + h.y^2): float32 loses
+        # a^2 to cancellation near the normal otherwise (reference.terms' forms)
         a2 = self.alpha * self.alpha
         c = h[..., 2]
-        t = c * c * (a2 - 1.0) + 1.0
+        t = np.maximum(h[..., 0] ** 2 + h[..., 1] ** 2 + c * c * a2, 1e-150)   # h = 0: no microfacet
         return np.where(c > 0.0, a2 / (PI * t * t), 0.0)
 
     def Lambda(self, w):
