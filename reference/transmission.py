@@ -454,7 +454,9 @@ def shape_fields(obj, brdf) -> dict:
     m = obj.material
     if is_volume(obj) and m.attenuation_distance > 0.0:
         sigma = [-math.log(max(c, MIN_ATTENUATION_COLOR)) / m.attenuation_distance for c in m.attenuation_color]
-        out["interior"] = {"type": "homogeneous", "albedo": 0.0, "sigma_t": {"type": "rgb", "value": sigma}}
+        peak = max(max(sigma), 1e-12)   # Mitsuba's rgb value lies in [0, 1]: sigma_t / peak, times scale = peak
+        out["interior"] = {"type": "homogeneous", "albedo": 0.0, "scale": peak,
+                           "sigma_t": {"type": "rgb", "value": [x / peak for x in sigma]}}
     return out
 
 

@@ -120,3 +120,99 @@ def test_local_mode_refuses_a_transmissive_object_in_one_line(R):
                                    "reference's local mode") and "\n" not in str(e.value)
     R.check_local(scene_from_dict({"environment": {"type": "constant"}, "objects": [
         {"type": "sphere", "center": [0, 0, 0], "radius": 1}]}))   # an opaque scene passes
+
+
+# ---- path mode: known answers ------------------------------------------------------------------------
+
+#: Standard deviations a rendered mean may sit from its known answer (tests/test_reference_render.py's Z).
+Z = 5.0
+#: A sky whose sun lies behind the camera: a sheet that reflects shows it (the sky without the sun is
+#: symmetric in z, so its mirror image through a sheet facing the camera equals what lies behind it).
+SUN_BEHIND = {"type": "sky", "sun_direction": [0.1, 0.15, 0.98], "sun_angular_diameter": 20.0,
+              "sun_radiance": [4, 4, 3.5], "resolution": [128, 64]}
+PATH = dict(mode="path", max_depth=8, progress=False, seed=1)
+
+
+def _sheet(center, normal=(0, 0, 1), **material):
+    from pbrcheck.scene import scene_from_dict as sfd
+
+    m = {"transmission": 1.0, "specular": 0.0, "roughness": 0.0, "metallic": 0.0, "base_color": [1, 1, 1]} | material
+    return sfd({"camera": {"origin": [0, 0, 4], "fov": 40, "width": 16, "height": 16}, "environment": SUN_BEHIND,
+                "objects": [{"type": "plane", "center": list(center), "normal": list(normal), "size": [4, 4],
+                             "material": m}]})
+
+
+def test_thin_sheet_of_transmission_one_and_ior_one_is_invisible(R):
+    """A thin-walled sheet (transmission 1, IOR 1: specular F0 0, roughness 0) filling the view renders
+    the environment behind it: the image equals the same scene with the sheet out of view (its only
+    reflection is Schlick's (1 - n.v)^5 < 1e-6 at these angles). The same sheet at IOR 1.5 shows the
+    sun behind the camera (the test can fail)."""
+    from reference.render import render_uncached
+
+    seen = render_uncached(_sheet((0, 0, 1)), spp=16, **PATH)
+    away = render_uncached(_sheet((50, 0, 0), (1, 0, 0)), spp=16, **PATH)
+    glass = render_uncached(_sheet((0, 0, 1), specular=0.04), spp=16, **PATH)
+    assert seen.channels["coverage"].min() == 1.0 and away.channels["coverage"].max() == 0.0
+    for c in ("R", "G", "B"):
+        np.testing.assert_allclose(seen.channels[c], away.channels[c], atol=1e-5)
+        assert np.abs(glass.channels[c] - away.channels[c]).max() > 0.1
+        assert away.channels[c].std() > 0.1          # a structured environment, not a flat colour
+
+
+def _ball(ior_f0, size, fov, color=(0.5, 0.8, 0.2)):
+    from pbrcheck.scene import scene_from_dict as sfd
+
+    return sfd({"camera": {"origin": [0, 0, 4], "fov": fov, "width": size, "height": size},
+                "environment": {"type": "constant", "radiance": [1, 1, 1]},
+                "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": {
+                    "transmission": 1.0, "specular": ior_f0, "roughness": 0.0, "metallic": 0.0,
+                    "base_color": [1, 1, 1], "thickness": 1.0, "attenuation_distance": 1.0,
+                    "attenuation_color": list(color)}}]})
+
+
+def _mean_and_sd(img, c):
+    x = img.channels[c]
+    return float(x.mean()), float(np.sqrt(img.channels["variance." + c].sum()) / x.size)
+
+
+def test_attenuation_through_an_index_matched_ball_is_beer_lambert_along_each_chord(R):
+    """IOR 1 (no refraction) ball of radius 1, attenuation colour c at distance 1, constant white
+    environment: each camera ray keeps ``c^chord`` with ``chord = 2 sqrt(1 - b^2)`` at its distance b
+    from the centre (Beer-Lambert along the path travelled); expected per pixel over its area."""
+    from pbrcheck.camera import primary_rays
+    from reference.render import render_uncached
+
+    s = _ball(0.0, 8, 20.0)
+    img = render_uncached(s, spp=256, **PATH)
+    g = (np.arange(8) + 0.5) / 8
+    want = np.zeros((8, 8, 3))
+    for ox in g:
+        for oy in g:
+            o, d = primary_rays(s.camera, (ox, oy))
+            t = -(d @ o)                                          # closest approach to the centre
+            b2 = np.maximum(o @ o - t * t, 0.0)
+            chord = np.where(b2 < 1.0, 2.0 * np.sqrt(np.maximum(1.0 - b2, 0.0)), 0.0)
+            want += np.power(np.array([0.5, 0.8, 0.2]), chord[..., None]) / 64
+    assert want.min() < 0.1 and (want < 1).all()       # every pixel sees through the ball
+    for k, c in enumerate("RGB"):
+        got, sd = _mean_and_sd(img, c)
+        assert abs(got - want[..., k].mean()) <= Z * sd + 1e-3, (c, got, want[..., k].mean(), sd)
+        sd_px = np.sqrt(img.channels["variance." + c])                # per pixel: its own noise (volpath's walk)
+        assert np.all(np.abs(img.channels[c] - want[..., k]) <= Z * sd_px + 1e-3)
+
+
+def test_attenuation_through_a_glass_ball_equals_the_slab_closed_form(R):
+    """IOR 1.5, the centre of the ball (a narrow camera: every ray within 0.04 of the axis): the
+    internal reflections stay on the diameter, so the pixel is the slab of thickness 2 in a white
+    environment: ``R + (1 - R)^2 a / (1 - R^2 a^2) + (1 - R)^2 R a^2 / (1 - R^2 a^2)`` (front reflection,
+    all orders through, all orders back out), ``a = c^2``, ``R`` = F0 = 0.04."""
+    from pbrcheck.transmission import slab_transmittance
+    from reference.render import render_uncached
+
+    img = render_uncached(_ball(0.04, 4, 1.0), spp=1024, **PATH)
+    for k, c in enumerate("RGB"):
+        a = (0.5, 0.8, 0.2)[k] ** 2
+        Rf = 0.04
+        want = Rf + slab_transmittance(1.5, -np.log((0.5, 0.8, 0.2)[k]), 2.0) + (1 - Rf) ** 2 * Rf * a * a / (1 - Rf * Rf * a * a)
+        got, sd = _mean_and_sd(img, c)
+        assert abs(got - want) <= Z * sd + 2e-3, (c, got, want, sd)
