@@ -140,6 +140,9 @@ class DiffuseTransmission:
 TRANSMISSION_EXTENSIONS = {TRANSMISSION: ("transmission", Transmission), VOLUME: ("volume", Volume),
                            DISPERSION: ("dispersion", Dispersion),
                            DIFFUSE_TRANSMISSION: ("diffuse_transmission", DiffuseTransmission)}
+#: The extensions the reference renders (its ``path`` mode, analytic objects;
+#: ``reference.transmission.REFERENCE_TRANSMISSION_EXTENSIONS`` is this tuple): check-scene's wording.
+REFERENCE_RENDERED = (TRANSMISSION, VOLUME, DIFFUSE_TRANSMISSION)
 #: Texture slot -> the channels the extension reads (its README).
 TEXTURE_CHANNELS = {"transmission": "R", "thickness": "G", "diffuseTransmission": "A",
                     "diffuseTransmissionColor": "RGB"}
@@ -343,6 +346,10 @@ def scene_transmission_lines(scene) -> list[str]:
     out = []
     for o in scene.objects:
         if getattr(o, "type", "") in ("sphere", "plane") and scene_features(o.material):
-            out.append(f"# object {o.id} {o.name}: transmission {describe_transmission(o.material)} "
-                       f"({', '.join(scene_features(o.material))}: parsed, not yet rendered)")
+            feats = scene_features(o.material)
+            drawn = [f for f in feats if f in REFERENCE_RENDERED]
+            state = (f"{', '.join(drawn)}: the reference's path mode only, not yet real time" if drawn else "")
+            rest = [f for f in feats if f not in REFERENCE_RENDERED]
+            state += ("; " if drawn and rest else "") + (f"{', '.join(rest)}: parsed, not yet rendered" if rest else "")
+            out.append(f"# object {o.id} {o.name}: {describe_transmission(o.material)} ({state})")
     return out

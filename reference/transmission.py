@@ -41,7 +41,7 @@ import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
 from pbrcheck.transmission import SMOOTH_ALPHA
-from pbrcheck.transmission_params import DIFFUSE_TRANSMISSION, TRANSMISSION, VOLUME
+from pbrcheck.transmission_params import REFERENCE_RENDERED
 
 import drjit as dr
 import mitsuba as mi
@@ -51,7 +51,7 @@ PLUGIN_NAME = "pbr_transmissive"
 #: The extensions the reference renders (path mode, the scene files' analytic objects): what the
 #: honesty contract needs before :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` may list them
 #: is the real-time side too (issue 37 item 2). ``KHR_materials_dispersion`` is not among them.
-REFERENCE_TRANSMISSION_EXTENSIONS = (TRANSMISSION, VOLUME, DIFFUSE_TRANSMISSION)
+REFERENCE_TRANSMISSION_EXTENSIONS = REFERENCE_RENDERED
 #: The attenuation colour's floor in ``sigma_t = -ln(c) / d``: a channel of colour 0 absorbs all (inf);
 #: Mitsuba's medium needs a finite sigma_t: 1e-6 leaves exp(-13.8) = 1e-6 after one attenuation distance.
 MIN_ATTENUATION_COLOR = 1e-6

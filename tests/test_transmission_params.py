@@ -198,4 +198,22 @@ def test_check_scene_lists_an_analytic_objects_transmission(tmp_path, capsys):
     p.write_text(dump_toml(scene_from_dict(_scene([{"transmission": 1.0, "thickness": 0.5}])).to_dict()))
     assert main(["check-scene", str(p)]) == 0
     out = capsys.readouterr().out
-    assert f"# object 0 sphere0: transmission transmission 1.0, thickness 0.5 ({TR}, {VO}: parsed, not yet rendered)" in out
+    assert f"# object 0 sphere0: transmission 1.0, thickness 0.5 ({TR}, {VO}: the reference's path mode only, " \
+           "not yet real time)" in out
+    p.write_text(dump_toml(scene_from_dict(_scene([{"diffuse_transmission": 0.5, "dispersion": 0.3}])).to_dict()))
+    assert main(["check-scene", str(p)]) == 0
+    assert f"({DT}: the reference's path mode only, not yet real time; {DI}: parsed, not yet rendered)" \
+           in capsys.readouterr().out
+
+
+def test_builtin_glass_scene():
+    from pbrcheck.scene import load_scene
+
+    s = load_scene("glass")
+    glass = [o for o in s.objects if o.type == "sphere"]
+    assert len(glass) == 6 and all(o.material.transmission == 1.0 and o.material.thickness > 0 for o in glass)
+    assert {o.material.roughness for o in glass} == {0.0, 0.15, 0.4}
+    assert sum(o.material.attenuation_distance > 0 for o in glass) == 3
+    ground = [o for o in s.objects if o.type == "plane"]
+    assert len(ground) == 64 and len({o.material.base_color for o in ground}) == 2   # the checkered ground
+    assert [u.feature for u in s.unmodelled] == [TR, VO]
