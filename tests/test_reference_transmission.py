@@ -216,3 +216,29 @@ def test_attenuation_through_a_glass_ball_equals_the_slab_closed_form(R):
         want = Rf + slab_transmittance(1.5, -np.log((0.5, 0.8, 0.2)[k]), 2.0) + (1 - Rf) ** 2 * Rf * a * a / (1 - Rf * Rf * a * a)
         got, sd = _mean_and_sd(img, c)
         assert abs(got - want) <= Z * sd + 2e-3, (c, got, want, sd)
+
+
+def _furnace_ball(roughness):
+    from pbrcheck.scene import scene_from_dict as sfd
+
+    return sfd({"camera": {"origin": [0, 0, 4], "fov": 12, "width": 8, "height": 8},
+                "environment": {"type": "constant", "radiance": [1, 1, 1]},
+                "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": {
+                    "transmission": 1.0, "specular": 0.04, "roughness": roughness, "metallic": 0.0,
+                    "base_color": [1, 1, 1], "thickness": 1.0}}]})
+
+
+def test_white_glass_ball_in_a_white_furnace(R):
+    """A white, non-absorbing glass ball (IOR 1.5, a volume) in a constant white environment, the
+    ball's centre filling the view: smooth, it disappears (every path leaves with weight 1: the
+    radiance factors (eta_v / eta_l)^2 cancel on the way out; 16 bounces leave < 1e-3 inside); rough,
+    it is darker (the single-scattering microfacets' loss per crossing, docs/reference.md), never brighter."""
+    from reference.render import render_uncached
+
+    smooth = render_uncached(_furnace_ball(0.0), spp=64, **(PATH | {"max_depth": 16}))
+    rough = render_uncached(_furnace_ball(0.6), spp=256, **(PATH | {"max_depth": 16}))
+    assert smooth.channels["coverage"].min() == 1.0
+    for c in ("R", "G", "B"):
+        np.testing.assert_allclose(smooth.channels[c], 1.0, atol=2e-3)
+        got, sd = _mean_and_sd(rough, c)
+        assert 0.5 < got < 1.0 - Z * sd, (got, sd)
