@@ -28,6 +28,7 @@ internal reflection), :func:`refract`, :func:`beer_lambert`, :func:`slab_transmi
 boundary, [Walter07]); :class:`ThinDielectric` ([Trans] "Transmission BTDF": the specular lobe and
 the thin-walled ``specular_btdf`` = the same lobe mirrored through the surface);
 :class:`DiffuseBTDF` ([DiffTrans]); :func:`dispersion_iors` (the IOR at wavelengths, [Disp]),
+:data:`FRAUNHOFER_RGB_NM` and :func:`channel_iors` (the reference's per-channel IORs),
 :data:`SPECTRAL_RANGE_NM` and :func:`spectral_rgb_weights` (per-wavelength RGB weights from the CIE
 1931 colour matching functions: a flat spectrum gives (1, 1, 1)).
 
@@ -69,10 +70,14 @@ PI = np.pi
 SMOOTH_ALPHA = 1e-3
 #: Wavelengths of the spectral estimates (nm): the CIE table's range.
 SPECTRAL_RANGE_NM = (380.0, 780.0)
+#: The wavelengths (nm) at which the reference's RGB channels refract a dispersive volume: Fraunhofer's
+#: C (red), d (yellow, where ``ior`` is given) and F (blue) lines, the three of the Abbe number's
+#: definition in [Disp] (``V_d = (n_d - 1) / (n_F - n_C)``).
+FRAUNHOFER_RGB_NM = (656.3, 587.6, 486.1)
 
 __all__ = ["SMOOTH_ALPHA", "SPECTRAL_RANGE_NM", "f0_from_ior", "fresnel_dielectric", "refract", "beer_lambert",
            "slab_transmittance", "MicrofacetGGX", "RoughDielectric", "ThinDielectric", "DiffuseBTDF",
-           "dispersion_iors", "spectral_rgb_weights"]
+           "dispersion_iors", "FRAUNHOFER_RGB_NM", "channel_iors", "spectral_rgb_weights"]
 
 
 def _dot(a, b):
@@ -357,6 +362,12 @@ def dispersion_iors(ior: float, dispersion: float, wavelengths_nm):
     """[Disp]: the IOR at each wavelength (nm), clamped at 1 (``ior`` where ``dispersion`` is 0)."""
     lam = np.asarray(wavelengths_nm, dtype=np.float64)
     return np.maximum(dispersion_ior(float(ior), float(dispersion), lam), 1.0)
+
+
+def channel_iors(ior: float, dispersion: float) -> tuple[float, float, float]:
+    """The (R, G, B) IORs of a dispersive volume: :func:`dispersion_iors` at :data:`FRAUNHOFER_RGB_NM`
+    (``n_F - n_C = (n_d - 1) / V_d`` exactly; G is ``ior`` to the Cauchy fit's 2e-4)."""
+    return tuple(float(n) for n in dispersion_iors(ior, dispersion, FRAUNHOFER_RGB_NM))  # type: ignore[return-value]
 
 
 def spectral_rgb_weights(wavelengths_nm):

@@ -142,7 +142,7 @@ TRANSMISSION_EXTENSIONS = {TRANSMISSION: ("transmission", Transmission), VOLUME:
                            DIFFUSE_TRANSMISSION: ("diffuse_transmission", DiffuseTransmission)}
 #: The extensions the reference renders (its ``path`` mode, analytic objects;
 #: ``reference.transmission.REFERENCE_TRANSMISSION_EXTENSIONS`` is this tuple): check-scene's wording.
-REFERENCE_RENDERED = (TRANSMISSION, VOLUME, DIFFUSE_TRANSMISSION)
+REFERENCE_RENDERED = (TRANSMISSION, VOLUME, DISPERSION, DIFFUSE_TRANSMISSION)
 #: Texture slot -> the channels the extension reads (its README).
 TEXTURE_CHANNELS = {"transmission": "R", "thickness": "G", "diffuseTransmission": "A",
                     "diffuseTransmissionColor": "RGB"}

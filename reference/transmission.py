@@ -21,9 +21,13 @@ the ray travels: Mitsuba's ``volpath`` with a ``homogeneous`` medium of ``sigma_
 metal's reflection, the dielectric interface (:meth:`RoughDielectric.sample` / :meth:`ThinDielectric.sample`),
 the diffuse reflection and the diffuse transmission (cosine), each chosen with a probability of its
 albedo at ``n.v``; ``eval`` / ``pdf`` are the exact mixture's, the delta lobes (roughness below
-``pbrcheck.transmission.SMOOTH_ALPHA``) weighted by their discrete probability. Dispersion is not
-rendered here (the dispersion scene fields stay named as unmodelled; :func:`pbrcheck.transmission.dispersion_iors`
-and ``spectral_rgb_weights`` are the spectral estimator's parts).
+``pbrcheck.transmission.SMOOTH_ALPHA``) weighted by their discrete probability. ``dispersion`` (a
+volume's, ``KHR_materials_dispersion``): each RGB channel refracts with its own IOR, the README's Cauchy
+form at Fraunhofer's C, d and F lines (:func:`pbrcheck.transmission.channel_iors`); ``eval`` is each
+channel's interface per channel, sampling picks a channel uniformly (the pdf the channels' mean), and a
+delta refraction carries its channel alone (weight 3 e_k: the other channels' deltas lie elsewhere).
+Unbiased per channel, three wavelengths rather than a spectrum (:func:`pbrcheck.transmission.spectral_rgb_weights`
+is the spectral estimator's part, which needs a wavelength per path that Mitsuba's RGB ``path`` does not carry).
 
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
 :func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
@@ -40,7 +44,7 @@ import math
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
-from pbrcheck.transmission import SMOOTH_ALPHA
+from pbrcheck.transmission import SMOOTH_ALPHA, channel_iors
 from pbrcheck.transmission_params import REFERENCE_RENDERED
 
 import drjit as dr
@@ -50,7 +54,7 @@ PI = math.pi
 PLUGIN_NAME = "pbr_transmissive"
 #: The extensions the reference renders (path mode, the scene files' analytic objects): what the
 #: honesty contract needs before :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` may list them
-#: is the real-time side too (issue 37 item 2). ``KHR_materials_dispersion`` is not among them.
+#: is the real-time side too (issue 37 item 2). Dispersion: three wavelengths (the class docstring).
 REFERENCE_TRANSMISSION_EXTENSIONS = REFERENCE_RENDERED
 #: The attenuation colour's floor in ``sigma_t = -ln(c) / d``: a channel of colour 0 absorbs all (inf);
 #: Mitsuba's medium needs a finite sigma_t: 1e-6 leaves exp(-13.8) = 1e-6 after one attenuation distance.
@@ -303,7 +307,14 @@ class TransmissiveMaterial(mi.BSDF):
         self.dt = float(get("diffuse_transmission", 0.0))
         self.dt_color = mi.Color3f(*[float(x) for x in get("diffuse_transmission_color", [1.0, 1.0, 1.0])])
         self.volume = bool(get("volume", False))
-        self.iface = RoughDielectric(self.roughness, self.ior) if self.volume else ThinDielectric(self.roughness, self.ior)
+        self.dispersion = float(get("dispersion", 0.0))
+        # KHR_materials_dispersion (a volume's, [Disp]): one interface per RGB channel at its Fraunhofer
+        # line's IOR (pbrcheck.transmission.channel_iors); one interface otherwise
+        self.iors = (channel_iors(self.ior, self.dispersion) if self.volume and self.dispersion > 0.0 and self.ior > 1.0
+                     else (self.ior,))
+        self.ifaces = ([RoughDielectric(self.roughness, n) for n in self.iors] if self.volume
+                       else [ThinDielectric(self.roughness, self.ior)])
+        self.iface = self.ifaces[0]
         self.spec = ThinDielectric(self.roughness, self.ior)          # the metal's reflection lobe
         self.f0 = _f0(self.ior)
         smooth = self.iface.ggx.smooth
@@ -338,7 +349,11 @@ class TransmissiveMaterial(mi.BSDF):
         lr = dr.select(same, l, _mirror(l))
         f_spec, p_spec, vh = self.spec.lobe(v, lr)
         metal = dr.select(same, _schlick(vh, self.base_color) * f_spec, 0.0) if not self.spec.ggx.smooth else mi.Color3f(0.0)
-        iface = self.iface.eval(v, l)
+        if len(self.ifaces) == 1:
+            iface, iface_pdf = self.iface.eval(v, l), self.iface.pdf(v, l)
+        else:   # each channel its own interface; sampled by a channel chosen uniformly: the mean pdf
+            iface = mi.Color3f(*[f.eval(v, l) for f in self.ifaces])
+            iface_pdf = sum(f.pdf(v, l) for f in self.ifaces) / 3.0
         tint = dr.select(same, mi.Color3f(1.0), t * self.base_color)
         Fd = _schlick(vh, self.f0)
         cos_l = dr.abs(l.z) / PI
@@ -346,7 +361,7 @@ class TransmissiveMaterial(mi.BSDF):
         value = m * metal + (1.0 - m) * (iface * tint + (1.0 - Fd) * (1.0 - t) * diff)
         pm, pi, pd, pdt = self._probs(v)
         p_metal = 0.0 if self.spec.ggx.smooth else dr.select(same, p_spec, 0.0)
-        pdf = pm * p_metal + pi * self.iface.pdf(v, l) + pd * dr.select(same, cos_l, 0.0) + pdt * dr.select(same, 0.0, cos_l)
+        pdf = pm * p_metal + pi * iface_pdf + pd * dr.select(same, cos_l, 0.0) + pdt * dr.select(same, 0.0, cos_l)
         return value, pdf
 
     def eval(self, ctx, si, wo, active=True):
@@ -366,7 +381,14 @@ class TransmissiveMaterial(mi.BSDF):
         c1, c2, c3 = pm, pm + pi, pm + pi + pd
         use_m, use_i, use_d = sample1 < c1, (sample1 >= c1) & (sample1 < c2), (sample1 >= c2) & (sample1 < c3)
         uc = dr.clip((sample1 - c1) / dr.maximum(pi, 1e-30), 0.0, 0.99999994)   # the interface's own choice
-        l_i, w_i, _, delta_i = self.iface.sample(v, sample2, uc)
+        k = mi.UInt32(0)
+        if len(self.ifaces) == 1:
+            l_i, w_i, _, delta_i = self.iface.sample(v, sample2, uc)
+        else:   # the channel k from uc's first third, its own choice from the rest (still uniform)
+            k = mi.UInt32(dr.minimum(mi.UInt32(uc * 3.0), 2))
+            uk = dr.clip(uc * 3.0 - mi.Float(k), 0.0, 0.99999994)
+            s3 = [f.sample(v, sample2, uk) for f in self.ifaces]
+            l_i, w_i, _, delta_i = (dr.select(k == 0, s3[0][j], dr.select(k == 1, s3[1][j], s3[2][j])) for j in range(4))
         h = mi.Vector3f(0.0, 0.0, 1.0) if self.spec.ggx.smooth else self.spec.ggx.sample_h(v, sample2)
         l_m = _reflect(v, dr.select(dr.dot(v, h) < 0.0, -h, h))
         cw = mi.warp.square_to_cosine_hemisphere(sample2)
@@ -378,17 +400,26 @@ class TransmissiveMaterial(mi.BSDF):
         # the delta lobes: the metal's and the interface's mirror share one direction
         smooth = self.iface.ggx.smooth
         delta = (use_i & delta_i) | (use_m & smooth)
-        F_i = fresnel_dielectric(mi.Float(v.z), self.ior, self.f0) if self.volume else _schlick(v.z, self.f0)
+        if self.volume:
+            F_c = [fresnel_dielectric(mi.Float(v.z), f.eta, f.f0) for f in self.ifaces]
+            F_i = mi.Color3f(*F_c) if len(F_c) == 3 else mi.Color3f(F_c[0])
+        else:
+            F_i = mi.Color3f(_schlick(v.z, self.f0))
         mass_r = m * _schlick(dr.abs(v.z), self.base_color) + (1.0 - m) * F_i
-        prob_r = pm + pi * F_i
-        mass_t = (1.0 - m) * t * self.base_color * w_i   # w_i: the lobe's value over its own choice's probability
+        prob_r = pm + pi * _mean(F_i)
+        # w_i: the lobe's value over its own choice's probability; a dispersive refraction carries its
+        # channel only, chosen with probability 1/3 (each channel's delta lies elsewhere)
+        chan = mi.Color3f(1.0) if len(self.ifaces) == 1 else 3.0 * mi.Color3f(
+            dr.select(k == 0, 1.0, 0.0), dr.select(k == 1, 1.0, 0.0), dr.select(k == 2, 1.0, 0.0))
+        mass_t = (1.0 - m) * t * self.base_color * w_i * chan
         w_delta = dr.select(same, mass_r / dr.maximum(prob_r, 1e-30), mass_t / dr.maximum(pi, 1e-30))
         pdf_delta = dr.select(same, prob_r, pi)
         bs = dr.zeros(mi.BSDFSample3f)
         bs.wo = l
         bs.pdf = dr.select(delta, pdf_delta, pdf)
-        eta_v = dr.select(v.z > 0.0, 1.0, self.ior) if self.volume else mi.Float(1.0)
-        eta_l = dr.select(l.z > 0.0, 1.0, self.ior) if self.volume else mi.Float(1.0)
+        n_k = mi.Float(self.ior) if len(self.iors) == 1 else dr.select(k == 0, self.iors[0], dr.select(k == 1, self.iors[1], self.iors[2]))
+        eta_v = dr.select(v.z > 0.0, 1.0, n_k) if self.volume else mi.Float(1.0)
+        eta_l = dr.select(l.z > 0.0, 1.0, n_k) if self.volume else mi.Float(1.0)
         bs.eta = dr.select(same, 1.0, eta_l / eta_v)
         Fl = mi.BSDFFlags
         refl_t = mi.UInt32(+(Fl.DeltaReflection if smooth else Fl.GlossyReflection))
@@ -441,7 +472,8 @@ def material_dict(obj, brdf) -> dict:
     return {"type": PLUGIN_NAME, "base_color": list(m.base_color), "metallic": m.metallic,
             "roughness": max(m.roughness, brdf.roughness_floor), "ior": _ior_of(m), "transmission": m.transmission,
             "diffuse_transmission": m.diffuse_transmission,
-            "diffuse_transmission_color": list(m.diffuse_transmission_color), "volume": is_volume(obj)}
+            "diffuse_transmission_color": list(m.diffuse_transmission_color), "volume": is_volume(obj),
+            "dispersion": m.dispersion}
 
 
 def shape_fields(obj, brdf) -> dict:

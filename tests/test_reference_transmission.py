@@ -81,7 +81,8 @@ def _material(R, **kw):
 MATERIALS = [dict(transmission=1.0, roughness=0.4, ior=1.5, volume=True),
              dict(transmission=0.6, roughness=0.5, ior=1.5, base_color=[0.9, 0.5, 0.2], metallic=0.3),
              dict(transmission=0.0, diffuse_transmission=0.7, roughness=0.3, diffuse_transmission_color=[1.0, 0.2, 0.1]),
-             dict(transmission=0.5, diffuse_transmission=0.5, roughness=0.8, ior=1.33, volume=True)]
+             dict(transmission=0.5, diffuse_transmission=0.5, roughness=0.8, ior=1.33, volume=True),
+             dict(transmission=1.0, roughness=0.3, ior=1.5, volume=True, dispersion=0.6)]
 
 
 @pytest.mark.parametrize("kw", MATERIALS, ids=[f"m{k}" for k in range(len(MATERIALS))])
@@ -242,3 +243,59 @@ def test_white_glass_ball_in_a_white_furnace(R):
         np.testing.assert_allclose(smooth.channels[c], 1.0, atol=2e-3)
         got, sd = _mean_and_sd(rough, c)
         assert 0.5 < got < 1.0 - Z * sd, (got, sd)
+
+
+def test_dispersive_refraction_carries_one_channel_at_its_own_ior(R):
+    """KHR_materials_dispersion on a smooth volume: a refracted sample carries one channel k (weight
+    3 e_k times the radiance factor), its direction obeying Snell's law at that channel's IOR
+    (``channel_iors``: the README's Cauchy form at Fraunhofer's C, d, F lines); dispersion 0 is the
+    plain material."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from pbrcheck.transmission import channel_iors
+
+    bsdf = _material(R, transmission=1.0, roughness=0.0, ior=1.5, volume=True, dispersion=1.0)
+    n = 3000
+    mu = 0.6
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = mi.Vector3f(float(np.sqrt(1 - mu * mu)), 0.0, mu)
+    u = (np.arange(n) + 0.5) / n
+    bs, w = bsdf.sample(mi.BSDFContext(), si, mi.Float(u), mi.Point2f(0.3, 0.7))
+    wo, w = np.array(bs.wo).T, np.array(w).T
+    trans = wo[:, 2] < 0
+    iors = channel_iors(1.5, 1.0)
+    assert iors[2] > iors[1] > iors[0] and iors[1] == pytest.approx(1.5, abs=2e-4)
+    seen = set()
+    for k in range(3):
+        mine = trans & (w[:, k] > 0)
+        assert mine.sum() > n // 5
+        np.testing.assert_array_equal(np.delete(w[mine], k, axis=1), 0.0)       # the other channels carry nothing
+        sin_t = np.hypot(wo[mine, 0], wo[mine, 1])
+        np.testing.assert_allclose(sin_t, np.sqrt(1 - mu * mu) / iors[k], rtol=1e-5)  # Snell at n_k
+        np.testing.assert_allclose(w[mine, k], 3.0 / iors[k] ** 2, rtol=1e-5)        # 3 e_k (eta_v / eta_l)^2
+        seen.add(round(float(sin_t[0]), 5))
+    assert len(seen) == 3                                                         # three directions
+    plain = _material(R, transmission=1.0, roughness=0.0, ior=1.5, volume=True)
+    bs0, w0 = plain.sample(mi.BSDFContext(), si, mi.Float(u), mi.Point2f(0.3, 0.7))
+    assert np.all(np.array(w0)[:, np.array(bs0.wo)[2] < 0] > 0)                   # every channel, one direction
+
+
+def test_dispersive_glass_ball_in_a_white_furnace_is_unbiased(R):
+    """A smooth dispersive ball (dispersion 1, rough 0.3 too) in a white furnace: each channel's paths are
+    a smooth (rough) dielectric's at that channel's IOR, so the image is 1 (the rough one's losses) per
+    channel in expectation, within its noise (the channel choice's variance)."""
+    from pbrcheck.scene import scene_from_dict as sfd
+    from reference.render import render_uncached
+
+    def ball(r, disp):
+        return sfd({"camera": {"origin": [0, 0, 4], "fov": 12, "width": 8, "height": 8},
+                    "environment": {"type": "constant", "radiance": [1, 1, 1]},
+                    "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": {
+                        "transmission": 1.0, "specular": 0.04, "roughness": r, "base_color": [1, 1, 1],
+                        "thickness": 1.0, "dispersion": disp}}]})
+
+    smooth = render_uncached(ball(0.0, 1.0), spp=256, **(PATH | {"max_depth": 16}))
+    for c in ("R", "G", "B"):
+        got, sd = _mean_and_sd(smooth, c)
+        assert abs(got - 1.0) <= Z * sd + 1e-3 and sd > 1e-4, (c, got, sd)   # noisy (one channel per path), unbiased

@@ -322,3 +322,7 @@ def test_spectral_weights_integrate_to_white_and_dispersion_spreads_the_ior():
     n = T.dispersion_iors(1.5, 1.0, [450.0, 587.6, 650.0])
     assert n[0] > n[1] > n[2] and n[1] == pytest.approx(1.5, abs=2e-4)
     np.testing.assert_array_equal(T.dispersion_iors(1.5, 0.0, [450.0, 650.0]), [1.5, 1.5])
+    # the reference's channels: C, d, F lines; the Abbe number of the three is the one asked for
+    nR, nG, nB = T.channel_iors(1.5, 0.36)
+    assert (nG - 1.0) / (nB - nR) == pytest.approx(20.0 / 0.36, rel=1e-3) and nG == pytest.approx(1.5, abs=1e-4)
+    assert T.channel_iors(1.5, 0.0) == (1.5, 1.5, 1.5)

@@ -202,8 +202,7 @@ def test_check_scene_lists_an_analytic_objects_transmission(tmp_path, capsys):
            "not yet real time)" in out
     p.write_text(dump_toml(scene_from_dict(_scene([{"diffuse_transmission": 0.5, "dispersion": 0.3}])).to_dict()))
     assert main(["check-scene", str(p)]) == 0
-    assert f"({DT}: the reference's path mode only, not yet real time; {DI}: parsed, not yet rendered)" \
-           in capsys.readouterr().out
+    assert f"({DI}, {DT}: the reference's path mode only, not yet real time)" in capsys.readouterr().out
 
 
 def test_builtin_glass_scene():
