@@ -21,13 +21,14 @@ side of the microfacet, 1 past the critical angle (total internal reflection).
 
 API
 ---
-Constants :data:`SMOOTH_ALPHA`; :func:`f0_from_ior`, :func:`fresnel_dielectric` (Schlick with total
+Constants :data:`SMOOTH_ALPHA`, :data:`HALF_VECTOR_EPS`; :func:`f0_from_ior`, :func:`fresnel_dielectric` (Schlick with total
 internal reflection), :func:`refract`, :func:`beer_lambert`, :func:`slab_transmittance`;
 :class:`MicrofacetGGX` (D, Lambda, G1, G2, the visible-normal sampler on both sides);
 :class:`RoughDielectric` ([Volume] "Layering": the reflection and refraction of a dielectric
 boundary, [Walter07]); :class:`ThinDielectric` ([Trans] "Transmission BTDF": the specular lobe and
 the thin-walled ``specular_btdf`` = the same lobe mirrored through the surface);
-:class:`DiffuseBTDF` ([DiffTrans]); :func:`dispersion_iors` (the IOR at wavelengths, [Disp]),
+:class:`DiffuseBTDF` ([DiffTrans]); :class:`TransmissiveMaterial` (the glTF material of
+``reference.transmission``'s ``pbr_transmissive``: eval and pdf); :func:`dispersion_iors` (the IOR at wavelengths, [Disp]),
 :data:`FRAUNHOFER_RGB_NM` and :func:`channel_iors` (the reference's per-channel IORs),
 :data:`SPECTRAL_RANGE_NM` and :func:`spectral_rgb_weights` (per-wavelength RGB weights from the CIE
 1931 colour matching functions: a flat spectrum gives (1, 1, 1)).
@@ -68,6 +69,10 @@ PI = np.pi
 #: alpha < 1e-3): roughness < 0.0316. A GGX narrower than that holds its mass in a cone of 1e-3 rad,
 #: which no environment texel resolves, and its density (~1 / alpha^2) overflows float32's useful range.
 SMOOTH_ALPHA = 1e-3
+#: A generalized half vector within this of the horizon (``|h.z|``) is dropped: its orientation (which
+#: side it faces, hence whether v and l see it) is float32 rounding there; such microfacets are a set
+#: of measure zero of the pairs (v, l) (e.g. a refraction from inside at the critical angle's edge).
+HALF_VECTOR_EPS = 1e-5
 #: Wavelengths of the spectral estimates (nm): the CIE table's range.
 SPECTRAL_RANGE_NM = (380.0, 780.0)
 #: The wavelengths (nm) at which the reference's RGB channels refract a dispersive volume: Fraunhofer's
@@ -75,9 +80,9 @@ SPECTRAL_RANGE_NM = (380.0, 780.0)
 #: definition in [Disp] (``V_d = (n_d - 1) / (n_F - n_C)``).
 FRAUNHOFER_RGB_NM = (656.3, 587.6, 486.1)
 
-__all__ = ["SMOOTH_ALPHA", "SPECTRAL_RANGE_NM", "f0_from_ior", "fresnel_dielectric", "refract", "beer_lambert",
+__all__ = ["SMOOTH_ALPHA", "HALF_VECTOR_EPS", "SPECTRAL_RANGE_NM", "f0_from_ior", "fresnel_dielectric", "refract", "beer_lambert",
            "slab_transmittance", "MicrofacetGGX", "RoughDielectric", "ThinDielectric", "DiffuseBTDF",
-           "dispersion_iors", "FRAUNHOFER_RGB_NM", "channel_iors", "spectral_rgb_weights"]
+           "TransmissiveMaterial", "dispersion_iors", "FRAUNHOFER_RGB_NM", "channel_iors", "spectral_rgb_weights"]
 
 
 def _dot(a, b):
@@ -227,6 +232,7 @@ class RoughDielectric:
         h = np.where((h[..., 2] < 0.0)[..., None], -h, h)
         vh, lh = _dot(v, h), _dot(l, h)
         ok = (vh * v[..., 2] > 0.0) & (lh * l[..., 2] > 0.0) & (np.abs(v[..., 2]) > 0) & (np.abs(l[..., 2]) > 0)
+        ok &= h[..., 2] > HALF_VECTOR_EPS
         ok &= np.where(refl, True, (vh * lh < 0.0) & ~np.bool_(self.matched))
         F = fresnel_dielectric(vh, self.eta, self.f0)
         return refl, h, vh, lh, eta_v, eta_l, F, ok
@@ -294,8 +300,12 @@ class ThinDielectric:
         self.f0 = float(f0_from_ior(ior)) if float(ior) > 0 else 1.0
 
     def _lobe(self, v, lr):
-        """(specular lobe ``D G2 / (4 |n.v||n.l|)`` times ``|n.l|``, its visible-normal pdf, F) at the
-        pair ``v``, ``lr`` (``lr`` on ``v``'s side)."""
+        f, p, vh = self.lobe(v, lr)
+        return f, p, schlick(vh, self.f0)
+
+    def lobe(self, v, lr):
+        """(specular lobe ``D G2 / (4 |n.v||n.l|)`` times ``|n.l|``, its visible-normal pdf, ``v.h``) at
+        the pair ``v``, ``lr`` (``lr`` on ``v``'s side)."""
         g = self.ggx
         h = _normalize(v + lr)
         h = np.where((h[..., 2] < 0.0)[..., None], -h, h)
@@ -304,7 +314,7 @@ class ThinDielectric:
         cv = np.maximum(np.abs(v[..., 2]), COS_EPS)
         f = g.D(h) * g.G2(v, lr) / (4.0 * cv)
         p = g.visible_D(v, h) / np.maximum(4.0 * np.abs(vh), 1e-300)
-        return np.where(ok, f, 0.0), np.where(ok, p, 0.0), schlick(vh, self.f0)
+        return np.where(ok, f, 0.0), np.where(ok, p, 0.0), vh
 
     def _split(self, v, l):
         same = v[..., 2] * l[..., 2] > 0.0
@@ -356,6 +366,67 @@ class DiffuseBTDF:
         side = np.where(np.asarray(v)[..., 2] > 0.0, -1.0, 1.0)
         l = np.stack([r * np.cos(phi), r * np.sin(phi), side * z], axis=-1)
         return l, np.ones(z.shape), self.pdf(np.broadcast_to(v, l.shape), l), np.zeros(z.shape, bool)
+
+
+class TransmissiveMaterial:
+    """The glTF transmissive material of the reference's ``pbr_transmissive`` (``reference.transmission``,
+    whose docstring states the model; this is its numpy twin for ``eval`` and ``pdf``):
+    ``mix(dielectric, metal, metallic)``, the dielectric ``F specular_brdf + (1 - F) mix(mix(
+    diffuse_brdf(base_color), diffuse_btdf(dt_color), diffuse_transmission), specular_btdf base_color,
+    transmission)`` ([Trans], [DiffTrans] "Combining ..."); the interface :class:`RoughDielectric` where
+    ``volume`` (one per RGB channel at :func:`channel_iors` where ``dispersion`` > 0), else
+    :class:`ThinDielectric`. ``eval(v, l)`` (..., 3) is the BSDF times ``|n.l|`` of the non-delta
+    lobes; ``pdf`` the sampling mixture's density (lobes chosen with their albedos at ``n.v``)."""
+
+    def __init__(self, base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.5, ior=1.5, transmission=0.0,
+                 diffuse_transmission=0.0, diffuse_transmission_color=(1.0, 1.0, 1.0), volume=False, dispersion=0.0):
+        self.base_color = np.asarray(base_color, dtype=np.float64)
+        self.metallic, self.transmission, self.dt = float(metallic), float(transmission), float(diffuse_transmission)
+        self.dt_color = np.asarray(diffuse_transmission_color, dtype=np.float64)
+        self.f0 = float(f0_from_ior(ior)) if float(ior) > 0 else 1.0
+        iors = channel_iors(ior, dispersion) if volume and dispersion > 0.0 and ior > 1.0 else (float(ior),)
+        self.ifaces = [RoughDielectric(roughness, n) for n in iors] if volume else [ThinDielectric(roughness, ior)]
+        self.spec = ThinDielectric(roughness, ior)
+
+    def _probs(self, v):
+        m, t, bc = self.metallic, self.transmission, np.mean(self.base_color)
+        Fv = schlick(np.abs(v[..., 2]), self.f0)
+        w = [m * np.mean(schlick(np.abs(v[..., 2])[..., None], self.base_color), axis=-1),
+             (1.0 - m) * (Fv + (1.0 - Fv) * t * bc),
+             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * (1.0 - self.dt) * bc,
+             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * self.dt * np.mean(self.dt_color)]
+        total = w[0] + w[1] + w[2] + w[3]
+        ok = total > 0.0
+        return [np.where(ok, x / np.maximum(total, 1e-300), 1.0 if k == 1 else 0.0) for k, x in enumerate(w)]
+
+    def _eval_pdf(self, v, l):
+        m, t = self.metallic, self.transmission
+        same = v[..., 2] * l[..., 2] > 0.0
+        f_spec, p_spec, vh = self.spec.lobe(v, np.where(same[..., None], l, _mirror(l)))
+        smooth = self.spec.ggx.smooth
+        metal = np.where(same[..., None], schlick(vh[..., None], self.base_color) * f_spec[..., None], 0.0) * (not smooth)
+        if len(self.ifaces) == 1:
+            iface = self.ifaces[0].eval(v, l)[..., None]
+            iface_pdf = self.ifaces[0].pdf(v, l)
+        else:
+            iface = np.stack([f.eval(v, l) for f in self.ifaces], axis=-1)
+            iface_pdf = sum(f.pdf(v, l) for f in self.ifaces) / 3.0
+        tint = np.where(same[..., None], 1.0, t * self.base_color)
+        Fd = schlick(vh, self.f0)[..., None]
+        cos_l = np.abs(l[..., 2]) / PI
+        diff = np.where(same[..., None], (1.0 - self.dt) * self.base_color * cos_l[..., None],
+                        self.dt * self.dt_color * cos_l[..., None])
+        value = m * metal + (1.0 - m) * (iface * tint + (1.0 - Fd) * (1.0 - t) * diff)
+        pm, pi, pd, pdt = self._probs(v)
+        pdf = (pm * np.where(same, p_spec, 0.0) * (not smooth) + pi * iface_pdf + pd * np.where(same, cos_l, 0.0)
+               + pdt * np.where(same, 0.0, cos_l))
+        return value, pdf
+
+    def eval(self, v, l):
+        return self._eval_pdf(v, l)[0]
+
+    def pdf(self, v, l):
+        return self._eval_pdf(v, l)[1]
 
 
 def dispersion_iors(ior: float, dispersion: float, wavelengths_nm):

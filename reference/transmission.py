@@ -44,7 +44,7 @@ import math
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
-from pbrcheck.transmission import SMOOTH_ALPHA, channel_iors
+from pbrcheck.transmission import HALF_VECTOR_EPS, SMOOTH_ALPHA, channel_iors
 from pbrcheck.transmission_params import REFERENCE_RENDERED
 
 import drjit as dr
@@ -169,7 +169,7 @@ class RoughDielectric:
         eta_v, eta_l = self._etas(v)
         h = _up(dr.normalize(dr.select(refl, v + l, -(eta_v * v + eta_l * l))))
         vh, lh = dr.dot(v, h), dr.dot(l, h)
-        ok = (vh * v.z > 0.0) & (lh * l.z > 0.0) & (v.z != 0) & (l.z != 0)
+        ok = (vh * v.z > 0.0) & (lh * l.z > 0.0) & (v.z != 0) & (l.z != 0) & (h.z > HALF_VECTOR_EPS)
         if self.matched:    # index-matched: the refraction is a delta (no glossy transmission)
             ok &= refl
         else:

@@ -299,3 +299,21 @@ def test_dispersive_glass_ball_in_a_white_furnace_is_unbiased(R):
     for c in ("R", "G", "B"):
         got, sd = _mean_and_sd(smooth, c)
         assert abs(got - 1.0) <= Z * sd + 1e-3 and sd > 1e-4, (c, got, sd)   # noisy (one channel per path), unbiased
+
+
+@pytest.mark.parametrize("kw", MATERIALS, ids=[f"m{k}" for k in range(len(MATERIALS))])
+def test_material_twins_eval_pdf(R, kw):
+    """``pbr_transmissive``'s eval and pdf equal pbrcheck.transmission.TransmissiveMaterial's on the
+    sphere grid (both sides)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    bsdf = _material(R, **kw)
+    ref = N.TransmissiveMaterial(**kw)
+    v, l = _pairs()
+    si = dr.zeros(mi.SurfaceInteraction3f, len(v))
+    si.wi = _V(v)
+    value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, _V(l))
+    _close(ref.eval(v, l), np.array(value).T)
+    _close(ref.pdf(v, l), np.array(pdf))
+    assert np.count_nonzero(ref.eval(v, l)) > len(v)
