@@ -283,6 +283,7 @@ class RoughDielectric:
         weight = np.where(side, np.where(refl, wr, wt), 0.0)
         delta = np.where(refl, g.smooth, delta_t)
         pdf = np.where(delta | ~side, 0.0, self.pdf(v, l))    # an invalid sample: no density
+        weight = np.where((delta & side) | (pdf > 0.0), weight, 0.0)   # (a microfacet at the horizon: none)
         return l, weight, pdf, delta & side
 
 

@@ -215,6 +215,7 @@ class RoughDielectric:
         weight = dr.select(side, dr.select(refl, wr, wt), 0.0)
         delta = dr.select(refl, g.smooth, delta_t) & side
         pdf = dr.select(delta | ~side, 0.0, self.pdf(v, l))
+        weight = dr.select(delta | (pdf > 0.0), weight, 0.0)
         return l, weight, pdf, delta
 
 
