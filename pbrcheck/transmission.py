@@ -59,7 +59,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrcheck.lobes import CIE_CMFS, FILM_WAVELENGTHS, XYZ_TO_REC709, f0_from_ior, schlick
+from pbrcheck.lobes import CIE_CMFS, FILM_WAVELENGTHS, XYZ_TO_REC709, AnisotropicGGX, f0_from_ior, schlick
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
 from pbrcheck.transmission_params import dispersion_ior
 
@@ -154,6 +154,7 @@ class MicrofacetGGX:
         r = float(roughness)
         self.alpha = max(r * r, MIN_ALPHA)
         self.smooth = self.alpha < SMOOTH_ALPHA
+        self._vndf = AnisotropicGGX(r)
 
     def D(self, h):
         # cos^2 (a^2 - 1) + 1 in the stable form sin^2 + cos^2 a^2 (sin^2 = h.x^2 + h.y^2): float32 loses
@@ -180,23 +181,11 @@ class MicrofacetGGX:
         return np.where(ok, self.G1(v) * np.abs(vh) * self.D(h) / np.maximum(np.abs(v[..., 2]), COS_EPS), 0.0)
 
     def sample_h(self, v, u):
-        """A microfacet normal (``h.z >= 0``) visible from ``v`` ([Heitz18] listing 1 on ``v`` flipped above)."""
+        """A microfacet normal (``h.z >= 0``) visible from ``v`` or ``-v``, whichever is above: the
+        specular lobe's own sampler (:meth:`pbrcheck.lobes.AnisotropicGGX.sample_h` at strength 0,
+        [Heitz18] listing 1)."""
         v = np.broadcast_to(v, u.shape[:-1] + (3,))
-        vu = np.where((v[..., 2] < 0.0)[..., None], -v, v)
-        a = self.alpha
-        vh = _normalize(np.stack([a * vu[..., 0], a * vu[..., 1], vu[..., 2]], axis=-1))
-        lensq = vh[..., 0] ** 2 + vh[..., 1] ** 2
-        inv = 1.0 / np.sqrt(np.maximum(lensq, 1e-300))
-        T1 = np.where((lensq > 0)[..., None], np.stack([-vh[..., 1] * inv, vh[..., 0] * inv, 0 * inv], axis=-1),
-                      np.array([1.0, 0.0, 0.0]))
-        T2 = np.cross(vh, T1)
-        r = np.sqrt(u[..., 0])
-        phi = 2.0 * PI * u[..., 1]
-        t1, t2 = r * np.cos(phi), r * np.sin(phi)
-        s = 0.5 * (1.0 + vh[..., 2])
-        t2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-        nh = t1[..., None] * T1 + t2[..., None] * T2 + np.sqrt(np.maximum(1.0 - t1 * t1 - t2 * t2, 0.0))[..., None] * vh
-        return _normalize(np.stack([a * nh[..., 0], a * nh[..., 1], np.maximum(nh[..., 2], 0.0)], axis=-1))
+        return self._vndf.sample_h(np.where((v[..., 2] < 0.0)[..., None], -v, v), u)
 
 
 class RoughDielectric:

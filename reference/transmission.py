@@ -50,6 +50,8 @@ from pbrcheck.transmission_params import REFERENCE_RENDERED
 import drjit as dr
 import mitsuba as mi
 
+from reference.lobes import AnisotropicGGX
+
 PI = math.pi
 PLUGIN_NAME = "pbr_transmissive"
 #: The extensions the reference renders (path mode, the scene files' analytic objects): what the
@@ -113,6 +115,7 @@ class MicrofacetGGX:
         r = float(roughness)
         self.alpha = max(r * r, MIN_ALPHA)
         self.smooth = self.alpha < SMOOTH_ALPHA
+        self._vndf = AnisotropicGGX(r)
 
     def D(self, h):
         a2 = self.alpha * self.alpha
@@ -135,20 +138,7 @@ class MicrofacetGGX:
         return dr.select(vh * v.z > 0.0, val, 0.0)
 
     def sample_h(self, v, u):
-        vu = dr.select(v.z < 0.0, -v, v)
-        a = self.alpha
-        vh = dr.normalize(mi.Vector3f(a * vu.x, a * vu.y, vu.z))
-        lensq = vh.x * vh.x + vh.y * vh.y
-        inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-        T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-        T2 = dr.cross(vh, T1)
-        r = dr.sqrt(u.x)
-        phi = 2.0 * PI * u.y
-        t1, t2 = r * dr.cos(phi), r * dr.sin(phi)
-        s = 0.5 * (1.0 + vh.z)
-        t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-        nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-        return dr.normalize(mi.Vector3f(a * nh.x, a * nh.y, dr.maximum(nh.z, 0.0)))
+        return self._vndf.sample_h(dr.select(v.z < 0.0, -v, v), u)   # reference.lobes' sampler, as numpy's
 
 
 class RoughDielectric:

@@ -11,12 +11,8 @@ import pytest
 from pbrcheck import transmission as N
 from pbrcheck.errors import SceneError
 from pbrcheck.scene import scene_from_dict
+from tests.test_lobes import TWIN_DIR_ATOL, _close, _V   # the lobes' twin tolerances and helpers
 from tests.test_transmission import _pairs, _sphere_dirs, make
-
-#: float32 (Dr.Jit) against float64 (numpy): tests/test_lobes.py's tolerances.
-TWIN_RTOL = 2e-3
-TWIN_ATOL_FRACTION = 1e-5
-TWIN_DIR_ATOL = 2e-3
 
 TWINS = [("dielectric", 0.01, 1.5), ("dielectric", 0.3, 1.5), ("dielectric", 1.0, 2.4), ("dielectric", 0.5, 1.0),
          ("dielectric", 0.0, 1.33), ("thin", 0.05, 1.5), ("thin", 0.6, 1.0), ("thin", 1.0, 2.0), ("diffuse", 1.0, 1.0)]
@@ -30,17 +26,6 @@ def R():
     from reference import transmission
 
     return transmission
-
-
-def _V(a):
-    import mitsuba as mi
-
-    return mi.Vector3f(*[mi.Float(np.ascontiguousarray(a[:, i], dtype=np.float32)) for i in range(3)])
-
-
-def _close(a, b):
-    atol = TWIN_ATOL_FRACTION * max(np.max(np.abs(a)), 1e-30)
-    np.testing.assert_allclose(b, a, rtol=TWIN_RTOL, atol=atol)
 
 
 @pytest.mark.parametrize("kind,r,ior", TWINS)
