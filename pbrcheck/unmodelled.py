@@ -42,7 +42,7 @@ from pathlib import Path
 
 from .fmt import terminal_safe
 from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
-from .transmission_params import scene_features as transmission_scene_features
+from .transmission_params import REFERENCE_RENDERED, scene_features as transmission_scene_features
 
 
 @dataclass(frozen=True)
@@ -252,8 +252,11 @@ def announce_scene(scene):
         if u.asset != getattr(scene, "source", None) or key in _NOTICES["seen"]:
             continue
         _NOTICES["seen"].add(key)
+        # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37)
+        what = ("the real-time image leaves it out (the reference renders it in path mode only)"
+                if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
         print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
-              f"the reference and the real-time image leave it out; a gate check of it is not judged", file=stream)
+              f"{what}; a gate check of it is not judged", file=stream)
     return scene
 
 

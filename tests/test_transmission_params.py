@@ -216,3 +216,14 @@ def test_builtin_glass_scene():
     ground = [o for o in s.objects if o.type == "plane"]
     assert len(ground) == 64 and len({o.material.base_color for o in ground}) == 2   # the checkered ground
     assert [u.feature for u in s.unmodelled] == [TR, VO]
+
+
+def test_stderr_says_the_reference_renders_transmission_in_path_mode(tmp_path, capsys):
+    toml = tmp_path / "glass.toml"
+    toml.write_text(dump_toml(scene_from_dict(_scene([{"transmission": 1.0, "clearcoat": 1.0}])).to_dict()))
+    assert main(["check-scene", str(toml)]) == 0
+    err = capsys.readouterr().err
+    assert (f"glass.toml: not modelled: {TR} (objects: sphere0): the real-time image leaves it out (the reference "
+            "renders it in path mode only); a gate check of it is not judged") in err
+    assert ("glass.toml: not modelled: KHR_materials_clearcoat (objects: sphere0): the reference and the real-time "
+            "image leave it out") in err
