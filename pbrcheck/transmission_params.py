@@ -143,6 +143,29 @@ TRANSMISSION_EXTENSIONS = {TRANSMISSION: ("transmission", Transmission), VOLUME:
 #: The extensions the reference renders (its ``path`` mode, analytic objects;
 #: ``reference.transmission.REFERENCE_TRANSMISSION_EXTENSIONS`` is this tuple): check-scene's wording.
 REFERENCE_RENDERED = (TRANSMISSION, VOLUME, DISPERSION, DIFFUSE_TRANSMISSION)
+#: The texture slots that make a glTF material's lobe parameters vary over the surface: a transmissive
+#: material with none of them (the thickness texture is a real-time hint a path tracer ignores,
+#: [volume]; occlusion is not light through anything) has constant factors, what the reference's
+#: ``pbr_transmissive`` takes (:func:`reference_renders`).
+VARYING_SLOTS = ("baseColor", "metallicRoughness", "normal", "transmission", "diffuseTransmission",
+                 "diffuseTransmissionColor", "clearcoat", "clearcoatRoughness", "clearcoatNormal", "sheenColor",
+                 "sheenRoughness", "specular", "specularColor", "anisotropy", "iridescence", "iridescenceThickness")
+
+
+def is_transmissive(material) -> bool:
+    """Whether a glTF material lets light through (transmission or diffuse transmission active)."""
+    t, dt = getattr(material, "transmission", None), getattr(material, "diffuse_transmission", None)
+    return (t is not None and t.active) or (dt is not None and dt.active)
+
+
+def reference_renders(material) -> bool:
+    """Whether the reference's path mode renders a transmissive glTF material: OPAQUE, not unlit, and
+    no texture of :data:`VARYING_SLOTS` (its parameters constant). Another transmissive material renders
+    opaque (its transmission named as unmodelled)."""
+    return (is_transmissive(material) and material.alpha_mode == "OPAQUE" and not material.unlit
+            and not set(material.textures()) & set(VARYING_SLOTS))
+
+
 #: Texture slot -> the channels the extension reads (its README).
 TEXTURE_CHANNELS = {"transmission": "R", "thickness": "G", "diffuseTransmission": "A",
                     "diffuseTransmissionColor": "RGB"}

@@ -32,6 +32,7 @@ is the spectral estimator's part, which needs a wavelength per path that Mitsuba
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
 :func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
+:func:`gltf_shape_props` (a glTF primitive's, where its material's factors are constant),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`.
 References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); Mitsuba 3's ``volpath`` and ``homogeneous`` plugins.
@@ -45,7 +46,7 @@ import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
 from pbrcheck.transmission import HALF_VECTOR_EPS, SMOOTH_ALPHA, channel_iors
-from pbrcheck.transmission_params import REFERENCE_RENDERED
+from pbrcheck.transmission_params import REFERENCE_RENDERED, reference_renders
 
 import drjit as dr
 import mitsuba as mi
@@ -476,11 +477,39 @@ def shape_fields(obj, brdf) -> dict:
     out = {"bsdf": material_dict(obj, brdf)}
     m = obj.material
     if is_volume(obj) and m.attenuation_distance > 0.0:
-        sigma = [-math.log(max(c, MIN_ATTENUATION_COLOR)) / m.attenuation_distance for c in m.attenuation_color]
-        peak = max(max(sigma), 1e-12)   # Mitsuba's rgb value lies in [0, 1]: sigma_t / peak, times scale = peak
-        out["interior"] = {"type": "homogeneous", "albedo": 0.0, "scale": peak,
-                           "sigma_t": {"type": "rgb", "value": [x / peak for x in sigma]}}
+        out["interior"] = _medium(m.attenuation_color, m.attenuation_distance)
     return out
+
+
+def gltf_shape_props(material, brdf) -> dict:
+    """The Mitsuba objects a glTF primitive of ``material`` takes (``{}`` unless
+    :func:`pbrcheck.transmission_params.reference_renders`): ``bsdf`` (``pbr_transmissive`` of its
+    factors; a volume where ``thicknessFactor > 0``: the mesh bounds it, whatever ``doubleSided``) and
+    ``interior`` (the volume's medium, as :func:`shape_fields`)."""
+    if not reference_renders(material):
+        return {}
+    register()
+    t, vol, disp = material.transmission, material.volume, material.dispersion
+    dt = material.diffuse_transmission
+    volume = vol is not None and vol.thickness > 0.0
+    d = {"type": PLUGIN_NAME, "base_color": list(material.base_color[:3]), "metallic": material.metallic,
+         "roughness": max(material.roughness, brdf.roughness_floor), "ior": material.ior,
+         "transmission": t.factor if t is not None else 0.0, "volume": volume,
+         "diffuse_transmission": dt.factor if dt is not None else 0.0,
+         "diffuse_transmission_color": list(dt.color) if dt is not None else [1.0, 1.0, 1.0],
+         "dispersion": disp.dispersion if disp is not None else 0.0}
+    out = {"bsdf": mi.load_dict(d)}
+    if volume and not math.isinf(vol.attenuation_distance):
+        out["interior"] = mi.load_dict(_medium(vol.attenuation_color, vol.attenuation_distance))
+    return out
+
+
+def _medium(color, distance) -> dict:
+    """Mitsuba's ``homogeneous`` medium of albedo 0 and ``sigma_t = -ln(color) / distance``."""
+    sigma = [-math.log(max(c, MIN_ATTENUATION_COLOR)) / distance for c in color]
+    peak = max(max(sigma), 1e-12)   # Mitsuba's rgb value lies in [0, 1]: sigma_t / peak, times scale = peak
+    return {"type": "homogeneous", "albedo": 0.0, "scale": peak,
+            "sigma_t": {"type": "rgb", "value": [x / peak for x in sigma]}}
 
 
 def has_interior_media(scene) -> bool:
@@ -491,9 +520,15 @@ def has_interior_media(scene) -> bool:
 def check_local(scene) -> None:
     """``local`` mode refuses a transmissive analytic object: the first-hit estimator has no path
     through the surface (:class:`pbrcheck.errors.SceneError` naming the object's material field)."""
-    for i, o in enumerate(scene.objects):
+    for o in scene.objects:
         if getattr(o, "type", "") in ("sphere", "plane") and is_transmissive(o.material):
-            field = "transmission" if o.material.transmission > 0.0 else "diffuse_transmission"
-            raise SceneError(getattr(scene, "source", None), f"objects[{o.id}].material.{field}",
-                             "no transmission in the reference's local mode (first hit only): render it "
-                             "with --mode path", message=None)
+            field = f"objects[{o.id}].material." + ("transmission" if o.material.transmission > 0.0
+                                                   else "diffuse_transmission")
+        elif getattr(o, "type", "") == "mesh" and reference_renders(
+                scene.assets[o.instance].asset.material(o.gltf_material)):
+            field = f"objects[{o.id}] ({o.name}): its glTF material's KHR_materials_transmission"
+        else:
+            continue
+        raise SceneError(getattr(scene, "source", None), field,
+                         "no transmission in the reference's local mode (first hit only): render it "
+                         "with --mode path", message=None)

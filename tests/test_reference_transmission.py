@@ -302,3 +302,70 @@ def test_material_twins_eval_pdf(R, kw):
     _close(ref.eval(v, l), np.array(value).T)
     _close(ref.pdf(v, l), np.array(pdf))
     assert np.count_nonzero(ref.eval(v, l)) > len(v)
+
+
+# ---- glTF assets -------------------------------------------------------------------------------------
+
+def _glass_quad(tmp_path, name, ior=1.0, textured=False, volume=None):
+    from tests.gltf_build import quad_asset
+
+    ext = {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": ior}}
+    if volume:
+        ext["KHR_materials_volume"] = volume
+    mat = {"name": name, "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.0}, "extensions": ext}
+    images = []
+    if textured:
+        mat["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
+        images = [(np.full((2, 2, 4), 200, np.uint8), None)]
+    return quad_asset(tmp_path / f"{name}.gltf", mat, images, scale=3.0)
+
+
+def _asset_scene(asset, translation=(0.0, 0.0, 0.0)):
+    from pbrcheck.scene import scene_from_dict as sfd
+
+    return sfd({"camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "fov": 30, "width": 12, "height": 12},
+                "environment": SUN_BEHIND, "objects": [{"type": "gltf", "path": str(asset), "translation": list(translation)}]})
+
+
+def test_a_gltf_sheet_of_transmission_one_and_ior_one_is_invisible(R, tmp_path):
+    """A glTF quad with KHR_materials_transmission 1, KHR_materials_ior 1, roughness 0 (constant factors:
+    the reference's pbr_transmissive) filling the view renders the environment behind it (path mode);
+    at IOR 1.5 it shows the sun behind the camera; ``local`` mode refuses it in one line."""
+    from reference.render import render_uncached
+
+    sheet = _glass_quad(tmp_path, "clear")
+    seen = render_uncached(_asset_scene(sheet), spp=8, **PATH)
+    away = render_uncached(_asset_scene(sheet, (50.0, 0.0, 0.0)), spp=8, **PATH)
+    glass = render_uncached(_asset_scene(_glass_quad(tmp_path, "glass", 1.5)), spp=8, **PATH)
+    assert seen.channels["coverage"].min() == 1.0 and away.channels["coverage"].max() == 0.0
+    for c in ("R", "G", "B"):
+        np.testing.assert_allclose(seen.channels[c], away.channels[c], atol=1e-5)
+        assert np.abs(glass.channels[c] - away.channels[c]).max() > 0.1
+    with pytest.raises(SceneError, match=r"objects\[0\] \(.*\): its glTF material's KHR_materials_transmission: "
+                                         "expected no transmission in the reference's local mode"):
+        R.check_local(_asset_scene(sheet))
+
+
+def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_path, capsys):
+    """A transmissive glTF material with a texture that varies its parameters (here the base colour)
+    keeps the opaque textured material (its transmission named as unmodelled on stderr, as both images
+    leave it out); one of constant factors takes ``pbr_transmissive``, and a volume its interior medium;
+    stderr says which."""
+    from pbrcheck.gltf import load_asset
+    from pbrcheck.scene import BRDFModel, load_scene
+    from pbrcheck.transmission_params import reference_renders
+    from pbrcheck.unmodelled import notice_lines
+
+    clear = load_asset(_glass_quad(tmp_path, "clear")).materials[0]
+    tex = load_asset(_glass_quad(tmp_path, "tex", textured=True)).materials[0]
+    vol = load_asset(_glass_quad(tmp_path, "vol", volume={"thicknessFactor": 1.0, "attenuationDistance": 2.0,
+                                                           "attenuationColor": [0.5, 0.5, 0.5]})).materials[0]
+    assert reference_renders(clear) and not reference_renders(tex) and reference_renders(vol)
+    props = R.gltf_shape_props(vol, BRDFModel())
+    assert props["bsdf"].volume and "interior" in props and not R.gltf_shape_props(clear, BRDFModel())["bsdf"].volume
+    assert R.gltf_shape_props(tex, BRDFModel()) == {}
+    assert "the real-time image leaves it out (the reference renders it in path mode only)" in \
+        notice_lines(load_asset(tmp_path / "clear.gltf"))[0]
+    assert "the reference and the real-time image leave it out" in notice_lines(load_asset(tmp_path / "tex.gltf"))[0]
+    load_scene(str(tmp_path / "tex.gltf"))
+    R.check_local(_asset_scene(tmp_path / "tex.gltf"))   # renders opaque: local mode takes it
