@@ -50,10 +50,10 @@ References (KhronosGroup/glTF, ``extensions/2.0/Khronos/<name>/README.md``):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Callable
 
-from .lobe_params import _Fields, _is_number, _lobe_textures
+from .lobe_params import _Fields, _is_number, _lobe_textures, describe_extensions, parse_extensions
 
 TRANSMISSION, VOLUME = "KHR_materials_transmission", "KHR_materials_volume"
 DISPERSION, DIFFUSE_TRANSMISSION = "KHR_materials_dispersion", "KHR_materials_diffuse_transmission"
@@ -210,17 +210,7 @@ def parse_ior(ext: dict, pointer: str, err: Callable[[str, str], Exception]) -> 
 def parse_material_transmission(ext: dict, pointer: str, err: Callable[[str, str], Exception], tex) -> dict[str, Any]:
     """``{GltfMaterial field: extension or None}`` of a material's ``extensions`` object, as
     :func:`pbrcheck.lobe_params.parse_material_lobes` (same ``err`` and ``tex``)."""
-    out: dict[str, Any] = {}
-    for name, (attr, _) in TRANSMISSION_EXTENSIONS.items():
-        e = ext.get(name) if isinstance(ext, dict) else None
-        if e is None:
-            out[attr] = None
-            continue
-        p = f"{pointer}/extensions/{name}"
-        if not isinstance(e, dict):
-            raise err(p, f"an object, found {e!r}")
-        out[attr] = _PARSERS[name](_Fields(e, p, err, tex))
-    return out
+    return parse_extensions(ext, pointer, err, tex, TRANSMISSION_EXTENSIONS, _PARSERS)
 
 
 def _transmission(f: _Fields) -> Transmission:
@@ -350,18 +340,7 @@ def describe_transmission(material) -> str:
     if hasattr(material, "clearcoat_roughness"):   # a scene-file material
         return ", ".join(f"{k} {list(getattr(material, k)) if isinstance(SCENE_DEFAULTS[k], tuple) else getattr(material, k)}"
                          for k in SCENE_DEFAULTS if _changed(material, k))
-    parts = []
-    for name, (attr, cls) in TRANSMISSION_EXTENSIONS.items():
-        ext = getattr(material, attr, None)
-        if ext is None:
-            continue
-        vals = [f"{f.name} {list(v) if isinstance(v, tuple) else v}" for f in fields(cls)
-                if f.name not in cls.SLOTS for v in [getattr(ext, f.name)]]
-        tex = [f"{slot}={TEXTURE_CHANNELS[slot]} of image{t.image}/uv{t.texcoord}" + (" +transform" if t.transform else "")
-               for slot, t in ext.textures().items()]
-        parts.append(f"{name.removeprefix('KHR_materials_')} ({', '.join(vals + tex)}"
-                     + ("" if ext.active else "; neutral") + ")")
-    return "; ".join(parts)
+    return describe_extensions(material, TRANSMISSION_EXTENSIONS, TEXTURE_CHANNELS)
 
 
 def scene_transmission_lines(scene) -> list[str]:
