@@ -369,3 +369,33 @@ def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_p
     assert "the reference and the real-time image leave it out" in notice_lines(load_asset(tmp_path / "tex.gltf"))[0]
     load_scene(str(tmp_path / "tex.gltf"))
     R.check_local(_asset_scene(tmp_path / "tex.gltf"))   # renders opaque: local mode takes it
+
+
+def test_a_diffusely_transmitting_sheet_in_a_white_environment_is_its_numpy_albedo(R):
+    """A thin sheet (diffuse transmission 0.7 of colour (1, 0.5, 0.25), base colour (0.2, 0.4, 0.6),
+    roughness 0.5, IOR 1.5) seen head-on in a constant white environment: one bounce, so each pixel is
+    the material's albedo at n.v = 1, ``int eval dl`` over the sphere by pbrcheck.transmission's numpy
+    twin (Gauss-Legendre in cos theta over [-1, 1], midpoint in phi)."""
+    from pbrcheck.scene import scene_from_dict as sfd
+    from reference.render import render_uncached
+
+    mat = {"diffuse_transmission": 0.7, "diffuse_transmission_color": [1.0, 0.5, 0.25], "base_color": [0.2, 0.4, 0.6],
+           "roughness": 0.5, "specular": 0.04, "metallic": 0.0}
+    s = sfd({"camera": {"origin": [0, 0, 4], "fov": 1.0, "width": 4, "height": 4},
+             "environment": {"type": "constant", "radiance": [1, 1, 1]},
+             "objects": [{"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "size": [2, 2], "material": mat}]})
+    img = render_uncached(s, spp=1024, **PATH)
+    ref = N.TransmissiveMaterial(base_color=(0.2, 0.4, 0.6), roughness=0.5, ior=1.5, diffuse_transmission=0.7,
+                                 diffuse_transmission_color=(1.0, 0.5, 0.25))
+    x, w = np.polynomial.legendre.leggauss(256)
+    nphi = 128
+    phi = (np.arange(nphi) + 0.5) * 2 * np.pi / nphi
+    c, p = np.meshgrid(x, phi, indexing="ij")
+    sn = np.sqrt(1 - c * c)
+    l = np.stack([sn * np.cos(p), sn * np.sin(p), c], -1).reshape(-1, 3)
+    f = ref.eval(np.broadcast_to([0.0, 0.0, 1.0], l.shape), l)
+    albedo = (f * (np.repeat(w, nphi) * 2 * np.pi / nphi)[:, None]).sum(0)
+    assert albedo[0] > 0.5 and albedo[0] != pytest.approx(albedo[2], abs=0.1)   # a coloured, bright answer
+    for k, ch in enumerate("RGB"):
+        got, sd = _mean_and_sd(img, ch)
+        assert abs(got - albedo[k]) <= Z * sd + 2e-3, (ch, got, albedo[k], sd)
