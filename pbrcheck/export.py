@@ -58,6 +58,7 @@ from .jsonio import dump_json, write_json_atomic
 from .gltf import SUPPORTED_EXTENSIONS
 from .scene import Plane, Scene, Sphere, plane_frame
 from .lobe_params import ANISOTROPY, scene_extensions, scene_features
+from .transmission_params import scene_extensions as transmission_extensions
 from .unmodelled import strip_unmodelled
 
 #: scenario.json's words on the metallic blend (its ``metallic_blend`` table).
@@ -236,6 +237,7 @@ def _material(obj) -> dict:
     if abs(m.specular - GLTF_DEFAULT_F0) > F0_MATCH_TOLERANCE:
         d["extensions"] = {"KHR_materials_ior": {"ior": ior_from_f0(m.specular)}}
     lobes = scene_extensions(m)   # the lobes' extensions (pbrcheck.lobe_params), where set
+    lobes.update(transmission_extensions(m))   # transmission, volume, ... (pbrcheck.transmission_params)
     if lobes:
         d.setdefault("extensions", {}).update(lobes)
     return d

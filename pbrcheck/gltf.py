@@ -67,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import asset_guard, gltf_features, limits, lobe_params, untrusted
+from . import asset_guard, gltf_features, limits, lobe_params, transmission_params, untrusted
 from .errors import AssetError, os_reason  # noqa: F401  (AssetError: re-exported, its home is errors)
 from .lights import DEFAULT_INNER_CONE, DEFAULT_OUTER_CONE, LIGHT_TYPES
 from .mikktspace import corner_tangents
@@ -131,6 +131,11 @@ class GltfMaterial:
     khr_specular: lobe_params.Specular | None = None        # KHR_materials_specular (``specular`` is the F0)
     anisotropy: lobe_params.Anisotropy | None = None        # KHR_materials_anisotropy
     iridescence: lobe_params.Iridescence | None = None      # KHR_materials_iridescence
+    # The transmission extensions (pbrcheck.transmission_params; None: absent; issue 37).
+    transmission: transmission_params.Transmission | None = None                  # KHR_materials_transmission
+    volume: transmission_params.Volume | None = None                              # KHR_materials_volume
+    dispersion: transmission_params.Dispersion | None = None                      # KHR_materials_dispersion
+    diffuse_transmission: transmission_params.DiffuseTransmission | None = None   # KHR_materials_diffuse_transmission
 
     @property
     def specular(self) -> float:
@@ -141,7 +146,8 @@ class GltfMaterial:
         slots = {"baseColor": self.base_color_texture, "metallicRoughness": self.metallic_roughness_texture,
                  "normal": self.normal_texture, "occlusion": self.occlusion_texture,
                  "emissive": self.emissive_texture}
-        for attr, _ in lobe_params.LOBE_EXTENSIONS.values():   # the lobes' slots (pbrcheck.lobe_params)
+        for attr, _ in (*lobe_params.LOBE_EXTENSIONS.values(),   # the lobes' and transmission's slots
+                        *transmission_params.TRANSMISSION_EXTENSIONS.values()):
             lobe = getattr(self, attr)
             if lobe is not None:
                 slots.update(lobe.textures())
@@ -151,7 +157,7 @@ class GltfMaterial:
 #: The material of primitives without one (glTF spec 3.9.6).
 DEFAULT_MATERIAL = GltfMaterial(name="default")
 #: Slots whose images hold sRGB-encoded colour (the others are linear data).
-SRGB_SLOTS = ("baseColor", "emissive", *lobe_params.SRGB_SLOTS)
+SRGB_SLOTS = ("baseColor", "emissive", *lobe_params.SRGB_SLOTS, *transmission_params.SRGB_SLOTS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -725,9 +731,10 @@ def _material(r: _Reader, index: int) -> GltfMaterial:
         occlusion_texture=tex(m, "occlusionTexture", p, "strength"),
         emissive=em, emissive_texture=tex(m, "emissiveTexture", p),
         alpha_mode=mode, alpha_cutoff=float(m.get("alphaCutoff", 0.5)), double_sided=bool(m.get("doubleSided", False)),
-        ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
+        ior=transmission_params.parse_ior(ext, p, r.err),
         unlit="KHR_materials_unlit" in ext,
         **lobe_params.parse_material_lobes(ext, p, r.err, tex),
+        **transmission_params.parse_material_transmission(ext, p, r.err, tex),
     )
 
 

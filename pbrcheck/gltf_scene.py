@@ -36,6 +36,7 @@ def describe(scene: Scene) -> list[str]:
     colour space, slot), lights, camera, extensions used and ignored."""
     from .gltf import SRGB_SLOTS
     from .lobe_params import describe_lobes
+    from .transmission_params import describe_transmission
 
     out: list[str] = []
     for k, inst in enumerate(scene.assets):
@@ -65,6 +66,9 @@ def describe(scene: Scene) -> list[str]:
             lobes = describe_lobes(m)   # KHR_materials_clearcoat, sheen, ... (pbrcheck.lobe_params)
             if lobes:
                 out.append(f"#       lobes: {lobes}")
+            trans = describe_transmission(m)   # KHR_materials_transmission, volume, ... (issue 37)
+            if trans:
+                out.append(f"#       transmission: {trans}")
         slots = a.texture_slots()
         out.append(f"#   {len(a.images)} texture image(s):")
         for i, im in enumerate(a.images):

@@ -239,8 +239,15 @@ def parse_material_lobes(ext: dict, pointer: str, err: Callable[[str, str], Exce
     material at ``pointer``). ``err(pointer, problem)`` makes the typed error (the loader's
     :class:`pbrcheck.errors.AssetError`); ``tex(dict, key, pointer, scale_key)`` resolves a
     textureInfo (the loader's ``_texture_ref``: texCoord, sampler, ``KHR_texture_transform``)."""
+    return parse_extensions(ext, pointer, err, tex, LOBE_EXTENSIONS, _PARSERS)
+
+
+def parse_extensions(ext: dict, pointer: str, err, tex, registry: dict, parsers: dict) -> dict[str, Any]:
+    """``{field: parsed or None}`` of the extensions of ``registry`` (``{extension: (field, class)}``)
+    in a material's ``extensions`` object, each parsed by ``parsers[extension](_Fields)`` (shared with
+    :mod:`pbrcheck.transmission_params`; ``err`` and ``tex`` as :func:`parse_material_lobes`)."""
     out: dict[str, Any] = {}
-    for name, (attr, _) in LOBE_EXTENSIONS.items():
+    for name, (attr, _) in registry.items():
         e = ext.get(name) if isinstance(ext, dict) else None
         if e is None:
             out[attr] = None
@@ -248,8 +255,7 @@ def parse_material_lobes(ext: dict, pointer: str, err: Callable[[str, str], Exce
         p = f"{pointer}/extensions/{name}"
         if not isinstance(e, dict):
             raise err(p, f"an object, found {e!r}")
-        f = _Fields(e, p, err, tex)
-        out[attr] = _PARSERS[name](f)
+        out[attr] = parsers[name](_Fields(e, p, err, tex))
     return out
 
 
@@ -393,14 +399,22 @@ def describe_lobes(material) -> str:
         keys = [k for k in SCENE_DEFAULTS if _changed(material, k)]
         return ", ".join(f"{k} {list(getattr(material, k)) if isinstance(SCENE_DEFAULTS[k], tuple) else getattr(material, k)}"
                          for k in keys)
+    return describe_extensions(material, LOBE_EXTENSIONS, TEXTURE_CHANNELS)
+
+
+def describe_extensions(material, registry: dict, channels: dict) -> str:
+    """The text of a :class:`pbrcheck.gltf.GltfMaterial`'s extensions of ``registry`` (``{extension:
+    (field, class)}``; every present one: its factors, its textures with slot, ``channels[slot]``,
+    image, UV set and transform, "; neutral" where it changes nothing), "; "-joined (shared with
+    :mod:`pbrcheck.transmission_params`)."""
     parts = []
-    for name, (attr, cls) in LOBE_EXTENSIONS.items():
+    for name, (attr, cls) in registry.items():
         lobe = getattr(material, attr, None)
         if lobe is None:
             continue
         vals = [f"{f.name} {list(v) if isinstance(v, tuple) else v}" for f in fields(cls)
                 if f.name not in cls.SLOTS for v in [getattr(lobe, f.name)]]
-        tex = [f"{slot}={TEXTURE_CHANNELS[slot]} of image{t.image}/uv{t.texcoord}" + (" +transform" if t.transform else "")
+        tex = [f"{slot}={channels[slot]} of image{t.image}/uv{t.texcoord}" + (" +transform" if t.transform else "")
                for slot, t in lobe.textures().items()]
         parts.append(f"{name.removeprefix('KHR_materials_')} ({', '.join(vals + tex)}"
                      + ("" if lobe.active else "; neutral") + ")")

@@ -28,7 +28,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from . import lobe_params
+from . import lobe_params, transmission_params
 from .brdf import METALLIC_BLENDS
 from .errors import SceneError, decode_reason
 from .gltf_objects import (ASSET_METALLIC_BLEND, DEFAULT_ASSET_SIZE, NEUTRAL_RADIANCE, AssetOptions, expand_gltf_object,
@@ -153,6 +153,14 @@ class Material:
     iridescence: float = 0.0                                 # KHR_materials_iridescence
     iridescence_ior: float = 1.3
     iridescence_thickness: float = 400.0                     # nm
+    # Light through the surface (pbrcheck.transmission_params, issue 37; the IOR is the specular F0's).
+    transmission: float = 0.0                                # KHR_materials_transmission
+    thickness: float = 0.0                                   # KHR_materials_volume (0: thin-walled)
+    attenuation_distance: float = 0.0                        # world units; 0: glTF's +inf (none)
+    attenuation_color: Vec3 = (1.0, 1.0, 1.0)
+    dispersion: float = 0.0                                  # KHR_materials_dispersion: 20 / Abbe number
+    diffuse_transmission: float = 0.0                        # KHR_materials_diffuse_transmission
+    diffuse_transmission_color: Vec3 = (1.0, 1.0, 1.0)
 
     @property
     def alpha(self) -> float:
@@ -276,7 +284,7 @@ def _object_dict(o) -> dict[str, Any]:
     """An analytic object as plain data, its material's lobe fields at their neutral values left
     out (a scene that sets none keeps its text and content hash)."""
     d = asdict(o)
-    d["material"] = lobe_params.neutral_scene_keys(d["material"])
+    d["material"] = transmission_params.neutral_scene_keys(lobe_params.neutral_scene_keys(d["material"]))
     return d
 
 
@@ -537,7 +545,7 @@ def _brdf(ctx, t, *, has_assets: bool = False) -> BRDFModel:
 
 def _material(ctx, t, where, *, grid=False) -> Material:
     keys = {"base_color", "specular"} if grid else {"base_color", "metallic", "roughness", "specular"}
-    _check_keys(ctx, t, keys | set(lobe_params.SCENE_DEFAULTS), where)
+    _check_keys(ctx, t, keys | set(lobe_params.SCENE_DEFAULTS) | set(transmission_params.SCENE_DEFAULTS), where)
     d = Material()
     return Material(
         base_color=_vec3(ctx, t, "base_color", where, d.base_color, nonneg=True),
@@ -545,6 +553,7 @@ def _material(ctx, t, where, *, grid=False) -> Material:
         roughness=d.roughness if grid else _num(ctx, t, "roughness", where, d.roughness, lo=0.0, hi=1.0),
         specular=_num(ctx, t, "specular", where, d.specular, lo=0.0, hi=1.0),
         **lobe_params.scene_material_fields(ctx, t, where, _num, _vec3),
+        **transmission_params.scene_material_fields(ctx, t, where, _num, _vec3),
     )
 
 

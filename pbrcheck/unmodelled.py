@@ -42,6 +42,7 @@ from pathlib import Path
 
 from .fmt import terminal_safe
 from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
+from .transmission_params import REFERENCE_RENDERED, reference_renders, scene_features as transmission_scene_features
 
 
 @dataclass(frozen=True)
@@ -182,7 +183,7 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     analytic: dict[str, list] = {}
     for o in getattr(scene, "objects", ()):
         if getattr(o, "type", "") in ("sphere", "plane"):
-            for f in scene_features(o.material):
+            for f in (*scene_features(o.material), *transmission_scene_features(o.material)):
                 if f not in MODELLED_LOBE_EXTENSIONS:
                     analytic.setdefault(f, []).append(o)
     for f, objs in analytic.items():
@@ -208,8 +209,18 @@ def notice_lines(asset) -> list[str]:
     """One stderr line per unmodelled feature of ``asset`` (a loaded :class:`pbrcheck.gltf.Asset`)."""
     name = terminal_safe(Path(asset.path).name)
     return [f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (materials: "
-            f"{materials_text(u.materials)}): the reference and the real-time image leave it out; "
+            f"{materials_text(u.materials)}): {_what_is_left_out(asset, u)}; "
             f"a gate check of it is not judged" for u in asset.unmodelled]
+
+
+def _what_is_left_out(asset, u) -> str:
+    """Which images leave feature ``u`` out: both, except a transmission extension whose every
+    material the reference's path mode renders (issue 37: constant factors,
+    :func:`pbrcheck.transmission_params.reference_renders`)."""
+    mats = [m for m in getattr(asset, "materials", ()) if m.name in u.materials]
+    if u.feature in REFERENCE_RENDERED and mats and all(reference_renders(m) for m in mats):
+        return "the real-time image leaves it out (the reference renders it in path mode only)"
+    return "the reference and the real-time image leave it out"
 
 
 _NOTICES: dict = {"on": False, "stream": None, "seen": set()}
@@ -251,8 +262,11 @@ def announce_scene(scene):
         if u.asset != getattr(scene, "source", None) or key in _NOTICES["seen"]:
             continue
         _NOTICES["seen"].add(key)
+        # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37)
+        what = ("the real-time image leaves it out (the reference renders it in path mode only)"
+                if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
         print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
-              f"the reference and the real-time image leave it out; a gate check of it is not judged", file=stream)
+              f"{what}; a gate check of it is not judged", file=stream)
     return scene
 
 

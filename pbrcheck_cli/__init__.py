@@ -75,6 +75,8 @@ def _cmd_check_scene(args) -> int:
         print("\n".join(terminal_safe(line) for line in describe(scene)))
     from pbrcheck.lobe_params import scene_lobe_lines   # the analytic objects' lobe fields (issue 36)
     print("".join(terminal_safe(line) + "\n" for line in scene_lobe_lines(scene)), end="")
+    from pbrcheck.transmission_params import scene_transmission_lines   # transmission fields (issue 37)
+    print("".join(terminal_safe(line) + "\n" for line in scene_transmission_lines(scene)), end="")
     print(dump_toml(scene.to_dict()), end="")
     return 0
 

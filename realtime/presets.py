@@ -261,14 +261,17 @@ PRESETS: dict[str, dict] = {
     # The Khronos glTF Sample Viewer (KhronosGroup/glTF-Sample-Viewer source/Renderer/shaders/ibl.glsl,
     # material_info.glsl, pbr.frag): prefiltered levels at lod = roughness (mipCount - 1) (linear), the
     # GGX LUT (height-correlated Smith), the Fdez-Aguera 2019 single + multiple scattering (k_S A + B with
-    # its roughness-dependent Fresnel; FmsEms added to the diffuse); its lobes: the coat's split sum with
-    # that k_S at the coat's roughness, the base times 1 - coat Fc(n.v); the sheen from the
-    # Charlie-prefiltered cube times its Charlie LUT (V_Neubelt), the base scaled by the spec's
-    # albedo LUT; the bent normal of getIBLRadianceAnisotropy; Belcour & Barla's RGB thin film.
+    # its roughness-dependent Fresnel; FmsEms added to the diffuse); its lobes, as the version the
+    # client pins (1.1.0; compare/lobe_findings.py cites each): the coat's prefiltered radiance at the
+    # coat's roughness weighted by clearcoat Fc(n_c.v) with no DFG factor (pbrShader main: its VdotH
+    # argument is unused), the base times 1 - coat Fc(n.v); the sheen from the Charlie-prefiltered cube
+    # times its iblFiltering Charlie LUT (alpha = sheenRoughness, not squared; V_Ashikhmin), the base
+    # scaled by the spec's albedo LUT; the bent normal of getIBLRadianceAnisotropy; Belcour & Barla's
+    # RGB thin film.
     "sample_viewer": _preset(
         lod_mapping="linear", dfg="lut", lut_geometry="smith_ggx_correlated", lut_sampling="vndf",
-        energy_compensation="fdez_aguera", coat_ibl="sample_viewer", coat_attenuation="nov",
-        sheen_dfg="lut_neubelt", sheen_scaling="lut", sheen_cube="charlie", anisotropy_bend="sample_viewer",
+        energy_compensation="fdez_aguera", coat_ibl="filament", coat_attenuation="nov",
+        sheen_dfg="lut_ibl_sampler_legacy", sheen_scaling="lut", sheen_cube="charlie", anisotropy_bend="sample_viewer",
         iridescence="belcour_rgb"),
     # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.

@@ -672,7 +672,8 @@ class ReferenceIntegrator(RBIntegrator):
             # redefinition of function")
             dr.eval(hit)
         path = self.path
-        if self.has_null_bsdfs(scene):  # shadow rays through glTF cut-outs: volpath's null interfaces
+        from .transmission import has_interior_media   # hook (issue 37): Beer-Lambert inside volumes
+        if self.has_null_bsdfs(scene) or has_interior_media(scene):  # shadow rays through glTF cut-outs: volpath's null interfaces
             if self._volpath is None:
                 self._volpath = mi.load_dict({"type": "volpath", "max_depth": self.max_depth_value})
             path = self._volpath

@@ -172,6 +172,9 @@ def scene_dict(scene: Scene, env: EnvMap | None = None, *, bsdf_override: dict |
                               "id": shape_id(i)}
         else:  # pragma: no cover - the loader expands grids
             raise TypeError(type(obj))
+        if bsdf_override is None:  # hook (issue 37): a transmissive material's BSDF and interior medium
+            from .transmission import shape_fields
+            d[shape_id(i)].update(shape_fields(obj, scene.brdf))
     return d
 
 
@@ -380,6 +383,9 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     check_budget(scene, spp)
     t0 = time.perf_counter()
     variant = ensure_variant()
+    if mode == "local":  # hook (issue 37): the first-hit estimator refuses transmissive materials
+        from .transmission import check_local
+        check_local(scene)
     mi, dr = _mi()
     if variant == "scalar_rgb":  # pragma: no cover - needs a machine without LLVM
         raise BackendError("the reference renders wavefronts and needs llvm_ad_rgb or cuda_ad_rgb; "

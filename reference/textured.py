@@ -718,6 +718,10 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
                                                         vertex_color=prim.color is not None, primary=primary))
             bsdf = mats[key]
         props["bsdf"] = bsdf
+        if bsdf_for is None:  # hook (issue 37): a transmissive material of constant factors, its volume
+            from .transmission import gltf_shape_props
+            for k, v in gltf_shape_props(inst.asset.material(obj.gltf_material), scene.brdf).items():
+                props[k] = v
         if bsdf_for is None and inst.asset.material(obj.gltf_material).unlit:
             from .unlit import unlit_emitter
             props["emitter"] = unlit_emitter(bsdf)   # KHR_materials_unlit: the base colour, unshaded

@@ -137,7 +137,7 @@ def test_every_lobe_option_is_a_registry_held_as_an_object():
         assert PRESETS["default"][names[0]] in reg
     sv, fil = resolve_options("sample_viewer"), resolve_options("filament")
     assert (sv.coat_ibl, sv.sheen_dfg, sv.sheen_scaling, sv.sheen_cube, sv.anisotropy_bend) == (
-        "sample_viewer", "lut_neubelt", "lut", "charlie", "sample_viewer")
+        "filament", "lut_ibl_sampler_legacy", "lut", "charlie", "sample_viewer")  # the pinned 1.1.0
     assert (fil.coat_ibl, fil.sheen_dfg, fil.sheen_scaling, fil.sheen_cube, fil.anisotropy_bend, fil.iridescence) == (
         "filament", "lut_neubelt", "filament", "ggx", "filament", "none")
 
