@@ -161,7 +161,7 @@ def test_lobe_switches_follow_the_options():
     o = resolve_options("sample_viewer")
     d = lobe_defines((lp.CLEARCOAT, lp.SHEEN, lp.ANISOTROPY), o)
     assert (d["COAT_IBL"], d["SHEEN_DFG"], d["SHEEN_RADIANCE"], d["ANISOTROPY_BEND"]) == (
-        "COAT_IBL_SAMPLE_VIEWER", "SHEEN_DFG_LUT_NEUBELT", "SHEEN_RADIANCE_CHARLIE", "ANISOTROPY_BEND_SAMPLE_VIEWER")
+        "COAT_IBL_FILAMENT", "SHEEN_DFG_LUT_IBL_SAMPLER_LEGACY", "SHEEN_RADIANCE_CHARLIE", "ANISOTROPY_BEND_SAMPLE_VIEWER")
     assert lobe_defines((lp.SHEEN,), resolve_options("filament"))["SHEEN_RADIANCE"] == "SHEEN_RADIANCE_GGX"
     assert lobe_defines((lp.SHEEN,), resolve_options("default", {"sheen_dfg": "threejs"}))["SHEEN_RADIANCE"] == \
         "SHEEN_RADIANCE_IRRADIANCE"
