@@ -115,11 +115,18 @@ LOBE_DEFAULTS = {
 #: docstring, "Mirror limits").
 LOBE_MIN_ALPHA = DELTA_LOBE_ALPHA
 #: Nodes of the sheen albedo table in n.v (uniform on [0, 1]) and in sheen roughness (uniform on [0, 1]).
-SHEEN_TABLE_MU = 65
-SHEEN_TABLE_ROUGHNESS = 41
-#: Largest |bilinear - quadrature| of the sheen albedo at the table cells' centres, measured over
-#: roughness >= 0.05 (tests/test_lobes_reference.py::test_sheen_table_interpolation).
-SHEEN_TABLE_TOL = 5e-3
+SHEEN_TABLE_MU = 129
+SHEEN_TABLE_ROUGHNESS = 65
+#: The table's n.v at its node 0: the sheen albedo grows without bound as n.v -> 0 (the visibility's
+#: 1 / (4 n.v) outgrows the fitted Lambda: E = 18 at n.v 1e-4, roughness 0; measured), so the
+#: first cell [0, 1/128] is interpolated towards this node's finite value.
+SHEEN_TABLE_MU_MIN = 1e-4
+#: Largest |bilinear - quadrature| of the sheen albedo at the table cells' centres over n.v >= 1/128
+#: and sheen roughness >= SHEEN_TABLE_TOL_ROUGHNESS (measured 2.6e-3, at n.v 0.012; 1.2e-3 at n.v >= 0.03;
+#: tests/test_lobes_reference.py::test_sheen_table_interpolation). Below that roughness the Charlie lobe
+#: changes faster than the nodes: 1.0e-2 at roughness 0.1, 4.2e-2 at 0.05, 0.11 at 0.02 (n.v 0.012).
+SHEEN_TABLE_TOL = 4e-3
+SHEEN_TABLE_TOL_ROUGHNESS = 0.2
 
 
 def _vec(x) -> tuple:
@@ -329,7 +336,9 @@ def sheen_sample(v, u, alpha):
     Charlie half vectors reflected)."""
     mix = np_lobes.SheenCharlie.MIX
     pick = u.x < mix
-    lc = mi.warp.square_to_cosine_hemisphere(mi.Point2f(dr.clip(u.x / mix, 0.0, 1.0), u.y))
+    r = dr.sqrt(dr.clip(u.x / mix, 0.0, 1.0))   # reference.lobes._cosine_sample's mapping
+    lc = mi.Vector3f(r * dr.cos(2.0 * PI * u.y), r * dr.sin(2.0 * PI * u.y),
+                     dr.sqrt(dr.maximum(1.0 - dr.clip(u.x / mix, 0.0, 1.0), 0.0)))
     u0 = dr.clip((u.x - mix) / (1.0 - mix), 0.0, 1.0)
     st = dr.power(u.y, alpha / (2.0 * alpha + 1.0))
     ct = dr.sqrt(dr.maximum(1.0 - st * st, 0.0))
@@ -340,18 +349,26 @@ def sheen_sample(v, u, alpha):
 
 @functools.lru_cache(maxsize=None)
 def sheen_albedo_table() -> np.ndarray:
-    """``E[i, j]``: the sheen lobe's directional albedo at n.v = ``i / (SHEEN_TABLE_MU - 1)`` and sheen
-    roughness ``j / (SHEEN_TABLE_ROUGHNESS - 1)``, by :meth:`pbrcheck.lobes.SheenCharlie.albedo`'s
-    quadrature (n.v 0 takes the grazing node 1e-4, where the lobe is defined)."""
+    """``E[i, j]``: the sheen lobe's directional albedo at n.v = ``i / (SHEEN_TABLE_MU - 1)`` (n.v 0
+    takes :data:`SHEEN_TABLE_MU_MIN`) and sheen roughness ``j / (SHEEN_TABLE_ROUGHNESS - 1)``, by the
+    quadrature of :meth:`pbrcheck.lobes.SheenCharlie.albedo` (its nodes and weights) of
+    :func:`sheen_eval`, one row of roughness per kernel (float32 sums of 18k nodes: 1e-6 relative)."""
     l, w = np_lobes._hemisphere_quadrature(np_lobes.ALBEDO_N_THETA, np_lobes.ALBEDO_N_PHI)
-    mus = np.maximum(np.linspace(0.0, 1.0, SHEEN_TABLE_MU), 1e-4)
-    vs = np.stack([np.sqrt(1.0 - mus * mus), np.zeros_like(mus), mus], axis=-1)
+    nq = len(w)
+    mus = np.maximum(np.linspace(0.0, 1.0, SHEEN_TABLE_MU), SHEEN_TABLE_MU_MIN)
+    v = np.repeat(np.stack([np.sqrt(1.0 - mus * mus), np.zeros_like(mus), mus], axis=-1), nq, axis=0)
+    L = np.tile(l, (SHEEN_TABLE_MU, 1))
+    V, Ld, W = _v3np(v), _v3np(L), mi.Float(np.tile(w, SHEEN_TABLE_MU).astype(np.float32))
     out = np.zeros((SHEEN_TABLE_MU, SHEEN_TABLE_ROUGHNESS))
-    for j, r in enumerate(np.linspace(0.0, 1.0, SHEEN_TABLE_ROUGHNESS)):
-        lobe = np_lobes.SheenCharlie(r)
-        for i, v in enumerate(vs):
-            out[i, j] = float(np.sum(lobe.eval(v[None], l) * w))
+    with dr.suspend_grad():
+        for j, r in enumerate(np.linspace(0.0, 1.0, SHEEN_TABLE_ROUGHNESS)):
+            a = mi.Float(max(r * r, SHEEN_MIN_ALPHA))
+            out[:, j] = np.array(dr.block_sum(sheen_eval(V, Ld, a) * W, nq), dtype=np.float64)
     return out
+
+
+def _v3np(a):
+    return mi.Vector3f(*[mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(3)])
 
 
 @functools.lru_cache(maxsize=None)
@@ -471,7 +488,7 @@ class _Setup:
             self.sheen_m = _max3(P.sheen_color)
             self.E_v = sheen_albedo(self.NoV, P.sheen_roughness)
             w_sheen = _mean(P.sheen_color) * self.E_v
-            layer = 1.0 - self.sheen_m * self.E_v
+            layer = dr.maximum(1.0 - self.sheen_m * self.E_v, 0.0)
         w_coat = mi.Float(0.0)
         if "clearcoat" in self.used:
             self.coat_alpha = dr.maximum(P.clearcoat_roughness * P.clearcoat_roughness, LOBE_MIN_ALPHA)
@@ -541,7 +558,9 @@ def _eval_pdf(S, wo, active):
     if "sheen" in used:
         sv = sheen_eval(wi, wo, S.sheen_alpha)
         E_l = sheen_albedo(cl, P.sheen_roughness)
-        scale = dr.minimum(1.0 - S.sheen_m * S.E_v, 1.0 - S.sheen_m * E_l)
+        # the spec's scaling, kept >= 0: E exceeds 1 at grazing n.v (SHEEN_TABLE_MU_MIN's comment), where
+        # 1 - max3(sheenColor) E would make the base's reflection negative (a guard, docs/reference.md)
+        scale = dr.maximum(dr.minimum(1.0 - S.sheen_m * S.E_v, 1.0 - S.sheen_m * E_l), 0.0)
         value = P.sheen_color * sv + value * scale
         pdf += S.p[2] * sheen_pdf(wi, wo, S.sheen_alpha)
     if "clearcoat" in used:
