@@ -492,7 +492,11 @@ class _Setup:
         w_coat = mi.Float(0.0)
         if "clearcoat" in self.used:
             self.coat_alpha = dr.maximum(P.clearcoat_roughness * P.clearcoat_roughness, LOBE_MIN_ALPHA)
-            self.coat_w = P.clearcoat * np_fresnel_coat(self.NoV)
+            # the coat's own normal (glTF assets: the geometric normal or clearcoatNormalTexture's, in
+            # the base's shading frame), else the shading normal +Z (an analytic object: no normal map)
+            self.coat_frame = mi.Frame3f(P.clearcoat_normal) if "clearcoat_normal" in P.values else None
+            self.vc = wi if self.coat_frame is None else self.coat_frame.to_local(wi)
+            self.coat_w = P.clearcoat * np_fresnel_coat(dr.clip(self.vc.z, 0.0, 1.0))
             w_coat = self.coat_w
             below = 1.0 - self.coat_w
             layer, w_sheen = layer * below, w_sheen * below
@@ -525,9 +529,30 @@ def np_fresnel_coat(NcoV):
     return f0 + (1.0 - f0) * _pow5(1.0 - dr.abs(NcoV))
 
 
-def _coat_pdf(S, wo, h):
-    iso = (S.coat_alpha, S.coat_alpha, 1.0, 0.0)
-    return aniso_G1(S.wi, *iso) * terms.GGX.eval(h, S.coat_alpha) / (4.0 * dr.maximum(S.NoV, COS_EPS))
+def _coat(S, wo, h, cl):
+    """(value, pdf) of the coat lobe alone ([Coat] "Clearcoat BRDF" times the base's n.l; the VNDF's
+    density), in the coat normal's frame where the material has one."""
+    a = S.coat_alpha
+    iso = (a, a, 1.0, 0.0)
+    if S.coat_frame is None:
+        value = terms.GGX.eval(h, a) * terms.SmithGGXCorrelated.eval(S.NoV, cl, a) / (4.0 * dr.maximum(S.NoV, COS_EPS))
+        pdf = aniso_G1(S.wi, *iso) * terms.GGX.eval(h, a) / (4.0 * dr.maximum(S.NoV, COS_EPS))
+        return value, pdf
+    vc, lc = S.vc, S.coat_frame.to_local(wo)
+    hc = dr.normalize(vc + lc)
+    cv, clc = dr.clip(vc.z, 0.0, 1.0), dr.clip(lc.z, 0.0, 1.0)
+    D = terms.GGX.eval(hc, a)
+    value = D * terms.SmithGGXCorrelated.eval(cv, clc, a) / (4.0 * dr.maximum(cv, COS_EPS) * dr.maximum(clc, COS_EPS)) * cl
+    ok = (vc.z > 0) & (lc.z > 0)
+    pdf = dr.select(vc.z > 0, aniso_G1(vc, *iso) * D / (4.0 * dr.maximum(cv, COS_EPS)), 0.0)
+    return dr.select(ok, value, 0.0), pdf
+
+
+def _coat_sample(S, u):
+    a = S.coat_alpha
+    hc = aniso_sample_h(S.vc, u, a, a, 1.0, 0.0)
+    lc = 2.0 * dr.dot(S.vc, hc) * hc - S.vc
+    return lc if S.coat_frame is None else S.coat_frame.to_world(lc)
 
 
 def _eval_pdf(S, wo, active):
@@ -564,10 +589,9 @@ def _eval_pdf(S, wo, active):
         value = P.sheen_color * sv + value * scale
         pdf += S.p[2] * sheen_pdf(wi, wo, S.sheen_alpha)
     if "clearcoat" in used:
-        coat = terms.GGX.eval(h, S.coat_alpha) * terms.SmithGGXCorrelated.eval(S.NoV, cl, S.coat_alpha) \
-            / (4.0 * dr.maximum(S.NoV, COS_EPS))
+        coat, coat_pdf = _coat(S, wo, h, cl)
         value = value * (1.0 - S.coat_w) + S.coat_w * coat
-        pdf += S.p[3] * _coat_pdf(S, wo, h)
+        pdf += S.p[3] * coat_pdf
     return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
 
 
@@ -594,8 +618,7 @@ def sample(m, ctx, si, sample1, sample2, active):
     if "sheen" in S.used:
         wo = dr.select(pick_sheen, sheen_sample(wi, sample2, S.sheen_alpha), wo)
     if "clearcoat" in S.used:
-        hc = aniso_sample_h(wi, sample2, S.coat_alpha, S.coat_alpha, 1.0, 0.0)
-        wo = dr.select(pick_coat, 2.0 * dr.dot(wi, hc) * hc - wi, wo)
+        wo = dr.select(pick_coat, _coat_sample(S, sample2), wo)
     bs = dr.zeros(mi.BSDFSample3f)
     bs.eta = 1.0
     bs.wo = wo
@@ -607,3 +630,168 @@ def sample(m, ctx, si, sample1, sample2, active):
     bs.pdf = pdf
     active &= pdf > 0
     return bs, dr.select(active, value / dr.maximum(pdf, 1e-20), 0.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# glTF assets: the lobes of pbr_textured (reference.textured), with textures
+# ------------------------------------------------------------------------------------------------
+
+#: glTF lobe texture slots: slot -> (GltfMaterial field, the lobe's TextureRef attribute, sRGB-encoded,
+#: the image channels kept: "rgb", or "a" for the slots the READMEs read from alpha).
+GLTF_SLOTS = {
+    "clearcoat": ("clearcoat", "texture", False, "rgb"),                      # R
+    "clearcoat_roughness": ("clearcoat", "roughness_texture", False, "rgb"),  # G
+    "clearcoat_normal": ("clearcoat", "normal_texture", False, "rgb"),        # tangent-space normal
+    "sheen_color": ("sheen", "color_texture", True, "rgb"),
+    "sheen_roughness": ("sheen", "roughness_texture", False, "a"),
+    "specular": ("khr_specular", "texture", False, "a"),
+    "specular_color": ("khr_specular", "color_texture", True, "rgb"),
+    "anisotropy": ("anisotropy", "texture", False, "rgb"),                    # RG direction, B strength
+    "iridescence": ("iridescence", "texture", False, "rgb"),                  # R
+    "iridescence_thickness": ("iridescence", "thickness_texture", False, "rgb"),   # G
+}
+
+
+def gltf_lobe_props(asset, m, cache: dict) -> dict:
+    """The ``pbr_textured`` props of glTF material ``m``'s active lobes (:attr:`active` of
+    :mod:`pbrcheck.lobe_params`' classes: an inactive lobe adds nothing): the factors under the
+    scene-file names, ``iridescence_thickness`` = ``iridescenceThicknessMaximum`` and
+    ``iridescence_thickness_minimum``, ``clearcoat_normal_scale``, and per present texture
+    ``<slot>_lobe_texture`` / ``<slot>_lobe_texcoord`` (:data:`GLTF_SLOTS`; ``cache`` shares the
+    decoded images with the core slots')."""
+    from .textured import texture_dict   # local: reference.textured imports reference.bsdf, which imports this
+
+    out: dict = {}
+    cc, sh, sp, an, ir = m.clearcoat, m.sheen, m.khr_specular, m.anisotropy, m.iridescence
+    if cc is not None and cc.active:
+        out.update(clearcoat=cc.factor, clearcoat_roughness=cc.roughness)
+        if cc.normal_texture is not None:
+            out["clearcoat_normal_scale"] = float(cc.normal_texture.scale)
+    if sh is not None and sh.active:
+        out.update(sheen_color=list(sh.color), sheen_roughness=sh.roughness)
+    if sp is not None and sp.active:
+        out.update(specular_factor=sp.factor, specular_color=list(sp.color))
+    if an is not None and an.active:
+        out.update(anisotropy_strength=an.strength, anisotropy_rotation=an.rotation)
+    if ir is not None and ir.active:
+        out.update(iridescence=ir.factor, iridescence_ior=ir.ior, iridescence_thickness=ir.thickness_maximum,
+                   iridescence_thickness_minimum=ir.thickness_minimum)
+    for slot, (field, attr, srgb, ch) in GLTF_SLOTS.items():
+        lobe = getattr(m, field)
+        ref = getattr(lobe, attr) if lobe is not None and lobe.active else None
+        if ref is None:
+            continue
+        key = (ref.image, srgb, ch)
+        if key not in cache:
+            px = asset.images[ref.image].linear(srgb)
+            cache[key] = px[..., 3:4] if ch == "a" else px[..., :3]
+        out[f"{slot}_lobe_texture"] = texture_dict(cache[key], ref)
+        out[f"{slot}_lobe_texcoord"] = int(ref.texcoord)
+    return out
+
+
+def needs_tangents(m) -> bool:
+    """Whether glTF material ``m``'s lobes read the tangent frame: anisotropy (its direction) or a
+    clearcoatNormalTexture (tangent space)."""
+    an, cc = m.anisotropy, m.clearcoat
+    return bool((an is not None and an.active) or (cc is not None and cc.active and cc.normal_texture is not None))
+
+
+def textured_init(mat, props) -> None:
+    """``pbr_textured``'s lobe part of ``__init__``: ``mat.lobes_static`` (the factors, or None),
+    ``mat.lobe_tex`` ``{slot: texture}`` (their texCoord sets in ``mat.uvset["lobe_<slot>"]``)."""
+    def get(name, default):
+        return props.get(name, default)
+
+    mat.lobes_static = LobeParams.from_props(get)
+    mat.lobe_tex = {}
+    mat.lobe_extra = {"iridescence_thickness_minimum": float(get("iridescence_thickness_minimum", 100.0)),
+                      "clearcoat_normal_scale": float(get("clearcoat_normal_scale", 1.0))}
+    if mat.lobes_static is None:
+        return
+    check_model(*mat.model[:4], mat.lobes_static.used)
+    for slot in GLTF_SLOTS:
+        if f"{slot}_lobe_texture" in props:
+            mat.lobe_tex[slot] = props.get(f"{slot}_lobe_texture")
+            mat.uvset[f"lobe_{slot}"] = int(get(f"{slot}_lobe_texcoord", 0))
+
+
+def _tangent_frame(si, shape, active, tangents: bool):
+    """The glTF tangent (world) and its sign: the vertex TANGENT where the primitive has one, else
+    Mitsuba's ``sh_frame.s`` (dp/du of the texcoords, the direction glTF's tangent follows)."""
+    if not tangents:
+        return si.sh_frame.s, mi.Float(1.0)
+    tw = mi.Vector3f(shape.eval_attribute_3("vertex_tangent", si, active))
+    w = dr.select(shape.eval_attribute_1("vertex_tangent_w", si, active) < 0, -1.0, 1.0)
+    return tw, w
+
+
+def _mapped(t, scale, T, B, N):
+    """A tangent-space normal texel (glTF 3.9.3: ``(2 t.rg - 1) * scale, 2 t.b - 1``) in world space."""
+    x, y, z = (2.0 * t.x - 1.0) * scale, (2.0 * t.y - 1.0) * scale, 2.0 * t.z - 1.0
+    return dr.normalize(T * x + B * y + N * z)
+
+
+def textured_lobes(mat, si, active, shape, n_local, flip, frame):
+    """``(LobeParams per lane, frame)`` of a ``pbr_textured`` hit: each factor times its texture
+    ([Coat] clearcoat R, roughness G; [Sheen] colour RGB, roughness A; [Spec] A and RGB; [Aniso] RG
+    direction ``2 x - 1`` rotated by ``anisotropyRotation``, B strength; [Irid] R, thickness
+    ``mix(min, max, G)``); the frame re-made with the tangent as its ``s`` where the material has
+    anisotropy (the direction is measured from it); the coat normal (clearcoatNormalTexture's, else
+    the interpolated vertex normal: [Coat] no normal mapping of the coat without its own texture) in
+    that frame where it can differ from the shading normal."""
+    P0 = mat.lobes_static
+    vals = dict(P0.values)
+
+    def tex(slot):
+        return mat.lobe_tex[slot].eval(mat._uv_si(f"lobe_{slot}", si, active, shape), active)
+
+    has = mat.lobe_tex.__contains__
+    used = P0.used
+    tangents = bool(getattr(mat, "tangents", False))
+    N = si.sh_frame.n
+    if "anisotropy" in used or has("clearcoat_normal"):
+        tw, w = _tangent_frame(si, shape, active, tangents)
+        T = tw - N * dr.dot(N, tw)
+        T = dr.select(dr.squared_norm(T) > 1e-12, dr.normalize(T), si.sh_frame.s)
+        B = dr.cross(N, T) * w
+    if "anisotropy" in used:
+        # the shading frame with s along the tangent projected on the (mapped) normal
+        n = dr.normalize(n_local)
+        Tl = si.sh_frame.to_local(T)
+        Tl = Tl - n * dr.dot(n, Tl)
+        Tl = dr.select(dr.squared_norm(Tl) > 1e-12, dr.normalize(Tl), frame.s)
+        frame = mi.Frame3f(Tl, dr.cross(n, Tl) * w, n)
+        if has("anisotropy"):
+            t = tex("anisotropy")
+            vals["anisotropy_strength"] = vals["anisotropy_strength"] * t.z
+            vals["anisotropy_rotation"] = vals["anisotropy_rotation"] + dr.atan2(2.0 * t.y - 1.0, 2.0 * t.x - 1.0)
+    if "clearcoat" in used:
+        if has("clearcoat"):
+            vals["clearcoat"] = vals["clearcoat"] * tex("clearcoat").x
+        if has("clearcoat_roughness"):
+            vals["clearcoat_roughness"] = vals["clearcoat_roughness"] * tex("clearcoat_roughness").y
+        if has("clearcoat_normal") or "normal" in mat.tex or "anisotropy" in used:
+            nc = mi.Vector3f(0.0, 0.0, 1.0)
+            if has("clearcoat_normal"):
+                nc = si.sh_frame.to_local(_mapped(tex("clearcoat_normal"), mat.lobe_extra["clearcoat_normal_scale"], T, B, N))
+            nc = dr.select(flip, -nc, nc)
+            vals["clearcoat_normal"] = dr.normalize(frame.to_local(nc))
+    if "sheen" in used:
+        if has("sheen_color"):
+            vals["sheen_color"] = vals["sheen_color"] * tex("sheen_color")
+        if has("sheen_roughness"):
+            vals["sheen_roughness"] = vals["sheen_roughness"] * tex("sheen_roughness").x
+    if "specular" in used:
+        if has("specular"):
+            vals["specular_factor"] = vals["specular_factor"] * tex("specular").x
+        if has("specular_color"):
+            vals["specular_color"] = vals["specular_color"] * tex("specular_color")
+    if "iridescence" in used:
+        if has("iridescence"):
+            vals["iridescence"] = vals["iridescence"] * tex("iridescence").x
+        if has("iridescence_thickness"):
+            lo = mat.lobe_extra["iridescence_thickness_minimum"]
+            g = tex("iridescence_thickness").y
+            vals["iridescence_thickness"] = lo * (1.0 - g) + vals["iridescence_thickness"] * g
+    return LobeParams(used, vals), frame

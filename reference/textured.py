@@ -70,6 +70,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 import drjit as dr
 import mitsuba as mi
 
+from . import lobe_bsdf
 from . import multiscatter
 from .bsdf import MaterialView, is_mirror_limit, make_material_opaque, traverse_material
 
@@ -232,6 +233,9 @@ class TexturedMaterial(mi.BSDF):
         self.m_components = comps
         self.m_flags = flags
         self.fused = fuse_textures(self.tex, self.uvset)
+        # the glTF extensions' lobes (reference.lobe_bsdf): factors, textures; the vertex TANGENT's presence
+        self.tangents = bool(props.get("tangents", False))
+        lobe_bsdf.textured_init(self, props)
         # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
         self.normal_filter = None
 
@@ -322,7 +326,10 @@ class TexturedMaterial(mi.BSDF):
             n_local = dr.normalize(si.sh_frame.to_local(n_world))
         n_local = dr.select(flip, -n_local, n_local)
         frame = mi.Frame3f(n_local)
-        view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular))
+        lobes = None
+        if self.lobes_static is not None:   # hook: the lobes' textures, the tangent frame (reference.lobe_bsdf)
+            lobes, frame = lobe_bsdf.textured_lobes(self, si, active, shape, n_local, flip, frame)
+        view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular), lobes)
         return view, frame
 
     def opacity(self, si, active=True):
@@ -518,7 +525,8 @@ def register() -> None:
 # Shapes
 # ------------------------------------------------------------------------------------------------
 
-def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0,
+                   tangents: bool = False) -> dict:
     if brdf.geometric_roughness != "none":
         raise SceneError(f"[brdf] geometric_roughness = {brdf.geometric_roughness!r} is not implemented for "
                          "glTF assets (the textured material); only for the built-in objects")
@@ -531,6 +539,9 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     if m.unlit:
         d["unlit"] = True
+    else:   # the glTF extensions' lobes (reference.lobe_bsdf.gltf_lobe_props: none, no key)
+        lobes = lobe_bsdf.gltf_lobe_props(asset, m, cache)
+        d.update(lobes, **({"tangents": True} if lobes and tangents else {}))
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),
                             ("normal", m.normal_texture, False)):
@@ -605,10 +616,12 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
         if bsdf_for is not None:
             bsdf = mi.load_dict(bsdf_for(obj))
         else:
-            key = (obj.instance, obj.gltf_material, prim.color is not None, primary)
+            tangents = prim.tangents is not None and lobe_bsdf.needs_tangents(inst.asset.material(obj.gltf_material))
+            key = (obj.instance, obj.gltf_material, prim.color is not None, primary, tangents)
             if key not in mats:
                 mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
-                                                        vertex_color=prim.color is not None, primary=primary))
+                                                        vertex_color=prim.color is not None, primary=primary,
+                                                        tangents=tangents))
             bsdf = mats[key]
         props["bsdf"] = bsdf
         if bsdf_for is None and inst.asset.material(obj.gltf_material).unlit:
