@@ -652,15 +652,14 @@ GLTF_SLOTS = {
 }
 
 
-def gltf_lobe_props(asset, m, cache: dict) -> dict:
+def gltf_lobe_props(asset, m, cache: dict, texture_dict) -> dict:
     """The ``pbr_textured`` props of glTF material ``m``'s active lobes (:attr:`active` of
     :mod:`pbrcheck.lobe_params`' classes: an inactive lobe adds nothing): the factors under the
     scene-file names, ``iridescence_thickness`` = ``iridescenceThicknessMaximum`` and
     ``iridescence_thickness_minimum``, ``clearcoat_normal_scale``, and per present texture
     ``<slot>_lobe_texture`` / ``<slot>_lobe_texcoord`` (:data:`GLTF_SLOTS`; ``cache`` shares the
-    decoded images with the core slots')."""
-    from .textured import texture_dict   # local: reference.textured imports reference.bsdf, which imports this
-
+    decoded images with the core slots'); ``texture_dict`` :func:`reference.textured.texture_dict`
+    (passed in: that module imports this one)."""
     out: dict = {}
     cc, sh, sp, an, ir = m.clearcoat, m.sheen, m.khr_specular, m.anisotropy, m.iridescence
     if cc is not None and cc.active:

@@ -540,7 +540,7 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
     if m.unlit:
         d["unlit"] = True
     else:   # the glTF extensions' lobes (reference.lobe_bsdf.gltf_lobe_props: none, no key)
-        lobes = lobe_bsdf.gltf_lobe_props(asset, m, cache)
+        lobes = lobe_bsdf.gltf_lobe_props(asset, m, cache, texture_dict)
         d.update(lobes, **({"tangents": True} if lobes and tangents else {}))
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),

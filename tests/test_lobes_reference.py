@@ -395,3 +395,28 @@ def test_shared_asset_lobes_change_the_image(name, monkeypatch):
     assert np.isfinite(A).all()
     change = float(np.percentile(np.abs(A - B).max(axis=-1), 99))
     assert change > ASSET_MIN_CHANGE, change
+
+
+def test_textured_clearcoat_known_answer(tmp_path):
+    """A glTF quad, black base with specularFactor 0 (no reflection), clearcoatFactor 1 times a
+    clearcoatTexture whose R is 1 on the image's left half and 0 on its right, read through
+    KHR_texture_transform's offset (0.5, 0), which swaps the halves: the quad's right half (u > 0.5)
+    shows the coat, 0.04 of the constant environment near normal incidence, its left half 0."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from gltf_build import quad_asset, quad_scene
+    from reference.render import render_uncached
+
+    px = np.zeros((2, 4, 3), np.uint8)
+    px[:, :2, 0] = 255
+    tex = {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0]}}}
+    mat = {"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0.0, "roughnessFactor": 0.5},
+           "extensions": {"KHR_materials_specular": {"specularFactor": 0.0},
+                          "KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatTexture": tex}}}
+    asset = quad_asset(tmp_path / "coat.gltf", mat, [(px, {"magFilter": 9728, "minFilter": 9728})])
+    sc = load_scene(quad_scene(tmp_path, asset, size=(16, 8), fov=30.0))
+    img = render_uncached(sc, spp=4, mode="local", progress=False, aovs=False)
+    R = img.channels["R"]
+    assert np.abs(R[3:5, 1:6]).max() == 0.0, R[3:5, 1:6]          # left half: no coat, no base reflection
+    np.testing.assert_allclose(R[3:5, 10:15], 0.04, atol=COAT_KNOWN_ATOL)   # right half: Fc(~1) = 0.04
