@@ -24,6 +24,7 @@ from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain  # noqa: E4
 
 from reference import lobe_bsdf as LB  # noqa: E402
 from reference import lobes as RL  # noqa: E402
+from test_lobes import _pairs  # noqa: E402  (the twins' grid: n.v and n.l from 1e-3 to 1)
 
 #: Significance of each chi-square test (Mitsuba's own tests use 0.01).
 CHI2_SIGNIFICANCE = 0.01
@@ -64,19 +65,6 @@ def _si(wi, n):
     si.wi = mi.Vector3f(*[mi.Float(np.asarray(c, np.float32)) for c in wi]) if np.ndim(wi[0]) else \
         dr.normalize(mi.Vector3f(*wi))
     return si
-
-
-def _dirs(n=9):
-    cs = np.array([1e-3, 0.02, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99, 1.0])[:n]
-    ph = np.linspace(0.0, 2 * np.pi, 7, endpoint=False) + 0.1
-    c, p = np.meshgrid(cs, ph, indexing="ij")
-    s = np.sqrt(1 - c * c)
-    return np.stack([s * np.cos(p), s * np.sin(p), c], axis=-1).reshape(-1, 3)
-
-
-def _pairs():
-    d = _dirs()
-    return np.repeat(d, len(d), axis=0), np.tile(d, (len(d), 1))
 
 
 def _v3(a):
