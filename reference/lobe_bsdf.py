@@ -91,7 +91,6 @@ INV_PI = 1.0 / PI
 #: The lobes, in the order of :data:`pbrcheck.lobe_params.LOBE_EXTENSIONS`, by the short name the
 #: material props use.
 LOBES = ("clearcoat", "sheen", "specular", "anisotropy", "iridescence")
-_EXTENSION = dict(zip(LOBES, LP.LOBE_EXTENSIONS))
 #: The extensions the reference renders (``local`` and ``path``): the set the lead's flip of
 #: :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` intersects with the real-time side's.
 REFERENCE_LOBES = frozenset(LP.LOBE_EXTENSIONS)
@@ -188,17 +187,28 @@ class LobeParams:
         return [p for lobe in self.used for p in LOBE_DEFAULTS[lobe]]
 
 
+#: Whether a scene-file material's lobe changes the image: the glTF classes' ``active``
+#: (:mod:`pbrcheck.lobe_params`: clearcoatFactor, sheenColorFactor, anisotropyStrength or
+#: iridescenceFactor 0 disables the layer whatever its other fields; specular at (1, white) is the core's).
+_ACTIVE = {
+    "clearcoat": lambda m: m.clearcoat > 0.0,
+    "sheen": lambda m: max(m.sheen_color) > 0.0,
+    "specular": lambda m: m.specular_factor != 1.0 or tuple(m.specular_color) != (1.0, 1.0, 1.0),
+    "anisotropy": lambda m: m.anisotropy_strength > 0.0,
+    "iridescence": lambda m: m.iridescence > 0.0,
+}
+
+
 def lobes_of_material(material) -> dict:
-    """The material props of a scene-file material's lobes (only the lobes it sets to other than
-    neutral: :func:`pbrcheck.lobe_params.scene_features`), for :func:`reference.bsdf.material_dict`."""
+    """The material props of a scene-file material's active lobes (:data:`_ACTIVE`: a lobe whose
+    factor disables it adds nothing, e.g. clearcoat 0 with a clearcoat_roughness), for
+    :func:`reference.bsdf.material_dict`; {} for a material without lobes."""
     out = {}
-    used = LP.scene_features(material)
     for lobe, props in LOBE_DEFAULTS.items():
-        if _EXTENSION[lobe] not in used:
+        if not _ACTIVE[lobe](material):
             continue
         for p in props:
-            src = "specular_factor" if p == "specular_factor" else p
-            v = getattr(material, src)
+            v = getattr(material, p)
             out[p] = [float(c) for c in v] if isinstance(v, (tuple, list)) else float(v)
     return out
 

@@ -109,6 +109,11 @@ def test_neutral_scene_fields_give_todays_material(lobe):
     base = material_dict(m, sc.brdf)
     m2 = dataclasses.replace(m, **{k: v for k, v in LB.LOBE_DEFAULTS[lobe].items()})
     assert material_dict(m2, sc.brdf) == base
+    # a disabled layer's other fields change nothing either (clearcoat 0 with a roughness, ...)
+    others = {"clearcoat": dict(clearcoat_roughness=0.5), "sheen": dict(sheen_roughness=0.5),
+              "specular": {}, "anisotropy": dict(anisotropy_rotation=1.0),
+              "iridescence": dict(iridescence_ior=2.0, iridescence_thickness=100.0)}[lobe]
+    assert material_dict(dataclasses.replace(m, **others), sc.brdf) == base
     b = mi.load_dict(base)
     assert b.lobes is None
 
