@@ -671,7 +671,8 @@ def gltf_lobe_props(asset, m, cache: dict, texture_dict) -> dict:
     decoded images with the core slots'); ``texture_dict`` :func:`reference.textured.texture_dict`
     (passed in: that module imports this one)."""
     out: dict = {}
-    cc, sh, sp, an, ir = m.clearcoat, m.sheen, m.khr_specular, m.anisotropy, m.iridescence
+    # (a material without the lobe fields, e.g. a test's stand-in, has none)
+    cc, sh, sp, an, ir = (getattr(m, f, None) for f in ("clearcoat", "sheen", "khr_specular", "anisotropy", "iridescence"))
     if cc is not None and cc.active:
         out.update(clearcoat=cc.factor, clearcoat_roughness=cc.roughness)
         if cc.normal_texture is not None:
@@ -686,7 +687,7 @@ def gltf_lobe_props(asset, m, cache: dict, texture_dict) -> dict:
         out.update(iridescence=ir.factor, iridescence_ior=ir.ior, iridescence_thickness=ir.thickness_maximum,
                    iridescence_thickness_minimum=ir.thickness_minimum)
     for slot, (field, attr, srgb, ch) in GLTF_SLOTS.items():
-        lobe = getattr(m, field)
+        lobe = getattr(m, field, None)
         ref = getattr(lobe, attr) if lobe is not None and lobe.active else None
         if ref is None:
             continue
@@ -702,7 +703,7 @@ def gltf_lobe_props(asset, m, cache: dict, texture_dict) -> dict:
 def needs_tangents(m) -> bool:
     """Whether glTF material ``m``'s lobes read the tangent frame: anisotropy (its direction) or a
     clearcoatNormalTexture (tangent space)."""
-    an, cc = m.anisotropy, m.clearcoat
+    an, cc = getattr(m, "anisotropy", None), getattr(m, "clearcoat", None)
     return bool((an is not None and an.active) or (cc is not None and cc.active and cc.normal_texture is not None))
 
 
