@@ -431,3 +431,50 @@ def test_lobe_scene_is_differentiable(name, obj):
     _, _, g = render_with_gradient(ms, params, [key], lambda img: dr.mean(img[..., 0], axis=None), spp=4)
     grad = np.asarray(g[key]).ravel()
     assert np.all(np.isfinite(grad)) and grad[0] > 0, grad
+
+
+def test_textured_anisotropy_direction_equals_rotation(tmp_path):
+    """anisotropyTexture's RG direction (2 x - 1) at angle a and B strength 1 renders as the factor
+    anisotropyRotation = a without a texture (KHR_materials_anisotropy: the direction in the tangent
+    frame, rotated by anisotropyRotation), and differs from the unrotated lobe."""
+    import sys
+
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from gltf_build import quad_asset, quad_scene
+    from reference.render import render_uncached
+
+    a = 1.0
+    px = np.zeros((2, 2, 3), np.uint8)
+    px[..., 0] = round((math.cos(a) + 1) / 2 * 255)
+    px[..., 1] = round((math.sin(a) + 1) / 2 * 255)
+    px[..., 2] = 255
+    a_px = math.atan2(px[0, 0, 1] / 255 * 2 - 1, px[0, 0, 0] / 255 * 2 - 1)   # the 8-bit direction's angle
+    base = {"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 1.0, "roughnessFactor": 0.4}}
+
+    sky = """
+[environment]
+type = "sky"
+sun_direction = [0.4, 0.6, 0.7]
+sun_angular_diameter = 8.0
+sun_radiance = [60.0, 55.0, 48.0]
+sky_radiance = [0.25, 0.4, 0.8]
+horizon_radiance = [0.9, 0.85, 0.8]
+ground_radiance = [0.25, 0.2, 0.15]
+resolution = [256, 128]
+"""
+
+    def render(ext, images=()):
+        k = len(list(tmp_path.iterdir()))
+        mat = dict(base, extensions={"KHR_materials_anisotropy": ext})
+        asset = quad_asset(tmp_path / f"a{k}.gltf", mat, list(images))
+        p = quad_scene(tmp_path, asset, size=(12, 12), name=f"s{k}.toml")
+        text = p.read_text()   # the quad under a sky with a sun (a constant environment hides the direction)
+        p.write_text(text[:text.index("[environment]")] + sky + text[text.index("[[objects]]"):])
+        img = render_uncached(load_scene(p), spp=8, mode="local", progress=False, aovs=False)
+        return np.stack([img.channels[c] for c in "RGB"], -1)
+
+    tex = render({"anisotropyStrength": 1.0, "anisotropyTexture": {"index": 0}}, [(px, {"magFilter": 9728})])
+    rot = render({"anisotropyStrength": 1.0, "anisotropyRotation": a_px})
+    zero = render({"anisotropyStrength": 1.0})
+    np.testing.assert_allclose(tex, rot, rtol=1e-4, atol=1e-6)
+    assert np.abs(tex - zero).max() > 5e-2, np.abs(tex - zero).max()
