@@ -308,10 +308,14 @@ class PBRMaterial(mi.BSDF):
 
     def traverse(self, callback):
         traverse_material(self, callback)
+        if self.lobes is not None:   # the lobes' factors (reference.lobe_bsdf.LobeParams)
+            self.lobes.traverse(callback)
 
     def parameters_changed(self, keys=None):
         self._update()
         make_material_opaque(self)
+        if self.lobes is not None:
+            self.lobes.make_opaque()
 
     def to_string(self):
         return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "

@@ -186,6 +186,15 @@ class LobeParams:
     def props(self):
         return [p for lobe in self.used for p in LOBE_DEFAULTS[lobe]]
 
+    def traverse(self, callback) -> None:
+        """Each factor as a differentiable parameter (``traverse`` of a material with lobes): a new
+        value is assigned in place, so the view's tables read it at the next gather."""
+        for p, v in self.values.items():
+            callback.put(p, v, mi.ParamFlags.Differentiable)
+
+    def make_opaque(self) -> None:
+        dr.make_opaque(*self.values.values())
+
 
 #: Whether a scene-file material's lobe changes the image: the glTF classes' ``active``
 #: (:mod:`pbrcheck.lobe_params`: clearcoatFactor, sheenColorFactor, anisotropyStrength or

@@ -48,6 +48,9 @@ ENERGY_BOUND = 1.0
 #: at normal incidence: Fc(1) * albedo of the coat = 0.04 * 1; the local estimator's 16 spp at the
 #: centre pixel agree to this (the coat's albedo at roughness 0.01 is 1 - 1e-4).
 COAT_KNOWN_ATOL = 2e-3
+#: The gradient of a lobe factor against the central difference at the same seed (the difference's
+#: samples move with the lobe probabilities: 7 % measured at 16 spp).
+GRAD_FD_RTOL = 0.2
 #: The film's spectral sum per lane against reference.lobes.iridescence_spectral (the same sums in
 #: float32, a loop against a block sum: summation order).
 FILM_ATOL = 2e-5
@@ -478,3 +481,23 @@ resolution = [256, 128]
     zero = render({"anisotropyStrength": 1.0})
     np.testing.assert_allclose(tex, rot, rtol=1e-4, atol=1e-6)
     assert np.abs(tex - zero).max() > 5e-2, np.abs(tex - zero).max()
+
+
+def test_clearcoat_factor_gradient_matches_finite_difference(tmp_path):
+    """The lobes' factors are differentiable parameters (``traverse``): on the black sphere under a
+    coat (L = clearcoat Fc(n.v) A_coat(n.v), linear in clearcoat) the gradient of the image mean
+    w.r.t. clearcoat equals the central difference (measured 0.0601 against 0.0560 at 16 spp: the
+    difference's samples move with the lobe probabilities)."""
+    from reference.diff import load_differentiable_scene, param_key, render_image, render_with_gradient
+
+    ms, params = load_differentiable_scene(_known_scene(tmp_path, clearcoat=0.5), spp=16)
+    key = param_key(0, "clearcoat")
+    _, _, g = render_with_gradient(ms, params, [key], lambda img: dr.mean(img, axis=None), spp=16)
+    vals = []
+    for c in (0.4, 0.6):
+        params[key] = c
+        params.update()
+        vals.append(render_image(ms, params, spp=16).mean())
+    fd = (vals[1] - vals[0]) / 0.2
+    assert fd > 0.03
+    assert abs(float(np.asarray(g[key]).ravel()[0]) - fd) < GRAD_FD_RTOL * fd, (g[key], fd)
