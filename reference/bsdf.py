@@ -35,6 +35,11 @@ Multiple scattering: ``multiscatter = "random_walk"`` (props ``multiscatter``, `
 routes the non-delta specular lobe through :mod:`reference.multiscatter` (two hooks: ``_eval_pdf``
 adds the walk's orders >= 2 and its approximate pdf, ``sample`` samples the walk).
 
+The glTF extensions' lobes (clearcoat, sheen, specular, anisotropy, iridescence; props named as the
+scene file's fields, :data:`reference.lobe_bsdf.LOBE_DEFAULTS`): where a material has any, ``lobes``
+holds them and ``_eval_pdf`` / ``sample`` hand over to :mod:`reference.lobe_bsdf` (two hooks; the
+material is then never a delta); where it has none, ``lobes`` is None and nothing of them is traced.
+
 Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``,
 :data:`MATERIAL_PARAMS`) are exposed by ``traverse`` (:func:`traverse_material`, shared with
 ``pbr_textured``); ``parameters_changed`` makes them opaque (:func:`make_material_opaque`) so a new
