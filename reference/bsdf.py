@@ -35,6 +35,11 @@ Multiple scattering: ``multiscatter = "random_walk"`` (props ``multiscatter``, `
 routes the non-delta specular lobe through :mod:`reference.multiscatter` (two hooks: ``_eval_pdf``
 adds the walk's orders >= 2 and its approximate pdf, ``sample`` samples the walk).
 
+The glTF extensions' lobes (clearcoat, sheen, specular, anisotropy, iridescence; props named as the
+scene file's fields, :data:`reference.lobe_bsdf.LOBE_DEFAULTS`): where a material has any, ``lobes``
+holds them and ``_eval_pdf`` / ``sample`` hand over to :mod:`reference.lobe_bsdf` (two hooks; the
+material is then never a delta); where it has none, ``lobes`` is None and nothing of them is traced.
+
 Differentiable parameters ``base_color``, ``metallic``, ``roughness`` (and ``specular``,
 :data:`MATERIAL_PARAMS`) are exposed by ``traverse`` (:func:`traverse_material`, shared with
 ``pbr_textured``); ``parameters_changed`` makes them opaque (:func:`make_material_opaque`) so a new
@@ -51,6 +56,7 @@ import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, METALLIC_BLENDS, MIN_ALPHA
 from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
+from . import lobe_bsdf
 from . import multiscatter
 from . import terms
 from .terms import INV_PI, fresnel_term, geometry_term
@@ -75,7 +81,8 @@ class PBRLobes:
     :class:`PBRMaterial`) or per-lane arrays gathered by the shape each lane hit
     (:class:`MaterialView`). Attributes read: ``base_color`` (Color3f), ``metallic``, ``roughness``,
     ``specular`` (Float), ``ndf``, ``geometry``, ``fresnel``, ``multiscatter``, ``ms_seed`` (the
-    scene-wide model) and ``delta``: the mirror limit, a Python bool for an instance (decided from its
+    scene-wide model), ``lobes`` (None, or the :class:`reference.lobe_bsdf.LobeParams` of the glTF
+    extensions' lobes: then :mod:`reference.lobe_bsdf` evaluates and samples) and ``delta``: the mirror limit, a Python bool for an instance (decided from its
     roughness, so the other lobe is not even traced) or a per-lane mask (both traced, selected)."""
 
     # ---- shared pieces ---------------------------------------------------------------------
@@ -123,6 +130,8 @@ class PBRLobes:
 
     def _eval_pdf(self, si, wo, active):
         """(f cos, pdf) of the non-delta part, local frame."""
+        if self.lobes is not None:  # hook: the glTF extensions' lobes (reference.lobe_bsdf)
+            return lobe_bsdf.eval_pdf(self, si, wo, active)
         wi = si.wi
         NoV = mi.Frame3f.cos_theta(wi)
         NoL = mi.Frame3f.cos_theta(wo)
@@ -166,6 +175,8 @@ class PBRLobes:
         return self._eval_pdf(si, wo, active)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
+        if self.lobes is not None:  # hook: the glTF extensions' lobes (reference.lobe_bsdf)
+            return lobe_bsdf.sample(self, ctx, si, sample1, sample2, active)
         nd = self._nondelta()
         if self.multiscatter != "none" and nd is not False:  # hook: the random walk's sampling
             walk = multiscatter.sample_hook(self, ctx, si, sample1, sample2, active)
@@ -281,12 +292,16 @@ class PBRMaterial(mi.BSDF):
         self.geometric = (str(get("geometric_roughness", "none")), int(get("geometric_roughness_supersample", 1)))
         if self.geometric[0] not in GEOMETRIC_ROUGHNESS_NAMES or self.geometric[1] < 1:
             raise ValueError(f"pbr_material: bad geometric roughness {self.geometric!r}")
+        # the glTF extensions' lobes (reference.lobe_bsdf): None where the props name none
+        self.lobes = lobe_bsdf.LobeParams.from_props(get)
+        if self.lobes is not None:
+            lobe_bsdf.check_model(self.ndf, self.geometry, self.fresnel, self.multiscatter, self.lobes.used)
         self._update()
 
     # ---- parameters ------------------------------------------------------------------------
     def _update(self):
         r = float(dr.slice(self.roughness)) if dr.width(self.roughness) == 1 else 0.5
-        self.delta = bool(is_mirror_limit(r))
+        self.delta = bool(is_mirror_limit(r)) and self.lobes is None   # lobes: never a delta (lobe_bsdf)
         spec = mi.BSDFFlags.DeltaReflection if self.delta else mi.BSDFFlags.GlossyReflection
         comps = [spec | mi.BSDFFlags.FrontSide]
         flags = spec | mi.BSDFFlags.FrontSide
@@ -298,10 +313,14 @@ class PBRMaterial(mi.BSDF):
 
     def traverse(self, callback):
         traverse_material(self, callback)
+        if self.lobes is not None:   # the lobes' factors (reference.lobe_bsdf.LobeParams)
+            self.lobes.traverse(callback)
 
     def parameters_changed(self, keys=None):
         self._update()
         make_material_opaque(self)
+        if self.lobes is not None:
+            self.lobes.make_opaque()
 
     def to_string(self):
         return (f"PBRMaterial[ndf={self.ndf}, geometry={self.geometry}, fresnel={self.fresnel}, "
@@ -345,17 +364,18 @@ class MaterialView(PBRLobes):
     limit becomes a per-lane mask. Gradients flow to each instance's parameters through the scatter
     into the tables and the gather (both differentiable)."""
 
-    def __init__(self, model: tuple, base_color, metallic, roughness, specular):
+    def __init__(self, model: tuple, base_color, metallic, roughness, specular, lobes=None):
         self.model = tuple(model)
         self.ndf, self.geometry, self.fresnel, self.multiscatter, self.ms_seed = model[:5]
         self.geometric = model[5] if len(model) > 5 else ("none", 1)
         self.metallic_blend = model[6] if len(model) > 6 else "f0"
         self.base_color, self.metallic, self.roughness, self.specular = base_color, metallic, roughness, specular
-        self.delta = dr.detach(is_mirror_limit(roughness))
+        self.lobes = lobes  # reference.lobe_bsdf.LobeParams per lane, or None
+        self.delta = dr.detach(is_mirror_limit(roughness)) if lobes is None else False
 
     def with_roughness(self, roughness) -> "MaterialView":
         """The same materials shading ``roughness`` per lane (the mirror limit decided anew)."""
-        return MaterialView(self.model, self.base_color, self.metallic, roughness, self.specular)
+        return MaterialView(self.model, self.base_color, self.metallic, roughness, self.specular, self.lobes)
 
     @staticmethod
     def table(scene):
@@ -394,8 +414,13 @@ class MaterialView(PBRLobes):
 
         names = ((mi.Color3f, "base_color"), (mi.Float, "metallic"), (mi.Float, "roughness"), (mi.Float, "specular"))
         tables = [table_of(tp, name) for tp, name in names]
-        dr.eval(*tables)
-        return cls(model, *(dr.gather(tp, t, idx, active) for (tp, _), t in zip(names, tables)))
+        lobes = lobe_bsdf.view_tables(mats, k)   # the lobes some material uses (materials without: neutral)
+        dr.eval(*tables, *(lobes[1].values() if lobes else ()))
+        view = cls(model, *(dr.gather(tp, t, idx, active) for (tp, _), t in zip(names, tables)))
+        if lobes:
+            view.lobes = lobe_bsdf.gather_view(lobes, idx, active)
+            view.delta = False
+        return view
 
 
 
@@ -500,4 +525,5 @@ def material_dict(material, brdf) -> dict:
             "ndf": brdf.ndf, "geometry": brdf.geometry, "fresnel": brdf.fresnel,
             "multiscatter": brdf.multiscatter, "geometric_roughness": brdf.geometric_roughness,
             "geometric_roughness_supersample": brdf.geometric_roughness_supersample,
-            "metallic_blend": brdf.metallic_blend}
+            "metallic_blend": brdf.metallic_blend,
+            **lobe_bsdf.lobes_of_material(material)}   # only the lobes the material sets: none, no key

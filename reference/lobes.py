@@ -30,6 +30,7 @@ import drjit as dr
 import mitsuba as mi
 
 from reference import terms as T
+from reference.lobe_bsdf import aniso_sample_h
 
 PI = math.pi
 
@@ -159,20 +160,8 @@ class AnisotropicGGX:
         return dr.select((v.z > 0) & (l.z > 0), self.brdf(v, l) * dr.clip(l.z, 0.0, 1.0), 0.0)
 
     def sample_h(self, v, u):
-        vl = self.local(v)
-        vh = dr.normalize(mi.Vector3f(self.at * vl.x, self.ab * vl.y, vl.z))
-        lensq = vh.x * vh.x + vh.y * vh.y
-        inv = dr.rsqrt(dr.maximum(lensq, 1e-30))
-        T1 = dr.select(lensq > 0, mi.Vector3f(-vh.y * inv, vh.x * inv, 0.0), mi.Vector3f(1.0, 0.0, 0.0))
-        T2 = dr.cross(vh, T1)
-        r = dr.sqrt(u.x)
-        phi = 2.0 * PI * u.y
-        t1, t2 = r * dr.cos(phi), r * dr.sin(phi)
-        s = 0.5 * (1.0 + vh.z)
-        t2 = (1.0 - s) * dr.sqrt(dr.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-        nh = t1 * T1 + t2 * T2 + dr.sqrt(dr.maximum(1.0 - t1 * t1 - t2 * t2, 0.0)) * vh
-        h = dr.normalize(mi.Vector3f(self.at * nh.x, self.ab * nh.y, dr.maximum(nh.z, 0.0)))
-        return self.world(h)
+        # [Heitz18] listing 1: the per-lane sampler of reference.lobe_bsdf at this lobe's constants
+        return aniso_sample_h(v, u, self.at, self.ab, self.c, self.s)
 
     def pdf(self, v, l):
         h = _half(v, l)

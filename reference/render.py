@@ -41,7 +41,7 @@ glTF assets: their primitives are Mitsuba meshes with the textured ``pbr_texture
 API: :func:`render_reference` (cached), :func:`render_uncached`, :func:`check_budget` (pixels, samples), :func:`scene_dict`,
 :func:`load_mitsuba_scene`, :func:`load_integrator`, :func:`reference_cache_key`,
 :func:`adaptive_allocation`, :func:`lean_plan`, :data:`LEAN_OUTPUTS`, :func:`check_sampler`, :func:`geometric_roughness_image`, :data:`REFERENCE_CODE_VERSION`,
-:data:`ASSET_CODE_VERSION`,
+:data:`ASSET_CODE_VERSION`, :data:`LOBE_CODE_VERSION`, :func:`scene_uses_lobes`,
 :data:`SAMPLER_NAMES`, :data:`DEFAULT_SAMPLER`, :data:`DEFAULT_ADAPTIVE`.
 References: Kensler 2013, "Correlated multi-jittered sampling" (Pixar tech memo 13-01); Kirk &
 Arvo 1991, "Unbiased sampling techniques for image synthesis" (SIGGRAPH); Neyman 1934 (optimal
@@ -74,6 +74,23 @@ REFERENCE_CODE_VERSION = "4"
 #: faces culled (path: volpath), the emissive texture's texCoord set. 3: the glTF tangent and its sign
 #: read (they were zeros: Mitsuba's frame, wrong on mirrored UVs).
 ASSET_CODE_VERSION = "3"
+#: Bump when a change of reference/lobe_bsdf.py changes the pixels of scenes whose materials use the
+#: glTF extensions' lobes: part of their cache keys alone (:func:`scene_uses_lobes`). 1: the lobes
+#: rendered (they were left out).
+LOBE_CODE_VERSION = "1"
+
+
+def scene_uses_lobes(scene) -> bool:
+    """Whether an analytic object's material sets lobe fields or an asset's material has an active
+    lobe extension (what reference.lobe_bsdf renders)."""
+    from pbrcheck import lobe_params
+
+    if any(lobe_params.scene_features(o.material) for o in scene.objects if hasattr(o, "material")
+           and hasattr(o.material, "clearcoat_roughness")):
+        return True
+    fields = [f for f, _ in lobe_params.LOBE_EXTENSIONS.values()]
+    return any(getattr(m, f, None) is not None and getattr(m, f).active
+               for inst in getattr(scene, "assets", ()) for m in inst.asset.materials for f in fields)
 MODES = ("local", "path")
 DEFAULT_MAX_DEPTH = 8
 VARIANCE_METHOD = "per-pixel moments: unbiased sample variance of the spp samples / spp"
@@ -455,6 +472,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "drjit_version": drjit.__version__,
         "reference_code_version": REFERENCE_CODE_VERSION,
         **({"asset_code_version": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}),
+        **({"lobe_code_version": LOBE_CODE_VERSION} if scene_uses_lobes(scene) else {}),
         "sampler": sampler,
         "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
@@ -492,6 +510,8 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     depth = int(max_depth if max_depth is not None else DEFAULT_MAX_DEPTH) if mode == "path" else None
     adaptive = bool(adaptive) and sampler == "qmc" and int(spp) >= ADAPTIVE_MIN_SPP
     assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
+    if scene_uses_lobes(scene):
+        assets["lobe_code"] = LOBE_CODE_VERSION
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
                      sampler=check_sampler(sampler), adaptive=adaptive, backend=backend_identity(), **assets)

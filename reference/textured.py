@@ -72,6 +72,7 @@ from pbrcheck.gltf import WRAP_CLAMP, WRAP_MIRROR, TextureRef
 import drjit as dr
 import mitsuba as mi
 
+from . import lobe_bsdf
 from . import multiscatter
 from .bsdf import MaterialView, SceneCalls, is_mirror_limit, make_material_opaque, traverse_material
 
@@ -234,6 +235,9 @@ class TexturedMaterial(mi.BSDF):
         self.m_components = comps
         self.m_flags = flags
         self.fused = fuse_textures(self.tex, self.uvset)
+        # the glTF extensions' lobes (reference.lobe_bsdf): factors, textures; the vertex TANGENT's presence
+        self.tangents = bool(props.get("tangents", False))
+        lobe_bsdf.textured_init(self, props)
         # reference.normal_filter.attach sets it (fit-normal-roughness's filtered model); None: the reference
         self.normal_filter = None
         # [brdf] geometric_roughness (name, supersample): added per lane at the first hit by the local
@@ -328,7 +332,10 @@ class TexturedMaterial(mi.BSDF):
             n_local = dr.normalize(si.sh_frame.to_local(n_world))
         n_local = dr.select(flip, -n_local, n_local)
         frame = mi.Frame3f(n_local)
-        view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular))
+        lobes = None
+        if self.lobes_static is not None:   # hook: the lobes' textures, the tangent frame (reference.lobe_bsdf)
+            lobes, frame = lobe_bsdf.textured_lobes(self, si, active, shape, n_local, flip, frame)
+        view = MaterialView(self.model, bc, met, rough, mi.Float(self.specular), lobes)
         return view, frame
 
     def opacity(self, si, active=True):
@@ -512,7 +519,7 @@ class GeometricCalls(SceneCalls):
             def f(*args):
                 *a, g, active = args
                 view = MaterialView(o.model(), o.base_color, o.metallic,
-                                    dr.minimum(o.roughness + g, 1.0), o.specular)
+                                    dr.minimum(o.roughness + g, 1.0), o.specular, o.lobes)
                 return getattr(view, name)(*a, active)
             return f
         return lambda *args: getattr(o, name)(*args[:-2], args[-1])
@@ -626,7 +633,8 @@ def register() -> None:
 # Shapes
 # ------------------------------------------------------------------------------------------------
 
-def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0) -> dict:
+def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = False, primary: int = 0,
+                   tangents: bool = False) -> dict:
     m = asset.material(index)
     d = {"type": PLUGIN_NAME, "vertex_color": bool(vertex_color), "primary_texcoord": int(primary), "base_color": [float(c) for c in m.base_color[:3]], "metallic": float(m.metallic),
          "roughness": float(m.roughness), "specular": float(m.specular), "ndf": brdf.ndf,
@@ -638,6 +646,9 @@ def _material_dict(asset, index: int, brdf, cache: dict, vertex_color: bool = Fa
          if m.normal_texture else 1.0, "double_sided": bool(m.double_sided)}
     if m.unlit:
         d["unlit"] = True
+    else:   # the glTF extensions' lobes (reference.lobe_bsdf.gltf_lobe_props: none, no key)
+        lobes = lobe_bsdf.gltf_lobe_props(asset, m, cache, texture_dict)
+        d.update(lobes, **({"tangents": True} if lobes and tangents else {}))
     for slot, ref, srgb in (("base_color", m.base_color_texture, True),
                             ("metallic_roughness", m.metallic_roughness_texture, False),
                             ("normal", m.normal_texture, False)):
@@ -712,10 +723,12 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
         if bsdf_for is not None:
             bsdf = mi.load_dict(bsdf_for(obj))
         else:
-            key = (obj.instance, obj.gltf_material, prim.color is not None, primary)
+            tangents = prim.tangents is not None and lobe_bsdf.needs_tangents(inst.asset.material(obj.gltf_material))
+            key = (obj.instance, obj.gltf_material, prim.color is not None, primary, tangents)
             if key not in mats:
                 mats[key] = mi.load_dict(_material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,
-                                                        vertex_color=prim.color is not None, primary=primary))
+                                                        vertex_color=prim.color is not None, primary=primary,
+                                                        tangents=tangents))
             bsdf = mats[key]
         props["bsdf"] = bsdf
         if bsdf_for is None:  # hook (issue 37): a transmissive material of constant factors, its volume
