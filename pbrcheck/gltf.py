@@ -48,8 +48,8 @@ KHR_materials_emissive_strength, KHR_lights_punctual, KHR_draco_mesh_compression
 (integer attributes: any component type, decoded as above); EXT_mesh_gpu_instancing, KHR_node_visibility,
 KHR_materials_unlit, KHR_materials_variants, EXT_texture_webp, KHR_texture_basisu, EXT_meshopt_compression
 (:mod:`pbrcheck.gltf_features`); KHR_materials_clearcoat, _sheen, _specular, _anisotropy, _iridescence
-(parsed into :class:`GltfMaterial`'s lobe fields by :mod:`pbrcheck.lobe_params`, not yet rendered: not in
-:data:`MODELLED_EXTENSIONS`); Mikkelsen 2008,
+(parsed into :class:`GltfMaterial`'s lobe fields by :mod:`pbrcheck.lobe_params`, rendered by both renderers:
+in :data:`MODELLED_EXTENSIONS`); Mikkelsen 2008,
 "Simulation of wrinkled surfaces revisited" (MikkTSpace).
 """
 

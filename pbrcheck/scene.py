@@ -134,8 +134,9 @@ class Material:
     """F0 = mix(specular, base_color, metallic); alpha = roughness^2 (roughness is perceptual).
 
     The lobes of the glTF PBR extensions (:mod:`pbrcheck.lobe_params`; neutral defaults, the
-    specifications'): parsed, validated and exported, not yet rendered (named as unmodelled by
-    :func:`pbrcheck.unmodelled.scene_unmodelled` where set). ``specular`` stays the dielectric F0;
+    specifications'): parsed, validated, exported and rendered by both renderers
+    (:data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS`; one they do not both render is named as
+    unmodelled by :func:`pbrcheck.unmodelled.scene_unmodelled` where set). ``specular`` stays the dielectric F0;
     ``KHR_materials_specular``'s factor and colour are ``specular_factor`` and ``specular_color``."""
 
     base_color: Vec3 = (1.0, 1.0, 1.0)

@@ -133,18 +133,55 @@ def _vec(x) -> tuple:
     return (float(x),) * 3 if isinstance(x, (int, float)) else tuple(float(c) for c in x)
 
 
-def check_model(ndf: str, geometry: str, fresnel: str, multiscatter: str, used) -> None:
-    """The scene-wide model a material with lobes needs: Schlick's Fresnel (the extensions' Fresnel,
-    with its f90), single scattering, and for anisotropy the GGX with its height-correlated Smith G2
-    (the only anisotropic terms written). ``ValueError`` naming the model otherwise (the scene loader
-    turns a [brdf] choice into it; a material built by hand meets it here)."""
+def model_problem(ndf: str, geometry: str, fresnel: str, multiscatter: str, used):
+    """What of the scene-wide model a material with the lobes ``used`` cannot take, as ``(field,
+    expected, found)``, or None: Schlick's Fresnel (the extensions' Fresnel, with its f90), single
+    scattering (the random walk and the energy compensations know the base alone), and for anisotropy
+    the GGX with its height-correlated Smith G2 (the only anisotropic terms written)."""
     if fresnel != "schlick":
-        raise ValueError(f"pbr_material: the glTF lobes {list(used)} need fresnel = 'schlick', found {fresnel!r}")
+        return "brdf.fresnel", f"'schlick' with the glTF lobes {list(used)}", fresnel
     if multiscatter != "none":
-        raise ValueError(f"pbr_material: the glTF lobes {list(used)} are single-scattering; multiscatter = {multiscatter!r}")
+        return ("brdf.multiscatter", f"'none' with the glTF lobes {list(used)} (they are single-scattering)",
+                multiscatter)
     if "anisotropy" in used and (ndf, geometry) != ("ggx", "smith_ggx_correlated"):
-        raise ValueError(f"pbr_material: anisotropy needs ndf 'ggx' and geometry 'smith_ggx_correlated', found "
-                         f"{(ndf, geometry)!r}")
+        return ("brdf.ndf / brdf.geometry", "'ggx' and 'smith_ggx_correlated' with anisotropy",
+                f"{ndf} / {geometry}")
+    return None
+
+
+def check_model(ndf: str, geometry: str, fresnel: str, multiscatter: str, used) -> None:
+    """:func:`model_problem` as a ``ValueError`` naming the model: a material built by hand meets it
+    here (a scene meets :func:`check_scene` first, a typed error naming its file)."""
+    problem = model_problem(ndf, geometry, fresnel, multiscatter, used)
+    if problem is not None:
+        field, expected, found = problem
+        raise ValueError(f"pbr_material: {field}: expected {expected}, found {found!r}")
+
+
+def check_scene(scene) -> None:
+    """A scene whose materials carry lobes and whose ``[brdf]`` the lobes cannot take:
+    :class:`pbrcheck.errors.SceneError` naming the scene file and the ``[brdf]`` field, before
+    Mitsuba builds a plugin (whose constructor's error would come back as a RuntimeError)."""
+    from pbrcheck import lobe_params
+    from pbrcheck.errors import SceneError
+
+    used = set()
+    for o in scene.objects:
+        if hasattr(o, "material") and hasattr(o.material, "clearcoat_roughness"):
+            used.update(lobe_params.scene_features(o.material))
+    for inst in getattr(scene, "assets", ()):
+        for m in inst.asset.materials:
+            for ext, (f, _cls) in lobe_params.LOBE_EXTENSIONS.items():
+                if getattr(m, f, None) is not None and getattr(m, f).active:
+                    used.add(ext)
+    if not used:
+        return
+    names = [n for n in LOBES if any(e.endswith("_" + n) for e in used)]
+    b = scene.brdf
+    problem = model_problem(b.ndf, b.geometry, b.fresnel, b.multiscatter, names)
+    if problem is not None:
+        field, expected, found = problem
+        raise SceneError(getattr(scene, "source", None), field, expected, found)
 
 
 class LobeParams:

@@ -400,6 +400,8 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
     check_budget(scene, spp)
     t0 = time.perf_counter()
     variant = ensure_variant()
+    from .lobe_bsdf import check_scene as check_lobe_model
+    check_lobe_model(scene)  # the glTF lobes' [brdf] needs, a typed error before Mitsuba builds a plugin
     if mode == "local":  # hook (issue 37): the first-hit estimator refuses transmissive materials
         from .transmission import check_local
         check_local(scene)

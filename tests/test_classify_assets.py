@@ -7,6 +7,8 @@ import importlib.util
 import json
 from pathlib import Path
 
+import pytest
+
 from tests.test_unmodelled import COAT, coated_asset
 
 _spec = importlib.util.spec_from_file_location("classify_assets",
@@ -15,6 +17,7 @@ classify_assets = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(classify_assets)
 
 
+@pytest.mark.usefixtures("lobes_unmodelled")  # the lobes as unmodelled extensions
 def test_classify_a_folder(tmp_path, capsys):
     coated_asset(tmp_path / "plain.gltf", used=("KHR_xmp",), coat=False)       # metadata only: faithful
     coated_asset(tmp_path / "sub" / "coated.gltf")

@@ -10,6 +10,9 @@ import json
 import numpy as np
 import pytest
 
+# The contract's mechanism, tested on the glTF lobes as unmodelled extensions (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("lobes_unmodelled")
+
 from pbrcheck_cli import main
 from pbrcheck.exr import Image, write_exr
 from pbrcheck.gltf import load_asset
