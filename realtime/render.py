@@ -74,6 +74,8 @@ from .presets import (
     resolve_options,
     unmet_requirements,
 )
+from .transmission import raycast_notice as transmission_notice
+from .transmission import transmission_defines, unrendered_notice as transmission_unrendered_notice
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -728,7 +730,16 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         if lobes and not ldefs:
             warnings.append(f"lobes_ignored: shading={o.shading} renders no lobe ({', '.join(lobes)}); "
                             f"shading=material does")
-        split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs)
+        # transmission (realtime/transmission.py): compiled only into raster programs of scenes with a
+        # transmissive material; reads the prefiltered cube (off-screen fallback) and the DFG LUT
+        tdefs = transmission_defines(scene, o, pipeline)
+        tnote = transmission_notice(scene, o, pipeline)
+        for note in (tnote, transmission_unrendered_notice(scene)):
+            if note:
+                warnings.append(note)
+                if progress:
+                    print(f"pbrcheck realtime: {note}", file=sys.stderr)
+        split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs) or bool(tdefs)
         pre = None
         if split:
             pre = prefiltered_cube(env, cube, o, fmt, timings)
@@ -741,7 +752,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         kd = kd_lut(o.lut_size, timings)
         bar.update(1, "kd_lut")
 
-        defines = {**frame_defines(o, terms), **ldefs}
+        defines = {**frame_defines(o, terms), **ldefs, **tdefs}
         hooks = load_hook_file(o.shader) if o.shader else None
         baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd}
         if ldefs:

@@ -1,0 +1,104 @@
+// transmission.glsl: the engines' screen-space transmission (issue 37 item 2), included by raster.frag
+// only where the scene draws a transmissive material (TRANSMISSION, realtime/transmission.py): the
+// opaque objects' colour pass, rendered first into transmission_fb (RGBA32F at the colour pass's size,
+// GL orientation: row 0 at the bottom, so uv = NDC * 0.5 + 0.5; the full mip chain by glGenerateMipmap,
+// a 2x2 box per level), read along the refracted ray.
+// Sources: KhronosGroup/glTF-Sample-Viewer source/Renderer/shaders/ibl.glsl (getVolumeTransmissionRay,
+// getTransmissionSample, applyIorToRoughness, applyVolumeAttenuation, getIBLVolumeRefraction);
+// mrdoob/three.js src/renderers/shaders/ShaderChunk/transmission_pars_fragment.glsl.js (textureBicubic,
+// the dispersion's three IORs). numpy twins: realtime/transmission.py.
+// TRANSMISSION_LOD: TRANSMISSION_LOD_SAMPLE_VIEWER (textureLod, trilinear) | TRANSMISSION_LOD_THREEJS
+// (the same level, B-spline bicubic of floor(lod) and ceil(lod) mixed by fract(lod)).
+uniform sampler2D transmission_fb;
+uniform vec2 transmission_fb_size;     // (width, height) of level 0
+uniform vec3 cam_r;
+uniform vec3 cam_u;
+uniform vec3 cam_f;
+uniform vec2 cam_tan;
+// The draw's material (0 transmission: the core material).
+uniform float transmission_factor;
+uniform float transmission_thickness;      // world units (0: thin-walled: the ray exits where it enters)
+uniform vec3 transmission_attenuation_color;
+uniform float transmission_attenuation_distance;   // 0: none (glTF's +inf)
+uniform float transmission_dispersion;     // 20 / Abbe number (0: none)
+uniform float transmission_ior;
+
+// applyIorToRoughness (both engines): IOR 1 no blur, 1.5 and above the roughness as it is.
+float apply_ior_to_roughness(float roughness, float ior) {
+    return roughness * clamp(ior * 2.0 - 2.0, 0.0, 1.0);
+}
+
+// Both engines' level: log2(framebuffer width) applyIorToRoughness(r, ior).
+float transmission_lod(float roughness, float ior) {
+    return log2(transmission_fb_size.x) * apply_ior_to_roughness(roughness, ior);
+}
+
+// Beer-Lambert over the thickness (Sample Viewer applyVolumeAttenuation): c^(t / d) = exp(-sigma_t t).
+vec3 volume_attenuation(float t, vec3 c, float d) {
+    if (d <= 0.0) return vec3(1.0);
+    return pow(c, vec3(t / d));
+}
+
+// three.js textureBicubic (N8's mipped bicubic): the cubic B-spline as 4 bilinear taps per level.
+float bc_w0(float a) { return (1.0 / 6.0) * (a * (a * (-a + 3.0) - 3.0) + 1.0); }
+float bc_w1(float a) { return (1.0 / 6.0) * (a * a * (3.0 * a - 6.0) + 4.0); }
+float bc_w2(float a) { return (1.0 / 6.0) * (a * (a * (-3.0 * a + 3.0) + 3.0) + 1.0); }
+float bc_w3(float a) { return (1.0 / 6.0) * (a * a * a); }
+float bc_g0(float a) { return bc_w0(a) + bc_w1(a); }
+float bc_g1(float a) { return bc_w2(a) + bc_w3(a); }
+float bc_h0(float a) { return -1.0 + bc_w1(a) / (bc_w0(a) + bc_w1(a)); }
+float bc_h1(float a) { return 1.0 + bc_w3(a) / (bc_w2(a) + bc_w3(a)); }
+vec4 bicubic_level(vec2 uv, float lod) {
+    vec2 size = vec2(textureSize(transmission_fb, int(lod)));
+    vec2 texel = 1.0 / size;
+    uv = uv * size + 0.5;
+    vec2 iuv = floor(uv), fuv = fract(uv);
+    float g0x = bc_g0(fuv.x), g1x = bc_g1(fuv.x), h0x = bc_h0(fuv.x), h1x = bc_h1(fuv.x);
+    float h0y = bc_h0(fuv.y), h1y = bc_h1(fuv.y);
+    vec2 p0 = (vec2(iuv.x + h0x, iuv.y + h0y) - 0.5) * texel;
+    vec2 p1 = (vec2(iuv.x + h1x, iuv.y + h0y) - 0.5) * texel;
+    vec2 p2 = (vec2(iuv.x + h0x, iuv.y + h1y) - 0.5) * texel;
+    vec2 p3 = (vec2(iuv.x + h1x, iuv.y + h1y) - 0.5) * texel;
+    return bc_g0(fuv.y) * (g0x * textureLod(transmission_fb, p0, lod) + g1x * textureLod(transmission_fb, p1, lod))
+         + bc_g1(fuv.y) * (g0x * textureLod(transmission_fb, p2, lod) + g1x * textureLod(transmission_fb, p3, lod));
+}
+
+vec3 transmission_fb_read(vec2 uv, float lod) {
+#if TRANSMISSION_LOD == TRANSMISSION_LOD_THREEJS
+    return mix(bicubic_level(uv, floor(lod)), bicubic_level(uv, ceil(lod)), fract(lod)).rgb;
+#else
+    return textureLod(transmission_fb, uv, lod).rgb;
+#endif
+}
+
+// The radiance behind the surface along the refracted ray at one IOR: the ray refract(-v, n, 1 / ior)
+// runs the thickness and exits at p + thickness t, projected into transmission_fb; where that point is
+// behind the camera or off the screen, the prefiltered environment along t (at the IOR-scaled roughness).
+vec3 transmitted_radiance(vec3 p, vec3 n, vec3 v, float roughness, float ior) {
+    ior = max(ior, 1.0);   // a dispersed IOR below 1 would refract from the denser side (no such medium here)
+    vec3 t = normalize(refract(-v, n, 1.0 / ior));
+    vec3 q = p + t * transmission_thickness - cam_origin;
+    float z = dot(q, cam_f);
+    vec2 uv = 0.5 * vec2(dot(q, cam_r) / (cam_tan.x * z), dot(q, cam_u) / (cam_tan.y * z)) + 0.5;
+    if (z <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))))
+        return prefiltered_radiance(t, apply_ior_to_roughness(roughness, ior));
+    return transmission_fb_read(uv, transmission_lod(roughness, ior));
+}
+
+// getIBLVolumeRefraction's value before base colour: the transmitted light, attenuated over the
+// thickness, times 1 - (F0 A + B) (the DFG LUT's specular albedo, F90 = 1). Dispersion: three.js's
+// three IORs ior -/+ (ior - 1) 0.025 dispersion, one channel each.
+vec3 transmission_radiance(vec3 p, vec3 n, vec3 v, float roughness, float f0) {
+    vec3 light;
+    if (transmission_dispersion > 0.0) {
+        float s = (transmission_ior - 1.0) * 0.025 * transmission_dispersion;
+        light = vec3(transmitted_radiance(p, n, v, roughness, transmission_ior - s).r,
+                     transmitted_radiance(p, n, v, roughness, transmission_ior).g,
+                     transmitted_radiance(p, n, v, roughness, transmission_ior + s).b);
+    } else {
+        light = transmitted_radiance(p, n, v, roughness, transmission_ior);
+    }
+    vec2 AB = dfg(clamp(dot(n, v), 1e-4, 1.0), roughness);
+    return (1.0 - (f0 * AB.x + AB.y)) * volume_attenuation(transmission_thickness, transmission_attenuation_color,
+                                                            transmission_attenuation_distance) * light;
+}
