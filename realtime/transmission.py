@@ -33,7 +33,7 @@ its own refracted lookup. Diffuse transmission: not rendered (named in :data:`UN
 API
 ---
 :data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`UNRENDERED`, :data:`TRANSMISSION_LODS`,
-:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`framebuffer_lod`,
+:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`bspline_weights`,
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
 :func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`, :func:`unrendered_notice`.
 """
@@ -61,9 +61,16 @@ def apply_ior_to_roughness(roughness, ior):
     return np.asarray(roughness, float) * np.clip(2.0 * np.asarray(ior, float) - 2.0, 0.0, 1.0)
 
 
-def framebuffer_lod(roughness, ior, width):
+def transmission_lod(roughness, ior, width):
     """Both engines' level: ``log2(width) applyIorToRoughness(r, ior)`` (width: the framebuffer's)."""
-    return math.log2(width) * apply_ior_to_roughness(roughness, ior)
+    return np.log2(np.asarray(width, float)) * apply_ior_to_roughness(roughness, ior)
+
+
+def bspline_weights(a):
+    """three.js textureBicubic's cubic B-spline weights ``w0..w3`` at fraction ``a`` (sum 1), the
+    GLSL ``bc_w0..bc_w3``: (1 - a)^3 / 6, (3 a^3 - 6 a^2 + 4) / 6, (-3 a^3 + 3 a^2 + 3 a + 1) / 6, a^3 / 6."""
+    a = np.asarray(a, float)
+    return np.stack([(1 - a) ** 3, 3 * a ** 3 - 6 * a ** 2 + 4, -3 * a ** 3 + 3 * a ** 2 + 3 * a + 1, a ** 3], -1) / 6.0
 
 
 def volume_attenuation(thickness, attenuation_color, attenuation_distance):
@@ -95,11 +102,11 @@ def mip_count(width: int, height: int) -> int:
 TRANSMISSION_LODS = Registry("TRANSMISSION_LOD", [
     Entry("sample_viewer", "glTF-Sample-Viewer getTransmissionSample: textureLod at log2(width) "
                            "applyIorToRoughness(r, ior), trilinear",
-          roles={"transmission_lod": role(framebuffer_lod)},
+          roles={"transmission_lod": role(transmission_lod)},
           applies_to="transmission: the opaque-pass framebuffer's level and filter"),
     Entry("threejs", "three.js getTransmissionSample: the same level read by textureBicubic (B-spline bicubic "
                      "of floor and ceil levels, mixed by fract)",
-          roles={"transmission_lod": role(framebuffer_lod)},
+          roles={"transmission_lod": role(transmission_lod)},
           applies_to="transmission: the opaque-pass framebuffer's level and filter"),
 ])
 

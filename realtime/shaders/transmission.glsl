@@ -23,31 +23,8 @@ uniform float transmission_attenuation_distance;   // 0: none (glTF's +inf)
 uniform float transmission_dispersion;     // 20 / Abbe number (0: none)
 uniform float transmission_ior;
 
-// applyIorToRoughness (both engines): IOR 1 no blur, 1.5 and above the roughness as it is.
-float apply_ior_to_roughness(float roughness, float ior) {
-    return roughness * clamp(ior * 2.0 - 2.0, 0.0, 1.0);
-}
+#include "transmission_forms.glsl"
 
-// Both engines' level: log2(framebuffer width) applyIorToRoughness(r, ior).
-float transmission_lod(float roughness, float ior) {
-    return log2(transmission_fb_size.x) * apply_ior_to_roughness(roughness, ior);
-}
-
-// Beer-Lambert over the thickness (Sample Viewer applyVolumeAttenuation): c^(t / d) = exp(-sigma_t t).
-vec3 volume_attenuation(float t, vec3 c, float d) {
-    if (d <= 0.0) return vec3(1.0);
-    return pow(c, vec3(t / d));
-}
-
-// three.js textureBicubic (N8's mipped bicubic): the cubic B-spline as 4 bilinear taps per level.
-float bc_w0(float a) { return (1.0 / 6.0) * (a * (a * (-a + 3.0) - 3.0) + 1.0); }
-float bc_w1(float a) { return (1.0 / 6.0) * (a * a * (3.0 * a - 6.0) + 4.0); }
-float bc_w2(float a) { return (1.0 / 6.0) * (a * (a * (-3.0 * a + 3.0) + 3.0) + 1.0); }
-float bc_w3(float a) { return (1.0 / 6.0) * (a * a * a); }
-float bc_g0(float a) { return bc_w0(a) + bc_w1(a); }
-float bc_g1(float a) { return bc_w2(a) + bc_w3(a); }
-float bc_h0(float a) { return -1.0 + bc_w1(a) / (bc_w0(a) + bc_w1(a)); }
-float bc_h1(float a) { return 1.0 + bc_w3(a) / (bc_w2(a) + bc_w3(a)); }
 vec4 bicubic_level(vec2 uv, float lod) {
     vec2 size = vec2(textureSize(transmission_fb, int(lod)));
     vec2 texel = 1.0 / size;
@@ -82,7 +59,7 @@ vec3 transmitted_radiance(vec3 p, vec3 n, vec3 v, float roughness, float ior) {
     vec2 uv = 0.5 * vec2(dot(q, cam_r) / (cam_tan.x * z), dot(q, cam_u) / (cam_tan.y * z)) + 0.5;
     if (z <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))))
         return prefiltered_radiance(t, apply_ior_to_roughness(roughness, ior));
-    return transmission_fb_read(uv, transmission_lod(roughness, ior));
+    return transmission_fb_read(uv, transmission_lod(roughness, ior, transmission_fb_size.x));
 }
 
 // getIBLVolumeRefraction's value before base colour: the transmitted light, attenuated over the
@@ -91,10 +68,10 @@ vec3 transmitted_radiance(vec3 p, vec3 n, vec3 v, float roughness, float ior) {
 vec3 transmission_radiance(vec3 p, vec3 n, vec3 v, float roughness, float f0) {
     vec3 light;
     if (transmission_dispersion > 0.0) {
-        float s = (transmission_ior - 1.0) * 0.025 * transmission_dispersion;
-        light = vec3(transmitted_radiance(p, n, v, roughness, transmission_ior - s).r,
-                     transmitted_radiance(p, n, v, roughness, transmission_ior).g,
-                     transmitted_radiance(p, n, v, roughness, transmission_ior + s).b);
+        vec3 iors = dispersion_iors(transmission_ior, transmission_dispersion);
+        light = vec3(transmitted_radiance(p, n, v, roughness, iors.r).r,
+                     transmitted_radiance(p, n, v, roughness, iors.g).g,
+                     transmitted_radiance(p, n, v, roughness, iors.b).b);
     } else {
         light = transmitted_radiance(p, n, v, roughness, transmission_ior);
     }
