@@ -30,6 +30,12 @@ Conventions (the same at both ends as :mod:`realtime.render`)
 * Alpha: OPAQUE, MASK (discard below ``alphaCutoff``), BLEND (after the opaque primitives, sorted
   back to front by the distance of each primitive's bounding-box centre, depth test without depth
   writes, ``src alpha, 1 - src alpha``).
+* Transmission (``KHR_materials_transmission`` / ``_volume`` / ``_dispersion``; :mod:`realtime.transmission`,
+  only where a material transmits): :func:`_opaque_pass` draws the background and the non-transmissive
+  non-BLEND primitives into an RGBA32F texture of the colour pass's size with its full mip chain
+  (``glGenerateMipmap``; GL orientation, row 0 at the bottom) on :data:`TRANSMISSION_UNIT`; the colour
+  pass then draws the opaque primitives, the transmissive ones back to front (bounding-box centres),
+  then BLEND; docs/realtime.md "Transmission".
 * Point, spot and directional lights: unshadowed (``shadows`` is refused with this pipeline).
 * Specular anti-aliasing (``specular_aa``, ``shaders/specular_aa.glsl``): ``prefiltered`` reads a
   companion R32F texture per normal map, :func:`normal_variance_texture`, whose level k holds the

@@ -227,3 +227,25 @@ def test_scene_without_transmission_is_bit_identical_and_takes_no_opaque_pass():
     assert outside.sum() > 100
     assert np.array_equal(_rgb(glass)[outside], _rgb(a)[outside])
     assert not np.array_equal(_rgb(glass)[~outside], _rgb(a)[~outside])
+
+
+def test_gltf_transmission_volume_quad_in_a_white_environment(tmp_path):
+    """A glTF quad with KHR_materials_transmission 1, KHR_materials_ior 1 and KHR_materials_volume
+    (thicknessFactor 0.5, attenuationDistance 1, attenuationColor (0.5, 0.25, 1)) in a constant white
+    environment: behind it the opaque pass holds the environment's 1, so the quad is the Beer-Lambert
+    transmittance c^(t / d) = (0.5^0.5, 0.25^0.5, 1) (F0 0: only the DFG's B at n.v ~ 1 besides)."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from gltf_build import quad_asset, quad_scene
+    c = [0.5, 0.25, 1.0]
+    asset = quad_asset(tmp_path / "sheet.gltf", {
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": 1.0},
+                       "KHR_materials_volume": {"thicknessFactor": 0.5, "attenuationDistance": 1.0,
+                                                "attenuationColor": c}}}, tangents=False)
+    scene = load_scene(quad_scene(tmp_path, asset))
+    img = render_realtime(scene, "default", {**SMALL, "pipeline": "auto"}, progress=False)
+    m = img.channels["object"] >= 0
+    assert m.sum() > 100
+    np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(np.sqrt(c), (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=1e-4)
