@@ -146,6 +146,8 @@ class DrawItem:
     attenuation_color: tuple = (1.0, 1.0, 1.0)
     attenuation_distance: float = 0.0               # 0: none
     dispersion: float = 0.0
+    diffuse_transmission: float = 0.0               # KHR_materials_diffuse_transmission
+    diffuse_transmission_color: tuple = (1.0, 1.0, 1.0)
 
     @property
     def centre(self) -> np.ndarray:
@@ -246,10 +248,12 @@ def draw_items(scene: Scene) -> list[DrawItem]:
         mat = ob.material
         common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
                       specular=mat.specular, cull=False, flip_backface=False)
-        if mat.transmission > 0.0:
+        if mat.transmission > 0.0 or mat.diffuse_transmission > 0.0:
             common.update(transmission=mat.transmission, thickness=mat.thickness,
                           attenuation_color=tuple(mat.attenuation_color),
-                          attenuation_distance=mat.attenuation_distance, dispersion=mat.dispersion)
+                          attenuation_distance=mat.attenuation_distance, dispersion=mat.dispersion,
+                          diffuse_transmission=mat.diffuse_transmission,
+                          diffuse_transmission_color=tuple(mat.diffuse_transmission_color))
         lobed = bool(scene_material_active_lobes(mat))
         if lobed:
             common["lobe_rows"] = scene_lobe_rows(mat)
@@ -278,9 +282,12 @@ def _gltf_transmission(m, A: np.ndarray) -> dict:
     ``thicknessFactor`` times the mean length of the instance matrix's columns; the Sample Viewer scales
     the ray per axis), the attenuation (an infinite distance as 0), the dispersion."""
     t = getattr(m, "transmission", None)
-    if t is None or not t.active:
+    dt = getattr(m, "diffuse_transmission", None)
+    if (t is None or not t.active) and (dt is None or not dt.active):
         return {}
-    out = {"transmission": float(t.factor)}
+    out = {"transmission": float(t.factor) if t is not None and t.active else 0.0}
+    if dt is not None and dt.active:   # its textures are not read (factors only)
+        out.update(diffuse_transmission=float(dt.factor), diffuse_transmission_color=tuple(dt.color))
     vol = getattr(m, "volume", None)
     if vol is not None and vol.active:
         scale = float(np.mean(np.linalg.norm(A, axis=0)))
@@ -448,6 +455,8 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
         _set(prog, "transmission_attenuation_distance", float(it.attenuation_distance))
         _set(prog, "transmission_dispersion", float(it.dispersion))
         _set(prog, "transmission_ior", ior_from_f0(float(it.specular)))
+        _set(prog, "diffuse_transmission_factor", float(it.diffuse_transmission))
+        _set(prog, "diffuse_transmission_color", tuple(float(x) for x in it.diffuse_transmission_color))
     if any(f"lobe_p{k}" in prog for k in range(4)):   # a lobe program (material_lobes.glsl; a variant
         # keeps only the rows its lobes read): this draw's lobe factors and textures
         _set_lobes(prog, it, anisotropy)
@@ -718,6 +727,10 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
         vaos = _vaos(color_prog, opaque + blend)
         for v in vaos:
             released.extend(v)
+        if "transmission_fb" in color_prog:   # a 2D texture on its unit even where no draw reads it
+            _white().use(TRANSMISSION_UNIT)
+            _set(color_prog, "transmission_fb", TRANSMISSION_UNIT)
+            _set(color_prog, "transmission_fb_size", (1.0, 1.0))
         if transmissive and "transmission_fb" in color_prog:
             released += _opaque_pass(ctx, fbo, empty, color_prog, opaque_only, vaos[:len(opaque_only)], anisotropy,
                                      occlusion, normal_variance, timings)

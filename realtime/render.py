@@ -75,7 +75,7 @@ from .presets import (
     unmet_requirements,
 )
 from .transmission import raycast_notice as transmission_notice
-from .transmission import transmission_defines, unrendered_notice as transmission_unrendered_notice
+from .transmission import transmission_defines
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -734,11 +734,10 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         # transmissive material; reads the prefiltered cube (off-screen fallback) and the DFG LUT
         tdefs = transmission_defines(scene, o, pipeline)
         tnote = transmission_notice(scene, o, pipeline)
-        for note in (tnote, transmission_unrendered_notice(scene)):
-            if note:
-                warnings.append(note)
-                if progress:
-                    print(f"pbrcheck realtime: {note}", file=sys.stderr)
+        if tnote:
+            warnings.append(tnote)
+            if progress:
+                print(f"pbrcheck realtime: {tnote}", file=sys.stderr)
         split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs) or bool(tdefs)
         pre = None
         if split:

@@ -28,14 +28,16 @@ into the framebuffer; attenuation ``attenuationColor^(thickness / attenuationDis
 the Sample Viewer's form; three.js's ``EnvironmentBRDF`` is the same with its analytic fit) replaces
 the dielectric diffuse in proportion ``transmission`` (``mix(f_diffuse, f_transmission, T)``).
 Dispersion (three.js): three IORs ``ior -/+ (ior - 1) 0.025 dispersion`` for R, G, B, each channel
-its own refracted lookup. Diffuse transmission: not rendered (named in :data:`UNRENDERED`).
+its own refracted lookup. Diffuse transmission (the Sample Viewer's pbr.frag): the irradiance from the
+back ``E(-n) / pi`` x ``diffuseTransmissionColor`` x base colour (attenuated over the thickness) replaces
+the diffuse in proportion ``diffuseTransmissionFactor``, before transmission's mix.
 
 API
 ---
-:data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`UNRENDERED`, :data:`TRANSMISSION_LODS`,
+:data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`TRANSMISSION_LODS`,
 :data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`bspline_weights`,
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
-:func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`, :func:`unrendered_notice`.
+:func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`.
 """
 
 from __future__ import annotations
@@ -49,9 +51,7 @@ from pbrcheck.registry import Entry, Registry, role
 
 #: The extensions the real-time raster pipeline renders (the honesty contract,
 #: pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS, is the lead's and is not changed here).
-REALTIME_TRANSMISSION_EXTENSIONS = (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION)
-#: What the real-time side does not render (each names its extension).
-UNRENDERED = (tp.DIFFUSE_TRANSMISSION,)
+REALTIME_TRANSMISSION_EXTENSIONS = (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
 #: three.js transmission_pars_fragment: ``halfSpread = (ior - 1) * 0.025 * dispersion``.
 DISPERSION_SPREAD = 0.025
 
@@ -112,16 +112,16 @@ TRANSMISSION_LODS = Registry("TRANSMISSION_LOD", [
 
 
 def _scene_material_transmissive(m) -> bool:
-    return m.transmission > 0.0
+    return m.transmission > 0.0 or m.diffuse_transmission > 0.0
 
 
 def _gltf_transmissive(gm) -> bool:
-    t = getattr(gm, "transmission", None)
-    return t is not None and t.active
+    return tp.is_transmissive(gm)
 
 
 def scene_transmissive(scene) -> bool:
-    """Whether some object of ``scene`` has ``transmission`` > 0 (scene-file field or glTF extension)."""
+    """Whether some object of ``scene`` lets light through: ``transmission`` or ``diffuse_transmission``
+    > 0 (scene-file fields or the glTF extensions' ``active``)."""
     for ob in scene.objects:
         if getattr(ob, "type", "") == "mesh":
             inst = scene.assets[ob.instance]
@@ -130,22 +130,6 @@ def scene_transmissive(scene) -> bool:
         elif _scene_material_transmissive(ob.material):
             return True
     return False
-
-
-def unrendered_notice(scene) -> str | None:
-    """The one-line notice naming the transmission extensions of ``scene`` the real-time side does not
-    render (:data:`UNRENDERED`: diffuse transmission), or None."""
-    for ob in scene.objects:
-        if getattr(ob, "type", "") == "mesh":
-            gm = scene.assets[ob.instance].asset.material(ob.gltf_material)
-            dt = getattr(gm, "diffuse_transmission", None)
-            used = dt is not None and dt.active
-        else:
-            used = ob.material.diffuse_transmission > 0.0
-        if used:
-            return (f"transmission_unmodelled: {', '.join(UNRENDERED)} is not rendered by the real-time renderer "
-                    "(its materials render without it)")
-    return None
 
 
 def transmission_defines(scene, o, pipeline: str) -> dict:
@@ -163,8 +147,8 @@ def raycast_notice(scene, o, pipeline: str) -> str | None:
     if not scene_transmissive(scene):
         return None
     if pipeline != "raster":
-        return ("transmission_unmodelled: pipeline=raycast renders KHR_materials_transmission/volume/dispersion "
-                "materials opaque (no opaque-pass framebuffer); pipeline=raster renders them")
+        return ("transmission_unmodelled: pipeline=raycast renders KHR_materials_transmission/volume/dispersion/"
+                "diffuse_transmission materials opaque (no opaque-pass framebuffer); pipeline=raster renders them")
     if o.shading != "material":
         return f"transmission_unmodelled: shading={o.shading} renders transmissive materials opaque; shading=material does"
     return None

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import transmission_params as tp
-from pbrcheck.scene import Material, Plane, load_scene
+from pbrcheck.scene import Environment, Material, Plane, load_scene
 from realtime import transmission as rt
 from realtime.gl import assemble
 from realtime.glsl_harness import run_glsl
@@ -125,7 +125,7 @@ def test_presets_take_the_sample_viewer_rule():
     from realtime.presets import PRESETS
     assert PRESETS["default"]["transmission_lod"] == "sample_viewer"
     assert PRESETS["sample_viewer"]["transmission_lod"] == "sample_viewer"
-    assert rt.REALTIME_TRANSMISSION_EXTENSIONS == (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION)
+    assert rt.REALTIME_TRANSMISSION_EXTENSIONS == (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
 
 
 def test_raycast_names_the_unmodelled_transmission():
@@ -249,3 +249,25 @@ def test_gltf_transmission_volume_quad_in_a_white_environment(tmp_path):
     m = img.channels["object"] >= 0
     assert m.sum() > 100
     np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(np.sqrt(c), (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=1e-4)
+
+
+def test_diffuse_transmission_sheet_in_a_white_environment_is_its_colour():
+    """A sheet of diffuse_transmission 1 (colour c), IOR 1 (F0 0), roughness 0, white base in a constant
+    white environment: the diffuse is replaced by the back's irradiance E(-n) / pi = 1 times c (the
+    Sample Viewer's form); the specular adds the DFG's B at roughness 0 only. No opaque pass is taken."""
+    from realtime import raster
+    c = (0.8, 0.4, 0.1)
+    sheet = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0,
+                     diffuse_transmission=1.0, diffuse_transmission_color=c)
+    scene = replace(_ground_scene(sheet), environment=Environment(type="constant", radiance=(1.0, 1.0, 1.0)))
+    calls = []
+    orig = raster._opaque_pass
+    raster._opaque_pass = lambda *args, **kw: calls.append(1) or orig(*args, **kw)
+    try:
+        img = render_realtime(scene, "default", SMALL, progress=False)
+    finally:
+        raster._opaque_pass = orig
+    assert calls == []
+    m = _sheet_pixels(img)
+    assert m.sum() > 100
+    np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(c, (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=2e-3)

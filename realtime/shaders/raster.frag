@@ -15,7 +15,7 @@
 // fragments, given the mip-filtered length and normal_map_lod(). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
 // (coverage.glsl) for the host's GL_SAMPLE_ALPHA_TO_COVERAGE instead of discarding.
 // TRANSMISSION (defined only where the scene draws a transmissive material, realtime/transmission.py):
-// transmission.glsl's screen-space refraction replaces the dielectric diffuse (see main).
+// transmission.glsl's screen-space refraction and diffuse transmission replace the dielectric diffuse (see main).
 // UNLIT_MATERIALS (defined only where the scene draws a KHR_materials_unlit material): a material
 // with unlit != 0 writes its base colour (factor x texture x COLOR_0) as the radiance, unshaded
 // (KHR_materials_unlit; alpha as for a lit material).
@@ -242,13 +242,17 @@ void main() {
     // composition at metallic 0 with and without the base colour (linear in it), is replaced in
     // proportion transmission by the screen-space transmitted light x base colour (the Sample Viewer's
     // mix(f_diffuse, f_transmission, T), then the metallic blend); punctual lights transmit nothing.
-    if (transmission_factor > 0.0 && dot(n, v) > 0.0) {
+    // Diffuse transmission (KHR_materials_diffuse_transmission) first replaces the diffuse by the back's
+    // irradiance, then transmission replaces what remains (the Sample Viewer's order of the two mixes).
+    if ((transmission_factor > 0.0 || diffuse_transmission_factor > 0.0) && dot(n, v) > 0.0) {
         Surface sd = Surface(v_pos, n, v, base.rgb, 0.0, roughness, specular_f0, ao, N);
         Surface s0 = sd;
         s0.base_color = vec3(0.0);
         vec3 diffuse = shade(sd, seed) - shade(s0, seed);
-        vec3 ft = transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb;
-        radiance += (1.0 - metallic) * transmission_factor * (ft - diffuse);
+        vec3 fd = mix(diffuse, diffuse_transmission_radiance(n, base.rgb), diffuse_transmission_factor);
+        vec3 ft = transmission_factor > 0.0 ? transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb
+                                            : vec3(0.0);
+        radiance += (1.0 - metallic) * (mix(fd, ft, transmission_factor) - diffuse);
     }
 #endif
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;

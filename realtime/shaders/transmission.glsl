@@ -22,6 +22,8 @@ uniform vec3 transmission_attenuation_color;
 uniform float transmission_attenuation_distance;   // 0: none (glTF's +inf)
 uniform float transmission_dispersion;     // 20 / Abbe number (0: none)
 uniform float transmission_ior;
+uniform float diffuse_transmission_factor;   // KHR_materials_diffuse_transmission (0: none)
+uniform vec3 diffuse_transmission_color;
 
 #include "transmission_forms.glsl"
 
@@ -78,4 +80,12 @@ vec3 transmission_radiance(vec3 p, vec3 n, vec3 v, float roughness, float f0) {
     vec2 AB = dfg(clamp(dot(n, v), 1e-4, 1.0), roughness);
     return (1.0 - (f0 * AB.x + AB.y)) * volume_attenuation(transmission_thickness, transmission_attenuation_color,
                                                             transmission_attenuation_distance) * light;
+}
+
+// KHR_materials_diffuse_transmission as the Sample Viewer renders it (pbr.frag): the irradiance from the
+// back, E(-n) / pi, times diffuseTransmissionColor and the base colour, attenuated over the thickness
+// (a volume), replaces the diffuse in proportion diffuseTransmissionFactor.
+vec3 diffuse_transmission_radiance(vec3 n, vec3 base_color) {
+    return irradiance_over_pi(-n) * diffuse_transmission_color * base_color
+         * volume_attenuation(transmission_thickness, transmission_attenuation_color, transmission_attenuation_distance);
 }
