@@ -147,7 +147,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "shading approximations only; turn on against `--mode path`)",
            default=False),  # as the reference's `local` integrator (no visibility tests)
     Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16, default=4),
-    Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes, else raycast) | "
+    Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes or, without "
+           "shadows, a transmissive material; else raycast) | "
            "raycast (the compute pass's exact analytic shapes) | raster (meshes; analytic shapes tessellated)",
            ("auto", "raycast", "raster"), default="auto"),
     Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "

@@ -75,7 +75,7 @@ from .presets import (
     unmet_requirements,
 )
 from .transmission import raycast_notice as transmission_notice
-from .transmission import transmission_defines
+from .transmission import scene_transmissive, transmission_defines
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -836,11 +836,13 @@ def as_options(preset: str, options: RealtimeOptions | dict | None) -> RealtimeO
 
 def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
     """``raycast`` or ``raster``: the option's value, or for ``auto`` raster exactly when the scene
-    holds glTF meshes (analytic scenes keep the exact ray-cast geometry). ``raycast`` on a scene with
-    meshes raises :class:`pbrcheck.gltf_scene.UnsupportedSceneError`."""
+    holds glTF meshes, or a transmissive material without ``shadows`` (only the raster pipeline has the
+    opaque pass transmission reads, realtime/transmission.py); other analytic scenes keep the exact
+    ray-cast geometry. ``raycast`` on a scene with meshes raises
+    :class:`pbrcheck.gltf_scene.UnsupportedSceneError`."""
     from pbrcheck.gltf_scene import require_analytic, scene_has_assets
     if o.pipeline == "auto":
-        return "raster" if scene_has_assets(scene) else "raycast"
+        return "raster" if scene_has_assets(scene) or (scene_transmissive(scene) and not o.shadows) else "raycast"
     if o.pipeline == "raycast":
         require_analytic(scene, "real-time pipeline=raycast")
     return o.pipeline

@@ -128,10 +128,19 @@ def test_presets_take_the_sample_viewer_rule():
     assert rt.REALTIME_TRANSMISSION_EXTENSIONS == (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
 
 
-def test_raycast_names_the_unmodelled_transmission():
+def test_raycast_names_the_unmodelled_transmission_and_auto_takes_the_raster_pipeline():
+    """pipeline=raycast (and auto with shadows, which only the ray-cast pipeline has) renders glass opaque
+    and says so in one line; auto otherwise takes the raster pipeline for a transmissive analytic scene."""
     scene = load_scene("glass").with_camera(width=8, height=6)
     img = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast"}, progress=False)
     assert "transmission_unmodelled: pipeline=raycast" in img.meta["warnings"]
+    shadowed = render_realtime(scene, "default", {**SMALL, "pipeline": "auto", "shadows": True}, progress=False)
+    assert shadowed.meta["pipeline"] == "raycast" and "transmission_unmodelled" in shadowed.meta["warnings"]
+    auto = render_realtime(scene, "default", {**SMALL, "pipeline": "auto"}, progress=False)
+    assert auto.meta["pipeline"] == "raster" and "transmission_unmodelled" not in auto.meta["warnings"]
+    plain = render_realtime(load_scene("spheres").with_camera(width=8, height=6), "default",
+                            {**SMALL, "pipeline": "auto"}, progress=False)
+    assert plain.meta["pipeline"] == "raycast"
 
 
 # ---- known answers in the raster pipeline ---------------------------------------------------------
