@@ -148,6 +148,7 @@ class DrawItem:
     dispersion: float = 0.0
     diffuse_transmission: float = 0.0               # KHR_materials_diffuse_transmission
     diffuse_transmission_color: tuple = (1.0, 1.0, 1.0)
+    transmission_textures: dict = field(default_factory=dict)   # "transmission" (R) / "thickness" (G) -> (GltfImage, TextureRef, srgb)
 
     @property
     def centre(self) -> np.ndarray:
@@ -236,7 +237,7 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                 cn = ltex.get("clearcoatNormal")
                 lobes = dict(lobe_rows=rows, coat_normal_scale=cn[0].scale if cn is not None else 1.0,
                              lobe_textures={k: (inst.asset.images[r.image], r, srgb) for k, (r, srgb) in ltex.items()})
-            lobes.update(_gltf_transmission(m, A))
+            lobes.update(_gltf_transmission(m, A, inst.asset.images))
             out.append(DrawItem(
                 ob.id, ob.name, _vertices(pos, nrm, tan, prim.texcoords[0], prim.texcoords[1], prim.color),
                 np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
@@ -276,16 +277,20 @@ def draw_items(scene: Scene) -> list[DrawItem]:
     return out
 
 
-def _gltf_transmission(m, A: np.ndarray) -> dict:
+def _gltf_transmission(m, A: np.ndarray, images) -> dict:
     """A glTF material's transmission fields of :class:`DrawItem` (``{}`` without transmission): the
-    factor (its texture is not read), the volume's thickness in world units (the mesh-space
-    ``thicknessFactor`` times the mean length of the instance matrix's columns; the Sample Viewer scales
-    the ray per axis), the attenuation (an infinite distance as 0), the dispersion."""
+    factor and its texture (R), the volume's thickness in world units (the mesh-space ``thicknessFactor``
+    times the mean length of the instance matrix's columns; the Sample Viewer scales the ray per axis)
+    and its texture (G), the attenuation (an infinite distance as 0), the dispersion, the diffuse
+    transmission's factors (its textures are not read)."""
     t = getattr(m, "transmission", None)
     dt = getattr(m, "diffuse_transmission", None)
     if (t is None or not t.active) and (dt is None or not dt.active):
         return {}
     out = {"transmission": float(t.factor) if t is not None and t.active else 0.0}
+    tex = {}
+    if t is not None and t.active and t.texture is not None:
+        tex["transmission"] = (images[t.texture.image], t.texture, False)
     if dt is not None and dt.active:   # its textures are not read (factors only)
         out.update(diffuse_transmission=float(dt.factor), diffuse_transmission_color=tuple(dt.color))
     vol = getattr(m, "volume", None)
@@ -294,6 +299,10 @@ def _gltf_transmission(m, A: np.ndarray) -> dict:
         d = vol.attenuation_distance
         out.update(thickness=vol.thickness * scale, attenuation_color=tuple(vol.attenuation_color),
                    attenuation_distance=0.0 if math.isinf(d) else float(d))
+        if vol.thickness_texture is not None:
+            tex["thickness"] = (images[vol.thickness_texture.image], vol.thickness_texture, False)
+    if tex:
+        out["transmission_textures"] = tex
     disp = getattr(m, "dispersion", None)
     if disp is not None and disp.active:
         out["dispersion"] = float(disp.dispersion)
@@ -457,9 +466,38 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
         _set(prog, "transmission_ior", ior_from_f0(float(it.specular)))
         _set(prog, "diffuse_transmission_factor", float(it.diffuse_transmission))
         _set(prog, "diffuse_transmission_color", tuple(float(x) for x in it.diffuse_transmission_color))
+        _set_transmission_textures(prog, it, anisotropy)
     if any(f"lobe_p{k}" in prog for k in range(4)):   # a lobe program (material_lobes.glsl; a variant
         # keeps only the rows its lobes read): this draw's lobe factors and textures
         _set_lobes(prog, it, anisotropy)
+
+
+#: raster.frag's transmission texture slots (tmap_*[k]): the transmission factor's (R) and the
+#: thickness's (G), on units TRANSMISSION_UNIT + 1 + k.
+TRANSMISSION_TEXTURE_SLOTS = ("transmission", "thickness")
+
+
+def _set_transmission_textures(prog, it: DrawItem, anisotropy: float) -> None:
+    """Bind draw ``it``'s transmission and thickness textures (white where absent: the factor as it is)
+    and their texCoord, KHR_texture_transform and mirror state (``tmap_*`` of transmission.glsl)."""
+    n = len(TRANSMISSION_TEXTURE_SLOTS)
+    has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
+                                    np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
+    for k, slot in enumerate(TRANSMISSION_TEXTURE_SLOTS):
+        units[k] = TRANSMISSION_UNIT + 1 + k
+        entry = it.transmission_textures.get(slot)
+        if entry is None:
+            _white().use(units[k])
+            continue
+        image, ref, srgb = entry
+        _texture(image, ref, srgb, anisotropy).use(units[k])
+        sets[k], mirror[k], x = _slot_state(ref)
+        has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
+    _set_array(prog, "tmap", units)
+    _set_array(prog, "tmap_has", has)
+    _set_array(prog, "tmap_set", sets)
+    _set_array(prog, "tmap_mirror", mirror)
+    _set_array(prog, "tmap_xf", xf.astype(np.float32))
 
 
 def _set_array(prog, name: str, values: np.ndarray) -> None:

@@ -881,7 +881,8 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         # upload the material textures and generate their mips before the timed frame, each timed
         timings.update(texture_upload=0.0, texture_mips=0.0)
         for it in items:
-            for image, ref, srgb in (*it.textures.values(), *it.lobe_textures.values()):
+            for image, ref, srgb in (*it.textures.values(), *it.lobe_textures.values(),
+                                     *it.transmission_textures.values()):
                 raster._texture(image, ref, srgb, o.anisotropy, timings)
             if variance and "normal" in it.textures:  # and its slope-variance mips
                 t0 = time.perf_counter()

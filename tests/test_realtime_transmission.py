@@ -280,3 +280,41 @@ def test_diffuse_transmission_sheet_in_a_white_environment_is_its_colour():
     m = _sheet_pixels(img)
     assert m.sum() > 100
     np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(c, (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=2e-3)
+
+
+def test_gltf_transmission_and_thickness_textures(tmp_path):
+    """One image as both the transmissionTexture (R) and the thicknessTexture (G): the left half R 0
+    (opaque: the white diffuse quad in a white environment, ~1 in every channel), the right half R 1 and
+    G 0.5 (thickness 0.5 x 0.5: the transmittance c^(0.25 / 1)). Columns near the seam (bilinear and mip
+    blur) are left out."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from gltf_build import quad_asset, quad_scene
+    c = np.array([0.5, 0.25, 1.0])
+    px = np.zeros((64, 64, 3), np.uint8)
+    px[:, :32] = (0, 255, 0)
+    px[:, 32:] = (255, 128, 0)
+    asset = quad_asset(tmp_path / "tex.gltf", {
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.0},
+        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0, "transmissionTexture": {"index": 0}},
+                       "KHR_materials_ior": {"ior": 1.0},
+                       "KHR_materials_volume": {"thicknessFactor": 0.5, "thicknessTexture": {"index": 0},
+                                                "attenuationDistance": 1.0, "attenuationColor": c.tolist()}}},
+        [(px, None)], tangents=False)
+    scene = load_scene(quad_scene(tmp_path, asset, size=(48, 48)))
+    img = render_realtime(scene, "default", {**SMALL, "pipeline": "auto"}, progress=False)
+    m = img.channels["object"] >= 0
+    cols = np.nonzero(m.any(axis=0))[0]
+    lo, hi = cols.min(), cols.max()
+    x = np.arange(img.channels["R"].shape[1])[None, :].repeat(m.shape[0], 0)
+    left = m & (x < lo + 0.35 * (hi - lo))
+    right = m & (x > lo + 0.65 * (hi - lo))
+    assert left.sum() > 50 and right.sum() > 50
+    rgb = _rgb(img)
+    # right: G 128/255 of the thickness 0.5 (the PNG's 8 bits), transmission 1
+    t = 0.5 * 128 / 255
+    np.testing.assert_allclose(rgb[right], np.broadcast_to(c ** t, (int(right.sum()), 3)), rtol=5e-3, atol=1e-3)
+    # left: transmission 0, an opaque white dielectric in a white environment: grey-white, not tinted
+    assert np.all(np.abs(rgb[left] - rgb[left].mean(-1, keepdims=True)) < 1e-3)
+    assert rgb[left].min() > 0.8

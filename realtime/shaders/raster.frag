@@ -249,10 +249,13 @@ void main() {
         Surface s0 = sd;
         s0.base_color = vec3(0.0);
         vec3 diffuse = shade(sd, seed) - shade(s0, seed);
+        float tf = transmission_factor * lookup(tmap[0], tmap_has[0], tmap_set[0], tmap_xf[0], tmap_mirror[0],
+                                                vec4(1.0), TEXTURE_LOD0 != 0).r;
+        g_thickness = transmission_thickness * lookup(tmap[1], tmap_has[1], tmap_set[1], tmap_xf[1], tmap_mirror[1],
+                                                      vec4(1.0), TEXTURE_LOD0 != 0).g;
         vec3 fd = mix(diffuse, diffuse_transmission_radiance(n, base.rgb), diffuse_transmission_factor);
-        vec3 ft = transmission_factor > 0.0 ? transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb
-                                            : vec3(0.0);
-        radiance += (1.0 - metallic) * (mix(fd, ft, transmission_factor) - diffuse);
+        vec3 ft = tf > 0.0 ? transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb : vec3(0.0);
+        radiance += (1.0 - metallic) * (mix(fd, ft, tf) - diffuse);
     }
 #endif
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;

@@ -22,6 +22,15 @@ uniform vec3 transmission_attenuation_color;
 uniform float transmission_attenuation_distance;   // 0: none (glTF's +inf)
 uniform float transmission_dispersion;     // 20 / Abbe number (0: none)
 uniform float transmission_ior;
+// The transmission texture (slot 0, R) and the thickness texture (slot 1, G) with their texCoord,
+// KHR_texture_transform and mirror folds (realtime.raster.TRANSMISSION_TEXTURE_SLOTS; white where absent).
+uniform sampler2D tmap[2];
+uniform int tmap_has[2];
+uniform int tmap_set[2];
+uniform mat3 tmap_xf[2];
+uniform int tmap_mirror[2];
+// The fragment's thickness (transmission_thickness x the thickness texture's G), set by raster.frag.
+float g_thickness;
 uniform float diffuse_transmission_factor;   // KHR_materials_diffuse_transmission (0: none)
 uniform vec3 diffuse_transmission_color;
 
@@ -51,12 +60,12 @@ vec3 transmission_fb_read(vec2 uv, float lod) {
 }
 
 // The radiance behind the surface along the refracted ray at one IOR: the ray refract(-v, n, 1 / ior)
-// runs the thickness and exits at p + thickness t, projected into transmission_fb; where that point is
+// runs the thickness (g_thickness) and exits at p + thickness t, projected into transmission_fb; where that point is
 // behind the camera or off the screen, the prefiltered environment along t (at the IOR-scaled roughness).
 vec3 transmitted_radiance(vec3 p, vec3 n, vec3 v, float roughness, float ior) {
     ior = max(ior, 1.0);   // a dispersed IOR below 1 would refract from the denser side (no such medium here)
     vec3 t = normalize(refract(-v, n, 1.0 / ior));
-    vec3 q = p + t * transmission_thickness - cam_origin;
+    vec3 q = p + t * g_thickness - cam_origin;
     float z = dot(q, cam_f);
     vec2 uv = 0.5 * vec2(dot(q, cam_r) / (cam_tan.x * z), dot(q, cam_u) / (cam_tan.y * z)) + 0.5;
     if (z <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))))
@@ -78,7 +87,7 @@ vec3 transmission_radiance(vec3 p, vec3 n, vec3 v, float roughness, float f0) {
         light = transmitted_radiance(p, n, v, roughness, transmission_ior);
     }
     vec2 AB = dfg(clamp(dot(n, v), 1e-4, 1.0), roughness);
-    return (1.0 - (f0 * AB.x + AB.y)) * volume_attenuation(transmission_thickness, transmission_attenuation_color,
+    return (1.0 - (f0 * AB.x + AB.y)) * volume_attenuation(g_thickness, transmission_attenuation_color,
                                                             transmission_attenuation_distance) * light;
 }
 
@@ -87,5 +96,5 @@ vec3 transmission_radiance(vec3 p, vec3 n, vec3 v, float roughness, float f0) {
 // (a volume), replaces the diffuse in proportion diffuseTransmissionFactor.
 vec3 diffuse_transmission_radiance(vec3 n, vec3 base_color) {
     return irradiance_over_pi(-n) * diffuse_transmission_color * base_color
-         * volume_attenuation(transmission_thickness, transmission_attenuation_color, transmission_attenuation_distance);
+         * volume_attenuation(g_thickness, transmission_attenuation_color, transmission_attenuation_distance);
 }
