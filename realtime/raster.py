@@ -480,24 +480,29 @@ TRANSMISSION_TEXTURE_SLOTS = ("transmission", "thickness")
 def _set_transmission_textures(prog, it: DrawItem, anisotropy: float) -> None:
     """Bind draw ``it``'s transmission and thickness textures (white where absent: the factor as it is)
     and their texCoord, KHR_texture_transform and mirror state (``tmap_*`` of transmission.glsl)."""
-    n = len(TRANSMISSION_TEXTURE_SLOTS)
+    _bind_slot_textures(prog, TRANSMISSION_TEXTURE_SLOTS, it.transmission_textures, TRANSMISSION_UNIT + 1, anisotropy,
+                        ("tmap", "tmap_has", "tmap_set", "tmap_mirror", "tmap_xf"))
+
+
+def _bind_slot_textures(prog, slots, textures: dict, unit0: int, anisotropy: float, names: tuple) -> None:
+    """Bind ``textures`` (slot -> (GltfImage, TextureRef, srgb)) of ``slots`` in order on units from
+    ``unit0`` (white where absent) and write the array uniforms ``names`` = (samplers, has, texCoord set,
+    mirror bits, transforms)."""
+    n = len(slots)
     has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
                                     np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
-    for k, slot in enumerate(TRANSMISSION_TEXTURE_SLOTS):
-        units[k] = TRANSMISSION_UNIT + 1 + k
-        entry = it.transmission_textures.get(slot)
+    for k, slot in enumerate(slots):
+        units[k] = unit0 + k
+        entry = textures.get(slot)
         if entry is None:
-            _white().use(units[k])
+            _white().use(unit0 + k)
             continue
         image, ref, srgb = entry
-        _texture(image, ref, srgb, anisotropy).use(units[k])
+        _texture(image, ref, srgb, anisotropy).use(unit0 + k)
         sets[k], mirror[k], x = _slot_state(ref)
         has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
-    _set_array(prog, "tmap", units)
-    _set_array(prog, "tmap_has", has)
-    _set_array(prog, "tmap_set", sets)
-    _set_array(prog, "tmap_mirror", mirror)
-    _set_array(prog, "tmap_xf", xf.astype(np.float32))
+    for name, values in zip(names, (units, has, sets, mirror, xf.astype(np.float32))):
+        _set_array(prog, name, values)
 
 
 def _set_array(prog, name: str, values: np.ndarray) -> None:
@@ -518,24 +523,8 @@ def _set_lobes(prog, it: DrawItem, anisotropy: float) -> None:
     for k in range(4):
         _set(prog, f"lobe_p{k}", tuple(float(x) for x in rows[k]))
     _set(prog, "lobe_coat_normal_scale", float(it.coat_normal_scale))
-    n = len(LOBE_TEXTURE_SLOTS)
-    has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
-                                    np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
-    for k, (slot, *_rest) in enumerate(LOBE_TEXTURE_SLOTS):
-        units[k] = LOBE_UNIT0 + k
-        entry = it.lobe_textures.get(slot)
-        if entry is None:
-            _white().use(LOBE_UNIT0 + k)
-            continue
-        image, ref, srgb = entry
-        _texture(image, ref, srgb, anisotropy).use(LOBE_UNIT0 + k)
-        sets[k], mirror[k], x = _slot_state(ref)
-        has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
-    _set_array(prog, "tex_lobe", units)
-    _set_array(prog, "lobe_has", has)
-    _set_array(prog, "lobe_set", sets)
-    _set_array(prog, "lobe_mirror", mirror)
-    _set_array(prog, "lobe_xf", xf.astype(np.float32))
+    _bind_slot_textures(prog, [slot for slot, *_rest in LOBE_TEXTURE_SLOTS], it.lobe_textures, LOBE_UNIT0, anisotropy,
+                        ("tex_lobe", "lobe_has", "lobe_set", "lobe_mirror", "lobe_xf"))
 
 
 def _vaos(prog, items: list[DrawItem]):
