@@ -29,6 +29,7 @@ from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
 from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
 from pbrcheck.sampling import LUT_SAMPLINGS
 
+from .transmission import TRANSMISSION_LODS
 from .registry import (ANISOTROPY_BENDS, COAT_ATTENUATIONS, COAT_IBLS, DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS,
                        IRIDESCENCES, IRRADIANCE_METHODS, IRRADIANCES, RUNTIME_SAMPLINGS, SHADINGS, SHEEN_DFGS,
                        SHEEN_SCALINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
@@ -146,7 +147,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "shading approximations only; turn on against `--mode path`)",
            default=False),  # as the reference's `local` integrator (no visibility tests)
     Option("supersample", "int", "s x s samples per pixel, box downsample", lo=1, hi=16, default=4),
-    Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes, else raycast) | "
+    Option("pipeline", "choice", "how hits are found: auto (raster where the scene holds glTF meshes or, without "
+           "shadows, a transmissive material; else raycast) | "
            "raycast (the compute pass's exact analytic shapes) | raster (meshes; analytic shapes tessellated)",
            ("auto", "raycast", "raster"), default="auto"),
     Option("occlusion_texture", "bool", "raster: the glTF occlusion texture scales the image-based diffuse light "
@@ -198,6 +200,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("iridescence", "choice", "iridescence: the thin-film Fresnel: belcour_rgb (Belcour & Barla 2017 in "
            "RGB, the Sample Viewer's) | none (no film, as an engine without the extension)", IRIDESCENCES.names,
            default="belcour_rgb"),
+    # Transmission (issue 37 item 2; realtime/transmission.py, shaders/transmission.glsl): compiled only into
+    # the raster programs of scenes with a transmissive material, so it changes nothing else.
+    Option("transmission_lod", "choice", "transmission: the opaque-pass framebuffer's read along the refracted "
+           "ray: sample_viewer (textureLod at log2(width) applyIorToRoughness, trilinear) | threejs (the same "
+           "level, textureBicubic)", TRANSMISSION_LODS.names, default="sample_viewer"),
     Option("sheen_lut_size", "int", "sheen LUT size N (N x N; realtime.lobes.SHEEN_LUT_CONVENTIONS)", lo=2, hi=512,
            default=32, bakes=("sheen_lut",)),
     Option("sheen_lut_samples", "int", "Charlie samples per sheen LUT texel", lo=1, hi=1 << 16, default=4096,
@@ -272,7 +279,7 @@ PRESETS: dict[str, dict] = {
         lod_mapping="linear", dfg="lut", lut_geometry="smith_ggx_correlated", lut_sampling="vndf",
         energy_compensation="fdez_aguera", coat_ibl="filament", coat_attenuation="nov",
         sheen_dfg="lut_ibl_sampler_legacy", sheen_scaling="lut", sheen_cube="charlie", anisotropy_bend="sample_viewer",
-        iridescence="belcour_rgb"),
+        iridescence="belcour_rgb", transmission_lod="sample_viewer"),
     # Article 002: EnvBRDFApprox, f0 = max(albedo x metalness, 0.04), lerp(diffuse, specular, ...),
     # SH9 irradiance, radiance mips at roughness x mip count, its reflect(v, n), ACES for display.
     "analytic_mobile": _preset(
@@ -443,7 +450,8 @@ OPTION_REGISTRIES = {"shading": SHADINGS, "irradiance": IRRADIANCES, "irradiance
                      "fresnel": FRESNELS, "specular_occlusion": SPECULAR_OCCLUSIONS,
                      "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS,
                      "coat_ibl": COAT_IBLS, "coat_attenuation": COAT_ATTENUATIONS, "sheen_dfg": SHEEN_DFGS,
-                     "sheen_scaling": SHEEN_SCALINGS, "anisotropy_bend": ANISOTROPY_BENDS, "iridescence": IRIDESCENCES}
+                     "sheen_scaling": SHEEN_SCALINGS, "anisotropy_bend": ANISOTROPY_BENDS, "iridescence": IRIDESCENCES,
+                     "transmission_lod": TRANSMISSION_LODS}
 
 
 #: Option values decided at render time (``auto``: by the scene, :func:`realtime.render.resolved_pipeline`):

@@ -30,6 +30,12 @@ Conventions (the same at both ends as :mod:`realtime.render`)
 * Alpha: OPAQUE, MASK (discard below ``alphaCutoff``), BLEND (after the opaque primitives, sorted
   back to front by the distance of each primitive's bounding-box centre, depth test without depth
   writes, ``src alpha, 1 - src alpha``).
+* Transmission (``KHR_materials_transmission`` / ``_volume`` / ``_dispersion``; :mod:`realtime.transmission`,
+  only where a material transmits): :func:`_opaque_pass` draws the background and the non-transmissive
+  non-BLEND primitives into an RGBA32F texture of the colour pass's size with its full mip chain
+  (``glGenerateMipmap``; GL orientation, row 0 at the bottom) on :data:`TRANSMISSION_UNIT`; the colour
+  pass then draws the opaque primitives, the transmissive ones back to front (bounding-box centres),
+  then BLEND; docs/realtime.md "Transmission".
 * Point, spot and directional lights: unshadowed (``shadows`` is refused with this pipeline).
 * Specular anti-aliasing (``specular_aa``, ``shaders/specular_aa.glsl``): ``prefiltered`` reads a
   companion R32F texture per normal map, :func:`normal_variance_texture`, whose level k holds the
@@ -81,6 +87,7 @@ from .lobes import sphere_tangent
 from .material_lobes import (LOBE_TEXTURE_SLOTS, gltf_lobe_rows, material_active_lobes, scene_lobe_rows,
                              scene_material_active_lobes)
 from .presets import bake_key
+from .transmission import ior_from_f0
 
 #: Interleaved vertex: position 3, normal 3, tangent 4, uv0 2, uv1 2, colour 4 (float32).
 VERTEX_LAYOUT = ("3f 3f 4f 2f 2f 4f", "in_pos", "in_nrm", "in_tan", "in_uv0", "in_uv1", "in_col")
@@ -100,6 +107,8 @@ NORMAL_VAR_UNIT = MATERIAL_UNIT0 + TEXTURE_SLOTS_N + 1
 LOBE_UNIT0 = 14
 #: The lobe factor rows of a material without lobes (realtime.material_lobes.LOBE_ROW_LAYOUT at the neutral values).
 NEUTRAL_LOBE_ROWS = scene_lobe_rows(Material())
+#: Texture unit of the opaque-pass framebuffer of transmission (after the lobe textures', LOBE_UNIT0 + 10).
+TRANSMISSION_UNIT = 24
 #: GL enums moderngl has no flag for (OpenGL 4.5 core, 14.9.3 multisample fragment operations).
 GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
 GL_SAMPLE_ALPHA_TO_ONE = 0x809F
@@ -131,6 +140,15 @@ class DrawItem:
     lobe_rows: np.ndarray | None = None             # (4, 4) lobe factors (material_lobes.LOBE_ROW_LAYOUT); None: no lobe
     lobe_textures: dict = field(default_factory=dict)   # lobe slot -> (GltfImage, TextureRef, srgb)
     coat_normal_scale: float = 1.0
+    # KHR_materials_transmission / volume / dispersion (realtime/transmission.py; 0: none)
+    transmission: float = 0.0
+    thickness: float = 0.0                          # world units
+    attenuation_color: tuple = (1.0, 1.0, 1.0)
+    attenuation_distance: float = 0.0               # 0: none
+    dispersion: float = 0.0
+    diffuse_transmission: float = 0.0               # KHR_materials_diffuse_transmission
+    diffuse_transmission_color: tuple = (1.0, 1.0, 1.0)
+    transmission_textures: dict = field(default_factory=dict)   # "transmission" (R) / "thickness" (G) -> (GltfImage, TextureRef, srgb)
 
     @property
     def centre(self) -> np.ndarray:
@@ -219,6 +237,7 @@ def draw_items(scene: Scene) -> list[DrawItem]:
                 cn = ltex.get("clearcoatNormal")
                 lobes = dict(lobe_rows=rows, coat_normal_scale=cn[0].scale if cn is not None else 1.0,
                              lobe_textures={k: (inst.asset.images[r.image], r, srgb) for k, (r, srgb) in ltex.items()})
+            lobes.update(_gltf_transmission(m, A, inst.asset.images))
             out.append(DrawItem(
                 ob.id, ob.name, _vertices(pos, nrm, tan, prim.texcoords[0], prim.texcoords[1], prim.color),
                 np.ascontiguousarray(tri, np.uint32), tuple(m.base_color), m.metallic, m.roughness, m.specular,
@@ -230,6 +249,12 @@ def draw_items(scene: Scene) -> list[DrawItem]:
         mat = ob.material
         common = dict(base_color=(*mat.base_color, 1.0), metallic=mat.metallic, roughness=mat.roughness,
                       specular=mat.specular, cull=False, flip_backface=False)
+        if mat.transmission > 0.0 or mat.diffuse_transmission > 0.0:
+            common.update(transmission=mat.transmission, thickness=mat.thickness,
+                          attenuation_color=tuple(mat.attenuation_color),
+                          attenuation_distance=mat.attenuation_distance, dispersion=mat.dispersion,
+                          diffuse_transmission=mat.diffuse_transmission,
+                          diffuse_transmission_color=tuple(mat.diffuse_transmission_color))
         lobed = bool(scene_material_active_lobes(mat))
         if lobed:
             common["lobe_rows"] = scene_lobe_rows(mat)
@@ -249,6 +274,38 @@ def draw_items(scene: Scene) -> list[DrawItem]:
             # the ray-cast pass's tangent frame (lobes_material.glsl sphere_tangent), w = 1
             tan = np.concatenate([sphere_tangent(nrm), np.ones((len(nrm), 1))], axis=1) if lobed else None
             out.append(DrawItem(ob.id, getattr(ob, "name", str(ob.id)), _vertices(pos, nrm, tan), tri, **common))
+    return out
+
+
+def _gltf_transmission(m, A: np.ndarray, images) -> dict:
+    """A glTF material's transmission fields of :class:`DrawItem` (``{}`` without transmission): the
+    factor and its texture (R), the volume's thickness in world units (the mesh-space ``thicknessFactor``
+    times the mean length of the instance matrix's columns; the Sample Viewer scales the ray per axis)
+    and its texture (G), the attenuation (an infinite distance as 0), the dispersion, the diffuse
+    transmission's factors (its textures are not read)."""
+    t = getattr(m, "transmission", None)
+    dt = getattr(m, "diffuse_transmission", None)
+    if (t is None or not t.active) and (dt is None or not dt.active):
+        return {}
+    out = {"transmission": float(t.factor) if t is not None and t.active else 0.0}
+    tex = {}
+    if t is not None and t.active and t.texture is not None:
+        tex["transmission"] = (images[t.texture.image], t.texture, False)
+    if dt is not None and dt.active:   # its textures are not read (factors only)
+        out.update(diffuse_transmission=float(dt.factor), diffuse_transmission_color=tuple(dt.color))
+    vol = getattr(m, "volume", None)
+    if vol is not None and vol.active:
+        scale = float(np.mean(np.linalg.norm(A, axis=0)))
+        d = vol.attenuation_distance
+        out.update(thickness=vol.thickness * scale, attenuation_color=tuple(vol.attenuation_color),
+                   attenuation_distance=0.0 if math.isinf(d) else float(d))
+        if vol.thickness_texture is not None:
+            tex["thickness"] = (images[vol.thickness_texture.image], vol.thickness_texture, False)
+    if tex:
+        out["transmission_textures"] = tex
+    disp = getattr(m, "dispersion", None)
+    if disp is not None and disp.active:
+        out["dispersion"] = float(disp.dispersion)
     return out
 
 
@@ -400,9 +457,52 @@ def _set_material(prog, it: DrawItem, anisotropy: float, occlusion: bool = True,
     _set(prog, "tex_mirror", tuple(mirror))
     # GLSL mat3 is column-major: write the transposes of the row-major matrices
     _set(prog, "tex_xf", np.ascontiguousarray(np.stack([m.T for m in xf]), np.float32).tobytes())
+    if "transmission_factor" in prog:   # a transmission program (transmission.glsl)
+        _set(prog, "transmission_factor", float(it.transmission))
+        _set(prog, "transmission_thickness", float(it.thickness))
+        _set(prog, "transmission_attenuation_color", tuple(float(x) for x in it.attenuation_color))
+        _set(prog, "transmission_attenuation_distance", float(it.attenuation_distance))
+        _set(prog, "transmission_dispersion", float(it.dispersion))
+        _set(prog, "transmission_ior", ior_from_f0(float(it.specular)))
+        _set(prog, "diffuse_transmission_factor", float(it.diffuse_transmission))
+        _set(prog, "diffuse_transmission_color", tuple(float(x) for x in it.diffuse_transmission_color))
+        _set_transmission_textures(prog, it, anisotropy)
     if any(f"lobe_p{k}" in prog for k in range(4)):   # a lobe program (material_lobes.glsl; a variant
         # keeps only the rows its lobes read): this draw's lobe factors and textures
         _set_lobes(prog, it, anisotropy)
+
+
+#: raster.frag's transmission texture slots (tmap_*[k]): the transmission factor's (R) and the
+#: thickness's (G), on units TRANSMISSION_UNIT + 1 + k.
+TRANSMISSION_TEXTURE_SLOTS = ("transmission", "thickness")
+
+
+def _set_transmission_textures(prog, it: DrawItem, anisotropy: float) -> None:
+    """Bind draw ``it``'s transmission and thickness textures (white where absent: the factor as it is)
+    and their texCoord, KHR_texture_transform and mirror state (``tmap_*`` of transmission.glsl)."""
+    _bind_slot_textures(prog, TRANSMISSION_TEXTURE_SLOTS, it.transmission_textures, TRANSMISSION_UNIT + 1, anisotropy,
+                        ("tmap", "tmap_has", "tmap_set", "tmap_mirror", "tmap_xf"))
+
+
+def _bind_slot_textures(prog, slots, textures: dict, unit0: int, anisotropy: float, names: tuple) -> None:
+    """Bind ``textures`` (slot -> (GltfImage, TextureRef, srgb)) of ``slots`` in order on units from
+    ``unit0`` (white where absent) and write the array uniforms ``names`` = (samplers, has, texCoord set,
+    mirror bits, transforms)."""
+    n = len(slots)
+    has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
+                                    np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
+    for k, slot in enumerate(slots):
+        units[k] = unit0 + k
+        entry = textures.get(slot)
+        if entry is None:
+            _white().use(unit0 + k)
+            continue
+        image, ref, srgb = entry
+        _texture(image, ref, srgb, anisotropy).use(unit0 + k)
+        sets[k], mirror[k], x = _slot_state(ref)
+        has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
+    for name, values in zip(names, (units, has, sets, mirror, xf.astype(np.float32))):
+        _set_array(prog, name, values)
 
 
 def _set_array(prog, name: str, values: np.ndarray) -> None:
@@ -423,24 +523,8 @@ def _set_lobes(prog, it: DrawItem, anisotropy: float) -> None:
     for k in range(4):
         _set(prog, f"lobe_p{k}", tuple(float(x) for x in rows[k]))
     _set(prog, "lobe_coat_normal_scale", float(it.coat_normal_scale))
-    n = len(LOBE_TEXTURE_SLOTS)
-    has, sets, mirror, xf, units = (np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32),
-                                    np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), np.zeros(n, np.int32))
-    for k, (slot, *_rest) in enumerate(LOBE_TEXTURE_SLOTS):
-        units[k] = LOBE_UNIT0 + k
-        entry = it.lobe_textures.get(slot)
-        if entry is None:
-            _white().use(LOBE_UNIT0 + k)
-            continue
-        image, ref, srgb = entry
-        _texture(image, ref, srgb, anisotropy).use(LOBE_UNIT0 + k)
-        sets[k], mirror[k], x = _slot_state(ref)
-        has[k], xf[k] = 1, x.T   # GLSL mat3 is column-major
-    _set_array(prog, "tex_lobe", units)
-    _set_array(prog, "lobe_has", has)
-    _set_array(prog, "lobe_set", sets)
-    _set_array(prog, "lobe_mirror", mirror)
-    _set_array(prog, "lobe_xf", xf.astype(np.float32))
+    _bind_slot_textures(prog, [slot for slot, *_rest in LOBE_TEXTURE_SLOTS], it.lobe_textures, LOBE_UNIT0, anisotropy,
+                        ("tex_lobe", "lobe_has", "lobe_set", "lobe_mirror", "lobe_xf"))
 
 
 def _vaos(prog, items: list[DrawItem]):
@@ -578,6 +662,34 @@ def _draw_colour(ctx, fbo, resolved, empty, color_prog, items: list[DrawItem], v
         ctx.copy_framebuffer(resolved, fbo)
 
 
+def _opaque_pass(ctx, fbo, empty, color_prog, items: list[DrawItem], vaos, anisotropy: float, occlusion: bool,
+                 normal_variance: bool, timings: dict | None) -> list:
+    """Transmission's opaque pass (realtime/transmission.py): the background and the non-transmissive,
+    non-BLEND primitives drawn as in the colour pass (single-sampled) into an RGBA32F texture of the
+    colour pass's size, its full mip chain generated (moderngl attaches level 0 only; glGenerateMipmap
+    box-filters each level from the one above), bound to :data:`TRANSMISSION_UNIT` as ``transmission_fb``.
+    Returns the GL objects to release. ``timings["transmission_pass"]``: its seconds."""
+    t0 = time.perf_counter()
+    sw, sh = fbo.size
+    tex = ctx.texture((sw, sh), 4, dtype="f4")
+    depth = ctx.depth_renderbuffer((sw, sh))
+    ofbo = ctx.framebuffer(color_attachments=[tex], depth_attachment=depth)
+    _white().use(TRANSMISSION_UNIT)   # never the texture being drawn into (a feedback loop)
+    _set(color_prog, "transmission_fb", TRANSMISSION_UNIT)
+    ofbo.use()
+    ofbo.viewport = (0, 0, sw, sh)
+    _draw_colour(ctx, ofbo, None, empty, color_prog, items, vaos, anisotropy, occlusion, normal_variance, False, 1)
+    tex.build_mipmaps()
+    tex.filter = (0x2703, 0x2601)  # GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR (trilinear)
+    tex.repeat_x = tex.repeat_y = False
+    tex.use(TRANSMISSION_UNIT)
+    _set(color_prog, "transmission_fb_size", (float(sw), float(sh)))
+    ctx.finish()
+    if timings is not None:
+        timings["transmission_pass"] = time.perf_counter() - t0
+    return [ofbo, tex, depth]
+
+
 def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_prog, ss: int,
                  anisotropy: float = 1.0, occlusion: bool = True, *, msaa: int = 1,
                  alpha_to_coverage: bool = False, normal_variance: bool = False, timings: dict | None = None
@@ -599,7 +711,12 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
     r, u, f = camera_frame(scene.camera)
     origin = np.asarray(scene.camera.origin, float)
     near, far = _depth_range(items, origin, np.asarray(f, float))
-    opaque = [it for it in items if it.alpha_mode != "BLEND"]
+    opaque = [it for it in items if it.alpha_mode != "BLEND" and it.transmission <= 0.0]
+    # transmissive (non-BLEND) primitives after the opaque ones, back to front (the engines' order)
+    transmissive = sorted((it for it in items if it.alpha_mode != "BLEND" and it.transmission > 0.0),
+                          key=lambda it: -float(np.linalg.norm(it.centre - origin)))
+    opaque_only = opaque
+    opaque = opaque + transmissive
     blend = sorted((it for it in items if it.alpha_mode == "BLEND"),
                    key=lambda it: -float(np.linalg.norm(it.centre - origin)))
     released = []
@@ -637,6 +754,15 @@ def raster_frame(scene: Scene, items: list[DrawItem], color_prog, aov_prog, bg_p
         vaos = _vaos(color_prog, opaque + blend)
         for v in vaos:
             released.extend(v)
+        if "transmission_fb" in color_prog:   # a 2D texture on its unit even where no draw reads it
+            _white().use(TRANSMISSION_UNIT)
+            _set(color_prog, "transmission_fb", TRANSMISSION_UNIT)
+            _set(color_prog, "transmission_fb_size", (1.0, 1.0))
+        if transmissive and "transmission_fb" in color_prog:
+            released += _opaque_pass(ctx, fbo, empty, color_prog, opaque_only, vaos[:len(opaque_only)], anisotropy,
+                                     occlusion, normal_variance, timings)
+            fbo.use()
+            fbo.viewport = (0, 0, sw, sh)
         ctx.finish()  # uploads and allocations above stay out of the timed draws
         _, t_draw = timed(ctx, lambda: _draw_colour(ctx, fbo, resolved, empty, color_prog, opaque + blend, vaos,
                                                     anisotropy, occlusion, normal_variance, alpha_to_coverage, msaa))

@@ -74,6 +74,8 @@ from .presets import (
     resolve_options,
     unmet_requirements,
 )
+from .transmission import raycast_notice as transmission_notice
+from .transmission import scene_transmissive, transmission_defines
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -728,7 +730,15 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         if lobes and not ldefs:
             warnings.append(f"lobes_ignored: shading={o.shading} renders no lobe ({', '.join(lobes)}); "
                             f"shading=material does")
-        split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs)
+        # transmission (realtime/transmission.py): compiled only into raster programs of scenes with a
+        # transmissive material; reads the prefiltered cube (off-screen fallback) and the DFG LUT
+        tdefs = transmission_defines(scene, o, pipeline)
+        tnote = transmission_notice(scene, o, pipeline)
+        if tnote:
+            warnings.append(tnote)
+            if progress:
+                print(f"pbrcheck realtime: {tnote}", file=sys.stderr)
+        split = o.ibl == "splitsum" or needs_split_sum_bakes(ldefs) or bool(tdefs)
         pre = None
         if split:
             pre = prefiltered_cube(env, cube, o, fmt, timings)
@@ -741,7 +751,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         kd = kd_lut(o.lut_size, timings)
         bar.update(1, "kd_lut")
 
-        defines = {**frame_defines(o, terms), **ldefs}
+        defines = {**frame_defines(o, terms), **ldefs, **tdefs}
         hooks = load_hook_file(o.shader) if o.shader else None
         baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd}
         if ldefs:
@@ -826,11 +836,13 @@ def as_options(preset: str, options: RealtimeOptions | dict | None) -> RealtimeO
 
 def resolved_pipeline(scene: Scene, o: RealtimeOptions) -> str:
     """``raycast`` or ``raster``: the option's value, or for ``auto`` raster exactly when the scene
-    holds glTF meshes (analytic scenes keep the exact ray-cast geometry). ``raycast`` on a scene with
-    meshes raises :class:`pbrcheck.gltf_scene.UnsupportedSceneError`."""
+    holds glTF meshes, or a transmissive material without ``shadows`` (only the raster pipeline has the
+    opaque pass transmission reads, realtime/transmission.py); other analytic scenes keep the exact
+    ray-cast geometry. ``raycast`` on a scene with meshes raises
+    :class:`pbrcheck.gltf_scene.UnsupportedSceneError`."""
     from pbrcheck.gltf_scene import require_analytic, scene_has_assets
     if o.pipeline == "auto":
-        return "raster" if scene_has_assets(scene) else "raycast"
+        return "raster" if scene_has_assets(scene) or (scene_transmissive(scene) and not o.shadows) else "raycast"
     if o.pipeline == "raycast":
         require_analytic(scene, "real-time pipeline=raycast")
     return o.pipeline
@@ -869,7 +881,8 @@ def _raster(scene: Scene, o: RealtimeOptions, env, baked: dict, sh, defines: dic
         # upload the material textures and generate their mips before the timed frame, each timed
         timings.update(texture_upload=0.0, texture_mips=0.0)
         for it in items:
-            for image, ref, srgb in (*it.textures.values(), *it.lobe_textures.values()):
+            for image, ref, srgb in (*it.textures.values(), *it.lobe_textures.values(),
+                                     *it.transmission_textures.values()):
                 raster._texture(image, ref, srgb, o.anisotropy, timings)
             if variance and "normal" in it.textures:  # and its slope-variance mips
                 t0 = time.perf_counter()

@@ -16,6 +16,7 @@ layout(local_size_x = 64) in;
 #include "lobes_anisotropy.glsl"
 #include "lobes_iridescence.glsl"
 #include "lobes_material.glsl"
+#include "transmission_forms.glsl"
 #include "hooks.glsl"
 layout(std430, binding = 0) readonly buffer InA { vec4 a_in[]; };
 layout(std430, binding = 1) readonly buffer InB { vec4 b_in[]; };

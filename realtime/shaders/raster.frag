@@ -14,6 +14,8 @@
 // (prefiltered). HOOK_SPECULAR_AA (a user hook, realtime/hooks.py) replaces it on normal-mapped
 // fragments, given the mip-filtered length and normal_map_lod(). ALPHA_TO_COVERAGE (option alpha_to_coverage): MASK writes the sharpened alpha
 // (coverage.glsl) for the host's GL_SAMPLE_ALPHA_TO_COVERAGE instead of discarding.
+// TRANSMISSION (defined only where the scene draws a transmissive material, realtime/transmission.py):
+// transmission.glsl's screen-space refraction and diffuse transmission replace the dielectric diffuse (see main).
 // UNLIT_MATERIALS (defined only where the scene draws a KHR_materials_unlit material): a material
 // with unlit != 0 writes its base colour (factor x texture x COLOR_0) as the radiance, unshaded
 // (KHR_materials_unlit; alpha as for a lit material).
@@ -70,6 +72,9 @@ uniform float ao_strength;
 // specular_aa = prefiltered: var(s_x) + var(s_y) of the normal map's slopes per mip (R), read with the
 // normal map's coordinates.
 uniform sampler2D tex_normal_var;
+#ifdef TRANSMISSION
+#include "transmission.glsl"
+#endif
 #ifdef MATERIAL_LOBES
 // The glTF PBR extensions' lobes (material_lobes.glsl), in lobe programs only: the material's factor
 // rows (realtime.material_lobes.LOBE_ROW_LAYOUT; row 3's w the film's thickness minimum) and its lobe
@@ -232,6 +237,27 @@ void main() {
                                              TEXTURE_LOD0 != 0).r,
                                       ao_strength);
     vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao, N), seed);
+#ifdef TRANSMISSION
+    // KHR_materials_transmission (transmission.glsl): the dielectric diffuse, the difference of the
+    // composition at metallic 0 with and without the base colour (linear in it), is replaced in
+    // proportion transmission by the screen-space transmitted light x base colour (the Sample Viewer's
+    // mix(f_diffuse, f_transmission, T), then the metallic blend); punctual lights transmit nothing.
+    // Diffuse transmission (KHR_materials_diffuse_transmission) first replaces the diffuse by the back's
+    // irradiance, then transmission replaces what remains (the Sample Viewer's order of the two mixes).
+    if ((transmission_factor > 0.0 || diffuse_transmission_factor > 0.0) && dot(n, v) > 0.0) {
+        Surface sd = Surface(v_pos, n, v, base.rgb, 0.0, roughness, specular_f0, ao, N);
+        Surface s0 = sd;
+        s0.base_color = vec3(0.0);
+        vec3 diffuse = shade(sd, seed) - shade(s0, seed);
+        float tf = transmission_factor * lookup(tmap[0], tmap_has[0], tmap_set[0], tmap_xf[0], tmap_mirror[0],
+                                                vec4(1.0), TEXTURE_LOD0 != 0).r;
+        g_thickness = transmission_thickness * lookup(tmap[1], tmap_has[1], tmap_set[1], tmap_xf[1], tmap_mirror[1],
+                                                      vec4(1.0), TEXTURE_LOD0 != 0).g;
+        vec3 fd = mix(diffuse, diffuse_transmission_radiance(n, base.rgb), diffuse_transmission_factor);
+        vec3 ft = tf > 0.0 ? transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb : vec3(0.0);
+        radiance += (1.0 - metallic) * (mix(fd, ft, tf) - diffuse);
+    }
+#endif
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;
 #if ALPHA_TO_COVERAGE
     // MASK: the sharpened alpha becomes the sample mask (GL_SAMPLE_ALPHA_TO_ONE then writes alpha 1)

@@ -1,0 +1,154 @@
+"""The engines' real-time approximation of light through a surface (issue 37 item 2), raster pipeline:
+the opaque objects rendered first into a framebuffer with a mip chain, the transmissive ones sampling it
+along the refracted ray at a level from roughness and IOR, the prefiltered environment where that ray
+leaves the screen, Beer-Lambert attenuation over the material's ``thickness`` (not the path travelled),
+dispersion as three IORs. GLSL: ``realtime/shaders/transmission.glsl``, compiled into raster.frag only
+where the scene draws a transmissive material (the ``TRANSMISSION`` define): a scene without one has the
+programs (sources) and images it had before.
+
+The numpy twins below are the closed forms of the GLSL (``tests/test_realtime_transmission.py`` runs
+both on grids with the extremes).
+
+Forms (registry :data:`TRANSMISSION_LODS`, option ``transmission_lod``):
+
+* ``sample_viewer``: KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl``
+  ``getTransmissionSample``: ``textureLod(framebuffer, uv, log2(width) applyIorToRoughness(r, ior))``
+  (trilinear), ``applyIorToRoughness(r, ior) = r clamp(2 ior - 2, 0, 1)`` (IOR 1: no blur; 1.5 and
+  above: the roughness as it is).
+* ``threejs``: mrdoob/three.js ``src/renderers/shaders/ShaderChunk/transmission_pars_fragment.glsl.js``
+  ``getTransmissionSample``: the same level, read by ``textureBicubic`` (a B-spline bicubic filter of
+  levels floor(lod) and ceil(lod), mixed by fract(lod)).
+
+Common to both (each engine's ``getVolumeTransmissionRay`` / ``applyVolumeAttenuation`` /
+``volumeAttenuation``): the refracted ray ``refract(-v, n, 1 / ior)`` scaled by ``thickness`` (world
+units here: the draw's scale is in its vertices) exits at ``p + thickness t``, projected by the camera
+into the framebuffer; attenuation ``attenuationColor^(thickness / attenuationDistance)`` (=
+``exp(-sigma_t thickness)``, ``sigma_t = -ln(c) / d``; none at the infinite distance, the scene files'
+0); the transmitted radiance weighted ``(1 - (F0 A + B)) base_colour`` (the DFG LUT's specular albedo:
+the Sample Viewer's form; three.js's ``EnvironmentBRDF`` is the same with its analytic fit) replaces
+the dielectric diffuse in proportion ``transmission`` (``mix(f_diffuse, f_transmission, T)``).
+Dispersion (three.js): three IORs ``ior -/+ (ior - 1) 0.025 dispersion`` for R, G, B, each channel
+its own refracted lookup. Diffuse transmission (the Sample Viewer's pbr.frag): the irradiance from the
+back ``E(-n) / pi`` x ``diffuseTransmissionColor`` x base colour (attenuated over the thickness) replaces
+the diffuse in proportion ``diffuseTransmissionFactor``, before transmission's mix.
+
+API
+---
+:data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`TRANSMISSION_LODS`,
+:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`bspline_weights`,
+:func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
+:func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pbrcheck import transmission_params as tp
+from pbrcheck.registry import Entry, Registry, role
+
+#: The extensions the real-time raster pipeline renders (the honesty contract,
+#: pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS, is the lead's and is not changed here).
+REALTIME_TRANSMISSION_EXTENSIONS = (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
+#: three.js transmission_pars_fragment: ``halfSpread = (ior - 1) * 0.025 * dispersion``.
+DISPERSION_SPREAD = 0.025
+
+
+def apply_ior_to_roughness(roughness, ior):
+    """Sample Viewer / three.js ``applyIorToRoughness``: ``r clamp(2 ior - 2, 0, 1)``."""
+    return np.asarray(roughness, float) * np.clip(2.0 * np.asarray(ior, float) - 2.0, 0.0, 1.0)
+
+
+def transmission_lod(roughness, ior, width):
+    """Both engines' level: ``log2(width) applyIorToRoughness(r, ior)`` (width: the framebuffer's)."""
+    return np.log2(np.asarray(width, float)) * apply_ior_to_roughness(roughness, ior)
+
+
+def bspline_weights(a):
+    """three.js textureBicubic's cubic B-spline weights ``w0..w3`` at fraction ``a`` (sum 1), the
+    GLSL ``bc_w0..bc_w3``: (1 - a)^3 / 6, (3 a^3 - 6 a^2 + 4) / 6, (-3 a^3 + 3 a^2 + 3 a + 1) / 6, a^3 / 6."""
+    a = np.asarray(a, float)
+    return np.stack([(1 - a) ** 3, 3 * a ** 3 - 6 * a ** 2 + 4, -3 * a ** 3 + 3 * a ** 2 + 3 * a + 1, a ** 3], -1) / 6.0
+
+
+def volume_attenuation(thickness, attenuation_color, attenuation_distance):
+    """Beer-Lambert over the thickness: ``c^(t / d)`` per channel (= exp(-sigma_t t)); 1 where ``d``
+    is 0 or infinite (the scene files' and glTF's "none")."""
+    c = np.asarray(attenuation_color, float)
+    if attenuation_distance <= 0.0 or math.isinf(attenuation_distance):
+        return np.ones_like(c)
+    return np.power(c, float(thickness) / attenuation_distance)
+
+
+def dispersion_iors(ior: float, dispersion: float) -> np.ndarray:
+    """three.js's three IORs (R, G, B): ``ior - s, ior, ior + s``, ``s = (ior - 1) 0.025 dispersion``."""
+    s = (ior - 1.0) * DISPERSION_SPREAD * dispersion
+    return np.array([ior - s, ior, ior + s])
+
+
+def ior_from_f0(f0: float) -> float:
+    """The IOR whose ``((n - 1) / (n + 1))^2`` is ``f0`` (the draw items carry F0): ``(1 + sqrt f0) / (1 - sqrt f0)``."""
+    s = math.sqrt(max(f0, 0.0))
+    return (1.0 + s) / max(1.0 - s, 1e-6)
+
+
+def mip_count(width: int, height: int) -> int:
+    """Levels of the opaque-pass framebuffer's full chain (glGenerateMipmap): ``floor(log2 max) + 1``."""
+    return max(width, height).bit_length()
+
+
+TRANSMISSION_LODS = Registry("TRANSMISSION_LOD", [
+    Entry("sample_viewer", "glTF-Sample-Viewer getTransmissionSample: textureLod at log2(width) "
+                           "applyIorToRoughness(r, ior), trilinear",
+          roles={"transmission_lod": role(transmission_lod)},
+          applies_to="transmission: the opaque-pass framebuffer's level and filter"),
+    Entry("threejs", "three.js getTransmissionSample: the same level read by textureBicubic (B-spline bicubic "
+                     "of floor and ceil levels, mixed by fract)",
+          roles={"transmission_lod": role(transmission_lod)},
+          applies_to="transmission: the opaque-pass framebuffer's level and filter"),
+])
+
+
+def _scene_material_transmissive(m) -> bool:
+    return m.transmission > 0.0 or m.diffuse_transmission > 0.0
+
+
+def _gltf_transmissive(gm) -> bool:
+    return tp.is_transmissive(gm)
+
+
+def scene_transmissive(scene) -> bool:
+    """Whether some object of ``scene`` lets light through: ``transmission`` or ``diffuse_transmission``
+    > 0 (scene-file fields or the glTF extensions' ``active``)."""
+    for ob in scene.objects:
+        if getattr(ob, "type", "") == "mesh":
+            inst = scene.assets[ob.instance]
+            if _gltf_transmissive(inst.asset.material(ob.gltf_material)):
+                return True
+        elif _scene_material_transmissive(ob.material):
+            return True
+    return False
+
+
+def transmission_defines(scene, o, pipeline: str) -> dict:
+    """``TRANSMISSION`` and the ``TRANSMISSION_LOD`` member for a raster render of a scene with a
+    transmissive material under composition ``material``; ``{}`` otherwise (the program is then exactly
+    the transmission-free one)."""
+    if pipeline != "raster" or o.shading != "material" or not scene_transmissive(scene):
+        return {}
+    return {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod)}
+
+
+def raycast_notice(scene, o, pipeline: str) -> str | None:
+    """The one-line notice of a render that draws transmissive materials opaque: the ray-cast pipeline
+    (analytic scenes: it has no opaque-pass framebuffer) or a composition other than ``material``."""
+    if not scene_transmissive(scene):
+        return None
+    if pipeline != "raster":
+        return ("transmission_unmodelled: pipeline=raycast renders KHR_materials_transmission/volume/dispersion/"
+                "diffuse_transmission materials opaque (no opaque-pass framebuffer); pipeline=raster renders them")
+    if o.shading != "material":
+        return f"transmission_unmodelled: shading={o.shading} renders transmissive materials opaque; shading=material does"
+    return None
