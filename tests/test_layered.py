@@ -76,3 +76,23 @@ def test_seeded():
     a = L.layered_albedo(L.Base(), L.Coat(0.25), WO, n=2048, seed=7)
     b = L.layered_albedo(L.Base(), L.Coat(0.25), WO, n=2048, seed=7)
     assert a == b and a[1] > 0
+
+
+def test_layered_coat_command(tmp_path, capsys):
+    import json
+
+    import pbrcheck_cli as cli
+    from compare.research import layered_coat
+
+    rows = layered_coat.run_layered_coat(samples=512, roughness=(0.0,), nov=(1.0,))
+    r = rows[0]
+    # the smooth coat over the grey base: the spec's layering is brighter than the walk (finding in
+    # docs/research.md: ~1.59x at n.v 1); the white furnace under a smooth coat is 1
+    assert 1.4 < r.albedo_spec / r.albedo < 1.8 and abs(r.furnace - 1.0) < 1e-9
+    assert len(r.brdf) == len(layered_coat.LIGHTS)
+    out = tmp_path / "lc.json"
+    assert cli.main(["layered-coat", "--samples", "256", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.count("\n| ") == len(layered_coat.ROUGHNESS) * len(layered_coat.NOV)  # rows after the header
+    data = json.loads(out.read_text())
+    assert [d["roughness"] for d in data[::3]] == list(layered_coat.ROUGHNESS)

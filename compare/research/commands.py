@@ -1,10 +1,11 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck_cli`): ``hardcases``,
-``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy``, ``layered-coat`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
@@ -18,7 +19,7 @@ from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
 from ..verdict_spp import DEFAULT_SPP_CAP
-from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, hardcases
+from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, hardcases, layered_coat
 
 
 def _cmd_hardcases(args) -> int:
@@ -124,6 +125,14 @@ def _cmd_energy(args) -> int:
     print(energy.table_markdown(res), end="")
     for k, p in paths.items():
         print(f"{k}: {p}")
+    return 0
+
+
+def _cmd_layered_coat(args) -> int:
+    rows = layered_coat.run_layered_coat(samples=args.samples, seed=args.seed)
+    print(layered_coat.table_markdown(rows), end="")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, [asdict(r) for r in rows])}")
     return 0
 
 
@@ -240,6 +249,15 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/energy", metavar="DIR", help="output directory (default out/energy)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_energy)
+
+    s = sub.add_parser("layered-coat", help="the spec's clearcoat layering (albedo scaling) against a physically "
+                                            "layered coat (a position-free random walk through a dielectric slab "
+                                            "over the base): albedo and BRDF per coat roughness and n.v")
+    s.add_argument("--samples", type=int, default=layered_coat.DEFAULT_SAMPLES,
+                   help=f"walks per estimate (default {layered_coat.DEFAULT_SAMPLES})")
+    s.add_argument("--seed", type=int, default=0, help="the walks' seed (default 0)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the rows as JSON")
+    s.set_defaults(func=_cmd_layered_coat)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")
