@@ -1,5 +1,5 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck_cli`): ``hardcases``,
-``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy``, ``layered-coat`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy``, ``layered-coat``, ``fit-lobes`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
 from ..verdict_spp import DEFAULT_SPP_CAP
-from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, hardcases, layered_coat
+from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, fit_lobes, hardcases, layered_coat
 
 
 def _cmd_hardcases(args) -> int:
@@ -133,6 +133,17 @@ def _cmd_layered_coat(args) -> int:
     print(layered_coat.table_markdown(rows), end="")
     if args.json:
         print(f"json: {write_json_atomic(args.json, [asdict(r) for r in rows])}")
+    return 0
+
+
+def _cmd_fit_lobes(args) -> int:
+    from pbrcheck.atomic import write_text_atomic
+    errors, table = fit_lobes.sheen_report(baked32=not args.no_baked32)
+    print(fit_lobes.sheen_table_markdown(errors), end="")
+    if args.module:
+        print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table))}")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist()})}")
     return 0
 
 
@@ -258,6 +269,13 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--seed", type=int, default=0, help="the walks' seed (default 0)")
     s.add_argument("--json", metavar="FILE.json", help="also write the rows as JSON")
     s.set_defaults(func=_cmd_layered_coat)
+
+    s = sub.add_parser("fit-lobes", help="inverse fits of the lobes' real-time forms against the truth: a sheen "
+                                         "albedo table fitted to the spec's quadrature, before/after errors")
+    s.add_argument("--module", metavar="FILE.py", help="write the fitted table as a module (realtime/fitted_lobes.py)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the errors and the table as JSON")
+    s.add_argument("--no-baked32", action="store_true", help="skip the 32 x 32 bake's row (1024 quadratures)")
+    s.set_defaults(func=_cmd_fit_lobes)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")
