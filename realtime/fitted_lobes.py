@@ -11,8 +11,19 @@ clamp at 0 (:func:`realtime.lobes.lut_bilinear`'s rule). :func:`sheen_albedo_fit
 reader, :data:`SHEEN_ALBEDO_GLSL` the same read as a GLSL hook (``float sheen_albedo_fitted(float NoV,
 float roughness)``), registry-ready for ``SHEEN_SCALING`` as ``1 - max3(color) sheen_albedo_fitted``.
 
+
+:data:`ANISO_BEND_WEIGHT_TABLE`: the weight ``w`` of the Sample Viewer-style bent normal
+``normalize(mix((b x v) x b, n, w))`` (b the anisotropy bitangent), in place of its ``(1 - s (1 -
+r))^4``, fitted against the spec's anisotropic GGX integral under test environments (docs/research.md);
+rows roughness :data:`ANISO_ROUGHNESS`, columns strength :data:`ANISO_STRENGTH`, read bilinearly
+between the nodes and clamped to them (below roughness 0.2: its first row);
+:func:`aniso_bend_weight_fitted` the numpy reader, :data:`ANISO_BEND_WEIGHT_GLSL` the GLSL hook
+``float aniso_bend_weight_fitted(float anisotropy, float roughness)``, registry-ready for
+``ANISOTROPY_BEND`` as the Sample Viewer's bend with this weight.
+
 API: :data:`SHEEN_ALBEDO_TABLE`, :data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`, :func:`sheen_albedo_fitted`,
-:data:`SHEEN_ALBEDO_GLSL`.
+:data:`SHEEN_ALBEDO_GLSL`, :data:`ANISO_STRENGTH`, :data:`ANISO_ROUGHNESS`, :data:`ANISO_BEND_WEIGHT_TABLE`,
+:func:`aniso_bend_weight_fitted`, :data:`ANISO_BEND_WEIGHT_GLSL`.
 """
 
 import numpy as np
@@ -62,5 +73,41 @@ float sheen_albedo_fitted(float NoV, float roughness) {
     float v0 = mix(SHEEN_ALBEDO_TABLE[j0 * 8 + i0], SHEEN_ALBEDO_TABLE[j0 * 8 + i0 + 1], fx);
     float v1 = mix(SHEEN_ALBEDO_TABLE[(j0 + 1) * 8 + i0], SHEEN_ALBEDO_TABLE[(j0 + 1) * 8 + i0 + 1], fx);
     return max(mix(v0, v1, fy), 0.0);
+}
+"""
+
+ANISO_STRENGTH = (0.0, 0.25, 0.5, 0.75, 1.0)
+ANISO_ROUGHNESS = (0.2, 0.4, 0.6, 0.8, 1.0)
+ANISO_BEND_WEIGHT_TABLE = np.array((
+    (1.0000, 0.9800, 0.6600, 0.6400, 0.6200),
+    (1.0000, 0.9000, 0.6400, 0.5600, 0.5400),
+    (1.0000, 0.8200, 0.6600, 0.5200, 0.4200),
+    (1.0000, 0.5800, 0.5400, 0.4800, 0.4200),
+    (1.0000, 1.0000, 1.0000, 1.0000, 1.0000)))
+
+
+def aniso_bend_weight_fitted(anisotropy, roughness):
+    """The fitted weight at (strength, roughness) (numpy twin of the GLSL hook; uniform node spacing)."""
+    x = np.clip((np.asarray(anisotropy, np.float64) - 0.0) / 0.25, 0.0, 4.0)
+    y = np.clip((np.asarray(roughness, np.float64) - 0.2) / 0.2, 0.0, 4.0)
+    i0, j0 = np.minimum(np.floor(x).astype(int), 3), np.minimum(np.floor(y).astype(int), 3)
+    fx, fy = x - i0, y - j0
+    t = ANISO_BEND_WEIGHT_TABLE
+    return ((1 - fy) * ((1 - fx) * t[j0, i0] + fx * t[j0, i0 + 1])
+            + fy * ((1 - fx) * t[j0 + 1, i0] + fx * t[j0 + 1, i0 + 1]))
+
+
+ANISO_BEND_WEIGHT_GLSL = """
+const float ANISO_BEND_WEIGHT_TABLE[25] = float[](1.0000, 0.9800, 0.6600, 0.6400, 0.6200, 1.0000, 0.9000, 0.6400, 0.5600, 0.5400, 1.0000, 0.8200, 0.6600, 0.5200, 0.4200, 1.0000, 0.5800, 0.5400, 0.4800, 0.4200, 1.0000, 1.0000, 1.0000, 1.0000, 1.0000);
+
+float aniso_bend_weight_fitted(float anisotropy, float roughness) {
+    float x = clamp((anisotropy - 0.000000) / 0.250000, 0.0, 4.0);
+    float y = clamp((roughness - 0.200000) / 0.200000, 0.0, 4.0);
+    int i0 = min(int(floor(x)), 3);
+    int j0 = min(int(floor(y)), 3);
+    float fx = x - float(i0), fy = y - float(j0);
+    float v0 = mix(ANISO_BEND_WEIGHT_TABLE[j0 * 5 + i0], ANISO_BEND_WEIGHT_TABLE[j0 * 5 + i0 + 1], fx);
+    float v1 = mix(ANISO_BEND_WEIGHT_TABLE[(j0 + 1) * 5 + i0], ANISO_BEND_WEIGHT_TABLE[(j0 + 1) * 5 + i0 + 1], fx);
+    return mix(v0, v1, fy);
 }
 """

@@ -139,11 +139,14 @@ def _cmd_layered_coat(args) -> int:
 def _cmd_fit_lobes(args) -> int:
     from pbrcheck.atomic import write_text_atomic
     errors, table = fit_lobes.sheen_report(baked32=not args.no_baked32)
-    print(fit_lobes.sheen_table_markdown(errors), end="")
+    print(fit_lobes.sheen_table_markdown(errors))
+    aniso = fit_lobes.fit_aniso_table()
+    aniso_errors = fit_lobes.aniso_report(aniso)
+    print(fit_lobes.aniso_table_markdown(aniso_errors, aniso), end="")
     if args.module:
-        print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table))}")
+        print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table, aniso))}")
     if args.json:
-        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist()})}")
+        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist()})}")
     return 0
 
 
@@ -271,7 +274,8 @@ def register(sub, bench_sub) -> None:
     s.set_defaults(func=_cmd_layered_coat)
 
     s = sub.add_parser("fit-lobes", help="inverse fits of the lobes' real-time forms against the truth: a sheen "
-                                         "albedo table fitted to the spec's quadrature, before/after errors")
+                                         "albedo table fitted to the spec's quadrature, the anisotropic bent normal's "
+                                         "blend weight fitted to the spec's GGX under test environments; before/after errors")
     s.add_argument("--module", metavar="FILE.py", help="write the fitted table as a module (realtime/fitted_lobes.py)")
     s.add_argument("--json", metavar="FILE.json", help="also write the errors and the table as JSON")
     s.add_argument("--no-baked32", action="store_true", help="skip the 32 x 32 bake's row (1024 quadratures)")

@@ -35,6 +35,8 @@ References
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from pbrcheck.lobes import SheenCharlie
@@ -160,9 +162,177 @@ def sheen_table_markdown(errors) -> str:
     return "\n".join(lines) + "\n"
 
 
-def module_text(table) -> str:
-    """The source of :mod:`realtime.fitted_lobes` holding ``table`` (on the "sqrt_nov" axis)."""
+# ------------------------------------------------------------------------------------------------
+# Anisotropy: the blend weight of the Sample Viewer-style bent normal
+# ------------------------------------------------------------------------------------------------
+
+#: The fitted weight table's nodes: anisotropy strength (columns) and roughness (rows). Below
+#: roughness 0.2 the prefiltered lookup's own quadrature (:data:`ANISO_NU`^2 samples) does not
+#: resolve the test environment's lobes. The weight is pinned to 1 where the spec's lobe is
+#: isotropic, at strength 0 and at roughness 1 (``alpha_t = mix(1, 1, s^2)``): there the bend must
+#: not absorb the split sum's own error (a free fit picks 0.445 at roughness 1).
+ANISO_STRENGTH = (0.0, 0.25, 0.5, 0.75, 1.0)
+ANISO_ROUGHNESS = (0.2, 0.4, 0.6, 0.8, 1.0)
+#: Held-out nodes (midpoints) and environments (seeds) of the report.
+ANISO_HELD_STRENGTH = (0.125, 0.375, 0.625, 0.875)
+ANISO_HELD_ROUGHNESS = (0.3, 0.5, 0.7, 0.9)
+ANISO_TRAIN_ENVS = (0, 1, 2, 3, 4, 5)
+ANISO_HELD_ENVS = (10, 11, 12, 13)
+#: The test environment: a constant 0.05 plus ENV_LOBES von Mises-Fisher lobes of sharpness
+#: ENV_KAPPA (~7 degrees wide) above the horizon, weights in [0.5, 1.5], placed by the seed.
+ENV_LOBES = 3
+ENV_KAPPA = 60.0
+#: Stratified samples per axis of the truth's and the prefilter's integrals (deterministic).
+ANISO_NU = 32
+#: The weights scanned per node (the objective is 1-D per node: a dense scan finds its minimum).
+ANISO_SCAN = np.linspace(0.0, 1.0, 51)
+_Z = np.array([0.0, 0.0, 1.0])
+_B = np.array([0.0, 1.0, 0.0])  # the anisotropy bitangent n x t for the direction t = +X
+
+
+def _u_grid(n=ANISO_NU):
+    g = (np.arange(n) + 0.5) / n
+    return np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+
+
+def test_env(seed):
+    """The environment ``L(l)`` of the seed (module constants)."""
+    rng = np.random.default_rng(seed)
+    z, ph = rng.uniform(0.2, 0.9, ENV_LOBES), rng.uniform(0.0, 2.0 * np.pi, ENV_LOBES)
+    sz = np.sqrt(1.0 - z * z)
+    mu = np.stack([sz * np.cos(ph), sz * np.sin(ph), z], axis=-1)
+    c = rng.uniform(0.5, 1.5, ENV_LOBES)
+    return lambda l: 0.05 + np.exp(ENV_KAPPA * (l @ mu.T - 1.0)) @ c
+
+
+def _basis(n):
+    sign = np.where(n[:, 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    return (np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=-1),
+            np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=-1))
+
+
+def prefiltered(env, R, roughness):
+    """The split sum's prefiltered radiance at directions R (k, 3): Karis's estimator with n = v = R
+    (half vectors of density D (n.h), weights n.l), on the stratified grid."""
+    from pbrcheck.lobes import AnisotropicGGX
+    h = AnisotropicGGX(roughness).sample_h(_Z, _u_grid())
+    l = 2.0 * h[:, 2:3] * h - _Z
+    w = np.maximum(l[:, 2], 0.0)
+    t, s = _basis(R)
+    L = l[None, :, 0:1] * t[:, None] + l[None, :, 1:2] * s[:, None] + l[None, :, 2:3] * R[:, None]
+    return (env(L.reshape(-1, 3)).reshape(len(R), -1) @ w) / w.sum()
+
+
+def aniso_views():
+    """The views of the fit: 20, 45, 70 degrees from n x azimuths 0, 45, 90, 135 from the direction."""
+    th, ph = np.radians([20.0, 45.0, 70.0]), np.radians([0.0, 45.0, 90.0, 135.0])
+    T, P = (a.ravel() for a in np.meshgrid(th, ph, indexing="ij"))
+    return np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
+
+
+def aniso_truth(env, v, roughness, strength):
+    """``int L(l) f(v, l) (n.l) dl`` of the spec's anisotropic GGX (F = 1) per view: the visible
+    normals' estimator on the stratified grid."""
+    from pbrcheck.lobes import AnisotropicGGX
+    ggx, out = AnisotropicGGX(roughness, strength), []
+    for vi in v:
+        l, pdf = ggx.sample(vi, _u_grid())
+        f = ggx.eval(vi[None], l)
+        out.append(np.mean(np.where(pdf > 0, env(l) * f / np.maximum(pdf, 1e-300), 0.0)))
+    return np.array(out)
+
+
+def aniso_realtime(env, v, roughness, weight):
+    """The bent-normal lookup: ``prefiltered(reflect(-v, normalize(mix((b x v) x b, n, weight)))) E(n.v)``
+    with E the isotropic GGX albedo (the DFG with F = 1) at the material's roughness."""
+    from pbrcheck.lobes import AnisotropicGGX
+    m = np.cross(np.cross(_B, v), _B)
+    bn = m * (1.0 - weight) + _Z * weight
+    bn = bn / np.linalg.norm(bn, axis=-1, keepdims=True)
+    R = 2.0 * np.sum(v * bn, axis=-1, keepdims=True) * bn - v
+    return prefiltered(env, R, roughness) * _iso_albedo(roughness, tuple(map(tuple, v)))
+
+
+@lru_cache(maxsize=64)
+def _iso_albedo(roughness, v):
+    from pbrcheck.lobes import AnisotropicGGX
+    return np.array([AnisotropicGGX(roughness).albedo(vi[2], n=64) for vi in v])
+
+
+def sample_viewer_weight(strength, roughness):
+    """The Sample Viewer's (and three.js's) ``(1 - s (1 - r))^4``."""
+    return (1.0 - np.asarray(strength) * (1.0 - np.asarray(roughness))) ** 4
+
+
+def _rel_err(pred, truth):
+    return float(np.sum((pred - truth) ** 2) / np.sum(truth ** 2))
+
+
+def _aniso_cases(envs, strengths, roughs):
+    v = aniso_views()
+    return [(e, r, s, aniso_truth(test_env(e), v, r, s)) for e in envs for r in roughs for s in strengths]
+
+
+def fit_aniso_table():
+    """The weight per (roughness row, strength column) minimising the relative squared error summed
+    over the training environments and views (strength 0 and roughness 1 pinned to 1); a dense scan
+    of :data:`ANISO_SCAN` per node (no AD: the objective is 1-D per node)."""
+    v = aniso_views()
+    cases = _aniso_cases(ANISO_TRAIN_ENVS, ANISO_STRENGTH[1:], ANISO_ROUGHNESS[:-1])
+    table = np.ones((len(ANISO_ROUGHNESS), len(ANISO_STRENGTH)))
+    for j, r in enumerate(ANISO_ROUGHNESS[:-1]):
+        for i, s in enumerate(ANISO_STRENGTH[1:], start=1):
+            mine = [c for c in cases if c[1] == r and c[2] == s]
+            cost = [sum(_rel_err(aniso_realtime(test_env(e), v, r, w), L) for e, _, _, L in mine) for w in ANISO_SCAN]
+            table[j, i] = ANISO_SCAN[int(np.argmin(cost))]
+    return table
+
+
+def aniso_weight_table(table, strength, roughness):
+    """The fitted weight at (strength, roughness): bilinear on the nodes, clamped to them."""
+    s = np.interp(strength, ANISO_STRENGTH, np.arange(len(ANISO_STRENGTH)))
+    r = np.interp(roughness, ANISO_ROUGHNESS, np.arange(len(ANISO_ROUGHNESS)))
+    i0, j0 = min(int(s), len(ANISO_STRENGTH) - 2), min(int(r), len(ANISO_ROUGHNESS) - 2)
+    fx, fy = s - i0, r - j0
+    t = np.asarray(table)
+    return float((1 - fy) * ((1 - fx) * t[j0, i0] + fx * t[j0, i0 + 1]) + fy * ((1 - fx) * t[j0 + 1, i0] + fx * t[j0 + 1, i0 + 1]))
+
+
+def aniso_report(table):
+    """Held-out (environments :data:`ANISO_HELD_ENVS`, nodes at the midpoints) relative squared error
+    of the Sample Viewer's weight, the fitted table and the unbent normal (weight 1): mean and max."""
+    v = aniso_views()
+    res = {"sample_viewer": [], "fitted": [], "unbent (weight 1)": []}
+    for e, r, s, L in _aniso_cases(ANISO_HELD_ENVS, ANISO_HELD_STRENGTH, ANISO_HELD_ROUGHNESS):
+        env = test_env(e)
+        for k, w in (("sample_viewer", sample_viewer_weight(s, r)), ("fitted", aniso_weight_table(table, s, r)),
+                     ("unbent (weight 1)", 1.0)):
+            res[k].append(_rel_err(aniso_realtime(env, v, r, w), L))
+    return {k: {"mean": float(np.mean(x)), "max": float(np.max(x))} for k, x in res.items()}
+
+
+def aniso_table_markdown(errors, table) -> str:
+    lines = ["| bent-normal weight | held-out rel. sq. error, mean | max |", "|---|---|---|"]
+    for k, e in errors.items():
+        lines.append(f"| {k} | {e['mean']:.4f} | {e['max']:.4f} |")
+    lines += ["", "| fitted weight: roughness \\ strength | " + " | ".join(f"{s:g}" for s in ANISO_STRENGTH) + " |",
+              "|---|" + "---|" * len(ANISO_STRENGTH)]
+    for r, row in zip(ANISO_ROUGHNESS, np.asarray(table)):
+        sv = " | ".join(f"{w:.3f} ({sample_viewer_weight(s, r):.3f})" for s, w in zip(ANISO_STRENGTH, row))
+        lines.append(f"| {r:g} | {sv} |")
+    return "\n".join(lines) + "\n"
+
+
+def module_text(table, aniso_table) -> str:
+    """The source of :mod:`realtime.fitted_lobes` holding the sheen ``table`` (on the "sqrt_nov" axis)
+    and the bent-normal weights ``aniso_table``."""
     t = np.asarray(table, np.float64)
+    at = np.asarray(aniso_table, np.float64)
+    arows = ",\n".join("    (" + ", ".join(f"{x:.4f}" for x in row) + ")" for row in at)
+    aflat = ", ".join(f"{x:.4f}" for x in at.ravel())
+    ns, nr = len(ANISO_STRENGTH), len(ANISO_ROUGHNESS)
     n = t.shape[0]
     rows = ",\n".join("    (" + ", ".join(f"{x:.6f}" for x in row) + ")" for row in t)
     flat = ",\n        ".join(", ".join(f"{x:.6f}" for x in row) for row in t)
@@ -179,8 +349,19 @@ clamp at 0 (:func:`realtime.lobes.lut_bilinear`'s rule). :func:`sheen_albedo_fit
 reader, :data:`SHEEN_ALBEDO_GLSL` the same read as a GLSL hook (``float sheen_albedo_fitted(float NoV,
 float roughness)``), registry-ready for ``SHEEN_SCALING`` as ``1 - max3(color) sheen_albedo_fitted``.
 
+
+:data:`ANISO_BEND_WEIGHT_TABLE`: the weight ``w`` of the Sample Viewer-style bent normal
+``normalize(mix((b x v) x b, n, w))`` (b the anisotropy bitangent), in place of its ``(1 - s (1 -
+r))^4``, fitted against the spec's anisotropic GGX integral under test environments (docs/research.md);
+rows roughness :data:`ANISO_ROUGHNESS`, columns strength :data:`ANISO_STRENGTH`, read bilinearly
+between the nodes and clamped to them (below roughness {ANISO_ROUGHNESS[0]:g}: its first row);
+:func:`aniso_bend_weight_fitted` the numpy reader, :data:`ANISO_BEND_WEIGHT_GLSL` the GLSL hook
+``float aniso_bend_weight_fitted(float anisotropy, float roughness)``, registry-ready for
+``ANISOTROPY_BEND`` as the Sample Viewer's bend with this weight.
+
 API: :data:`SHEEN_ALBEDO_TABLE`, :data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`, :func:`sheen_albedo_fitted`,
-:data:`SHEEN_ALBEDO_GLSL`.
+:data:`SHEEN_ALBEDO_GLSL`, :data:`ANISO_STRENGTH`, :data:`ANISO_ROUGHNESS`, :data:`ANISO_BEND_WEIGHT_TABLE`,
+:func:`aniso_bend_weight_fitted`, :data:`ANISO_BEND_WEIGHT_GLSL`.
 """
 
 import numpy as np
@@ -216,6 +397,38 @@ float sheen_albedo_fitted(float NoV, float roughness) {{
     float v0 = mix(SHEEN_ALBEDO_TABLE[j0 * {n} + i0], SHEEN_ALBEDO_TABLE[j0 * {n} + i0 + 1], fx);
     float v1 = mix(SHEEN_ALBEDO_TABLE[(j0 + 1) * {n} + i0], SHEEN_ALBEDO_TABLE[(j0 + 1) * {n} + i0 + 1], fx);
     return max(mix(v0, v1, fy), 0.0);
+}}
+"""
+
+ANISO_STRENGTH = {tuple(ANISO_STRENGTH)!r}
+ANISO_ROUGHNESS = {tuple(ANISO_ROUGHNESS)!r}
+ANISO_BEND_WEIGHT_TABLE = np.array((
+{arows}))
+
+
+def aniso_bend_weight_fitted(anisotropy, roughness):
+    """The fitted weight at (strength, roughness) (numpy twin of the GLSL hook; uniform node spacing)."""
+    x = np.clip((np.asarray(anisotropy, np.float64) - {ANISO_STRENGTH[0]!r}) / {ANISO_STRENGTH[1] - ANISO_STRENGTH[0]!r}, 0.0, {ns - 1}.0)
+    y = np.clip((np.asarray(roughness, np.float64) - {ANISO_ROUGHNESS[0]!r}) / {ANISO_ROUGHNESS[1] - ANISO_ROUGHNESS[0]!r}, 0.0, {nr - 1}.0)
+    i0, j0 = np.minimum(np.floor(x).astype(int), {ns - 2}), np.minimum(np.floor(y).astype(int), {nr - 2})
+    fx, fy = x - i0, y - j0
+    t = ANISO_BEND_WEIGHT_TABLE
+    return ((1 - fy) * ((1 - fx) * t[j0, i0] + fx * t[j0, i0 + 1])
+            + fy * ((1 - fx) * t[j0 + 1, i0] + fx * t[j0 + 1, i0 + 1]))
+
+
+ANISO_BEND_WEIGHT_GLSL = """
+const float ANISO_BEND_WEIGHT_TABLE[{ns * nr}] = float[]({aflat});
+
+float aniso_bend_weight_fitted(float anisotropy, float roughness) {{
+    float x = clamp((anisotropy - {ANISO_STRENGTH[0]:.6f}) / {ANISO_STRENGTH[1] - ANISO_STRENGTH[0]:.6f}, 0.0, {ns - 1}.0);
+    float y = clamp((roughness - {ANISO_ROUGHNESS[0]:.6f}) / {ANISO_ROUGHNESS[1] - ANISO_ROUGHNESS[0]:.6f}, 0.0, {nr - 1}.0);
+    int i0 = min(int(floor(x)), {ns - 2});
+    int j0 = min(int(floor(y)), {nr - 2});
+    float fx = x - float(i0), fy = y - float(j0);
+    float v0 = mix(ANISO_BEND_WEIGHT_TABLE[j0 * {ns} + i0], ANISO_BEND_WEIGHT_TABLE[j0 * {ns} + i0 + 1], fx);
+    float v1 = mix(ANISO_BEND_WEIGHT_TABLE[(j0 + 1) * {ns} + i0], ANISO_BEND_WEIGHT_TABLE[(j0 + 1) * {ns} + i0 + 1], fx);
+    return mix(v0, v1, fy);
 }}
 """
 '''
