@@ -20,8 +20,22 @@ iterations. "Before": the same table baked by point sampling at the texel centre
 training grid). The fitted table is written as :mod:`realtime.fitted_lobes` (constants + the
 reader's conventions, a registry-ready numpy reader and a GLSL hook).
 
+Anisotropic bent-normal weight
+------------------------------
+The truth: the spec's anisotropic GGX (F = 1) against a seeded test environment (:func:`test_env`)
+per view (:func:`aniso_truth`); the real-time form: the Sample Viewer-style bent normal's split-sum
+lookup (:func:`aniso_realtime`, :func:`prefiltered`) with the weight ``w`` of ``mix((b x v) x b, n,
+w)`` per (strength, roughness) node, fitted by a dense scan per node over training environments
+(:func:`fit_aniso_table`), reported on held-out environments and nodes against the Sample Viewer's
+``(1 - s (1 - r))^4`` (:func:`aniso_report`).
+
 API
 ---
+:data:`ANISO_STRENGTH`, :data:`ANISO_ROUGHNESS`, :data:`ANISO_HELD_STRENGTH`, :data:`ANISO_HELD_ROUGHNESS`,
+:data:`ANISO_TRAIN_ENVS`, :data:`ANISO_HELD_ENVS`, :data:`ENV_LOBES`, :data:`ENV_KAPPA`, :data:`ANISO_NU`,
+:data:`ANISO_SCAN`, :func:`test_env`, :func:`prefiltered`, :func:`aniso_views`, :func:`aniso_truth`,
+:func:`aniso_realtime`, :func:`sample_viewer_weight`, :func:`fit_aniso_table`, :func:`aniso_weight_table`,
+:func:`aniso_report`, :func:`aniso_table_markdown`;
 :data:`SHEEN_TABLE_N`, :data:`TRAIN_N`, :data:`HELD_N`, :data:`NOV_MIN`, :func:`sheen_truth`,
 :func:`bilinear_weights`, :func:`fit_sheen_table`, :func:`bake_sheen_table`, :func:`sheen_report`,
 :func:`sheen_table_markdown`, :func:`module_text`, :func:`read_table`, :func:`table_coords`,
@@ -31,6 +45,8 @@ References
 ----------
 [Sheen]  KHR_materials_sheen README, "Implementation Notes".
 [EntPBR] Dassault Systemes Enterprise PBR 2022x, sheen albedo fit (three.js IBLSheenBRDF).
+[Karis13] B. Karis, "Real Shading in Unreal Engine 4", SIGGRAPH 2013 course notes (the prefilter, n = v = r).
+[McAuley15] S. McAuley, the bent normal (b x v) x b of the Sample Viewer's anisotropy.
 """
 
 from __future__ import annotations
