@@ -76,3 +76,20 @@ def test_aniso_fit_reduces_held_out_error_and_is_the_module():
     # held-out environments and nodes: mean 0.210 -> 0.072, max 1.62 -> 0.43 (docs/research.md)
     assert e["fitted"]["mean"] < 0.5 * e["sample_viewer"]["mean"]
     assert e["fitted"]["max"] < 0.5 * e["sample_viewer"]["max"]
+
+
+def test_glsl_hooks_are_the_numpy_readers():
+    """Both GLSL hooks through the GLSL harness (appended as a hook file whose hook_dfg returns them),
+    against their numpy twins."""
+    import types
+
+    pytest.importorskip("moderngl")
+    from realtime.glsl_harness import run_glsl
+    text = (fitted_lobes.SHEEN_ALBEDO_GLSL + fitted_lobes.ANISO_BEND_WEIGHT_GLSL
+            + "\nvec2 hook_dfg(float NoV, float roughness) {\n"
+              "    return vec2(sheen_albedo_fitted(NoV, roughness), aniso_bend_weight_fitted(NoV, roughness));\n}\n")
+    hook = types.SimpleNamespace(path="fitted_lobes.glsl", text=text, defines={"HOOK_DFG": 1})
+    x, r = np.linspace(0.0, 1.0, 13), np.linspace(0.0, 1.0, 9)[:, None]
+    got = run_glsl("hook_dfg(x0, x1)", x, r, components=2, hook=hook)
+    assert np.allclose(got[..., 0], fitted_lobes.sheen_albedo_fitted(x, r), atol=2e-6)
+    assert np.allclose(got[..., 1], fitted_lobes.aniso_bend_weight_fitted(x, r), atol=2e-6)
