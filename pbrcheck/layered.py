@@ -32,12 +32,13 @@ slab's internal diffuse reflectance ~0.6 makes the cut-off's bias < 0.6^64):
   ``T(wi) T(wo) rho / (pi eta^2 (1 - rho Fbar))`` with ``Fbar`` the slab's internal hemispherical
   reflectance (:func:`smooth_lambert_brdf`; the tests' known answer).
 
-Both return ``(mean, standard_error)`` over ``n`` independent walks from a seeded
+Directions not unit or not above the surface, and ``n < 2``, raise
+:class:`pbrcheck.errors.PbrcheckError`. Both return ``(mean, standard_error)`` over ``n`` independent walks from a seeded
 ``numpy.random.Generator`` (PCG64): the same seed gives the same numbers.
 
 API
 ---
-Constants :data:`MAX_DEPTH`, :data:`BASE_COSINE_MIX`; :class:`Base`, :class:`Coat`;
+Constants :data:`MAX_DEPTH`, :data:`BASE_COSINE_MIX`, :data:`BETA_CUTOFF`, :data:`BATCH`, :data:`DIRECTION_TOL`; :class:`Base`, :class:`Coat`;
 :func:`layered_albedo`, :func:`layered_brdf`, :func:`spec_albedo`, :func:`spec_brdf`,
 :func:`base_albedo`, :func:`internal_reflectance`, :func:`smooth_lambert_brdf`, :func:`direction`.
 
@@ -59,7 +60,8 @@ from functools import lru_cache
 import numpy as np
 
 from .brdf import brdf_eval
-from .lobes import CLEARCOAT_IOR, AnisotropicGGX, fresnel_coat, fresnel_exact  # noqa: F401 (fresnel_exact re-exported)
+from .errors import PbrcheckError
+from .lobes import CLEARCOAT_IOR, AnisotropicGGX, fresnel_coat, fresnel_exact
 
 #: Base vertices per walk. Each internal bounce keeps a fraction ``rho Fbar`` <= 0.6 of the walk's
 #: weight (Fbar = 0.596 at IOR 1.5, rho <= 1), so the energy cut off is < 0.6^64 ~ 6e-15.
@@ -77,6 +79,9 @@ BATCH = 1 << 16
 #: Gauss-Legendre nodes of :func:`internal_reflectance` (smooth in mu except the kink at the critical
 #: angle, which 2 panels split exactly).
 FBAR_NODES = 256
+#: How far from unit length a direction handed to the estimators may be (float rounding of callers'
+#: normalisation; a larger deviation is a caller's bug, not rounding).
+DIRECTION_TOL = 1e-6
 _UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -207,7 +212,18 @@ def _walk(base, coat, w_in, n, rng, exit_dir=None):
     return escaped, nee
 
 
+def _check(name, w):
+    """The estimators' directions must be unit vectors strictly above the surface (the walk enters
+    there; below it the layered BRDF is 0 by definition, not an estimate)."""
+    w = np.asarray(w, dtype=np.float64)
+    if w.shape != (3,) or not (w[2] > 0) or abs(float(np.linalg.norm(w)) - 1.0) > DIRECTION_TOL:
+        raise PbrcheckError(f"layered: {name} must be a unit 3-vector above the surface (z > 0), got {w.tolist()}")
+    return w
+
+
 def _estimate(n, seed, fn):
+    if int(n) < 2:
+        raise PbrcheckError(f"layered: n (walks) must be at least 2 for a standard error, got {n}")
     rng = np.random.default_rng(seed)
     vals = []
     left = int(n)
@@ -222,6 +238,7 @@ def _estimate(n, seed, fn):
 def layered_albedo(base: Base, coat: Coat, v, n=1 << 16, seed=0):
     """``(E, standard error)``: the directional albedo of the layered material at the view ``v`` (3,)
     (the coverage mix with the base's albedo :func:`base_albedo` at ``coat.weight < 1``)."""
+    v = _check("v", v)
     e, se = _estimate(n, seed, lambda b, rng: _walk(base, coat, v, b, rng)[0])
     c = float(coat.weight)
     if c == 1.0:
@@ -243,8 +260,9 @@ def _top_lobe(coat, wi, wo):
 def layered_brdf(base: Base, coat: Coat, wi, wo, n=1 << 16, seed=0):
     """``(f(wi, wo), standard error)`` of the layered material (no cosine), ``wi``, ``wo`` (3,) above
     the surface; a smooth top's mirror delta is left out."""
+    wi, wo = _check("wi", wi), _check("wo", wo)
     c = float(coat.weight)
-    fb = float(base.f(np.asarray(wi)[None], np.asarray(wo)[None])[0])
+    fb = float(base.f(wi[None], wo[None])[0])
     if c == 0.0:
         return fb, 0.0
     m, se = _estimate(n, seed, lambda b, rng: _walk(base, coat, wi, b, rng, exit_dir=wo)[1])

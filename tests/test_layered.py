@@ -96,3 +96,15 @@ def test_layered_coat_command(tmp_path, capsys):
     assert text.count("\n| ") == len(layered_coat.ROUGHNESS) * len(layered_coat.NOV)  # rows after the header
     data = json.loads(out.read_text())
     assert [d["roughness"] for d in data[::3]] == list(layered_coat.ROUGHNESS)
+
+
+def test_bad_directions_are_typed_errors():
+    import pytest
+
+    from pbrcheck.errors import PbrcheckError
+    with pytest.raises(PbrcheckError, match="wo must be a unit 3-vector above"):
+        L.layered_brdf(L.Base(), L.Coat(), WI, np.array([0.0, 0.0, -1.0]), n=16)
+    with pytest.raises(PbrcheckError, match="v must be a unit"):
+        L.layered_albedo(L.Base(), L.Coat(), np.array([0.0, 0.0, 2.0]), n=16)
+    with pytest.raises(PbrcheckError, match="at least 2"):
+        L.layered_albedo(L.Base(), L.Coat(), WI, n=1)
