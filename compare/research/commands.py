@@ -1,10 +1,11 @@
 """CLI subcommands of the research layer (registered by :mod:`pbrcheck_cli`): ``hardcases``,
-``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy`` and ``bench fit-roughness``. Library errors propagate;
+``fit-lod``, ``fit-normal-roughness``, ``explain``, ``fit-roughness``, ``diagnose``, ``energy``, ``layered-coat``, ``fit-lobes`` and ``bench fit-roughness``. Library errors propagate;
 only :mod:`pbrcheck_cli` maps them to exit codes."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 from pbrcheck.errors import PbrcheckError
@@ -18,7 +19,7 @@ from pbrcheck.environment import read_image_file
 from pbrcheck.exr import Image, read_exr
 
 from ..verdict_spp import DEFAULT_SPP_CAP
-from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, hardcases
+from . import diagnose, energy, explain, fit_lod, fit_normal_roughness, fit_roughness, fit_lobes, hardcases, layered_coat
 
 
 def _cmd_hardcases(args) -> int:
@@ -124,6 +125,28 @@ def _cmd_energy(args) -> int:
     print(energy.table_markdown(res), end="")
     for k, p in paths.items():
         print(f"{k}: {p}")
+    return 0
+
+
+def _cmd_layered_coat(args) -> int:
+    rows = layered_coat.run_layered_coat(samples=args.samples, seed=args.seed)
+    print(layered_coat.table_markdown(rows), end="")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, [asdict(r) for r in rows])}")
+    return 0
+
+
+def _cmd_fit_lobes(args) -> int:
+    from pbrcheck.atomic import write_text_atomic
+    errors, table = fit_lobes.sheen_report(baked32=not args.no_baked32)
+    print(fit_lobes.sheen_table_markdown(errors))
+    aniso = fit_lobes.fit_aniso_table()
+    aniso_errors = fit_lobes.aniso_report(aniso)
+    print(fit_lobes.aniso_table_markdown(aniso_errors, aniso), end="")
+    if args.module:
+        print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table, aniso))}")
+    if args.json:
+        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist()})}")
     return 0
 
 
@@ -240,6 +263,23 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--out", default="out/energy", metavar="DIR", help="output directory (default out/energy)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.set_defaults(func=_cmd_energy)
+
+    s = sub.add_parser("layered-coat", help="the spec's clearcoat layering (albedo scaling) against a physically "
+                                            "layered coat (a position-free random walk through a dielectric slab "
+                                            "over the base): albedo and BRDF per coat roughness and n.v")
+    s.add_argument("--samples", type=int, default=layered_coat.DEFAULT_SAMPLES,
+                   help=f"walks per estimate (default {layered_coat.DEFAULT_SAMPLES})")
+    s.add_argument("--seed", type=int, default=0, help="the walks' seed (default 0)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the rows as JSON")
+    s.set_defaults(func=_cmd_layered_coat)
+
+    s = sub.add_parser("fit-lobes", help="inverse fits of the lobes' real-time forms against the truth: a sheen "
+                                         "albedo table fitted to the spec's quadrature, the anisotropic bent normal's "
+                                         "blend weight fitted to the spec's GGX under test environments; before/after errors")
+    s.add_argument("--module", metavar="FILE.py", help="write the fitted table as a module (realtime/fitted_lobes.py)")
+    s.add_argument("--json", metavar="FILE.json", help="also write the errors and the table as JSON")
+    s.add_argument("--no-baked32", action="store_true", help="skip the 32 x 32 bake's row (1024 quadratures)")
+    s.set_defaults(func=_cmd_fit_lobes)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "
                                                    "roughness on one sphere under a sun (JSON)")
