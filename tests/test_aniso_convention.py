@@ -19,6 +19,11 @@ in which highlights will be stretched".
   bent normal at the isotropic highlight tilts up (``b . v > 0`` removes ``b``'s downward part), so the
   highlight moves down the sphere, and up at -pi/4. A swapped tangent / bitangent or a reversed
   rotation fails these.
+* glTF meshes: a mirrored frame (TANGENT w = -1, b = -(n x t)) turns the rotation clockwise about n,
+  in both renderers (the raster pipeline turned it toward n x t whatever w before its fix); the back
+  face of a double-sided quad keeps the front's line (the mesh's tangent and bitangent, only the normal
+  reversed; the Sample Viewer negates t, b and n together), in both renderers (the reference mirrored
+  it before its fix: its bitangent came from the reversed normal).
 
 This locks the agreement; the anisotropy scene's large real-time error is the bent normal's own
 (docs/realtime.md "Anisotropy: the conventions agree")."""
@@ -233,16 +238,25 @@ MIRROR_SAME_ATOL = {"realtime": 1e-4, "reference": 0.02}
 MIRROR_MIN_CHANGE = 0.05
 MESH_ROTATION = 0.6
 MIRROR_SPP = 256
+#: The back face against the quad whose tangent is the line: the same frame up to the float rounding of
+#: cos and sin, so the same samples in the reference too (measured 0.0 in both renderers).
+BACK_SAME_ATOL = 1e-3
+#: ... and against the mirrored line: seen from behind the two lines' images differ less (measured 0.024
+#: reference, 0.23 real time); this floor is half the reference's.
+BACK_MIN_CHANGE = 0.012
 
 
-def _aniso_quad(tmp_path, name, tangent, rotation, renderer):
+def _aniso_quad(tmp_path, name, tangent, rotation, renderer, camera_z=4.0):
+    """A double-sided brushed quad facing +z (tests/gltf_build.py) with ``tangent`` at its corners, seen
+    from ``(0, 0, camera_z)`` under the anisotropy scene's sky."""
     from gltf_build import quad_asset, quad_scene
 
     mat = {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 1.0,
-                                    "roughnessFactor": ROUGHNESS},
+                                    "roughnessFactor": ROUGHNESS}, "doubleSided": True,
            "extensions": {"KHR_materials_anisotropy": {"anisotropyStrength": 1.0, "anisotropyRotation": rotation}}}
     asset = quad_asset(tmp_path / f"{name}.gltf", mat, tangent=np.asarray(tangent, np.float32))
     scene = load_scene(str(quad_scene(tmp_path, asset, size=(32, 32), name=f"{name}.toml")))
+    scene = scene.with_camera(origin=(0.0, 0.0, camera_z))
     scene = replace(scene, environment=load_scene("anisotropy").environment)   # the soft-sun sky
     if renderer == "realtime":
         return render_realtime(scene, "default", REALTIME_OPTIONS, progress=False).rgb
@@ -261,3 +275,18 @@ def test_a_mirrored_tangent_frame_rotates_toward_its_bitangent(tmp_path, rendere
     peak = float(twin.max())
     assert np.abs(mirrored - twin).mean() / peak < MIRROR_SAME_ATOL[renderer], np.abs(mirrored - twin).mean() / peak
     assert np.abs(other - twin).mean() / peak > MIRROR_MIN_CHANGE, np.abs(other - twin).mean() / peak
+
+
+@pytest.mark.parametrize("renderer", ["reference", "realtime"])
+def test_a_back_face_keeps_the_fronts_direction(tmp_path, renderer):
+    """The back face (camera at -z) of a double-sided quad with TANGENT +x and rotation r renders as the
+    quad whose TANGENT is the line itself, (cos r, sin r, 0), at rotation 0 (the same on either reading
+    of the bitangent), not as (cos r, -sin r, 0) (a bitangent from the reversed normal)."""
+    line = [[np.cos(MESH_ROTATION), np.sin(MESH_ROTATION), 0.0, 1.0]] * 4
+    mirror = [[np.cos(MESH_ROTATION), -np.sin(MESH_ROTATION), 0.0, 1.0]] * 4
+    rotated = _aniso_quad(tmp_path, "r", [[1, 0, 0, 1]] * 4, MESH_ROTATION, renderer, camera_z=-4.0)
+    same = _aniso_quad(tmp_path, "s", line, 0.0, renderer, camera_z=-4.0)
+    other = _aniso_quad(tmp_path, "o", mirror, 0.0, renderer, camera_z=-4.0)
+    peak = float(same.max())
+    assert np.abs(rotated - same).mean() / peak < BACK_SAME_ATOL, np.abs(rotated - same).mean() / peak
+    assert np.abs(other - same).mean() / peak > BACK_MIN_CHANGE, np.abs(other - same).mean() / peak
