@@ -817,7 +817,11 @@ def textured_lobes(mat, si, active, shape, n_local, flip, frame):
         Tl = si.sh_frame.to_local(T)
         Tl = Tl - n * dr.dot(n, Tl)
         Tl = dr.select(dr.squared_norm(Tl) > 1e-12, dr.normalize(Tl), frame.s)
-        frame = mi.Frame3f(Tl, dr.cross(n, Tl) * w, n)
+        # the bitangent is the mesh's, cross(N, T) w with the vertex normal N (glTF 2.0 "Meshes"), on the
+        # back face too, where only the normal is reversed (glTF 2.0 doubleSided; the Sample Viewer negates
+        # t, b and n together): the direction stays the same line of the surface seen from either side
+        # (cross(n, Tl) with the flipped n is -B there: the rotation would turn the other way)
+        frame = mi.Frame3f(Tl, dr.cross(n, Tl) * dr.select(flip, -w, w), n)
         if has("anisotropy"):
             t = tex("anisotropy")
             vals["anisotropy_strength"] = vals["anisotropy_strength"] * t.z

@@ -218,6 +218,11 @@ void main() {
         if (lobe_has[9] != 0) p3.z = mix(p3.w, p3.z, LOBE_SLOT(9, vec4(1.0)).g);
         vec2 dir = at.rg * 2.0 - 1.0;
         vec3 Ta = dir.x * Tl + dir.y * Bl;
+        // KHR_materials_anisotropy rotates counter-clockwise in tangent-bitangent space, toward Bl =
+        // h (N x T), h = +-1 the frame's handedness: that is aniso_direction's turn toward N x Ta with
+        // the rotation times h (N x Ta = h (dir.x Bl - dir.y Tl), the quarter turn of Ta in (Tl, Bl)),
+        // clockwise about N on a mirrored frame (TANGENT w < 0, or its back face); h = 1 leaves p2.w's bits
+        p2.w *= (back ? -v_tan.w : v_tan.w) < 0.0 ? -1.0 : 1.0;
         Ta = length(Ta) > 1e-8 ? normalize(Ta) : Tl;
         g_lobes = lobes_from_rows(p0, p1, p2, p3, n, Ta);
         // the coat's normal: clearcoatNormalTexture in the same frame, else the geometric normal (the
