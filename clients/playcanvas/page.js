@@ -67,9 +67,12 @@ async function main() {
   app.scene.skyboxRotation = new pc.Quat().setFromEulerAngles(0, SKYBOX_ROTATION_Y, 0);
 
   const c = scenario.camera;
+  // the near clip: 0.05, or the export's znear (half the nearest object's gap) when the model is closer
+  // (RF's MetalRoughSpheresNoTextures: the camera 10 mm from a millimetre-scale grid)
+  const NEAR_CLIP = 0.05;
   const camera = new pc.Entity('camera');
   camera.addComponent('camera', {
-    fov: c.yfov_rad * 180 / Math.PI, horizontalFov: false, nearClip: 0.05, farClip: 1000,
+    fov: c.yfov_rad * 180 / Math.PI, horizontalFov: false, nearClip: Math.min(NEAR_CLIP, c.znear ?? NEAR_CLIP), farClip: 1000,
     toneMapping: pc.TONEMAP_NONE, gammaCorrection: pc.GAMMA_NONE, clearColor: new pc.Color(0, 0, 0, 1),
   });
   camera.setPosition(...c.origin);
