@@ -20,6 +20,12 @@ import * as pc from 'playcanvas';
 import { boxFilter, floatCanvas, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
 const ss = supersampling();
+// KHR_draco_mesh_compression: Google's Draco decoder from the npm package draco3d (its emscripten
+// glue runs in a worker as well as in node), served under /draco3d/ (the engine's default looks for
+// draco.wasm.js beside the page, which it does not ship).
+pc.WasmModule.setConfig('DracoDecoderModule', {
+  glueUrl: '/draco3d/draco_decoder_nodejs.js', wasmUrl: '/draco3d/draco_decoder.wasm', numWorkers: 1,
+});
 /** EnvLighting.generateAtlas's options: the engine's defaults (atlas 512, 1024 reflection samples,
  * 2048 ambient samples). */
 const ATLAS = { size: 512, numReflectionSamples: 1024, numAmbientSamples: 2048 };
