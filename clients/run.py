@@ -10,7 +10,7 @@ API
   session, its process group, every process carrying its :data:`MARKER_VAR`) after the timeout, on
   Ctrl-C or SIGTERM; the tails of stdout and stderr come back (bounded buffers).
 - :func:`kill_run`, :func:`run_members` -- that kill, and the /proc walk that finds the run's processes.
-- :func:`serve_clients` -- a context in which the renders of every renderer with a ``serve_command``
+- :func:`serve_clients`, :func:`serve_processes_started` -- a context in which the renders of every renderer with a ``serve_command``
   (the built-in browser clients) go to one long-lived process per client (one headless Chromium and
   one tab for all of a run's renders, ``clients/browser/headless.mjs``'s serve mode) instead of one
   process (one browser start) per render; the processes are killed like :func:`run_process`'s
@@ -370,11 +370,22 @@ _servers_lock = threading.Lock()
 
 
 @contextlib.contextmanager
-def serve_clients():
+def serve_clients(enabled: bool = True):
     """``with serve_clients():`` -- the block's renders of renderers with a ``serve_command`` go to
     one process per client, kept across renders and killed when the block ends (however it ends)
-    and at exit. Nested blocks share the outer one's processes."""
+    and at exit. Nested blocks share the outer one's processes. ``enabled=False``: the block's
+    renders each run their own process (``pbrcheck bench serve``'s "before"); an enclosing block's
+    processes stay for after it."""
     global _servers
+    if not enabled:
+        with _servers_lock:
+            saved, _servers = _servers, None
+        try:
+            yield
+        finally:
+            with _servers_lock:
+                _servers = saved
+        return
     with _servers_lock:
         outer = _servers is not None
         if not outer:
@@ -394,6 +405,12 @@ def serve_clients():
 def _close_servers() -> None:
     if _servers is not None:
         _servers.close()
+
+
+def serve_processes_started() -> int:
+    """Serve processes started so far in the current :func:`serve_clients` block (0 outside one)."""
+    servers = _servers
+    return len(servers.all) if servers is not None else 0
 
 
 def _run_render(cfg: RendererConfig, argv: list[str]) -> ProcessResult:

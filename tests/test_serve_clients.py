@@ -190,3 +190,15 @@ def test_threejs_served_renders_equal_its_one_render_runs(tmp_path, monkeypatch)
         for c in "RGB":
             np.testing.assert_array_equal(img.channels[c], one.channels[c])
     assert not servers[0].alive
+
+
+def test_bench_serve_counts_the_processes_of_both_modes(fake, tmp_path):
+    from compare.serve_bench import bench_serve
+
+    (tmp_path / "tiny.toml").write_text(SCENE)
+    r = bench_serve((str(tmp_path / "tiny.toml"),) * 2, ("ok",))
+    before, after = r["one_browser_per_render"], r["one_browser_per_client"]
+    assert before["renders"] == after["renders"] == 2 and r["same_pixels"] is True
+    assert before["chromium_starts"] == 2 and after["chromium_starts"] == 1
+    # per render: a warm-up and two renders, each its own process; served: one process for all three
+    assert len(_started(fake)) == 3 + 1
