@@ -305,6 +305,9 @@ class Session {
           j.done = true;
           clearTimeout(j.timer);
           if (this.job === j) this.job = null;
+          // the finished page's engine, textures and WebGL context go now, not at the next render
+          // (a run keeps one idle browser per client)
+          if (this.browser && this.browser === j.browser) this.browser.navigate('about:blank').catch(() => {});
           if (err) reject(err);
           else resolve(value);
         },
