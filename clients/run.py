@@ -10,7 +10,7 @@ API
   session, its process group, every process carrying its :data:`MARKER_VAR`) after the timeout, on
   Ctrl-C or SIGTERM; the tails of stdout and stderr come back (bounded buffers).
 - :func:`kill_run`, :func:`run_members` -- that kill, and the /proc walk that finds the run's processes.
-- :func:`serve_clients`, :func:`serve_processes_started` -- a context in which the renders of every renderer with a ``serve_command``
+- :func:`serve_clients`, :func:`serve_processes_started`, :func:`idle_serve_pids` -- a context in which the renders of every renderer with a ``serve_command``
   (the built-in browser clients) go to one long-lived process per client (one headless Chromium and
   one tab for all of a run's renders, ``clients/browser/headless.mjs``'s serve mode) instead of one
   process (one browser start) per render; the processes are killed like :func:`run_process`'s
@@ -405,6 +405,16 @@ def serve_clients(enabled: bool = True):
 def _close_servers() -> None:
     if _servers is not None:
         _servers.close()
+
+
+def idle_serve_pids() -> list[int]:
+    """The process ids of the current :func:`serve_clients` block's serve processes that are idle
+    (not rendering now): their browsers' memory is no render's (``compare.fidelity``'s usage)."""
+    servers = _servers
+    if servers is None:
+        return []
+    with servers.lock:
+        return [s.proc.pid for pool in servers.idle.values() for s in pool if s.alive]
 
 
 def serve_processes_started() -> int:

@@ -202,3 +202,16 @@ def test_bench_serve_counts_the_processes_of_both_modes(fake, tmp_path):
     assert before["chromium_starts"] == 2 and after["chromium_starts"] == 1
     # per render: a warm-up and two renders, each its own process; served: one process for all three
     assert len(_started(fake)) == 3 + 1
+
+
+def test_an_idle_serve_process_tree_is_no_renders_memory(fake):
+    # compare.fidelity's usage sums the resident memory of the rendering process's descendants: the
+    # other clients' served browsers, idle, are left out (their pids and their descendants')
+    from compare.fidelity import idle_serve_processes
+
+    with R.serve_clients():
+        assert idle_serve_processes() == set()
+        R.render_external(_scene(), "ok", use_cache=False)
+        server, escaped = _started(fake)[0]
+        assert {server, escaped} <= idle_serve_processes()
+    assert idle_serve_processes() == set()
