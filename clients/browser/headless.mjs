@@ -346,6 +346,25 @@ function theSession() {
 }
 
 /**
+ * What every client's render shares: the scenario (read here; `fail` names it when unreadable), the
+ * page and its script in `here`, the expected size, and `sceneRoot`, the exported scene's folder
+ * served under /scene/ (for `roots`). Spread into runPage's options.
+ */
+export function sceneJob(label, here, scenarioPath, outPath, timeoutS) {
+  let scenario;
+  try {
+    scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
+  } catch (e) {
+    fail(label, `cannot read the scenario ${scenarioPath}: ${e.message}`);
+  }
+  return {
+    label, scenario, outPath, timeoutS, width: scenario.size.width, height: scenario.size.height,
+    files: { '/page.html': path.join(here, 'page.html'), '/page.js': path.join(here, 'page.js') },
+    sceneRoot: ['/scene/', path.dirname(path.resolve(scenarioPath))],
+  };
+}
+
+/**
  * Serve and run one page, write the PFM. One render: prints the JSON line and exits (0, or 1 with
  * one line on stderr). Serve mode: returns a promise of the JSON line's object.
  * @param {object} o

@@ -11,8 +11,7 @@
 // unreadable scenario, then whatever runPage reports). `node render.mjs --serve`: headless.mjs's
 // serve mode (one browser for many renders).
 import path from 'node:path';
-import { readFileSync } from 'node:fs';
-import { clientMain, runPage, chromiumVersion, packageVersion, fail } from './headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from './headless.mjs';
 
 /**
  * @param {object} o
@@ -43,21 +42,11 @@ export function runClient(o) {
     if (pos.length !== 2 || !(ss >= 1) || !(timeoutS > 0)) fail(o.label, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
     const [scenarioPath, outPath] = pos;
     if (missing().length) fail(o.label, `${missing().join(', ')} not installed: run npm ci in ${o.here}`);
-    let scenario;
-    try {
-      scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-    } catch (e) {
-      fail(o.label, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-    }
+    const job = sceneJob(o.label, o.here, scenarioPath, outPath, timeoutS);
     return runPage({
-      label: o.label,
-      files: { '/page.html': path.join(o.here, 'page.html'), '/page.js': path.join(o.here, 'page.js') },
-      roots: [...o.roots.map(([p, d]) => [p, path.join(o.here, d)]), ['/scene/', path.dirname(path.resolve(scenarioPath))]],
+      ...job,
+      roots: [...o.roots.map(([p, d]) => [p, path.join(o.here, d)]), job.sceneRoot],
       page: `/page.html?ss=${ss}`,
-      width: scenario.size.width,
-      height: scenario.size.height,
-      outPath,
-      timeoutS,
       describe: (h) => ({
         ...Object.fromEntries(versions()), gl_renderer: h['x-gl-renderer'], supersample: ss,
         page_seconds: parseFloat(h['x-page-seconds']), ...(o.describe ? o.describe(h) : {}),

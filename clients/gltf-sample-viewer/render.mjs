@@ -18,7 +18,7 @@
 import path from 'node:path';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { clientMain, runPage, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
 
 const LABEL = 'gltf-sample-viewer client';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
@@ -72,25 +72,16 @@ clientMain((args) => {
   }
   const [scenarioPath, outPath] = pos;
   if (!viewerVersion()) fail(LABEL, `@khronosgroup/gltf-viewer is not installed: run npm ci in ${HERE}`);
-  let scenario;
-  try {
-    scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-  } catch (e) {
-    fail(LABEL, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-  }
+  const job = sceneJob(LABEL, HERE, scenarioPath, outPath, timeoutS);
+  const { scenario } = job;
   if (!scenario?.environment?.hdr) fail(LABEL, `${scenarioPath}: environment.hdr missing (the Sample Viewer reads Radiance .hdr only)`);
 
   return runPage({
-    label: LABEL,
+    ...job,
     contents: { '/viewer/gltf-viewer.module.js': viewerModule(ibl) },
-    files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
-    roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], ['/scene/', path.dirname(path.resolve(scenarioPath))],
+    roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], job.sceneRoot,
             ['/draco/', DRACO_DIR]],
     page: `/page.html?ss=${ss}`,
-    width: scenario.size.width,
-    height: scenario.size.height,
-    outPath,
-    timeoutS,
     describe: (h) => ({
       viewer: viewerVersion(), gl_renderer: h['x-gl-renderer'], ibl_format: h['x-ibl-format'],
       supersample: ss, ibl: { profile: ibl, ...IBL_PROFILES[ibl] }, page_seconds: parseFloat(h['x-page-seconds']),

@@ -8,9 +8,8 @@
 // Chromium, WebGL2 on SwiftShader); the page path traces N samples per pixel and POSTs the linear
 // float mean, written as a little-endian colour PFM. Exit 0 on success; 1 with one line on stderr.
 import path from 'node:path';
-import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { clientMain, runPage, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
 
 const LABEL = 'three-gpu-pathtracer client';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
@@ -38,23 +37,13 @@ clientMain((args) => {
   }
   const [scenarioPath, outPath] = pos;
   if (missing().length) fail(LABEL, `${missing().join(', ')} not installed: run npm ci in ${HERE}`);
-  let scenario;
-  try {
-    scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-  } catch (e) {
-    fail(LABEL, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-  }
+  const job = sceneJob(LABEL, HERE, scenarioPath, outPath, timeoutS);
 
   return runPage({
-    label: LABEL,
-    files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
+    ...job,
     roots: [['/three/', path.join(MODULES, 'three')], ['/bvh/', path.join(MODULES, 'three-mesh-bvh')],
-      ['/gpt/', path.join(MODULES, 'three-gpu-pathtracer')], ['/scene/', path.dirname(path.resolve(scenarioPath))]],
+      ['/gpt/', path.join(MODULES, 'three-gpu-pathtracer')], job.sceneRoot],
     page: `/page.html?spp=${spp}&bounces=${bounces}`,
-    width: scenario.size.width,
-    height: scenario.size.height,
-    outPath,
-    timeoutS,
     describe: (h) => ({
       three: h['x-three-revision'], gl_renderer: h['x-gl-renderer'], samples: parseInt(h['x-samples'], 10),
       bounces: parseInt(h['x-bounces'], 10), setup_seconds: parseFloat(h['x-setup-seconds']),

@@ -10,9 +10,8 @@
 // and the server stop. Exit 0 on success; 1 with one line on stderr otherwise. $PBRCHECK_CHROMIUM
 // names another Chromium binary.
 import path from 'node:path';
-import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { clientMain, runPage, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
 
 const LABEL = 'threejs client';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
@@ -36,22 +35,12 @@ clientMain((args) => {
   if (pos.length !== 2 || !(ss >= 1)) fail(LABEL, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
   const [scenarioPath, outPath] = pos;
   if (!threeVersion()) fail(LABEL, `three is not installed: run npm ci in ${HERE}`);
-  let scenario;
-  try {
-    scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-  } catch (e) {
-    fail(LABEL, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-  }
+  const job = sceneJob(LABEL, HERE, scenarioPath, outPath, timeoutS);
 
   return runPage({
-    label: LABEL,
-    files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
-    roots: [['/three/', THREE_DIR], ['/scene/', path.dirname(path.resolve(scenarioPath))]],
+    ...job,
+    roots: [['/three/', THREE_DIR], job.sceneRoot],
     page: `/page.html?ss=${ss}`,
-    width: scenario.size.width,
-    height: scenario.size.height,
-    outPath,
-    timeoutS,
     describe: (h) => ({
       three: h['x-three-revision'], gl_renderer: h['x-gl-renderer'], supersample: ss,
       page_seconds: parseFloat(h['x-page-seconds']),
