@@ -27,6 +27,11 @@ Format::
                               # the variance of each pixel's estimate (R G B, the output's float format)
     renders = 8               # optional, Monte Carlo engines: run the command N times ({seed} = 0..N-1);
                               # the image is their mean, its variance the sample variance / N
+    serve_command = ["node", "render.mjs", "--serve"]   # optional: a process that renders many
+                              # commands in turn (one browser for a whole run: clients/run.py's
+                              # serve_clients); each stdin line a JSON array, the expanded command;
+                              # each answer one stdout line {"ok": true, "stdout": LINE} or
+                              # {"ok": false, "error": LINE}; it exits when stdin closes
 
 Placeholders: ``{scenario}`` (scenario.json), ``{out}`` (the file to write), ``{dir}`` (the export
 folder), ``{width}``, ``{height}``, ``{clients}`` (the built-in clients' folder), ``{config_dir}``
@@ -66,7 +71,7 @@ PLACEHOLDERS = ("scenario", "out", "dir", "width", "height", "clients", "config_
 #: ``{seed}`` with ``renders`` > 1 (each then required).
 NOISE_PLACEHOLDERS = {"variance": "variance = true", "seed": "renders > 1"}
 KEYS = {"command", "output", "timeout", "version_command", "lockfile", "inputs", "description", "timed_on",
-        "variance", "renders"}
+        "variance", "renders", "serve_command"}
 #: Most independent renders a renderer may ask for (``renders``): each is a full run of the engine.
 MAX_RENDERS = 64
 NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
@@ -98,6 +103,9 @@ class RendererConfig:
     #: Independent runs (``{seed}`` = 0..renders-1) whose mean is the image and whose sample variance
     #: over ``renders`` its variance; 1: one run.
     renders: int = 1
+    #: A process that renders many ``command`` lines in turn (module docstring); not part of the
+    #: cache key: a render served or run alone gives the same pixels.
+    serve_command: tuple[str, ...] | None = None
 
     @property
     def noisy(self) -> bool:
@@ -223,6 +231,9 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
         vc = t.get("version_command")
         if vc is not None:
             vc = _command(file, f"{w}.version_command", vc, need_out=False)
+        sc = t.get("serve_command")
+        if sc is not None:
+            sc = _command(file, f"{w}.serve_command", sc, need_out=False)
         for k in ("lockfile", "description", "timed_on"):
             if k in t and not isinstance(t[k], str):
                 raise RendererConfigError(f"{file}: {w}.{k}: expected a string, found {t[k]!r}")
@@ -233,7 +244,7 @@ def parse_renderers(data: dict, *, file: str, config_dir: Path, builtin: bool = 
                                    output=output, timeout=float(timeout), version_command=vc,
                                    lockfile=t.get("lockfile"), inputs=tuple(inputs), description=t.get("description", ""),
                                    timed_on=t.get("timed_on", ""), builtin=builtin, variance=variance,
-                                   renders=renders)
+                                   renders=renders, serve_command=sc)
     return out
 
 

@@ -10,6 +10,13 @@ API
   session, its process group, every process carrying its :data:`MARKER_VAR`) after the timeout, on
   Ctrl-C or SIGTERM; the tails of stdout and stderr come back (bounded buffers).
 - :func:`kill_run`, :func:`run_members` -- that kill, and the /proc walk that finds the run's processes.
+- :func:`serve_clients`, :func:`serve_processes_started`, :func:`idle_serve_pids` -- a context in which the renders of every renderer with a ``serve_command``
+  (the built-in browser clients) go to one long-lived process per client (one headless Chromium and
+  one tab for all of a run's renders, ``clients/browser/headless.mjs``'s serve mode) instead of one
+  process (one browser start) per render; the processes are killed like :func:`run_process`'s
+  (session, group, marker) when the block ends, on Ctrl-C / SIGTERM, and at exit. Same pixels
+  (the same page renders in a fresh document); a render that times out kills its server (the next
+  render starts another).
 - :func:`read_output` -- a renderer's output file, validated (exists, readable, size, finite).
 - :func:`object_ids` -- the ``object`` AOV of a scene at pixel centres (numpy ray casting).
 - :class:`RendererError` -- every failure, one line naming the renderer (exit 2; the gate's
@@ -23,8 +30,11 @@ wrong size, or holds NaN/Inf.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import json
 import os
+import queue
 import signal
 import subprocess
 import tempfile
@@ -122,6 +132,14 @@ class _Tail:
         self.thread.join(grace)
         data = bytes(self.buf[-self.limit:])
         return data.decode("utf-8", "replace")
+
+    def seen(self) -> int:
+        """Bytes read so far (a mark for :meth:`since`)."""
+        return self.dropped + len(self.buf)
+
+    def since(self, mark: int) -> str:
+        """What was read after ``mark`` (what is still kept of it)."""
+        return bytes(self.buf[max(0, mark - self.dropped):]).decode("utf-8", "replace")
 
 
 def _proc_ids(pid: int) -> tuple[int, int] | None:
@@ -230,6 +248,187 @@ def run_process(argv: list[str], *, cwd: Path, timeout: float, label: str, key: 
     kill_run(proc, marker)  # whatever the renderer left running
     return ProcessResult(proc.returncode, out.text(KILL_GRACE_S), err.text(KILL_GRACE_S),
                          time.perf_counter() - t0)
+
+
+class _Server:
+    """One serve-mode process of a renderer (``serve_command``): its renders one at a time; started
+    in its own session with its own :data:`MARKER_VAR` and killed like :func:`run_process`'s run."""
+
+    def __init__(self, argv: list[str], cwd: Path, label: str):
+        self.label = label
+        self.marker = uuid.uuid4().hex
+        try:
+            self.proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE, start_new_session=True,
+                                         env={**os.environ, MARKER_VAR: self.marker})
+        except OSError as e:
+            raise RendererError(f"{label}: serve_command: cannot start {argv[0]!r}: {e.strerror or e}") from None
+        self.replies: queue.Queue = queue.Queue()
+        self.err = _Tail(self.proc.stderr)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        try:
+            for line in self.proc.stdout:
+                self.replies.put(line)
+        except (OSError, ValueError):
+            pass
+        self.replies.put(None)   # end of stdout: the process is gone
+
+    @property
+    def alive(self) -> bool:
+        return self.proc.returncode is None and self.proc.poll() is None
+
+    def render(self, argv: list[str], timeout: float) -> ProcessResult:
+        """One render of command line ``argv``, as :func:`run_process` reports it (exit status 0 or 1,
+        the render's stdout line, the stderr written during it).
+
+        Raises
+        ------
+        RendererError
+            The render ran past ``timeout`` (the server is killed).
+        """
+        t0 = time.perf_counter()
+        mark = self.err.seen()
+        try:
+            self.proc.stdin.write((json.dumps(argv) + "\n").encode())
+            self.proc.stdin.flush()
+            line = self.replies.get(timeout=timeout)
+        except queue.Empty:
+            self.close()
+            raise RendererError(f"{self.label}: timed out after {timeout:g} s (its serve process killed with its "
+                                f"children); stderr: {stderr_tail(self.err.since(mark))}") from None
+        except (BrokenPipeError, ValueError, OSError):
+            line = None
+        except BaseException:   # Ctrl-C, SIGTERM: the whole run goes
+            self.close()
+            raise
+        seconds = time.perf_counter() - t0
+        if line is None:
+            self.close()
+            return ProcessResult(self.proc.returncode if self.proc.returncode else 1, "",
+                                 self.err.since(mark) + f"\n{self.label}: its serve process exited", seconds)
+        try:
+            reply = json.loads(line)
+            ok = reply["ok"] is True
+            text = str(reply["stdout"] if ok else reply["error"])
+        except (ValueError, KeyError, TypeError):
+            self.close()
+            return ProcessResult(1, "", f"{self.label}: serve process answered {line[:200]!r}", seconds)
+        if ok:
+            return ProcessResult(0, text + "\n", self.err.since(mark), seconds)
+        return ProcessResult(1, "", self.err.since(mark) + "\n" + text, seconds)
+
+    def close(self) -> None:
+        """Close its stdin and kill the whole run (:func:`kill_run`)."""
+        try:
+            self.proc.stdin.close()
+        except OSError:
+            pass
+        kill_run(self.proc, self.marker)
+
+
+class _Servers:
+    """The serve-mode processes of a :func:`serve_clients` block: idle ones by (serve command,
+    working folder); a render takes one (or starts one) and gives it back."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.idle: dict[tuple, list[_Server]] = {}
+        self.all: list[_Server] = []
+        self.closed = False
+
+    def render(self, cfg: RendererConfig, argv: list[str]) -> ProcessResult:
+        sargv = expand(cfg, cfg.serve_command, key="serve_command")
+        key = (tuple(sargv), str(cfg.config_dir))
+        with self.lock:
+            if self.closed:
+                raise RendererError(f"{cfg.label}: the run is ending")
+            pool = self.idle.setdefault(key, [])
+            while pool and not pool[-1].alive:
+                pool.pop()
+            server = pool.pop() if pool else None
+            if server is None:
+                server = _Server(sargv, cfg.config_dir, cfg.label)
+                self.all.append(server)
+        r = server.render(argv, cfg.timeout)
+        with self.lock:
+            if server.alive and not self.closed:
+                self.idle[key].append(server)
+        return r
+
+    def close(self) -> None:
+        with self.lock:
+            self.closed = True
+            servers, self.all, self.idle = self.all, [], {}
+        for s in servers:
+            s.close()
+
+
+_servers: _Servers | None = None
+_servers_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def serve_clients(enabled: bool = True):
+    """``with serve_clients():`` -- the block's renders of renderers with a ``serve_command`` go to
+    one process per client, kept across renders and killed when the block ends (however it ends)
+    and at exit. Nested blocks share the outer one's processes. ``enabled=False``: the block's
+    renders each run their own process (``pbrcheck bench serve``'s "before"); an enclosing block's
+    processes stay for after it."""
+    global _servers
+    if not enabled:
+        with _servers_lock:
+            saved, _servers = _servers, None
+        try:
+            yield
+        finally:
+            with _servers_lock:
+                _servers = saved
+        return
+    with _servers_lock:
+        outer = _servers is not None
+        if not outer:
+            _servers = _Servers()
+    if outer:
+        yield
+        return
+    try:
+        yield
+    finally:
+        with _servers_lock:
+            servers, _servers = _servers, None
+        servers.close()
+
+
+@atexit.register
+def _close_servers() -> None:
+    if _servers is not None:
+        _servers.close()
+
+
+def idle_serve_pids() -> list[int]:
+    """The process ids of the current :func:`serve_clients` block's serve processes that are idle
+    (not rendering now): their browsers' memory is no render's (``compare.fidelity``'s usage)."""
+    servers = _servers
+    if servers is None:
+        return []
+    with servers.lock:
+        return [s.proc.pid for pool in servers.idle.values() for s in pool if s.alive]
+
+
+def serve_processes_started() -> int:
+    """Serve processes started so far in the current :func:`serve_clients` block (0 outside one)."""
+    servers = _servers
+    return len(servers.all) if servers is not None else 0
+
+
+def _run_render(cfg: RendererConfig, argv: list[str]) -> ProcessResult:
+    """One render of ``cfg``: by its serve process inside :func:`serve_clients`, else :func:`run_process`."""
+    servers = _servers
+    if servers is not None and cfg.serve_command:
+        return servers.render(cfg, argv)
+    return run_process(argv, cwd=cfg.config_dir, timeout=cfg.timeout, label=cfg.label)
 
 
 def read_output(path: Path, fmt: str, width: int, height: int, label: str) -> np.ndarray:
@@ -399,7 +598,7 @@ def render_external(scene: Scene, name: str, *, renderers_file: str | Path | Non
                 extra["seed"] = k
             argv = expand(cfg, cfg.command, scenario=exp.files["scenario.json"], out=out, dir=folder,
                           width=cam.width, height=cam.height, **extra)
-            r = run_process(argv, cwd=cfg.config_dir, timeout=cfg.timeout, label=label)
+            r = _run_render(cfg, argv)
             if r.returncode != 0:
                 raise RendererError(f"{label}: exited with status {r.returncode}; stderr: {stderr_tail(r.stderr)}")
             runs.append((r, read_output(out, cfg.output, cam.width, cam.height, label)))

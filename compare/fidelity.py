@@ -280,6 +280,21 @@ def load_scenarios(config: str | Path, size: int | None = None, only: tuple[str,
 # Tasks (what runs on a worker)
 
 
+def idle_serve_processes() -> set[int]:
+    """The idle serve processes of the current ``clients.run.serve_clients`` block and all their
+    descendants (their browsers)."""
+    import psutil
+
+    from clients.run import idle_serve_pids
+
+    out: set[int] = set()
+    for pid in idle_serve_pids():
+        with contextlib.suppress(Exception):
+            out.add(pid)
+            out.update(c.pid for c in psutil.Process(pid).children(recursive=True))
+    return out
+
+
 class _Usage:
     """Wall time, CPU time and peak resident memory of a block: this process and its descendants
     (a browser client's node and Chromium processes), polled every :data:`MEMORY_POLL_S` s.
@@ -288,7 +303,10 @@ class _Usage:
     during the block, the last user + system time polled (less what it had at the block's start):
     a descendant's time after its last poll (at most :data:`MEMORY_POLL_S`) is missed.
     ``RUSAGE_CHILDREN`` alone would miss Chromium's GPU and renderer processes, which this process
-    never reaps. Memory: the largest sum of the resident sets of this process and its descendants."""
+    never reaps. Memory: the largest sum of the resident sets of this process and its descendants,
+    less the idle serve processes' trees (:func:`idle_serve_processes`: the other clients' browsers,
+    kept open for the run by ``clients.run.serve_clients``, are no part of this render's memory;
+    their CPU, ~0 while idle, is still polled so that a busy one's start is known)."""
 
     def __enter__(self):
         import psutil
@@ -308,11 +326,13 @@ class _Usage:
 
     def _poll_once(self, start: bool = False) -> None:
         total = 0
+        idle = idle_serve_processes()
         with contextlib.suppress(Exception):
             total = self._proc.memory_info().rss
             for c in self._proc.children(recursive=True):
                 with contextlib.suppress(Exception):
-                    total += c.memory_info().rss
+                    if c.pid not in idle:
+                        total += c.memory_info().rss
                     ct = c.cpu_times()
                     v = ct.user + ct.system
                     key = (c.pid, c.create_time())

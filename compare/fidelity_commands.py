@@ -15,6 +15,7 @@ from .corpus.scheduler import SCHEDULER_HELP, parse_scheduler
 from .fidelity import FidelitySettings, run_fidelity
 from .fidelity_page import write_outputs
 from .renderers import RendererSpec
+from .serve_bench import DEFAULT_CLIENTS as SERVE_CLIENTS, DEFAULT_SCENES as SERVE_SCENES
 
 #: The external clients run when ``--renderers`` is not given: RF's engines that pbrcheck has.
 DEFAULT_CLIENTS = ("threejs", "filament", "babylon", "sample-viewer", "playcanvas", "three-gpu-pathtracer")
@@ -48,8 +49,17 @@ def _cmd_fidelity(args) -> int:
     return 0
 
 
+def _cmd_bench_serve(args) -> int:
+    import json
+
+    from .serve_bench import bench_serve
+
+    print(json.dumps(bench_serve(split_list(args.scenes), split_list(args.clients)), indent=2))
+    return 0
+
+
 def register(sub, bench_sub) -> None:
-    """Add ``fidelity``."""
+    """Add ``fidelity`` and ``bench serve``."""
     s = sub.add_parser("fidelity", help="every scenario of a Render Fidelity config.json through the truth and "
                                         "every renderer, with RF's own metric beside the truth's (docs/fidelity.md)")
     s.add_argument("config", metavar="CONFIG.json", help="an RF config.json (its scenarios list)")
@@ -69,3 +79,11 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--quiet", action="store_true", help="no progress output")
     add_limit_flags(s)
     s.set_defaults(func=_cmd_fidelity)
+
+    b = bench_sub.add_parser("serve", help="the web clients' renders of a small report: one browser per render "
+                                           "against one per client for the run (JSON)")
+    b.add_argument("--scenes", default=",".join(SERVE_SCENES), metavar="S,...",
+                   help=f"scenes (default {','.join(SERVE_SCENES)}: the committed report's)")
+    b.add_argument("--clients", default=",".join(SERVE_CLIENTS), metavar="NAME,...",
+                   help=f"web clients (default {','.join(SERVE_CLIENTS)}: the committed report's)")
+    b.set_defaults(func=_cmd_bench_serve)

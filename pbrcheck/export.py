@@ -604,7 +604,7 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
         "camera": {"origin": list(cam.origin), "target": list(cam.target), "up": list(cam.up),
                    "right": r.tolist(), "true_up": u.tolist(), "forward": f.tolist(),
                    "fov_x_deg": cam.fov, "yfov_rad": camera_yfov(scene), "aspect": cam.width / cam.height,
-                   "gltf_node": "camera",
+                   "znear": _znear(scene), "gltf_node": "camera",
                    "pixel_centres": "pixel (row i, column j) looks through x_ndc = 2 (j + 0.5)/W - 1, "
                                     "y_ndc = 1 - 2 (i + 0.5)/H; row 0 at the top"},
         "environment": {"exr": "environment.exr", "hdr": "environment.hdr",

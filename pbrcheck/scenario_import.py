@@ -23,10 +23,16 @@ pbrcheck's images show the environment anyway and its metrics exclude background
 description says so. ``exclude`` is kept as metadata for the engines: a comment in the scene TOML
 and the ``exclude`` of the index ``scenarios.json`` that :func:`import_to_folder` writes.
 
-``orbit.radius`` 0 (RF's own MetalRoughSpheresNoTextures scenario) is no camera in RF: its
-three-gpu-pathtracer client puts the camera at the target, model-viewer clamps the radius to keep
-the camera out of the model; pbrcheck frames the asset's bounding sphere about the target
-(:func:`framing_radius`) and says so in the description.
+``orbit.radius`` 0 (RF's own MetalRoughSpheresNoTextures scenario, target (0.003, 0.003, 0.01) in
+front of a 7.5 mm grid of spheres at z <= 0.00035) puts the camera at the target, oriented by
+``theta`` / ``phi`` (model-viewer orients its camera from the orbit's angles, not by a look-at, and
+RF's three-gpu-pathtracer client puts the camera at the target): the camera looks along the orbit's
+inward direction from the target. The scene's camera ``target`` (a look-at point) is then placed
+along that direction at :func:`look_distance` (the distance to the asset's bounding-box centre; only
+its direction matters to a pinhole camera, its length becomes the exported scenario's orbit radius).
+An earlier rule framed the asset's bounding sphere about the target instead: with RF's target
+0.01 in front of the grid the spheres came out ~1 pixel wide at 64 x 64 and no pixel was fully
+covered (the ``default`` row's "no valid pixel"). The description says which rule applied.
 
 Importing does not otherwise load the asset (RF's framing needs no bounds): an asset pbrcheck
 refuses (a required extension it does not implement) imports, and is refused where the scene is used.
@@ -35,7 +41,7 @@ API: :func:`scenario_scene` (one scenario file -> the scene TOML's table), :func
 (one scenario entry -> the table), :func:`config_scenes` (a file -> [(name, table, metadata)]),
 :func:`import_scenario` (one scenario file -> TOML text), :func:`import_to_folder` (every scenario
 of a file -> ``DIR/<name>.toml`` and ``DIR/scenarios.json``), :func:`scenario_toml`,
-:func:`framing_radius`, :data:`RF_DEFAULTS`, :data:`LIGHTING_SUFFIXES`, :class:`ScenarioError`.
+:func:`look_distance`, :data:`RF_DEFAULTS`, :data:`LIGHTING_SUFFIXES`, :class:`ScenarioError`.
 """
 
 from __future__ import annotations
@@ -63,8 +69,9 @@ RF_DEFAULTS = {"lighting": "../../../environments/lightroom_14b.hdr", "dimension
                "verticalFoV": 45.0, "renderSkybox": False}
 #: Environment files a scenario's ``lighting`` may name (HDR, or LDR read as sRGB).
 LIGHTING_SUFFIXES = (".hdr", ".exr") + LDR_SUFFIXES
-#: Smallest bounding-sphere radius :func:`framing_radius` frames (a point-like asset: 1 micrometre).
-MIN_FRAMING_RADIUS = 1e-6
+#: Smallest look-at distance :func:`look_distance` returns (an asset centred on the target: 1 micrometre;
+#: a camera's origin and target must differ).
+MIN_LOOK_DISTANCE = 1e-6
 #: The index :func:`import_to_folder` writes beside the scenes.
 INDEX = "scenarios.json"
 
@@ -161,14 +168,18 @@ def scenario_table(data, base: Path, file: str, where: str = "") -> tuple[dict, 
     if rad < 0:
         raise ScenarioError(file, w("orbit.radius"), "a distance >= 0", rad)
     tx = math.tan(math.radians(yfov) / 2) * W / H
-    radius_note = ""
-    if rad == 0:  # RF's scenario leaves the camera at the target: frame the asset instead (module docstring)
-        rad = framing_radius(model_path, target, math.radians(yfov) / 2, math.atan(tx))
-        radius_note = f"; orbit radius 0 in the scenario: the asset framed about the target at radius {rad:.6g}"
     if abs(math.sin(ph)) < CAMERA_UP_PARALLEL_SINE:  # the camera's up is +Y: it cannot look straight down
         raise ScenarioError(file, w("orbit.phi"), "a polar angle away from 0 and 180 degrees", o["phi"])
     d = (math.sin(ph) * math.sin(th), math.cos(ph), math.sin(ph) * math.cos(th))
-    origin = [c + rad * x for c, x in zip(target, d)]
+    radius_note = ""
+    if rad == 0:  # the camera at the target, looking along -d (module docstring); look-at point ahead of it
+        origin = list(target)
+        ahead = look_distance(model_path, target)
+        target = [c - ahead * x for c, x in zip(origin, d)]
+        radius_note = (f"; orbit radius 0 in the scenario: the camera at the target, looking along the orbit's "
+                       f"direction (look-at point {ahead:.6g} ahead)")
+    else:
+        origin = [c + rad * x for c, x in zip(target, d)]
     sky_note = "" if sky else "; renderSkybox false: pbrcheck's background still shows the environment"
     table = {"name": name,
              "description": f"Render Fidelity scenario {name} ({Path(file).name}){sky_note}{note}{radius_note}",
@@ -178,15 +189,12 @@ def scenario_table(data, base: Path, file: str, where: str = "") -> tuple[dict, 
     return table, {"name": name, "exclude": list(exclude), "renderSkybox": sky}
 
 
-def framing_radius(model_path: Path, target, half_yfov: float, half_xfov: float) -> float:
-    """The orbit radius of a scenario whose radius is 0: the distance at which the asset's bounding
-    sphere about ``target`` (through the bounding box's farthest corner) fills the narrower half
-    field of view (model-viewer clamps the radius to keep the camera out of the model; RF's
-    three-gpu-pathtracer would put the camera at the target)."""
+def look_distance(model_path: Path, point) -> float:
+    """The distance from ``point`` to the centre of the asset's bounding box (at least
+    :data:`MIN_LOOK_DISTANCE`): where a radius-0 scenario's look-at point goes (module docstring)."""
     lo, hi = load_asset(model_path).bounds()
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    r = max(float(np.linalg.norm(corners - np.asarray(target), axis=1).max()), MIN_FRAMING_RADIUS)
-    return r / math.sin(min(half_yfov, half_xfov))
+    centre = 0.5 * (np.asarray(lo, float) + np.asarray(hi, float))
+    return max(float(np.linalg.norm(centre - np.asarray(point, float))), MIN_LOOK_DISTANCE)
 
 
 def config_scenes(path: str | Path) -> list[tuple[str, dict, dict]]:

@@ -290,8 +290,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
+    from clients.run import serve_clients
+
     try:
-        return int(args.func(args) or 0)
+        with serve_clients():  # one browser per web client for the whole command (killed at its end)
+            return int(args.func(args) or 0)
     except PbrcheckError as e:
         print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return e.exit_code

@@ -176,6 +176,9 @@ def test_report_for_a_small_scene(fakes, scene_file, tmp_path, tmp_cache, monkey
     names = {Path(r).name for r in refs}
     assert {"reference.png", "rt_default.png", "rt_cheap.png", "flip_default.png", "rel_cheap.png",
             "materials.png", "ndotv.png", "speed.png", "convergence.png", "sweep.csv"} <= names
+    # issue 39's plot pruning: every figure written is one the page shows (none rendered for nothing)
+    written = {p.relative_to(out).as_posix() for p in out.rglob("*.png")}
+    assert written and written <= {r.split("#")[0] for r in refs}, sorted(written - set(refs))
     html = index.read_text()
     assert "flip_mean" in html and "relmse" in html and 'type="range"' in html
     assert "f" * 64 in html  # provenance: the reference's scene hash

@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: client name -> (folder, {npm package: version pinned by the lockfile}, runner label)
 CLIENTS = {
     "babylon": ("babylon", {"@babylonjs/core": "9.28.0", "@babylonjs/loaders": "9.28.0"}, "babylon client"),
-    "playcanvas": ("playcanvas", {"playcanvas": "2.23.3"}, "playcanvas client"),
+    "playcanvas": ("playcanvas", {"playcanvas": "2.23.3", "draco3d": "1.5.7"}, "playcanvas client"),
     "filament": ("filament", {"filament": "1.53.4"}, "filament client"),
 }
 #: Pixels a marker's centroid may lie from the reference's: in the background (large markers) and in
@@ -119,3 +119,35 @@ def test_orientation_probe_markers_land_in_the_same_pixels_with_linear_hdr_radia
     assert blue.sum() > 100 and np.median(img.rgb[blue, 2]) == pytest.approx(8.0, rel=0.03)
     dim = np.all(img.rgb < 0.2, axis=-1) & bg
     assert np.median(img.rgb[dim]) == pytest.approx(0.05, rel=0.05)
+
+
+#: The shared Draco-compressed asset (KHR_draco_mesh_compression; RF's BoxTextured).
+DRACO_ASSET = ROOT.parent / "shared" / "assets" / "BoxTextured.glb"
+#: How far an engine's mean radiance over the box may lie from the `default` preset's (per channel;
+#: measured 0.003 to 0.02 in a white furnace; a box not drawn reads the background, 1.0).
+DRACO_MEAN_TOLERANCE = 0.05
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["babylon", "playcanvas"])
+@pytest.mark.skipif(not DRACO_ASSET.is_file(), reason=f"{DRACO_ASSET} is absent (the shared assets)")
+def test_draco_compressed_asset_renders_offline(name, tmp_cache, tmp_path):
+    # issue 38: Babylon.js fetched its Draco decoder from its CDN (no network: an error row) and
+    # PlayCanvas had no decoder wasm (it fetched its 404 page as WebAssembly); both are now served
+    # from the clients' own npm packages
+    _skip_without(name)
+    from pbrcheck.scene import scene_from_dict
+    from pbrcheck.untrusted import allowed_dirs
+
+    table = {"camera": {"origin": [1.2, 1.0, 2.0], "target": [0.0, 0.0, 0.0], "fov": 40, "width": 32, "height": 32},
+             "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]},
+             "objects": [{"type": "gltf", "path": str(DRACO_ASSET)}]}
+    with allowed_dirs(DRACO_ASSET.parent):
+        scene = scene_from_dict(table, file=str(tmp_path / "s.toml"), base_dir=tmp_path, contained=True)
+        img = renderers.render_under_test(scene, renderers.RendererSpec.parse(f"ext:{name}"))
+        ref = renderers.render_under_test(scene, renderers.RendererSpec.parse("default"))
+    box = img.channels["object"] >= 0
+    assert box.sum() > 200   # the box covers ~half the image
+    rgb, want = (np.stack([x.channels[c] for c in "RGB"], -1)[box].mean(axis=0) for x in (img, ref))
+    assert want.max() < 0.7   # the textured box is darker than the white background
+    np.testing.assert_allclose(rgb, want, atol=DRACO_MEAN_TOLERANCE)

@@ -1,6 +1,6 @@
 """Render Fidelity scenarios as RF reads them (pbrcheck/scenario_import.py, ``import-scenario``): the
 generator's defaults merged per component, a whole config.json to one scene per scenario, ``exclude``
-kept, LDR lighting sRGB-decoded, paths relative to the config, radius 0 framed; RF's own config for the
+kept, LDR lighting sRGB-decoded, paths relative to the config, radius 0 (the camera at the target, drawn by `default`); RF's own config for the
 shared assets (skipped when ../shared is absent)."""
 
 from __future__ import annotations
@@ -60,12 +60,58 @@ def test_partial_fields_merge_per_component(tmp_path, quad):
     assert "renderSkybox" not in t["description"]
 
 
-def test_radius_zero_frames_the_asset_about_the_target(tmp_path, quad):
-    t = scenario_scene(write(tmp_path / "s.json", {"model": "assets/q.gltf", "lighting": "neutral",
-                                                   "orbit": {"radius": 0}}))
-    # the quad's bounding sphere about the origin: radius sqrt(2); it fills a half fov of 22.5 degrees
-    np.testing.assert_allclose(t["camera"]["origin"], [0, 0, math.sqrt(2) / math.sin(math.radians(22.5))], atol=1e-9)
-    assert "orbit radius 0" in t["description"]
+def _rf_grid_scenario(tmp_path) -> Path:
+    """RF's MetalRoughSpheresNoTextures shape: a millimetre-scale asset (a quad [-4, 4] mm at z = 0)
+    and a radius-0 orbit whose target lies 10 mm in front of it."""
+    (tmp_path / "assets").mkdir()
+    quad_asset(tmp_path / "assets" / "q.gltf", {"name": "matte"}, scale=0.004)
+    return write(tmp_path / "s.json", {"model": "assets/q.gltf", "lighting": "neutral", "dimensions": {"width": 16, "height": 16},
+                                       "target": {"x": 0.0, "y": 0.0, "z": 0.01}, "orbit": {"radius": 0}})
+
+
+def test_radius_zero_puts_the_camera_at_the_target_looking_along_the_orbit(tmp_path):
+    t = scenario_scene(_rf_grid_scenario(tmp_path))
+    c = t["camera"]
+    # the camera at RF's target, looking along -Z (theta 0, phi 90); the look-at point at the asset's
+    # bounding-box centre distance (10 mm): the quad's centre
+    np.testing.assert_allclose(c["origin"], [0.0, 0.0, 0.01], atol=1e-15)
+    np.testing.assert_allclose(c["target"], [0.0, 0.0, 0.0], atol=1e-15)
+    assert "orbit radius 0" in t["description"] and "camera at the target" in t["description"]
+
+
+def test_radius_zero_scene_is_drawn_by_the_default_preset(tmp_path):
+    # issue 38: the old rule framed the bounding sphere about the target (radius 0.0115 / sin 22.5 deg:
+    # the quad 0.24 of the width, ~6 % of the pixels); from the target the 8 mm quad at 10 mm fills
+    # 0.004 / (0.01 tan 22.5 deg) = 0.97 of each side: 15.5 of 16 pixels, the 14 x 14 inner ones fully
+    # covered (0.766 of the image)
+    from compare.renderers import RendererSpec, render_under_test
+
+    with allowed_dirs(tmp_path):
+        scene = load_scene_of(tmp_path, scenario_scene(_rf_grid_scenario(tmp_path)))
+        img = render_under_test(scene, RendererSpec.parse("default"), use_cache=False)
+    full = float(np.mean(img.channels["coverage"] >= 1.0))
+    assert full == pytest.approx(14 * 14 / 256), full
+
+
+def load_scene_of(tmp_path: Path, table: dict):
+    from pbrcheck.scene import scene_from_dict
+
+    return scene_from_dict(table, file=str(tmp_path / "s.json"), base_dir=tmp_path, contained=True)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SHARED_RF.is_file(), reason=f"{SHARED_RF} is absent (RF's scenarios for ../shared/assets)")
+def test_rf_metal_rough_spheres_is_drawn_by_the_default_preset():
+    # the scenario whose `default` row was "no valid pixel" in reports/fidelity (orbit radius 0)
+    from compare.fidelity import load_scenarios
+    from compare.renderers import RendererSpec, render_under_test
+
+    with allowed_dirs(SHARED_RF.parent.parent):
+        sc, = load_scenarios(SHARED_RF, 64, ("khronos-MetalRoughSpheresNoTextures",))
+        assert sc.scene is not None, sc.problem
+        img = render_under_test(sc.scene, RendererSpec.parse("default"), use_cache=False)
+    # 7 x 7 spheres fill the frame: 0.29 of the pixels fully covered at 64 x 64 (0 before the fix)
+    assert float(np.mean(img.channels["coverage"] >= 1.0)) > 0.2
 
 
 def test_absent_lighting_is_the_generators_default_and_named(tmp_path, quad, capsys):

@@ -21,9 +21,18 @@ import '@babylonjs/core/Helpers/sceneHelpers.js';
 import '@babylonjs/core/Loading/loadingScreen.js';
 import '@babylonjs/core/Materials/PBR/pbrMaterial.js';
 import '@babylonjs/loaders/glTF/index.js';
+import { DracoDecoder } from '@babylonjs/core/Meshes/Compression/dracoDecoder.js';
 import { boxFilter, floatCanvas, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
 const ss = supersampling();
+// KHR_draco_mesh_compression: the decoder @babylonjs/core ships (assets/Draco, Google's Draco glTF
+// build), served under /core/ (the default configuration fetches it from Babylon's CDN, which fails
+// offline). Absolute URLs: the decoder runs in workers made from blobs.
+const DRACO = (f) => new URL(`/core/assets/Draco/${f}`, location.href).href;
+DracoDecoder.DefaultConfiguration = {
+  wasmUrl: DRACO('draco_wasm_wrapper_gltf.js'), wasmBinaryUrl: DRACO('draco_decoder_gltf.wasm'),
+  fallbackUrl: DRACO('draco_decoder_gltf.js'),
+};
 /** HDRCubeTexture's face size: the prefiltered cube's level 0 (Babylon's examples use 256 to 512). */
 const CUBE_SIZE = 256;
 /** The texture rotation that makes Babylon's lookup of the panorama the export's (section 1 of

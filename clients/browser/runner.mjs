@@ -8,10 +8,10 @@
 // The command line: `node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout SECONDS]` or
 // `node render.mjs --version` (one line: each package and its version; Chromium's; node's).
 // Exit 0 on success; 1 with one line on stderr otherwise (usage, a package not installed, an
-// unreadable scenario, then whatever runPage reports).
+// unreadable scenario, then whatever runPage reports). `node render.mjs --serve`: headless.mjs's
+// serve mode (one browser for many renders).
 import path from 'node:path';
-import { readFileSync } from 'node:fs';
-import { runPage, chromiumVersion, packageVersion, fail } from './headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from './headless.mjs';
 
 /**
  * @param {object} o
@@ -24,42 +24,33 @@ import { runPage, chromiumVersion, packageVersion, fail } from './headless.mjs';
  * @param {function(object): object} [o.describe]  request headers -> extra fields of the JSON line
  */
 export function runClient(o) {
-  const versions = () => o.packages.map(([name, dir]) => [name, packageVersion(path.join(o.here, dir, 'package.json'))]);
-  const missing = () => versions().filter(([, v]) => !v).map(([n]) => n);
-  const args = process.argv.slice(2);
-  if (args[0] === '--version') {
+  clientMain((args) => {
+    const versions = () => o.packages.map(([name, dir]) => [name, packageVersion(path.join(o.here, dir, 'package.json'))]);
+    const missing = () => versions().filter(([, v]) => !v).map(([n]) => n);
+    if (args[0] === '--version') {
+      if (missing().length) fail(o.label, `${missing().join(', ')} not installed: run npm ci in ${o.here}`);
+      process.stdout.write(`${versions().map(([n, v]) => `${n} ${v}`).join(', ')}; ${chromiumVersion()}; node ${process.version}\n`);
+      process.exit(0);
+    }
+    let ss = 2, timeoutS = o.timeoutS ?? 380;
+    const pos = [];
+    for (let i = 0; i < args.length; i++) {
+      if (args[i] === '--ss') ss = parseInt(args[++i], 10);
+      else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
+      else pos.push(args[i]);
+    }
+    if (pos.length !== 2 || !(ss >= 1) || !(timeoutS > 0)) fail(o.label, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
+    const [scenarioPath, outPath] = pos;
     if (missing().length) fail(o.label, `${missing().join(', ')} not installed: run npm ci in ${o.here}`);
-    process.stdout.write(`${versions().map(([n, v]) => `${n} ${v}`).join(', ')}; ${chromiumVersion()}; node ${process.version}\n`);
-    process.exit(0);
-  }
-  let ss = 2, timeoutS = o.timeoutS ?? 380;
-  const pos = [];
-  for (let i = 0; i < args.length; i++) {
-    if (args[i] === '--ss') ss = parseInt(args[++i], 10);
-    else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
-    else pos.push(args[i]);
-  }
-  if (pos.length !== 2 || !(ss >= 1) || !(timeoutS > 0)) fail(o.label, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
-  const [scenarioPath, outPath] = pos;
-  if (missing().length) fail(o.label, `${missing().join(', ')} not installed: run npm ci in ${o.here}`);
-  let scenario;
-  try {
-    scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-  } catch (e) {
-    fail(o.label, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-  }
-  runPage({
-    label: o.label,
-    files: { '/page.html': path.join(o.here, 'page.html'), '/page.js': path.join(o.here, 'page.js') },
-    roots: [...o.roots.map(([p, d]) => [p, path.join(o.here, d)]), ['/scene/', path.dirname(path.resolve(scenarioPath))]],
-    page: `/page.html?ss=${ss}`,
-    width: scenario.size.width,
-    height: scenario.size.height,
-    outPath,
-    timeoutS,
-    describe: (h) => ({
-      ...Object.fromEntries(versions()), gl_renderer: h['x-gl-renderer'], supersample: ss,
-      page_seconds: parseFloat(h['x-page-seconds']), ...(o.describe ? o.describe(h) : {}),
-    }),
+    const job = sceneJob(o.label, o.here, scenarioPath, outPath, timeoutS);
+    return runPage({
+      ...job,
+      roots: [...o.roots.map(([p, d]) => [p, path.join(o.here, d)]), job.sceneRoot],
+      page: `/page.html?ss=${ss}`,
+      describe: (h) => ({
+        ...Object.fromEntries(versions()), gl_renderer: h['x-gl-renderer'], supersample: ss,
+        page_seconds: parseFloat(h['x-page-seconds']), ...(o.describe ? o.describe(h) : {}),
+      }),
+    });
   });
 }

@@ -18,7 +18,7 @@
 import path from 'node:path';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { runPage, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
 
 const LABEL = 'gltf-sample-viewer client';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
@@ -52,48 +52,40 @@ function viewerModule(profile) {
   return text;
 }
 
-const args = process.argv.slice(2);
-if (args[0] === '--version') {
-  const v = viewerVersion();
-  if (!v) fail(LABEL, `@khronosgroup/gltf-viewer is not installed: run npm ci in ${HERE}`);
-  process.stdout.write(`@khronosgroup/gltf-viewer ${v}; ${chromiumVersion()}; node ${process.version}\n`);
-  process.exit(0);
-}
-let ss = 2, timeoutS = 280, ibl = 'fast';
-const pos = [];
-for (let i = 0; i < args.length; i++) {
-  if (args[i] === '--ss') ss = parseInt(args[++i], 10);
-  else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
-  else if (args[i] === '--ibl') ibl = args[++i];
-  else pos.push(args[i]);
-}
-if (pos.length !== 2 || !(ss >= 1) || !(timeoutS > 0) || !Object.hasOwn(IBL_PROFILES, ibl)) {
-  fail(LABEL, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--ibl fast|full] [--timeout S]');
-}
-const [scenarioPath, outPath] = pos;
-if (!viewerVersion()) fail(LABEL, `@khronosgroup/gltf-viewer is not installed: run npm ci in ${HERE}`);
-let scenario;
-try {
-  scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-} catch (e) {
-  fail(LABEL, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-}
-if (!scenario?.environment?.hdr) fail(LABEL, `${scenarioPath}: environment.hdr missing (the Sample Viewer reads Radiance .hdr only)`);
+clientMain((args) => {
+  if (args[0] === '--version') {
+    const v = viewerVersion();
+    if (!v) fail(LABEL, `@khronosgroup/gltf-viewer is not installed: run npm ci in ${HERE}`);
+    process.stdout.write(`@khronosgroup/gltf-viewer ${v}; ${chromiumVersion()}; node ${process.version}\n`);
+    process.exit(0);
+  }
+  let ss = 2, timeoutS = 280, ibl = 'fast';
+  const pos = [];
+  for (let i = 0; i < args.length; i++) {
+    if (args[i] === '--ss') ss = parseInt(args[++i], 10);
+    else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
+    else if (args[i] === '--ibl') ibl = args[++i];
+    else pos.push(args[i]);
+  }
+  if (pos.length !== 2 || !(ss >= 1) || !(timeoutS > 0) || !Object.hasOwn(IBL_PROFILES, ibl)) {
+    fail(LABEL, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--ibl fast|full] [--timeout S]');
+  }
+  const [scenarioPath, outPath] = pos;
+  if (!viewerVersion()) fail(LABEL, `@khronosgroup/gltf-viewer is not installed: run npm ci in ${HERE}`);
+  const job = sceneJob(LABEL, HERE, scenarioPath, outPath, timeoutS);
+  const { scenario } = job;
+  if (!scenario?.environment?.hdr) fail(LABEL, `${scenarioPath}: environment.hdr missing (the Sample Viewer reads Radiance .hdr only)`);
 
-runPage({
-  label: LABEL,
-  contents: { '/viewer/gltf-viewer.module.js': viewerModule(ibl) },
-  files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
-  roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], ['/scene/', path.dirname(path.resolve(scenarioPath))],
-          ['/draco/', DRACO_DIR]],
-  page: `/page.html?ss=${ss}`,
-  width: scenario.size.width,
-  height: scenario.size.height,
-  outPath,
-  timeoutS,
-  describe: (h) => ({
-    viewer: viewerVersion(), gl_renderer: h['x-gl-renderer'], ibl_format: h['x-ibl-format'],
-    supersample: ss, ibl: { profile: ibl, ...IBL_PROFILES[ibl] }, page_seconds: parseFloat(h['x-page-seconds']),
-    gpu_seconds: parseFloat(h['x-gpu-seconds']),
-  }),
+  return runPage({
+    ...job,
+    contents: { '/viewer/gltf-viewer.module.js': viewerModule(ibl) },
+    roots: [['/viewer/', path.join(VIEWER_DIR, 'dist')], job.sceneRoot,
+            ['/draco/', DRACO_DIR]],
+    page: `/page.html?ss=${ss}`,
+    describe: (h) => ({
+      viewer: viewerVersion(), gl_renderer: h['x-gl-renderer'], ibl_format: h['x-ibl-format'],
+      supersample: ss, ibl: { profile: ibl, ...IBL_PROFILES[ibl] }, page_seconds: parseFloat(h['x-page-seconds']),
+      gpu_seconds: parseFloat(h['x-gpu-seconds']),
+    }),
+  });
 });

@@ -20,6 +20,12 @@ import * as pc from 'playcanvas';
 import { boxFilter, floatCanvas, glRendererName, post, runMain, supersampling } from '/browser/page-common.js';
 
 const ss = supersampling();
+// KHR_draco_mesh_compression: Google's Draco decoder from the npm package draco3d (its emscripten
+// glue runs in a worker as well as in node), served under /draco3d/ (the engine's default looks for
+// draco.wasm.js beside the page, which it does not ship).
+pc.WasmModule.setConfig('DracoDecoderModule', {
+  glueUrl: '/draco3d/draco_decoder_nodejs.js', wasmUrl: '/draco3d/draco_decoder.wasm', numWorkers: 1,
+});
 /** EnvLighting.generateAtlas's options: the engine's defaults (atlas 512, 1024 reflection samples,
  * 2048 ambient samples). */
 const ATLAS = { size: 512, numReflectionSamples: 1024, numAmbientSamples: 2048 };
@@ -67,9 +73,12 @@ async function main() {
   app.scene.skyboxRotation = new pc.Quat().setFromEulerAngles(0, SKYBOX_ROTATION_Y, 0);
 
   const c = scenario.camera;
+  // the near clip: 0.05, or the export's znear (half the nearest object's gap) when the model is closer
+  // (RF's MetalRoughSpheresNoTextures: the camera 10 mm from a millimetre-scale grid)
+  const NEAR_CLIP = 0.05;
   const camera = new pc.Entity('camera');
   camera.addComponent('camera', {
-    fov: c.yfov_rad * 180 / Math.PI, horizontalFov: false, nearClip: 0.05, farClip: 1000,
+    fov: c.yfov_rad * 180 / Math.PI, horizontalFov: false, nearClip: Math.min(NEAR_CLIP, c.znear ?? NEAR_CLIP), farClip: 1000,
     toneMapping: pc.TONEMAP_NONE, gammaCorrection: pc.GAMMA_NONE, clearColor: new pc.Color(0, 0, 0, 1),
   });
   camera.setPosition(...c.origin);

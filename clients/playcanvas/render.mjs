@@ -14,7 +14,7 @@ import { runClient } from '../browser/runner.mjs';
 runClient({
   label: 'playcanvas client',
   here: path.dirname(fileURLToPath(import.meta.url)),
-  packages: [['playcanvas', 'node_modules/playcanvas']],
-  roots: [['/playcanvas/', 'node_modules/playcanvas']],
+  packages: [['playcanvas', 'node_modules/playcanvas'], ['draco3d', 'node_modules/draco3d']],
+  roots: [['/playcanvas/', 'node_modules/playcanvas'], ['/draco3d/', 'node_modules/draco3d']],
   describe: (h) => ({ atlas: JSON.parse(h['x-atlas'] || 'null') }),
 });

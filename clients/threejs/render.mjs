@@ -10,50 +10,40 @@
 // and the server stop. Exit 0 on success; 1 with one line on stderr otherwise. $PBRCHECK_CHROMIUM
 // names another Chromium binary.
 import path from 'node:path';
-import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
-import { runPage, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
+import { clientMain, runPage, sceneJob, chromiumVersion, packageVersion, fail } from '../browser/headless.mjs';
 
 const LABEL = 'threejs client';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const THREE_DIR = path.join(HERE, 'node_modules', 'three');
 const threeVersion = () => packageVersion(path.join(THREE_DIR, 'package.json'));
 
-const args = process.argv.slice(2);
-if (args[0] === '--version') {
-  const v = threeVersion();
-  if (!v) fail(LABEL, `three is not installed: run npm ci in ${HERE}`);
-  process.stdout.write(`three ${v} (r${v.split('.')[1]}); ${chromiumVersion()}; node ${process.version}\n`);
-  process.exit(0);
-}
-let ss = 2, timeoutS = 240;
-const pos = [];
-for (let i = 0; i < args.length; i++) {
-  if (args[i] === '--ss') ss = parseInt(args[++i], 10);
-  else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
-  else pos.push(args[i]);
-}
-if (pos.length !== 2 || !(ss >= 1)) fail(LABEL, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
-const [scenarioPath, outPath] = pos;
-if (!threeVersion()) fail(LABEL, `three is not installed: run npm ci in ${HERE}`);
-let scenario;
-try {
-  scenario = JSON.parse(readFileSync(scenarioPath, 'utf8'));
-} catch (e) {
-  fail(LABEL, `cannot read the scenario ${scenarioPath}: ${e.message}`);
-}
+clientMain((args) => {
+  if (args[0] === '--version') {
+    const v = threeVersion();
+    if (!v) fail(LABEL, `three is not installed: run npm ci in ${HERE}`);
+    process.stdout.write(`three ${v} (r${v.split('.')[1]}); ${chromiumVersion()}; node ${process.version}\n`);
+    process.exit(0);
+  }
+  let ss = 2, timeoutS = 240;
+  const pos = [];
+  for (let i = 0; i < args.length; i++) {
+    if (args[i] === '--ss') ss = parseInt(args[++i], 10);
+    else if (args[i] === '--timeout') timeoutS = parseFloat(args[++i]);
+    else pos.push(args[i]);
+  }
+  if (pos.length !== 2 || !(ss >= 1)) fail(LABEL, 'usage: node render.mjs SCENARIO.json OUT.pfm [--ss N] [--timeout S]');
+  const [scenarioPath, outPath] = pos;
+  if (!threeVersion()) fail(LABEL, `three is not installed: run npm ci in ${HERE}`);
+  const job = sceneJob(LABEL, HERE, scenarioPath, outPath, timeoutS);
 
-runPage({
-  label: LABEL,
-  files: { '/page.html': path.join(HERE, 'page.html'), '/page.js': path.join(HERE, 'page.js') },
-  roots: [['/three/', THREE_DIR], ['/scene/', path.dirname(path.resolve(scenarioPath))]],
-  page: `/page.html?ss=${ss}`,
-  width: scenario.size.width,
-  height: scenario.size.height,
-  outPath,
-  timeoutS,
-  describe: (h) => ({
-    three: h['x-three-revision'], gl_renderer: h['x-gl-renderer'], supersample: ss,
-    page_seconds: parseFloat(h['x-page-seconds']),
-  }),
+  return runPage({
+    ...job,
+    roots: [['/three/', THREE_DIR], job.sceneRoot],
+    page: `/page.html?ss=${ss}`,
+    describe: (h) => ({
+      three: h['x-three-revision'], gl_renderer: h['x-gl-renderer'], supersample: ss,
+      page_seconds: parseFloat(h['x-page-seconds']),
+    }),
+  });
 });
