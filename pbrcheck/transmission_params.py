@@ -17,6 +17,9 @@ API
   ``active`` whether the extension changes the image.
 - :data:`TRANSMISSION_EXTENSIONS` -- ``{extension: (GltfMaterial field, class)}``.
 - :data:`TEXTURE_CHANNELS`, :data:`SRGB_SLOTS` -- the slots' channels and the sRGB-encoded ones.
+- :func:`is_transmissive`, :func:`reference_renders` (whether the reference's path mode renders a
+  transmissive glTF material), :func:`has_varying`, :data:`VARYING_SLOTS`, :data:`READ_SLOTS` (the
+  textures it reads per hit).
 - :func:`parse_ior` -- ``KHR_materials_ior``'s ``ior`` (>= 1, or 0), typed error naming the pointer.
 - :func:`abbe_number`, :func:`dispersion_ior` -- the IOR at a wavelength from ``dispersion`` (the
   README's Cauchy form).

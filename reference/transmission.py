@@ -32,7 +32,8 @@ is the spectral estimator's part, which needs a wavelength per path that Mitsuba
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
 :func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
-:func:`gltf_shape_props` (a glTF primitive's, where its material's factors are constant),
+:func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
+:class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`.
 References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); Mitsuba 3's ``volpath`` and ``homogeneous`` plugins.
@@ -296,7 +297,8 @@ def _mean(c):
 
 
 class TransmissiveMaterial(mi.BSDF):
-    """``pbr_transmissive`` (the module docstring). Parameters are constants (analytic objects)."""
+    """``pbr_transmissive`` (the module docstring). Parameters are constants (analytic objects, glTF
+    materials of constant factors); :class:`TexturedTransmissive` passes per-lane ones (``p``)."""
 
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
