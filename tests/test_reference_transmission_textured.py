@@ -98,7 +98,33 @@ def test_a_roughness_texel_renders_as_the_factor_of_that_roughness(render, tmp_p
     assert np.abs(half - full).max() > 0.05
 
 
-def test_the_textured_material_takes_the_textured_bsdf_and_local_mode_refuses_it(tmp_path):
+def test_diffuse_transmission_textures_render_as_their_constant_twin(render, tmp_path):
+    """diffuseTransmissionTexture A (153 = 0.6) times factor 1 and diffuseTransmissionColorTexture
+    (sRGB (255, 128, 64)) render as the sheet of constant factor 0.6 and colour the decoded texel (the
+    same sampler and seed); both differ from the sheet without diffuse transmission's colour."""
+    from pbrcheck.gltf import load_asset
+
+    def sheet(name, dt, images):
+        mat = {"name": name, "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.5},
+               "extensions": {"KHR_materials_diffuse_transmission": dt}}
+        return quad_asset(tmp_path / f"{name}.gltf", mat, images, scale=3.0)
+
+    a = np.zeros((2, 2, 4), np.uint8)
+    a[..., 3] = 153
+    c = np.zeros((2, 2, 4), np.uint8)
+    c[...] = (255, 128, 64, 255)
+    tex = sheet("dttex", {"diffuseTransmissionFactor": 1.0, "diffuseTransmissionTexture": {"index": 0},
+                          "diffuseTransmissionColorTexture": {"index": 1}}, [(a, None), (c, None)])
+    color = load_asset(tex).images[1].linear(True)[0, 0, :3]
+    const = sheet("dtconst", {"diffuseTransmissionFactor": 153 / 255,
+                              "diffuseTransmissionColorFactor": [float(x) for x in color]}, [])
+    white = sheet("dtwhite", {"diffuseTransmissionFactor": 153 / 255}, [])
+    seen = _rgb(render(_scene(tex)))
+    np.testing.assert_allclose(seen, _rgb(render(_scene(const))), atol=1e-4, rtol=1e-4)
+    assert np.abs(seen - _rgb(render(_scene(white)))).max() > 0.01
+
+
+def test_a_transmission_texture_is_rendered_and_a_lobe_texture_keeps_it_opaque(tmp_path):
     """A transmission-textured material is rendered by the reference (reference_renders) through
     ``pbr_transmissive_textured``; a lobe texture (clearcoat) still leaves it opaque; the notice says which."""
     from pbrcheck.gltf import load_asset
