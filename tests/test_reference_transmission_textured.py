@@ -165,3 +165,23 @@ def test_shared_transmission_assets_render_with_transmission(render, name, monke
     assert np.isfinite(a).all()
     change = float(np.percentile(np.abs(a - b).max(axis=-1), 99))
     assert change > ASSET_MIN_CHANGE, change
+
+
+def test_a_textured_transmissive_asset_has_its_own_cache_key_part(render, tmp_path, monkeypatch):
+    """Scenes holding a textured transmissive material key their cached renders with
+    TEXTURED_CODE_VERSION (they rendered opaque before); others keep their keys."""
+    from reference import transmission
+    from reference.render import reference_cache_key
+    from reference.transmission import TEXTURED_CODE_VERSION, cache_parts
+
+    px = np.full((2, 2, 4), 255, np.uint8)
+    tex = _scene(_sheet(tmp_path, "tex", [(px, None)], ext={"transmissionTexture": {"index": 0}}))
+    clear = _scene(_sheet(tmp_path, "clear", []))
+    assert cache_parts(tex) == {"textured_transmission_code": TEXTURED_CODE_VERSION} and cache_parts(clear) == {}
+    def keys():
+        return [reference_cache_key(s, spp=4, mode="path", seed=1, max_depth=8) for s in (tex, clear)]
+
+    with_part = keys()
+    monkeypatch.setattr(transmission, "cache_parts", lambda scene: {})
+    without = keys()
+    assert with_part[0] != without[0] and with_part[1] == without[1]
