@@ -17,6 +17,9 @@ API
   ``active`` whether the extension changes the image.
 - :data:`TRANSMISSION_EXTENSIONS` -- ``{extension: (GltfMaterial field, class)}``.
 - :data:`TEXTURE_CHANNELS`, :data:`SRGB_SLOTS` -- the slots' channels and the sRGB-encoded ones.
+- :func:`is_transmissive`, :func:`reference_renders` (whether the reference's path mode renders a
+  transmissive glTF material), :func:`has_varying`, :data:`VARYING_SLOTS`, :data:`READ_SLOTS` (the
+  textures it reads per hit).
 - :func:`parse_ior` -- ``KHR_materials_ior``'s ``ior`` (>= 1, or 0), typed error naming the pointer.
 - :func:`abbe_number`, :func:`dispersion_ior` -- the IOR at a wavelength from ``dispersion`` (the
   README's Cauchy form).
@@ -158,12 +161,25 @@ def is_transmissive(material) -> bool:
     return (t is not None and t.active) or (dt is not None and dt.active)
 
 
+#: The slots of :data:`VARYING_SLOTS` the reference's textured transmissive material reads per hit
+#: (``reference.transmission.TexturedTransmissive``; issue 37): the core material's and the
+#: transmission extensions'. The others (the lobes') leave a transmissive material opaque.
+READ_SLOTS = ("baseColor", "metallicRoughness", "normal", "transmission", "diffuseTransmission",
+              "diffuseTransmissionColor")
+
+
+def has_varying(material) -> bool:
+    """Whether a glTF material has a texture of :data:`VARYING_SLOTS` (its parameters vary per hit)."""
+    return bool(set(material.textures()) & set(VARYING_SLOTS))
+
+
 def reference_renders(material) -> bool:
     """Whether the reference's path mode renders a transmissive glTF material: OPAQUE, not unlit, and
-    no texture of :data:`VARYING_SLOTS` (its parameters constant). Another transmissive material renders
-    opaque (its transmission named as unmodelled)."""
+    no texture of :data:`VARYING_SLOTS` outside :data:`READ_SLOTS` (constant factors, or the textures
+    the textured variant reads per hit). Another transmissive material renders opaque (its
+    transmission named as unmodelled)."""
     return (is_transmissive(material) and material.alpha_mode == "OPAQUE" and not material.unlit
-            and not set(material.textures()) & set(VARYING_SLOTS))
+            and not set(material.textures()) & (set(VARYING_SLOTS) - set(READ_SLOTS)))
 
 
 #: Texture slot -> the channels the extension reads (its README).

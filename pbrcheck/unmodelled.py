@@ -215,8 +215,8 @@ def notice_lines(asset) -> list[str]:
 
 def _what_is_left_out(asset, u) -> str:
     """Which images leave feature ``u`` out: both, except a transmission extension whose every
-    material the reference's path mode renders (issue 37: constant factors,
-    :func:`pbrcheck.transmission_params.reference_renders`)."""
+    material the reference's path mode renders (issue 37: constant factors or the textures it reads
+    per hit, :func:`pbrcheck.transmission_params.reference_renders`)."""
     mats = [m for m in getattr(asset, "materials", ()) if m.name in u.materials]
     if u.feature in REFERENCE_RENDERED and mats and all(reference_renders(m) for m in mats):
         return "the real-time image leaves it out (the reference renders it in path mode only)"

@@ -80,6 +80,13 @@ ASSET_CODE_VERSION = "3"
 LOBE_CODE_VERSION = "1"
 
 
+def _transmission_cache_parts(scene) -> dict:
+    """:func:`reference.transmission.cache_parts` (hook, issue 37)."""
+    from .transmission import cache_parts
+
+    return cache_parts(scene)
+
+
 def scene_uses_lobes(scene) -> bool:
     """Whether an analytic object's material sets lobe fields or an asset's material has an active
     lobe extension (what reference.lobe_bsdf renders)."""
@@ -475,6 +482,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "reference_code_version": REFERENCE_CODE_VERSION,
         **({"asset_code_version": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}),
         **({"lobe_code_version": LOBE_CODE_VERSION} if scene_uses_lobes(scene) else {}),
+        **_transmission_cache_parts(scene),   # hook (issue 37): textured transmissive assets
         "sampler": sampler,
         "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
@@ -514,6 +522,7 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     if scene_uses_lobes(scene):
         assets["lobe_code"] = LOBE_CODE_VERSION
+    assets.update(_transmission_cache_parts(scene))   # hook (issue 37): textured transmissive assets
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
                      sampler=check_sampler(sampler), adaptive=adaptive, backend=backend_identity(), **assets)

@@ -731,9 +731,12 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
                                                         tangents=tangents))
             bsdf = mats[key]
         props["bsdf"] = bsdf
-        if bsdf_for is None:  # hook (issue 37): a transmissive material of constant factors, its volume
+        if bsdf_for is None:  # hook (issue 37): a transmissive material (its factors or textures), its volume
             from .transmission import gltf_shape_props
-            for k, v in gltf_shape_props(inst.asset.material(obj.gltf_material), scene.brdf).items():
+            core = lambda: _material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,  # noqa: E731
+                                          vertex_color=prim.color is not None, primary=primary)
+            for k, v in gltf_shape_props(inst.asset.material(obj.gltf_material), scene.brdf, inst.asset, core,
+                                         textures).items():
                 props[k] = v
         if bsdf_for is None and inst.asset.material(obj.gltf_material).unlit:
             from .unlit import unlit_emitter

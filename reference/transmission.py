@@ -32,8 +32,10 @@ is the spectral estimator's part, which needs a wavelength per path that Mitsuba
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
 :func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
-:func:`gltf_shape_props` (a glTF primitive's, where its material's factors are constant),
-:func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`.
+:func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
+:class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
+:func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`,
+:func:`cache_parts`, :data:`TEXTURED_CODE_VERSION`.
 References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); Mitsuba 3's ``volpath`` and ``homogeneous`` plugins.
 """
@@ -42,19 +44,24 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
 from pbrcheck.errors import SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
 from pbrcheck.transmission import HALF_VECTOR_EPS, SMOOTH_ALPHA, channel_iors
-from pbrcheck.transmission_params import REFERENCE_RENDERED, reference_renders
+from pbrcheck.transmission_params import REFERENCE_RENDERED, has_varying, reference_renders
 
 import drjit as dr
 import mitsuba as mi
 
+from reference.lobe_bsdf import aniso_sample_h
 from reference.lobes import AnisotropicGGX
 
 PI = math.pi
 PLUGIN_NAME = "pbr_transmissive"
+#: The textured variant (:class:`TexturedTransmissive`).
+TEXTURED_PLUGIN = "pbr_transmissive_textured"
 #: The extensions the reference renders (path mode, the scene files' analytic objects): what the
 #: honesty contract needs before :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` may list them
 #: is the real-time side too (issue 37 item 2). Dispersion: three wavelengths (the class docstring).
@@ -113,10 +120,15 @@ class MicrofacetGGX:
     """:class:`pbrcheck.transmission.MicrofacetGGX`."""
 
     def __init__(self, roughness):
-        r = float(roughness)
-        self.alpha = max(r * r, MIN_ALPHA)
-        self.smooth = self.alpha < SMOOTH_ALPHA
-        self._vndf = AnisotropicGGX(r)
+        if isinstance(roughness, (int, float)):
+            r = float(roughness)
+            self.alpha = max(r * r, MIN_ALPHA)
+            self.smooth = self.alpha < SMOOTH_ALPHA
+            self._vndf = AnisotropicGGX(r)
+        else:   # per lane (a textured material's, TexturedTransmissive): glossy, alpha >= SMOOTH_ALPHA
+            self.alpha = dr.maximum(roughness * roughness, SMOOTH_ALPHA)
+            self.smooth = False
+            self._vndf = None
 
     def D(self, h):
         a2 = self.alpha * self.alpha
@@ -139,7 +151,10 @@ class MicrofacetGGX:
         return dr.select(vh * v.z > 0.0, val, 0.0)
 
     def sample_h(self, v, u):
-        return self._vndf.sample_h(dr.select(v.z < 0.0, -v, v), u)   # reference.lobes' sampler, as numpy's
+        w = dr.select(v.z < 0.0, -v, v)
+        if self._vndf is None:   # the same per-lane sampler (reference.lobe_bsdf) at this lane's alpha
+            return aniso_sample_h(w, u, self.alpha, self.alpha, 1.0, 0.0)
+        return self._vndf.sample_h(w, u)   # reference.lobes' sampler, as numpy's
 
 
 class RoughDielectric:
@@ -283,7 +298,8 @@ def _mean(c):
 
 
 class TransmissiveMaterial(mi.BSDF):
-    """``pbr_transmissive`` (the module docstring). Parameters are constants (analytic objects)."""
+    """``pbr_transmissive`` (the module docstring). Parameters are constants (analytic objects, glTF
+    materials of constant factors); :class:`TexturedTransmissive` passes per-lane ones (``p``)."""
 
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
@@ -322,37 +338,40 @@ class TransmissiveMaterial(mi.BSDF):
                 f"{self.roughness}, ior={self.ior}, transmission={self.transmission}, diffuse_transmission="
                 f"{self.dt}, volume={self.volume}]")
 
-    def _probs(self, v):
-        """The mixture's lobe probabilities at ``v``: (metal, interface, diffuse, diffuse transmission)."""
-        m, t = self.metallic, self.transmission
+    def _probs(self, v, p=None):
+        """The mixture's lobe probabilities at ``v``: (metal, interface, diffuse, diffuse transmission);
+        ``p``: the parameters (this material's, or a textured one's per lane: :meth:`params`)."""
+        p = self if p is None else p
+        m, t = p.metallic, p.transmission
         Fv = _schlick(dr.abs(v.z), self.f0)
-        w = [m * _mean(_schlick(dr.abs(v.z), self.base_color)),
-             (1.0 - m) * (Fv + (1.0 - Fv) * t * _mean(self.base_color)),
-             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * (1.0 - self.dt) * _mean(self.base_color),
-             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * self.dt * _mean(self.dt_color)]
+        w = [m * _mean(_schlick(dr.abs(v.z), p.base_color)),
+             (1.0 - m) * (Fv + (1.0 - Fv) * t * _mean(p.base_color)),
+             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * (1.0 - p.dt) * _mean(p.base_color),
+             (1.0 - m) * (1.0 - Fv) * (1.0 - t) * p.dt * _mean(p.dt_color)]
         total = w[0] + w[1] + w[2] + w[3]
         ok = total > 0.0
         return [dr.select(ok, x / dr.maximum(total, 1e-30), 1.0 if k == 1 else 0.0) for k, x in enumerate(w)]
 
-    def _eval_pdf(self, v, l):
-        """(f |n.l| RGB, mixture pdf) of the non-delta lobes."""
-        m, t = self.metallic, self.transmission
+    def _eval_pdf(self, v, l, p=None):
+        """(f |n.l| RGB, mixture pdf) of the non-delta lobes (``p`` as :meth:`_probs`)."""
+        p = self if p is None else p
+        m, t = p.metallic, p.transmission
         same = v.z * l.z > 0.0
         lr = dr.select(same, l, _mirror(l))
-        f_spec, p_spec, vh = self.spec.lobe(v, lr)
-        metal = dr.select(same, _schlick(vh, self.base_color) * f_spec, 0.0) if not self.spec.ggx.smooth else mi.Color3f(0.0)
-        if len(self.ifaces) == 1:
-            iface, iface_pdf = self.iface.eval(v, l), self.iface.pdf(v, l)
+        f_spec, p_spec, vh = p.spec.lobe(v, lr)
+        metal = dr.select(same, _schlick(vh, p.base_color) * f_spec, 0.0) if not p.spec.ggx.smooth else mi.Color3f(0.0)
+        if len(p.ifaces) == 1:
+            iface, iface_pdf = p.iface.eval(v, l), p.iface.pdf(v, l)
         else:   # each channel its own interface; sampled by a channel chosen uniformly: the mean pdf
-            iface = mi.Color3f(*[f.eval(v, l) for f in self.ifaces])
-            iface_pdf = sum(f.pdf(v, l) for f in self.ifaces) / 3.0
-        tint = dr.select(same, mi.Color3f(1.0), t * self.base_color)
+            iface = mi.Color3f(*[f.eval(v, l) for f in p.ifaces])
+            iface_pdf = sum(f.pdf(v, l) for f in p.ifaces) / 3.0
+        tint = dr.select(same, mi.Color3f(1.0), t * p.base_color)
         Fd = _schlick(vh, self.f0)
         cos_l = dr.abs(l.z) / PI
-        diff = dr.select(same, (1.0 - self.dt) * self.base_color * cos_l, self.dt * self.dt_color * cos_l)
+        diff = dr.select(same, (1.0 - p.dt) * p.base_color * cos_l, p.dt * p.dt_color * cos_l)
         value = m * metal + (1.0 - m) * (iface * tint + (1.0 - Fd) * (1.0 - t) * diff)
-        pm, pi, pd, pdt = self._probs(v)
-        p_metal = 0.0 if self.spec.ggx.smooth else dr.select(same, p_spec, 0.0)
+        pm, pi, pd, pdt = self._probs(v, p)
+        p_metal = 0.0 if p.spec.ggx.smooth else dr.select(same, p_spec, 0.0)
         pdf = pm * p_metal + pi * iface_pdf + pd * dr.select(same, cos_l, 0.0) + pdt * dr.select(same, 0.0, cos_l)
         return value, pdf
 
@@ -367,43 +386,47 @@ class TransmissiveMaterial(mi.BSDF):
         return dr.select(active, value, 0.0), dr.select(active, pdf, 0.0)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
-        v = si.wi
-        m, t = self.metallic, self.transmission
-        pm, pi, pd, pdt = self._probs(v)
+        return self._sample_at(si.wi, sample1, sample2, active)
+
+    def _sample_at(self, v, sample1, sample2, active, p=None):
+        """:meth:`sample` at local ``v`` with parameters ``p`` (as :meth:`_probs`)."""
+        p = self if p is None else p
+        m, t = p.metallic, p.transmission
+        pm, pi, pd, pdt = self._probs(v, p)
         c1, c2, c3 = pm, pm + pi, pm + pi + pd
         use_m, use_i, use_d = sample1 < c1, (sample1 >= c1) & (sample1 < c2), (sample1 >= c2) & (sample1 < c3)
         uc = dr.clip((sample1 - c1) / dr.maximum(pi, 1e-30), 0.0, 0.99999994)   # the interface's own choice
         k = mi.UInt32(0)
-        if len(self.ifaces) == 1:
-            l_i, w_i, _, delta_i = self.iface.sample(v, sample2, uc)
+        if len(p.ifaces) == 1:
+            l_i, w_i, _, delta_i = p.iface.sample(v, sample2, uc)
         else:   # the channel k from uc's first third, its own choice from the rest (still uniform)
             k = mi.UInt32(dr.minimum(mi.UInt32(uc * 3.0), 2))
             uk = dr.clip(uc * 3.0 - mi.Float(k), 0.0, 0.99999994)
-            s3 = [f.sample(v, sample2, uk) for f in self.ifaces]
+            s3 = [f.sample(v, sample2, uk) for f in p.ifaces]
             l_i, w_i, _, delta_i = (dr.select(k == 0, s3[0][j], dr.select(k == 1, s3[1][j], s3[2][j])) for j in range(4))
-        h = mi.Vector3f(0.0, 0.0, 1.0) if self.spec.ggx.smooth else self.spec.ggx.sample_h(v, sample2)
+        h = mi.Vector3f(0.0, 0.0, 1.0) if p.spec.ggx.smooth else p.spec.ggx.sample_h(v, sample2)
         l_m = _reflect(v, dr.select(dr.dot(v, h) < 0.0, -h, h))
         cw = mi.warp.square_to_cosine_hemisphere(sample2)
         l_d = mi.Vector3f(cw.x, cw.y, dr.select(v.z > 0.0, cw.z, -cw.z))
         l = dr.select(use_m, l_m, dr.select(use_i, l_i, dr.select(use_d, l_d, -l_d)))
         same = l.z * v.z > 0.0
-        value, pdf = self._eval_pdf(v, l)
+        value, pdf = self._eval_pdf(v, l, p)
         weight = value / dr.maximum(pdf, 1e-30)
         # the delta lobes: the metal's and the interface's mirror share one direction
-        smooth = self.iface.ggx.smooth
+        smooth = p.iface.ggx.smooth
         delta = (use_i & delta_i) | (use_m & smooth)
         if self.volume:
-            F_c = [fresnel_dielectric(mi.Float(v.z), f.eta, f.f0) for f in self.ifaces]
+            F_c = [fresnel_dielectric(mi.Float(v.z), f.eta, f.f0) for f in p.ifaces]
             F_i = mi.Color3f(*F_c) if len(F_c) == 3 else mi.Color3f(F_c[0])
         else:
             F_i = mi.Color3f(_schlick(v.z, self.f0))
-        mass_r = m * _schlick(dr.abs(v.z), self.base_color) + (1.0 - m) * F_i
+        mass_r = m * _schlick(dr.abs(v.z), p.base_color) + (1.0 - m) * F_i
         prob_r = pm + pi * _mean(F_i)
         # w_i: the lobe's value over its own choice's probability; a dispersive refraction carries its
         # channel only, chosen with probability 1/3 (each channel's delta lies elsewhere)
-        chan = mi.Color3f(1.0) if len(self.ifaces) == 1 else 3.0 * mi.Color3f(
+        chan = mi.Color3f(1.0) if len(p.ifaces) == 1 else 3.0 * mi.Color3f(
             dr.select(k == 0, 1.0, 0.0), dr.select(k == 1, 1.0, 0.0), dr.select(k == 2, 1.0, 0.0))
-        mass_t = (1.0 - m) * t * self.base_color * w_i * chan
+        mass_t = (1.0 - m) * t * p.base_color * w_i * chan
         w_delta = dr.select(same, mass_r / dr.maximum(prob_r, 1e-30), mass_t / dr.maximum(pi, 1e-30))
         pdf_delta = dr.select(same, prob_r, pi)
         bs = dr.zeros(mi.BSDFSample3f)
@@ -427,6 +450,82 @@ class TransmissiveMaterial(mi.BSDF):
         return bs, dr.select(ok, weight, 0.0)
 
 
+class _Params:
+    """One call's per-lane parameters of a :class:`TexturedTransmissive` (the attributes
+    :meth:`TransmissiveMaterial._probs` reads)."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+class TexturedTransmissive(TransmissiveMaterial):
+    """``pbr_transmissive_textured``: :class:`TransmissiveMaterial` whose parameters are read per hit
+    from the glTF textures (issue 37). ``core``: a ``pbr_textured`` (:class:`reference.textured.TexturedMaterial`,
+    single-sided, no lobes) of the core material, whose ``_view`` reads the base colour (times
+    ``COLOR_0``), metallic-roughness and normal textures at the hit's texCoord sets with their samplers
+    and ``KHR_texture_transform``, as ``pbr_textured`` does, and gives the normal-mapped frame (never
+    flipped: this material is two-sided, ``+Z`` the outside); ``<slot>_texture`` / ``<slot>_texcoord``
+    for ``transmission`` (R), ``diffuse_transmission`` (A) and ``diffuse_transmission_color`` (RGB,
+    sRGB-decoded): ``transmission = factor x R``, ``diffuse_transmission = factor x A``, its colour
+    ``factor x RGB`` ([Trans], [DiffTrans]). Roughness per lane when ``roughness`` (the factor, floored)
+    is above the smooth limit: its interfaces glossy with ``alpha >= SMOOTH_ALPHA`` (a texel rougher
+    than 0 but below that limit shades as the narrowest glossy lobe); else every lane is smooth (the
+    texel only lowers it). ``thicknessTexture`` is not read: the path follows the mesh ([Volume]: a
+    real-time hint)."""
+
+    SLOTS = ("transmission", "diffuse_transmission", "diffuse_transmission_color")
+
+    def __init__(self, props):
+        TransmissiveMaterial.__init__(self, props)
+        self.core = props.get("core")
+        self.tex = {}
+        for slot in self.SLOTS:
+            if f"{slot}_texture" in props:
+                self.tex[slot] = props.get(f"{slot}_texture")
+                self.core.uvset[slot] = int(props.get(f"{slot}_texcoord", 0))   # core._uv_si reads it
+        self.m_flags = self.m_flags | mi.BSDFFlags.SpatiallyVarying
+        self.m_components = [c | mi.BSDFFlags.SpatiallyVarying for c in self.m_components]
+
+    def to_string(self):
+        return f"TexturedTransmissive[{TransmissiveMaterial.to_string(self)}, textures={sorted(self.tex)}]"
+
+    def params(self, si, active):
+        """(:class:`_Params` of the lanes, their shading frame in Mitsuba's local coordinates)."""
+        view, frame = self.core._view(si, active)
+        read = {k: t.eval(self.core._uv_si(k, si, active), active) for k, t in self.tex.items()}
+        t = mi.Float(self.transmission) * (read["transmission"].x if "transmission" in read else 1.0)
+        dt = mi.Float(self.dt) * (read["diffuse_transmission"].x if "diffuse_transmission" in read else 1.0)
+        dt_color = self.dt_color * (read["diffuse_transmission_color"] if "diffuse_transmission_color" in read else 1.0)
+        ifaces, spec = self.ifaces, self.spec
+        if not self.iface.ggx.smooth:
+            r = view.roughness
+            ifaces = [RoughDielectric(r, n) for n in self.iors] if self.volume else [ThinDielectric(r, self.ior)]
+            spec = ThinDielectric(r, self.ior)
+        return _Params(base_color=view.base_color, metallic=view.metallic, transmission=t, dt=dt,
+                       dt_color=mi.Color3f(dt_color), ifaces=ifaces, iface=ifaces[0], spec=spec), frame
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        p, frame = self.params(si, active)
+        value, pdf = self._eval_pdf(frame.to_local(si.wi), frame.to_local(wo), p)
+        return dr.select(active, value, 0.0), dr.select(active, pdf, 0.0)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[0]
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self.eval_pdf(ctx, si, wo, active)[1]
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        p, frame = self.params(si, active)
+        bs, w = self._sample_at(frame.to_local(si.wi), sample1, sample2, active, p)
+        bs.wo = frame.to_world(bs.wo)
+        return bs, w
+
+    def eval_diffuse_reflectance(self, si, active=True):
+        p, _ = self.params(si, active)
+        return (1.0 - p.metallic) * (1.0 - p.transmission) * p.base_color
+
+
 _REGISTERED: set[str] = set()
 
 
@@ -435,6 +534,7 @@ def register() -> None:
     v = mi.variant()
     if v not in _REGISTERED:
         mi.register_bsdf(PLUGIN_NAME, lambda props: TransmissiveMaterial(props))
+        mi.register_bsdf(TEXTURED_PLUGIN, lambda props: TexturedTransmissive(props))
         _REGISTERED.add(v)
 
 
@@ -481,12 +581,16 @@ def shape_fields(obj, brdf) -> dict:
     return out
 
 
-def gltf_shape_props(material, brdf) -> dict:
+def gltf_shape_props(material, brdf, asset=None, core=None, cache=None) -> dict:
     """The Mitsuba objects a glTF primitive of ``material`` takes (``{}`` unless
     :func:`pbrcheck.transmission_params.reference_renders`): ``bsdf`` (``pbr_transmissive`` of its
     factors; a volume where ``thicknessFactor > 0``: the mesh bounds it, whatever ``doubleSided``) and
-    ``interior`` (the volume's medium, as :func:`shape_fields`)."""
-    if not reference_renders(material):
+    ``interior`` (the volume's medium, as :func:`shape_fields`). A material with textures of
+    :data:`pbrcheck.transmission_params.VARYING_SLOTS` takes :class:`TexturedTransmissive` (``asset``:
+    its images; ``core()``: the ``pbr_textured`` dict of its core material,
+    :func:`reference.textured._material_dict`; ``cache``: the decoded images shared with it), or
+    ``{}`` where ``asset`` is None (no images to read)."""
+    if not reference_renders(material) or (has_varying(material) and asset is None):
         return {}
     register()
     t, vol, disp = material.transmission, material.volume, material.dispersion
@@ -498,10 +602,59 @@ def gltf_shape_props(material, brdf) -> dict:
          "diffuse_transmission": dt.factor if dt is not None else 0.0,
          "diffuse_transmission_color": list(dt.color) if dt is not None else [1.0, 1.0, 1.0],
          "dispersion": disp.dispersion if disp is not None else 0.0}
+    if has_varying(material):
+        d.update(_textured_props(material, asset, core, cache))
     out = {"bsdf": mi.load_dict(d)}
     if volume and not math.isinf(vol.attenuation_distance):
         out["interior"] = mi.load_dict(_medium(vol.attenuation_color, vol.attenuation_distance))
     return out
+
+
+#: The core keys of ``pbr_textured`` the textured variant's ``core`` keeps (its lobes' keys dropped:
+#: :func:`pbrcheck.transmission_params.reference_renders` leaves materials with lobe textures opaque).
+_CORE_KEYS = ("type", "vertex_color", "primary_texcoord", "base_color", "metallic", "roughness", "specular", "ndf",
+              "geometry", "fresnel", "roughness_floor", "metallic_blend", "normal_scale")
+#: slot -> (the extension's field, its texture attribute, sRGB, the channels read).
+_EXT_TEXTURES = {"transmission": ("transmission", "texture", False, (0,)),
+                 "diffuse_transmission": ("diffuse_transmission", "texture", False, (3,)),
+                 "diffuse_transmission_color": ("diffuse_transmission", "color_texture", True, (0, 1, 2))}
+
+
+def _textured_props(material, asset, core, cache) -> dict:
+    """``pbr_transmissive_textured``'s extra keys (:class:`TexturedTransmissive`)."""
+    from .textured import texture_dict
+
+    c = core()
+    core_dict = {k: v for k, v in c.items() if k in _CORE_KEYS or k.rsplit("_", 1)[0] in
+                 ("base_color", "metallic_roughness", "normal") and k.endswith(("_texture", "_texcoord"))}
+    core_dict["double_sided"] = False   # no frame flip on a back face: this material is two-sided, +Z outside
+    out = {"type": TEXTURED_PLUGIN, "core": core_dict}
+    for slot, (field, attr, srgb, ch) in _EXT_TEXTURES.items():
+        ext = getattr(material, field)
+        ref = getattr(ext, attr) if ext is not None else None
+        if ref is None:
+            continue
+        key = ("transmission", ref.image, srgb, ch)
+        if key not in cache:
+            px = asset.images[ref.image].linear(srgb)
+            cache[key] = np.repeat(px[..., ch[:1]], 3, -1) if len(ch) == 1 else px[..., list(ch)]
+        out[f"{slot}_texture"] = texture_dict(cache[key], ref)
+        out[f"{slot}_texcoord"] = ref.texcoord
+    return out
+
+
+#: Bump when a change of the textured transmissive material changes the pixels of scenes holding one:
+#: part of their cache keys alone (:func:`cache_parts`). 1: the textures read per hit (they rendered opaque).
+TEXTURED_CODE_VERSION = "1"
+
+
+def cache_parts(scene) -> dict:
+    """``{"textured_transmission_code": TEXTURED_CODE_VERSION}`` where an asset of ``scene`` has a
+    material that :class:`TexturedTransmissive` renders, else ``{}`` (other scenes' keys unchanged)."""
+    if any(reference_renders(m) and has_varying(m) for inst in getattr(scene, "assets", ())
+           for m in inst.asset.materials):
+        return {"textured_transmission_code": TEXTURED_CODE_VERSION}
+    return {}
 
 
 def _medium(color, distance) -> dict:

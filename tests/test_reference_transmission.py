@@ -306,7 +306,7 @@ def test_material_twins_eval_pdf(R, kw):
 
 # ---- glTF assets -------------------------------------------------------------------------------------
 
-def _glass_quad(tmp_path, name, ior=1.0, textured=False, volume=None):
+def _glass_quad(tmp_path, name, ior=1.0, textured=False, volume=None, coat=False):
     from tests.gltf_build import quad_asset
 
     ext = {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": ior}}
@@ -317,6 +317,8 @@ def _glass_quad(tmp_path, name, ior=1.0, textured=False, volume=None):
     if textured:
         mat["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
         images = [(np.full((2, 2, 4), 200, np.uint8), None)]
+    if coat:   # a clearcoat lobe's texture: not read by the transmissive material (opaque)
+        ext["KHR_materials_clearcoat"] = {"clearcoatFactor": 1.0, "clearcoatTexture": {"index": 0}}
     return quad_asset(tmp_path / f"{name}.gltf", mat, images, scale=3.0)
 
 
@@ -347,10 +349,11 @@ def test_a_gltf_sheet_of_transmission_one_and_ior_one_is_invisible(R, tmp_path):
 
 
 def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_path, capsys):
-    """A transmissive glTF material with a texture that varies its parameters (here the base colour)
-    keeps the opaque textured material (its transmission named as unmodelled on stderr, as both images
-    leave it out); one of constant factors takes ``pbr_transmissive``, and a volume its interior medium;
-    stderr says which."""
+    """A transmissive glTF material with a texture the reference does not read per hit (here a
+    clearcoat lobe's) keeps the opaque textured material (its transmission named as unmodelled on
+    stderr, as both images leave it out); one of constant factors takes ``pbr_transmissive``, and a
+    volume its interior medium; one with a base colour texture the textured variant, which needs the
+    asset's images (none given: ``{}``); stderr says which."""
     from pbrcheck.gltf import load_asset
     from pbrcheck.scene import BRDFModel, load_scene
     from pbrcheck.transmission_params import reference_renders
@@ -358,17 +361,20 @@ def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_p
 
     clear = load_asset(_glass_quad(tmp_path, "clear")).materials[0]
     tex = load_asset(_glass_quad(tmp_path, "tex", textured=True)).materials[0]
+    coat = load_asset(_glass_quad(tmp_path, "coat", textured=True, coat=True)).materials[0]
     vol = load_asset(_glass_quad(tmp_path, "vol", volume={"thicknessFactor": 1.0, "attenuationDistance": 2.0,
                                                            "attenuationColor": [0.5, 0.5, 0.5]})).materials[0]
-    assert reference_renders(clear) and not reference_renders(tex) and reference_renders(vol)
+    assert reference_renders(clear) and reference_renders(tex) and not reference_renders(coat) and reference_renders(vol)
     props = R.gltf_shape_props(vol, BRDFModel())
     assert props["bsdf"].volume and "interior" in props and not R.gltf_shape_props(clear, BRDFModel())["bsdf"].volume
-    assert R.gltf_shape_props(tex, BRDFModel()) == {}
+    assert R.gltf_shape_props(tex, BRDFModel()) == {} == R.gltf_shape_props(coat, BRDFModel())
     assert "the real-time image leaves it out (the reference renders it in path mode only)" in \
         notice_lines(load_asset(tmp_path / "clear.gltf"))[0]
-    assert "the reference and the real-time image leave it out" in notice_lines(load_asset(tmp_path / "tex.gltf"))[0]
-    load_scene(str(tmp_path / "tex.gltf"))
-    R.check_local(_asset_scene(tmp_path / "tex.gltf"))   # renders opaque: local mode takes it
+    assert "the reference and the real-time image leave it out" in notice_lines(load_asset(tmp_path / "coat.gltf"))[0]
+    load_scene(str(tmp_path / "coat.gltf"))
+    R.check_local(_asset_scene(tmp_path / "coat.gltf"))   # renders opaque: local mode takes it
+    with pytest.raises(SceneError, match="local mode"):
+        R.check_local(_asset_scene(tmp_path / "tex.gltf"))
 
 
 def test_a_diffusely_transmitting_sheet_in_a_white_environment_is_its_numpy_albedo(R):
