@@ -213,13 +213,20 @@ def notice_lines(asset) -> list[str]:
             f"a gate check of it is not judged" for u in asset.unmodelled]
 
 
+#: What a notice says of a transmission extension both renderers render in part (issue 37): the
+#: reference in its path mode only (local mode refuses it), the real-time renderer in its raster
+#: pipeline only (the engines' screen-space refraction; the ray-cast pipeline draws it opaque).
+PARTLY_RENDERED = ("rendered in part: the reference in path mode only, the real-time image by its raster "
+                   "pipeline only (screen space)")
+
+
 def _what_is_left_out(asset, u) -> str:
     """Which images leave feature ``u`` out: both, except a transmission extension whose every
     material the reference's path mode renders (issue 37: constant factors or the textures it reads
     per hit, :func:`pbrcheck.transmission_params.reference_renders`)."""
     mats = [m for m in getattr(asset, "materials", ()) if m.name in u.materials]
     if u.feature in REFERENCE_RENDERED and mats and all(reference_renders(m) for m in mats):
-        return "the real-time image leaves it out (the reference renders it in path mode only)"
+        return PARTLY_RENDERED
     return "the reference and the real-time image leave it out"
 
 
@@ -263,8 +270,7 @@ def announce_scene(scene):
             continue
         _NOTICES["seen"].add(key)
         # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37)
-        what = ("the real-time image leaves it out (the reference renders it in path mode only)"
-                if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
+        what = (PARTLY_RENDERED if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
         print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
               f"{what}; a gate check of it is not judged", file=stream)
     return scene

@@ -20,7 +20,7 @@ from pbrcheck.export import export_scene
 from pbrcheck.gltf import MODELLED_EXTENSIONS, SRGB_SLOTS, load_asset, texture_transform_matrix
 from pbrcheck.gltf_features import used_images
 from pbrcheck.scene import Material, dump_toml, scene_from_dict
-from pbrcheck.unmodelled import Unmodelled
+from pbrcheck.unmodelled import PARTLY_RENDERED, Unmodelled
 from pbrcheck_cli import main
 from tests.test_lobe_params import _asset, _scene, _tomlable   # the same small assets and scenes
 
@@ -223,6 +223,7 @@ def test_stderr_says_the_reference_renders_transmission_in_path_mode(tmp_path, c
     toml.write_text(dump_toml(scene_from_dict(_scene([{"transmission": 1.0, "clearcoat": 1.0}])).to_dict()))
     assert main(["check-scene", str(toml)]) == 0
     err = capsys.readouterr().err
-    assert (f"glass.toml: not modelled: {TR} (objects: sphere0): the real-time image leaves it out (the reference "
-            "renders it in path mode only); a gate check of it is not judged") in err
+    assert (f"glass.toml: not modelled: {TR} (objects: sphere0): {PARTLY_RENDERED}; a gate check of it is not "
+            "judged") in err
+    assert "path mode only" in PARTLY_RENDERED and "raster" in PARTLY_RENDERED
     assert "KHR_materials_clearcoat" not in err  # a lobe both renderers render (issue 36)
