@@ -83,7 +83,7 @@ from pbrcheck.terms import COS_EPS
 import drjit as dr
 import mitsuba as mi
 
-from . import terms
+from . import multiscatter, terms
 
 PI = math.pi
 INV_PI = 1.0 / PI
@@ -99,6 +99,11 @@ REFERENCE_LOBES = frozenset(LP.LOBE_EXTENSIONS)
 def reference_models(extension: str) -> bool:
     """Whether the reference renders ``extension`` (a ``KHR_materials_*`` name)."""
     return extension in REFERENCE_LOBES
+
+
+#: The lobes ``multiscatter = "random_walk"`` carries (:data:`pbrcheck.lobe_params.WALK_LOBE_EXTENSIONS`):
+#: the walk is the base's specular (Schlick F0 / F90 per bounce), the coat and sheen layer on it.
+WALK_LOBES = tuple(n for n in LOBES if any(e.endswith("_" + n) for e in LP.WALK_LOBE_EXTENSIONS))
 
 
 #: Each lobe's material props and their neutral values (the specifications' defaults);
@@ -135,14 +140,16 @@ def _vec(x) -> tuple:
 
 def model_problem(ndf: str, geometry: str, fresnel: str, multiscatter: str, used):
     """What of the scene-wide model a material with the lobes ``used`` cannot take, as ``(field,
-    expected, found)``, or None: Schlick's Fresnel (the extensions' Fresnel, with its f90), single
-    scattering (the random walk and the energy compensations know the base alone), and for anisotropy
+    expected, found)``, or None: Schlick's Fresnel (the extensions' Fresnel, with its f90), the random
+    walk only beside the lobes it carries (:data:`WALK_LOBES`: anisotropy and iridescence are refused with
+    it), and for anisotropy
     the GGX with its height-correlated Smith G2 (the only anisotropic terms written)."""
     if fresnel != "schlick":
         return "brdf.fresnel", f"'schlick' with the glTF lobes {list(used)}", fresnel
-    if multiscatter != "none":
-        return ("brdf.multiscatter", f"'none' with the glTF lobes {list(used)} (they are single-scattering)",
-                multiscatter)
+    walkless = [n for n in used if n not in WALK_LOBES]
+    if multiscatter != "none" and walkless:
+        return ("brdf.multiscatter", f"'none' with the glTF lobes {walkless} (the random walk is isotropic with "
+                f"Schlick's Fresnel: it carries {list(WALK_LOBES)} only)", multiscatter)
     if "anisotropy" in used and (ndf, geometry) != ("ggx", "smith_ggx_correlated"):
         return ("brdf.ndf / brdf.geometry", "'ggx' and 'smith_ggx_correlated' with anisotropy",
                 f"{ndf} / {geometry}")
@@ -635,6 +642,8 @@ def _eval_pdf(S, wo, active):
         D = terms.ndf(m.ndf).eval(h, S.alpha)
         G = terms.geometry_term(m.geometry, S.NoV, cl, m.roughness, S.alpha)
     value = diffuse + F * (D * G / (4.0 * dr.maximum(S.NoV, COS_EPS)))
+    if m.multiscatter != "none":   # the walk's orders >= 2 added to the base's specular, under the layers
+        value += _walk_orders(S, wo, valid)
     pdf = S.p[0] * INV_PI * cl + S.p[1] * S.spec_pdf(wo, h)
     if "sheen" in used:
         sv = sheen_eval(wi, wo, S.sheen_alpha)
@@ -649,6 +658,29 @@ def _eval_pdf(S, wo, active):
         value = value * (1.0 - S.coat_w) + S.coat_w * coat
         pdf += S.p[3] * coat_pdf
     return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
+
+
+def _walk_orders(S, wo, valid):
+    """The random walk's scattering orders >= 2 of the base's specular ``f cos`` [Heitz16 alg. 4;
+    :func:`reference.multiscatter.walk_eval`], with the base's Fresnel per bounce: Schlick of the
+    dielectric's ``f0_d`` / ``f90_d`` ([Spec]) and of the metal's ``base_color`` / 1, mixed as the
+    non-lobe walk mixes them (:func:`reference.multiscatter.blend_walk`: ``"gltf"`` the two walks of one
+    path, ``"f0"`` one walk of the mixed F0 / F90). ``F90`` is passed only where KHR_materials_specular is
+    used (without it ``f90_d = 1`` and the model's Schlick gives the non-lobe walk's bits: a neutral lobe
+    renders the walk alone). The walk runs on detached values, ``wi`` and ``wo`` included (a symbolic
+    loop is not reverse-differentiable, and ``sample`` evaluates at a direction that carries gradients)."""
+    m = S.m
+    wi, wo = dr.detach(S.wi), dr.detach(wo)
+    key = multiscatter.query_key(m.ms_seed, wi.x, wi.y, wi.z, wo.x, wo.y, wo.z)
+    spec = "specular" in S.used
+
+    def walk(f0, f90):
+        return multiscatter.walk_eval(wi, wo, S.alpha, f0, key, fresnel=m.fresnel, min_order=2, ndf=m.ndf,
+                                      F90=f90 if spec else None, active=valid)
+    mt = m.metallic
+    if m.metallic_blend == "f0":
+        return walk(S.f0_d * (1.0 - mt) + m.base_color * mt, S.f90_d * (1.0 - mt) + mt)
+    return walk(S.f0_d, S.f90_d) * (1.0 - mt) + walk(mi.Color3f(m.base_color), 1.0) * mt
 
 
 def eval_pdf(m, si, wo, active):
