@@ -46,6 +46,17 @@ their albedo estimates at h = n (Schlick at n.v for the specular and diffuse, as
 ``mean(sheenColor) E(n.v)`` for the sheen; ``clearcoat Fc`` for the coat), each scaled by the layers
 above it. ``pdf`` is the mixture's density; ``sample`` returns ``f cos / pdf``.
 
+The random walk (``multiscatter = "random_walk"``; issue 40): the walk is the base's specular, the
+lobes layered on it as above. ``eval`` adds the walk's orders >= 2 [Heitz16 alg. 4;
+:func:`reference.multiscatter.walk_eval`, the non-lobe walk's key] to ``F spec``, each bounce's Fresnel
+Schlick of ``f0_d`` / ``f90_d`` (the dielectric) and of ``base_color`` / 1 (the metal), blended as
+:func:`reference.multiscatter.blend_walk` blends them; so ``coated`` and ``sheened`` layer the multiply
+scattered base. Sampling stays the mixture above (the specular component from its single-scattering
+VNDF, whose support is the hemisphere): ``sample``'s ``f cos / pdf`` has the walk's unbiased estimate in
+``f`` and the mixture's exact density in ``pdf``. :data:`WALK_LOBES` are the lobes it carries; the walk
+is isotropic with a per-bounce Schlick Fresnel, so anisotropy and iridescence refuse it
+(:func:`model_problem`).
+
 Mirror limits: a lobe's alpha is floored at :data:`LOBE_MIN_ALPHA` (= ``pbrcheck.brdf.DELTA_LOBE_ALPHA``,
 roughness 0.01) rather than made a Dirac component: a glossy lobe of width 1e-4 rad, far below an
 environment texel (0.012 rad at 512 x 256), sampled by its VNDF with weight ``F G2 / G1``. A material
@@ -56,13 +67,13 @@ Differentiable like the base: the values are Dr.Jit expressions of the parameter
 inputs, thickness, film IOR, sheen roughness and n.v, are no differentiable parameters; the film's
 base F0 is, through ``base_color`` of a metal: that path carries no gradient, stated here).
 
-API: :data:`LOBES`, :data:`REFERENCE_LOBES`, :func:`reference_models`, :data:`LOBE_DEFAULTS`,
+API: :data:`LOBES`, :data:`REFERENCE_LOBES`, :func:`reference_models`, :data:`WALK_LOBES`, :data:`LOBE_DEFAULTS`,
 :data:`LOBE_MIN_ALPHA`, :data:`SHEEN_TABLE_TOL`, :class:`LobeParams`, :func:`lobes_of_material`,
 :func:`eval_pdf`, :func:`sample`, :func:`film_spectral`, :func:`sheen_albedo_table`, :func:`sheen_albedo`,
 :func:`aniso_D`, :func:`aniso_G2`, :func:`aniso_G1`, :func:`aniso_sample_h`, :func:`sheen_eval`,
 :func:`sheen_pdf`, :func:`sheen_sample`.
 References: as :mod:`pbrcheck.lobes` ([glTF-B], [Sheen], [Coat], [Spec], [Aniso], [Irid], [EK17],
-[Heitz14], [Heitz18], [BB17], [CIE]).
+[Heitz14], [Heitz18], [BB17], [CIE]); [Heitz16] as :mod:`reference.multiscatter`.
 """
 
 from __future__ import annotations

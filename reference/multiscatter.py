@@ -5,7 +5,9 @@
 microfacet BSDF of the same Smith microsurface [Heitz16]: a ray enters the microsurface, bounces
 on microfacets (each bounce a reflection about a visible normal, weighted by the Schlick Fresnel
 of that bounce) until it leaves. The diffuse term is unchanged. Used by :mod:`reference.bsdf`
-through two hooks (:func:`eval_pdf_hook`, :func:`sample_hook`); all the maths is here.
+through two hooks (:func:`eval_pdf_hook`, :func:`sample_hook`) and, under the glTF lobes, by
+:mod:`reference.lobe_bsdf` (:func:`walk_eval` with the dielectric's Schlick ``F90``:
+KHR_materials_specular); all the walk's maths is here.
 
 The walk [Heitz16, sec. 4 and 5, algorithms 1-3]
 ------------------------------------------------
