@@ -18,7 +18,7 @@ API
 - :func:`object_lobes` -- ``{extension: object ids}`` of a scene: analytic objects by their
   material's lobe fields, glTF mesh objects by their material's active extensions.
 - :func:`scene_lobes` -- the extensions a scene uses, in order; :func:`no_random_walk` -- why a
-  scene with lobes has no random-walk reference.
+  scene's lobes leave it without a random-walk reference (anisotropy, iridescence; None otherwise).
 - :class:`LobeFamily`, :func:`lobe_families` -- the real-time registry's lobe families with the
   option that chooses among their members (None: not an option yet).
 - :func:`lobe_variants` -- for a renderer and a scene: one ``{option: member}`` per member of each
@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.lobe_params import (ANISOTROPY, CLEARCOAT, IRIDESCENCE, LOBE_EXTENSIONS, SCENE_FIELD_EXTENSION, SHEEN,
-                                  SPECULAR, scene_features)
+                                  SPECULAR, WALK_LOBE_EXTENSIONS, scene_features)
 
 #: extension -> the short name the report, the tables and the CLI use.
 LOBE_NAMES = {e: e.removeprefix("KHR_materials_") for e in LOBE_EXTENSIONS}
@@ -86,15 +86,17 @@ def scene_lobes(scene) -> tuple[str, ...]:
 
 
 def no_random_walk(scene) -> str | None:
-    """Why ``scene`` has no random-walk reference because of its lobes (None: no lobe): the
-    reference's glTF lobes are single-scattering layers (reference/lobe_bsdf.py refuses
-    ``multiscatter = "random_walk"`` with them), so the report's second truth and diagnose's
+    """Why ``scene`` has no random-walk reference because of its lobes (None: every lobe it uses is one
+    the walk carries): the reference's walk gives the base's specular and layers the coat, sheen and
+    specular lobes on it as the spec does (:data:`pbrcheck.lobe_params.WALK_LOBE_EXTENSIONS`); it is
+    isotropic with Schlick's Fresnel, so reference/lobe_bsdf.py refuses ``multiscatter = "random_walk"``
+    beside anisotropy or iridescence, and the report's second truth and diagnose's
     ``multiple_scattering`` are not rendered for a scene whose objects carry one."""
-    used = scene_lobes(scene)
-    if not used:
+    refused = [e for e in scene_lobes(scene) if e not in WALK_LOBE_EXTENSIONS]
+    if not refused:
         return None
-    return (f"the glTF lobes ({', '.join(LOBE_NAMES[e] for e in used)}) are single-scattering layers in the "
-            "reference: no random walk with them")
+    return (f"the glTF lobes ({', '.join(LOBE_NAMES[e] for e in refused)}) have no random walk in the "
+            "reference (the walk is isotropic with Schlick's Fresnel)")
 
 
 @dataclass(frozen=True)

@@ -151,6 +151,12 @@ class Iridescence:
 #: tests/test_lobes_modelled.py holds this tuple to their intersection. An extension one of them
 #: drops leaves it, and the honesty contract (:mod:`pbrcheck.unmodelled`) names it again.
 MODELLED_LOBE_EXTENSIONS: tuple[str, ...] = (CLEARCOAT, SHEEN, SPECULAR, ANISOTROPY, IRIDESCENCE)
+#: The lobe extensions the reference's random walk (``[brdf] multiscatter = "random_walk"``) carries:
+#: the walk gives the base's specular (Schlick F0 / F90 per bounce, so KHR_materials_specular too) and
+#: the coat and sheen layer on it as [Coat] / [Sheen] write (reference.lobe_bsdf). The walk is isotropic
+#: and its per-bounce Fresnel is Schlick's, so anisotropy and iridescence are refused with it
+#: (``reference.lobe_bsdf.model_problem``); the core cannot import the reference, so compare reads this.
+WALK_LOBE_EXTENSIONS: tuple[str, ...] = (CLEARCOAT, SHEEN, SPECULAR)
 #: extension -> (GltfMaterial field, class); the field is None where the material lacks the extension.
 LOBE_EXTENSIONS = {CLEARCOAT: ("clearcoat", Clearcoat), SHEEN: ("sheen", Sheen), SPECULAR: ("khr_specular", Specular),
                    ANISOTROPY: ("anisotropy", Anisotropy), IRIDESCENCE: ("iridescence", Iridescence)}

@@ -46,6 +46,17 @@ their albedo estimates at h = n (Schlick at n.v for the specular and diffuse, as
 ``mean(sheenColor) E(n.v)`` for the sheen; ``clearcoat Fc`` for the coat), each scaled by the layers
 above it. ``pdf`` is the mixture's density; ``sample`` returns ``f cos / pdf``.
 
+The random walk (``multiscatter = "random_walk"``; issue 40): the walk is the base's specular, the
+lobes layered on it as above. ``eval`` adds the walk's orders >= 2 [Heitz16 alg. 4;
+:func:`reference.multiscatter.walk_eval`, the non-lobe walk's key] to ``F spec``, each bounce's Fresnel
+Schlick of ``f0_d`` / ``f90_d`` (the dielectric) and of ``base_color`` / 1 (the metal), blended as
+:func:`reference.multiscatter.blend_walk` blends them; so ``coated`` and ``sheened`` layer the multiply
+scattered base. Sampling stays the mixture above (the specular component from its single-scattering
+VNDF, whose support is the hemisphere): ``sample``'s ``f cos / pdf`` has the walk's unbiased estimate in
+``f`` and the mixture's exact density in ``pdf``. :data:`WALK_LOBES` are the lobes it carries; the walk
+is isotropic with a per-bounce Schlick Fresnel, so anisotropy and iridescence refuse it
+(:func:`model_problem`).
+
 Mirror limits: a lobe's alpha is floored at :data:`LOBE_MIN_ALPHA` (= ``pbrcheck.brdf.DELTA_LOBE_ALPHA``,
 roughness 0.01) rather than made a Dirac component: a glossy lobe of width 1e-4 rad, far below an
 environment texel (0.012 rad at 512 x 256), sampled by its VNDF with weight ``F G2 / G1``. A material
@@ -56,13 +67,13 @@ Differentiable like the base: the values are Dr.Jit expressions of the parameter
 inputs, thickness, film IOR, sheen roughness and n.v, are no differentiable parameters; the film's
 base F0 is, through ``base_color`` of a metal: that path carries no gradient, stated here).
 
-API: :data:`LOBES`, :data:`REFERENCE_LOBES`, :func:`reference_models`, :data:`LOBE_DEFAULTS`,
+API: :data:`LOBES`, :data:`REFERENCE_LOBES`, :func:`reference_models`, :data:`WALK_LOBES`, :data:`LOBE_DEFAULTS`,
 :data:`LOBE_MIN_ALPHA`, :data:`SHEEN_TABLE_TOL`, :class:`LobeParams`, :func:`lobes_of_material`,
 :func:`eval_pdf`, :func:`sample`, :func:`film_spectral`, :func:`sheen_albedo_table`, :func:`sheen_albedo`,
 :func:`aniso_D`, :func:`aniso_G2`, :func:`aniso_G1`, :func:`aniso_sample_h`, :func:`sheen_eval`,
 :func:`sheen_pdf`, :func:`sheen_sample`.
 References: as :mod:`pbrcheck.lobes` ([glTF-B], [Sheen], [Coat], [Spec], [Aniso], [Irid], [EK17],
-[Heitz14], [Heitz18], [BB17], [CIE]).
+[Heitz14], [Heitz18], [BB17], [CIE]); [Heitz16] as :mod:`reference.multiscatter`.
 """
 
 from __future__ import annotations
@@ -83,7 +94,7 @@ from pbrcheck.terms import COS_EPS
 import drjit as dr
 import mitsuba as mi
 
-from . import terms
+from . import multiscatter, terms
 
 PI = math.pi
 INV_PI = 1.0 / PI
@@ -99,6 +110,11 @@ REFERENCE_LOBES = frozenset(LP.LOBE_EXTENSIONS)
 def reference_models(extension: str) -> bool:
     """Whether the reference renders ``extension`` (a ``KHR_materials_*`` name)."""
     return extension in REFERENCE_LOBES
+
+
+#: The lobes ``multiscatter = "random_walk"`` carries (:data:`pbrcheck.lobe_params.WALK_LOBE_EXTENSIONS`):
+#: the walk is the base's specular (Schlick F0 / F90 per bounce), the coat and sheen layer on it.
+WALK_LOBES = tuple(n for n in LOBES if any(e.endswith("_" + n) for e in LP.WALK_LOBE_EXTENSIONS))
 
 
 #: Each lobe's material props and their neutral values (the specifications' defaults);
@@ -135,14 +151,16 @@ def _vec(x) -> tuple:
 
 def model_problem(ndf: str, geometry: str, fresnel: str, multiscatter: str, used):
     """What of the scene-wide model a material with the lobes ``used`` cannot take, as ``(field,
-    expected, found)``, or None: Schlick's Fresnel (the extensions' Fresnel, with its f90), single
-    scattering (the random walk and the energy compensations know the base alone), and for anisotropy
+    expected, found)``, or None: Schlick's Fresnel (the extensions' Fresnel, with its f90), the random
+    walk only beside the lobes it carries (:data:`WALK_LOBES`: anisotropy and iridescence are refused with
+    it), and for anisotropy
     the GGX with its height-correlated Smith G2 (the only anisotropic terms written)."""
     if fresnel != "schlick":
         return "brdf.fresnel", f"'schlick' with the glTF lobes {list(used)}", fresnel
-    if multiscatter != "none":
-        return ("brdf.multiscatter", f"'none' with the glTF lobes {list(used)} (they are single-scattering)",
-                multiscatter)
+    walkless = [n for n in used if n not in WALK_LOBES]
+    if multiscatter != "none" and walkless:
+        return ("brdf.multiscatter", f"'none' with the glTF lobes {walkless} (the random walk is isotropic with "
+                f"Schlick's Fresnel: it carries {list(WALK_LOBES)} only)", multiscatter)
     if "anisotropy" in used and (ndf, geometry) != ("ggx", "smith_ggx_correlated"):
         return ("brdf.ndf / brdf.geometry", "'ggx' and 'smith_ggx_correlated' with anisotropy",
                 f"{ndf} / {geometry}")
@@ -635,6 +653,8 @@ def _eval_pdf(S, wo, active):
         D = terms.ndf(m.ndf).eval(h, S.alpha)
         G = terms.geometry_term(m.geometry, S.NoV, cl, m.roughness, S.alpha)
     value = diffuse + F * (D * G / (4.0 * dr.maximum(S.NoV, COS_EPS)))
+    if m.multiscatter != "none":   # the walk's orders >= 2 added to the base's specular, under the layers
+        value += _walk_orders(S, wo, valid)
     pdf = S.p[0] * INV_PI * cl + S.p[1] * S.spec_pdf(wo, h)
     if "sheen" in used:
         sv = sheen_eval(wi, wo, S.sheen_alpha)
@@ -649,6 +669,29 @@ def _eval_pdf(S, wo, active):
         value = value * (1.0 - S.coat_w) + S.coat_w * coat
         pdf += S.p[3] * coat_pdf
     return dr.select(valid, value, 0.0), dr.select(valid, pdf, 0.0)
+
+
+def _walk_orders(S, wo, valid):
+    """The random walk's scattering orders >= 2 of the base's specular ``f cos`` [Heitz16 alg. 4;
+    :func:`reference.multiscatter.walk_eval`], with the base's Fresnel per bounce: Schlick of the
+    dielectric's ``f0_d`` / ``f90_d`` ([Spec]) and of the metal's ``base_color`` / 1, mixed as the
+    non-lobe walk mixes them (:func:`reference.multiscatter.blend_walk`: ``"gltf"`` the two walks of one
+    path, ``"f0"`` one walk of the mixed F0 / F90). ``F90`` is passed only where KHR_materials_specular is
+    used (without it ``f90_d = 1`` and the model's Schlick gives the non-lobe walk's bits: a neutral lobe
+    renders the walk alone). The walk runs on detached values, ``wi`` and ``wo`` included (a symbolic
+    loop is not reverse-differentiable, and ``sample`` evaluates at a direction that carries gradients)."""
+    m = S.m
+    wi, wo = dr.detach(S.wi), dr.detach(wo)
+    key = multiscatter.query_key(m.ms_seed, wi.x, wi.y, wi.z, wo.x, wo.y, wo.z)
+    spec = "specular" in S.used
+
+    def walk(f0, f90):
+        return multiscatter.walk_eval(wi, wo, S.alpha, f0, key, fresnel=m.fresnel, min_order=2, ndf=m.ndf,
+                                      F90=f90 if spec else None, active=valid)
+    mt = m.metallic
+    if m.metallic_blend == "f0":
+        return walk(S.f0_d * (1.0 - mt) + m.base_color * mt, S.f90_d * (1.0 - mt) + mt)
+    return walk(S.f0_d, S.f90_d) * (1.0 - mt) + walk(mi.Color3f(m.base_color), 1.0) * mt
 
 
 def eval_pdf(m, si, wo, active):

@@ -5,7 +5,9 @@
 microfacet BSDF of the same Smith microsurface [Heitz16]: a ray enters the microsurface, bounces
 on microfacets (each bounce a reflection about a visible normal, weighted by the Schlick Fresnel
 of that bounce) until it leaves. The diffuse term is unchanged. Used by :mod:`reference.bsdf`
-through two hooks (:func:`eval_pdf_hook`, :func:`sample_hook`); all the maths is here.
+through two hooks (:func:`eval_pdf_hook`, :func:`sample_hook`) and, under the glTF lobes, by
+:mod:`reference.lobe_bsdf` (:func:`walk_eval` with the dielectric's Schlick ``F90``:
+KHR_materials_specular); all the walk's maths is here.
 
 The walk [Heitz16, sec. 4 and 5, algorithms 1-3]
 ------------------------------------------------
@@ -182,8 +184,10 @@ def _hash(x):
 def _unfolded(x, key):
     """``x`` unchanged, as a value the JIT cannot constant-fold (``key == key ^ 1`` is never true,
     but the compiler does not know it). A literal F0 = 1 would otherwise fold the Fresnel product to
-    ``energy * 1 = energy`` and the symbolic loop would see its state presumed constant."""
-    return dr.select(mi.UInt32(key) == (mi.UInt32(key) ^ 1), 0.0, x)
+    ``energy * 1 = energy`` and the symbolic loop would see its state presumed constant. The other
+    branch is ``x + 1``, never ``x`` itself: a literal 0 (F0 = F90 = 0, a specularFactor of 0) would
+    fold ``select(c, 0, 0)`` back to the literal."""
+    return dr.select(mi.UInt32(key) == (mi.UInt32(key) ^ 1), x + 1.0, x)
 
 
 def _bits(f):
@@ -229,15 +233,31 @@ def _phase_shadowed(wi, wo, L, alpha, ndf="ggx"):
     return dr.select(ok, p * shadow, 0.0), h
 
 
-def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True):
+def _bounce_fresnel(fresnel, c, F0, F90):
+    """One bounce's Fresnel: the model's term of ``F0`` (``F90`` None), or Schlick's with its ``F90``
+    (``KHR_materials_specular``'s dielectric ``f90 = specularFactor``: reference.lobe_bsdf's walk hook)."""
+    if F90 is None:
+        return fresnel_term(fresnel, c, F0)
+    c = dr.clip(c, 0.0, 1.0)
+    w = dr.square(dr.square(1.0 - c)) * (1.0 - c)   # terms.Schlick's form: F90 = 1 gives its bits
+    return F0 + (F90 - F0) * w
+
+
+def _detached_f90(F90, key):
+    return None if F90 is None else _unfolded(dr.detach(mi.Color3f(F90)), key)
+
+
+def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", F90=None, active=True):
     """Sample the walk from ``wi`` (upper hemisphere, local frame).
 
     Returns ``(wo, weight, order)``: the exit direction, the throughput (product of the bounces'
     Fresnel; 0 for walks cut at ``MAX_SCATTERING_ORDER``) and the number of bounces (UInt32).
-    ``alpha`` Float, ``F0`` Color3f, ``key`` UInt32 from :func:`query_key`, ``ndf`` ggx or beckmann.
+    ``alpha`` Float, ``F0`` Color3f, ``key`` UInt32 from :func:`query_key`, ``ndf`` ggx or beckmann,
+    ``F90`` None (the model's Fresnel) or Schlick's ``F90`` (Color3f; ``fresnel`` must be schlick).
     """
     alpha = _unfolded(dr.detach(mi.Float(alpha)), key)
     F0 = _unfolded(dr.detach(mi.Color3f(F0)), key)
+    F90 = _detached_f90(F90, key)
     n = dr.width(key)
     wr = -mi.Vector3f(wi)
     L = dr.zeros(mi.Float, n)
@@ -260,7 +280,7 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True
         m = WALK_NDFS[ndf].sample_visible(v, u2, u3, alpha)
         c = dr.dot(v, m)
         wn = 2.0 * c * m - v
-        energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
+        energy = dr.select(running, energy * _bounce_fresnel(fresnel, c, F0, F90), energy)
         wr = dr.select(running, wn, wr)
         running = running & (order < MAX_SCATTERING_ORDER)
         return wr, L, energy, order, k, running, escaped_any
@@ -272,11 +292,13 @@ def walk_sample(wi, alpha, F0, key, *, fresnel="schlick", ndf="ggx", active=True
 
 
 def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_order=MAX_SCATTERING_ORDER,
-              ndf="ggx", active=True):
+              ndf="ggx", F90=None, active=True):
     """Stochastic estimate of ``f(wi, wo) cos(wo)`` from the scattering orders in
-    [``min_order``, ``max_order``] [Heitz16 alg. 4 with Fresnel]: unbiased for every query; Color3f."""
+    [``min_order``, ``max_order``] [Heitz16 alg. 4 with Fresnel]: unbiased for every query; Color3f
+    (``F90`` as :func:`walk_sample`)."""
     alpha = _unfolded(dr.detach(mi.Float(alpha)), key)
     F0 = _unfolded(dr.detach(mi.Color3f(F0)), key)
+    F90 = _detached_f90(F90, key)
     wo = mi.Vector3f(wo)
     n = dr.width(key)
     wr = -mi.Vector3f(wi)
@@ -297,12 +319,12 @@ def walk_eval(wi, wo, alpha, F0, key, *, fresnel="schlick", min_order=1, max_ord
         order = dr.select(running, order + 1, order)
         v = -wr
         ps, h = _phase_shadowed(v, wo, L, alpha, ndf)
-        contrib = energy * fresnel_term(fresnel, dr.dot(v, h), F0) * ps
+        contrib = energy * _bounce_fresnel(fresnel, dr.dot(v, h), F0, F90) * ps
         use = running & (order >= min_order) & dr.isfinite(ps)
         total = dr.select(use, total + contrib, total)
         m = WALK_NDFS[ndf].sample_visible(v, u2, u3, alpha)
         c = dr.dot(v, m)
-        energy = dr.select(running, energy * fresnel_term(fresnel, c, F0), energy)
+        energy = dr.select(running, energy * _bounce_fresnel(fresnel, c, F0, F90), energy)
         wr = dr.select(running, 2.0 * c * m - v, wr)
         running = running & (order < min(int(max_order), MAX_SCATTERING_ORDER))
         return wr, L, energy, total, order, k, running

@@ -375,12 +375,17 @@ def test_anisotropic_objects_carry_the_references_tangent_frame_and_only_they():
     assert not any("TANGENT" in m["primitives"][0]["attributes"] for m in plain["meshes"])
 
 
-def test_a_scene_with_lobes_has_no_random_walk_reference():
+def test_a_scene_with_anisotropy_has_no_random_walk_reference():
+    """The walk carries clearcoat, sheen and specular (tests/test_walk_lobes.py); anisotropy and
+    iridescence still leave a scene without the random-walk reference and diagnose's hypothesis."""
     from compare.report.references import random_walk_scene
 
-    walk, why = random_walk_scene(load_scene("sheen"))
-    assert walk is None and why == "the glTF lobes (sheen) are single-scattering layers in the reference: no random walk with them"
+    walk, why = random_walk_scene(load_scene("anisotropy"))
+    assert walk is None and why == ("the glTF lobes (anisotropy) have no random walk in the reference (the walk "
+                                    "is isotropic with Schlick's Fresnel)")
+    assert random_walk_scene(load_scene("sheen"))[0].brdf.multiscatter == "random_walk"
     assert random_walk_scene(load_scene("spheres"))[0].brdf.multiscatter == "random_walk"
     ms = dg.hypothesis("multiple_scattering")
-    assert ms.applies_to(None, load_scene("clearcoat")) == cl.no_random_walk(load_scene("clearcoat"))
+    assert ms.applies_to(None, load_scene("iridescence")) == cl.no_random_walk(load_scene("iridescence"))
+    assert ms.applies_to(None, load_scene("clearcoat")) is None
     assert ms.applies_to(None, load_scene("spheres")) is None

@@ -82,6 +82,21 @@ def test_a_scene_without_a_walk_says_why(compensating):
     assert all(m == "none" for m, _ in SPP_SEEN)
 
 
+@pytest.mark.parametrize("lobe,walks", [({"clearcoat": 1.0, "sheen_color": [0.5, 0.5, 0.5]}, True),
+                                        ({"anisotropy_strength": 0.5}, False)])
+def test_a_lobe_scene_is_set_against_the_walk(compensating, lobe, walks):
+    """The walk under the lobes (reference/lobe_bsdf.py, issue 40): a clearcoat + sheen sphere gets the
+    random-walk reference; anisotropy (no walk) says why."""
+    obj = {**SCENE["objects"][0], "material": {**SCENE["objects"][0]["material"], **lobe}}
+    s = scene_from_dict({**SCENE, "objects": [obj]})
+    [p] = measure_references(s, [renderers.RendererSpec.parse("ext:pfm")], 8)
+    if walks:
+        assert p.vs_random_walk["relmse"] < 1e-3 and p.note == "" and ("random_walk", 8) in SPP_SEEN
+    else:
+        assert p.vs_random_walk is None and "anisotropy" in p.note
+        assert all(m == "none" for m, _ in SPP_SEEN)
+
+
 def test_no_external_renderer_no_section(tmp_path):
     assert references_sections([], [], [renderers.RendererSpec.parse(p) for p in ("default", "filament")],
                                tmp_path) == []

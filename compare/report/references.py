@@ -29,8 +29,11 @@ In ``path`` mode the model-matched truth also takes glTF 2.0's metallic blend (`
 metallic_blend = "gltf"``) where something is partially metallic: every external engine is a glTF
 engine (docs/reference.md, "The metallic blend").
 
-A scene whose BRDF has no random walk (``brdf.ndf`` / ``brdf.geometry`` outside
-:data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`) gets a row saying so; a display-referred engine
+A scene with the glTF lobes has the walk under them: the walk is the base's specular and the coat,
+sheen and specular lobes layer on it as the extensions write (reference/lobe_bsdf.py), so ClearCoatTest,
+SheenCloth, ... are set against the model-matched truth too. A scene whose BRDF has no random walk
+(``brdf.ndf`` / ``brdf.geometry`` outside :data:`pbrcheck.registry.MULTISCATTER_GEOMETRY`, or an object
+with anisotropy or iridescence: :func:`compare.lobes.no_random_walk`) gets a row saying so; a display-referred engine
 (``png-srgb``) is compared in display space as everywhere in the report.
 
 API

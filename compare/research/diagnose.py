@@ -46,7 +46,9 @@ at the reference image's own spp (capped at MAX_HYPOTHESIS_SPP) and seed):
   renderer compensates the energy of multiple scattering between microfacets (three.js, Filament,
   ...); the reference re-rendered with ``[brdf] multiscatter = "random_walk"`` (Heitz et al. 2016).
   Named "a model difference" in the verdict. Only for GGX or Beckmann with its height-correlated Smith term;
-  on glTF assets too (the walk per shading point, reference/textured.py).
+  on glTF assets too (the walk per shading point, reference/textured.py) and under the clearcoat, sheen
+  and specular lobes (the walk as their base, reference/lobe_bsdf.py); not beside anisotropy or
+  iridescence (:func:`compare.lobes.no_random_walk`).
 - ``metallic_blend``: also a model difference: the renderer mixes metallic as glTF 2.0 Appendix B
   does (``mix(dielectric_brdf, metal_brdf, metallic)``, the diffuse under the dielectric's own
   Fresnel) where the scene uses pbrcheck's F0 mix, or the reverse; the reference re-rendered with the
