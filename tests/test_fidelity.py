@@ -137,6 +137,7 @@ def test_disagreements_error_row_resume_and_escaping(tmp_path, tmp_cache, stand_
     assert third.computed == 1 and {r["renderer"]: r for r in third.rows}["ext:filament"]["disagree"] is True
 
 
+@pytest.mark.usefixtures("lobes_unmodelled")  # sheen as an unmodelled extension (tests/conftest.py)
 def test_unmodelled_feature_is_marked_and_not_judged(tmp_path, tmp_cache):
     sheen = {**GREY, "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0],
                                                             "sheenRoughnessFactor": 0.5}}}
