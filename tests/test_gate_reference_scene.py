@@ -86,16 +86,22 @@ def test_reference_scene_needs_scene(tmp_path):
 def test_shipped_client_checks_name_model_matched_references():
     """clients.toml gates every client on both CI scenes against the random-walk reference (three.js's
     with its roughness floor and geometric roughness, the others with neither), each stored EXR of its
-    reference_scene. Every check is asserted on (no check is skipped): the expected checks exist."""
+    reference_scene (the lobe scenes: ci.toml's single-scattering reference of the scene itself). Every
+    check is asserted on (no check is skipped): the expected checks exist."""
     from pbrcheck.exr import read_exr
 
     path = Path(__file__).resolve().parents[1] / "compare" / "budgets" / "clients.toml"
     budget = load_budget(path)
     checks, base = budget.checks, budget.base
     clients = ("ext:threejs", "ext:sample-viewer", "ext:babylon", "ext:playcanvas", "ext:filament")
+    lobes = ("clearcoat_ci.toml", "sheen_ci.toml")
     assert sorted((c.preset, c.scene) for c in checks) == sorted(
-        (p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml"))
+        (p, s) for p in clients for s in ("spheres_ci.toml", "furnace_ci.toml") + lobes)
     for c in checks:
+        if c.scene in lobes:  # the reference's lobes are single-scattering: ci.toml's reference, no reference_scene
+            assert c.reference_scene is None and c.reference == "refs/" + c.scene.replace(".toml", ".exr"), c.name
+            assert read_exr(base / c.reference).meta["scene_hash"] == scene_hash(load_scene(base / c.scene)), c.name
+            continue
         assert c.reference_scene, c.name
         s = load_scene(base / c.reference_scene)
         assert s.brdf.multiscatter == "random_walk", c.name
