@@ -69,7 +69,7 @@ bench: setup
 	$(VENV)/bin/pbrcheck bench client --renderer threejs
 
 # The committed accuracy report of the shipped shaders (reports/index.html).
-REPORT_SCENES := spheres furnace grazing
+REPORT_SCENES := spheres furnace grazing clearcoat sheen specular anisotropy iridescence
 # The external engines measured beside the presets (the built-in clients, fast IBL profile).
 REPORT_CLIENTS := ext:threejs,ext:sample-viewer
 report: setup
