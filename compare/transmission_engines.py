@@ -10,7 +10,7 @@ API
 ---
 - :func:`regions` -- the masks of a scene's image: ``transmissive`` (objects whose material
   transmits), ``interior`` (those less their silhouette's edge pixels: the refracted lookup, its LOD
-  rule and the thickness attenuation), ``opaque`` (every other object: the ground, the screen-space
+  rule and the thickness attenuation; the comparator's ``valid`` pixels of those), ``opaque`` (every other object: the ground, the screen-space
   content the engines refract), ``background``.
 - :func:`measure` -- the rows: per renderer (and ``kept`` / ``opaque`` for an engine) relmse and
   FLIP per region.
@@ -31,6 +31,8 @@ import numpy as np
 from pbrcheck.export import keeping_unmodelled
 from pbrcheck.fmt import markdown_cell
 from pbrcheck.scene import asset_scene, load_scene
+
+from clients.run import object_ids
 
 from . import renderers
 from .metrics import compare_images, summarize
@@ -57,13 +59,15 @@ def transmissive_ids(scene) -> set[int]:
 
 
 def regions(scene, ref, cmp) -> dict[str, np.ndarray]:
-    """The masks of :data:`REGIONS` over the comparison's valid pixels (object ids from the truth's
-    ``object`` AOV, -1 the background)."""
-    ids = np.rint(ref.channels["object"]).astype(np.int64)
+    """The masks of :data:`REGIONS`. Objects from the numpy ray casting of the scene at pixel centres
+    (:func:`clients.run.object_ids`, what the engines' ``object`` AOV is): the path truth's own
+    ``object`` AOV numbers the spheres but leaves the glass scene's ground tiles at -1, and the
+    comparator's ``valid`` mask (both AOVs agree, full coverage) is then the spheres' interior only."""
+    ids = object_ids(scene)
     trans = np.isin(ids, sorted(transmissive_ids(scene)))
-    v = cmp.valid
-    return {"all": v, "transmissive": v & trans, "interior": v & trans & ~cmp.edge,
-            "opaque": v & (ids >= 0) & ~trans, "background": v & (ids < 0)}
+    finite = np.isfinite(cmp.maps.diff).all(axis=-1)
+    return {"all": finite, "transmissive": finite & trans, "interior": finite & trans & cmp.valid,
+            "opaque": finite & (ids >= 0) & ~trans, "background": finite & (ids < 0)}
 
 
 def _row(scene, ref, img, name: str, form: str) -> dict:

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import json
 import shutil
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import pbrcheck_cli as cli
+from clients.run import object_ids
 from compare import renderers
 from compare import transmission_engines as te
 from compare.report import commands as report_commands
@@ -84,6 +86,17 @@ def test_the_glass_scene_regions():
     s = _glass()
     assert te.transmissive_ids(s) == {o.id for o in s.objects if o.type == "sphere"}
     assert len(te.transmissive_ids(s)) == 6
+    ids = object_ids(s)
+    diff = np.zeros(ids.shape + (3,))
+    diff[0, 0] = np.nan   # a non-finite pixel is in no region
+    valid = np.zeros(ids.shape, bool)
+    valid[ids == 0] = True
+    r = te.regions(s, None, SimpleNamespace(maps=SimpleNamespace(diff=diff), valid=valid))
+    parts = [r["transmissive"], r["opaque"], r["background"]]
+    assert all(p.sum() > 0 for p in parts)
+    assert (sum(p.astype(int) for p in parts) == r["all"]).all() and not r["all"][0, 0]
+    assert r["all"].sum() == ids.size - 1
+    assert (r["interior"] == (ids == 0)).all()
 
 
 def _engine_ready(folder: str, pkg: str) -> None:
@@ -109,10 +122,10 @@ def test_threejs_renders_the_transmission_it_is_given(tmp_cache):
     opaque = renderers.render_under_test(s, spec)
     with keeping_unmodelled():
         kept = renderers.render_under_test(s, spec)
-    ids = np.rint(opaque.channels["object"]).astype(int)
+    ids = object_ids(s)
     spheres = np.isin(ids, sorted(te.transmissive_ids(s)))
     a, b = opaque.rgb[spheres].mean(), kept.rgb[spheres].mean()
     assert abs(b - a) / a > MIN_TRANSMISSION_CHANGE, (a, b)
-    ground = ids == next(o.id for o in s.objects if o.type == "plane")
+    ground = (ids >= 0) & ~spheres
     # the ground is opaque in both: the same pixels within the engine's run-to-run noise
     assert abs(kept.rgb[ground].mean() / opaque.rgb[ground].mean() - 1) < 0.02
