@@ -110,8 +110,12 @@ def _engine_ready(folder: str, pkg: str) -> None:
 
 #: Least relative change of the spheres' mean radiance that transmission kept makes in three.js's
 #: render of the glass scene (opaque: white / amber dielectric spheres lit by the sky; kept: the
-#: refracted ground and sky through them). Measured at 48x36: see docs/renderers.md, Transmission.
+#: refracted ground and sky through them). Measured at 48x36 (2026-11-27): the spheres' mean 0.485
+#: opaque -> 0.211 kept (-56 %); the ground's ratio kept / opaque 0.990 (its silhouette pixels
+#: next to the spheres), within GROUND_SAME.
 MIN_TRANSMISSION_CHANGE = 0.2
+#: Most relative change of the ground's mean between the two renders (measured 1.0 %).
+GROUND_SAME = 0.02
 
 
 @pytest.mark.slow
@@ -128,4 +132,4 @@ def test_threejs_renders_the_transmission_it_is_given(tmp_cache):
     assert abs(b - a) / a > MIN_TRANSMISSION_CHANGE, (a, b)
     ground = (ids >= 0) & ~spheres
     # the ground is opaque in both: the same pixels within the engine's run-to-run noise
-    assert abs(kept.rgb[ground].mean() / opaque.rgb[ground].mean() - 1) < 0.02
+    assert abs(kept.rgb[ground].mean() / opaque.rgb[ground].mean() - 1) < GROUND_SAME
