@@ -100,12 +100,14 @@ def test_the_glass_scene_regions():
 
 
 def _engine_ready(folder: str, pkg: str) -> None:
-    if shutil.which("node") is None:
-        pytest.skip("node is absent (make setup installs Debian's nodejs)")
-    if not (ROOT / "clients" / folder / "node_modules" / pkg / "package.json").is_file():
-        pytest.skip(f"{pkg} is not installed: run npm ci in clients/{folder}")
-    if not any(shutil.which(c) for c in ("chromium", "chromium-browser")):
-        pytest.skip("Chromium is absent (make setup installs Debian's chromium)")
+    """Skip (naming what is missing) where node, the client's package or Chromium is absent."""
+    installed = (ROOT / "clients" / folder / "node_modules" / pkg / "package.json").is_file()
+    why = ("node is absent (make setup installs Debian's nodejs)" if shutil.which("node") is None
+           else f"{pkg} is not installed: run npm ci in clients/{folder}" if not installed
+           else None if any(shutil.which(c) for c in ("chromium", "chromium-browser"))
+           else "Chromium is absent (make setup installs Debian's chromium)")
+    if why:
+        pytest.skip(why)
 
 
 #: Least relative change of the spheres' mean radiance that transmission kept makes in three.js's
