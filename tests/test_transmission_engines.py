@@ -135,3 +135,9 @@ def test_threejs_renders_the_transmission_it_is_given(tmp_cache):
     ground = (ids >= 0) & ~spheres
     # the ground is opaque in both: the same pixels within the engine's run-to-run noise
     assert abs(kept.rgb[ground].mean() / opaque.rgb[ground].mean() - 1) < GROUND_SAME
+
+
+def test_the_report_sets_a_transmissive_scene_against_the_path_truth_only():
+    from compare.report.references import local_refusal
+    assert "objects[0].material.transmission" in local_refusal(_glass())
+    assert local_refusal(load_scene("spheres")) is None
