@@ -54,6 +54,7 @@ from clients import config as _clients_config
 from clients import run as _clients
 from pbrcheck.errors import PbrcheckError
 from pbrcheck.exr import Image
+from pbrcheck.export import keeps_unmodelled
 from pbrcheck.scene import Scene
 from realtime import cache as _realtime_cache
 from realtime import gl as _realtime_gl
@@ -89,7 +90,8 @@ class Prefetch:
     def submit(self, pool: ThreadPoolExecutor, scene: Scene, spec: "RendererSpec") -> None:
         k = _prefetch_key(scene, spec)
         if k not in self._futures:
-            self._futures[k] = pool.submit(_clients.render_external, scene, spec.name, progress=False)
+            self._futures[k] = pool.submit(_clients.render_external, scene, spec.name, progress=False,
+                                           use_cache=not keeps_unmodelled())
 
     def take(self, scene: Scene, spec: "RendererSpec") -> Future | None:
         """The future of ``(scene, spec)``, removed (a second call renders again), or None."""
@@ -232,7 +234,10 @@ def render_under_test(scene: Scene, spec: RendererSpec, *, progress: bool = Fals
         with work("clients"):  # the wait for a background render, or the render itself
             if fut is not None:  # rendered (or being rendered) in the background: its result or error
                 return fut.result()
-            return _clients.render_external(scene, spec.name, progress=progress, use_cache=use_cache)
+            # kept unmodelled extensions (pbrcheck.export.keeping_unmodelled): the render cache's key
+            # names the stripped export, so such a render neither reads nor writes it
+            return _clients.render_external(scene, spec.name, progress=progress,
+                                            use_cache=use_cache and not keeps_unmodelled())
     with work("realtime"):
         if context.cache and use_cache:
             img = _realtime_cache.render_cached(scene, spec.name, spec.options, progress=progress)

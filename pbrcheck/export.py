@@ -7,6 +7,11 @@ API
   ``environment.hdr`` and ``scenario.json`` into a folder; returns an :class:`Export`. An asset's
   material extensions pbrcheck does not model are removed from ``scene.gltf`` unless
   ``keep_unmodelled`` (:mod:`pbrcheck.unmodelled`; :attr:`Export.unmodelled` names them).
+- :func:`keeping_unmodelled` -- a context in which every :func:`export_scene` whose caller did not
+  say (``keep_unmodelled=None``, as the external engines' export in :func:`clients.run.render_external`)
+  keeps the unmodelled extensions: an explicit, run-wide choice (``pbrcheck report --keep-unmodelled``)
+  to measure the engines' own form of a feature pbrcheck's truth renders but does not yet model
+  everywhere (transmission); :func:`keeps_unmodelled` -- whether it is in force.
 - :func:`gltf_document` -- the glTF JSON and its binary buffer (no file written).
 - :func:`sphere_segments` -- the tessellation rule: segments around a sphere for a silhouette error
   below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.
@@ -40,8 +45,10 @@ References: glTF 2.0 specification (Khronos, 2021), sections 3.10 (cameras), 3.9
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -646,8 +653,34 @@ def scenario(scene: Scene, env: EnvMap, env_shape: tuple[int, int], *, output: s
 
 
 
+#: The run-wide default of :func:`export_scene`'s ``keep_unmodelled`` (:func:`keeping_unmodelled`);
+#: a count, so that nested or concurrent contexts (the report's background engine threads) compose.
+_KEEP_UNMODELLED = [0]
+_KEEP_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def keeping_unmodelled():
+    """Within this context an :func:`export_scene` called without ``keep_unmodelled`` keeps the
+    unmodelled material extensions (process-wide: the report's prefetch threads see it). Whoever
+    enters it says so in its output; the external engines' render cache is not read or written for
+    such renders (:func:`compare.renderers.render_under_test`), since its key names the stripped export."""
+    with _KEEP_LOCK:
+        _KEEP_UNMODELLED[0] += 1
+    try:
+        yield
+    finally:
+        with _KEEP_LOCK:
+            _KEEP_UNMODELLED[0] -= 1
+
+
+def keeps_unmodelled() -> bool:
+    """Whether a :func:`keeping_unmodelled` context is in force."""
+    return _KEEP_UNMODELLED[0] > 0
+
+
 def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env: EnvMap | None = None,
-                 keep_unmodelled: bool = False) -> Export:
+                 keep_unmodelled: bool | None = None) -> Export:
     """Write the scene's files (:data:`FILES`) into ``out_dir`` (created).
 
     Everything is computed before the first write (a bad scene or environment writes nothing); the
@@ -666,7 +699,8 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
         The loaded environment (loaded from the scene when not given).
     keep_unmodelled : bool, optional
         Keep the asset's material extensions pbrcheck does not model (default: removed, so that an
-        engine is measured on what the reference models; :mod:`pbrcheck.unmodelled`).
+        engine is measured on what the reference models; :mod:`pbrcheck.unmodelled`); None (the
+        default): kept only inside :func:`keeping_unmodelled`.
 
     Returns
     -------
@@ -676,6 +710,8 @@ def export_scene(scene: Scene, out_dir: str | Path, *, output: str = "exr", env:
     ------
     ExportError, EnvironmentMapError, ImageIOError
     """
+    if keep_unmodelled is None:
+        keep_unmodelled = keeps_unmodelled()
     env = env if env is not None else load_environment(scene)
     doc, blob, segments, triangles = gltf_document(scene)
     # the unmodelled material extensions: removed from what the engine gets, or (kept) only named

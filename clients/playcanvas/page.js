@@ -83,6 +83,14 @@ async function main() {
   });
   camera.setPosition(...c.origin);
   camera.lookAt(new pc.Vec3(...c.target), new pc.Vec3(...c.up));
+  // KHR_materials_transmission / _volume: the loader sets useDynamicRefraction, whose shader reads the
+  // camera's grab of the opaque pass (uSceneColorMap); the engine grabs it only where the camera asks
+  // (as PlayCanvas's own viewer does): asked only for a glTF that uses the extensions, so every other
+  // scene renders as before (docs/renderers.md, Transmission)
+  const gltfJson = await (await fetch('/scene/' + scenario.gltf)).text().catch(() => '');
+  if (gltfJson.includes('"KHR_materials_transmission"') || gltfJson.includes('"KHR_materials_volume"')) {
+    camera.camera.requestSceneColorMap(true);
+  }
   app.root.addChild(camera);
 
   let frames = 0;

@@ -4,12 +4,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import sys
 from pathlib import Path
 
 from pbrcheck.args import split_list
 from pbrcheck.atomic import check_output_path, staged_folder
+from pbrcheck.export import keeping_unmodelled
 from pbrcheck.gltf_objects import asset_options_of
 from pbrcheck.scene import DEFAULT_SCENE
 from realtime.presets import SHADER_SEP
@@ -22,6 +25,12 @@ from .build import ReportConfig, build_report
 from .corpus_section import corpus_section
 from .runlog import RUN_FILE, bench_report, bench_report_asset, summary_line
 from .sweep import parse_vary, run_sweep
+
+
+#: The stderr line of ``report --keep-unmodelled``.
+KEEP_NOTICE = ("report: --keep-unmodelled: the external engines get the material extensions pbrcheck does not "
+               "model kept (transmission, volume, ...: their own forms are measured against the truth; the "
+               "page's 'not modelled' banner does not apply to them); their render cache is bypassed")
 
 
 def _cmd_report(args) -> int:
@@ -42,7 +51,10 @@ def _cmd_report(args) -> int:
                           reference_mode=args.reference_mode)
     # The page and its files are written into a sibling temporary folder (same depth: the corpus
     # links stay right) and moved into OUT when complete: an error or Ctrl-C leaves OUT as it was.
-    with staged_folder(args.out) as stage:
+    keep = keeping_unmodelled() if args.keep_unmodelled else contextlib.nullcontext()
+    if args.keep_unmodelled:  # said once, before any render (never silent: docs/renderers.md, Transmission)
+        print(KEEP_NOTICE, file=sys.stderr)
+    with staged_folder(args.out) as stage, keep:
         built = build_report(args.scenes or [DEFAULT_SCENE], stage, config, extras=extras)
     out = Path(args.out) / Path(built).relative_to(stage)
     print(f"report: {out}")
@@ -121,6 +133,10 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--research", action="store_true", help="add the LOD fit (before / after), error "
                    "decomposition and apparent-roughness sections for the first scene (a few minutes)")
     s.add_argument("--quiet", action="store_true", help="no progress output")
+    s.add_argument("--keep-unmodelled", action="store_true",
+                   help="the external engines (--with ext:NAME) get the material extensions pbrcheck does not "
+                        "model kept (default: removed): their transmission measured against a path truth "
+                        "(docs/renderers.md, Transmission); their render cache is bypassed")
     s.add_argument("--no-cache", action="store_true",
                    help="render every real-time image and compute every FLIP map (default: reuse a cached "
                         "render whose scene, options, shader and code are unchanged, its timings those measured "

@@ -41,7 +41,8 @@ API
 - :func:`random_walk_scene` -- the scene with the random walk, or the reason it has none.
 - :func:`single_scattering_scene` -- the scene with ``multiscatter = "none"``.
 - :func:`matched_scene` -- the model-matched truth's scene and the physics it adds, for a mode.
-- :func:`measure_references` -- one :class:`ReferencePair` per external renderer of one scene.
+- :func:`measure_references` -- one :class:`ReferencePair` per external renderer of one scene (a
+  transmissive scene under a `path` reference mode: both columns the path truth, :func:`local_refusal`).
 - :func:`share_of` -- ``1 - matched / plain``.
 - :data:`REFERENCE_MODES` -- the reference modes of ``report --reference-mode`` and what each truth has.
 - :func:`references_sections` -- the report section (``[]`` without an external renderer) and
@@ -59,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.errors import SceneError
 from pbrcheck.fmt import TABLE_DIGITS, format_value
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.registry import MULTISCATTER_GEOMETRY
@@ -238,14 +240,35 @@ def _partially_metallic(scene: Scene) -> bool:
     return bool(scene.assets) or any(0.0 < o.material.metallic < 1.0 for o in scene.objects)
 
 
+def local_refusal(scene: Scene) -> str | None:
+    """Why the reference's ``local`` mode refuses ``scene`` (a transmissive object:
+    :func:`reference.transmission.check_local`), or None."""
+    from reference.render import ensure_variant
+    ensure_variant()  # reference.transmission defines Mitsuba plugins at import: a variant first
+    from reference.transmission import check_local
+    try:
+        check_local(scene)
+    except SceneError as e:  # the refusal is the reference's one rule; its message is the reason
+        return str(e)
+    return None
+
+
 def measure_references(scene: Scene, externals: list[renderers.RendererSpec], spp: int, *, progress=None,
                        context: renderers.RenderContext = renderers.DIRECT, mode: str = "local") -> list[ReferencePair]:
     """Every renderer of ``externals`` on ``scene`` against the single-scattering ``local`` reference at
     ``spp`` (the plain truth) and the model-matched one (:func:`matched_scene`: the random walk,
     rendered in ``mode``) at ``min(spp, RANDOM_WALK_MAX_SPP)`` (both through :mod:`compare.renderers`
     with the cache; the external images from the clients' cache)."""
-    ss = renderers.render_reference(single_scattering_scene(scene), spp=int(spp), use_cache=True, progress=False)
+    # a transmissive scene: the local reference refuses it (reference.transmission.check_local), so
+    # under --reference-mode path its plain column is the path truth too (said in the row's note);
+    # every other scene renders (and is cached) as before
+    refused = local_refusal(scene) if mode != "local" else None
+    ss_kw = {"mode": mode} if refused else {}
+    ss = renderers.render_reference(single_scattering_scene(scene), spp=int(spp), use_cache=True, progress=False,
+                                    **ss_kw)
     rw_scene, physics, why = matched_scene(scene, mode)
+    if refused:
+        why = ((why + "; ") if why else "") + f"the local reference refuses a transmissive scene: both columns are the {mode} truth"
     rw_spp = min(int(spp), RANDOM_WALK_MAX_SPP)
     kw = {} if mode == "local" else {"mode": mode}  # local: the calls (and cache keys) as before
     rw = None if rw_scene is None else renderers.render_reference(rw_scene, spp=rw_spp, use_cache=True,
