@@ -736,7 +736,7 @@ def asset_shapes(scene, shape_id, bsdf_for=None) -> dict:
             core = lambda: _material_dict(inst.asset, obj.gltf_material, scene.brdf, textures,  # noqa: E731
                                           vertex_color=prim.color is not None, primary=primary)
             for k, v in gltf_shape_props(inst.asset.material(obj.gltf_material), scene.brdf, inst.asset, core,
-                                         textures).items():
+                                         textures, texture_dict).items():
                 props[k] = v
         if bsdf_for is None and inst.asset.material(obj.gltf_material).unlit:
             from .unlit import unlit_emitter

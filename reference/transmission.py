@@ -581,16 +581,18 @@ def shape_fields(obj, brdf) -> dict:
     return out
 
 
-def gltf_shape_props(material, brdf, asset=None, core=None, cache=None) -> dict:
+def gltf_shape_props(material, brdf, asset=None, core=None, cache=None, texture=None) -> dict:
     """The Mitsuba objects a glTF primitive of ``material`` takes (``{}`` unless
     :func:`pbrcheck.transmission_params.reference_renders`): ``bsdf`` (``pbr_transmissive`` of its
     factors; a volume where ``thicknessFactor > 0``: the mesh bounds it, whatever ``doubleSided``) and
     ``interior`` (the volume's medium, as :func:`shape_fields`). A material with textures of
     :data:`pbrcheck.transmission_params.VARYING_SLOTS` takes :class:`TexturedTransmissive` (``asset``:
     its images; ``core()``: the ``pbr_textured`` dict of its core material,
-    :func:`reference.textured._material_dict`; ``cache``: the decoded images shared with it), or
+    :func:`reference.textured._material_dict`; ``cache``: the decoded images shared with it;
+    ``texture(pixels, ref)``: a texture's Mitsuba dict, :func:`reference.textured.texture_dict`, passed
+    in so that this module does not import reference.textured, which imports it), or
     ``{}`` where ``asset`` is None (no images to read)."""
-    if not reference_renders(material) or (has_varying(material) and asset is None):
+    if not reference_renders(material) or (has_varying(material) and (asset is None or texture is None)):
         return {}
     register()
     t, vol, disp = material.transmission, material.volume, material.dispersion
@@ -603,7 +605,7 @@ def gltf_shape_props(material, brdf, asset=None, core=None, cache=None) -> dict:
          "diffuse_transmission_color": list(dt.color) if dt is not None else [1.0, 1.0, 1.0],
          "dispersion": disp.dispersion if disp is not None else 0.0}
     if has_varying(material):
-        d.update(_textured_props(material, asset, core, cache))
+        d.update(_textured_props(material, asset, core, cache, texture))
     out = {"bsdf": mi.load_dict(d)}
     if volume and not math.isinf(vol.attenuation_distance):
         out["interior"] = mi.load_dict(_medium(vol.attenuation_color, vol.attenuation_distance))
@@ -620,9 +622,8 @@ _EXT_TEXTURES = {"transmission": ("transmission", "texture", False, (0,)),
                  "diffuse_transmission_color": ("diffuse_transmission", "color_texture", True, (0, 1, 2))}
 
 
-def _textured_props(material, asset, core, cache) -> dict:
+def _textured_props(material, asset, core, cache, texture_dict) -> dict:
     """``pbr_transmissive_textured``'s extra keys (:class:`TexturedTransmissive`)."""
-    from .textured import texture_dict
 
     c = core()
     core_dict = {k: v for k, v in c.items() if k in _CORE_KEYS or k.rsplit("_", 1)[0] in
