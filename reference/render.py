@@ -80,11 +80,25 @@ ASSET_CODE_VERSION = "3"
 LOBE_CODE_VERSION = "1"
 
 
-def _transmission_cache_parts(scene) -> dict:
-    """:func:`reference.transmission.cache_parts` (hook, issue 37)."""
-    from .transmission import cache_parts
+#: Bump when a change of reference/transmission.py changes the pixels of scenes holding a glTF
+#: transmissive material that :class:`reference.transmission.TexturedTransmissive` renders: part of
+#: their cache keys alone (:func:`transmission_cache_parts`). 1: the textures read per hit (they
+#: rendered opaque).
+TEXTURED_TRANSMISSION_CODE_VERSION = "1"
 
-    return cache_parts(scene)
+
+def transmission_cache_parts(scene) -> dict:
+    """``{"textured_transmission_code": TEXTURED_TRANSMISSION_CODE_VERSION}`` where an asset of
+    ``scene`` has a material that the textured transmissive BSDF renders, else ``{}`` (other scenes'
+    keys unchanged; hook, issue 37). Here, not in reference.transmission, because a cache key is
+    computed before Mitsuba's variant is set (a cache hit never sets it), and that module's classes
+    derive from Mitsuba's."""
+    from pbrcheck.transmission_params import has_varying, reference_renders
+
+    if any(reference_renders(m) and has_varying(m) for inst in getattr(scene, "assets", ())
+           for m in inst.asset.materials):
+        return {"textured_transmission_code": TEXTURED_TRANSMISSION_CODE_VERSION}
+    return {}
 
 
 def scene_uses_lobes(scene) -> bool:
@@ -482,7 +496,7 @@ def render_uncached(scene: Scene, *, spp: int = 64, mode: str = "local", seed: i
         "reference_code_version": REFERENCE_CODE_VERSION,
         **({"asset_code_version": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}),
         **({"lobe_code_version": LOBE_CODE_VERSION} if scene_uses_lobes(scene) else {}),
-        **_transmission_cache_parts(scene),   # hook (issue 37): textured transmissive assets
+        **transmission_cache_parts(scene),   # hook (issue 37): textured transmissive assets
         "sampler": sampler,
         "variance_method": VARIANCE_METHOD if sampler == "independent" else REPLICATES_METHOD,
         "aov_method": AOV_METHOD,
@@ -522,7 +536,7 @@ def reference_cache_key(scene: Scene, *, spp: int, mode: str, seed: int, max_dep
     assets = {"asset_code": ASSET_CODE_VERSION} if getattr(scene, "assets", ()) else {}
     if scene_uses_lobes(scene):
         assets["lobe_code"] = LOBE_CODE_VERSION
-    assets.update(_transmission_cache_parts(scene))   # hook (issue 37): textured transmissive assets
+    assets.update(transmission_cache_parts(scene))   # hook (issue 37): textured transmissive assets
     return cache_key(kind="reference", scene_hash=scene_hash(scene, env.content_hash), spp=int(spp),
                      mode=mode, seed=int(seed), max_depth=depth, code=REFERENCE_CODE_VERSION,
                      sampler=check_sampler(sampler), adaptive=adaptive, backend=backend_identity(), **assets)

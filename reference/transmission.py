@@ -35,7 +35,7 @@ API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, 
 :func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
 :class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`,
-:func:`cache_parts`, :data:`TEXTURED_CODE_VERSION`.
+:func:`reference.render.transmission_cache_parts` keys its renders.
 References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); Mitsuba 3's ``volpath`` and ``homogeneous`` plugins.
 """
@@ -644,18 +644,8 @@ def _textured_props(material, asset, core, cache, texture_dict) -> dict:
     return out
 
 
-#: Bump when a change of the textured transmissive material changes the pixels of scenes holding one:
-#: part of their cache keys alone (:func:`cache_parts`). 1: the textures read per hit (they rendered opaque).
-TEXTURED_CODE_VERSION = "1"
-
-
-def cache_parts(scene) -> dict:
-    """``{"textured_transmission_code": TEXTURED_CODE_VERSION}`` where an asset of ``scene`` has a
-    material that :class:`TexturedTransmissive` renders, else ``{}`` (other scenes' keys unchanged)."""
-    if any(reference_renders(m) and has_varying(m) for inst in getattr(scene, "assets", ())
-           for m in inst.asset.materials):
-        return {"textured_transmission_code": TEXTURED_CODE_VERSION}
-    return {}
+# The cache key part of textured transmissive assets: reference.render.transmission_cache_parts
+# (computed before Mitsuba's variant is set, which this module's classes need).
 
 
 def _medium(color, distance) -> dict:

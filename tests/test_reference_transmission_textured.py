@@ -170,9 +170,10 @@ def test_shared_transmission_assets_render_with_transmission(render, name, monke
 def test_a_textured_transmissive_asset_has_its_own_cache_key_part(render, tmp_path, monkeypatch):
     """Scenes holding a textured transmissive material key their cached renders with
     TEXTURED_CODE_VERSION (they rendered opaque before); others keep their keys."""
-    from reference import transmission
+    from reference import render as reference_render
     from reference.render import reference_cache_key
-    from reference.transmission import TEXTURED_CODE_VERSION, cache_parts
+    from reference.render import TEXTURED_TRANSMISSION_CODE_VERSION as TEXTURED_CODE_VERSION
+    from reference.render import transmission_cache_parts as cache_parts
 
     px = np.full((2, 2, 4), 255, np.uint8)
     tex = _scene(_sheet(tmp_path, "tex", [(px, None)], ext={"transmissionTexture": {"index": 0}}))
@@ -182,6 +183,6 @@ def test_a_textured_transmissive_asset_has_its_own_cache_key_part(render, tmp_pa
         return [reference_cache_key(s, spp=4, mode="path", seed=1, max_depth=8) for s in (tex, clear)]
 
     with_part = keys()
-    monkeypatch.setattr(transmission, "cache_parts", lambda scene: {})
+    monkeypatch.setattr(reference_render, "transmission_cache_parts", lambda scene: {})
     without = keys()
     assert with_part[0] != without[0] and with_part[1] == without[1]
