@@ -209,12 +209,44 @@ def _on_sigint(signum, frame):
     raise KeyboardInterrupt
 
 
+#: Interrupts swallowed where Python could not raise them, not yet delivered again (``pending``), the
+#: re-deliveries sent (``sent``), and whether the command has ended (``closed``: no more re-delivery),
+#: under one lock shared by the hook, its threads and the command's end (:func:`_finish_swallowed`).
+_SWALLOWED: dict = {"pending": [], "sent": 0, "closed": False}
+_SWALLOWED_LOCK = threading.Lock()
+_RESEND_DELAY_S = 0.02  # long enough for the unraisable hook (and the callback it sits in) to return
+#: How long the command's end waits for a re-delivered signal already sent (its handler runs during
+#: the wait, inside the command's error boundary, not after the handlers are restored).
+_RESEND_SETTLE_S = 0.2
+
+
 def _resend(signum: int) -> None:
     time.sleep(_RESEND_DELAY_S)
-    os.kill(os.getpid(), signum)
+    with _SWALLOWED_LOCK:
+        if _SWALLOWED["closed"] or signum not in _SWALLOWED["pending"]:
+            return            # the command ended first: _finish_swallowed reports it
+        _SWALLOWED["pending"].remove(signum)
+        _SWALLOWED["sent"] += 1
+        os.kill(os.getpid(), signum)
 
 
-_RESEND_DELAY_S = 0.02  # long enough for the unraisable hook (and the callback it sits in) to return
+def _finish_swallowed() -> None:
+    """At a command's normal end: an interrupt swallowed and not yet delivered again (the command
+    finished within the re-delivery's delay) is raised here, so the exit code says it; one already
+    sent again is waited for, so that its handler runs here."""
+    with _SWALLOWED_LOCK:
+        _SWALLOWED["closed"] = True
+        pending, sent = list(_SWALLOWED["pending"]), _SWALLOWED["sent"]
+        _SWALLOWED["pending"].clear()
+    if pending:
+        raise Terminated(pending[-1]) if pending[-1] != signal.SIGINT else KeyboardInterrupt()
+    if sent:
+        time.sleep(_RESEND_SETTLE_S)
+
+
+def _reset_swallowed() -> None:
+    with _SWALLOWED_LOCK:
+        _SWALLOWED.update(pending=[], sent=0, closed=False)
 
 
 def _unraisable_hook(previous):
@@ -231,6 +263,10 @@ def _unraisable_hook(previous):
             # this hook, whose exception Python drops. A thread sends the signal again once this hook
             # has returned: its handler runs in the main thread at the next bytecode (should that be
             # inside another callback, the interrupt comes back here and goes round once more).
+            with _SWALLOWED_LOCK:
+                if _SWALLOWED["closed"]:
+                    return
+                _SWALLOWED["pending"].append(signum)
             threading.Thread(target=_resend, args=(signum,), daemon=True).start()
             return
         previous(u)
@@ -270,6 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     old_unraisable = sys.unraisablehook
     if threading.current_thread() is threading.main_thread():
         _SIGNALLED.clear()
+        _reset_swallowed()
         old_term = signal.signal(signal.SIGTERM, _on_sigterm)
         old_int = signal.signal(signal.SIGINT, _on_sigint)
         our_unraisable = sys.unraisablehook = _unraisable_hook(old_unraisable)
@@ -294,7 +331,9 @@ def _run(args) -> int:
 
     try:
         with serve_clients():  # one browser per web client for the whole command (killed at its end)
-            return int(args.func(args) or 0)
+            rc = int(args.func(args) or 0)
+        _finish_swallowed()  # an interrupt swallowed near the end still sets the exit code
+        return rc
     except PbrcheckError as e:
         print(f"pbrcheck: error: {terminal_safe(str(e))}", file=sys.stderr)
         return e.exit_code
