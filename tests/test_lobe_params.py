@@ -175,18 +175,24 @@ def _tomlable(d):
     return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
 
 
-def test_scene_fields_loaded_and_round_trip_through_dump_toml():
-    s = scene_from_dict(_scene([_tomlable(LOBE_FIELDS), {}]))
+def assert_scene_fields_round_trip(fields: dict) -> None:
+    """Scene-file material ``fields`` (set on one sphere, the other plain) load as given, write to TOML
+    and load back the same; neutral values are left out of the dict (hashes unchanged); set, they
+    enter the content (not the plain scene's cache entry). Shared with the transmission fields."""
+    s = scene_from_dict(_scene([_tomlable(fields), {}]))
     m = s.objects[0].material
-    assert {k: getattr(m, k) for k in LOBE_FIELDS} == LOBE_FIELDS
+    assert {k: getattr(m, k) for k in fields} == fields
     assert s.objects[1].material == Material()
     d = s.to_dict()
-    assert {k: d["objects"][0]["material"][k] for k in LOBE_FIELDS} == _tomlable(LOBE_FIELDS)
-    assert not set(LOBE_FIELDS) & set(d["objects"][1]["material"])   # neutral: left out (hashes unchanged)
+    assert {k: d["objects"][0]["material"][k] for k in fields} == _tomlable(fields)
+    assert not set(fields) & set(d["objects"][1]["material"])   # neutral: left out (hashes unchanged)
     again = scene_from_dict(tomllib.loads(dump_toml(d)))
     assert again.objects == s.objects and again.content_dict() == s.content_dict()
-    # the lobes enter the content (a coated sphere is not the plain one's cache entry)
     assert scene_from_dict(_scene([{}, {}])).content_dict() != s.content_dict()
+
+
+def test_scene_fields_loaded_and_round_trip_through_dump_toml():
+    assert_scene_fields_round_trip(LOBE_FIELDS)
 
 
 def test_scene_spheres_text_unchanged_by_the_new_fields():

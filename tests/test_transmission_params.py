@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 
 import numpy as np
 import pytest
@@ -19,10 +18,10 @@ from pbrcheck.errors import AssetError, SceneError
 from pbrcheck.export import export_scene
 from pbrcheck.gltf import MODELLED_EXTENSIONS, SRGB_SLOTS, load_asset, texture_transform_matrix
 from pbrcheck.gltf_features import used_images
-from pbrcheck.scene import Material, dump_toml, scene_from_dict
+from pbrcheck.scene import dump_toml, scene_from_dict
 from pbrcheck.unmodelled import PARTLY_RENDERED, Unmodelled
 from pbrcheck_cli import main
-from tests.test_lobe_params import _asset, _scene, _tomlable   # the same small assets and scenes
+from tests.test_lobe_params import _asset, _scene, _tomlable, assert_scene_fields_round_trip  # the same small assets and scenes
 
 TR, VO, DI, DT = tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION
 EXTS = (TR, VO, DI, DT)
@@ -137,16 +136,7 @@ FIELDS = {"transmission": 1.0, "thickness": 0.5, "attenuation_distance": 2.0, "a
 
 
 def test_scene_fields_loaded_and_round_trip_through_dump_toml():
-    s = scene_from_dict(_scene([_tomlable(FIELDS), {}]))
-    m = s.objects[0].material
-    assert {k: getattr(m, k) for k in FIELDS} == FIELDS
-    assert s.objects[1].material == Material()
-    d = s.to_dict()
-    assert {k: d["objects"][0]["material"][k] for k in FIELDS} == _tomlable(FIELDS)
-    assert not set(FIELDS) & set(d["objects"][1]["material"])   # neutral: left out (hashes unchanged)
-    again = scene_from_dict(tomllib.loads(dump_toml(d)))
-    assert again.objects == s.objects and again.content_dict() == s.content_dict()
-    assert scene_from_dict(_scene([{}, {}])).content_dict() != s.content_dict()
+    assert_scene_fields_round_trip(FIELDS)
 
 
 BAD_SCENE = [("transmission", 1.5), ("thickness", -0.5), ("attenuation_distance", -1.0),
