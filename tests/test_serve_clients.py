@@ -215,3 +215,28 @@ def test_an_idle_serve_process_tree_is_no_renders_memory(fake):
         server, escaped = _started(fake)[0]
         assert {server, escaped} <= idle_serve_processes()
     assert idle_serve_processes() == set()
+
+
+def _served_pid(scene, name, renderers_file):
+    """A Dask task: one uncached render of ``name``; the pid of the process that rendered it."""
+    from clients import run
+
+    img = run.render_external(scene, name, renderers_file=renderers_file, use_cache=False)
+    return json.loads(img.meta["renderer_stdout"])["pid"]
+
+
+def test_a_dask_worker_keeps_one_process_per_client_and_closes_it_with_the_worker(fake, tmp_path):
+    """`local:1`: three renders on the one worker go to one serve process (before the plugin, each
+    render started its own: three pids), which is gone once the executor closes."""
+    from compare.corpus.scheduler import Task, open_executor
+
+    scene = _scene()
+    got = {}
+    tasks = [Task(f"render-{k}", _served_pid, (scene, "ok", str(tmp_path / "renderers.toml")), "render", True)
+             for k in range(3)]
+    with open_executor("local:1") as ex:
+        ex.run(tasks, lambda t, v: got.__setitem__(t.key, v))
+        started = _started(fake)
+        assert len(started) == 1                                  # one process for the worker's three renders
+        assert set(got.values()) == {started[0][0]}
+    assert all(_gone(p, wait=15.0) for p in started[0])           # closed with the worker (teardown)

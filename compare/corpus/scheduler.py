@@ -14,7 +14,8 @@ API
 - :func:`parse_scheduler` -- ``"serial"``, ``"local"``, ``"local:N"`` or ``"tcp://HOST:PORT"`` to a
   :class:`SchedulerSpec` (raises :class:`SchedulerError`).
 - :func:`open_executor` -- a context manager yielding the executor of a spec (starts and stops a
-  LocalCluster for ``local:N``; connects to a running scheduler for ``tcp://``).
+  LocalCluster for ``local:N``; connects to a running scheduler for ``tcp://``); on both, each
+  worker keeps one serve process (browser) per web client for its life (:mod:`compare.corpus.worker_serve`).
 - :class:`SerialExecutor`, :class:`DaskExecutor` -- ``run(tasks, on_result, progress)``.
 
 Failures. A task function returns :class:`Failed` for a typed error (bad environment file, bad
@@ -278,6 +279,14 @@ def _silence_dask() -> None:
     sys.unraisablehook = lambda unraisable: None
 
 
+def _serve_clients_on_workers(client) -> None:
+    """Each worker of ``client``'s cluster (those there now and those that join) renders its web
+    clients through one browser per client for its life (:class:`compare.corpus.worker_serve.ServeClients`)."""
+    from .worker_serve import ServeClients
+
+    client.register_plugin(ServeClients())
+
+
 @contextlib.contextmanager
 def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RETRIES,
                   timeout: float = CONNECT_TIMEOUT_S):
@@ -313,6 +322,7 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
                                  dashboard_address=None, silence_logs=logging.CRITICAL,
                                  local_directory=scratch) as cluster, \
                     Client(cluster, timeout=timeout) as client:
+                _serve_clients_on_workers(client)
                 yield DaskExecutor(client, retries)
         except BaseException:  # also an interrupt while the cluster starts
             _silence_dask()
@@ -331,6 +341,7 @@ def open_executor(spec: SchedulerSpec | str | None, *, retries: int = DEFAULT_RE
         except (OSError, TimeoutError):
             raise SchedulerUnavailable(f"--scheduler {spec.address}: no worker joined within {timeout:g} s "
                                  f"(start some with `dask worker {spec.address} --nthreads 1`)") from None
+        _serve_clients_on_workers(client)
         try:
             yield DaskExecutor(client, retries)
         except BaseException:
