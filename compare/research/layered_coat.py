@@ -7,7 +7,9 @@ n.v: :func:`pbrcheck.layered.spec_albedo`, :func:`pbrcheck.layered.spec_brdf`). 
 (:data:`ROUGHNESS`) and view cosine (:data:`NOV`): the directional albedo of both, the albedo of a
 white Lambertian under the same coat (the "furnace" column: 1 for a smooth coat; below 1 the rough
 interface's single-scattering loss, which the walk's microfacet interface shares with every
-single-scattering microfacet model), and the BRDF of both at the light directions :data:`LIGHTS`.
+single-scattering microfacet model), the albedo with the rough interface as a random walk on its
+microsurface (``Coat(interface="multiple")``: no such loss; its furnace is 1), and the BRDF of both
+at the light directions :data:`LIGHTS` (single-scattering interface).
 
 API
 ---
@@ -51,6 +53,8 @@ class Row:
     furnace: float
     furnace_se: float
     brdf: list = field(default_factory=list)       # per light: (layered, se, spec)
+    albedo_ms: float = 0.0                         # the walk with a multiple-scattering interface
+    albedo_ms_se: float = 0.0
 
 
 def run_layered_coat(samples: int = DEFAULT_SAMPLES, seed: int = 0, base: _lay.Base = DEFAULT_BASE,
@@ -65,6 +69,11 @@ def run_layered_coat(samples: int = DEFAULT_SAMPLES, seed: int = 0, base: _lay.B
             e, se = _lay.layered_albedo(base, coat, v, n=samples, seed=k)
             fe, fse = _lay.layered_albedo(white, coat, v, n=samples, seed=k + 1)
             row = Row(float(r), float(mu), e, se, _lay.spec_albedo(base, coat, v), fe, fse)
+            if coat.smooth:   # no microsurface: both interface models are the same walk
+                row.albedo_ms, row.albedo_ms_se = e, se
+            else:
+                row.albedo_ms, row.albedo_ms_se = _lay.layered_albedo(
+                    base, _lay.Coat(float(r), interface="multiple"), v, n=samples, seed=k)
             for j, (cl, az) in enumerate(LIGHTS):
                 light = _lay.direction(cl, math.radians(az))
                 f, fs = _lay.layered_brdf(base, coat, light, v, n=samples, seed=k + 2 + j)
@@ -77,13 +86,15 @@ def run_layered_coat(samples: int = DEFAULT_SAMPLES, seed: int = 0, base: _lay.B
 def table_markdown(rows: list[Row]) -> str:
     """The table: albedo layered +- se, spec, spec - layered (relative), furnace, and per light the
     BRDF layered +- se, spec and their ratio spec / layered."""
-    head = ["coat roughness", "n.v", "E layered", "E spec", "spec/layered", "white furnace"]
+    head = ["coat roughness", "n.v", "E layered", "E spec", "spec/layered", "white furnace",
+            "E layered, MS interface", "spec/layered (MS)"]
     for cl, az in LIGHTS:
         head += [f"f layered (n.l {cl:g}, {az:g} deg)", "f spec", "spec/layered"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [f"{r.roughness:g}", f"{r.nov:g}", f"{r.albedo:.4f} ± {r.albedo_se:.4f}", f"{r.albedo_spec:.4f}",
-                 f"{r.albedo_spec / r.albedo:.3f}", f"{r.furnace:.4f} ± {r.furnace_se:.4f}"]
+                 f"{r.albedo_spec / r.albedo:.3f}", f"{r.furnace:.4f} ± {r.furnace_se:.4f}",
+                 f"{r.albedo_ms:.4f} ± {r.albedo_ms_se:.4f}", f"{r.albedo_spec / r.albedo_ms:.3f}"]
         for f, fs, sp in r.brdf:
             cells += [f"{f:.4f} ± {fs:.4f}", f"{sp:.4f}", f"{sp / f:.3f}"]
         lines.append("| " + " | ".join(cells) + " |")
