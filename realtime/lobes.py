@@ -1,7 +1,9 @@
 """The engines' real-time approximations of the glTF PBR extensions' lobes: numpy twins of the GLSL
 terms in ``realtime/shaders/lobes_coat.glsl``, ``lobes_sheen.glsl``, ``lobes_anisotropy.glsl`` and
 ``lobes_iridescence.glsl`` (each function here has a GLSL function of the same name;
-``tests/test_realtime_lobes.py`` runs both on grids with the extremes), and the numpy side of the
+``tests/test_realtime_lobes.py`` runs both on grids with the extremes, and
+``tests/test_realtime_material_lobes.py`` the point lights' anisotropic GGX and film and the material
+composition's terms), and the numpy side of the
 sheen LUT's bake (``sheen_lut.comp``: :func:`sheen_albedo_quadrature` is the quadrature its texels
 are checked against). The truth (the extensions' lobes as the specification defines them) is
 :mod:`pbrcheck.lobes`; these are what real-time engines ship instead. The registries choosing among

@@ -5,7 +5,9 @@ scene's materials use a lobe (a lobe-free program's source is the one it had bef
 lobe program's is not); every built-in lobe scene changes its lobed objects' pixels against the same
 scene at the lobe's neutral value, and leaves the neutral objects' bit for bit, in both pipelines;
 two known answers under a uniform white environment over a black base (the coat's split-sum
-directional albedo, the sheen's Charlie albedo E); the lobe textures of a glTF asset in the raster
+directional albedo, the sheen's Charlie albedo E); the point lights' anisotropic GGX and thin film
+(lobes_anisotropy.glsl, lobes_iridescence.glsl) against their twins on grids with the extremes and a lit
+sphere against the truth's BRDF x cos x light, strength 0 / factor 0 bit for bit; the lobe textures of a glTF asset in the raster
 pipeline (texture 0 = no lobe bit for bit, texture 1 = the factor, a KHR_texture_transform picking a
 half of the texture)."""
 

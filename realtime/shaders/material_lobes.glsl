@@ -181,6 +181,9 @@ bool lobes_light_active() {
 // f = (1 - Fd)(1 - metallic) base / pi + D G F / (4 (n.l)(n.v)), F = Schlick(v.h; mix(F0_d, base, metallic),
 // mix(F90_d, 1, metallic)); Fd = max3 of the dielectric's own Schlick(v.h; F0_d, F90_d) under glTF's
 // blend (the README's dielectric_brdf weights the diffuse by 1 - max3(dielectric_fresnel)), F otherwise.
+// With an iridescent film, F_d and the metal's F each mixed with the film at v.h over their own F0
+// (iridescence_light_fresnel); with an anisotropy, D G / (4 (n.l)(n.v)) is the README's anisotropic
+// D V (aniso_specular_dv) in the IBL path's frame (lobes_aniso_tangent).
 vec3 lobes_brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float f0_ior) {
     float NoV = dot(n, v);
     float NoL = dot(n, l);
