@@ -503,11 +503,16 @@ def _lit_truth(img, scene, mat, l):
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     v = lobes._normalize(np.asarray(scene.camera.origin) - 2.0 * n)
     T = lobes.sphere_tangent(n)
-    B = np.cross(n, T)
     NoV, NoL = np.sum(n * v, -1), n @ l
     mask = ((img.channels["object"] == 0) & (NoV >= LIT_MIN_COS) & (NoL >= LIT_MIN_COS)
             & (np.hypot(n[..., 0], n[..., 1]) >= LIT_MIN_TANGENT))
-    n, v, T, B = n[mask], v[mask], T[mask], B[mask]
+    return _lit_brdf_cos(n[mask], v[mask], T[mask], l, mat, scene.brdf.metallic_blend), mask
+
+
+def _lit_brdf_cos(n, v, T, l, mat, blend):
+    """The truth's base BRDF x n.l x LIT_E at unit normals n, view directions v and tangents T (arrays (N, 3))
+    for the light direction l (_lit_truth's docstring)."""
+    B = np.cross(n, T)
     local = lambda w: np.stack([np.sum(w * T, -1), np.sum(w * B, -1), np.sum(w * n, -1)], -1)  # noqa: E731
     vl, ll = local(v), local(np.broadcast_to(l, v.shape))
     VoH = np.sum(vl * lobes._normalize(vl + ll), -1)
@@ -520,9 +525,9 @@ def _lit_truth(img, scene, mat, l):
     Fm = lobes.iridescence_light_fresnel(VoH, np.broadcast_to(base, vl.shape), 1.0, mat.iridescence_ior,
                                          mat.iridescence_thickness, np.full(len(VoH), k))
     F = Fd * (1.0 - m) + Fm * m
-    Fdiff = np.max(Fd, -1, keepdims=True) if scene.brdf.metallic_blend == "gltf" else F
+    Fdiff = np.max(Fd, -1, keepdims=True) if blend == "gltf" else F
     f = (1.0 - Fdiff) * (1.0 - m) * base / np.pi + F * spec[:, None]
-    return f * (NoL[mask] * LIT_E)[:, None], mask
+    return f * (ll[:, 2] * LIT_E)[:, None]
 
 
 @pytest.mark.parametrize("lobe,blend", [("anisotropy", "f0"), ("iridescence", "f0"), ("both", "gltf")])
@@ -539,6 +544,38 @@ def test_a_directional_light_on_the_anisotropic_iridescent_base_is_the_truths_br
     np.testing.assert_allclose(got, want, rtol=LIGHT_RTOL, atol=LIGHT_RTOL * float(want.max()))
     plain = _lit_truth(img, scene, replace(mat, anisotropy_strength=0.0, iridescence=0.0), l)[0]
     assert np.abs(plain - got).max() > 0.05 * float(want.max())
+
+
+def test_a_directional_light_on_a_brushed_iridescent_gltf_quad_is_the_truths_brdf(tmp_path):
+    """The raster pipeline: a glTF quad facing +z (TANGENT +x, w = 1) with KHR_materials_anisotropy (strength
+    0.7, rotation 0.5: the direction TBN (cos, sin, 0)) and KHR_materials_iridescence (factor 0.8, no
+    thickness texture: iridescenceThicknessMaximum 400 nm, IOR 1.3), glTF's metallic blend, one directional
+    light and no environment: each covered pixel is the truth's base BRDF x n.l x E to LIGHT_RTOL, v the
+    camera's ray through the pixel centre (pbrcheck.camera.primary_rays)."""
+    from pbrcheck.camera import primary_rays
+
+    gmat = {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.3, 1.0], "metallicFactor": 0.5,
+                                     "roughnessFactor": 0.4},
+            "extensions": {lp.ANISOTROPY: {"anisotropyStrength": 0.7, "anisotropyRotation": 0.5},
+                           lp.IRIDESCENCE: {"iridescenceFactor": 0.8, "iridescenceIor": 1.3}}}
+    asset = quad_asset(tmp_path / "lit.gltf", gmat)
+    scene = load_scene(str(quad_scene(tmp_path, asset, size=(32, 32), name="lit.toml")))
+    l = np.asarray(LIT_LIGHT) / np.linalg.norm(LIT_LIGHT)
+    scene = replace(scene, environment=Environment(type="constant", radiance=(0.0, 0.0, 0.0)),
+                    lights=(DirectionalLight(direction=tuple(-l), intensity=(LIT_E,) * 3),))
+    assert scene.brdf.metallic_blend == "gltf"
+    img = render_realtime(scene, "default", SMALL, progress=False)
+    assert img.meta["pipeline"] == "raster" and {"LOBE_ANISOTROPY", "LOBE_IRIDESCENCE"} <= set(json.loads(img.meta["lobes"]))
+    m = img.channels["coverage"] == 1
+    assert m.sum() > 300
+    _, d = primary_rays(scene.camera)
+    v = -d[m]
+    n = np.broadcast_to([0.0, 0.0, 1.0], v.shape)
+    T = np.broadcast_to([1.0, 0.0, 0.0], v.shape)
+    mat = Material(base_color=(0.9, 0.6, 0.3), metallic=0.5, roughness=0.4, anisotropy_strength=0.7,
+                   anisotropy_rotation=0.5, iridescence=0.8, iridescence_ior=1.3, iridescence_thickness=400.0)
+    want = _lit_brdf_cos(n, v, T, l, mat, "gltf")
+    np.testing.assert_allclose(img.rgb[m].astype(np.float64), want, rtol=LIGHT_RTOL, atol=LIGHT_RTOL * float(want.max()))
 
 
 @pytest.mark.parametrize("lobe", ["anisotropy", "iridescence"])
