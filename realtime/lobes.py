@@ -1,7 +1,9 @@
 """The engines' real-time approximations of the glTF PBR extensions' lobes: numpy twins of the GLSL
 terms in ``realtime/shaders/lobes_coat.glsl``, ``lobes_sheen.glsl``, ``lobes_anisotropy.glsl`` and
 ``lobes_iridescence.glsl`` (each function here has a GLSL function of the same name;
-``tests/test_realtime_lobes.py`` runs both on grids with the extremes), and the numpy side of the
+``tests/test_realtime_lobes.py`` runs both on grids with the extremes, and
+``tests/test_realtime_material_lobes.py`` the point lights' anisotropic GGX and film and the material
+composition's terms), and the numpy side of the
 sheen LUT's bake (``sheen_lut.comp``: :func:`sheen_albedo_quadrature` is the quadrature its texels
 are checked against). The truth (the extensions' lobes as the specification defines them) is
 :mod:`pbrcheck.lobes`; these are what real-time engines ship instead. The registries choosing among
@@ -26,12 +28,14 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
 :func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
-:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
+:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`;
+under point, spot and directional lights the README's anisotropic GGX: :func:`aniso_alpha_t`,
+:func:`D_GGX_anisotropic`, :func:`V_GGX_anisotropic`, :func:`aniso_specular_dv`.
 :data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
 The material composition's own terms (``lobes_material.glsl``): :func:`specular_dielectric_f0`,
 :func:`specular_f90_blend`, :func:`split_sum_albedo_f90`, :func:`aniso_direction`, :func:`sphere_tangent`.
 Iridescence: :func:`iridescence_sensitivity`, :func:`iridescence_fresnel`, :func:`iridescence_factor`,
-:func:`iridescence_mix`.
+:func:`iridescence_mix`, :func:`iridescence_light_fresnel` (a light's, at v.h).
 
 References
 ----------
@@ -390,6 +394,46 @@ def aniso_reflection_threejs(n, t, b, v, anisotropy, roughness):
     return threejs_reflection(aniso_bent_normal_threejs(n, t, b, v, anisotropy, roughness), v, roughness)
 
 
+# ---- the direct lights' anisotropic GGX (lobes_anisotropy.glsl, KHR_materials_anisotropy README) ----
+
+def aniso_alpha_t(alpha, strength):
+    """The README's alpha_t = mix(alpha, 1, strength^2), written as the truth writes mix:
+    alpha (1 - s^2) + s^2 (:class:`pbrcheck.lobes.AnisotropicGGX`)."""
+    s2 = np.asarray(strength, np.float64) ** 2
+    return np.asarray(alpha, np.float64) * (1.0 - s2) + 1.0 * s2
+
+
+def D_GGX_anisotropic(NoH, ToH, BoH, at, ab):
+    """The README's D_GGX_anisotropic: a2 = at ab, f = (ab t.h, at b.h, a2 n.h), w2 = a2 / f.f,
+    a2 w2^2 / pi; 0 for n.h <= 0."""
+    NoH, ToH, BoH, at, ab = (np.asarray(x, np.float64) for x in (NoH, ToH, BoH, at, ab))
+    a2 = at * ab
+    ff = (ab * ToH) ** 2 + (at * BoH) ** 2 + (a2 * NoH) ** 2
+    w2 = a2 / ff
+    return np.where(NoH > 0.0, a2 * w2 * w2 / PI, 0.0)
+
+
+def V_GGX_anisotropic(NoV, NoL, ToV, BoV, ToL, BoL, at, ab):
+    """The README's V_GGX_anisotropic without its clamp to 1 (the truth's G2 / (4 n.v n.l)):
+    0.5 / ((n.l) |(at t.v, ab b.v, n.v)| + (n.v) |(at t.l, ab b.l, n.l)|)."""
+    NoV, NoL, ToV, BoV, ToL, BoL, at, ab = (np.asarray(x, np.float64) for x in (NoV, NoL, ToV, BoV, ToL, BoL, at, ab))
+    gv = NoL * np.sqrt((at * ToV) ** 2 + (ab * BoV) ** 2 + NoV ** 2)
+    gl = NoV * np.sqrt((at * ToL) ** 2 + (ab * BoL) ** 2 + NoL ** 2)
+    return 0.5 / np.maximum(gv + gl, COS_EPS)
+
+
+def aniso_specular_dv(n, t, b, v, l, alpha, strength):
+    """A light's anisotropic specular lobe without Fresnel, D V at alpha_t = :func:`aniso_alpha_t`,
+    alpha_b = alpha (n, t unit and orthogonal, b = n x t); 0 below either horizon."""
+    n, t, b, v, l = (np.asarray(x, np.float64) for x in (n, t, b, v, l))
+    NoV, NoL = _dot(n, v), _dot(n, l)
+    h = _normalize(v + l)
+    at = aniso_alpha_t(alpha, strength)
+    dv = (D_GGX_anisotropic(np.clip(_dot(n, h), 0.0, 1.0), _dot(t, h), _dot(b, h), at, alpha)
+          * V_GGX_anisotropic(NoV, NoL, _dot(t, v), _dot(b, v), _dot(t, l), _dot(b, l), at, alpha))
+    return np.where((NoV > 0.0) & (NoL > 0.0), dv, 0.0)
+
+
 # ---- iridescence (KHR_materials_iridescence) -------------------------------------------------------
 
 def iridescence_sensitivity(opd, shift):
@@ -450,6 +494,16 @@ def iridescence_factor(factor, thickness):
 def iridescence_mix(F, F_iri, factor):
     """The Sample Viewer's use: the specular Fresnel mix(F, F_iridescence, iridescenceFactor)."""
     return _mix(np.asarray(F, np.float64), np.asarray(F_iri, np.float64), np.asarray(factor, np.float64)[..., None])
+
+
+def iridescence_light_fresnel(VoH, f0, f90, film_ior, thickness, factor):
+    """A light's Fresnel with the film (the README's dielectric_fresnel / metal_fresnel mixed with the
+    film over their own F0), at v.h: mix(Schlick(v.h; f0, f90), iridescence_fresnel(1, film_ior, v.h, d,
+    f0), factor). ``f0`` RGB."""
+    c = np.clip(np.asarray(VoH, np.float64), 0.0, 1.0)
+    f0 = np.asarray(f0, np.float64)
+    F = _schlick(c[..., None], f0, np.asarray(f90, np.float64)[..., None])
+    return iridescence_mix(F, iridescence_fresnel(1.0, film_ior, c, thickness, f0), factor)
 
 
 # ---- the material composition's own lobe terms (lobes_material.glsl) -------------------------------

@@ -276,7 +276,8 @@ ANISOTROPY_BENDS = Registry("ANISOTROPY_BEND", [
 IRIDESCENCES = Registry("IRIDESCENCE", [
     Entry("belcour_rgb", "Belcour & Barla 2017, RGB through the Fourier-space XYZ fit, as glTF-Sample-Viewer evaluates it",
           roles={"iridescence_fresnel": role(_lobes.iridescence_fresnel)},
-          applies_to=_LOBE + "the specular Fresnel (the truth integrates per wavelength)"),
+          applies_to=_LOBE + "the specular Fresnel: image-based at n.v, point lights at v.h (the truth integrates per "
+                             "wavelength)"),
     Entry("none", "no thin film: the base's Fresnel (an engine without a thin-film term: Filament's shading model has none)",
           applies_to=_LOBE + "nothing: the iridescent materials render as their base"),
 ])

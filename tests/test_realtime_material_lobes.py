@@ -5,7 +5,9 @@ scene's materials use a lobe (a lobe-free program's source is the one it had bef
 lobe program's is not); every built-in lobe scene changes its lobed objects' pixels against the same
 scene at the lobe's neutral value, and leaves the neutral objects' bit for bit, in both pipelines;
 two known answers under a uniform white environment over a black base (the coat's split-sum
-directional albedo, the sheen's Charlie albedo E); the lobe textures of a glTF asset in the raster
+directional albedo, the sheen's Charlie albedo E); the point lights' anisotropic GGX and thin film
+(lobes_anisotropy.glsl, lobes_iridescence.glsl) against their twins on grids with the extremes and a lit
+sphere against the truth's BRDF x cos x light, strength 0 / factor 0 bit for bit; the lobe textures of a glTF asset in the raster
 pipeline (texture 0 = no lobe bit for bit, texture 1 = the factor, a KHR_texture_transform picking a
 half of the texture)."""
 
@@ -126,6 +128,123 @@ def test_aniso_direction_and_sphere_tangent_twins():
               d, atol=DIR_ATOL)
     # counter-clockwise from the tangent toward n x t: a quarter turn is the bitangent
     np.testing.assert_allclose(lobes.aniso_direction(t, n, np.full(len(n), np.pi / 2)), np.cross(n, t), atol=1e-12)
+
+
+# ---- the direct lights' anisotropic GGX and thin film (lobes_anisotropy.glsl, lobes_iridescence.glsl) --
+
+#: The terms' extremes: roughness 0 (alpha at the floor MIN_ALPHA) and 1, strength 0 and 1.
+ALPHAS = (1e-7, 0.01, 0.09, 0.25, 1.0)
+STRENGTHS = (0.0, 0.4, 1.0)
+#: The terms at at = ab against the isotropic GGX (brdf.glsl D_GGX, G_SmithGGXCorrelated / (4 n.v n.l)): the
+#: same function in another algebraic form, both float32: measured within 3.2e-6 (D at the alpha floor 10
+#: degrees off its spike, D ~ 1e-12, where the float32 half vector's |h|^2 - 1 ~ 1e-7 weighs against D_GGX's
+#: (1 - n.h)(1 + n.h)); within 2e-7 elsewhere. (The renders skip the terms at strength 0: bit for bit.)
+ISO_RTOL = 1e-5
+#: The truth's isotropic D at the alpha floor (pbrcheck.terms.GGX.eval: (n.h)^2 (alpha^2 - 1) + 1 cancels to
+#: alpha^2 = 1e-14 in float64, keeping ~2 digits): measured 1.6e-3 from the twin's exact 1 / (pi alpha^2)
+#: at the mirror's spike; every other roughness and strength agree to 1e-10.
+TRUTH_FLOOR_RTOL = 2e-3
+
+
+def _sph(theta, phi):
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def test_aniso_alpha_t_twin():
+    a, s = (g.ravel() for g in np.meshgrid(f32(ALPHAS), f32(STRENGTHS + (0.7,)), indexing="ij"))
+    close(run_glsl("aniso_alpha_t(x0, x1)", a, s), lobes.aniso_alpha_t(a, s))
+    assert np.array_equal(run_glsl("aniso_alpha_t(x0, 0.0)", f32(ALPHAS)), f32(ALPHAS))   # strength 0: alpha
+    assert np.all(run_glsl("aniso_alpha_t(x0, 1.0)", f32(ALPHAS)) == 1.0)                  # strength 1: 1
+
+
+def test_D_and_V_GGX_anisotropic_twins_and_their_isotropic_limit():
+    """On half vectors and directions from the normal to grazing (89.99 degrees), every azimuth, alpha
+    from the floor to 1 on both axes; the truth's AnisotropicGGX (float64) equals the twins, and at
+    at = ab = alpha the GLSL terms are the isotropic D_GGX and G_SmithGGXCorrelated / (4 n.v n.l)."""
+    th = np.radians([0.0, 10.0, 45.0, 80.0, 89.99])
+    ph = np.radians([0.0, 30.0, 90.0, 200.0])
+    at_, ab_ = np.array(ALPHAS), np.array(ALPHAS)
+    T, P, AT, AB = (g.ravel() for g in np.meshgrid(th, ph, at_, ab_, indexing="ij"))
+    h = f32(_sph(T, P))
+    AT, AB = f32(AT), f32(AB)
+    g = run_glsl("D_GGX_anisotropic(x0, x1, x2, x3, x4)", h[:, 2], h[:, 0], h[:, 1], AT, AB)
+    want = lobes.D_GGX_anisotropic(h[:, 2], h[:, 0], h[:, 1], AT, AB)
+    close(g, want, rtol=1e-5, atol=0.0)
+    assert np.all(run_glsl("D_GGX_anisotropic(x0, x1, x2, x3, x4)", -h[:, 2], h[:, 0], h[:, 1], AT, AB)[h[:, 2] > 0] == 0)
+    # the isotropic limit, and the truth's D (1 / (pi at ab (...)^2) about t = +x) against the twin
+    iso = AT == AB
+    close(g[iso], run_glsl("D_GGX(x0, x1)", h[iso, 2], AT[iso]), rtol=ISO_RTOL, atol=0.0)
+    for a_t, a_b in ((0.09, 0.09), (0.3, 0.09), (1.0, 0.0001)):
+        ggx = truth.AnisotropicGGX(np.sqrt(a_b), np.sqrt((a_t - a_b) / (1.0 - a_b)))
+        hh = _sph(T[:20], P[:20])
+        np.testing.assert_allclose(lobes.D_GGX_anisotropic(hh[:, 2], hh[:, 0], hh[:, 1], ggx.at, ggx.ab), ggx.D(hh),
+                                   rtol=1e-10)
+    # V on pairs of directions (v, l), grazing included
+    TV, PV, TL, PL, A = (g.ravel() for g in np.meshgrid(th, ph[:2], th, ph, np.array([1e-7, 0.09, 1.0]), indexing="ij"))
+    v, l = f32(_sph(TV, PV)), f32(_sph(TL, PL))
+    A = f32(A)
+    for at in (A, np.ones_like(A), f32(0.5 * A + 0.5)):
+        gv = run_glsl("V_GGX_anisotropic(x0, x1, x2, x3, x4, x5, x6, x7)", v[:, 2], l[:, 2], v[:, 0], v[:, 1], l[:, 0],
+                      l[:, 1], at, A)
+        close(gv, lobes.V_GGX_anisotropic(v[:, 2], l[:, 2], v[:, 0], v[:, 1], l[:, 0], l[:, 1], at, A), rtol=1e-5,
+              atol=0.0)
+    gv = run_glsl("V_GGX_anisotropic(x0, x1, x2, x3, x4, x5, x6, x6)", v[:, 2], l[:, 2], v[:, 0], v[:, 1], l[:, 0],
+                  l[:, 1], A)
+    giso = run_glsl("G_SmithGGXCorrelated(x0, x1, x2) / (4.0 * x0 * x1)", v[:, 2], l[:, 2], A)
+    close(gv, giso, rtol=ISO_RTOL, atol=0.0)
+
+
+def test_aniso_specular_dv_twin_is_the_truths_brdf():
+    """aniso_specular_dv (n = +z, t at azimuth rot, b = n x t) against its twin on the grid of the
+    extremes (grazing v and l, strength 0 and 1, roughness 0 and 1), and the twin against
+    pbrcheck.lobes.AnisotropicGGX(roughness, strength, rot).brdf (the truth, float64) to 1e-10."""
+    th = np.radians([0.0, 30.0, 70.0, 89.9])
+    ph = np.radians([0.0, 50.0, 135.0, 260.0])
+    R = np.array([0.0, 0.3, 1.0])
+    TV, PV, TL, PL, RR, S, ROT = (g.ravel() for g in np.meshgrid(th, ph[:2], th, ph, R, np.array(STRENGTHS),
+                                                                   np.array([0.0, 0.6]), indexing="ij"))
+    TV, PV, TL, PL, ROT = (f32(x) for x in (TV, PV, TL, PL, ROT))
+    alpha = f32(np.maximum(RR * RR, 1e-7))
+    S64, S = S, f32(S)
+    expr = ("aniso_specular_dv(vec3(0.0, 0.0, 1.0), vec3(cos(x6), sin(x6), 0.0), vec3(-sin(x6), cos(x6), 0.0), "
+            "vec3(sin(x0) * cos(x1), sin(x0) * sin(x1), cos(x0)), vec3(sin(x2) * cos(x3), sin(x2) * sin(x3), cos(x2)), "
+            "x4, x5)")
+    g = run_glsl(expr, TV, PV, TL, PL, alpha, S, ROT)
+    n = np.broadcast_to([0.0, 0.0, 1.0], (len(TV), 3))
+    t = np.stack([np.cos(ROT), np.sin(ROT), 0 * ROT], -1)
+    want = lobes.aniso_specular_dv(n, t, np.cross(n, t), _sph(TV, PV), _sph(TL, PL), alpha, S)
+    assert np.all(want >= 0) and want.max() > 1e6   # the mirror's spike is in the grid
+    close(g, want, rtol=1e-4, atol=1e-6)
+    want = lobes.aniso_specular_dv(n, t, np.cross(n, t), _sph(TV, PV), _sph(TL, PL), np.maximum(RR * RR, 1e-7), S64)
+    for r in R:
+        for s_ in STRENGTHS:
+            for rot in (0.0, 0.6):
+                m = (RR == r) & (S64 == s_) & (ROT == f32(rot))
+                ggx = truth.AnisotropicGGX(r, s_, float(f32(rot)))
+                v, l = _sph(TV[m], PV[m]), _sph(TL[m], PL[m])
+                tr = np.where((v[:, 2] > 0) & (l[:, 2] > 0), ggx.brdf(v, l), 0.0)
+                np.testing.assert_allclose(want[m], tr, rtol=TRUTH_FLOOR_RTOL if (r == 0 and s_ == 0) else 1e-10,
+                                           atol=1e-12)   # tails below 1e-12 (1e-18 off a mirror's spike) cancel
+
+
+def test_iridescence_light_fresnel_twin_and_factor_zero():
+    """On v.h from 0 (grazing) to 1, base F0 0 to 1, F90 0 and 1, film IOR 1 to 2, thickness 0 (no film)
+    to 1200 nm, factor 0 to 1; at factor 0 the GLSL value is Schlick's (brdf.glsl F_Schlick) bit for bit."""
+    VoH, F0, F90, IOR, D, K = (g.ravel() for g in np.meshgrid(f32([0.0, 1e-3, 0.2, 0.5, 1.0]), f32([0.0, 0.04, 0.5, 1.0]),
+                                                              f32([0.0, 1.0]), f32([1.0, 1.3, 2.0]),
+                                                              f32([0.0, 0.03, 300.0, 1200.0]), f32([0.0, 0.5, 1.0]),
+                                                              indexing="ij"))
+    f0 = np.stack([F0, 0.5 * F0, np.ones_like(F0)], -1)
+    g = run_glsl("iridescence_light_fresnel(x0, vec3(x1, x2, x3), x4, x5, x6, x7)", VoH, *f0.T, F90, IOR, D, K,
+                 components=3)
+    close(g, lobes.iridescence_light_fresnel(VoH, f0, F90, IOR, D, K), rtol=1e-4, atol=2e-6)
+    z = K == 0
+    schlick = run_glsl("F_Schlick(x0, vec3(x1, x2, x3), x4)", VoH[z], *f0[z].T, F90[z], components=3)
+    assert np.array_equal(g[z], schlick)
+    # the film changes it where present (so the comparison above can fail)
+    on = (K == 1) & (D == 300) & (IOR == f32(1.3))
+    assert np.abs(g[on] - run_glsl("F_Schlick(x0, vec3(x1, x2, x3), x4)", VoH[on], *f0[on].T, F90[on],
+                                   components=3)).max() > 0.05
 
 
 # ---- the switches: compiled only where a scene's materials use a lobe -------------------------------
@@ -350,6 +469,135 @@ def test_a_directional_light_adds_the_specs_lobe(lobe):
         want = 3.0 * truth.SheenCharlie(0.5).eval(v, l) * np.array([1.0, 0.5, 0.25])
     assert float(np.min(want)) > 1e-3
     np.testing.assert_allclose(got, want, rtol=LIGHT_RTOL)
+
+
+#: The lit sphere's pixels compared: n.v and n.l at least this, and the sphere's tangent (-n.y, n.x) at least
+#: this long (at the pole on the view axis the tangent turns a full circle within a pixel).
+LIT_MIN_COS = 0.2
+LIT_MIN_TANGENT = 0.1
+LIT_LIGHT = (0.3, 0.5, 0.8)
+LIT_E = 2.5
+LIT_LOBES = {"anisotropy": dict(anisotropy_strength=0.7, anisotropy_rotation=0.5),
+             "iridescence": dict(iridescence=0.8, iridescence_thickness=400.0, iridescence_ior=1.3),
+             "both": dict(anisotropy_strength=1.0, anisotropy_rotation=-1.0, iridescence=1.0,
+                          iridescence_thickness=250.0, iridescence_ior=1.8)}
+
+
+def _lit_sphere(lobe: str, blend: str, **lobe_fields):
+    mat = Material(base_color=(0.9, 0.6, 0.3), metallic=0.5, roughness=0.4, **lobe_fields)
+    scene = _one_sphere(mat, 49)
+    l = np.asarray(LIT_LIGHT) / np.linalg.norm(LIT_LIGHT)
+    return replace(scene, environment=Environment(type="constant", radiance=(0.0, 0.0, 0.0)),
+                   lights=(DirectionalLight(direction=tuple(-l), intensity=(LIT_E,) * 3),),
+                   brdf=replace(scene.brdf, metallic_blend=blend)), mat, l
+
+
+def _lit_truth(img, scene, mat, l):
+    """Per pixel: the truth's base BRDF times n.l times the light (reference.lobe_bsdf's material: the
+    anisotropic GGX of pbrcheck.lobes.AnisotropicGGX about the README's direction in the sphere's frame
+    (realtime.lobes.sphere_tangent = Mitsuba's sh_frame.s, tests/test_aniso_convention.py), the Fresnel
+    F_d, F_m each mixed with the film at v.h over its own F0 (here the real-time RGB film, the twin
+    realtime.lobes.iridescence_light_fresnel: the truth's film is spectral), the diffuse under 1 - F (blend
+    f0) or 1 - max3 F_d (gltf)); and the mask of the pixels compared."""
+    n = np.stack([img.channels[c] for c in ("N.X", "N.Y", "N.Z")], -1).astype(np.float64)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    v = lobes._normalize(np.asarray(scene.camera.origin) - 2.0 * n)
+    T = lobes.sphere_tangent(n)
+    NoV, NoL = np.sum(n * v, -1), n @ l
+    mask = ((img.channels["object"] == 0) & (NoV >= LIT_MIN_COS) & (NoL >= LIT_MIN_COS)
+            & (np.hypot(n[..., 0], n[..., 1]) >= LIT_MIN_TANGENT))
+    return _lit_brdf_cos(n[mask], v[mask], T[mask], l, mat, scene.brdf.metallic_blend), mask
+
+
+def _lit_brdf_cos(n, v, T, l, mat, blend):
+    """The truth's base BRDF x n.l x LIT_E at unit normals n, view directions v and tangents T (arrays (N, 3))
+    for the light direction l (_lit_truth's docstring)."""
+    B = np.cross(n, T)
+    local = lambda w: np.stack([np.sum(w * T, -1), np.sum(w * B, -1), np.sum(w * n, -1)], -1)  # noqa: E731
+    vl, ll = local(v), local(np.broadcast_to(l, v.shape))
+    VoH = np.sum(vl * lobes._normalize(vl + ll), -1)
+    ggx = truth.AnisotropicGGX(mat.roughness, mat.anisotropy_strength, mat.anisotropy_rotation)
+    spec = ggx.brdf(vl, ll)
+    base, m, f0 = np.asarray(mat.base_color), mat.metallic, np.full(3, mat.specular)
+    k = mat.iridescence if mat.iridescence_thickness > 0 else 0.0
+    Fd = lobes.iridescence_light_fresnel(VoH, np.broadcast_to(f0, vl.shape), 1.0, mat.iridescence_ior,
+                                         mat.iridescence_thickness, np.full(len(VoH), k))
+    Fm = lobes.iridescence_light_fresnel(VoH, np.broadcast_to(base, vl.shape), 1.0, mat.iridescence_ior,
+                                         mat.iridescence_thickness, np.full(len(VoH), k))
+    F = Fd * (1.0 - m) + Fm * m
+    Fdiff = np.max(Fd, -1, keepdims=True) if blend == "gltf" else F
+    f = (1.0 - Fdiff) * (1.0 - m) * base / np.pi + F * spec[:, None]
+    return f * (ll[:, 2] * LIT_E)[:, None]
+
+
+@pytest.mark.parametrize("lobe,blend", [("anisotropy", "f0"), ("iridescence", "f0"), ("both", "gltf")])
+def test_a_directional_light_on_the_anisotropic_iridescent_base_is_the_truths_brdf(lobe, blend):
+    """A sphere under one directional light, no environment: every pixel (away from the silhouette and
+    the tangent's pole) is the truth's base BRDF x n.l x the light's irradiance to LIGHT_RTOL: the
+    README's anisotropic GGX (D and the height-correlated V at alpha_t = mix(alpha, 1, s^2) along the
+    rotated tangent) and the thin film at v.h in the Fresnel. The isotropic, film-free BRDF misses it."""
+    scene, mat, l = _lit_sphere(lobe, blend, **LIT_LOBES[lobe])
+    img = render_realtime(scene, "default", SMALL, progress=False)
+    want, mask = _lit_truth(img, scene, mat, l)
+    assert mask.sum() > 300
+    got = img.rgb[mask].astype(np.float64)
+    np.testing.assert_allclose(got, want, rtol=LIGHT_RTOL, atol=LIGHT_RTOL * float(want.max()))
+    plain = _lit_truth(img, scene, replace(mat, anisotropy_strength=0.0, iridescence=0.0), l)[0]
+    assert np.abs(plain - got).max() > 0.05 * float(want.max())
+
+
+def test_a_directional_light_on_a_brushed_iridescent_gltf_quad_is_the_truths_brdf(tmp_path):
+    """The raster pipeline: a glTF quad facing +z (TANGENT +x, w = 1) with KHR_materials_anisotropy (strength
+    0.7, rotation 0.5: the direction TBN (cos, sin, 0)) and KHR_materials_iridescence (factor 0.8, no
+    thickness texture: iridescenceThicknessMaximum 400 nm, IOR 1.3), glTF's metallic blend, one directional
+    light and no environment: each covered pixel is the truth's base BRDF x n.l x E to LIGHT_RTOL, v the
+    camera's ray through the pixel centre (pbrcheck.camera.primary_rays)."""
+    from pbrcheck.camera import primary_rays
+
+    gmat = {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.3, 1.0], "metallicFactor": 0.5,
+                                     "roughnessFactor": 0.4},
+            "extensions": {lp.ANISOTROPY: {"anisotropyStrength": 0.7, "anisotropyRotation": 0.5},
+                           lp.IRIDESCENCE: {"iridescenceFactor": 0.8, "iridescenceIor": 1.3}}}
+    asset = quad_asset(tmp_path / "lit.gltf", gmat)
+    scene = load_scene(str(quad_scene(tmp_path, asset, size=(32, 32), name="lit.toml")))
+    l = np.asarray(LIT_LIGHT) / np.linalg.norm(LIT_LIGHT)
+    scene = replace(scene, environment=Environment(type="constant", radiance=(0.0, 0.0, 0.0)),
+                    lights=(DirectionalLight(direction=tuple(-l), intensity=(LIT_E,) * 3),))
+    assert scene.brdf.metallic_blend == "gltf"
+    img = render_realtime(scene, "default", SMALL, progress=False)
+    assert img.meta["pipeline"] == "raster" and {"LOBE_ANISOTROPY", "LOBE_IRIDESCENCE"} <= set(json.loads(img.meta["lobes"]))
+    m = img.channels["coverage"] == 1
+    assert m.sum() > 300
+    _, d = primary_rays(scene.camera)
+    v = -d[m]
+    n = np.broadcast_to([0.0, 0.0, 1.0], v.shape)
+    T = np.broadcast_to([1.0, 0.0, 0.0], v.shape)
+    mat = Material(base_color=(0.9, 0.6, 0.3), metallic=0.5, roughness=0.4, anisotropy_strength=0.7,
+                   anisotropy_rotation=0.5, iridescence=0.8, iridescence_ior=1.3, iridescence_thickness=400.0)
+    want = _lit_brdf_cos(n, v, T, l, mat, "gltf")
+    np.testing.assert_allclose(img.rgb[m].astype(np.float64), want, rtol=LIGHT_RTOL, atol=LIGHT_RTOL * float(want.max()))
+
+
+@pytest.mark.parametrize("lobe", ["anisotropy", "iridescence"])
+@pytest.mark.parametrize("specular", [False, True])
+def test_strength_and_factor_zero_under_a_light_are_the_plain_base_bit_for_bit(lobe, specular):
+    """Anisotropy strength 0 (any rotation) and iridescence factor 0 (any film), in a program that compiles
+    the lobe (a second, far sphere uses it), with and without KHR_materials_specular's lobe compiled
+    (lobes_brdf_eval or brdf_eval for the light): the lit sphere's pixels are the lobe-free program's."""
+    neutral = {"anisotropy": dict(anisotropy_strength=0.0, anisotropy_rotation=0.9),
+               "iridescence": dict(iridescence=0.0, iridescence_thickness=400.0, iridescence_ior=1.8)}[lobe]
+    spec = dict(specular_color=(1.0, 1.0, 0.999)) if specular else {}
+    plain, mat, _ = _lit_sphere(lobe, "gltf", **spec)
+    lobed, _, _ = _lit_sphere(lobe, "gltf", **neutral, **spec)
+    far = Sphere(id=1, center=(0.0, 0.0, -50.0), radius=0.1, material=replace(mat, **LIT_LOBES[lobe]))
+    lobed = replace(lobed, objects=(*lobed.objects, far))
+    a = render_realtime(plain, "default", SMALL, progress=False)
+    b = render_realtime(lobed, "default", SMALL, progress=False)
+    assert ("LOBE_ANISOTROPY" if lobe == "anisotropy" else "LOBE_IRIDESCENCE") in b.meta["lobes"]
+    m = a.channels["object"] == 0
+    assert m.sum() > 300 and float(a.rgb[m].max()) > 0.1
+    ch = slice(0, 2) if specular else slice(0, 3)   # specular_color 0.999 moves blue alone
+    assert np.array_equal(a.rgb[m][:, ch], b.rgb[m][:, ch])
 
 
 def test_sheen_colour_zero_is_the_base_bit_for_bit():

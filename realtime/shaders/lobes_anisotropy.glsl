@@ -89,3 +89,49 @@ vec3 aniso_reflection(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
     return aniso_reflection_sample_viewer(n, t, b, v, s, r);
 #endif
 }
+
+// ---- the direct lights' anisotropic GGX (KHR_materials_anisotropy README "Implementation") -------------
+// Under a point, spot or directional light the base's specular lobe is the README's anisotropic GGX
+// itself (no bend: a light has a half vector), in the frame of the IBL path and the reference: t the
+// anisotropy direction (aniso_direction of the tangent), b = n x t, alpha = max(r^2, MIN_ALPHA) along b.
+
+// Source: KHR_materials_anisotropy README (alpha_t = mix(alpha, 1, anisotropyStrength^2)), written as the
+// truth writes mix (pbrcheck.lobes.AnisotropicGGX, reference.lobe_bsdf). Equation: alpha (1 - s^2) + s^2.
+float aniso_alpha_t(float alpha, float s) {
+    float s2 = s * s;
+    return alpha * (1.0 - s2) + 1.0 * s2;
+}
+
+// Source: KHR_materials_anisotropy README D_GGX_anisotropic ([Heitz14] eq. 85). Equation: a2 = at ab,
+// f = (ab t.h, at b.h, a2 n.h), w2 = a2 / f.f, D = a2 w2^2 / pi (= 1 / (pi at ab ((t.h/at)^2 + (b.h/ab)^2
+// + (n.h)^2)^2)); 0 for n.h <= 0. f.f >= (a2 n.h)^2 >= 1e-28 at the alpha floor: a normal float32.
+float D_GGX_anisotropic(float NoH, float ToH, float BoH, float at, float ab) {
+    float a2 = at * ab;
+    vec3 f = vec3(ab * ToH, at * BoH, a2 * NoH);
+    float w2 = a2 / dot(f, f);
+    return NoH > 0.0 ? a2 * w2 * w2 / PI : 0.0;
+}
+
+// Source: KHR_materials_anisotropy README V_GGX_anisotropic (the height-correlated Smith [Heitz14] eq. 99
+// with the anisotropic Lambda of eq. 86, divided by 4 (n.v)(n.l)), without the README's real-time clamp
+// to 1 (saturate): the truth (pbrcheck.lobes.AnisotropicGGX.brdf) has none, and the clamp only bites at
+// grazing on a near mirror. Equation: 0.5 / ((n.l) |(at t.v, ab b.v, n.v)| + (n.v) |(at t.l, ab b.l, n.l)|).
+float V_GGX_anisotropic(float NoV, float NoL, float ToV, float BoV, float ToL, float BoL, float at, float ab) {
+    float GGXV = NoL * length(vec3(at * ToV, ab * BoV, NoV));
+    float GGXL = NoV * length(vec3(at * ToL, ab * BoL, NoL));
+    return 0.5 / max(GGXV + GGXL, COS_EPS);
+}
+
+// A light's anisotropic specular lobe without Fresnel, D V (the BRDF's D G / (4 (n.v)(n.l))), at
+// alpha (= max(roughness^2, MIN_ALPHA)) and strength s; n, t unit and orthogonal, b = n x t; 0 below
+// either horizon.
+float aniso_specular_dv(vec3 n, vec3 t, vec3 b, vec3 v, vec3 l, float alpha, float s) {
+    float NoV = dot(n, v);
+    float NoL = dot(n, l);
+    if (NoV <= 0.0 || NoL <= 0.0) return 0.0;
+    vec3 h = v + l;
+    h = h / max(length(h), COS_EPS);
+    float at = aniso_alpha_t(alpha, s);
+    return D_GGX_anisotropic(clamp(dot(n, h), 0.0, 1.0), dot(t, h), dot(b, h), at, alpha)
+           * V_GGX_anisotropic(NoV, NoL, dot(t, v), dot(b, v), dot(t, l), dot(b, l), at, alpha);
+}

@@ -88,3 +88,14 @@ float iridescence_factor(float k, float thickness) {
 vec3 iridescence_mix(vec3 F, vec3 F_iri, float k) {
     return mix(F, F_iri, k);
 }
+
+// Source: KHR_materials_iridescence README "Implementation" (dielectric_fresnel and metal_fresnel each
+// mixed with the film's reflectance over their own F0), for a point, spot or directional light at its
+// half vector: the film at v.h over f0 (the truth's form, pbrcheck.lobes / reference.lobe_bsdf; the
+// Sample Viewer and three.js read one film at n.v for every light: docs/realtime.md).
+// Equation: mix(f0 + (f90 - f0)(1 - v.h)^5, iridescence_fresnel(1, film_ior, v.h, d, f0), k).
+vec3 iridescence_light_fresnel(float VoH, vec3 f0, float f90, float film_ior, float thickness, float k) {
+    float c = clamp(VoH, 0.0, 1.0);
+    vec3 F = f0 + (vec3(f90) - f0) * pow5(1.0 - c);
+    return iridescence_mix(F, iridescence_fresnel(1.0, film_ior, c, thickness, f0), k);
+}

@@ -24,9 +24,11 @@
 //   (n.v, r_s), L_sheen by SHEEN_RADIANCE.
 // - clearcoat: base coat_attenuation(n_c.v, n_c.v, k, F0_c) + coat_ibl_weight(n_c.v, r_c, k, F0_c, A, B)
 //   prefiltered(reflect(-v, n_c), r_c) (image-based light has no half vector: the voh form reads n.v).
-// Point lights: the base's BRDF with KHR_materials_specular's F0 / F90 (lobes_brdf_eval), the sheen's
-// and the coat's lobes (lobes_add_light) layered as the image-based terms; iridescence and anisotropy
-// act on the image-based term only (the base's point-light lobe stays isotropic, its Fresnel Schlick's).
+// Point lights: the base's BRDF (lobes_brdf_eval) with KHR_materials_specular's F0 / F90, the
+// anisotropic GGX of KHR_materials_anisotropy (aniso_specular_dv: the README's D and height-correlated
+// V at alpha_t = mix(alpha, 1, s^2) along the direction, alpha along n x t) and iridescence's thin-film
+// Fresnel at v.h over the dielectric's and the metal's F0 (iridescence_light_fresnel); the sheen's and
+// the coat's lobes (lobes_add_light) layered as the image-based terms.
 #define SHEEN_RADIANCE_CHARLIE 0
 #define SHEEN_RADIANCE_GGX 1
 #define SHEEN_RADIANCE_IRRADIANCE 2
@@ -142,21 +144,46 @@ vec3 lobes_spec_albedo(vec3 F0, float F90, float NoV, vec2 AB) {
 #endif
 }
 
+#ifdef LOBE_ANISOTROPY
+// The anisotropy direction projected into the plane of the shading normal n (unit): t of the frame
+// (t, n x t, n) both the bent lookup and the lights' anisotropic GGX use.
+vec3 lobes_aniso_tangent(vec3 n) {
+    return normalize(g_lobes.aniso_t - dot(g_lobes.aniso_t, n) * n);
+}
+#endif
+
 // The prefiltered lookup's direction: reflect(-v, n), or the bent reflection of the anisotropy.
 vec3 lobes_reflection(vec3 r, vec3 n, vec3 v, float roughness) {
 #ifdef LOBE_ANISOTROPY
     if (g_lobes.anisotropy > 0.0) {
-        vec3 t = normalize(g_lobes.aniso_t - dot(g_lobes.aniso_t, n) * n);
+        vec3 t = lobes_aniso_tangent(n);
         return aniso_reflection(n, t, cross(n, t), v, g_lobes.anisotropy, roughness);
     }
 #endif
     return r;
 }
 
+// Whether a light's base BRDF departs from brdf_eval's (lobes_brdf_eval is needed): an anisotropic
+// strength or an iridescent film present (without KHR_materials_specular, shading.glsl calls brdf_eval
+// elsewhere, so a neutral anisotropy or iridescence keeps the lobe-free program's bits).
+bool lobes_light_active() {
+    bool on = false;
+#ifdef LOBE_ANISOTROPY
+    on = on || g_lobes.anisotropy > 0.0;
+#endif
+#if defined(LOBE_IRIDESCENCE) && IRIDESCENCE != IRIDESCENCE_NONE
+    on = on || iridescence_factor(g_lobes.iridescence, g_lobes.iridescence_thickness) > 0.0;
+#endif
+    return on;
+}
+
 // KHR_materials_specular's point-light BRDF (brdf.glsl brdf_eval with the dielectric's RGB F0 and F90):
 // f = (1 - Fd)(1 - metallic) base / pi + D G F / (4 (n.l)(n.v)), F = Schlick(v.h; mix(F0_d, base, metallic),
 // mix(F90_d, 1, metallic)); Fd = max3 of the dielectric's own Schlick(v.h; F0_d, F90_d) under glTF's
 // blend (the README's dielectric_brdf weights the diffuse by 1 - max3(dielectric_fresnel)), F otherwise.
+// With an iridescent film, F_d and the metal's F each mixed with the film at v.h over their own F0
+// (iridescence_light_fresnel); with an anisotropy, D G / (4 (n.l)(n.v)) is the README's anisotropic
+// D V (aniso_specular_dv) in the IBL path's frame (lobes_aniso_tangent).
 vec3 lobes_brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float f0_ior) {
     float NoV = dot(n, v);
     float NoL = dot(n, l);
@@ -183,6 +210,30 @@ vec3 lobes_brdf_eval(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, fl
     vec3 Fd = fresnel_term(VoH, f0);
 #else
     vec3 Fd = F;
+#endif
+#if defined(LOBE_IRIDESCENCE) && IRIDESCENCE != IRIDESCENCE_NONE && FRESNEL == FRESNEL_SCHLICK
+    // KHR_materials_iridescence: the dielectric's and the metal's Fresnel each mixed with the film over
+    // its own F0 at v.h, then blended by metallic (a factor 0 or a zero film keeps the lines above' bits)
+    float k_iri = iridescence_factor(g_lobes.iridescence, g_lobes.iridescence_thickness);
+    if (k_iri > 0.0) {
+        vec3 Fd_i = iridescence_light_fresnel(VoH, f0, f90, g_lobes.iridescence_ior, g_lobes.iridescence_thickness, k_iri);
+        vec3 Fm_i = iridescence_light_fresnel(VoH, base_color, 1.0, g_lobes.iridescence_ior, g_lobes.iridescence_thickness, k_iri);
+        F = mix(Fd_i, Fm_i, metallic);
+#ifdef METALLIC_BLEND_GLTF
+        Fd = vec3(lobes_max3(Fd_i));
+#else
+        Fd = F;
+#endif
+        spec = D * G * F / (4.0 * max(NoV, COS_EPS) * max(NoL, COS_EPS));
+    }
+#endif
+#ifdef LOBE_ANISOTROPY
+    // KHR_materials_anisotropy: the README's anisotropic D V in place of D G / (4 (n.v)(n.l)) (strength 0
+    // keeps the isotropic terms above, bit for bit)
+    if (g_lobes.anisotropy > 0.0) {
+        vec3 t = lobes_aniso_tangent(n);
+        spec = aniso_specular_dv(n, t, cross(n, t), v, l, alpha_from_roughness(roughness), g_lobes.anisotropy) * F;
+    }
 #endif
     vec3 diff = (1.0 - Fd) * (1.0 - metallic) * base_color * Fd_Lambert();
     return diff + spec;

@@ -70,20 +70,31 @@ vec3 light_brdf_material(Shading c, vec3 l, float NoL) {
     Surface s = c.s;
 #ifdef LOBE_SPECULAR
     vec3 f = lobes_brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#elif defined(LOBE_ANISOTROPY) || defined(LOBE_IRIDESCENCE)
+    // the anisotropic GGX / the thin film where present (material_lobes.glsl), brdf_eval's bits elsewhere
+    vec3 f = lobes_light_active() ? lobes_brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular)
+                                  : brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
 #else
     vec3 f = brdf_eval(s.n, s.v, l, s.base_color, s.metallic, c.roughness, s.specular);
+#endif
+    // The specular lobe alone (metallic 1, F0 = c.F0) that the compensation scales: with an anisotropy or
+    // a film present, the lobes' (their anisotropic GGX, their film over c.F0), brdf_eval's otherwise.
+#if defined(LOBE_ANISOTROPY) || defined(LOBE_IRIDESCENCE)
+#define LIGHT_SPEC_LOBE (lobes_light_active() ? lobes_brdf_eval(s.n, s.v, l, c.F0, 1.0, c.roughness, s.specular) : brdf_eval(s.n, s.v, l, c.F0, 1.0, c.roughness, s.specular))
+#else
+#define LIGHT_SPEC_LOBE brdf_eval(s.n, s.v, l, c.F0, 1.0, c.roughness, s.specular)
 #endif
 #if defined(HOOK_ENERGY_COMPENSATION) && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
     // The user's compensation factor scales the point light's specular lobe as it does the IBL's.
     f += (hook_energy_compensation(c.F0e, c.AB.x, c.AB.y, c.roughness) - 1.0)
-         * brdf_eval(s.n, s.v, l, c.F0, 1.0, c.roughness, s.specular);
+         * LIGHT_SPEC_LOBE;
 #elif ENERGY_COMPENSATION != ENERGY_COMPENSATION_NONE && !IBL_RUNTIME && !defined(HOOK_SPECULAR_IBL)
     // Multiple scattering for the point light (energy.glsl): brdf_eval with metallic 1 and base
     // F0 is the specular lobe alone. (AB exists with the built-in split sum only.)
     vec2 ABl = dfg(clamp(NoL, 1e-4, 1.0), c.roughness);
-    f += energy_direct(brdf_eval(s.n, s.v, l, c.F0, 1.0, c.roughness, s.specular), c.F0e, c.AB.x, c.AB.y,
-                       ABl.x + ABl.y, c.roughness);
+    f += energy_direct(LIGHT_SPEC_LOBE, c.F0e, c.AB.x, c.AB.y, ABl.x + ABl.y, c.roughness);
 #endif
+#undef LIGHT_SPEC_LOBE
     return f;
 }
 
