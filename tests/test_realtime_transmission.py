@@ -449,3 +449,26 @@ def test_raycast_diffuse_transmission_sheet_in_a_white_environment_is_its_colour
     m = img.channels["object"] == 0.0
     assert m.sum() > 100 and img.meta["pipeline"] == "raycast"
     np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(c, (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=2e-3)
+
+
+def test_raster_with_the_cubemap_source_takes_no_opaque_pass_and_matches_the_ray_cast_pipeline():
+    """transmission_source = cubemap in the raster pipeline: Filament's cube refraction, no opaque pass;
+    an IOR-1 sheet over the checkered ground then shows the environment (below the horizon: one colour),
+    not the ground, as the ray-cast pipeline does (the same GLSL: equal within float noise)."""
+    from realtime import raster
+    sheet = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0, transmission=1.0)
+    scene = _ground_scene(sheet, 24)
+    calls = []
+    orig = raster._opaque_pass
+    raster._opaque_pass = lambda *args, **kw: calls.append(1) or orig(*args, **kw)
+    try:
+        img = render_realtime(scene, "default", {**SMALL, "transmission_source": "cubemap"}, progress=False)
+    finally:
+        raster._opaque_pass = orig
+    assert calls == [] and img.meta["pipeline"] == "raster"
+    ray = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast"}, progress=False)
+    m = _sheet_pixels(img) & _sheet_pixels(ray)
+    assert m.sum() > 100
+    np.testing.assert_allclose(_rgb(img)[m], _rgb(ray)[m], rtol=1e-4, atol=1e-6)
+    lum = _rgb(img)[m].mean(-1)
+    assert lum.max() < 1.01 * lum.min()   # the environment, not the checker
