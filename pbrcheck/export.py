@@ -10,8 +10,8 @@ API
 - :func:`keeping_unmodelled` -- a context in which every :func:`export_scene` whose caller did not
   say (``keep_unmodelled=None``, as the external engines' export in :func:`clients.run.render_external`)
   keeps the unmodelled extensions: an explicit, run-wide choice (``pbrcheck report --keep-unmodelled``)
-  to measure the engines' own form of a feature pbrcheck's truth renders but does not yet model
-  everywhere (transmission); :func:`keeps_unmodelled` -- whether it is in force.
+  to see the engines' own form of a feature pbrcheck does not model (the transmission extensions are
+  modelled since issue 37 and always kept); :func:`keeps_unmodelled` -- whether it is in force.
 - :func:`gltf_document` -- the glTF JSON and its binary buffer (no file written).
 - :func:`sphere_segments` -- the tessellation rule: segments around a sphere for a silhouette error
   below :data:`SILHOUETTE_TOLERANCE_PX` at the scene's resolution.

@@ -77,7 +77,8 @@ from .unmodelled import announce, asset_unmodelled
 #: optional one is listed in :attr:`Asset.extensions_ignored`). Scene features: :mod:`pbrcheck.gltf_features`.
 MODELLED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior",
                        "KHR_texture_transform", "KHR_draco_mesh_compression", "KHR_mesh_quantization",
-                       *gltf_features.MODELLED_SCENE_EXTENSIONS, *lobe_params.MODELLED_LOBE_EXTENSIONS)
+                       *gltf_features.MODELLED_SCENE_EXTENSIONS, *lobe_params.MODELLED_LOBE_EXTENSIONS,
+                       *transmission_params.MODELLED_TRANSMISSION_EXTENSIONS)
 #: The former name of :data:`MODELLED_EXTENSIONS`.
 SUPPORTED_EXTENSIONS = MODELLED_EXTENSIONS
 #: Core features of :data:`pbrcheck.unmodelled.CORE_FEATURES` the loader models (the others are
@@ -1020,7 +1021,7 @@ def load_asset(path: str | Path, *, scene: int | None = None, variant: str | Non
                   lights=tuple(lights), cameras=tuple(cameras), extensions_used=used, extensions_ignored=ignored,
                   content_hash=h, resources=tuple(dict.fromkeys(r.resources)), scene=si,
                   unmodelled=asset_unmodelled(doc, prims, [m.name for m in materials], MODELLED_EXTENSIONS,
-                                               MODELLED_CORE_FEATURES),
+                                               MODELLED_CORE_FEATURES, materials),
                   variants=gltf_features.variant_names(doc), variant=variant)
     _CACHE[key] = asset
     return announce(asset)

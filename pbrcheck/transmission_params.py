@@ -5,9 +5,11 @@ file's material, and written back as the extensions by the export (issue 37, dat
 
 This module holds parameters only, in :mod:`pbrcheck.lobe_params`' pattern (and with its textureInfo
 checks). The truth maths are :mod:`pbrcheck.transmission` (numpy) and ``reference/transmission.py``
-(Dr.Jit); until both renderers render an extension it stays out of
-:data:`pbrcheck.gltf.MODELLED_EXTENSIONS`, so an asset or a scene that uses it is named by the
-honesty contract (:mod:`pbrcheck.unmodelled`).
+(Dr.Jit). Both renderers render the four extensions (:data:`MODELLED_TRANSMISSION_EXTENSIONS`, part of
+:data:`pbrcheck.gltf.MODELLED_EXTENSIONS`): the reference in its ``path`` mode, the real-time renderer
+in both pipelines. A glTF material the reference's path mode renders opaque (:func:`reference_renders`
+false, :func:`reference_refusal` says why) stays named by the honesty contract (:mod:`pbrcheck.unmodelled`)
+for that material.
 
 API
 ---
@@ -17,9 +19,11 @@ API
   ``active`` whether the extension changes the image.
 - :data:`TRANSMISSION_EXTENSIONS` -- ``{extension: (GltfMaterial field, class)}``.
 - :data:`TEXTURE_CHANNELS`, :data:`SRGB_SLOTS` -- the slots' channels and the sRGB-encoded ones.
+- :data:`MODELLED_TRANSMISSION_EXTENSIONS` -- those both renderers render (all four);
+  :data:`REFERENCE_RENDERED` -- those the reference renders.
 - :func:`is_transmissive`, :func:`reference_renders` (whether the reference's path mode renders a
-  transmissive glTF material), :func:`has_varying`, :data:`VARYING_SLOTS`, :data:`READ_SLOTS` (the
-  textures it reads per hit).
+  transmissive glTF material), :func:`reference_refusal` (why not, in words), :func:`has_varying`,
+  :data:`VARYING_SLOTS`, :data:`READ_SLOTS` (the textures it reads per hit).
 - :func:`parse_ior` -- ``KHR_materials_ior``'s ``ior`` (>= 1, or 0), typed error naming the pointer.
 - :func:`abbe_number`, :func:`dispersion_ior` -- the IOR at a wavelength from ``dispersion`` (the
   README's Cauchy form).
@@ -146,6 +150,13 @@ TRANSMISSION_EXTENSIONS = {TRANSMISSION: ("transmission", Transmission), VOLUME:
 #: The extensions the reference renders (its ``path`` mode, analytic objects;
 #: ``reference.transmission.REFERENCE_TRANSMISSION_EXTENSIONS`` is this tuple): check-scene's wording.
 REFERENCE_RENDERED = (TRANSMISSION, VOLUME, DISPERSION, DIFFUSE_TRANSMISSION)
+#: The transmission extensions both renderers render (part of :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`):
+#: the reference in its path mode (its local mode refuses them in one typed line), the real-time renderer
+#: in both pipelines (raster: screen space; ray-cast: Filament's cube-map refraction). Held by
+#: tests/test_transmission_modelled.py to ``reference.transmission.REFERENCE_TRANSMISSION_EXTENSIONS`` and
+#: ``realtime.transmission.REALTIME_TRANSMISSION_EXTENSIONS``: an extension one renderer drops leaves it
+#: (and is named as unmodelled again). A material :func:`reference_renders` refuses stays named.
+MODELLED_TRANSMISSION_EXTENSIONS: tuple[str, ...] = (TRANSMISSION, VOLUME, DISPERSION, DIFFUSE_TRANSMISSION)
 #: The texture slots that make a glTF material's lobe parameters vary over the surface: a transmissive
 #: material with none of them (the thickness texture is a real-time hint a path tracer ignores,
 #: [volume]; occlusion is not light through anything) has constant factors, what the reference's
@@ -180,6 +191,23 @@ def reference_renders(material) -> bool:
     transmission named as unmodelled)."""
     return (is_transmissive(material) and material.alpha_mode == "OPAQUE" and not material.unlit
             and not set(material.textures()) & (set(VARYING_SLOTS) - set(READ_SLOTS)))
+
+
+def reference_refusal(material) -> str:
+    """Why the reference's path mode renders transmissive glTF ``material`` opaque, in words for a notice
+    ("" where it renders it, or the material lets no light through): its alpha mode, unlit, or the
+    textures of :data:`VARYING_SLOTS` it does not read per hit (:func:`reference_renders`' conditions)."""
+    if not is_transmissive(material) or reference_renders(material):
+        return ""
+    why = []
+    if material.alpha_mode != "OPAQUE":
+        why.append(f"alphaMode {material.alpha_mode}")
+    if material.unlit:
+        why.append("KHR_materials_unlit")
+    slots = [s for s in VARYING_SLOTS if s in material.textures() and s not in READ_SLOTS]
+    if slots:
+        why.append(f"textures it does not read per hit: {', '.join(slots)}")
+    return "; ".join(why) or "a material its path mode does not take"
 
 
 #: Texture slot -> the channels the extension reads (its README).
@@ -360,14 +388,18 @@ def describe_transmission(material) -> str:
 
 
 def scene_transmission_lines(scene) -> list[str]:
-    """``check-scene``'s comment lines: each analytic object whose material sets these fields."""
+    """``check-scene``'s comment lines: each analytic object whose material sets these fields, and
+    which renders them (both, the reference's path mode only, or neither)."""
     out = []
     for o in scene.objects:
         if getattr(o, "type", "") in ("sphere", "plane") and scene_features(o.material):
             feats = scene_features(o.material)
-            drawn = [f for f in feats if f in REFERENCE_RENDERED]
-            state = (f"{', '.join(drawn)}: the reference's path mode only, not yet real time" if drawn else "")
-            rest = [f for f in feats if f not in REFERENCE_RENDERED]
-            state += ("; " if drawn and rest else "") + (f"{', '.join(rest)}: parsed, not yet rendered" if rest else "")
+            groups = (([f for f in feats if f in MODELLED_TRANSMISSION_EXTENSIONS],
+                       "rendered (the reference in path mode, the real-time image)"),
+                      ([f for f in feats if f in REFERENCE_RENDERED and f not in MODELLED_TRANSMISSION_EXTENSIONS],
+                       "the reference's path mode only, not yet real time"),
+                      ([f for f in feats if f not in REFERENCE_RENDERED and f not in MODELLED_TRANSMISSION_EXTENSIONS],
+                       "parsed, not yet rendered"))
+            state = "; ".join(f"{', '.join(fs)}: {what}" for fs, what in groups if fs)
             out.append(f"# object {o.id} {o.name}: {describe_transmission(o.material)} ({state})")
     return out

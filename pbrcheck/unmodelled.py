@@ -14,6 +14,12 @@ the indices into the asset's primitives, in :attr:`pbrcheck.scene.Scene.unmodell
 object ids (the ``object`` AOV). A feature found nowhere more specific (a root-level extension, one
 on buffers or images only) touches the whole asset: every primitive, every material.
 
+The transmission extensions (:data:`pbrcheck.transmission_params.MODELLED_TRANSMISSION_EXTENSIONS`) are
+modelled, except on a glTF material the reference's path mode renders opaque
+(:func:`pbrcheck.transmission_params.reference_renders` false: its alpha mode, unlit, a texture it does
+not read per hit): there the extension the material uses is recorded for that material alone, its
+notice saying why (:func:`pbrcheck.transmission_params.reference_refusal`).
+
 API
 ---
 - :data:`CORE_FEATURES` -- the core (non-extension) features checked; :data:`METADATA_EXTENSIONS` --
@@ -42,7 +48,8 @@ from pathlib import Path
 
 from .fmt import terminal_safe
 from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
-from .transmission_params import REFERENCE_RENDERED, reference_renders, scene_features as transmission_scene_features
+from .transmission_params import (MODELLED_TRANSMISSION_EXTENSIONS, REFERENCE_RENDERED, TRANSMISSION_EXTENSIONS,
+                                  reference_refusal, reference_renders, scene_features as transmission_scene_features)
 
 
 @dataclass(frozen=True)
@@ -124,12 +131,15 @@ def _record(feature, objs: set, mats: set, primitives, material_names) -> Unmode
     return Unmodelled(feature, names, tuple(sorted(objs)))
 
 
-def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_core=()) -> tuple[Unmodelled, ...]:
+def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_core=(),
+                     materials=()) -> tuple[Unmodelled, ...]:
     """The unmodelled features of glTF document ``doc``: ``primitives`` are the loaded primitives
     (``node``, ``mesh``, ``primitive``, ``material`` attributes; their index is the record's
     object), ``material_names`` the loaded materials' names, ``modelled`` the extensions modelled,
-    ``modelled_core`` the :data:`CORE_FEATURES` modelled. Extensions in ``extensionsUsed``'s order,
-    then the undeclared ones sorted, then the core features."""
+    ``modelled_core`` the :data:`CORE_FEATURES` modelled, ``materials`` the loaded materials (for the
+    modelled transmission extensions on materials the reference renders opaque:
+    :func:`transmission_refused`). Extensions in ``extensionsUsed``'s order, then the undeclared ones
+    sorted, then the refused transmission extensions, then the core features."""
     used = [str(e) for e in _list(doc, "extensionsUsed")]
     found = _names(doc)
     features = [e for e in dict.fromkeys(used + sorted(found - set(used)))
@@ -140,8 +150,9 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
             objs = {k for k, (node, _, prim) in enumerate(_node_prim(doc, p) for p in primitives) if uses(node, prim)}
             if objs:
                 core.append(_record(name, objs, set(), primitives, material_names))
+    refused = transmission_refused(primitives, materials, modelled, material_names)
     if not features:
-        return tuple(core)
+        return tuple(refused + core)
     materials = _list(doc, "materials")
     textures = _list(doc, "textures")
     mat_ext = [_names(m) for m in materials]
@@ -164,7 +175,22 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
         if not mats and not objs:  # a root-level (or buffer / image-only) feature: the whole asset
             objs = set(range(len(primitives)))
         out.append(_record(f, objs, mats, primitives, material_names))
-    return tuple(out + core)
+    return tuple(out + refused + core)
+
+
+def transmission_refused(primitives, materials, modelled, material_names) -> list[Unmodelled]:
+    """The modelled transmission extensions (in ``modelled``) on loaded glTF ``materials`` the
+    reference's path mode renders opaque (:func:`pbrcheck.transmission_params.reference_refusal`): one
+    record per extension, naming those materials and their primitives."""
+    out = []
+    for ext, (field, _) in TRANSMISSION_EXTENSIONS.items():
+        if ext not in modelled or ext not in MODELLED_TRANSMISSION_EXTENSIONS:
+            continue
+        mats = {i for i, m in enumerate(materials) if getattr(m, field, None) is not None and reference_refusal(m)}
+        if mats:
+            objs = {k for k, p in enumerate(primitives) if p.material in mats}
+            out.append(_record(ext, objs, mats, primitives, material_names))
+    return out
 
 
 def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
@@ -172,8 +198,9 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path; then
     those of the scene file's analytic objects: a material whose lobe fields (``clearcoat``,
     ``sheen_color``, ...: :mod:`pbrcheck.lobe_params`) differ from their neutral values uses that
-    extension, unmodelled while :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` (part of
-    :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`) lacks it (``materials`` the objects' names, ``asset``
+    extension, unmodelled while :data:`pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS` and
+    :data:`pbrcheck.transmission_params.MODELLED_TRANSMISSION_EXTENSIONS` (parts of
+    :data:`pbrcheck.gltf.MODELLED_EXTENSIONS`) lack it (transmission fields included) (``materials`` the objects' names, ``asset``
     the scene file)."""
 
     out = []
@@ -184,7 +211,7 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     for o in getattr(scene, "objects", ()):
         if getattr(o, "type", "") in ("sphere", "plane"):
             for f in (*scene_features(o.material), *transmission_scene_features(o.material)):
-                if f not in MODELLED_LOBE_EXTENSIONS:
+                if f not in MODELLED_LOBE_EXTENSIONS and f not in MODELLED_TRANSMISSION_EXTENSIONS:
                     analytic.setdefault(f, []).append(o)
     for f, objs in analytic.items():
         out.append(Unmodelled(f, tuple(o.name for o in objs), tuple(o.id for o in objs), getattr(scene, "source", "")))
@@ -213,18 +240,23 @@ def notice_lines(asset) -> list[str]:
             f"a gate check of it is not judged" for u in asset.unmodelled]
 
 
-#: What a notice says of a transmission extension both renderers render in part (issue 37): the
-#: reference in its path mode only (local mode refuses it), the real-time renderer in its raster
-#: pipeline only (the engines' screen-space refraction; the ray-cast pipeline draws it opaque).
-PARTLY_RENDERED = ("rendered in part: the reference in path mode only, the real-time image by its raster "
-                   "pipeline only (screen space)")
+#: What a notice says of a transmission extension the reference renders (its path mode) while
+#: :data:`pbrcheck.transmission_params.MODELLED_TRANSMISSION_EXTENSIONS` lacks it (the real-time
+#: renderer no longer renders it): a state the honesty contract keeps a wording for.
+PARTLY_RENDERED = "rendered in part: by the reference in path mode only, not by the real-time image"
+#: What a notice says of a modelled transmission extension on a material the reference renders opaque.
+REFERENCE_REFUSED = "the reference renders these materials opaque ({why})"
 
 
 def _what_is_left_out(asset, u) -> str:
-    """Which images leave feature ``u`` out: both, except a transmission extension whose every
-    material the reference's path mode renders (issue 37: constant factors or the textures it reads
-    per hit, :func:`pbrcheck.transmission_params.reference_renders`)."""
+    """Which images leave feature ``u`` out: both, except a transmission extension: modelled, the
+    reference's refusal of its materials (:func:`pbrcheck.transmission_params.reference_refusal`); else
+    :data:`PARTLY_RENDERED` where the reference's path mode renders every material (issue 37: constant
+    factors or the textures it reads per hit, :func:`pbrcheck.transmission_params.reference_renders`)."""
     mats = [m for m in getattr(asset, "materials", ()) if m.name in u.materials]
+    if u.feature in MODELLED_TRANSMISSION_EXTENSIONS:
+        why = "; ".join(dict.fromkeys(terminal_safe(reference_refusal(m)) for m in mats if reference_refusal(m)))
+        return REFERENCE_REFUSED.format(why=why or "its path mode does not take these materials")
     if u.feature in REFERENCE_RENDERED and mats and all(reference_renders(m) for m in mats):
         return PARTLY_RENDERED
     return "the reference and the real-time image leave it out"
@@ -269,7 +301,8 @@ def announce_scene(scene):
         if u.asset != getattr(scene, "source", None) or key in _NOTICES["seen"]:
             continue
         _NOTICES["seen"].add(key)
-        # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37)
+        # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37);
+        # named here only while MODELLED_TRANSMISSION_EXTENSIONS lacks them
         what = (PARTLY_RENDERED if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
         print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
               f"{what}; a gate check of it is not judged", file=stream)

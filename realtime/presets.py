@@ -29,7 +29,7 @@ from pbrcheck.lodmap import BUILTIN_LOD_MAPPINGS, LOD_MAPPINGS, LodMapping
 from pbrcheck.registry import FRESNELS, GEOMETRIES, NDFS, Entry
 from pbrcheck.sampling import LUT_SAMPLINGS
 
-from .transmission import TRANSMISSION_LODS
+from .transmission import TRANSMISSION_LODS, TRANSMISSION_SOURCES
 from .registry import (ANISOTROPY_BENDS, COAT_ATTENUATIONS, COAT_IBLS, DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS,
                        IRIDESCENCES, IRRADIANCE_METHODS, IRRADIANCES, RUNTIME_SAMPLINGS, SHADINGS, SHEEN_DFGS,
                        SHEEN_SCALINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS)
@@ -205,6 +205,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
     Option("transmission_lod", "choice", "transmission: the opaque-pass framebuffer's read along the refracted "
            "ray: sample_viewer (textureLod at log2(width) applyIorToRoughness, trilinear) | threejs (the same "
            "level, textureBicubic)", TRANSMISSION_LODS.names, default="sample_viewer"),
+    Option("transmission_source", "choice", "transmission: what the refracted ray reads: screen (the opaque-pass "
+           "framebuffer, the cube off screen; raster) | cubemap (Filament's cube-map refraction: the prefiltered "
+           "cube along the ray leaving the object); the ray-cast pipeline always reads the cube",
+           TRANSMISSION_SOURCES.names, default="screen"),
     Option("sheen_lut_size", "int", "sheen LUT size N (N x N; realtime.lobes.SHEEN_LUT_CONVENTIONS)", lo=2, hi=512,
            default=32, bakes=("sheen_lut",)),
     Option("sheen_lut_samples", "int", "Charlie samples per sheen LUT texel", lo=1, hi=1 << 16, default=4096,
@@ -451,7 +455,7 @@ OPTION_REGISTRIES = {"shading": SHADINGS, "irradiance": IRRADIANCES, "irradiance
                      "horizon_occlusion": HORIZON_OCCLUSIONS, "specular_aa": SPECULAR_AAS,
                      "coat_ibl": COAT_IBLS, "coat_attenuation": COAT_ATTENUATIONS, "sheen_dfg": SHEEN_DFGS,
                      "sheen_scaling": SHEEN_SCALINGS, "anisotropy_bend": ANISOTROPY_BENDS, "iridescence": IRIDESCENCES,
-                     "transmission_lod": TRANSMISSION_LODS}
+                     "transmission_lod": TRANSMISSION_LODS, "transmission_source": TRANSMISSION_SOURCES}
 
 
 #: Option values decided at render time (``auto``: by the scene, :func:`realtime.render.resolved_pipeline`):

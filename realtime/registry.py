@@ -22,7 +22,7 @@ API
 :data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`; the lobes' approximations (issue 36):
 :data:`COAT_ATTENUATIONS`, :data:`COAT_IBLS`, :data:`SHEEN_DFGS`, :data:`SHEEN_SCALINGS`,
 :data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS`; transmission's
-(issue 37): :data:`TRANSMISSION_LODS` (defined in :mod:`realtime.transmission`).
+(issue 37): :data:`TRANSMISSION_LODS`, :data:`TRANSMISSION_SOURCES` (defined in :mod:`realtime.transmission`).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from pbrcheck.sampling import (LUT_SAMPLINGS, runtime_estimate_ndf, runtime_esti
 from pbrcheck.specular_aa import specular_aa_prefiltered, specular_aa_screen_space, specular_aa_toksvig
 
 from . import lobes as _lobes
-from .transmission import TRANSMISSION_LODS  # noqa: F401  (issue 37 item 2: the opaque-pass framebuffer's read)
+from .transmission import TRANSMISSION_LODS, TRANSMISSION_SOURCES  # noqa: F401  (issue 37 item 2: the opaque-pass framebuffer's read)
 
 #: Each composition ``requires`` the specular image-based lighting it has (``ibl`` option): article
 #: 001 is runtime sampling only, articles 000 and 002 split sum only, the material model has both.

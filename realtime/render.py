@@ -75,7 +75,7 @@ from .presets import (
     unmet_requirements,
 )
 from .transmission import raycast_notice as transmission_notice
-from .transmission import scene_transmissive, transmission_defines
+from .transmission import object_transmission_rows, scene_transmissive, transmission_defines
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -584,6 +584,10 @@ def _bind_frame(prog, scene: Scene, o: RealtimeOptions, env, textures: dict, sh)
         lobes = ctx.buffer(object_lobe_rows(scene).tobytes())
         lobes.bind_to_storage_buffer(3)
         objs = _Released(objs, lobes)
+    if textures.get("transmission"):  # the ObjectTransmission buffer (render.comp, binding 4), transmission programs only
+        trans = ctx.buffer(object_transmission_rows(scene).tobytes())
+        trans.bind_to_storage_buffer(4)
+        objs = _Released(objs, trans)
     lbuf = _bind_shading(prog, scene, o, env, textures, sh)
     out_color = ctx.texture((W, H), 4, dtype="f4")
     out_aov = ctx.texture((W, H), 4, dtype="f4")
@@ -730,8 +734,9 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         if lobes and not ldefs:
             warnings.append(f"lobes_ignored: shading={o.shading} renders no lobe ({', '.join(lobes)}); "
                             f"shading=material does")
-        # transmission (realtime/transmission.py): compiled only into raster programs of scenes with a
-        # transmissive material; reads the prefiltered cube (off-screen fallback) and the DFG LUT
+        # transmission (realtime/transmission.py): compiled only into the programs of scenes with a
+        # transmissive material; reads the prefiltered cube (Filament's cube-map refraction in the ray-cast
+        # pipeline, the off-screen fallback in the raster one) and the DFG LUT
         tdefs = transmission_defines(scene, o, pipeline)
         tnote = transmission_notice(scene, o, pipeline)
         if tnote:
@@ -753,7 +758,8 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
 
         defines = {**frame_defines(o, terms), **ldefs, **tdefs}
         hooks = load_hook_file(o.shader) if o.shader else None
-        baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd}
+        baked = {"prefiltered": pre, "irradiance_cube": irr, "env_cube": cube, "dfg_lut": lut, "kd_lut": kd,
+                 "transmission": bool(tdefs)}
         if ldefs:
             from .lobe_luts import sheen_lut
             b = bake_inputs("sheen_lut", o)

@@ -1,10 +1,13 @@
-"""The engines' real-time approximation of light through a surface (issue 37 item 2), raster pipeline:
-the opaque objects rendered first into a framebuffer with a mip chain, the transmissive ones sampling it
-along the refracted ray at a level from roughness and IOR, the prefiltered environment where that ray
-leaves the screen, Beer-Lambert attenuation over the material's ``thickness`` (not the path travelled),
-dispersion as three IORs. GLSL: ``realtime/shaders/transmission.glsl``, compiled into raster.frag only
-where the scene draws a transmissive material (the ``TRANSMISSION`` define): a scene without one has the
-programs (sources) and images it had before.
+"""The engines' real-time approximation of light through a surface (issue 37 item 2). Raster pipeline
+(source ``screen``): the opaque objects rendered first into a framebuffer with a mip chain, the
+transmissive ones sampling it along the refracted ray at a level from roughness and IOR, the prefiltered
+environment where that ray leaves the screen. Source ``cubemap`` (Filament's ``REFRACTION_MODE_CUBEMAP``;
+the ray-cast pipeline's, which has no opaque-pass framebuffer, and the raster pipeline's on request): the
+prefiltered environment along the direction leaving the object. Both: Beer-Lambert attenuation over the
+material's ``thickness`` (not the path travelled), dispersion as three IORs, diffuse transmission.
+GLSL: ``realtime/shaders/transmission.glsl``, compiled into raster.frag and render.comp only where the
+scene draws a transmissive material (the ``TRANSMISSION`` define): a scene without one has the programs
+(sources) and images it had before.
 
 The numpy twins below are the closed forms of the GLSL (``tests/test_realtime_transmission.py`` runs
 both on grids with the extremes).
@@ -27,6 +30,18 @@ into the framebuffer; attenuation ``attenuationColor^(thickness / attenuationDis
 0); the transmitted radiance weighted ``(1 - (F0 A + B)) base_colour`` (the DFG LUT's specular albedo:
 the Sample Viewer's form; three.js's ``EnvironmentBRDF`` is the same with its analytic fit) replaces
 the dielectric diffuse in proportion ``transmission`` (``mix(f_diffuse, f_transmission, T)``).
+Sources (registry :data:`TRANSMISSION_SOURCES`, option ``transmission_source``; the ray-cast pipeline
+always reads the cube):
+
+* ``screen``: the opaque-pass framebuffer above (raster), the cube where the ray leaves the screen.
+* ``cubemap``: google/filament ``shaders/src/surface_light_indirect.fs`` ``evaluateRefraction`` with
+  ``REFRACTION_MODE_CUBEMAP``: ``prefilteredRadiance(direction, r')`` at Filament's refraction roughness
+  ``r' = mix(r, 0, saturate(3 / ior - 2))`` (:func:`filament_refraction_roughness`); the direction
+  (:func:`refraction_direction`) by ``REFRACTION_TYPE``: ``solid`` where the material has a thickness
+  (``refractionSolidSphere``: a sphere of diameter ``thickness``, refracted in, out through
+  ``n1 = normalize(dot(n, r) r - n / 2)``), ``thin`` where it has none (``refractionThinSphere``: the
+  slab offsets the ray, the direction is the view ray's, and a cube lookup has no position).
+
 Dispersion (three.js): three IORs ``ior -/+ (ior - 1) 0.025 dispersion`` for R, G, B, each channel
 its own refracted lookup. Diffuse transmission (the Sample Viewer's pbr.frag): the irradiance from the
 back ``E(-n) / pi`` x ``diffuseTransmissionColor`` x base colour (attenuated over the thickness) replaces
@@ -37,7 +52,9 @@ API
 :data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`TRANSMISSION_LODS`,
 :data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`bspline_weights`,
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
-:func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`.
+:data:`TRANSMISSION_SOURCES`, :func:`filament_refraction_roughness`, :func:`refraction_direction`,
+:func:`object_transmission_rows`, :func:`scene_transmissive`, :func:`transmission_defines`,
+:func:`raycast_notice` (now: a composition other than ``material``).
 """
 
 from __future__ import annotations
@@ -49,8 +66,9 @@ import numpy as np
 from pbrcheck import transmission_params as tp
 from pbrcheck.registry import Entry, Registry, role
 
-#: The extensions the real-time raster pipeline renders (the honesty contract,
-#: pbrcheck.lobe_params.MODELLED_LOBE_EXTENSIONS, is the lead's and is not changed here).
+#: The extensions the real-time renderer renders, both pipelines (raster: screen space or the cube;
+#: ray-cast: the cube); the honesty contract's list (pbrcheck.transmission_params.
+#: MODELLED_TRANSMISSION_EXTENSIONS) is held to this and the reference's by tests/test_transmission_modelled.py.
 REALTIME_TRANSMISSION_EXTENSIONS = (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
 #: three.js transmission_pars_fragment: ``halfSpread = (ior - 1) * 0.025 * dispersion``.
 DISPERSION_SPREAD = 0.025
@@ -111,6 +129,61 @@ TRANSMISSION_LODS = Registry("TRANSMISSION_LOD", [
 ])
 
 
+def filament_refraction_roughness(roughness, ior):
+    """Filament ``evaluateRefraction``: ``mix(r, 0, saturate(3 / ior - 2))`` (IOR 1: 0; 1.5 and above: r)."""
+    return np.asarray(roughness, float) * (1.0 - np.clip(3.0 / np.asarray(ior, float) - 2.0, 0.0, 1.0))
+
+
+def _refract(i, n, eta):
+    """GLSL ``refract`` on rows (zero where total internal reflection)."""
+    c = np.sum(n * i, -1, keepdims=True)
+    k = 1.0 - eta * eta * (1.0 - c * c)
+    out = eta * i - (eta * c + np.sqrt(np.maximum(k, 0.0))) * n
+    return np.where(k < 0.0, 0.0, out)
+
+
+def refraction_direction(n, v, ior, thickness):
+    """The direction leaving the object, Filament's cube-map refraction (rows of unit ``n``, ``v`` towards
+    the eye; ``ior`` >= 1): thin (``thickness`` <= 0) ``-v``; solid ``refract(r, n1, ior)`` with
+    ``r = refract(-v, n, 1 / ior)``, ``n1 = normalize(dot(n, r) r - n / 2)``, ``r`` where that is total
+    internal reflection."""
+    n, v = np.asarray(n, float), np.asarray(v, float)
+    ior = np.asarray(ior, float)[..., None] if np.ndim(ior) else float(ior)
+    thin = (np.asarray(thickness, float) <= 0.0)[..., None] if np.ndim(thickness) else float(thickness) <= 0.0
+    r = _refract(-v, n, 1.0 / ior)
+    n1 = np.sum(n * r, -1, keepdims=True) * r - 0.5 * n
+    n1 = n1 / np.linalg.norm(n1, axis=-1, keepdims=True)
+    o = _refract(r, n1, ior)
+    ln = np.linalg.norm(o, axis=-1, keepdims=True)
+    solid = np.where(ln > 0.0, o / np.where(ln > 0.0, ln, 1.0), r)
+    return np.where(thin, -v, solid)
+
+
+TRANSMISSION_SOURCES = Registry("TRANSMISSION_SOURCE", [
+    Entry("screen", "the opaque-pass framebuffer along the refracted ray (the Sample Viewer's, three.js's), the "
+                    "prefiltered cube where the ray leaves the screen; raster only (the ray-cast pipeline reads the cube)",
+          applies_to="transmission: what the refracted ray reads"),
+    Entry("cubemap", "Filament REFRACTION_MODE_CUBEMAP: the prefiltered cube along the direction leaving the object "
+                     "(solid: a sphere of the thickness; thin: the view ray) at Filament's refraction roughness",
+          roles={"refraction_roughness": role(filament_refraction_roughness),
+                 "refraction_direction": role(refraction_direction)},
+          applies_to="transmission: what the refracted ray reads"),
+])
+
+
+def object_transmission_rows(scene) -> np.ndarray:
+    """render.comp's ObjectTransmission rows, 3 vec4 per analytic object (float32): (transmission,
+    thickness, dispersion, IOR from the specular F0), (attenuation colour, distance; 0: none),
+    (diffuse transmission colour, factor)."""
+    rows = []
+    for ob in scene.objects:
+        m = ob.material
+        rows += [[m.transmission, m.thickness, m.dispersion, ior_from_f0(m.specular)],
+                 [*m.attenuation_color, m.attenuation_distance],
+                 [*m.diffuse_transmission_color, m.diffuse_transmission]]
+    return np.asarray(rows or [[0.0] * 4] * 3, np.float32)
+
+
 def _scene_material_transmissive(m) -> bool:
     return m.transmission > 0.0 or m.diffuse_transmission > 0.0
 
@@ -133,22 +206,23 @@ def scene_transmissive(scene) -> bool:
 
 
 def transmission_defines(scene, o, pipeline: str) -> dict:
-    """``TRANSMISSION`` and the ``TRANSMISSION_LOD`` member for a raster render of a scene with a
-    transmissive material under composition ``material``; ``{}`` otherwise (the program is then exactly
-    the transmission-free one)."""
-    if pipeline != "raster" or o.shading != "material" or not scene_transmissive(scene):
+    """``TRANSMISSION``, the ``TRANSMISSION_LOD`` and ``TRANSMISSION_SOURCE`` members (the ray-cast
+    pipeline: ``cubemap`` and ``TRANSMISSION_PER_OBJECT``) for a render of a scene with a transmissive
+    material under composition ``material``; ``{}`` otherwise (the program is then exactly the
+    transmission-free one)."""
+    if o.shading != "material" or not scene_transmissive(scene):
         return {}
-    return {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod)}
+    source = o.transmission_source if pipeline == "raster" else "cubemap"
+    out = {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod),
+           **TRANSMISSION_SOURCES.constants(), **TRANSMISSION_SOURCES.select(source)}
+    if pipeline != "raster":
+        out["TRANSMISSION_PER_OBJECT"] = 1
+    return out
 
 
 def raycast_notice(scene, o, pipeline: str) -> str | None:
-    """The one-line notice of a render that draws transmissive materials opaque: the ray-cast pipeline
-    (analytic scenes: it has no opaque-pass framebuffer) or a composition other than ``material``."""
-    if not scene_transmissive(scene):
-        return None
-    if pipeline != "raster":
-        return ("transmission_unmodelled: pipeline=raycast renders KHR_materials_transmission/volume/dispersion/"
-                "diffuse_transmission materials opaque (no opaque-pass framebuffer); pipeline=raster renders them")
-    if o.shading != "material":
+    """The one-line notice of a render that draws transmissive materials opaque: a composition other
+    than ``material`` (both pipelines render them under ``material``)."""
+    if scene_transmissive(scene) and o.shading != "material":
         return f"transmission_unmodelled: shading={o.shading} renders transmissive materials opaque; shading=material does"
     return None

@@ -4,6 +4,7 @@
   as on a user's fresh clone; they are never copied into the repository).
 * ``tmp_cache``: points ``PBRCHECK_CACHE`` at a per-test directory.
 * ``lobes_unmodelled``: the honesty contract with the glTF lobes unmodelled (its own tests).
+* ``transmission_unmodelled``: the same with the transmission extensions unmodelled.
 """
 
 from __future__ import annotations
@@ -51,4 +52,25 @@ def lobes_unmodelled(monkeypatch):
     for mod, name, value in ((lp, "MODELLED_LOBE_EXTENSIONS", ()), (unmodelled, "MODELLED_LOBE_EXTENSIONS", ()),
                              (lobes_section, "MODELLED_LOBE_EXTENSIONS", ()), (gltf, "MODELLED_EXTENSIONS", without),
                              (gltf, "SUPPORTED_EXTENSIONS", without), (export, "SUPPORTED_EXTENSIONS", without)):
+        monkeypatch.setattr(mod, name, value)
+
+
+@pytest.fixture
+def transmission_unmodelled(monkeypatch):
+    """The honesty contract as it stood before both renderers rendered the transmission extensions
+    (``MODELLED_TRANSMISSION_EXTENSIONS`` empty): the contract's tests that use transmission as their
+    unmodelled extension (naming, the path-mode-only wording, stripping, ``--keep-unmodelled``) keep
+    testing the mechanism whatever the renderers model today. The loader's cache is emptied for the
+    test (an asset loaded under one contract keeps that contract's records)."""
+    import pbrcheck.export as export
+    import pbrcheck.gltf as gltf
+    import pbrcheck.transmission_params as tp
+    import pbrcheck.unmodelled as unmodelled
+
+    trans = set(tp.TRANSMISSION_EXTENSIONS)
+    without = tuple(e for e in gltf.MODELLED_EXTENSIONS if e not in trans)
+    for mod, name, value in ((tp, "MODELLED_TRANSMISSION_EXTENSIONS", ()),
+                             (unmodelled, "MODELLED_TRANSMISSION_EXTENSIONS", ()), (gltf, "MODELLED_EXTENSIONS", without),
+                             (gltf, "SUPPORTED_EXTENSIONS", without), (export, "SUPPORTED_EXTENSIONS", without),
+                             (gltf, "_CACHE", {})):
         monkeypatch.setattr(mod, name, value)

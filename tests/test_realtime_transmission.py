@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import transmission_params as tp
+from pbrcheck.camera import primary_rays
 from pbrcheck.scene import Environment, Material, Plane, load_scene
 from realtime import transmission as rt
 from realtime.gl import assemble
@@ -79,24 +80,60 @@ def test_bicubic_weights_glsl_matches_numpy_and_sum_to_one():
     close(rt.bspline_weights(0.0), [1 / 6, 4 / 6, 1 / 6, 0.0], rtol=1e-12)
 
 
+def test_filament_refraction_roughness_glsl_matches_numpy():
+    r, ior = np.meshgrid([0.0, 0.01, 0.3, 1.0], [1.0, 1.2, 1.4, 1.5, 2.4, 5.0], indexing="ij")
+    close(run_glsl("filament_refraction_roughness(x0, x1)", r, ior), rt.filament_refraction_roughness(r, ior))
+    # Filament's anchors: IOR 1 never blurs (etaIR 3 - 2 = 1), 1.5 and above take the roughness as it is
+    assert np.all(rt.filament_refraction_roughness(r[:, 0], 1.0) == 0.0)
+    close(rt.filament_refraction_roughness(0.3, 1.5), 0.3)
+    close(rt.filament_refraction_roughness(0.6, 1.2), 0.6 * (1.0 - (3.0 / 1.2 - 2.0)))
+
+
+def test_refraction_direction_glsl_matches_numpy_and_ior_1_goes_straight():
+    """Filament's solid and thin refraction directions on a grid of view angles (normal incidence to
+    grazing 89 deg, where the solid form meets total internal reflection and falls back), IORs 1 to 3."""
+    ang = np.radians([0.0, 20.0, 45.0, 70.0, 85.0, 89.0])
+    ior = np.array([1.0, 1.33, 1.5, 2.4, 3.0])
+    th = np.array([0.0, 0.5])
+    A, I, T = np.meshgrid(ang, ior, th, indexing="ij")
+    v = np.stack([np.sin(A), np.cos(A), np.zeros_like(A)], -1)      # n = +y, v towards the eye
+    n = np.broadcast_to([0.0, 1.0, 0.0], v.shape)
+    got = run_glsl("refraction_direction(vec3(0.0, 1.0, 0.0), vec3(x0, x1, 0.0), x2, x3)",
+                   v[..., 0], v[..., 1], I, T, components=3)
+    want = rt.refraction_direction(n, v, I, T)
+    close(got, want, atol=2e-5)
+    close(np.linalg.norm(want, axis=-1), 1.0, rtol=1e-9)
+    close(want[..., 0, :], -v[..., 0, :], atol=1e-12)          # thin: the view ray
+    close(want[:, 0, 1], -v[:, 0, 1], atol=1e-12)              # IOR 1 solid: straight through
+    # normal incidence goes straight through any sphere; oblique glass bends (away from the straight ray)
+    close(want[0, :, 1], [[0.0, -1.0, 0.0]] * len(ior), atol=1e-12)
+    assert np.dot(want[2, 2, 1], -v[2, 2, 1]) < 0.999
+
+
 # ---- programs: compiled only where a scene has transmission --------------------------------------
 
-def test_transmission_defines_only_for_raster_scenes_with_transmission():
+def test_transmission_defines_only_for_scenes_with_transmission():
     from realtime.presets import resolve_options
     o = resolve_options("default", {})
     glass, plain = load_scene("glass"), load_scene("clearcoat")
-    assert rt.transmission_defines(plain, o, "raster") == {}
-    assert rt.transmission_defines(glass, o, "raycast") == {}
+    assert rt.transmission_defines(plain, o, "raster") == {} == rt.transmission_defines(plain, o, "raycast")
     d = rt.transmission_defines(glass, o, "raster")
     assert d["TRANSMISSION"] == 1 and d["TRANSMISSION_LOD"] == "TRANSMISSION_LOD_SAMPLE_VIEWER"
+    assert d["TRANSMISSION_SOURCE"] == "TRANSMISSION_SOURCE_SCREEN" and "TRANSMISSION_PER_OBJECT" not in d
     o3 = resolve_options("default", {"transmission_lod": "threejs"})
     assert rt.transmission_defines(glass, o3, "raster")["TRANSMISSION_LOD"] == "TRANSMISSION_LOD_THREEJS"
+    # the ray-cast pipeline has no opaque-pass framebuffer: Filament's cube, the material per object
+    c = rt.transmission_defines(glass, o, "raycast")
+    assert c["TRANSMISSION_SOURCE"] == "TRANSMISSION_SOURCE_CUBEMAP" and c["TRANSMISSION_PER_OBJECT"] == 1
+    oc = resolve_options("default", {"transmission_source": "cubemap"})
+    assert rt.transmission_defines(glass, oc, "raster")["TRANSMISSION_SOURCE"] == "TRANSMISSION_SOURCE_CUBEMAP"
+    assert rt.transmission_defines(glass, resolve_options("default", {"shading": "article000"}), "raycast") == {}
 
 
-def _preprocessed(defines: dict) -> str:
-    """raster.frag assembled and through the C preprocessor (comments and ``#version`` dropped): what the
+def _preprocessed(defines: dict, source: str = "raster.frag") -> str:
+    """``source`` assembled and through the C preprocessor (comments and ``#version`` dropped): what the
     GLSL compiler sees."""
-    src = "\n".join(line for line in assemble("raster.frag", defines).text.splitlines() if not line.startswith("#version"))
+    src = "\n".join(line for line in assemble(source, defines).text.splitlines() if not line.startswith("#version"))
     out = subprocess.run(["cpp", "-P", "-undef", "-w"], input=src, capture_output=True, text=True, check=True).stdout
     return re.sub(r"\s+", " ", out)
 
@@ -119,6 +156,12 @@ def test_a_transmission_free_program_has_no_transmission_code(preset):
     found = {m.group(1) for m in symbols.finditer(_preprocessed({**base, **rt.transmission_defines(
         load_scene("glass"), o, "raster")}))}
     assert {"transmission_fb", "apply_ior_to_roughness", "volume_attenuation"} <= found
+    # render.comp likewise (the ray-cast pipeline): nothing without transmission, the cube refraction with it
+    assert rt.transmission_defines(scene, o, "raycast") == {}
+    assert not symbols.search(_preprocessed(frame := R.frame_defines(o, terms), "render.comp"))
+    found = {m.group(1) for m in symbols.finditer(_preprocessed({**frame, **rt.transmission_defines(
+        load_scene("glass"), o, "raycast")}, "render.comp"))}
+    assert {"transmission_change", "volume_attenuation"} <= found and "transmission_fb" not in found
 
 
 def test_presets_take_the_sample_viewer_rule():
@@ -128,19 +171,23 @@ def test_presets_take_the_sample_viewer_rule():
     assert rt.REALTIME_TRANSMISSION_EXTENSIONS == (tp.TRANSMISSION, tp.VOLUME, tp.DISPERSION, tp.DIFFUSE_TRANSMISSION)
 
 
-def test_raycast_names_the_unmodelled_transmission_and_auto_takes_the_raster_pipeline():
-    """pipeline=raycast (and auto with shadows, which only the ray-cast pipeline has) renders glass opaque
-    and says so in one line; auto otherwise takes the raster pipeline for a transmissive analytic scene."""
+def test_raycast_renders_transmission_and_auto_takes_the_raster_pipeline():
+    """pipeline=raycast (and auto with shadows, which only the ray-cast pipeline has) renders glass by
+    Filament's cube refraction, with no notice; auto otherwise takes the raster pipeline for a transmissive
+    analytic scene; a composition other than material draws it opaque and says so in one line."""
     scene = load_scene("glass").with_camera(width=8, height=6)
     img = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast"}, progress=False)
-    assert "transmission_unmodelled: pipeline=raycast" in img.meta["warnings"]
+    assert "transmission" not in img.meta["warnings"]
     shadowed = render_realtime(scene, "default", {**SMALL, "pipeline": "auto", "shadows": True}, progress=False)
-    assert shadowed.meta["pipeline"] == "raycast" and "transmission_unmodelled" in shadowed.meta["warnings"]
+    assert shadowed.meta["pipeline"] == "raycast" and "transmission" not in shadowed.meta["warnings"]
     auto = render_realtime(scene, "default", {**SMALL, "pipeline": "auto"}, progress=False)
     assert auto.meta["pipeline"] == "raster" and "transmission_unmodelled" not in auto.meta["warnings"]
     plain = render_realtime(load_scene("spheres").with_camera(width=8, height=6), "default",
                             {**SMALL, "pipeline": "auto"}, progress=False)
     assert plain.meta["pipeline"] == "raycast"
+    karis = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast", "shading": "article000"},
+                            progress=False)
+    assert "transmission_unmodelled: shading=article000 renders transmissive materials opaque" in karis.meta["warnings"]
 
 
 # ---- known answers in the raster pipeline ---------------------------------------------------------
@@ -318,3 +365,110 @@ def test_gltf_transmission_and_thickness_textures(tmp_path):
     # left: transmission 0, an opaque white dielectric in a white environment: grey-white, not tinted
     assert np.all(np.abs(rgb[left] - rgb[left].mean(-1, keepdims=True)) < 1e-3)
     assert rgb[left].min() > 0.8
+
+
+# ---- known answers in the ray-cast pipeline (Filament's cube-map refraction) ------------------------
+
+#: The IOR-1 sheet against the environment it hides, ray-cast: the background pixels read the
+#: equirectangular map, the sheet the prefiltered cube's level 0 (64^2 faces, bilinear) along the same
+#: direction; on the smooth sunless sky the two differ by the cube's resampling and the sheet's own
+#: B(n.v, 0) specular, measured at most 0.6 % (48 x 48, these options), so 2 %.
+RAYCAST_ENV_RTOL = 0.02
+#: The sky's step to the ground at the horizon is resampled by the cube over about two of its texels
+#: (64^2 faces: 90 / 64 = 1.4 deg each): pixels within this elevation of the horizon are left out.
+HORIZON_MARGIN_DEG = 4.0
+
+
+def _raycast_sheet_scene(sheet: Material | None, env: Environment, width: int = 48):
+    """A vertical 1.6 x 1.6 sheet at z = 0 facing the camera, which looks at the horizon through it
+    (the sky's gradient above, the ground's below), nothing behind it: the environment shows through."""
+    g = load_scene("glass").with_camera(origin=(0.0, 0.2, 2.5), target=(0.0, 0.2, 0.0), width=width, height=width)
+    objs = () if sheet is None else (Plane(id=0, center=(0.0, 0.2, 0.0), normal=(0.0, 0.0, 1.0), size=(1.6, 1.6),
+                                           material=sheet, name="sheet"),)
+    return replace(g, objects=objs, environment=env)
+
+
+@pytest.mark.parametrize("thickness", [0.0, 0.3])   # thin, and Filament's solid sphere
+def test_raycast_ior1_sheet_shows_the_environment_behind_it(thickness):
+    """Transmission 1, IOR 1 (F0 0), roughness 0, white: the cube refraction's direction is the view ray
+    (thin: -v; solid at IOR 1: straight through), so the sheet shows the sky it hides: the same pixels
+    without the sheet."""
+    sky = Environment(type="sky", sun_radiance=(0.0, 0.0, 0.0))
+    sheet = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0, transmission=1.0,
+                     thickness=thickness)
+    opts = {**SMALL, "pipeline": "raycast", "cube_size": 64}
+    bare = render_realtime(_raycast_sheet_scene(None, sky), "default", opts, progress=False)
+    img = render_realtime(_raycast_sheet_scene(sheet, sky), "default", opts, progress=False)
+    _, d = primary_rays(_raycast_sheet_scene(None, sky).camera)
+    m = (img.channels["object"] == 0.0) & (np.abs(np.degrees(np.arcsin(d[..., 1]))) > HORIZON_MARGIN_DEG)
+    assert m.sum() > 400 and img.meta["pipeline"] == "raycast"
+    np.testing.assert_allclose(_rgb(img)[m], _rgb(bare)[m], rtol=RAYCAST_ENV_RTOL)
+    # and the sky's gradient shows through (not one flat colour)
+    assert np.ptp(_rgb(img)[m][:, 2]) > 0.05 * _rgb(img)[m][:, 2].mean()
+
+
+def test_raycast_tinted_sphere_is_the_environment_times_beer_lambert():
+    """A sphere of transmission 1, IOR 1, roughness 0, white, thickness t in a constant environment L:
+    the split sum's specular gives L B(n.v, 0) (F0 0), the transmitted light L (1 - B) times the
+    Beer-Lambert attenuation a = exp(-sigma_t t). So a clear sphere (attenuation colour 1) is L at every
+    pixel, an opaque-black one (colour 0: a = 0) is the specular L B alone, and a tinted one is exactly
+    L B + (L - L B) a: the environment times exp(-sigma_t t) where B is 0 (its centre)."""
+    c, d, t, L = (0.9, 0.45, 0.15), 0.5, 0.3, 0.7
+    g = load_scene("glass")
+    ball = next(ob for ob in g.objects if getattr(ob, "radius", 0.0) > 0.0)
+    g = g.with_camera(origin=tuple(np.add(ball.center, (0.0, 0.0, 4.0 * ball.radius))), target=ball.center,
+                      width=24, height=24)
+
+    def render(color):
+        glass = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0, transmission=1.0,
+                         thickness=t, attenuation_distance=d, attenuation_color=color)
+        scene = replace(g, objects=(replace(ball, id=0, material=glass),),
+                        environment=Environment(type="constant", radiance=(L, L, L)))
+        return render_realtime(scene, "default", {**SMALL, "pipeline": "raycast"}, progress=False)
+
+    tinted, clear, black = render(c), render((1.0, 1.0, 1.0)), render((0.0, 0.0, 0.0))
+    m = tinted.channels["object"] == 0.0
+    assert m.sum() > 200
+    att = np.exp(-np.asarray(tp.Volume(thickness=t, attenuation_distance=d, attenuation_color=c).sigma_t) * t)
+    spec = _rgb(black)[m]
+    np.testing.assert_allclose(_rgb(clear)[m], L, rtol=1e-5)
+    np.testing.assert_allclose(_rgb(tinted)[m], spec + (L - spec) * att, rtol=1e-5, atol=1e-6)
+    # the centre pixel (n.v = 1, B(1, 0) small): the environment times exp(-sigma_t t)
+    centre = _rgb(tinted)[12, 12]
+    np.testing.assert_allclose(centre, L * att, rtol=SHEET_RTOL, atol=1e-4)
+
+
+def test_raycast_diffuse_transmission_sheet_in_a_white_environment_is_its_colour():
+    """The raster pipeline's diffuse-transmission known answer in the ray-cast pipeline (the same GLSL):
+    E(-n) / pi = 1 times the colour c, plus the DFG's B at roughness 0 only."""
+    c = (0.8, 0.4, 0.1)
+    sheet = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0,
+                     diffuse_transmission=1.0, diffuse_transmission_color=c)
+    img = render_realtime(_raycast_sheet_scene(sheet, Environment(type="constant", radiance=(1.0, 1.0, 1.0)), 24),
+                          "default", {**SMALL, "pipeline": "raycast"}, progress=False)
+    m = img.channels["object"] == 0.0
+    assert m.sum() > 100 and img.meta["pipeline"] == "raycast"
+    np.testing.assert_allclose(_rgb(img)[m], np.broadcast_to(c, (int(m.sum()), 3)), rtol=SHEET_RTOL, atol=2e-3)
+
+
+def test_raster_with_the_cubemap_source_takes_no_opaque_pass_and_matches_the_ray_cast_pipeline():
+    """transmission_source = cubemap in the raster pipeline: Filament's cube refraction, no opaque pass;
+    an IOR-1 sheet over the checkered ground then shows the environment (below the horizon: one colour),
+    not the ground, as the ray-cast pipeline does (the same GLSL: equal within float noise)."""
+    from realtime import raster
+    sheet = Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=0.0, specular=0.0, transmission=1.0)
+    scene = _ground_scene(sheet, 24)
+    calls = []
+    orig = raster._opaque_pass
+    raster._opaque_pass = lambda *args, **kw: calls.append(1) or orig(*args, **kw)
+    try:
+        img = render_realtime(scene, "default", {**SMALL, "transmission_source": "cubemap"}, progress=False)
+    finally:
+        raster._opaque_pass = orig
+    assert calls == [] and img.meta["pipeline"] == "raster"
+    ray = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast"}, progress=False)
+    m = _sheet_pixels(img) & _sheet_pixels(ray)
+    assert m.sum() > 100
+    np.testing.assert_allclose(_rgb(img)[m], _rgb(ray)[m], rtol=1e-4, atol=1e-6)
+    lum = _rgb(img)[m].mean(-1)
+    assert lum.max() < 1.01 * lum.min()   # the environment, not the checker

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pbrcheck import transmission as N
-from pbrcheck.unmodelled import PARTLY_RENDERED
+from pbrcheck.unmodelled import REFERENCE_REFUSED
 from pbrcheck.errors import SceneError
 from pbrcheck.scene import scene_from_dict
 from tests.test_lobes import TWIN_DIR_ATOL, _close, _V   # the lobes' twin tolerances and helpers
@@ -352,7 +352,8 @@ def test_a_gltf_sheet_of_transmission_one_and_ior_one_is_invisible(R, tmp_path):
 def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_path, capsys):
     """A transmissive glTF material with a texture the reference does not read per hit (here a
     clearcoat lobe's) keeps the opaque textured material (its transmission named as unmodelled on
-    stderr, as both images leave it out); one of constant factors takes ``pbr_transmissive``, and a
+    stderr, the reference rendering it opaque); one of constant factors takes ``pbr_transmissive``
+    (modelled: no notice), and a
     volume its interior medium; one with a base colour texture the textured variant, which needs the
     asset's images (none given: ``{}``); stderr says which."""
     from pbrcheck.gltf import load_asset
@@ -369,9 +370,9 @@ def test_only_constant_factor_gltf_materials_take_the_transmissive_bsdf(R, tmp_p
     props = R.gltf_shape_props(vol, BRDFModel())
     assert props["bsdf"].volume and "interior" in props and not R.gltf_shape_props(clear, BRDFModel())["bsdf"].volume
     assert R.gltf_shape_props(tex, BRDFModel()) == {} == R.gltf_shape_props(coat, BRDFModel())
-    assert PARTLY_RENDERED in \
-        notice_lines(load_asset(tmp_path / "clear.gltf"))[0]
-    assert "the reference and the real-time image leave it out" in notice_lines(load_asset(tmp_path / "coat.gltf"))[0]
+    assert notice_lines(load_asset(tmp_path / "clear.gltf")) == []
+    assert REFERENCE_REFUSED.format(why="textures it does not read per hit: clearcoat") in \
+        notice_lines(load_asset(tmp_path / "coat.gltf"))[0]
     load_scene(str(tmp_path / "coat.gltf"))
     R.check_local(_asset_scene(tmp_path / "coat.gltf"))   # renders opaque: local mode takes it
     with pytest.raises(SceneError, match="local mode"):

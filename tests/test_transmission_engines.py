@@ -37,6 +37,7 @@ def _material_extensions(folder: Path) -> set[str]:
     return {e for m in doc.get("materials", []) for e in m.get("extensions", {})}
 
 
+@pytest.mark.usefixtures("transmission_unmodelled")  # the keep's mechanism on transmission as unmodelled
 def test_the_keep_context_keeps_transmission_only_where_the_caller_did_not_say(tmp_path):
     s = _glass()
     assert export_scene(s, tmp_path / "default").kept_unmodelled is False
@@ -121,6 +122,7 @@ GROUND_SAME = 0.02
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("transmission_unmodelled")  # the opaque export: transmission stripped as unmodelled
 def test_threejs_renders_the_transmission_it_is_given(tmp_cache):
     _engine_ready("threejs", "three")
     s = _glass(48, 36)

@@ -156,6 +156,7 @@ def _one_each() -> list[dict]:
             {"thickness": 1.0}, {}]
 
 
+@pytest.mark.usefixtures("transmission_unmodelled")  # the contract's stripping on unmodelled transmission
 def test_export_then_load_gives_the_same_parameters(tmp_path):
     s = scene_from_dict(_scene(_one_each()))
     export_scene(s, tmp_path / "kept", keep_unmodelled=True)
@@ -175,24 +176,36 @@ def test_export_then_load_gives_the_same_parameters(tmp_path):
     assert [f for f, _ in ex2.unmodelled] == list(EXTS)
 
 
+@pytest.mark.usefixtures("transmission_unmodelled")  # the contract's mechanism on unmodelled transmission
 def test_honesty_names_an_analytic_objects_transmission():
+    import pbrcheck.gltf as gltf
+
     s = scene_from_dict(_scene(_one_each()), file="glass.toml")
     assert s.unmodelled == (
         Unmodelled(TR, ("sphere0",), (0,), "glass.toml"), Unmodelled(VO, ("sphere1", "sphere4"), (1, 4), "glass.toml"),
         Unmodelled(DI, ("sphere2",), (2,), "glass.toml"), Unmodelled(DT, ("sphere3",), (3,), "glass.toml"))
-    assert not set(EXTS) & set(MODELLED_EXTENSIONS)
+    assert not set(EXTS) & set(gltf.MODELLED_EXTENSIONS)
 
 
-def test_check_scene_lists_an_analytic_objects_transmission(tmp_path, capsys):
+def test_an_analytic_objects_transmission_is_modelled():
+    """Both renderers render the four (issue 37): a scene file setting them names nothing."""
+    assert scene_from_dict(_scene(_one_each()), file="glass.toml").unmodelled == ()
+    assert set(EXTS) <= set(MODELLED_EXTENSIONS)
+
+
+def test_check_scene_lists_an_analytic_objects_transmission(tmp_path, capsys, monkeypatch):
     p = tmp_path / "g.toml"
     p.write_text(dump_toml(scene_from_dict(_scene([{"transmission": 1.0, "thickness": 0.5}])).to_dict()))
     assert main(["check-scene", str(p)]) == 0
     out = capsys.readouterr().out
-    assert f"# object 0 sphere0: transmission 1.0, thickness 0.5 ({TR}, {VO}: the reference's path mode only, " \
-           "not yet real time)" in out
+    assert f"# object 0 sphere0: transmission 1.0, thickness 0.5 ({TR}, {VO}: rendered (the reference in path " \
+           "mode, the real-time image))" in out
     p.write_text(dump_toml(scene_from_dict(_scene([{"diffuse_transmission": 0.5, "dispersion": 0.3}])).to_dict()))
+    # an extension the real-time renderer dropped (the list without dispersion): the reference's only
+    monkeypatch.setattr(tp, "MODELLED_TRANSMISSION_EXTENSIONS", (TR, VO, DT))
     assert main(["check-scene", str(p)]) == 0
-    assert f"({DI}, {DT}: the reference's path mode only, not yet real time)" in capsys.readouterr().out
+    assert (f"({DT}: rendered (the reference in path mode, the real-time image); {DI}: the reference's path mode "
+            "only, not yet real time)") in capsys.readouterr().out
 
 
 def test_builtin_glass_scene():
@@ -205,9 +218,10 @@ def test_builtin_glass_scene():
     assert sum(o.material.attenuation_distance > 0 for o in glass) == 3
     ground = [o for o in s.objects if o.type == "plane"]
     assert len(ground) == 64 and len({o.material.base_color for o in ground}) == 2   # the checkered ground
-    assert [u.feature for u in s.unmodelled] == [TR, VO]
+    assert s.unmodelled == ()   # modelled (issue 37)
 
 
+@pytest.mark.usefixtures("transmission_unmodelled")  # the contract's wording on unmodelled transmission
 def test_stderr_says_the_reference_renders_transmission_in_path_mode(tmp_path, capsys):
     toml = tmp_path / "glass.toml"
     toml.write_text(dump_toml(scene_from_dict(_scene([{"transmission": 1.0, "clearcoat": 1.0}])).to_dict()))
@@ -215,5 +229,5 @@ def test_stderr_says_the_reference_renders_transmission_in_path_mode(tmp_path, c
     err = capsys.readouterr().err
     assert (f"glass.toml: not modelled: {TR} (objects: sphere0): {PARTLY_RENDERED}; a gate check of it is not "
             "judged") in err
-    assert "path mode only" in PARTLY_RENDERED and "raster" in PARTLY_RENDERED
+    assert "path mode only" in PARTLY_RENDERED and "not by the real-time image" in PARTLY_RENDERED
     assert "KHR_materials_clearcoat" not in err  # a lobe both renderers render (issue 36)

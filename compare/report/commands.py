@@ -29,8 +29,8 @@ from .sweep import parse_vary, run_sweep
 
 #: The stderr line of ``report --keep-unmodelled``.
 KEEP_NOTICE = ("report: --keep-unmodelled: the external engines get the material extensions pbrcheck does not "
-               "model kept (transmission, volume, ...: their own forms are measured against the truth; the "
-               "page's 'not modelled' banner does not apply to them); their render cache is bypassed")
+               "model kept (their own forms are measured; the page's 'not modelled' banner still marks them and "
+               "the gate does not judge them); their render cache is bypassed")
 
 
 def _cmd_report(args) -> int:
@@ -135,8 +135,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--quiet", action="store_true", help="no progress output")
     s.add_argument("--keep-unmodelled", action="store_true",
                    help="the external engines (--with ext:NAME) get the material extensions pbrcheck does not "
-                        "model kept (default: removed): their transmission measured against a path truth "
-                        "(docs/renderers.md, Transmission); their render cache is bypassed")
+                        "model kept (default: removed; the modelled ones, transmission and the lobes included, "
+                        "they always get); their render cache is bypassed")
     s.add_argument("--no-cache", action="store_true",
                    help="render every real-time image and compute every FLIP map (default: reuse a cached "
                         "render whose scene, options, shader and code are unchanged, its timings those measured "

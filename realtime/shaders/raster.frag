@@ -243,24 +243,15 @@ void main() {
                                       ao_strength);
     vec3 radiance = shade(Surface(v_pos, n, v, base.rgb, metallic, roughness, specular_f0, ao, N), seed);
 #ifdef TRANSMISSION
-    // KHR_materials_transmission (transmission.glsl): the dielectric diffuse, the difference of the
-    // composition at metallic 0 with and without the base colour (linear in it), is replaced in
-    // proportion transmission by the screen-space transmitted light x base colour (the Sample Viewer's
-    // mix(f_diffuse, f_transmission, T), then the metallic blend); punctual lights transmit nothing.
-    // Diffuse transmission (KHR_materials_diffuse_transmission) first replaces the diffuse by the back's
-    // irradiance, then transmission replaces what remains (the Sample Viewer's order of the two mixes).
+    // KHR_materials_transmission and _diffuse_transmission (transmission.glsl transmission_change): the
+    // dielectric diffuse replaced by the light from behind; the textures' factor (R) and thickness (G).
     if ((transmission_factor > 0.0 || diffuse_transmission_factor > 0.0) && dot(n, v) > 0.0) {
-        Surface sd = Surface(v_pos, n, v, base.rgb, 0.0, roughness, specular_f0, ao, N);
-        Surface s0 = sd;
-        s0.base_color = vec3(0.0);
-        vec3 diffuse = shade(sd, seed) - shade(s0, seed);
         float tf = transmission_factor * lookup(tmap[0], tmap_has[0], tmap_set[0], tmap_xf[0], tmap_mirror[0],
                                                 vec4(1.0), TEXTURE_LOD0 != 0).r;
         g_thickness = transmission_thickness * lookup(tmap[1], tmap_has[1], tmap_set[1], tmap_xf[1], tmap_mirror[1],
                                                       vec4(1.0), TEXTURE_LOD0 != 0).g;
-        vec3 fd = mix(diffuse, diffuse_transmission_radiance(n, base.rgb), diffuse_transmission_factor);
-        vec3 ft = tf > 0.0 ? transmission_radiance(v_pos, n, v, roughness, specular_f0) * base.rgb : vec3(0.0);
-        radiance += (1.0 - metallic) * (mix(fd, ft, tf) - diffuse);
+        radiance += transmission_change(Surface(v_pos, n, v, base.rgb, 0.0, roughness, specular_f0, ao, N), metallic,
+                                        tf, seed);
     }
 #endif
     radiance += emissive_factor * slot(tex_emissive, 3, vec4(1.0)).rgb;

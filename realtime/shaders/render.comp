@@ -21,6 +21,11 @@ uniform int n_objects;
 // 4 vec4 per object (material_lobes.glsl lobes_from_rows; realtime.material_lobes.object_lobe_rows)
 layout(std430, binding = 3) readonly buffer ObjectLobes { vec4 obj_lobes[]; };
 #endif
+#ifdef TRANSMISSION
+// 3 vec4 per object (realtime.transmission.object_transmission_rows): (transmission, thickness, dispersion,
+// ior), (attenuation colour, attenuation distance), (diffuse transmission colour, its factor).
+layout(std430, binding = 4) readonly buffer ObjectTransmission { vec4 obj_trans[]; };
+#endif
 uniform vec3 cam_origin;
 uniform vec3 cam_right;    // right * tan_x
 uniform vec3 cam_up;       // true_up * tan_y
@@ -31,6 +36,29 @@ uniform ivec2 image_size;
 // is the same bit for bit however it is cut.
 uniform ivec2 tile_origin;
 uniform int ss;
+#ifdef TRANSMISSION
+// Transmission (transmission.glsl, TRANSMISSION_PER_OBJECT, Filament's cube-map refraction: this pipeline
+// has no opaque-pass framebuffer), defined only where the scene has a transmissive object.
+#include "transmission.glsl"
+
+// The change transmission makes to the radiance of object k's surface s (transmission_change).
+vec3 object_transmission(int k, Surface s, uint seed) {
+    vec4 r0 = obj_trans[3 * k], r1 = obj_trans[3 * k + 1], r2 = obj_trans[3 * k + 2];
+    transmission_factor = r0.x;
+    transmission_thickness = r0.y;
+    transmission_dispersion = r0.z;
+    transmission_ior = r0.w;
+    transmission_attenuation_color = r1.rgb;
+    transmission_attenuation_distance = r1.w;
+    diffuse_transmission_color = r2.rgb;
+    diffuse_transmission_factor = r2.w;
+    if ((transmission_factor <= 0.0 && diffuse_transmission_factor <= 0.0) || dot(s.n, s.v) <= 0.0) return vec3(0.0);
+    g_thickness = transmission_thickness;
+    Surface sd = s;
+    sd.metallic = 0.0;
+    return transmission_change(sd, s.metallic, transmission_factor, seed);
+}
+#endif
 
 const float T_EPS = 1e-4;
 
@@ -114,7 +142,12 @@ void main() {
                 acc += env_radiance(d);
             } else {
                 vec3 p = cam_origin + t * d;
+#ifdef TRANSMISSION
+                Surface s = surface_at(k, p, -d);
+                acc += shade(s, seed) + object_transmission(k, s, seed);
+#else
                 acc += shade(surface_at(k, p, -d), seed);
+#endif
                 covered += 1.0;
             }
         }

@@ -32,3 +32,23 @@ float bc_g0(float a) { return bc_w0(a) + bc_w1(a); }
 float bc_g1(float a) { return bc_w2(a) + bc_w3(a); }
 float bc_h0(float a) { return -1.0 + bc_w1(a) / (bc_w0(a) + bc_w1(a)); }
 float bc_h1(float a) { return 1.0 + bc_w3(a) / (bc_w2(a) + bc_w3(a)); }
+
+// Filament's refraction roughness (evaluateRefraction): mix(r, 0, saturate(3 / ior - 2)) (IOR 1: 0,
+// 1.5 and above: r as it is).
+float filament_refraction_roughness(float roughness, float ior) {
+    return roughness * (1.0 - clamp(3.0 / ior - 2.0, 0.0, 1.0));
+}
+
+// The direction leaving the object (Filament REFRACTION_MODE_CUBEMAP), v towards the eye, ior >= 1.
+// Thin (thickness 0, refractionThinSphere): the view ray itself, -v (the slab offsets the ray, not its
+// direction, and a cube lookup has no position). Solid (refractionSolidSphere, a sphere of diameter
+// thickness): r = refract(-v, n, 1 / ior) enters, runs the chord, and leaves through the normal
+// n1 = normalize(dot(n, r) r - n / 2): refract(r, n1, ior); where that is total internal reflection
+// (refract's zero vector), r itself.
+vec3 refraction_direction(vec3 n, vec3 v, float ior, float thickness) {
+    if (thickness <= 0.0) return -v;
+    vec3 r = refract(-v, n, 1.0 / ior);
+    vec3 n1 = normalize(dot(n, r) * r - n * 0.5);
+    vec3 o = refract(r, n1, ior);
+    return dot(o, o) > 0.0 ? normalize(o) : r;
+}
