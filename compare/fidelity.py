@@ -439,6 +439,11 @@ class Slot:
 
 def _keys(st: FidelitySettings, sc: Scenario, r: renderers.RendererSpec) -> tuple[str, str, str]:
     common = {"scene": sc.scene.content_dict() if sc.scene is not None else sc.problem, "pbrcheck": __version__}
+    if sc.not_modelled:
+        # what pbrcheck leaves out of the scene (and strips from the engines' export) is part of every
+        # row's key: a feature modelled since a row was made (an extension flipped to modelled) makes
+        # it stale under --resume, though neither the scene file nor the version changed
+        common["not_modelled"] = list(sc.not_modelled)
     truth_k = "fidelity-truth-" + cache_key(kind="truth", spp=st.spp, seed=st.seed, mode=TRUTH_MODE,
                                             code=code_identity(REFERENCE), **common)
     ren_k = "fidelity-render-" + cache_key(kind="render", renderer=r.text, options=dict(r.overrides),

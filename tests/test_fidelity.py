@@ -211,3 +211,19 @@ def test_dask_local_cluster_gives_the_serial_rows(tmp_path, tmp_cache):
     keep = ("key", "status", "relmse", "flip_mean", "delta_e_itp_mean", "truth_pass")
     assert [{k: r[k] for k in keep} for r in dask.rows] == [{k: r[k] for k in keep} for r in serial.rows]
     assert dask.rows[0]["status"] == "ok" and dask.scheduler == "local:1"
+
+
+def test_a_row_key_changes_with_what_pbrcheck_leaves_out(tmp_path):
+    """A scenario's rows are keyed by its features pbrcheck does not model: the same scene file and
+    version with an extension flipped to modelled (no longer stripped from the engines' export, now
+    in the truth) must not resume the rows made before (--resume would keep stale rows)."""
+    import dataclasses
+
+    cfg = _config(tmp_path, [{"name": "q", "model": "assets/q.gltf", "lighting": "neutral", "orbit": {"radius": 3}}])
+    st = _settings("ext:threejs", "default")
+    sc = F.load_scenarios(cfg, SIZE)[0]
+    assert sc.not_modelled == ()
+    left_out = dataclasses.replace(sc, not_modelled=("KHR_materials_transmission",))
+    keys = [s.row_key for s in F.plan([sc], st)[1]]
+    assert keys == [s.row_key for s in F.plan([sc], st)[1]]                     # deterministic
+    assert not set(keys) & {s.row_key for s in F.plan([left_out], st)[1]}      # every row's key moves

@@ -57,6 +57,7 @@ from pbrcheck.errors import PbrcheckError
 from pbrcheck.jsonio import write_json_atomic
 from pbrcheck.progress import Progress
 from pbrcheck.scene import Environment, Scene
+from pbrcheck.unmodelled import scene_unmodelled
 
 from .. import renderers
 from ..metrics import METRICS
@@ -233,6 +234,9 @@ def _keys(st: CorpusSettings, entry: Entry, r: RendererSpec) -> tuple[str, str, 
     content = st.scene.content_dict()
     content.pop("environment")
     common = {"scene": content, "environment_sha256": entry.digest, "pbrcheck": __version__}
+    left_out = sorted({u.feature for u in scene_unmodelled(st.scene)})
+    if left_out:  # as compare.fidelity's keys: a feature flipped to modelled makes the rows stale
+        common["not_modelled"] = left_out
     env_k = "environment-" + cache_key(kind="environment", **common)
     ref_k = "reference-" + cache_key(kind="reference", spp=st.spp, seed=st.seed, mode=REFERENCE_MODE,
                                      code=code_identity(REFERENCE), **common)
