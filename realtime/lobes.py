@@ -18,7 +18,7 @@ Coat: :func:`coat_f0`, :func:`coat_fresnel`, :func:`coat_attenuation_nov`, :func
 Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Neubelt`,
 :func:`sample_Charlie`, :func:`charlie_prefilter_pdf`, :func:`sheen_dg_fit`, :func:`sheen_dfg_threejs`,
 :func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_neubelt`,
-:func:`sheen_dfg_lut_ibl_sampler_legacy`,
+:func:`sheen_dfg_lut_ibl_sampler_legacy`, :func:`sheen_dfg_fitted` (the AD-fitted table of :mod:`realtime.fitted_lobes`),
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
 :data:`CHARLIE_CUBE_CONVENTIONS` (the bake: :func:`realtime.render.charlie_cube`),
@@ -26,7 +26,8 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
 :func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
-:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`.
+:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`,
+:func:`aniso_bent_normal_fitted`, :func:`aniso_reflection_fitted` (the AD-fitted weight of :mod:`realtime.fitted_lobes`).
 :data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
 The material composition's own terms (``lobes_material.glsl``): :func:`specular_dielectric_f0`,
 :func:`specular_f90_blend`, :func:`split_sum_albedo_f90`, :func:`aniso_direction`, :func:`sphere_tangent`.
@@ -53,6 +54,8 @@ from __future__ import annotations
 import numpy as np
 
 from pbrcheck.brdf import EnvBRDFApprox
+
+from .fitted_lobes import aniso_bend_weight_fitted, sheen_albedo_fitted
 
 PI = np.pi
 #: The lobe extensions the real-time renderer renders (realtime/shaders/material_lobes.glsl, compiled
@@ -255,6 +258,13 @@ def sheen_dfg_lut_ibl_sampler_legacy(NoV, roughness, E):
     return np.asarray(E)[..., 2]
 
 
+def sheen_dfg_fitted(NoV, roughness, E):
+    """``sheen_dfg = fitted``: the spec's albedo E (the LUT's R, :func:`sheen_dfg_lut_charlie`) from the
+    8 x 8 table ``pbrcheck fit-lobes`` fits by AD (:func:`realtime.fitted_lobes.sheen_albedo_fitted`, read
+    at (sqrt(n.v), roughness)); times the Charlie-prefiltered cube. ``E`` unread."""
+    return sheen_albedo_fitted(NoV, roughness)
+
+
 def _max3(c):
     return np.max(np.asarray(c, np.float64), axis=-1)
 
@@ -359,6 +369,13 @@ def aniso_bent_normal_babylon(n, t, b, v, anisotropy, roughness):
     return _normalize(_mix(n, _mcauley_normal(_normalize(d), v), np.abs(s)))
 
 
+def aniso_bent_normal_fitted(n, t, b, v, anisotropy, roughness):
+    """The Sample Viewer's bent normal with ``pbrcheck fit-lobes``' weight in place of (1 - s (1 - r))^4:
+    normalize(mix((b x v) x b, n, w(s, r))), w :func:`realtime.fitted_lobes.aniso_bend_weight_fitted`."""
+    w = np.asarray(aniso_bend_weight_fitted(anisotropy, roughness))[..., None]
+    return _normalize(_mix(_mcauley_normal(b, v), n, w))
+
+
 def _reflect_about(v, n):
     return 2.0 * _dot(v, n)[..., None] * n - v
 
@@ -376,6 +393,11 @@ def aniso_reflection_filament(n, t, b, v, anisotropy, roughness):
 def aniso_reflection_babylon(n, t, b, v, anisotropy, roughness):
     """Babylon.js's lookup direction: reflect(-v, bent normal)."""
     return _normalize(_reflect_about(v, aniso_bent_normal_babylon(n, t, b, v, anisotropy, roughness)))
+
+
+def aniso_reflection_fitted(n, t, b, v, anisotropy, roughness):
+    """``anisotropy_bend = fitted``'s lookup direction: reflect(-v, :func:`aniso_bent_normal_fitted`)."""
+    return _normalize(_reflect_about(v, aniso_bent_normal_fitted(n, t, b, v, anisotropy, roughness)))
 
 
 def threejs_reflection(n, v, roughness):
