@@ -21,7 +21,9 @@ API
 :data:`TERM_REGISTRIES`,
 :data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`; the lobes' approximations (issue 36):
 :data:`COAT_ATTENUATIONS`, :data:`COAT_IBLS`, :data:`SHEEN_DFGS`, :data:`SHEEN_SCALINGS`,
-:data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS`; transmission's
+:data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS` (the ``fitted`` members
+of SHEEN_DFGS and ANISOTROPY_BENDS are ``pbrcheck fit-lobes``' AD fits, their entries holding
+:mod:`realtime.fitted_lobes`' GLSL as ``extra["glsl"]``); transmission's
 (issue 37): :data:`TRANSMISSION_LODS` (defined in :mod:`realtime.transmission`).
 """
 

@@ -148,7 +148,7 @@ def _cmd_fit_lobes(args) -> int:
     if args.module:
         print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table, aniso))}")
     if args.json:
-        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist()})}")
+        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist(), 'aniso_ad_losses': aniso_losses})}")
     return 0
 
 
