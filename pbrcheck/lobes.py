@@ -14,7 +14,8 @@ towards the light, arrays (..., 3) of unit vectors, float64; ``u`` (..., 2) in [
 
 API
 ---
-Constants :data:`SHEEN_MIN_ALPHA`, :data:`SHEEN_L_FIT` (:func:`sheen_l`), :data:`CLEARCOAT_IOR`, :data:`FILM_R123_MIN`, :data:`FILM_R123_MAX`,
+Constants :data:`SHEEN_MIN_ALPHA`, :data:`SHEEN_L_FIT` (:func:`sheen_l`; the Charlie terms :func:`charlie_D`,
+:func:`charlie_lambda`, :func:`charlie_V`, :func:`charlie_sample_h`, which realtime.lobes' twins import), :data:`CLEARCOAT_IOR`, :data:`FILM_R123_MIN`, :data:`FILM_R123_MAX`,
 :data:`BASE_F0_GUARD`, :data:`CIE_CMFS`, :data:`FILM_WAVELENGTHS`, :data:`XYZ_TO_REC709`;
 :func:`f0_from_ior`, :func:`schlick`, :func:`to_frame`;
 :class:`SheenCharlie` (KHR_materials_sheen) and :func:`sheen_layer`;
@@ -162,6 +163,40 @@ def sheen_l(x, alpha, power):
     return a / (1.0 + b * power(x, c)) + d * x + e
 
 
+def charlie_D(sin2, alpha):
+    """[Sheen] "Sheen distribution" ([EK17] eq. 2) in ``sin^2 theta_h``: ``(2 + 1/alpha) (sin^2)^(1/(2 alpha))
+    / (2 pi)``. The one numpy Charlie D: :meth:`SheenCharlie.D` (sin^2 from h.x, h.y) and the real-time
+    twins (:func:`realtime.lobes.D_Charlie`, sin^2 = (1 - n.h)(1 + n.h), alpha at their own floor) call it."""
+    inv_r = 1.0 / alpha
+    return (2.0 + inv_r) * np.power(sin2, 0.5 * inv_r) / (2.0 * PI)
+
+
+def charlie_lambda(c, alpha):
+    """[Sheen] ``lambda_sheen`` ([EK17] sec. 3's fit) at the cosine ``c`` in [0, 1]: ``exp(l(c))`` below 0.5,
+    ``exp(2 l(0.5) - l(1 - c))`` above (:func:`sheen_l`)."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c < 0.5, np.exp(sheen_l(c, alpha, np.power)),
+                    np.exp(2.0 * sheen_l(0.5, alpha, np.power) - sheen_l(1.0 - c, alpha, np.power)))
+
+
+def charlie_V(NoV, NoL, alpha, guard=COS_EPS):
+    """[Sheen] "Sheen visibility": ``V = 1 / ((1 + Lambda(n.v) + Lambda(n.l)) 4 (n.v)(n.l))``, the
+    denominator kept >= ``guard`` (the shaders' guard of grazing cosines). :meth:`SheenCharlie.eval` uses
+    it with its n.l cancelled (``D V n.l = D / ((1 + Lambda + Lambda) 4 n.v)``)."""
+    den = (1.0 + charlie_lambda(NoV, alpha) + charlie_lambda(NoL, alpha)) * 4.0 * NoV * NoL
+    return 1.0 / np.maximum(den, guard)
+
+
+def charlie_sample_h(u, alpha):
+    """Half vectors (z = n) of density ``D (n.h)``: the inverse of sin theta's CDF ``s^(2 + 1/alpha)``,
+    ``sin theta_h = u1^(alpha / (2 alpha + 1))``, ``phi = 2 pi u0``."""
+    u = np.asarray(u, dtype=np.float64)
+    st = np.power(u[..., 1], alpha / (2.0 * alpha + 1.0))
+    ct = np.sqrt(np.maximum(1.0 - st * st, 0.0))
+    phi = 2.0 * PI * u[..., 0]
+    return np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=-1)
+
+
 class SheenCharlie:
     """The sheen lobe of [Sheen] "Implementation Notes": ``SheenBRDF = V_s D_s`` with the Charlie
     distribution ([EK17] eq. 2, [Sheen] "Sheen distribution": ``alpha_g = sheenRoughness^2``,
@@ -184,17 +219,12 @@ class SheenCharlie:
     def D(self, h):
         """[Sheen] "Sheen distribution" with ``sin^2 theta_h = h.x^2 + h.y^2`` (exact near h.z = 1)."""
         s2 = np.minimum(h[..., 0] ** 2 + h[..., 1] ** 2, 1.0)
-        inv_r = 1.0 / self.alpha
         with np.errstate(under="ignore", divide="ignore"):
-            return np.where(h[..., 2] > 0, (2.0 + inv_r) * np.power(s2, 0.5 * inv_r) / (2.0 * PI), 0.0)
-
-    def _l(self, x):
-        return sheen_l(x, self.alpha, np.power)
+            return np.where(h[..., 2] > 0, charlie_D(s2, self.alpha), 0.0)
 
     def Lambda(self, c):
-        """[Sheen] ``lambda_sheen`` ([EK17] sec. 3's fit), ``c`` the cosine in [0, 1]."""
-        c = np.abs(np.asarray(c, dtype=np.float64))
-        return np.where(c < 0.5, np.exp(self._l(c)), np.exp(2.0 * self._l(0.5) - self._l(1.0 - c)))
+        """[Sheen] ``lambda_sheen`` (:func:`charlie_lambda`), ``c`` the cosine (its absolute value)."""
+        return charlie_lambda(np.abs(np.asarray(c, dtype=np.float64)), self.alpha)
 
     def eval(self, v, l):
         """``D V (n.l) = D / ((1 + Lambda(v) + Lambda(l)) 4 (n.v))``; 0 below either horizon."""
@@ -205,11 +235,8 @@ class SheenCharlie:
         return np.where(ok, val, 0.0)
 
     def sample_h(self, u):
-        """A half vector of density ``D (n.h)``: ``sin theta_h = u1^(alpha / (2 alpha + 1))``."""
-        st = np.power(u[..., 1], self.alpha / (2.0 * self.alpha + 1.0))
-        ct = np.sqrt(np.maximum(1.0 - st * st, 0.0))
-        phi = 2.0 * PI * u[..., 0]
-        return np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=-1)
+        """A half vector of density ``D (n.h)`` (:func:`charlie_sample_h`)."""
+        return charlie_sample_h(u, self.alpha)
 
     def pdf(self, v, l):
         h = _half(v, l)

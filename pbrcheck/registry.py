@@ -78,7 +78,8 @@ class Entry:
     scene : bool
         False for members only the real-time renderer offers (not a scene's ``[brdf]`` value).
     extra : dict
-        Per-list data (a LOD mapping's basis coefficients; an NDF's random-walk geometry).
+        Per-list data (a LOD mapping's basis coefficients; an NDF's random-walk geometry; a real-time lobe
+        member's own GLSL, ``extra["glsl"]``, which :mod:`realtime.generated` compiles only where selected).
     term : type or None
         The term's numpy class (:mod:`pbrcheck.terms`: NDFs, geometry and Fresnel terms), which names
         its GLSL functions; the reference's Dr.Jit class of the same member is in

@@ -1,25 +1,27 @@
 """Fitted real-time lobe tables (issue 36 item 5b), written by ``pbrcheck fit-lobes --module``
-(:mod:`compare.research.fit_lobes`; do not edit by hand).
+(:mod:`compare.research.fit_lobes`; do not edit by hand). The registry members that read them:
+``sheen_dfg = fitted`` and ``anisotropy_bend = fitted`` (:mod:`realtime.registry`, whose entries hold
+the GLSL below; :func:`realtime.lobes.sheen_dfg_fitted`, :func:`realtime.lobes.aniso_reflection_fitted`).
 
 :data:`SHEEN_ALBEDO_TABLE`: the sheen directional albedo ``E(n.v, sheenRoughness)`` of the spec's
-Charlie lobe (KHR_materials_sheen, ``int D_Charlie V_Charlie n.l dl``), 8 x 8, fitted by least squares
-to the quadrature so that its bilinear read matches it (docs/research.md, "pbrcheck fit-lobes"); the E
-of the albedo scaling ``1 - max(sheenColor) E(n.v)``. Conventions (:data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`):
-row j at sheen roughness (j + 0.5)/8 (row 0 smoothest), column i at sqrt(n.v) = (i + 0.5)/8; read
-bilinearly between texel centres with linear extrapolation within half a texel of 0 and 1 and a
-clamp at 0 (:func:`realtime.lobes.lut_bilinear`'s rule). :func:`sheen_albedo_fitted` is the numpy
-reader, :data:`SHEEN_ALBEDO_GLSL` the same read as a GLSL hook (``float sheen_albedo_fitted(float NoV,
-float roughness)``), registry-ready for ``SHEEN_SCALING`` as ``1 - max3(color) sheen_albedo_fitted``.
-
+Charlie lobe (KHR_materials_sheen, ``int D_Charlie V_Charlie n.l dl``), 8 x 8, fitted by AD (Dr.Jit,
+Adam from 0) to the quadrature so that its bilinear read matches it (docs/research.md, "pbrcheck
+fit-lobes"; equal to the least-squares table, the check); the E of the albedo scaling ``1 - max(sheenColor)
+E(n.v)``. Conventions (:data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`): row j at sheen roughness (j + 0.5)/8 (row 0
+smoothest), column i at sqrt(n.v) = (i + 0.5)/8; read bilinearly between texel centres with linear
+extrapolation within half a texel of 0 and 1 and a clamp at 0 (:func:`realtime.lobes.lut_bilinear`'s
+rule, written out here so that this module imports nothing of the renderer). :func:`sheen_albedo_fitted`
+is the numpy reader, :data:`SHEEN_ALBEDO_GLSL` the same read in GLSL (``float sheen_albedo_fitted(float
+NoV, float roughness)``).
 
 :data:`ANISO_BEND_WEIGHT_TABLE`: the weight ``w`` of the Sample Viewer-style bent normal
 ``normalize(mix((b x v) x b, n, w))`` (b the anisotropy bitangent), in place of its ``(1 - s (1 -
-r))^4``, fitted against the spec's anisotropic GGX integral under test environments (docs/research.md);
-rows roughness :data:`ANISO_ROUGHNESS`, columns strength :data:`ANISO_STRENGTH`, read bilinearly
-between the nodes and clamped to them (below roughness 0.2: its first row);
-:func:`aniso_bend_weight_fitted` the numpy reader, :data:`ANISO_BEND_WEIGHT_GLSL` the GLSL hook
-``float aniso_bend_weight_fitted(float anisotropy, float roughness)``, registry-ready for
-``ANISOTROPY_BEND`` as the Sample Viewer's bend with this weight.
+r))^4``, fitted by AD (Dr.Jit, Adam from 0.5) against the spec's anisotropic GGX integral under test
+environments (docs/research.md; within the scan's step of the scan's weights, the check); rows roughness
+:data:`ANISO_ROUGHNESS`, columns strength :data:`ANISO_STRENGTH`, read bilinearly between the nodes and
+clamped to them (below roughness 0.2: its first row); :func:`aniso_bend_weight_fitted`
+the numpy reader, :data:`ANISO_BEND_WEIGHT_GLSL` the GLSL ``float aniso_bend_weight_fitted(float
+anisotropy, float roughness)``.
 
 API: :data:`SHEEN_ALBEDO_TABLE`, :data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`, :func:`sheen_albedo_fitted`,
 :data:`SHEEN_ALBEDO_GLSL`, :data:`ANISO_STRENGTH`, :data:`ANISO_ROUGHNESS`, :data:`ANISO_BEND_WEIGHT_TABLE`,
@@ -27,8 +29,6 @@ API: :data:`SHEEN_ALBEDO_TABLE`, :data:`SHEEN_ALBEDO_TABLE_CONVENTIONS`, :func:`
 """
 
 import numpy as np
-
-from realtime.lobes import lut_bilinear
 
 SHEEN_ALBEDO_TABLE = np.array((
     (3.278271, 0.783287, 0.270211, 0.067129, 0.018473, 0.002801, 0.000111, -0.000005),
@@ -43,14 +43,21 @@ SHEEN_ALBEDO_TABLE = np.array((
 SHEEN_ALBEDO_TABLE_CONVENTIONS = {
     "axes": "row j: sheen roughness = (j + 0.5)/8, row 0 smoothest; column i: sqrt(n.v) = (i + 0.5)/8",
     "read": "bilinear between texel centres, linear extrapolation within half a texel of 0 and 1, clamped at 0",
-    "value": "E = int D_Charlie V_Charlie n.l dl (KHR_materials_sheen), fitted by least squares on a "
+    "value": "E = int D_Charlie V_Charlie n.l dl (KHR_materials_sheen), fitted by AD (Adam) on a "
              "25 x 25 grid of n.v in [0.02, 1] x roughness in [0, 1]",
 }
 
 
 def sheen_albedo_fitted(NoV, roughness):
-    """E at (n.v, sheen roughness) from :data:`SHEEN_ALBEDO_TABLE` (numpy twin of the GLSL hook)."""
-    return lut_bilinear(SHEEN_ALBEDO_TABLE[..., None], np.sqrt(np.clip(NoV, 0.0, 1.0)), roughness)[..., 0]
+    """E at (n.v, sheen roughness) from :data:`SHEEN_ALBEDO_TABLE` (numpy twin of the GLSL reader)."""
+    x = np.sqrt(np.clip(np.asarray(NoV, np.float64), 0.0, 1.0)) * 8 - 0.5
+    y = np.clip(np.asarray(roughness, np.float64), 0.0, 1.0) * 8 - 0.5
+    i0, j0 = np.clip(np.floor(x).astype(int), 0, 6), np.clip(np.floor(y).astype(int), 0, 6)
+    fx, fy = x - i0, y - j0
+    t = SHEEN_ALBEDO_TABLE
+    v0 = t[j0, i0] + (t[j0, i0 + 1] - t[j0, i0]) * fx
+    v1 = t[j0 + 1, i0] + (t[j0 + 1, i0 + 1] - t[j0 + 1, i0]) * fx
+    return np.maximum(v0 + (v1 - v0) * fy, 0.0)
 
 
 SHEEN_ALBEDO_GLSL = """
@@ -79,15 +86,15 @@ float sheen_albedo_fitted(float NoV, float roughness) {
 ANISO_STRENGTH = (0.0, 0.25, 0.5, 0.75, 1.0)
 ANISO_ROUGHNESS = (0.2, 0.4, 0.6, 0.8, 1.0)
 ANISO_BEND_WEIGHT_TABLE = np.array((
-    (1.0000, 0.9800, 0.6600, 0.6400, 0.6200),
-    (1.0000, 0.9000, 0.6400, 0.5600, 0.5400),
-    (1.0000, 0.8200, 0.6600, 0.5200, 0.4200),
-    (1.0000, 0.5800, 0.5400, 0.4800, 0.4200),
+    (1.0000, 0.9894, 0.6583, 0.6299, 0.6301),
+    (1.0000, 0.9030, 0.6464, 0.5684, 0.5321),
+    (1.0000, 0.8177, 0.6533, 0.5242, 0.4155),
+    (1.0000, 0.5892, 0.5446, 0.4822, 0.4140),
     (1.0000, 1.0000, 1.0000, 1.0000, 1.0000)))
 
 
 def aniso_bend_weight_fitted(anisotropy, roughness):
-    """The fitted weight at (strength, roughness) (numpy twin of the GLSL hook; uniform node spacing)."""
+    """The fitted weight at (strength, roughness) (numpy twin of the GLSL reader; uniform node spacing)."""
     x = np.clip((np.asarray(anisotropy, np.float64) - 0.0) / 0.25, 0.0, 4.0)
     y = np.clip((np.asarray(roughness, np.float64) - 0.2) / 0.2, 0.0, 4.0)
     i0, j0 = np.minimum(np.floor(x).astype(int), 3), np.minimum(np.floor(y).astype(int), 3)
@@ -98,7 +105,7 @@ def aniso_bend_weight_fitted(anisotropy, roughness):
 
 
 ANISO_BEND_WEIGHT_GLSL = """
-const float ANISO_BEND_WEIGHT_TABLE[25] = float[](1.0000, 0.9800, 0.6600, 0.6400, 0.6200, 1.0000, 0.9000, 0.6400, 0.5600, 0.5400, 1.0000, 0.8200, 0.6600, 0.5200, 0.4200, 1.0000, 0.5800, 0.5400, 0.4800, 0.4200, 1.0000, 1.0000, 1.0000, 1.0000, 1.0000);
+const float ANISO_BEND_WEIGHT_TABLE[25] = float[](1.0000, 0.9894, 0.6583, 0.6299, 0.6301, 1.0000, 0.9030, 0.6464, 0.5684, 0.5321, 1.0000, 0.8177, 0.6533, 0.5242, 0.4155, 1.0000, 0.5892, 0.5446, 0.4822, 0.4140, 1.0000, 1.0000, 1.0000, 1.0000, 1.0000);
 
 float aniso_bend_weight_fitted(float anisotropy, float roughness) {
     float x = clamp((anisotropy - 0.000000) / 0.250000, 0.0, 4.0);

@@ -7,7 +7,7 @@ function (:func:`glsl_generated`), included by the shaders by name (:func:`realt
 
 API
 ---
-:func:`glsl_defines`, :func:`glsl_generated`.
+:func:`glsl_defines`, :func:`glsl_generated`, :func:`lobe_members_include`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pbrcheck.lights import glsl_light_constants
 from pbrcheck.lodmap import LOD_MAPPINGS
 from pbrcheck.registry import NDFS, Registry
 
-from .registry import REGISTRIES, ROLE_REGISTRIES, SHADINGS, TERM_REGISTRIES, role_reads
+from .registry import LOBE_REGISTRIES, REGISTRIES, ROLE_REGISTRIES, SHADINGS, TERM_REGISTRIES, role_reads
 
 
 def glsl_defines() -> dict[str, int]:
@@ -147,14 +147,35 @@ def _shading_dispatch() -> str:
     return "\n".join(lines)
 
 
+def lobe_members_include(shader: str) -> str:
+    """The include name of the GLSL the members of lobe file ``shader``'s registries hold
+    (``lobes_sheen.glsl`` -> ``lobes_sheen_members.glsl``)."""
+    return shader.replace(".glsl", "_members.glsl")
+
+
+def _lobe_members(shader: str) -> str:
+    """The GLSL held by the members (``Entry.extra["glsl"]``) of the lobe registries of ``shader``
+    (:data:`realtime.registry.LOBE_REGISTRIES`), each inside ``#if SWITCH == SWITCH_MEMBER``: compiled only
+    into the programs that select it."""
+    lines = [f"// Generated from realtime.registry.LOBE_REGISTRIES ({shader}'s members' own GLSL): do not edit."]
+    for define, (registry, include, _, _) in LOBE_REGISTRIES.items():
+        for e in registry:
+            if include == shader and "glsl" in e.extra:
+                lines += [f"#if {define} == {registry.constant(e.name)}", e.extra["glsl"].strip("\n"), "#endif"]
+    return "\n".join(lines) + "\n"
+
+
 def glsl_generated() -> dict[str, str]:
     """Generated GLSL sources by include name: ``lod_dispatch.glsl`` (:func:`_lod_dispatch`),
     ``terms_dispatch.glsl`` (:func:`_terms_dispatch`), ``sampling_dispatch.glsl``
     (:func:`_sampling_dispatch`), ``shading_dispatch.glsl`` (:func:`_shading_dispatch`), and each role
     registry's (:func:`_roles_dispatch`): ``energy_dispatch.glsl``, ``runtime_sampling_dispatch.glsl``,
     ``dfg_sampling_dispatch.glsl``, ``specular_occlusion_dispatch.glsl``,
-    ``horizon_occlusion_dispatch.glsl``, ``specular_aa_dispatch.glsl``."""
+    ``horizon_occlusion_dispatch.glsl``, ``specular_aa_dispatch.glsl``; and each lobe file's members' own
+    GLSL (:func:`_lobe_members`): ``lobes_sheen_members.glsl``, ``lobes_anisotropy_members.glsl``, ...."""
     out = {"lod_dispatch.glsl": _lod_dispatch(), "terms_dispatch.glsl": _terms_dispatch(),
            "sampling_dispatch.glsl": _sampling_dispatch(), "shading_dispatch.glsl": _shading_dispatch()}
     out.update({include: _roles_dispatch(define) for define, (_, include, _, _) in ROLE_REGISTRIES.items()})
+    out.update({lobe_members_include(shader): _lobe_members(shader)
+                for shader in sorted({include for _, include, _, _ in LOBE_REGISTRIES.values()})})
     return out

@@ -18,9 +18,12 @@ Coat: :func:`coat_f0`, :func:`coat_fresnel`, :func:`coat_attenuation_nov`, :func
 :func:`coat_ibl_weight_filament`, :func:`coat_ibl_weight_sample_viewer`, :func:`coat_ibl_weight_threejs`,
 :func:`coat_ibl_weight_splitsum`.
 Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Neubelt`,
-:func:`sample_Charlie`, :func:`charlie_prefilter_pdf`, :func:`sheen_dg_fit`, :func:`sheen_dfg_threejs`,
+:func:`sample_Charlie` (the Charlie D, Lambda, visibility and sampler are the truth's, imported from
+:mod:`pbrcheck.lobes` and called at this renderer's alpha floor :data:`SHEEN_MIN_ALPHA`: one formula,
+the GLSL's twin; the engines' own variants keep their own names: :func:`V_Neubelt`, the older IBL
+sampler's alpha = roughness in :func:`sheen_albedo_quadrature`), :func:`charlie_prefilter_pdf`, :func:`sheen_dg_fit`, :func:`sheen_dfg_threejs`,
 :func:`sheen_dfg_playcanvas`, :func:`sheen_dfg_lut_charlie`, :func:`sheen_dfg_lut_neubelt`,
-:func:`sheen_dfg_lut_ibl_sampler_legacy`,
+:func:`sheen_dfg_lut_ibl_sampler_legacy`, :func:`sheen_dfg_fitted` (the AD-fitted table of :mod:`realtime.fitted_lobes`),
 :func:`sheen_scaling_lut`, :func:`sheen_scaling_threejs`, :func:`sheen_scaling_filament`, :func:`lut_bilinear`,
 :func:`sheen_lut_lookup`, :data:`SHEEN_LUT_CONVENTIONS` (the bake: :mod:`realtime.lobe_luts`),
 :data:`CHARLIE_CUBE_CONVENTIONS` (the bake: :func:`realtime.render.charlie_cube`),
@@ -28,7 +31,8 @@ Sheen: :func:`D_Charlie`, :func:`charlie_lambda`, :func:`V_Charlie`, :func:`V_Ne
 Anisotropy: :func:`aniso_bend_weight`, :func:`aniso_bent_normal_sample_viewer`, :func:`aniso_bent_normal_threejs`,
 :func:`aniso_bent_normal_filament`,
 :func:`aniso_bent_normal_babylon`, :func:`aniso_reflection_sample_viewer`, :func:`aniso_reflection_threejs`,
-:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`;
+:func:`aniso_reflection_filament`, :func:`aniso_reflection_babylon`, :func:`threejs_reflection`,
+:func:`aniso_bent_normal_fitted`, :func:`aniso_reflection_fitted` (the AD-fitted weight of :mod:`realtime.fitted_lobes`);
 under point, spot and directional lights the README's anisotropic GGX: :func:`aniso_alpha_t`,
 :func:`D_GGX_anisotropic`, :func:`V_GGX_anisotropic`, :func:`aniso_specular_dv`.
 :data:`REALTIME_LOBES` (the lobe extensions the renderer renders).
@@ -57,6 +61,9 @@ from __future__ import annotations
 import numpy as np
 
 from pbrcheck.brdf import EnvBRDFApprox
+from pbrcheck.lobes import charlie_D, charlie_lambda as _charlie_lambda, charlie_sample_h, charlie_V, sheen_l
+
+from .fitted_lobes import aniso_bend_weight_fitted, sheen_albedo_fitted
 
 PI = np.pi
 #: The lobe extensions the real-time renderer renders (realtime/shaders/material_lobes.glsl, compiled
@@ -71,10 +78,6 @@ REALTIME_LOBES = frozenset({"KHR_materials_clearcoat", "KHR_materials_sheen", "K
 SHEEN_MIN_ALPHA = 1e-3
 #: Guard of divisions by cosines at grazing angles (as pbrcheck.brdf.COS_EPS).
 COS_EPS = 1e-8
-#: [Estevez17] Table 1, the fit of ln Lambda's numerator terms (a, b, c, d, e) at alpha = 0 (smooth)
-#: and alpha = 1 (rough), blended with t = (1 - alpha)^2: p = t P_SMOOTH + (1 - t) P_ROUGH.
-CHARLIE_L_SMOOTH = (25.3245, 3.32435, 0.16801, -1.27393, -4.85967)
-CHARLIE_L_ROUGH = (21.5473, 3.82987, 0.19823, -1.97760, -4.32054)
 #: three.js's sheen energy compensation: 1 - 0.157 max(sheenColor) (its comment: the directional
 #: albedo of the Charlie lobe averaged over n.v and roughness, from its sheen note).
 THREEJS_SHEEN_ALBEDO = 0.157
@@ -171,30 +174,28 @@ def _sheen_alpha(alpha):
 
 
 def D_Charlie(NoH, alpha):
-    """[Estevez17] eq. 2: D = (2 + 1/alpha) sin^(1/alpha)(theta_h) / (2 pi), alpha = sheenRoughness^2."""
-    a = _sheen_alpha(alpha)
+    """[Estevez17] eq. 2: D = (2 + 1/alpha) sin^(1/alpha)(theta_h) / (2 pi), alpha = sheenRoughness^2: the
+    truth's :func:`pbrcheck.lobes.charlie_D` with sin^2 = (1 - n.h)(1 + n.h) (exact as n.h -> 1) and alpha
+    at this renderer's floor :data:`SHEEN_MIN_ALPHA` (the GLSL's)."""
     sin2 = np.maximum((1.0 - NoH) * (1.0 + NoH), 0.0)
-    return (2.0 + 1.0 / a) * sin2 ** (0.5 / a) / (2.0 * PI)
+    return charlie_D(sin2, _sheen_alpha(alpha))
 
 
 def _charlie_L(x, alpha):
-    t = (1.0 - _sheen_alpha(alpha)) ** 2
-    a, b, c, d, e = (t * s + (1.0 - t) * r for s, r in zip(CHARLIE_L_SMOOTH, CHARLIE_L_ROUGH))
-    return a / (1.0 + b * np.asarray(x, np.float64) ** c) + d * x + e
+    """The GLSL charlie_L's twin: the truth's :func:`pbrcheck.lobes.sheen_l` at this renderer's alpha floor."""
+    return sheen_l(np.asarray(x, np.float64), _sheen_alpha(alpha), np.power)
 
 
 def charlie_lambda(c, alpha):
-    """[Estevez17] eq. 3-4: Lambda(cos) = exp(L(cos)) for cos < 0.5, exp(2 L(0.5) - L(1 - cos)) above."""
-    c = np.asarray(c, np.float64)
-    lo = _charlie_L(c, alpha)
-    hi = 2.0 * _charlie_L(0.5, alpha) - _charlie_L(1.0 - c, alpha)
-    return np.exp(np.where(c < 0.5, lo, hi))
+    """[Estevez17] eq. 3-4: Lambda(cos) = exp(L(cos)) for cos < 0.5, exp(2 L(0.5) - L(1 - cos)) above: the
+    truth's :func:`pbrcheck.lobes.charlie_lambda` at this renderer's alpha floor."""
+    return _charlie_lambda(c, _sheen_alpha(alpha))
 
 
 def V_Charlie(NoV, NoL, alpha):
-    """The spec's sheen visibility [Estevez17]: 1 / ((1 + Lambda(n.v) + Lambda(n.l)) 4 n.v n.l)."""
-    den = (1.0 + charlie_lambda(NoV, alpha) + charlie_lambda(NoL, alpha)) * 4.0 * NoV * NoL
-    return 1.0 / np.maximum(den, COS_EPS)
+    """The spec's sheen visibility [Estevez17]: 1 / ((1 + Lambda(n.v) + Lambda(n.l)) 4 n.v n.l), the truth's
+    :func:`pbrcheck.lobes.charlie_V` (denominator >= COS_EPS) at this renderer's alpha floor."""
+    return charlie_V(NoV, NoL, _sheen_alpha(alpha), COS_EPS)
 
 
 def V_Neubelt(NoV, NoL):
@@ -204,14 +205,10 @@ def V_Neubelt(NoV, NoL):
 
 
 def sample_Charlie(u, alpha):
-    """Half vectors (tangent space, z = n) with density D_Charlie(h) (n.h) over solid angle: the
-    inverse of sin theta's CDF s^(2 + 1/alpha) is sin theta = u1^(alpha / (2 alpha + 1)), phi = 2 pi u0."""
-    u = np.asarray(u, np.float64)
-    a = _sheen_alpha(alpha)
-    s = u[..., 1] ** (a / (2.0 * a + 1.0))
-    c = np.sqrt(np.maximum(1.0 - s * s, 0.0))
-    phi = 2.0 * PI * u[..., 0]
-    return np.stack([s * np.cos(phi), s * np.sin(phi), c], axis=-1)
+    """Half vectors (tangent space, z = n) with density D_Charlie(h) (n.h) over solid angle: the truth's
+    :func:`pbrcheck.lobes.charlie_sample_h` (sin theta = u1^(alpha / (2 alpha + 1)), phi = 2 pi u0) at this
+    renderer's alpha floor."""
+    return charlie_sample_h(u, _sheen_alpha(alpha))
 
 
 def charlie_prefilter_pdf(NoH, alpha):
@@ -257,6 +254,13 @@ def sheen_dfg_lut_ibl_sampler_legacy(NoV, roughness, E):
     """The sheen LUT's B channel: an older glTF-IBL-Sampler's Charlie LUT (commit 203dccf: Charlie D at
     alpha = roughness, not squared; V_Neubelt clamped to 1; the integral it meant, not its estimator)."""
     return np.asarray(E)[..., 2]
+
+
+def sheen_dfg_fitted(NoV, roughness, E):
+    """``sheen_dfg = fitted``: the spec's albedo E (the LUT's R, :func:`sheen_dfg_lut_charlie`) from the
+    8 x 8 table ``pbrcheck fit-lobes`` fits by AD (:func:`realtime.fitted_lobes.sheen_albedo_fitted`, read
+    at (sqrt(n.v), roughness)); times the Charlie-prefiltered cube. ``E`` unread."""
+    return sheen_albedo_fitted(NoV, roughness)
 
 
 def _max3(c):
@@ -363,6 +367,13 @@ def aniso_bent_normal_babylon(n, t, b, v, anisotropy, roughness):
     return _normalize(_mix(n, _mcauley_normal(_normalize(d), v), np.abs(s)))
 
 
+def aniso_bent_normal_fitted(n, t, b, v, anisotropy, roughness):
+    """The Sample Viewer's bent normal with ``pbrcheck fit-lobes``' weight in place of (1 - s (1 - r))^4:
+    normalize(mix((b x v) x b, n, w(s, r))), w :func:`realtime.fitted_lobes.aniso_bend_weight_fitted`."""
+    w = np.asarray(aniso_bend_weight_fitted(anisotropy, roughness))[..., None]
+    return _normalize(_mix(_mcauley_normal(b, v), n, w))
+
+
 def _reflect_about(v, n):
     return 2.0 * _dot(v, n)[..., None] * n - v
 
@@ -380,6 +391,11 @@ def aniso_reflection_filament(n, t, b, v, anisotropy, roughness):
 def aniso_reflection_babylon(n, t, b, v, anisotropy, roughness):
     """Babylon.js's lookup direction: reflect(-v, bent normal)."""
     return _normalize(_reflect_about(v, aniso_bent_normal_babylon(n, t, b, v, anisotropy, roughness)))
+
+
+def aniso_reflection_fitted(n, t, b, v, anisotropy, roughness):
+    """``anisotropy_bend = fitted``'s lookup direction: reflect(-v, :func:`aniso_bent_normal_fitted`)."""
+    return _normalize(_reflect_about(v, aniso_bent_normal_fitted(n, t, b, v, anisotropy, roughness)))
 
 
 def threejs_reflection(n, v, roughness):

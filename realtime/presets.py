@@ -188,7 +188,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            COAT_ATTENUATIONS.names, default="nov"),
     Option("sheen_dfg", "choice", "sheen: image-based weight: lut_charlie (the spec's albedo E) | lut_neubelt "
            "(Filament's DFG.z, the Sample Viewer's Charlie LUT) | lut_ibl_sampler_legacy | threejs (DG fit / pi "
-           "x irradiance) | playcanvas (DG fit x the roughest level along n)", SHEEN_DFGS.names,
+           "x irradiance) | playcanvas (DG fit x the roughest level along n) | fitted (pbrcheck fit-lobes' AD-fitted "
+           "8 x 8 table of the spec's E)", SHEEN_DFGS.names,
            default="lut_charlie"),
     Option("sheen_scaling", "choice", "sheen: the base's albedo scaling: lut (1 - max(c) E, the spec) | "
            "filament (1 - max(c) DFG.z) | threejs (1 - 0.157 max(c))", SHEEN_SCALINGS.names, default="lut"),
@@ -196,7 +197,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            "cube, Sample Viewer) | ggx (the GGX-prefiltered cube at the sheen roughness, Filament)",
            ("charlie", "ggx"), default="charlie"),
     Option("anisotropy_bend", "choice", "anisotropy: the prefiltered lookup's bent direction: sample_viewer | "
-           "threejs | filament | babylon", ANISOTROPY_BENDS.names, default="sample_viewer"),
+           "threejs | filament | babylon | fitted (the Sample Viewer's bend with pbrcheck fit-lobes' AD-fitted weight)",
+           ANISOTROPY_BENDS.names, default="sample_viewer"),
     Option("iridescence", "choice", "iridescence: the thin-film Fresnel: belcour_rgb (Belcour & Barla 2017 in "
            "RGB, the Sample Viewer's) | none (no film, as an engine without the extension)", IRIDESCENCES.names,
            default="belcour_rgb"),

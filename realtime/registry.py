@@ -21,7 +21,9 @@ API
 :data:`TERM_REGISTRIES`,
 :data:`ROLE_REGISTRIES`, :data:`REGISTRIES`, :func:`role_reads`; the lobes' approximations (issue 36):
 :data:`COAT_ATTENUATIONS`, :data:`COAT_IBLS`, :data:`SHEEN_DFGS`, :data:`SHEEN_SCALINGS`,
-:data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS`; transmission's
+:data:`ANISOTROPY_BENDS`, :data:`IRIDESCENCES`, :data:`LOBE_REGISTRIES`, :data:`LOBE_LUTS` (the ``fitted`` members
+of SHEEN_DFGS and ANISOTROPY_BENDS are ``pbrcheck fit-lobes``' AD fits, their entries holding
+:mod:`realtime.fitted_lobes`' GLSL as ``extra["glsl"]``); transmission's
 (issue 37): :data:`TRANSMISSION_LODS`, :data:`TRANSMISSION_SOURCES` (defined in :mod:`realtime.transmission`).
 """
 
@@ -37,6 +39,7 @@ from pbrcheck.sampling import (LUT_SAMPLINGS, runtime_estimate_ndf, runtime_esti
                                runtime_half_vector_ggx, runtime_half_vector_vndf)
 from pbrcheck.specular_aa import specular_aa_prefiltered, specular_aa_screen_space, specular_aa_toksvig
 
+from . import fitted_lobes as _fitted
 from . import lobes as _lobes
 from .transmission import TRANSMISSION_LODS, TRANSMISSION_SOURCES  # noqa: F401  (issue 37 item 2: the opaque-pass framebuffer's read)
 
@@ -203,6 +206,9 @@ def role_reads(registry: Registry, name: str, role: str, param: str) -> bool:
 # not in REGISTRIES (whose constants every program gets: a lobe-free program's source must not change):
 # the material composition calls them through material_lobes.glsl, compiled only into the programs of
 # scenes whose materials use a lobe (realtime.material_lobes), each switch an option of realtime.presets.
+# A member may hold GLSL of its own as an object (extra["glsl"]: the fitted members' tables, whose text
+# realtime/fitted_lobes.py generates): realtime.generated writes it into <lobe file>_members.glsl inside
+# "#if SWITCH == SWITCH_MEMBER", so only the programs that select the member compile it.
 _LOBE = "the real-time form of a lobe the reference evaluates exactly (pbrcheck.lobes): no Dr.Jit function; "
 #: The base's attenuation under the coat: ``coat_attenuation(NoV, VoH, coat, f0)``.
 COAT_ATTENUATIONS = Registry("COAT_ATTENUATION", [
@@ -249,6 +255,11 @@ SHEEN_DFGS = Registry("SHEEN_DFG", [
     Entry("playcanvas", "PlayCanvas reflectionSheen: saturate(DG), the same fit without 1 / pi",
           roles={"sheen_dfg": role(_lobes.sheen_dfg_playcanvas)}, extra={"radiance": "normal_roughest"},
           applies_to=_LOBE + "image-based (times the environment along n at the roughest level)"),
+    Entry("fitted", "pbrcheck fit-lobes: the spec's albedo E (int D_Charlie V_Charlie n.l) as an 8 x 8 table fitted "
+                    "by AD to the quadrature, read at (sqrt(n.v), roughness) (realtime/fitted_lobes.py)",
+          roles={"sheen_dfg": role(_lobes.sheen_dfg_fitted)},
+          extra={"radiance": "charlie_cube", "glsl": _fitted.SHEEN_ALBEDO_GLSL},
+          applies_to=_LOBE + "image-based (times the Charlie-prefiltered cube); pbrcheck's fit, no engine's form"),
 ])
 #: The layering of the base under the sheen: ``sheen_scaling(color, E)``.
 SHEEN_SCALINGS = Registry("SHEEN_SCALING", [
@@ -271,6 +282,11 @@ ANISOTROPY_BENDS = Registry("ANISOTROPY_BEND", [
           roles={"aniso_reflection": role(_lobes.aniso_reflection_filament)}, applies_to=_LOBE + "image-based"),
     Entry("babylon", "Babylon.js getAnisotropicBentNormals (ANISOTROPIC_LEGACY): normalize(mix(n, (d x v) x d, |s|))",
           roles={"aniso_reflection": role(_lobes.aniso_reflection_babylon)}, applies_to=_LOBE + "image-based"),
+    Entry("fitted", "pbrcheck fit-lobes: the Sample Viewer's bent normal normalize(mix((b x v) x b, n, w)) with w(s, r) "
+                    "a 5 x 5 table fitted by AD to the spec's anisotropic GGX under test environments "
+                    "(realtime/fitted_lobes.py)", roles={"aniso_reflection": role(_lobes.aniso_reflection_fitted)},
+          extra={"glsl": _fitted.ANISO_BEND_WEIGHT_GLSL},
+          applies_to=_LOBE + "image-based; pbrcheck's fit, no engine's form"),
 ])
 #: The iridescent Fresnel ``iridescence_fresnel(outside_ior, film_ior, cos1, thickness, base_f0)``.
 IRIDESCENCES = Registry("IRIDESCENCE", [

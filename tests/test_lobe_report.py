@@ -84,7 +84,7 @@ def test_lobe_families_are_the_registrys_with_the_option_found_generically(monke
     fams = {f.switch: f for f in cl.lobe_families()}
     assert set(fams) == set(LOBE_REGISTRIES)   # every lobe family today names a lobe
     assert fams["COAT_IBL"].extension == lp.CLEARCOAT and fams["SHEEN_DFG"].extension == lp.SHEEN
-    assert fams["ANISOTROPY_BEND"].members == ("sample_viewer", "threejs", "filament", "babylon")
+    assert fams["ANISOTROPY_BEND"].members == ("sample_viewer", "threejs", "filament", "babylon", "fitted")
     # an option whose registry is the family's, whatever its name, is the family's option
     monkeypatch.setattr(presets, "OPTION_REGISTRIES", {"coat_ibl_form": COAT_IBLS})
     assert {f.switch: f.option for f in cl.lobe_families()}["COAT_IBL"] == "coat_ibl_form"

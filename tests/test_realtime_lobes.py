@@ -207,9 +207,9 @@ def test_sheen_dfg_twins(entry):
     fn = entry.roles["sheen_dfg"]
     want = fn.numpy(c, r, E)
     assert want.shape == c.shape
-    close(run_glsl(f"{fn.glsl}(x0, x1, vec3(x2, x3, x4))", c, r, E[:, 0], E[:, 1], E[:, 2]), want, rtol=2e-4)
-    close(run_glsl("sheen_dfg(x0, x1, vec3(x2, x3, x4))", c, r, E[:, 0], E[:, 1], E[:, 2],
-                   defines=rt_registry.SHEEN_DFGS.select(entry.name)), want, rtol=2e-4)
+    sel = rt_registry.SHEEN_DFGS.select(entry.name)   # a member's own GLSL (extra["glsl"]) is compiled where selected
+    close(run_glsl(f"{fn.glsl}(x0, x1, vec3(x2, x3, x4))", c, r, E[:, 0], E[:, 1], E[:, 2], defines=sel), want, rtol=2e-4)
+    close(run_glsl("sheen_dfg(x0, x1, vec3(x2, x3, x4))", c, r, E[:, 0], E[:, 1], E[:, 2], defines=sel), want, rtol=2e-4)
 
 
 @pytest.mark.parametrize("entry", list(rt_registry.SHEEN_SCALINGS), ids=rt_registry.SHEEN_SCALINGS.names)
@@ -277,6 +277,12 @@ ANISO_EXPR = "{fn}(vec3(x0, x1, x2), vec3(x3, x4, x5), cross(vec3(x0, x1, x2), v
              "vec3(x6, x7, sqrt(max(1.0 - x6 * x6 - x7 * x7, 0.0)) * SIGN), {s}, {r})"
 
 
+#: The defines a function of lobes_anisotropy.glsl needs: the fitted member's are compiled only where selected.
+ANISO_DEFINES = {**{e.roles["aniso_reflection"].glsl: rt_registry.ANISOTROPY_BENDS.select(e.name)
+                    for e in rt_registry.ANISOTROPY_BENDS},
+                 "aniso_bent_normal_fitted": rt_registry.ANISOTROPY_BENDS.select("fitted")}
+
+
 def _run_aniso(fn, n, t, v, s, r):
     """GLSL ``fn`` on frames whose v.z is rebuilt from (v.x, v.y) with v's sign (8 harness inputs)."""
     out = np.zeros_like(n)
@@ -285,12 +291,13 @@ def _run_aniso(fn, n, t, v, s, r):
         if not m.any():
             continue
         expr = ANISO_EXPR.format(fn=fn, s=f"{s:.6f}", r=f"{r:.6f}").replace("SIGN", f"{sign:.1f}")
-        out[m] = run_glsl(expr, n[m, 0], n[m, 1], n[m, 2], t[m, 0], t[m, 1], t[m, 2], v[m, 0], v[m, 1], components=3)
+        out[m] = run_glsl(expr, n[m, 0], n[m, 1], n[m, 2], t[m, 0], t[m, 1], t[m, 2], v[m, 0], v[m, 1], components=3,
+                          defines=ANISO_DEFINES.get(fn))
     return out
 
 
 ANISO_FUNCS = ["aniso_bent_normal_sample_viewer", "aniso_bent_normal_threejs", "aniso_bent_normal_filament",
-               "aniso_bent_normal_babylon"]
+               "aniso_bent_normal_babylon", "aniso_bent_normal_fitted"]
 
 
 @pytest.mark.parametrize("fn", ANISO_FUNCS + [e.roles["aniso_reflection"].glsl for e in rt_registry.ANISOTROPY_BENDS])
@@ -298,7 +305,7 @@ def test_anisotropy_twins(fn):
     n, t, b, v = _frames()
     v = f32(np.concatenate([v[:, :2], np.sign(v[:, 2:]) * np.sqrt(np.maximum(1 - v[:, 0:1] ** 2 - v[:, 1:2] ** 2, 0))], -1))
     for s in (0.0, 0.5, 1.0, -0.5):
-        if s < 0 and ("sample_viewer" in fn or "threejs" in fn):
+        if s < 0 and ("sample_viewer" in fn or "threejs" in fn or "fitted" in fn):
             continue  # the strength of KHR_materials_anisotropy is in [0, 1]; only Filament / Babylon sign it
         for r in (0.0, 0.5, 1.0):
             g = _run_aniso(fn, n, t, v, s, r)
@@ -331,6 +338,53 @@ def test_anisotropy_neutral_and_dispatch(entry):
     vv = v[m].copy()
     vv[:, 2] = np.sqrt(np.maximum(1 - vv[:, 0] ** 2 - vv[:, 1] ** 2, 0))
     close(g, fn.numpy(n[m], t[m], b[m], vv, np.ones(m.sum()), np.full(m.sum(), 0.5)), rtol=0, atol=DIR_ATOL)
+
+
+# ---- the fitted members (pbrcheck fit-lobes: realtime/fitted_lobes.py) ------------------------------
+
+#: Strengths and roughnesses of the fitted bend's weight table: its extremes, its nodes and between them
+#: (below its first roughness node 0.2 the table holds its first row).
+FIT_S = np.array([0.0, 0.1, 0.25, 0.37, 0.5, 0.9, 1.0])
+FIT_R = np.array([0.0, 0.1, 0.2, 0.33, 0.6, 0.71, 0.95, 1.0])
+
+
+@pytest.mark.parametrize("define, member, reader", [("SHEEN_DFG", "fitted", "sheen_albedo_fitted"),
+                                                    ("ANISOTROPY_BEND", "fitted", "aniso_bend_weight_fitted")])
+def test_fitted_members_hold_their_glsl_and_compile_it_only_where_selected(define, member, reader):
+    """The entry holds the generated module's GLSL as an object (extra["glsl"]), realtime.generated writes
+    it into the lobe file's members include under #if on the switch: a program selecting another member
+    has no such function (the reader is undefined there), one selecting it has; the reader's GLSL equals
+    its numpy twin on a grid with the extremes."""
+    from pbrcheck.errors import ShaderCompileError
+    from realtime import fitted_lobes
+    from realtime.generated import glsl_generated, lobe_members_include
+
+    reg, include, default, _ = rt_registry.LOBE_REGISTRIES[define]
+    entry = reg[member]
+    held = {"sheen_albedo_fitted": fitted_lobes.SHEEN_ALBEDO_GLSL, "aniso_bend_weight_fitted": fitted_lobes.ANISO_BEND_WEIGHT_GLSL}
+    assert entry.extra["glsl"] is held[reader]
+    generated = glsl_generated()[lobe_members_include(include)]
+    assert f"#if {define} == {reg.constant(member)}\n" + entry.extra["glsl"].strip("\n") + "\n#endif" in generated
+    assert f'#include "{lobe_members_include(include)}"' in (SHADER_DIR / include).read_text()
+    x, y = grid(COS if define == "SHEEN_DFG" else FIT_S, ROUGH if define == "SHEEN_DFG" else FIT_R)
+    with pytest.raises(ShaderCompileError):
+        run_glsl(f"{reader}(x0, x1)", x, y, defines=reg.select(default))
+    close(run_glsl(f"{reader}(x0, x1)", x, y, defines=reg.select(member)), getattr(fitted_lobes, reader)(x, y), rtol=1e-5)
+
+
+def test_fitted_bend_twin_between_the_nodes():
+    """aniso_reflection_fitted's GLSL = numpy at strengths and roughnesses between the weight table's nodes
+    (the twin test above reads the nodes 0, 0.5, 1), and at strength 0 it is the unbent reflection."""
+    n, t, b, v = _frames(k=32, seed=7)
+    v = f32(np.concatenate([v[:, :2], np.sign(v[:, 2:]) * np.sqrt(np.maximum(1 - v[:, 0:1] ** 2 - v[:, 1:2] ** 2, 0))], -1))
+    for s, r in ((0.37, 0.33), (0.9, 0.71), (0.1, 0.1), (1.0, 0.95)):
+        k = len(n)
+        want = lobes.aniso_reflection_fitted(n, t, np.cross(n, t), v, np.full(k, s), np.full(k, r))
+        close(_run_aniso("aniso_reflection_fitted", n, t, v, s, r), want, rtol=0, atol=DIR_ATOL)
+    w = lobes.aniso_bend_weight_fitted(0.37, 0.33)
+    np.testing.assert_allclose(lobes.aniso_bent_normal_fitted(n, t, b, v, 0.37, 0.33),
+                               lobes._normalize(lobes._mix(lobes._mcauley_normal(b, v), n, w)), atol=1e-12)
+    assert 0.5 < w < 1.0   # the fitted table's weight there (the Sample Viewer's: 0.44)
 
 
 # ---- iridescence -----------------------------------------------------------------------------------

@@ -140,13 +140,15 @@ def _cmd_fit_lobes(args) -> int:
     from pbrcheck.atomic import write_text_atomic
     errors, table = fit_lobes.sheen_report(baked32=not args.no_baked32)
     print(fit_lobes.sheen_table_markdown(errors))
-    aniso = fit_lobes.fit_aniso_table()
+    print(fit_lobes.sheen_check_line(table))
+    aniso, aniso_losses = fit_lobes.fit_aniso_table(return_losses=True)
     aniso_errors = fit_lobes.aniso_report(aniso)
     print(fit_lobes.aniso_table_markdown(aniso_errors, aniso), end="")
+    print(fit_lobes.aniso_fit_line(aniso_losses, aniso if args.check_scan else None))
     if args.module:
         print(f"module: {write_text_atomic(args.module, fit_lobes.module_text(table, aniso))}")
     if args.json:
-        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist()})}")
+        print(f"json: {write_json_atomic(args.json, {'sheen_albedo': errors, 'table': table.tolist(), 'aniso_bend': aniso_errors, 'aniso_table': aniso.tolist(), 'aniso_ad_losses': aniso_losses})}")
     return 0
 
 
@@ -279,6 +281,8 @@ def register(sub, bench_sub) -> None:
     s.add_argument("--module", metavar="FILE.py", help="write the fitted table as a module (realtime/fitted_lobes.py)")
     s.add_argument("--json", metavar="FILE.json", help="also write the errors and the table as JSON")
     s.add_argument("--no-baked32", action="store_true", help="skip the 32 x 32 bake's row (1024 quadratures)")
+    s.add_argument("--check-scan", action="store_true", help="also check the AD bend weights against a dense scan "
+                                                            "of each node's objective (~10-30 s more)")
     s.set_defaults(func=_cmd_fit_lobes)
 
     b = bench_sub.add_parser("fit-roughness", help="fit-roughness against the reference itself: r* error per "

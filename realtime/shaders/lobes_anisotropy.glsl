@@ -9,6 +9,7 @@
 #define ANISOTROPY_BEND_THREEJS 1
 #define ANISOTROPY_BEND_FILAMENT 2
 #define ANISOTROPY_BEND_BABYLON 3
+#define ANISOTROPY_BEND_FITTED 4
 #ifndef ANISOTROPY_BEND
 #define ANISOTROPY_BEND ANISOTROPY_BEND_SAMPLE_VIEWER
 #endif
@@ -26,6 +27,10 @@ float aniso_bend_weight(float s, float r) {
     w *= w;
     return w * w;
 }
+
+// The registry members' own GLSL (realtime/fitted_lobes.py's weight table and reader for
+// ANISOTROPY_BEND_FITTED), inside #if on the switch: generated from the entries' extra["glsl"].
+#include "lobes_anisotropy_members.glsl"
 
 // Source: glTF-Sample-Viewer ibl.glsl getIBLRadianceAnisotropy (called with anisotropicB).
 // Equation: normalize(mix((b x v) x b, n, (1 - s (1 - r))^4)), the plane's normal unnormalized.
@@ -66,6 +71,18 @@ vec3 aniso_reflection_babylon(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) 
     return normalize(reflect(-v, aniso_bent_normal_babylon(n, t, b, v, s, r)));
 }
 
+#if ANISOTROPY_BEND == ANISOTROPY_BEND_FITTED
+// Source: pbrcheck fit-lobes (docs/research.md): the Sample Viewer's bent normal with the weight fitted by
+// AD. Equation: normalize(mix((b x v) x b, n, aniso_bend_weight_fitted(s, r))).
+vec3 aniso_bent_normal_fitted(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
+    return normalize(mix(mcauley_normal(b, v), n, aniso_bend_weight_fitted(s, r)));
+}
+
+vec3 aniso_reflection_fitted(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
+    return normalize(reflect(-v, aniso_bent_normal_fitted(n, t, b, v, s, r)));
+}
+#endif
+
 // Source: three.js envmap_physical_pars_fragment getIBLRadiance (every lookup, isotropic or not).
 // Equation: normalize(mix(reflect(-v, n), n, r^2)).
 vec3 threejs_reflection(vec3 n, vec3 v, float r) {
@@ -85,6 +102,8 @@ vec3 aniso_reflection(vec3 n, vec3 t, vec3 b, vec3 v, float s, float r) {
     return aniso_reflection_filament(n, t, b, v, s, r);
 #elif ANISOTROPY_BEND == ANISOTROPY_BEND_BABYLON
     return aniso_reflection_babylon(n, t, b, v, s, r);
+#elif ANISOTROPY_BEND == ANISOTROPY_BEND_FITTED
+    return aniso_reflection_fitted(n, t, b, v, s, r);
 #else
     return aniso_reflection_sample_viewer(n, t, b, v, s, r);
 #endif
