@@ -4,7 +4,8 @@ external engine the same render of the opaque export (the transmission extension
 :mod:`pbrcheck.unmodelled` does by default) beside the kept one.
 
 ``python -m compare.transmission_engines glass --size 96x72 --spp 256 --with default,sample_viewer,ext:threejs``
-prints one Markdown row per renderer (the table of docs/renderers.md).
+prints one Markdown row per renderer (the table of docs/renderers.md); a glTF asset instead of a scene
+takes ``--env FILE.hdr`` (default the neutral constant environment).
 
 API
 ---
@@ -12,8 +13,10 @@ API
   transmits), ``interior`` (those less their silhouette's edge pixels: the refracted lookup, its LOD
   rule and the thickness attenuation; the comparator's ``valid`` pixels of those), ``opaque`` (every other object: the ground, the screen-space
   content the engines refract), ``background``.
-- :func:`measure` -- the rows: per renderer (and ``kept`` / ``opaque`` for an engine) relmse and
-  FLIP per region.
+- :func:`transmissive_ids` -- the objects whose material transmits; :func:`transmission_stripped` --
+  whether the default export still strips transmission (unmodelled).
+- :func:`measure` -- the rows: per renderer (and ``kept`` / ``opaque`` for an engine; one ``default``
+  row once transmission is modelled) relmse and FLIP per region.
 - :func:`markdown` -- the rows as a Markdown table (names through :func:`pbrcheck.fmt.markdown_cell`).
 
 The engines' renders with the extensions kept run inside :func:`pbrcheck.export.keeping_unmodelled`
@@ -28,9 +31,12 @@ import sys
 
 import numpy as np
 
+from pbrcheck import export
 from pbrcheck.export import keeping_unmodelled
 from pbrcheck.fmt import markdown_cell
 from pbrcheck.scene import asset_scene, load_scene
+from pbrcheck.transmission_params import is_transmissive
+from pbrcheck.unmodelled import strip_unmodelled
 
 from clients.run import object_ids
 
@@ -47,15 +53,29 @@ METRICS = ("relmse", "flip_mean")
 
 def transmissive_ids(scene) -> set[int]:
     """The object ids whose material has ``transmission > 0`` or ``diffuse_transmission > 0``
-    (analytic objects and glTF primitives: each carries its material), and those a transmission
-    extension touches while it is unmodelled for the asset (:attr:`pbrcheck.scene.Scene.unmodelled`:
-    the loader left it out of the material, the engines render it when kept)."""
-    out = {i for u in getattr(scene, "unmodelled", ()) if u.feature in TRANSMISSION_FEATURES for i in u.objects}
+    (analytic objects and glTF primitives: each carries its material), and the glTF primitives whose
+    glTF material transmits (:func:`pbrcheck.transmission_params.is_transmissive`: its parsed
+    extensions, whether or not the honesty contract names them unmodelled and the loader left them
+    out of the scene material; an extension present with factor 0, as IridescenceSuzanne's two
+    opaque heads, does not count)."""
+    out = set()
     for o in scene.objects:
         m = o.material
         if getattr(m, "transmission", 0.0) > 0.0 or getattr(m, "diffuse_transmission", 0.0) > 0.0:
             out.add(o.id)
+        elif getattr(o, "gltf_material", None) is not None and \
+                is_transmissive(scene.assets[o.instance].asset.material(o.gltf_material)):
+            out.add(o.id)
     return out
+
+
+def transmission_stripped() -> bool:
+    """Whether the engines' default export removes ``KHR_materials_transmission`` (unmodelled in the
+    honesty contract: :func:`pbrcheck.unmodelled.strip_unmodelled` over the export's modelled set).
+    Once transmission is modelled the default export keeps it: the ``opaque`` rows would repeat the
+    ``kept`` ones, and :func:`measure` labels its one row per engine ``default``."""
+    doc = {"materials": [{"name": "probe", "extensions": {TRANSMISSION_FEATURES[0]: {"transmissionFactor": 1.0}}}]}
+    return bool(strip_unmodelled(doc, export.SUPPORTED_EXTENSIONS))
 
 
 def regions(scene, ref, cmp) -> dict[str, np.ndarray]:
@@ -81,15 +101,19 @@ def _row(scene, ref, img, name: str, form: str) -> dict:
 
 def measure(scene, names, *, spp: int = 256, opaque: bool = True, progress: bool = False) -> list[dict]:
     """Rows for each renderer of ``names`` (presets, ``ext:NAME``) on ``scene`` against its path truth
-    at ``spp``; an engine twice (``kept`` and, with ``opaque``, ``opaque``)."""
+    at ``spp``; an engine twice (``kept`` and, with ``opaque``, ``opaque``) while the default export
+    strips transmission (:func:`transmission_stripped`), once (``default``: the extensions are then
+    modelled and exported as they are) after."""
     ref = renderers.render_reference(scene, spp=spp, mode="path", progress=progress)
+    stripped = transmission_stripped()
     rows = []
     for n in names:
         spec = renderers.RendererSpec.parse(n)
         if spec.external:
-            with keeping_unmodelled():
-                rows.append(_row(scene, ref, renderers.render_under_test(scene, spec, progress=progress), n, "kept"))
-            if opaque:
+            with keeping_unmodelled():   # a no-op once nothing transmissive is unmodelled
+                rows.append(_row(scene, ref, renderers.render_under_test(scene, spec, progress=progress), n,
+                                 "kept" if stripped else "default"))
+            if opaque and stripped:
                 rows.append(_row(scene, ref, renderers.render_under_test(scene, spec, progress=progress), n, "opaque"))
         else:
             rows.append(_row(scene, ref, renderers.render_under_test(scene, spec, progress=progress), n, "-"))
@@ -117,10 +141,11 @@ def main(argv=None) -> int:
     p.add_argument("--size", default="96x72", help="WxH (default 96x72)")
     p.add_argument("--spp", type=int, default=256, help="path truth samples per pixel (default 256)")
     p.add_argument("--with", dest="names", default="default,sample_viewer", help="renderers, comma-separated")
+    p.add_argument("--env", default=None, help="an asset's environment (.hdr / .exr; default the neutral constant 1)")
     a = p.parse_args(argv)
     w, h = (int(x) for x in a.size.lower().split("x"))
     if a.scene.endswith((".gltf", ".glb")):
-        scene = asset_scene(a.scene, size=(w, h))
+        scene = asset_scene(a.scene, size=(w, h), env=a.env)
     else:
         scene = load_scene(a.scene).with_camera(width=w, height=h)
     print(markdown(measure(scene, [n for n in a.names.split(",") if n], spp=a.spp, progress=True)))
