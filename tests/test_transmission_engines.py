@@ -178,3 +178,37 @@ def test_measure_labels_its_engine_rows_before_and_after_the_flip(monkeypatch):
                                            ("ext:threejs", "opaque", False)]
     monkeypatch.setattr(te, "transmission_stripped", lambda: False)
     assert te.measure(_glass(), names) == [("default", "-", False), ("ext:threejs", "default", True)]
+
+
+def test_asset_without_drops_extensions_from_the_transmissive_materials_only(tmp_path):
+    """The proxy truth's asset: a transmissive material loses the named lobe (the reference then
+    renders its transmission), the file's external buffer is copied beside it; an asset whose
+    transmissive materials lack the extension is an AssetError (the proxy would be the asset)."""
+    from pbrcheck.errors import AssetError
+    from pbrcheck.gltf import load_asset
+    from pbrcheck.transmission_params import reference_renders
+    from tests.gltf_build import quad_asset
+
+    px = np.full((2, 2, 4), 255, np.uint8)
+    coat = {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatTexture": {"index": 0}}}
+    src = quad_asset(tmp_path / "src" / "a.gltf", {"name": "glass", "extensions": {
+        TRANSMISSION: {"transmissionFactor": 1.0}, **coat}}, [(px, None)])
+    doc = json.loads(src.read_text())   # one buffer as an external file, as the shared assets have it
+    (src.parent / "a.bin").write_bytes(__import__("base64").b64decode(doc["buffers"][0]["uri"].split(",", 1)[1]))
+    doc["buffers"][0]["uri"] = "a.bin"
+    src.write_text(json.dumps(doc))
+    assert not reference_renders(load_asset(src).materials[0])
+    proxy = te.asset_without(src, ["KHR_materials_clearcoat"], tmp_path / "proxy")
+    assert (tmp_path / "proxy" / "a.bin").read_bytes() == (src.parent / "a.bin").read_bytes()
+    m = load_asset(proxy).materials[0]
+    assert reference_renders(m) and m.transmission.factor == 1.0 and m.clearcoat is None
+    opaque = quad_asset(tmp_path / "o.gltf", {"name": "o", "extensions": coat}, [(px, None)])
+    with pytest.raises(AssetError, match="no transmissive material carries KHR_materials_clearcoat"):
+        te.asset_without(opaque, ["KHR_materials_clearcoat"], tmp_path / "none")
+
+
+def test_measure_refuses_a_truth_seen_by_another_camera():
+    from pbrcheck.errors import SceneError
+
+    with pytest.raises(SceneError, match="camera"):
+        te.measure(_glass(), [], truth=_glass(32, 18))
