@@ -185,11 +185,14 @@ def has_varying(material) -> bool:
 
 
 def reference_renders(material) -> bool:
-    """Whether the reference's path mode renders a transmissive glTF material: OPAQUE, not unlit, and
-    no texture of :data:`VARYING_SLOTS` outside :data:`READ_SLOTS` (constant factors, or the textures
-    the textured variant reads per hit). Another transmissive material renders opaque (its
-    transmission named as unmodelled)."""
-    return (is_transmissive(material) and material.alpha_mode == "OPAQUE" and not material.unlit
+    """Whether the reference's path mode renders a transmissive glTF material: not unlit, and no
+    texture of :data:`VARYING_SLOTS` outside :data:`READ_SLOTS` (constant factors, or the textures
+    the textured variant reads per hit); any ``alphaMode``. Another transmissive material renders
+    opaque (its transmission named as unmodelled)."""
+    # alphaMode MASK / BLEND are rendered too (issue 37): alpha is coverage, transmission applies to
+    # the surface that is there ([Trans] "Blend Mode"); reference.transmission's materials pass a ray
+    # unchanged with probability 1 - coverage (a null interaction, as pbr_textured's cut-outs).
+    return (is_transmissive(material) and not material.unlit
             and not set(material.textures()) & (set(VARYING_SLOTS) - set(READ_SLOTS)))
 
 

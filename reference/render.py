@@ -85,20 +85,28 @@ LOBE_CODE_VERSION = "1"
 #: their cache keys alone (:func:`transmission_cache_parts`). 1: the textures read per hit (they
 #: rendered opaque).
 TEXTURED_TRANSMISSION_CODE_VERSION = "1"
+#: The same for scenes holding a MASK / BLEND transmissive glTF material (:func:`transmission_cache_parts`):
+#: 1: their coverage applied (a null pass-through; they rendered opaque, the alpha cut lost).
+ALPHA_TRANSMISSION_CODE_VERSION = "1"
 
 
 def transmission_cache_parts(scene) -> dict:
     """``{"textured_transmission_code": TEXTURED_TRANSMISSION_CODE_VERSION}`` where an asset of
-    ``scene`` has a material that the textured transmissive BSDF renders, else ``{}`` (other scenes'
-    keys unchanged; hook, issue 37). Here, not in reference.transmission, because a cache key is
+    ``scene`` has a material that the textured transmissive BSDF renders, and
+    ``{"alpha_transmission_code": ALPHA_TRANSMISSION_CODE_VERSION}`` where one has a MASK / BLEND
+    transmissive material the reference renders; ``{}`` for other scenes (their keys unchanged; hook,
+    issue 37). Here, not in reference.transmission, because a cache key is
     computed before Mitsuba's variant is set (a cache hit never sets it), and that module's classes
     derive from Mitsuba's."""
     from pbrcheck.transmission_params import has_varying, reference_renders
 
-    if any(reference_renders(m) and has_varying(m) for inst in getattr(scene, "assets", ())
-           for m in inst.asset.materials):
-        return {"textured_transmission_code": TEXTURED_TRANSMISSION_CODE_VERSION}
-    return {}
+    mats = [m for inst in getattr(scene, "assets", ()) for m in inst.asset.materials if reference_renders(m)]
+    out = {}
+    if any(has_varying(m) for m in mats):
+        out["textured_transmission_code"] = TEXTURED_TRANSMISSION_CODE_VERSION
+    if any(m.alpha_mode != "OPAQUE" for m in mats):   # MASK / BLEND transmissive (they rendered opaque)
+        out["alpha_transmission_code"] = ALPHA_TRANSMISSION_CODE_VERSION
+    return out
 
 
 def scene_uses_lobes(scene) -> bool:

@@ -29,15 +29,26 @@ delta refraction carries its channel alone (weight 3 e_k: the other channels' de
 Unbiased per channel, three wavelengths rather than a spectrum (:func:`pbrcheck.transmission.spectral_rgb_weights`
 is the spectral estimator's part, which needs a wavelength per path that Mitsuba's RGB ``path`` does not carry).
 
+glTF ``alphaMode`` MASK / BLEND ("alpha_mode" 1 / 2, "alpha_cutoff", "alpha"; [Trans] "Blend Mode": alpha
+is coverage, transmission applies to the surface that is there): the coverage ``c`` at the hit
+(:meth:`TransmissiveMaterial.coverage`: glTF 2.0 3.9.4, MASK ``alpha >= alphaCutoff``, BLEND ``alpha``,
+``alpha = baseColorFactor.a x baseColorTexture.a``) makes a Null component (index :data:`NULL_COMPONENT`)
+as ``pbr_textured``'s cut-outs: ``eval_null_transmission = 1 - c``, ``sample`` passes the ray unchanged
+(no refraction, no tint) with probability ``1 - c``, ``eval`` / ``pdf`` scale by ``c``; the scene then
+renders through ``volpath``. Where ``c`` is 1 everywhere :func:`gltf_shape_props` leaves the alpha out
+(the OPAQUE material, bit for bit: :data:`COVERAGE_MARGIN`).
+
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
 :func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
 :func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
 :class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`,
+:data:`NULL_COMPONENT`, :data:`MIN_COVERAGE`, :data:`COVERAGE_MARGIN` (the alpha coverage),
 :func:`reference.render.transmission_cache_parts` keys its renders.
 References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
-[Walter07], [pbrt-v4], [Heitz14], [Heitz18]); Mitsuba 3's ``volpath`` and ``homogeneous`` plugins.
+[Walter07], [pbrt-v4], [Heitz14], [Heitz18]); glTF 2.0 3.9.4 (alpha coverage); Mitsuba 3's ``volpath``
+and ``homogeneous`` plugins.
 """
 
 from __future__ import annotations
@@ -47,7 +58,7 @@ import math
 import numpy as np
 
 import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
-from pbrcheck.errors import SceneError
+from pbrcheck.errors import AssetError, SceneError
 from pbrcheck.terms import COS_EPS, MIN_ALPHA
 from pbrcheck.transmission import HALF_VECTOR_EPS, SMOOTH_ALPHA, channel_iors
 from pbrcheck.transmission_params import REFERENCE_RENDERED, has_varying, reference_renders
@@ -70,6 +81,16 @@ REFERENCE_TRANSMISSION_EXTENSIONS = REFERENCE_RENDERED
 #: Mitsuba's medium needs a finite sigma_t: 1e-6 leaves exp(-13.8) = 1e-6 after one attenuation distance.
 MIN_ATTENUATION_COLOR = 1e-6
 _FLIP = (1.0, 1.0, -1.0)
+#: The null pass-through's component index (after the four lobes of ``m_components``).
+NULL_COMPONENT = 4
+#: The coverage's floor where ``sample1 / coverage`` rescales the lobes' choice: only lanes with
+#: ``sample1 < coverage`` divide, so the floor only keeps a coverage of 0 from making 0 / 0.
+MIN_COVERAGE = 1e-20
+#: A MASK material whose every alpha (factor x texel) is at or above ``alphaCutoff x (1 +
+#: COVERAGE_MARGIN)`` covers everywhere: the bilinear lookup stays within its texels' range but for
+#: float32 rounding (a lerp's relative error, a few ulp: 2^-22 ~ 2.4e-7), so a margin of 1e-6 keeps a
+#: texel at the cutoff itself per lane (:func:`_alpha_props`).
+COVERAGE_MARGIN = 1e-6
 
 
 def _dot(a, b):
@@ -332,6 +353,15 @@ class TransmissiveMaterial(mi.BSDF):
         sides = F.FrontSide | F.BackSide
         self.m_components = [refl | sides, trans | sides, F.DiffuseReflection | sides, F.DiffuseTransmission | sides]
         self.m_flags = refl | trans | F.DiffuseReflection | F.DiffuseTransmission | sides
+        # glTF alphaMode (coverage, [Trans] "Blend Mode"): 0 OPAQUE, 1 MASK, 2 BLEND; the factor's alpha
+        # (a textured material's texel alpha: TexturedTransmissive.coverage); gltf_shape_props leaves
+        # these keys out where the coverage is 1 everywhere (the OPAQUE material, bit for bit)
+        self.alpha_mode = int(get("alpha_mode", 0))
+        self.alpha_cutoff = float(get("alpha_cutoff", 0.5))
+        self.alpha = float(get("alpha", 1.0))
+        if self.alpha_mode:   # the null pass-through: component NULL_COMPONENT
+            self.m_components.append(F.Null | sides)
+            self.m_flags = self.m_flags | F.Null
 
     def to_string(self):
         return (f"TransmissiveMaterial[base_color={self.base_color}, metallic={self.metallic}, roughness="
@@ -375,18 +405,65 @@ class TransmissiveMaterial(mi.BSDF):
         pdf = pm * p_metal + pi * iface_pdf + pd * dr.select(same, cos_l, 0.0) + pdt * dr.select(same, 0.0, cos_l)
         return value, pdf
 
+    # ---- coverage (glTF alphaMode MASK / BLEND): a null interaction with probability 1 - coverage ----
+    def _cut(self, a):
+        """glTF 2.0 3.9.4 on alpha ``a``: MASK ``a >= alphaCutoff`` (1 or 0), BLEND ``a`` in [0, 1]."""
+        return dr.select(a >= self.alpha_cutoff, 1.0, 0.0) if self.alpha_mode == 1 else dr.clip(a, 0.0, 1.0)
+
+    def coverage(self, si, active=True):
+        """The surface's coverage at the hit (1 where OPAQUE): this constant material's factor alpha."""
+        return self._cut(mi.Float(self.alpha)) if self.alpha_mode else mi.Float(1.0)
+
+    def _null(self, ctx) -> bool:
+        """Whether the coverage applies: an alpha mode, and the caller's context asks for the null
+        component (Mitsuba's default context does; one that leaves Null out shades the surface as there)."""
+        return bool(self.alpha_mode) and bool(int(ctx.type_mask) & int(mi.BSDFFlags.Null))
+
+    def eval_null_transmission(self, si, active=True):
+        """The fraction that passes unchanged (``1 - coverage``; 0 where OPAQUE): Mitsuba's null
+        interface, which ``volpath``'s shadow rays multiply through."""
+        if not self.alpha_mode:
+            return mi.Spectrum(0.0)
+        return mi.Spectrum(dr.select(active, 1.0 - self.coverage(si, active), 0.0))
+
+    def _lobes_eval_pdf(self, si, wo, active):
+        """(value, pdf) of the lobes at the hit, the surface taken as there."""
+        return self._eval_pdf(si.wi, wo)
+
+    def _lobes_sample(self, si, sample1, sample2, active):
+        """(BSDFSample3f, weight) of the lobes at the hit, the surface taken as there."""
+        return self._sample_at(si.wi, sample1, sample2, active)
+
     def eval(self, ctx, si, wo, active=True):
-        return dr.select(active, self._eval_pdf(si.wi, wo)[0], 0.0)
+        return self.eval_pdf(ctx, si, wo, active)[0]
 
     def pdf(self, ctx, si, wo, active=True):
-        return dr.select(active, self._eval_pdf(si.wi, wo)[1], 0.0)
+        return self.eval_pdf(ctx, si, wo, active)[1]
 
     def eval_pdf(self, ctx, si, wo, active=True):
-        value, pdf = self._eval_pdf(si.wi, wo)
+        value, pdf = self._lobes_eval_pdf(si, wo, active)
+        if self._null(ctx):   # the surface is there with probability coverage: value and pdf scale by it
+            op = self.coverage(si, active)
+            value, pdf = value * op, pdf * op
         return dr.select(active, value, 0.0), dr.select(active, pdf, 0.0)
 
     def sample(self, ctx, si, sample1, sample2, active=True):
-        return self._sample_at(si.wi, sample1, sample2, active)
+        """The lobes' sample; with an alpha mode, first the null interaction with probability ``1 -
+        coverage`` (``wo = -wi``, weight 1, ``eta`` 1, Null: no refraction, no tint), else the lobes with
+        ``sample1`` rescaled to [0, 1) (their pdf times the coverage, their weight unchanged; at
+        coverage 1 ``sample1 / 1`` is ``sample1`` itself)."""
+        if not self._null(ctx):
+            return self._lobes_sample(si, sample1, sample2, active)
+        op = self.coverage(si, active)
+        through = sample1 >= op
+        bs, w = self._lobes_sample(si, dr.select(through, 0.0, sample1 / dr.maximum(op, MIN_COVERAGE)), sample2,
+                                   mi.Bool(active) & ~through)
+        bs.pdf = dr.select(through, 1.0 - op, bs.pdf * op)
+        bs.wo = dr.select(through, -si.wi, bs.wo)
+        bs.eta = dr.select(through, 1.0, bs.eta)
+        bs.sampled_type = dr.select(through, mi.UInt32(+mi.BSDFFlags.Null), bs.sampled_type)
+        bs.sampled_component = dr.select(through, mi.UInt32(NULL_COMPONENT), bs.sampled_component)
+        return bs, dr.select(through, 1.0, w)
 
     def _sample_at(self, v, sample1, sample2, active, p=None):
         """:meth:`sample` at local ``v`` with parameters ``p`` (as :meth:`_probs`)."""
@@ -504,18 +581,22 @@ class TexturedTransmissive(TransmissiveMaterial):
         return _Params(base_color=view.base_color, metallic=view.metallic, transmission=t, dt=dt,
                        dt_color=mi.Color3f(dt_color), ifaces=ifaces, iface=ifaces[0], spec=spec), frame
 
-    def eval_pdf(self, ctx, si, wo, active=True):
+    def coverage(self, si, active=True):
+        """The coverage at the hit: the factor's alpha times the base colour texture's alpha (the
+        core's ``alpha`` slot, at its texCoord set, through its sampler and transform), cut (MASK) or
+        clipped (BLEND)."""
+        if not self.alpha_mode:
+            return mi.Float(1.0)
+        a = mi.Float(self.alpha)
+        if "alpha" in self.core.tex:
+            a = a * self.core._lookup("alpha", si, active).x
+        return self._cut(a)
+
+    def _lobes_eval_pdf(self, si, wo, active):
         p, frame = self.params(si, active)
-        value, pdf = self._eval_pdf(frame.to_local(si.wi), frame.to_local(wo), p)
-        return dr.select(active, value, 0.0), dr.select(active, pdf, 0.0)
+        return self._eval_pdf(frame.to_local(si.wi), frame.to_local(wo), p)
 
-    def eval(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[0]
-
-    def pdf(self, ctx, si, wo, active=True):
-        return self.eval_pdf(ctx, si, wo, active)[1]
-
-    def sample(self, ctx, si, sample1, sample2, active=True):
+    def _lobes_sample(self, si, sample1, sample2, active):
         p, frame = self.params(si, active)
         bs, w = self._sample_at(frame.to_local(si.wi), sample1, sample2, active, p)
         bs.wo = frame.to_world(bs.wo)
@@ -604,8 +685,11 @@ def gltf_shape_props(material, brdf, asset=None, core=None, cache=None, texture=
          "diffuse_transmission": dt.factor if dt is not None else 0.0,
          "diffuse_transmission_color": list(dt.color) if dt is not None else [1.0, 1.0, 1.0],
          "dispersion": disp.dispersion if disp is not None else 0.0}
+    alpha, core_alpha = _alpha_props(material, asset, cache, texture)
+    d.update(alpha)
     if has_varying(material):
         d.update(_textured_props(material, asset, core, cache, texture))
+        d["core"].update(core_alpha)   # the base colour texture's alpha: TexturedTransmissive.coverage
     out = {"bsdf": mi.load_dict(d)}
     if volume and not math.isinf(vol.attenuation_distance):
         out["interior"] = mi.load_dict(_medium(vol.attenuation_color, vol.attenuation_distance))
@@ -620,6 +704,37 @@ _CORE_KEYS = ("type", "vertex_color", "primary_texcoord", "base_color", "metalli
 _EXT_TEXTURES = {"transmission": ("transmission", "texture", False, (0,)),
                  "diffuse_transmission": ("diffuse_transmission", "texture", False, (3,)),
                  "diffuse_transmission_color": ("diffuse_transmission", "color_texture", True, (0, 1, 2))}
+
+
+def _alpha_props(material, asset, cache, texture_dict) -> tuple[dict, dict]:
+    """(the material's alpha keys, its core's) of a MASK / BLEND material (glTF 2.0 3.9.4: alpha =
+    ``baseColorFactor.a`` x the base colour texture's A): ``alpha_mode`` (1 MASK, 2 BLEND),
+    ``alpha_cutoff``, ``alpha``; the core (a textured material's) takes ``alpha_texture`` /
+    ``alpha_texcoord`` (the decoded alpha shared with ``pbr_textured``'s, cache key ``(image,
+    "alpha")``). ``({}, {})`` where OPAQUE or where the coverage is 1 everywhere (BLEND: every alpha
+    1; MASK: every alpha at or above the cutoff, by :data:`COVERAGE_MARGIN`): the OPAQUE material,
+    whose scene keeps the ``path`` integrator, bit for bit. :class:`pbrcheck.errors.AssetError`
+    (the material's ``alphaCutoff`` pointer) where a MASK cutoff is negative or not finite (glTF's
+    schema: minimum 0)."""
+    if material.alpha_mode == "OPAQUE":
+        return {}, {}
+    mode, cutoff = (1 if material.alpha_mode == "MASK" else 2), float(material.alpha_cutoff)
+    if mode == 1 and not (math.isfinite(cutoff) and cutoff >= 0.0):
+        index = next((i for i, m in enumerate(asset.materials) if m is material), None) if asset is not None else None
+        raise AssetError(getattr(asset, "path", "<asset>"), f"/materials/{index if index is not None else material.name}"
+                         "/alphaCutoff", f"a number >= 0 (glTF 2.0 material.alphaCutoff), found {cutoff!r}")
+    ref = material.base_color_texture
+    px = None
+    if ref is not None and asset is not None:
+        key = (ref.image, "alpha")
+        if key not in cache:
+            cache[key] = asset.images[ref.image].linear(False)[..., 3:4]
+        px = cache[key]
+    low = float(material.base_color[3]) * (float(px.min()) if px is not None else 1.0)
+    if (low >= cutoff * (1.0 + COVERAGE_MARGIN)) if mode == 1 else low >= 1.0:
+        return {}, {}
+    core = {} if px is None else {"alpha_texture": texture_dict(px, ref), "alpha_texcoord": ref.texcoord}
+    return {"alpha_mode": mode, "alpha_cutoff": cutoff, "alpha": float(material.base_color[3])}, core
 
 
 def _textured_props(material, asset, core, cache, texture_dict) -> dict:

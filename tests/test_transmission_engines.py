@@ -143,3 +143,74 @@ def test_the_report_sets_a_transmissive_scene_against_the_path_truth_only():
     from compare.report.references import local_refusal
     assert "objects[0].material.transmission" in local_refusal(_glass())
     assert local_refusal(load_scene("spheres")) is None
+
+
+def test_a_gltf_primitive_transmits_by_its_own_material_not_by_the_extension_present(tmp_path):
+    """IridescenceSuzanne's two opaque heads carry KHR_materials_transmission with factor 0: not in the
+    ``transmissive`` region (the extension's presence, named as unmodelled, made them so before);
+    factor 1 is, whether or not the contract models transmission (the glTF material's own factors)."""
+    from pbrcheck.scene import scene_from_dict
+    from tests.gltf_build import quad_asset
+
+    def scene(factor):
+        a = quad_asset(tmp_path / f"t{factor}.gltf", {"name": f"t{factor}", "extensions": {
+            TRANSMISSION: {"transmissionFactor": factor}}})
+        return scene_from_dict({"camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "width": 8, "height": 8},
+                                "environment": {"type": "constant", "radiance": [1.0, 1.0, 1.0]},
+                                "objects": [{"type": "gltf", "path": str(a)}]})
+
+    zero, one = scene(0.0), scene(1.0)
+    assert te.transmissive_ids(zero) == set()
+    assert te.transmissive_ids(one) == {o.id for o in one.objects} and len(one.objects) == 1
+
+
+def test_measure_labels_its_engine_rows_before_and_after_the_flip(monkeypatch):
+    """While the default export strips transmission an engine has a ``kept`` and an ``opaque`` row
+    (the keep in force for the first only); once transmission is modelled one ``default`` row (the
+    ``opaque`` one would repeat it). transmission_stripped follows the export's modelled set."""
+    from pbrcheck.gltf import MODELLED_EXTENSIONS
+
+    assert te.transmission_stripped() == (TRANSMISSION not in MODELLED_EXTENSIONS)
+    monkeypatch.setattr(renderers, "render_reference", lambda scene, **kw: "ref")
+    monkeypatch.setattr(renderers, "render_under_test", lambda scene, spec, progress=False: keeps_unmodelled())
+    monkeypatch.setattr(te, "_row", lambda scene, ref, img, name, form: (name, form, img))
+    names = ["default", "ext:threejs"]
+    monkeypatch.setattr(te, "transmission_stripped", lambda: True)
+    assert te.measure(_glass(), names) == [("default", "-", False), ("ext:threejs", "kept", True),
+                                           ("ext:threejs", "opaque", False)]
+    monkeypatch.setattr(te, "transmission_stripped", lambda: False)
+    assert te.measure(_glass(), names) == [("default", "-", False), ("ext:threejs", "default", True)]
+
+
+def test_asset_without_drops_extensions_from_the_transmissive_materials_only(tmp_path):
+    """The proxy truth's asset: a transmissive material loses the named lobe (the reference then
+    renders its transmission), the file's external buffer is copied beside it; an asset whose
+    transmissive materials lack the extension is an AssetError (the proxy would be the asset)."""
+    from pbrcheck.errors import AssetError
+    from pbrcheck.gltf import load_asset
+    from pbrcheck.transmission_params import reference_renders
+    from tests.gltf_build import quad_asset
+
+    px = np.full((2, 2, 4), 255, np.uint8)
+    coat = {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatTexture": {"index": 0}}}
+    src = quad_asset(tmp_path / "src" / "a.gltf", {"name": "glass", "extensions": {
+        TRANSMISSION: {"transmissionFactor": 1.0}, **coat}}, [(px, None)])
+    doc = json.loads(src.read_text())   # one buffer as an external file, as the shared assets have it
+    (src.parent / "a.bin").write_bytes(__import__("base64").b64decode(doc["buffers"][0]["uri"].split(",", 1)[1]))
+    doc["buffers"][0]["uri"] = "a.bin"
+    src.write_text(json.dumps(doc))
+    assert not reference_renders(load_asset(src).materials[0])
+    proxy = te.asset_without(src, ["KHR_materials_clearcoat"], tmp_path / "proxy")
+    assert (tmp_path / "proxy" / "a.bin").read_bytes() == (src.parent / "a.bin").read_bytes()
+    m = load_asset(proxy).materials[0]
+    assert reference_renders(m) and m.transmission.factor == 1.0 and m.clearcoat is None
+    opaque = quad_asset(tmp_path / "o.gltf", {"name": "o", "extensions": coat}, [(px, None)])
+    with pytest.raises(AssetError, match="no transmissive material carries KHR_materials_clearcoat"):
+        te.asset_without(opaque, ["KHR_materials_clearcoat"], tmp_path / "none")
+
+
+def test_measure_refuses_a_truth_seen_by_another_camera():
+    from pbrcheck.errors import SceneError
+
+    with pytest.raises(SceneError, match="camera"):
+        te.measure(_glass(), [], truth=_glass(32, 18))
