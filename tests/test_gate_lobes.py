@@ -2,8 +2,8 @@
 lobe (compare/budgets/<lobe>_ci.toml, 3 x 3 spheres of the built-in lobe scene's upper rows) against
 its committed reference; a planted change of the lobe's parameter that only the renderer under test
 sees (a scene edit, as tests/gate_plants.py's client plants) is caught by the committed baseline.
-clients.toml gates each web engine on the same scenes (iridescence on the four engines that render
-KHR_materials_iridescence: Filament 1.53.4 renders it as the bare material); one representative engine
+clients.toml gates each web engine on the same scenes where it renders the lobe (Filament 1.53.4's web
+build renders anisotropy and iridescence as the bare material: not gated); one representative engine
 per lobe of the second lobe wave (:data:`ENGINE_PLANTED`) sees the same plant ``regressed`` against
 clients.toml's committed baseline and its unchanged render, made afresh, ``pass``."""
 
