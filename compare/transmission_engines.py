@@ -117,12 +117,18 @@ def main(argv=None) -> int:
     p.add_argument("--size", default="96x72", help="WxH (default 96x72)")
     p.add_argument("--spp", type=int, default=256, help="path truth samples per pixel (default 256)")
     p.add_argument("--with", dest="names", default="default,sample_viewer", help="renderers, comma-separated")
+    p.add_argument("--split", action="store_true", help="print each renderer's error split into screen-space, "
+                   "LOD and thickness parts instead (compare.transmission_split; analytic scenes)")
     a = p.parse_args(argv)
     w, h = (int(x) for x in a.size.lower().split("x"))
     if a.scene.endswith((".gltf", ".glb")):
         scene = asset_scene(a.scene, size=(w, h))
     else:
         scene = load_scene(a.scene).with_camera(width=w, height=h)
+    if a.split:
+        from .transmission_split import report   # it imports this module
+        print(report(scene, [n for n in a.names.split(",") if n], spp=a.spp, progress=True))
+        return 0
     print(markdown(measure(scene, [n for n in a.names.split(",") if n], spp=a.spp, progress=True)))
     return 0
 
