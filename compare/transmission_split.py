@@ -14,26 +14,30 @@ pixel). Its parts, in the same units:
 - **screen-space** (a partition of the renderer's own error by pixel): every engine reads the opaque
   pass at the point ``p + thickness t`` (``p`` the front-face hit, ``t = refract(-v, n, 1 / ior)``)
   projected into the screen (realtime/shaders/transmission.glsl, each engine's
-  ``getVolumeTransmissionRay``). :func:`lookups` classifies each transmissive pixel in closed form from
-  the scene's analytic spheres and planes: ``offscreen`` (behind the camera or outside the screen: an
-  engine reads its framebuffer's clamped edge, the real-time renderer the prefiltered environment),
-  ``transparent`` (the pixel there shows another transmissive object, which the opaque pass leaves
-  out, so the refracted light misses it), ``opaque`` (the pass holds what the ray sees there, up to the
-  other parts). The ``offscreen`` and ``transparent`` parts are the relmse summed over those pixels
-  divided by the object's pixel count (so the parts of a partition add up to the total), with their
-  share of the total.
+  ``getVolumeTransmissionRay``). :func:`lookups` classifies each transmissive pixel, in closed form for
+  the scene's analytic spheres and planes, by ray casting a glTF mesh's triangles: ``offscreen`` (behind
+  the camera or outside the screen: an engine reads its framebuffer's clamped edge, the real-time
+  renderer the prefiltered environment), ``transparent`` (the camera ray through the lookup pixel meets
+  another transmissive object behind this one's front hit: on the refracted ray's way, and left out of
+  the opaque pass; one in front of it is not on that way), ``opaque`` (the pass holds what the ray sees
+  there, up to the other parts). The ``offscreen`` and ``transparent`` parts are the relmse summed over
+  those pixels divided by the object's pixel count (so the parts of a partition add up to the total),
+  with their share of the total.
 - **thickness** (an ablation): the drop of the error when Beer-Lambert over ``thickness`` is replaced by
-  Beer-Lambert over the chord the refracted ray really travels (:func:`chord_lengths`: ``2 R cos(theta_t)``
-  through a sphere, ``thickness / cos(theta_t)`` through a slab). Computed from two real renders of the
-  renderer itself (an engine too): ``A`` with the scene's attenuation, ``B`` with it removed
-  (``attenuation_distance`` 0: none); every renderer's pixel is ``B + (a_thickness - 1) X`` with ``X``
-  the attenuated term, so the chord's image is ``B + (A - B) (a_chord - 1) / (a_thickness - 1)`` per
-  channel (:func:`chord_swap`; exact where the pixel sees one object, with the chord at its centre).
+  Beer-Lambert over the chord the refracted ray really travels (:func:`chord_lengths`: ``2 R
+  cos(theta_t)`` through a sphere, ``thickness / cos(theta_t)`` through a slab; a mesh: the refracted
+  ray's exit by :func:`ray_triangles`; not where a thickness texture scales the thickness, whose texel
+  is not read). Computed from two real renders of the renderer itself (an engine too): ``A`` with the
+  scene's attenuation, ``B`` with it removed (``attenuation_distance`` 0: none; a ``.gltf`` asset
+  rewritten without its volume's attenuation); every renderer's pixel is ``B + (a_thickness - 1) X``
+  with ``X`` the attenuated term, so the chord's image is ``B + (A - B) (a_chord - 1) / (a_thickness -
+  1)`` per channel (:func:`chord_swap`; exact where the pixel sees one object, with the chord at its
+  centre).
 - **LOD** (an ablation, on the real-time renderer's emulation of the engine, :data:`EMULATIONS`): the
   drop of the error when the emulation's ``transmission_lod`` level is moved by the best of
   :data:`LOD_BIASES` for that object (option ``transmission_lod_bias``; per object the roughness and IOR
-  are constant, so a bias reaches any rule's level there). An engine's LOD part is its emulation's
-  (the engines' own levels cannot be moved from outside); for a preset it is its own.
+  are constant, so a bias reaches any rule's level there). An engine's LOD part is its emulation's (the
+  engines' own levels cannot be moved from outside); for a preset it is its own.
 - **other** = total - screen-space - LOD - thickness: one refraction (no exit refraction, no total
   internal reflection), no inter-reflection, the engines' framebuffers (8 bit in the Sample Viewer),
   their filters.
@@ -47,7 +51,8 @@ emulated by the ``default`` preset (their rules are not read, docs/renderers.md 
 API
 ---
 :data:`LOD_BIASES`, :data:`EMULATIONS`, :data:`CLASSES`, :class:`Lookups`, :func:`lookups`,
-:func:`chord_lengths`, :func:`chord_swap`, :func:`pixel_errors`, :func:`split`, :func:`markdown`, :func:`report`.
+:func:`ray_triangles`, :func:`chord_lengths`, :func:`chord_swap`, :func:`pixel_errors`, :func:`split`,
+:func:`markdown`, :func:`report`.
 
 References: KHR_materials_transmission and KHR_materials_volume (Khronos glTF extension READMEs);
 KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl`` ``getVolumeTransmissionRay``.
@@ -55,17 +60,23 @@ KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl`` ``getVolume
 
 from __future__ import annotations
 
+import json
 import math
+import shutil
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
+from pbrcheck.atomic import write_text_atomic
 from pbrcheck.camera import camera_frame, primary_rays, tan_half_fov
 from pbrcheck.errors import SceneError
 from pbrcheck.export import keeping_unmodelled
 from pbrcheck.exr import Image
 from pbrcheck.fmt import markdown_cell
-from pbrcheck.scene import Plane, Sphere
+from pbrcheck.scene import Plane, Sphere, asset_scene
 from pbrcheck.transmission import refract
 
 from clients.run import object_ids, ray_distances
@@ -88,6 +99,12 @@ EMULATIONS = {"ext:threejs": ("default", {"transmission_lod": "threejs"}),
               "ext:playcanvas": ("default", {}), "ext:babylon": ("default", {}), "ext:filament": ("default", {})}
 #: The lookup classes of :func:`lookups` (codes 0, 1, 2; -1: not a transmissive pixel).
 CLASSES = ("opaque", "transparent", "offscreen")
+#: Rays per chunk of :func:`ray_triangles` (N x T x 3 float64 temporaries: 2048 x 232 triangles of
+#: AttenuationTest x 3 x 8 bytes = 11 MB each).
+RAY_CHUNK = 2048
+#: Nearest hit :func:`ray_triangles` accepts (world units): a refracted ray starts on its entry face;
+#: the glTF assets here are metre-sized, so 1e-6 is far below a chord and above float64 round-off.
+MIN_HIT_DISTANCE = 1e-6
 #: Extinction of an attenuation colour of 0 in a channel (``-ln 0`` is infinite): a colour floored at
 #: this value, exp(-ln(1e-6)) over a chord of one attenuation distance = 1e-6, already black in relmse.
 MIN_ATTENUATION_COLOR = 1e-6
@@ -107,6 +124,67 @@ class Lookups:
     thickness: np.ndarray
 
 
+@dataclass(frozen=True)
+class _Optics:
+    """What the lookup and the chord swap read of a transmissive object: its IOR, the thickness the
+    engines scale the refracted ray by (a glTF mesh's ``thicknessFactor`` x the placement's scale;
+    ``textured``: a thickness texture multiplies it, unknown here), the attenuation."""
+    ior: float
+    thickness: float
+    attenuation_distance: float
+    attenuation_color: tuple
+    textured: bool = False
+
+
+def _optics(scene, obj) -> _Optics:
+    if getattr(obj, "type", "") != "mesh":
+        m = obj.material
+        return _Optics(ior_from_f0(m.specular), m.thickness, m.attenuation_distance, tuple(m.attenuation_color))
+    inst = scene.assets[obj.instance]
+    gm = inst.asset.material(obj.gltf_material)
+    v = gm.volume
+    if v is None:
+        return _Optics(gm.ior, 0.0, 0.0, (1.0, 1.0, 1.0))
+    scale = float(np.cbrt(abs(np.linalg.det(inst.matrix()[:3, :3]))))
+    return _Optics(gm.ior, v.thickness * scale, v.attenuation_distance, tuple(v.attenuation_color),
+                   v.thickness_texture is not None)
+
+
+def _triangles(scene, obj) -> np.ndarray:
+    """(T, 3, 3) world-space triangles of a mesh object (as :func:`pbrcheck.gltf_export.mesh_object_ids`)."""
+    inst = scene.assets[obj.instance]
+    prim = inst.asset.primitives[obj.primitive]
+    M = inst.matrix()
+    P = prim.positions.astype(np.float64) @ M[:3, :3].T + M[:3, 3]
+    return P[prim.indices.astype(np.int64).reshape(-1, 3)]
+
+
+def ray_triangles(o, d, tris) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest hit of each ray (``o`` (N, 3) or (3,), unit ``d`` (N, 3)) among ``tris`` (T, 3, 3),
+    Moller-Trumbore in float64: (distance (N,), inf where none; the triangle's index, -1 where none).
+    Hits closer than :data:`MIN_HIT_DISTANCE` are ignored (a refracted ray leaving its own entry face)."""
+    o = np.broadcast_to(np.asarray(o, float), np.shape(d))
+    best, idx = np.full(len(d), np.inf), np.full(len(d), -1)
+    v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    for a in range(0, len(d), RAY_CHUNK):
+        dd, oo = d[a:a + RAY_CHUNK, None, :], o[a:a + RAY_CHUNK, None, :]
+        pv = np.cross(dd, e2[None])
+        det = (e1[None] * pv).sum(-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            tv = oo - v0[None]
+            u = (tv * pv).sum(-1) * inv
+            qv = np.cross(tv, e1[None])
+            v = (dd * qv).sum(-1) * inv
+            s = (e2[None] * qv).sum(-1) * inv
+            ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (s > MIN_HIT_DISTANCE)
+        s = np.where(ok, s, np.inf)
+        k = s.argmin(-1)
+        best[a:a + RAY_CHUNK] = s[np.arange(len(k)), k]
+        idx[a:a + RAY_CHUNK] = np.where(np.isfinite(best[a:a + RAY_CHUNK]), k, -1)
+    return best, idx
+
+
 def chord_lengths(obj, p, t) -> np.ndarray:
     """The length the refracted direction ``t`` (unit, (..., 3)) from the surface point ``p`` travels
     inside ``obj``: a sphere of radius R: the second root of ``|p + s t - c|^2 = R^2`` with
@@ -119,15 +197,27 @@ def chord_lengths(obj, p, t) -> np.ndarray:
     return obj.material.thickness / np.maximum(np.abs(t @ n), 1e-12)
 
 
-def _depths(obj, o, d, f) -> np.ndarray:
+def _depths(scene, obj, o, d, f) -> np.ndarray:
     """The view depth ``(x - o).f`` (``f`` the camera's forward axis) of ``obj``'s first hit along each
     camera ray ``d`` (H, W, 3) (inf where the ray misses it): what hides behind another object at a
     pixel, which :func:`clients.run.object_ids` (the front-most only) cannot say."""
-    return ray_distances(obj, o, d) * (d @ f)
+    if getattr(obj, "type", "") == "mesh":
+        s = ray_triangles(o, d.reshape(-1, 3), _triangles(scene, obj))[0].reshape(d.shape[:-1])
+    else:
+        s = ray_distances(obj, o, d)
+    return s * (d @ f)
 
 
-def _front_hits(obj, o, d):
-    """(hit points, outward normals facing the eye) of the rays (o, d) on ``obj``'s front face."""
+def _front_hits(scene, obj, o, d):
+    """(hit points, outward normals facing the eye) of the rays (o, d) on ``obj``'s front face (a
+    mesh: its nearest triangle's geometric normal)."""
+    if getattr(obj, "type", "") == "mesh":
+        tris = _triangles(scene, obj)
+        s, k = ray_triangles(o, d, tris)
+        s = np.where(np.isfinite(s), s, 0.0)   # a pixel-centre raster hit the ray cast grazes past
+        n = np.cross(tris[k, 1] - tris[k, 0], tris[k, 2] - tris[k, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+        return o + d * s[:, None], np.where(((d * n).sum(-1) < 0.0)[:, None], n, -n)
     if isinstance(obj, Sphere):
         oc = o - np.asarray(obj.center, float)
         b = d @ oc
@@ -142,13 +232,14 @@ def _front_hits(obj, o, d):
 
 
 def lookups(scene) -> Lookups:
-    """The refracted lookup of every transmissive pixel of ``scene`` (analytic spheres and planes).
+    """The refracted lookup of every transmissive pixel of ``scene``: analytic spheres and planes in
+    closed form; glTF meshes by ray casting their triangles (:func:`ray_triangles`: the front hit, its
+    geometric normal, the exit of the refracted ray for the chord).
 
     Raises
     ------
     SceneError
-        A transmissive object that is neither a sphere nor a plane (a glTF mesh: its front hit and
-        chord have no closed form here)."""
+        A transmissive object of another kind."""
     cam = scene.camera
     o, d = primary_rays(cam)
     ids = object_ids(scene)
@@ -161,21 +252,21 @@ def lookups(scene) -> Lookups:
     r, u, f = camera_frame(cam)
     tx, ty = tan_half_fov(cam)
     for obj in scene.objects:
-        if obj.id in trans and not isinstance(obj, (Sphere, Plane)):
-            raise SceneError(scene.source, f"objects[{obj.id}]",
-                             "a sphere or a plane (the refracted lookup's closed form)", type(obj).__name__)
-    depth = {obj.id: _depths(obj, o, d, f) for obj in scene.objects if obj.id in trans}
+        if obj.id in trans and not (isinstance(obj, (Sphere, Plane)) or getattr(obj, "type", "") == "mesh"):
+            raise SceneError(scene.source, f"objects[{obj.id}]", "a sphere, a plane or a glTF mesh",
+                             type(obj).__name__)
+    depth = {obj.id: _depths(scene, obj, o, d, f) for obj in scene.objects if obj.id in trans}
     for obj in scene.objects:
         if obj.id not in trans:
             continue
         m = ids == obj.id
         if not m.any():
             continue
-        p, n = _front_hits(obj, o, d[m])
-        ior = ior_from_f0(obj.material.specular)
-        t = refract(-d[m], n, np.full(len(p), ior))
+        p, n = _front_hits(scene, obj, o, d[m])
+        opt = _optics(scene, obj)
+        t = refract(-d[m], n, np.full(len(p), opt.ior))
         t /= np.maximum(np.linalg.norm(t, axis=-1, keepdims=True), 1e-300)
-        q = p + obj.material.thickness * t - o
+        q = p + opt.thickness * t - o
         z = q @ f
         with np.errstate(divide="ignore", invalid="ignore"):
             uvm = np.stack([0.5 * (q @ r) / (tx * z) + 0.5, 0.5 * (q @ u) / (ty * z) + 0.5], -1)
@@ -191,16 +282,50 @@ def lookups(scene) -> Lookups:
                 other |= np.isfinite(z[row, col]) & (z[row, col] > zp)
         cls[m] = np.where(off, 2, np.where(other, 1, 0))
         uv[m] = uvm
-        chord[m] = chord_lengths(obj, p, t)
-        thick[m] = obj.material.thickness
+        if getattr(obj, "type", "") == "mesh":   # the exit: the refracted ray's next hit on the mesh
+            chord[m] = ray_triangles(p, t, _triangles(scene, obj))[0]
+        else:
+            chord[m] = chord_lengths(obj, p, t)
+        # a thickness texture's texel is unknown here: no thickness to swap (chord_swap keeps the pixel)
+        thick[m] = np.nan if opt.textured else opt.thickness
     return Lookups(ids, cls, uv, chord, thick)
 
 
+@contextmanager
 def _without_attenuation(scene):
-    """``scene`` with every object's ``attenuation_distance`` 0 (none): render ``B`` of :func:`chord_swap`."""
-    return replace(scene, objects=tuple(replace(ob, material=replace(ob.material, attenuation_distance=0.0))
-                                   if getattr(ob.material, "attenuation_distance", 0.0) > 0.0 else ob
-                                   for ob in scene.objects))
+    """``scene`` with no attenuation (render ``B`` of :func:`chord_swap`): every analytic object's
+    ``attenuation_distance`` 0 (none); a glTF asset's document rewritten without ``KHR_materials_volume``'s
+    ``attenuationDistance`` / ``attenuationColor`` into a temporary folder beside copies of its files
+    (the engines export the asset's own document), loaded with the same camera, environment and lights.
+
+    Raises
+    ------
+    SceneError
+        A binary ``.glb`` asset or several assets (only one ``.gltf`` is rewritten)."""
+    analytic = tuple(replace(ob, material=replace(ob.material, attenuation_distance=0.0))
+                     if getattr(ob, "type", "") != "mesh" and ob.material.attenuation_distance > 0.0 else ob
+                     for ob in scene.objects)
+    if not getattr(scene, "assets", ()):
+        yield replace(scene, objects=analytic)
+        return
+    src = Path(scene.assets[0].asset.path)
+    if len(scene.assets) != 1 or src.suffix.lower() != ".gltf" or any(ob.type != "mesh" for ob in scene.objects):
+        raise SceneError(scene.source, "objects", "one .gltf asset and no analytic object (its attenuation "
+                         "is removed by rewriting the document)", src.name)
+    doc = json.loads(src.read_text())
+    for m in doc.get("materials", []):
+        vol = m.get("extensions", {}).get("KHR_materials_volume")
+        if vol is not None:
+            vol.pop("attenuationDistance", None)
+            vol.pop("attenuationColor", None)
+    with tempfile.TemporaryDirectory(prefix="pbrcheck-split-") as tmp:
+        for f in src.parent.iterdir():   # copies: the loader refuses a link out of the asset's folder
+            if f.name != src.name and f.is_file():
+                shutil.copyfile(f, Path(tmp) / f.name)
+        out = Path(tmp) / src.name
+        write_text_atomic(out, json.dumps(doc))
+        free = asset_scene(out, size=(scene.camera.width, scene.camera.height))
+        yield replace(free, camera=scene.camera, environment=scene.environment, lights=scene.lights)
 
 
 def chord_swap(scene, look: Lookups, attenuated: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -212,11 +337,14 @@ def chord_swap(scene, look: Lookups, attenuated: np.ndarray, free: np.ndarray) -
     attenuating transmissive object keep ``attenuated``."""
     out = np.array(attenuated, float, copy=True)
     for obj in scene.objects:
-        m = (look.ids == obj.id) & np.isfinite(look.chord)
-        dist = getattr(obj.material, "attenuation_distance", 0.0)
-        if not m.any() or dist <= 0.0 or math.isinf(dist):
+        m = (look.ids == obj.id) & np.isfinite(look.chord) & np.isfinite(look.thickness)
+        if not m.any():
             continue
-        sigma = -np.log(np.maximum(np.asarray(obj.material.attenuation_color, float), MIN_ATTENUATION_COLOR)) / dist
+        opt = _optics(scene, obj)
+        dist = opt.attenuation_distance
+        if dist <= 0.0 or math.isinf(dist):
+            continue
+        sigma = -np.log(np.maximum(np.asarray(opt.attenuation_color, float), MIN_ATTENUATION_COLOR)) / dist
         lc, lt = look.chord[m][:, None], look.thickness[m][:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(sigma > 0.0, np.expm1(-sigma * lc) / np.expm1(-sigma * lt), lc / lt)
@@ -257,7 +385,8 @@ def split(scene, ref, name: str, *, overrides: dict | None = None, biases=LOD_BI
     look = look if look is not None else lookups(scene)
     base = _render(scene, name, overrides, progress)
     e, trans = pixel_errors(scene, ref, base)
-    free = _render(_without_attenuation(scene), name, overrides, progress)
+    with _without_attenuation(scene) as free_scene:
+        free = _render(free_scene, name, overrides, progress)
     swapped = Image.from_rgb(chord_swap(scene, look, base.rgb, free.rgb).astype(np.float32), dict(base.meta),
                              **{k: v for k, v in base.channels.items() if k not in ("R", "G", "B")})
     e_chord, _ = pixel_errors(scene, ref, swapped)

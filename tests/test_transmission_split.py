@@ -162,3 +162,46 @@ def test_split_parts_come_from_real_renders():
             assert r["thickness"] == 0.0
         elif name.startswith("tinted"):
             assert abs(r["thickness"]) > 1e-4
+
+
+def _box(lo, hi) -> np.ndarray:
+    """(12, 3, 3) triangles of the axis-aligned box [lo, hi]."""
+    c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])], float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return np.array([c[[a, b, e]] for a, b, d, e in quads] + [c[[b, d, e]] for a, b, d, e in quads])
+
+
+def test_ray_triangles_finds_a_boxs_exit_as_the_slab_closed_form():
+    """A mesh's chord: the refracted ray from a point of the box's top face (y = 0.5) to its first
+    hit; where it leaves through the bottom face it is the slab's ``thickness / cos(theta_t)``."""
+    rng = np.random.default_rng(5)
+    tris = _box((-2.0, -0.5, -2.0), (2.0, 0.5, 2.0))
+    p = np.column_stack([rng.uniform(-0.5, 0.5, 30), np.full(30, 0.5), rng.uniform(-0.5, 0.5, 30)])
+    d = rng.normal(size=(30, 3)) * (0.4, 0.0, 0.4) + (0.0, -1.0, 0.0)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    t = _snell(d, np.array([0.0, 1.0, 0.0]), 1 / 1.5)
+    s, k = ts.ray_triangles(p, t, tris)
+    np.testing.assert_allclose(s, 1.0 / -t[:, 1], rtol=1e-12)
+    assert (k >= 0).all() and set(k) <= {2, 8}   # the bottom face (y = -0.5: quad 2) and its second triangle
+    # from the outside along -z: the front face at distance 3 - 2 = 1; a miss is inf, -1
+    s2, k2 = ts.ray_triangles(np.array([0.0, 0.0, 3.0]), np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]), tris)
+    assert s2[0] == pytest.approx(1.0) and s2[1] == np.inf and k2[1] == -1
+
+
+def test_without_attenuation_rewrites_a_gltf_asset(tmp_path):
+    """The thickness part's render ``B`` of a glTF asset: the document without the volume's
+    attenuation, in a temporary copy, with the same camera; the source file unchanged."""
+    from gltf_build import quad_asset
+    from pbrcheck.scene import asset_scene
+    vol = {"thicknessFactor": 0.5, "attenuationDistance": 0.25, "attenuationColor": [0.9, 0.4, 0.1]}
+    src = quad_asset(tmp_path / "slab.gltf", {"pbrMetallicRoughness": {"metallicFactor": 0.0}, "extensions": {
+        "KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_volume": vol}})
+    before = src.read_text()
+    scene = asset_scene(src, size=(16, 12))
+    with ts._without_attenuation(scene) as free:
+        ob = free.objects[0]
+        v = free.assets[ob.instance].asset.material(ob.gltf_material).volume
+        assert v.thickness == 0.5 and v.attenuation_distance == np.inf and v.attenuation_color == (1.0, 1.0, 1.0)
+        assert free.camera == scene.camera
+    v0 = scene.assets[0].asset.material(scene.objects[0].gltf_material).volume
+    assert v0.attenuation_distance == 0.25 and src.read_text() == before
