@@ -1,7 +1,7 @@
 """Each renderer's transmission error against the path truth split into a screen-space part, a LOD-rule
 part and a thickness-attenuation part (issue 37 item 3; docs/renderers.md section 12, "The split").
 
-``python -m compare.transmission_engines glass --split --size 96x72 --spp 256 --with default,ext:threejs``
+``python -m compare.transmission_split glass --size 96x72 --spp 256 --with default,ext:threejs``
 prints one Markdown row per renderer and transmissive object (:func:`report`).
 
 The definition
@@ -52,7 +52,7 @@ API
 ---
 :data:`LOD_BIASES`, :data:`EMULATIONS`, :data:`CLASSES`, :class:`Lookups`, :func:`lookups`,
 :func:`ray_triangles`, :func:`chord_lengths`, :func:`chord_swap`, :func:`pixel_errors`, :func:`split`,
-:func:`markdown`, :func:`report`.
+:func:`markdown`, :func:`report`, :func:`main`.
 
 References: KHR_materials_transmission and KHR_materials_volume (Khronos glTF extension READMEs);
 KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl`` ``getVolumeTransmissionRay``.
@@ -63,6 +63,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -84,7 +85,7 @@ from realtime.transmission import ior_from_f0
 
 from . import renderers
 from .metrics import REL_EPS, compare_images
-from .transmission_engines import regions, transmissive_ids
+from .transmission_engines import arguments, regions, renderer_names, scene_of, transmissive_ids
 
 #: The LOD scan: levels added to the emulation's rule (0 included, so a part is never negative). The
 #: framebuffer of 96 x 72 has 7 levels (0 .. 6) and the rule reads at most log2(96) x 0.4 = 2.6 on the
@@ -463,3 +464,13 @@ def report(scene, names, *, spp: int = 256, progress: bool = False) -> str:
     ref = renderers.render_reference(scene, spp=spp, mode="path", progress=progress)
     look, memo = lookups(scene), {}
     return markdown([r for n in names for r in split(scene, ref, n, look=look, memo=memo, progress=progress)])
+
+
+def main(argv=None) -> int:
+    a = arguments("python -m compare.transmission_split", __doc__.splitlines()[0]).parse_args(argv)
+    print(report(scene_of(a), renderer_names(a), spp=a.spp, progress=True))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
