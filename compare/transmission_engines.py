@@ -15,8 +15,6 @@ API
 - :func:`measure` -- the rows: per renderer (and ``kept`` / ``opaque`` for an engine) relmse and
   FLIP per region.
 - :func:`markdown` -- the rows as a Markdown table (names through :func:`pbrcheck.fmt.markdown_cell`).
-- :func:`arguments`, :func:`scene_of`, :func:`renderer_names` -- the command line (shared with
-  :mod:`compare.transmission_split`).
 
 The engines' renders with the extensions kept run inside :func:`pbrcheck.export.keeping_unmodelled`
 (the explicit choice; their render cache bypassed); the ``opaque`` rows are the default export.
@@ -113,33 +111,19 @@ def markdown(rows) -> str:
     return "\n".join(lines)
 
 
-def arguments(prog: str, description: str) -> argparse.ArgumentParser:
-    """The command line of :func:`main` and of :mod:`compare.transmission_split`'s: SCENE, ``--size``,
-    ``--spp``, ``--with`` (read by :func:`scene_of` and :func:`renderer_names`)."""
-    p = argparse.ArgumentParser(prog=prog, description=description)
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m compare.transmission_engines", description=__doc__.splitlines()[0])
     p.add_argument("scene", help="built-in scene name, TOML path, or a .gltf/.glb asset")
     p.add_argument("--size", default="96x72", help="WxH (default 96x72)")
     p.add_argument("--spp", type=int, default=256, help="path truth samples per pixel (default 256)")
     p.add_argument("--with", dest="names", default="default,sample_viewer", help="renderers, comma-separated")
-    return p
-
-
-def scene_of(a):
-    """The scene of parsed :func:`arguments`: an asset framed at ``--size``, or a scene file at it."""
+    a = p.parse_args(argv)
     w, h = (int(x) for x in a.size.lower().split("x"))
     if a.scene.endswith((".gltf", ".glb")):
-        return asset_scene(a.scene, size=(w, h))
-    return load_scene(a.scene).with_camera(width=w, height=h)
-
-
-def renderer_names(a) -> list[str]:
-    """The renderers of parsed :func:`arguments` (``--with``, comma-separated)."""
-    return [n for n in a.names.split(",") if n]
-
-
-def main(argv=None) -> int:
-    a = arguments("python -m compare.transmission_engines", __doc__.splitlines()[0]).parse_args(argv)
-    print(markdown(measure(scene_of(a), renderer_names(a), spp=a.spp, progress=True)))
+        scene = asset_scene(a.scene, size=(w, h))
+    else:
+        scene = load_scene(a.scene).with_camera(width=w, height=h)
+    print(markdown(measure(scene, [n for n in a.names.split(",") if n], spp=a.spp, progress=True)))
     return 0
 
 

@@ -52,7 +52,7 @@ API
 ---
 :data:`LOD_BIASES`, :data:`EMULATIONS`, :data:`CLASSES`, :class:`Lookups`, :func:`lookups`,
 :func:`ray_triangles`, :func:`chord_lengths`, :func:`chord_swap`, :func:`pixel_errors`, :func:`split`,
-:func:`markdown`, :func:`report`, :func:`main`.
+:func:`markdown`, :func:`report`, :data:`ARGUMENTS`, :func:`main`.
 
 References: KHR_materials_transmission and KHR_materials_volume (Khronos glTF extension READMEs);
 KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl`` ``getVolumeTransmissionRay``.
@@ -60,6 +60,7 @@ KhronosGroup/glTF-Sample-Viewer ``source/Renderer/shaders/ibl.glsl`` ``getVolume
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import shutil
@@ -77,7 +78,7 @@ from pbrcheck.errors import SceneError
 from pbrcheck.export import keeping_unmodelled
 from pbrcheck.exr import Image
 from pbrcheck.fmt import markdown_cell
-from pbrcheck.scene import Plane, Sphere, asset_scene
+from pbrcheck.scene import Plane, Sphere, asset_scene, load_scene
 from pbrcheck.transmission import refract
 
 from clients.run import object_ids, ray_distances
@@ -85,7 +86,7 @@ from realtime.transmission import ior_from_f0
 
 from . import renderers
 from .metrics import REL_EPS, compare_images
-from .transmission_engines import arguments, regions, renderer_names, scene_of, transmissive_ids
+from .transmission_engines import regions, transmissive_ids
 
 #: The LOD scan: levels added to the emulation's rule (0 included, so a part is never negative). The
 #: framebuffer of 96 x 72 has 7 levels (0 .. 6) and the rule reads at most log2(96) x 0.4 = 2.6 on the
@@ -466,9 +467,24 @@ def report(scene, names, *, spp: int = 256, progress: bool = False) -> str:
     return markdown([r for n in names for r in split(scene, ref, n, look=look, memo=memo, progress=progress)])
 
 
+#: The command line of :func:`main`: (name or flag, add_argument's keywords).
+ARGUMENTS = (
+    ("scene", {"help": "built-in scene name, TOML path, or a .gltf asset"}),
+    ("--size", {"default": "96x72", "help": "WxH (default 96x72)"}),
+    ("--spp", {"type": int, "default": 256, "help": "path truth samples per pixel (default 256)"}),
+    ("--with", {"dest": "names", "default": "default,sample_viewer", "help": "renderers, comma-separated"}),
+)
+
+
 def main(argv=None) -> int:
-    a = arguments("python -m compare.transmission_split", __doc__.splitlines()[0]).parse_args(argv)
-    print(report(scene_of(a), renderer_names(a), spp=a.spp, progress=True))
+    p = argparse.ArgumentParser(prog="python -m compare.transmission_split", description=__doc__.splitlines()[0])
+    for flag, kw in ARGUMENTS:
+        p.add_argument(flag, **kw)
+    a = p.parse_args(argv)
+    size = tuple(int(x) for x in a.size.lower().split("x"))
+    scene = (asset_scene(a.scene, size=size) if a.scene.endswith((".gltf", ".glb"))
+             else load_scene(a.scene).with_camera(width=size[0], height=size[1]))
+    print(report(scene, [n for n in a.names.split(",") if n], spp=a.spp, progress=True))
     return 0
 
 

@@ -202,11 +202,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            default="belcour_rgb"),
     # Transmission (issue 37 item 2; realtime/transmission.py, shaders/transmission.glsl): compiled only into
     # the raster programs of scenes with a transmissive material, so it changes nothing else.
+    Option("transmission_lod_bias", "float", "transmission: levels added to the transmission_lod rule's level "
+           "(clamped at 0; no engine's: compare.transmission_split's LOD scan)", lo=-16.0, hi=16.0, default=0.0),
     Option("transmission_lod", "choice", "transmission: the opaque-pass framebuffer's read along the refracted "
            "ray: sample_viewer (textureLod at log2(width) applyIorToRoughness, trilinear) | threejs (the same "
            "level, textureBicubic)", TRANSMISSION_LODS.names, default="sample_viewer"),
-    Option("transmission_lod_bias", "float", "transmission: levels added to the transmission_lod rule's level "
-           "(clamped at 0; no engine's: compare.transmission_split's LOD scan)", lo=-16.0, hi=16.0, default=0.0),
     Option("sheen_lut_size", "int", "sheen LUT size N (N x N; realtime.lobes.SHEEN_LUT_CONVENTIONS)", lo=2, hi=512,
            default=32, bakes=("sheen_lut",)),
     Option("sheen_lut_samples", "int", "Charlie samples per sheen LUT texel", lo=1, hi=1 << 16, default=4096,

@@ -35,7 +35,7 @@ the diffuse in proportion ``diffuseTransmissionFactor``, before transmission's m
 API
 ---
 :data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`TRANSMISSION_LODS`,
-:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`biased_lod`, :func:`bspline_weights`,
+:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`biased_lod`, :func:`lod_bias_defines`, :func:`bspline_weights`,
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
 :func:`scene_transmissive`, :func:`transmission_defines`, :func:`raycast_notice`.
 """
@@ -70,6 +70,14 @@ def biased_lod(lod, bias):
     """Option ``transmission_lod_bias`` (no engine's: compare.transmission_split's LOD scan): the rule's
     level moved by ``bias``, clamped at level 0 (GLSL ``transmission_lod_biased``)."""
     return np.maximum(np.asarray(lod, float) + np.asarray(bias, float), 0.0)
+
+
+def lod_bias_defines(tdefs: dict, o) -> dict:
+    """``TRANSMISSION_LOD_BIAS`` for a transmission program (``tdefs``, :func:`transmission_defines`, not
+    empty) whose option ``transmission_lod_bias`` is not 0; ``{}`` otherwise, so the program of bias 0 is
+    the one it was before the option."""
+    bias = float(o.transmission_lod_bias)
+    return {"TRANSMISSION_LOD_BIAS": repr(bias)} if tdefs and bias != 0.0 else {}
 
 
 def bspline_weights(a):
@@ -141,13 +149,10 @@ def scene_transmissive(scene) -> bool:
 def transmission_defines(scene, o, pipeline: str) -> dict:
     """``TRANSMISSION`` and the ``TRANSMISSION_LOD`` member for a raster render of a scene with a
     transmissive material under composition ``material``; ``{}`` otherwise (the program is then exactly
-    the transmission-free one). ``TRANSMISSION_LOD_BIAS`` only where ``transmission_lod_bias`` is not 0
-    (the program of bias 0 is the one it was before the option)."""
+    the transmission-free one)."""
     if pipeline != "raster" or o.shading != "material" or not scene_transmissive(scene):
         return {}
-    bias = float(o.transmission_lod_bias)
-    return {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod),
-            **({"TRANSMISSION_LOD_BIAS": repr(bias)} if bias != 0.0 else {})}
+    return {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod)}
 
 
 def raycast_notice(scene, o, pipeline: str) -> str | None:

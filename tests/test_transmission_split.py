@@ -137,10 +137,11 @@ def test_lod_bias_glsl_matches_numpy_and_is_defined_only_where_not_zero():
     got = run_glsl("transmission_lod_biased(x0, x1)", lod, b)
     np.testing.assert_allclose(got, rt.biased_lod(lod, b), atol=1e-6)
     assert rt.biased_lod(0.5, -1.0) == 0.0 and rt.biased_lod(2.0, 1.5) == 3.5
-    glass = load_scene("glass")
-    assert "TRANSMISSION_LOD_BIAS" not in rt.transmission_defines(glass, resolve_options("default"), "raster")
-    d = rt.transmission_defines(glass, resolve_options("default", {"transmission_lod_bias": -1.5}), "raster")
-    assert d["TRANSMISSION_LOD_BIAS"] == "-1.5"
+    glass, plain = load_scene("glass"), load_scene("spheres")
+    o0, o1 = resolve_options("default"), resolve_options("default", {"transmission_lod_bias": -1.5})
+    assert rt.lod_bias_defines(rt.transmission_defines(glass, o0, "raster"), o0) == {}
+    assert rt.lod_bias_defines(rt.transmission_defines(glass, o1, "raster"), o1) == {"TRANSMISSION_LOD_BIAS": "-1.5"}
+    assert rt.lod_bias_defines(rt.transmission_defines(plain, o1, "raster"), o1) == {}   # no transmission program
 
 
 def test_split_parts_come_from_real_renders():
