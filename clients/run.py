@@ -19,6 +19,7 @@ API
   render starts another).
 - :func:`read_output` -- a renderer's output file, validated (exists, readable, size, finite).
 - :func:`object_ids` -- the ``object`` AOV of a scene at pixel centres (numpy ray casting).
+- :func:`ray_distances` -- the distance along rays to a sphere's or rectangle's first hit (object_ids' and compare.transmission_split's).
 - :class:`RendererError` -- every failure, one line naming the renderer (exit 2; the gate's
   ``error``).
 
@@ -494,6 +495,28 @@ def renderer_version(cfg: RendererConfig) -> str:
     return _versions[key]
 
 
+def ray_distances(obj, o: np.ndarray, d: np.ndarray) -> np.ndarray | None:
+    """The distance from ``o`` along each unit ray ``d`` (..., 3) to ``obj``'s first hit in front of
+    ``o`` (inf: a miss), in float64, for a sphere or a rectangle; None for any other object."""
+    if isinstance(obj, Sphere):
+        oc = o - np.asarray(obj.center, float)
+        b = d @ oc
+        c = oc @ oc - obj.radius ** 2
+        disc = b * b - c
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        t = np.where(-b - sq > 0, -b - sq, -b + sq)
+        return np.where((disc >= 0) & (t > 0), t, np.inf)
+    if isinstance(obj, Plane):
+        tg, bt, n = (np.asarray(v, float) for v in plane_frame(obj.normal))
+        denom = d @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((np.asarray(obj.center, float) - o) @ n) / denom
+        p = o + d * t[..., None] - np.asarray(obj.center, float)
+        inside = (np.abs(p @ tg) <= obj.size[0] / 2) & (np.abs(p @ bt) <= obj.size[1] / 2)
+        return np.where((np.abs(denom) > 1e-12) & (t > 0) & inside, t, np.inf)
+    return None
+
+
 def object_ids(scene: Scene) -> np.ndarray:
     """(H, W) float32 object index seen through each pixel centre (-1: background), by ray casting
     the scene's spheres and rectangles in float64 (the ``object`` AOV of external images)."""
@@ -501,23 +524,8 @@ def object_ids(scene: Scene) -> np.ndarray:
     best = np.full(d.shape[:2], np.inf)
     ids = np.full(d.shape[:2], -1.0, np.float32)
     for obj in scene.objects:
-        if isinstance(obj, Sphere):
-            oc = o - np.asarray(obj.center, float)
-            b = d @ oc
-            c = oc @ oc - obj.radius ** 2
-            disc = b * b - c
-            sq = np.sqrt(np.maximum(disc, 0.0))
-            t = np.where(-b - sq > 0, -b - sq, -b + sq)
-            t = np.where((disc >= 0) & (t > 0), t, np.inf)
-        elif isinstance(obj, Plane):
-            tg, bt, n = (np.asarray(v, float) for v in plane_frame(obj.normal))
-            denom = d @ n
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = ((np.asarray(obj.center, float) - o) @ n) / denom
-            p = o + d * t[..., None] - np.asarray(obj.center, float)
-            inside = (np.abs(p @ tg) <= obj.size[0] / 2) & (np.abs(p @ bt) <= obj.size[1] / 2)
-            t = np.where((np.abs(denom) > 1e-12) & (t > 0) & inside, t, np.inf)
-        else:  # meshes below; the loader expands grids
+        t = ray_distances(obj, o, d)
+        if t is None:  # meshes below; the loader expands grids
             continue
         closer = t < best
         best = np.where(closer, t, best)

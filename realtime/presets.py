@@ -204,6 +204,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in [
            default="belcour_rgb"),
     # Transmission (issue 37 item 2; realtime/transmission.py, shaders/transmission.glsl): compiled only into
     # the raster programs of scenes with a transmissive material, so it changes nothing else.
+    Option("transmission_lod_bias", "float", "transmission: levels added to the transmission_lod rule's level "
+           "(clamped at 0; no engine's: compare.transmission_split's LOD scan)", lo=-16.0, hi=16.0, default=0.0),
     Option("transmission_lod", "choice", "transmission: the opaque-pass framebuffer's read along the refracted "
            "ray: sample_viewer (textureLod at log2(width) applyIorToRoughness, trilinear) | threejs (the same "
            "level, textureBicubic)", TRANSMISSION_LODS.names, default="sample_viewer"),

@@ -66,6 +66,7 @@ from pbrcheck.scene import Plane, Scene, plane_frame
 from .gl import compute_program, get_context, groups, in_bands, renderer_name, shader_sources_hash, timed, timing_clock
 from .hooks import load_hook_file
 from .material_lobes import lobe_defines, needs_charlie_cube, needs_split_sum_bakes, object_lobe_rows, scene_lobes
+from .transmission import lod_bias_defines
 from .presets import (
     RealtimeOptions,
     bake_inputs,
@@ -738,6 +739,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
         # transmissive material; reads the prefiltered cube (Filament's cube-map refraction in the ray-cast
         # pipeline, the off-screen fallback in the raster one) and the DFG LUT
         tdefs = transmission_defines(scene, o, pipeline)
+        tdefs.update(lod_bias_defines(tdefs, o))   # option transmission_lod_bias (compare.transmission_split)
         tnote = transmission_notice(scene, o, pipeline)
         if tnote:
             warnings.append(tnote)

@@ -50,7 +50,7 @@ the diffuse in proportion ``diffuseTransmissionFactor``, before transmission's m
 API
 ---
 :data:`REALTIME_TRANSMISSION_EXTENSIONS`, :data:`TRANSMISSION_LODS`,
-:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`bspline_weights`,
+:data:`DISPERSION_SPREAD`, :func:`apply_ior_to_roughness`, :func:`transmission_lod`, :func:`biased_lod`, :func:`lod_bias_defines`, :func:`bspline_weights`,
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
 :data:`TRANSMISSION_SOURCES`, :func:`filament_refraction_roughness`, :func:`refraction_direction`,
 :func:`object_transmission_rows`, :func:`scene_transmissive`, :func:`transmission_defines`,
@@ -82,6 +82,20 @@ def apply_ior_to_roughness(roughness, ior):
 def transmission_lod(roughness, ior, width):
     """Both engines' level: ``log2(width) applyIorToRoughness(r, ior)`` (width: the framebuffer's)."""
     return np.log2(np.asarray(width, float)) * apply_ior_to_roughness(roughness, ior)
+
+
+def biased_lod(lod, bias):
+    """Option ``transmission_lod_bias`` (no engine's: compare.transmission_split's LOD scan): the rule's
+    level moved by ``bias``, clamped at level 0 (GLSL ``transmission_lod_biased``)."""
+    return np.maximum(np.asarray(lod, float) + np.asarray(bias, float), 0.0)
+
+
+def lod_bias_defines(tdefs: dict, o) -> dict:
+    """``TRANSMISSION_LOD_BIAS`` for a transmission program (``tdefs``, :func:`transmission_defines`, not
+    empty) whose option ``transmission_lod_bias`` is not 0; ``{}`` otherwise, so the program of bias 0 is
+    the one it was before the option."""
+    bias = float(o.transmission_lod_bias)
+    return {"TRANSMISSION_LOD_BIAS": repr(bias)} if tdefs and bias != 0.0 else {}
 
 
 def bspline_weights(a):

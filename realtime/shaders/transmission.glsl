@@ -86,7 +86,11 @@ vec3 transmitted_radiance(vec3 p, vec3 n, vec3 v, float roughness, float ior) {
     vec2 uv = 0.5 * vec2(dot(q, cam_r) / (cam_tan.x * z), dot(q, cam_u) / (cam_tan.y * z)) + 0.5;
     if (z <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0))))
         return prefiltered_radiance(t, apply_ior_to_roughness(roughness, ior));
-    return transmission_fb_read(uv, transmission_lod(roughness, ior, transmission_fb_size.x));
+    float lod = transmission_lod(roughness, ior, transmission_fb_size.x);
+#ifdef TRANSMISSION_LOD_BIAS
+    lod = transmission_lod_biased(lod, TRANSMISSION_LOD_BIAS);   // option transmission_lod_bias (not 0)
+#endif
+    return transmission_fb_read(uv, lod);
 }
 #else
 // Filament's REFRACTION_MODE_CUBEMAP: the prefiltered environment along the ray leaving the object

@@ -11,6 +11,11 @@ float transmission_lod(float roughness, float ior, float width) {
     return log2(width) * apply_ior_to_roughness(roughness, ior);
 }
 
+// Option transmission_lod_bias (compare.transmission_split's LOD scan, no engine's): the level moved, clamped at 0.
+float transmission_lod_biased(float lod, float bias) {
+    return max(lod + bias, 0.0);
+}
+
 // three.js's dispersion: the IORs of R, G, B, ior -/+ (ior - 1) 0.025 dispersion.
 vec3 dispersion_iors(float ior, float dispersion) {
     float s = (ior - 1.0) * 0.025 * dispersion;
