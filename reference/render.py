@@ -83,11 +83,15 @@ LOBE_CODE_VERSION = "1"
 #: Bump when a change of reference/transmission.py changes the pixels of scenes holding a glTF
 #: transmissive material that :class:`reference.transmission.TexturedTransmissive` renders: part of
 #: their cache keys alone (:func:`transmission_cache_parts`). 1: the textures read per hit (they
-#: rendered opaque).
-TEXTURED_TRANSMISSION_CODE_VERSION = "1"
+#: rendered opaque). 2: KHR_materials_iridescence's film on the interface, its textures read per hit
+#: (IridescenceSuzanne's glass rendered opaque before).
+TEXTURED_TRANSMISSION_CODE_VERSION = "2"
 #: The same for scenes holding a MASK / BLEND transmissive glTF material (:func:`transmission_cache_parts`):
 #: 1: their coverage applied (a null pass-through; they rendered opaque, the alpha cut lost).
 ALPHA_TRANSMISSION_CODE_VERSION = "1"
+#: The same for scenes holding a transmissive glTF material with KHR_materials_iridescence (constant
+#: factors too; :func:`transmission_cache_parts`): 1: the film on the interface (it was left out).
+IRIDESCENT_TRANSMISSION_CODE_VERSION = "1"
 
 
 def transmission_cache_parts(scene) -> dict:
@@ -106,6 +110,8 @@ def transmission_cache_parts(scene) -> dict:
         out["textured_transmission_code"] = TEXTURED_TRANSMISSION_CODE_VERSION
     if any(m.alpha_mode != "OPAQUE" for m in mats):   # MASK / BLEND transmissive (they rendered opaque)
         out["alpha_transmission_code"] = ALPHA_TRANSMISSION_CODE_VERSION
+    if any(getattr(m, "iridescence", None) is not None and m.iridescence.active for m in mats):
+        out["iridescent_transmission_code"] = IRIDESCENT_TRANSMISSION_CODE_VERSION
     return out
 
 
