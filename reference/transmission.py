@@ -780,7 +780,16 @@ def material_dict(obj, brdf) -> dict:
             "roughness": max(m.roughness, brdf.roughness_floor), "ior": _ior_of(m), "transmission": m.transmission,
             "diffuse_transmission": m.diffuse_transmission,
             "diffuse_transmission_color": list(m.diffuse_transmission_color), "volume": is_volume(obj),
-            "dispersion": m.dispersion}
+            "dispersion": m.dispersion, **_film_keys(m)}
+
+
+def _film_keys(m) -> dict:
+    """An analytic object's ``iridescence`` keys ({} at factor 0: no film, the keys of before)."""
+    w = float(getattr(m, "iridescence", 0.0))
+    if w <= 0.0:
+        return {}
+    return {"iridescence": w, "iridescence_ior": float(m.iridescence_ior),
+            "iridescence_thickness": float(m.iridescence_thickness)}
 
 
 def shape_fields(obj, brdf) -> dict:

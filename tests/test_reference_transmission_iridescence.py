@@ -339,3 +339,26 @@ def test_iridescence_suzanne_glass_head_renders_transmissive(R, monkeypatch):
     assert np.isfinite(a).all()
     change = float(np.percentile(np.abs(a - b).max(axis=-1), 99))
     assert change > ASSET_MIN_CHANGE, change
+
+
+def test_an_analytic_iridescent_glass_sphere_takes_the_film_and_its_cache_part(R):
+    """A scene file's transmissive sphere with ``iridescence > 0`` passes the film's keys to
+    ``pbr_transmissive`` and keys its renders with the iridescent part; at 0 neither (the keys of before)."""
+    from types import SimpleNamespace
+
+    from reference.render import IRIDESCENT_TRANSMISSION_CODE_VERSION, transmission_cache_parts
+
+    brdf = SimpleNamespace(roughness_floor=0.0)   # what material_dict reads of the [brdf] config
+
+    def scene(w):
+        return scene_from_dict({"camera": {"origin": [0, 0, 4], "fov": 20, "width": 4, "height": 4},
+                                "environment": WHITE, "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0,
+                                                                    "material": {"transmission": 1.0, "thickness": 1.0,
+                                                                                 "iridescence": w, "iridescence_thickness": 300.0}}]})
+
+    on, off = scene(1.0), scene(0.0)
+    d = R.material_dict(on.objects[0], brdf)
+    assert (d["iridescence"], d["iridescence_thickness"]) == (1.0, 300.0)
+    assert "iridescence" not in R.material_dict(off.objects[0], brdf)
+    assert transmission_cache_parts(on) == {"iridescent_transmission_code": IRIDESCENT_TRANSMISSION_CODE_VERSION}
+    assert transmission_cache_parts(off) == {}
