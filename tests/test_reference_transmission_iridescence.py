@@ -19,7 +19,7 @@ from pbrcheck import transmission as N
 from pbrcheck.scene import scene_from_dict
 from tests.gltf_build import quad_asset
 from tests.test_lobes import _V
-from tests.test_reference_transmission import PATH, SUN_BEHIND, Z, _mean_and_sd
+from tests.test_reference_transmission import PATH, SUN_BEHIND, Z, _mean_and_sd, sample_and_eval
 from tests.test_transmission import CHI2_SIGNIFICANCE, _chi2, _dir
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "assets" / "khronos"
@@ -130,7 +130,6 @@ IRID = dict(iridescence=1.0, iridescence_ior=1.8, iridescence_thickness=400.0)
 def test_iridescent_material_sample_weight_is_eval_over_pdf(R, kw):
     """``pbr_transmissive`` with a film: each glossy sample's weight is eval / pdf per channel, finite
     and >= 0; the delta ones (m2) carry F_k / mean(F) and (1 - F_k) / (1 - mean(F)), mean 1."""
-    import drjit as dr
     import mitsuba as mi
 
     R.register()
@@ -138,15 +137,7 @@ def test_iridescent_material_sample_weight_is_eval_over_pdf(R, kw):
     rng = np.random.default_rng(2)
     n = 4096
     for mu in (0.8, 0.2, -0.6):
-        v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
-        si = dr.zeros(mi.SurfaceInteraction3f, n)
-        si.wi = _V(np.broadcast_to(v, (n, 3)))
-        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-        ctx = mi.BSDFContext()
-        u = rng.random((n, 3)).astype(np.float32)
-        bs, w = bsdf.sample(ctx, si, mi.Float(u[:, 0]), mi.Point2f(mi.Float(u[:, 1]), mi.Float(u[:, 2])))
-        value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
-        w, value, pdf, bpdf = np.array(w).T, np.array(value).T, np.array(pdf), np.array(bs.pdf)
+        w, value, pdf, bpdf = sample_and_eval(bsdf, mu, n, rng)
         assert np.all(np.isfinite(w)) and np.all(w >= 0)
         if kw["roughness"] == 0.0:   # a smooth volume: every sample a delta; the mean weight per channel
             # F_k + (1 - F_k) (eta_v / eta_l)^2 (radiance), F_k numpy's film at the outside cosine
