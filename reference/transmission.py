@@ -29,6 +29,19 @@ delta refraction carries its channel alone (weight 3 e_k: the other channels' de
 Unbiased per channel, three wavelengths rather than a spectrum (:func:`pbrcheck.transmission.spectral_rgb_weights`
 is the spectral estimator's part, which needs a wavelength per path that Mitsuba's RGB ``path`` does not carry).
 
+``KHR_materials_iridescence`` ("iridescence", "iridescence_ior", "iridescence_thickness",
+"iridescence_thickness_minimum"; [Irid] ``iridescent_dielectric_layer``, whose base is "the mix between a
+diffuse_brdf(...) and a specular_btdf(...)" for a transmissive material): a thin film on the interface
+(:class:`Film`): the interface reflects ``F = mix(F_plain, film(c_out), iridescence)`` per RGB channel
+(the opaque lobes' spectral film, :func:`reference.lobe_bsdf.film_spectral`, at the microfacet's outside
+cosine, clipped to [0, 1]) and transmits ``1 - F`` per channel (a lossless film: ``R + T = 1`` per
+wavelength, hence per channel; not ``rgb_mix``'s ``1 - max3(F)``, docs/reference.md); the same film seen
+from inside a volume (the outside cosine of the same microfacet: reciprocal); the reflect / transmit
+choice by ``mean(F)``, each channel's weight ``F_k / mean(F)`` or ``(1 - F_k) / (1 - mean(F))``; the
+diffuse base under ``1 - mix(F_plain, max3(film), iridescence)`` (``rgb_mix``), the metal's Fresnel
+``mix(Schlick(base colour), film(base colour), iridescence)``. Factor 0: no film, the code of before
+(bit for bit).
+
 glTF ``alphaMode`` MASK / BLEND ("alpha_mode" 1 / 2, "alpha_cutoff", "alpha"; [Trans] "Blend Mode": alpha
 is coverage, transmission applies to the surface that is there): the coverage ``c`` at the hit
 (:meth:`TransmissiveMaterial.coverage`: glTF 2.0 3.9.4, MASK ``alpha >= alphaCutoff``, BLEND ``alpha``,
@@ -39,14 +52,15 @@ renders through ``volpath``. Where ``c`` is 1 everywhere :func:`gltf_shape_props
 (the OPAQUE material, bit for bit: :data:`COVERAGE_MARGIN`).
 
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
-:func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
+:func:`fresnel_dielectric`, :class:`Film`, :func:`interface_fresnel`, :func:`thin_fresnel` (the film);
+:data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
 :func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
 :class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`,
 :data:`NULL_COMPONENT`, :data:`MIN_COVERAGE`, :data:`COVERAGE_MARGIN` (the alpha coverage),
 :func:`reference.render.transmission_cache_parts` keys its renders.
-References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
+References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans], [Irid],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); glTF 2.0 3.9.4 (alpha coverage); Mitsuba 3's ``volpath``
 and ``homogeneous`` plugins.
 """
@@ -667,7 +681,8 @@ class TexturedTransmissive(TransmissiveMaterial):
     flipped: this material is two-sided, ``+Z`` the outside); ``<slot>_texture`` / ``<slot>_texcoord``
     for ``transmission`` (R), ``diffuse_transmission`` (A) and ``diffuse_transmission_color`` (RGB,
     sRGB-decoded): ``transmission = factor x R``, ``diffuse_transmission = factor x A``, its colour
-    ``factor x RGB`` ([Trans], [DiffTrans]). Roughness per lane when ``roughness`` (the factor, floored)
+    ``factor x RGB`` ([Trans], [DiffTrans]); ``iridescence`` (R) and ``iridescence_thickness`` (G):
+    the film's strength ``factor x R`` and thickness ``mix(min, max, G)`` ([Irid]). Roughness per lane when ``roughness`` (the factor, floored)
     is above the smooth limit: its interfaces glossy with ``alpha >= SMOOTH_ALPHA`` (a texel rougher
     than 0 but below that limit shades as the narrowest glossy lobe); else every lane is smooth (the
     texel only lowers it). ``thicknessTexture`` is not read: the path follows the mesh ([Volume]: a
