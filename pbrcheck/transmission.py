@@ -22,7 +22,8 @@ side of the microfacet, 1 past the critical angle (total internal reflection).
 API
 ---
 Constants :data:`SMOOTH_ALPHA`, :data:`HALF_VECTOR_EPS`; :func:`f0_from_ior`, :func:`fresnel_dielectric` (Schlick with total
-internal reflection), :func:`refract`, :func:`beer_lambert`, :func:`slab_transmittance`;
+internal reflection), :func:`film_fresnel`, :func:`interface_fresnel`, :func:`thin_fresnel` (with
+``KHR_materials_iridescence``'s thin film on the interface, [Irid]), :func:`refract`, :func:`beer_lambert`, :func:`slab_transmittance`;
 :class:`MicrofacetGGX` (D, Lambda, G1, G2, the visible-normal sampler on both sides);
 :class:`RoughDielectric` ([Volume] "Layering": the reflection and refraction of a dielectric
 boundary, [Walter07]); :class:`ThinDielectric` ([Trans] "Transmission BTDF": the specular lobe and
@@ -44,6 +45,10 @@ References
             (Walter's microfacet BTDF).
 [IOR]       KHR_materials_ior README.
 [Disp]      KHR_materials_dispersion README (``n(lambda)``, :func:`pbrcheck.transmission_params.dispersion_ior`).
+[Irid]      KHR_materials_iridescence README, "Dielectric Base Material" (``iridescent_dielectric_layer``:
+            the film's Fresnel in place of ``fresnel_mix``'s; "For transmissive base materials, the
+            diffuse_brdf(...) will be replaced by the mix between a diffuse_brdf(...) and a
+            specular_btdf(...)"), "Iridescence Fresnel".
 [DiffTrans] KHR_materials_diffuse_transmission README, "Implementation" (``diffuse_btdf = color / pi``
             on the opposite hemisphere).
 [Walter07]  B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet Models for Refraction through
@@ -116,6 +121,59 @@ def fresnel_dielectric(c, eta, f0):
     thin = np.where(e >= 1.0, ci, ct)
     F = schlick(thin, f0)
     return np.where((sin2_t >= 1.0) | (eta == 0.0), 1.0, F)
+
+
+#: The film's RGB reflectance is clipped to [0, 1] per channel on a transmissive interface: a
+#: saturated interference colour integrates to a negative Rec.709 channel (-0.02 at 400 nm, film IOR
+#: 1.3 on glass, normal incidence), which would make that channel's reflection negative and its
+#: transmission above 1; [Irid]'s own RGB evaluation clamps the same way (``max(I, 0)``), and the
+#: transmitted ``1 - F`` of the clipped F keeps ``R + T = 1`` per channel.
+FILM_CLIP = (0.0, 1.0)
+
+
+def film_fresnel(c_out, F, strength, thickness, film_ior, f0):
+    """[Irid] on a transmissive material's interface: ``mix(F, film(c_out), strength)`` per channel
+    (..., 3), ``film`` the thin film's reflectance over a base of Fresnel F0 ``f0`` evaluated spectrally
+    (:func:`pbrcheck.lobes.iridescence_spectral`, the opaque lobes' film) at the outside cosine
+    ``c_out`` (``thickness`` nm, one value), ``F`` the plain (Schlick) Fresnel there. The interface
+    transmits ``1 - film_fresnel`` per channel: the film and the base are non-absorbing dielectrics, so
+    per wavelength what the stack does not reflect it transmits (``R + T = 1``), and the RGB
+    integration is linear and white-balanced (a flat 1 integrates to 1), so ``T_rgb = 1 - R_rgb`` per
+    channel exactly; the reflected and transmitted parts of a white furnace sum to 1 per channel."""
+    from pbrcheck.lobes import iridescence_spectral
+
+    R = iridescence_spectral(np.abs(np.asarray(c_out, dtype=np.float64)), float(thickness), float(film_ior),
+                             np.broadcast_to(np.asarray(f0, dtype=np.float64), (3,)))
+    R = np.clip(R, *FILM_CLIP)
+    return np.asarray(F, dtype=np.float64)[..., None] * (1.0 - strength) + R * strength
+
+
+def interface_fresnel(c, eta, f0, film=None):
+    """(reflectance, the probability the interface's sampler reflects with) of a dielectric of relative
+    index ``eta`` at ``c = v.h`` (as :func:`fresnel_dielectric`): without ``film`` that Fresnel twice;
+    with ``film = (strength, thickness, film_ior)`` :func:`film_fresnel` at the thinner side's cosine
+    (..., 3; 1 past the critical angle, from either side) and the channels' mean. The film sits on the
+    interface and is seen at the outside cosine from either side (the cosine Schlick takes; a lossless
+    stack reflects alike from both sides at corresponding angles, Stokes' relations)."""
+    if film is None or eta == 0.0:
+        F = fresnel_dielectric(c, eta, f0)
+        return F, F
+    c = np.asarray(c, dtype=np.float64)
+    e = np.where(c >= 0.0, eta, 1.0 / eta)
+    ci = np.abs(c)
+    sin2_t = (1.0 - ci * ci) / (e * e)
+    thin = np.where(e >= 1.0, ci, np.sqrt(np.maximum(1.0 - sin2_t, 0.0)))
+    F = np.where((sin2_t >= 1.0)[..., None], 1.0, film_fresnel(thin, schlick(thin, f0), *film, f0))
+    return F, F.mean(axis=-1)
+
+
+def thin_fresnel(c, f0, film=None):
+    """:func:`interface_fresnel` of a thin-walled interface (outside on both sides: Schlick at ``|c|``)."""
+    F = schlick(c, f0)
+    if film is None:
+        return F, F
+    F = film_fresnel(np.abs(np.asarray(c, dtype=np.float64)), F, *film, f0)
+    return F, F.mean(axis=-1)
 
 
 def refract(v, h, e):

@@ -173,10 +173,11 @@ def is_transmissive(material) -> bool:
 
 
 #: The slots of :data:`VARYING_SLOTS` the reference's textured transmissive material reads per hit
-#: (``reference.transmission.TexturedTransmissive``; issue 37): the core material's and the
-#: transmission extensions'. The others (the lobes') leave a transmissive material opaque.
+#: (``reference.transmission.TexturedTransmissive``; issue 37): the core material's, the
+#: transmission extensions' and KHR_materials_iridescence's (the film on the interface). The others
+#: (the other lobes') leave a transmissive material opaque.
 READ_SLOTS = ("baseColor", "metallicRoughness", "normal", "transmission", "diffuseTransmission",
-              "diffuseTransmissionColor")
+              "diffuseTransmissionColor", "iridescence", "iridescenceThickness")
 
 
 def has_varying(material) -> bool:

@@ -83,18 +83,25 @@ LOBE_CODE_VERSION = "1"
 #: Bump when a change of reference/transmission.py changes the pixels of scenes holding a glTF
 #: transmissive material that :class:`reference.transmission.TexturedTransmissive` renders: part of
 #: their cache keys alone (:func:`transmission_cache_parts`). 1: the textures read per hit (they
-#: rendered opaque).
-TEXTURED_TRANSMISSION_CODE_VERSION = "1"
+#: rendered opaque). 2: KHR_materials_iridescence's film on the interface, its textures read per hit
+#: (IridescenceSuzanne's glass rendered opaque before).
+TEXTURED_TRANSMISSION_CODE_VERSION = "2"
 #: The same for scenes holding a MASK / BLEND transmissive glTF material (:func:`transmission_cache_parts`):
 #: 1: their coverage applied (a null pass-through; they rendered opaque, the alpha cut lost).
 ALPHA_TRANSMISSION_CODE_VERSION = "1"
+#: The same for scenes holding a transmissive glTF material with KHR_materials_iridescence (constant
+#: factors too) or a transmissive analytic object with ``iridescence > 0`` (:func:`transmission_cache_parts`):
+#: 1: the film on the interface (it was left out).
+IRIDESCENT_TRANSMISSION_CODE_VERSION = "1"
 
 
 def transmission_cache_parts(scene) -> dict:
     """``{"textured_transmission_code": TEXTURED_TRANSMISSION_CODE_VERSION}`` where an asset of
     ``scene`` has a material that the textured transmissive BSDF renders, and
     ``{"alpha_transmission_code": ALPHA_TRANSMISSION_CODE_VERSION}`` where one has a MASK / BLEND
-    transmissive material the reference renders; ``{}`` for other scenes (their keys unchanged; hook,
+    transmissive material the reference renders, ``{"iridescent_transmission_code":
+    IRIDESCENT_TRANSMISSION_CODE_VERSION}`` where a transmissive material it renders (an asset's or an
+    analytic object's) has an iridescent film; ``{}`` for other scenes (their keys unchanged; hook,
     issue 37). Here, not in reference.transmission, because a cache key is
     computed before Mitsuba's variant is set (a cache hit never sets it), and that module's classes
     derive from Mitsuba's."""
@@ -106,6 +113,11 @@ def transmission_cache_parts(scene) -> dict:
         out["textured_transmission_code"] = TEXTURED_TRANSMISSION_CODE_VERSION
     if any(m.alpha_mode != "OPAQUE" for m in mats):   # MASK / BLEND transmissive (they rendered opaque)
         out["alpha_transmission_code"] = ALPHA_TRANSMISSION_CODE_VERSION
+    analytic = [o.material for o in getattr(scene, "objects", ()) if getattr(o, "type", "") in ("sphere", "plane")]
+    if (any(getattr(m, "iridescence", None) is not None and m.iridescence.active for m in mats)
+            or any(getattr(m, "iridescence", 0.0) > 0.0 and (m.transmission > 0.0 or m.diffuse_transmission > 0.0)
+                   for m in analytic)):
+        out["iridescent_transmission_code"] = IRIDESCENT_TRANSMISSION_CODE_VERSION
     return out
 
 

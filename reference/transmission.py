@@ -29,6 +29,19 @@ delta refraction carries its channel alone (weight 3 e_k: the other channels' de
 Unbiased per channel, three wavelengths rather than a spectrum (:func:`pbrcheck.transmission.spectral_rgb_weights`
 is the spectral estimator's part, which needs a wavelength per path that Mitsuba's RGB ``path`` does not carry).
 
+``KHR_materials_iridescence`` ("iridescence", "iridescence_ior", "iridescence_thickness",
+"iridescence_thickness_minimum"; [Irid] ``iridescent_dielectric_layer``, whose base is "the mix between a
+diffuse_brdf(...) and a specular_btdf(...)" for a transmissive material): a thin film on the interface
+(:class:`Film`): the interface reflects ``F = mix(F_plain, film(c_out), iridescence)`` per RGB channel
+(the opaque lobes' spectral film, :func:`reference.lobe_bsdf.film_spectral`, at the microfacet's outside
+cosine, clipped to [0, 1]) and transmits ``1 - F`` per channel (a lossless film: ``R + T = 1`` per
+wavelength, hence per channel; not ``rgb_mix``'s ``1 - max3(F)``, docs/reference.md); the same film seen
+from inside a volume (the outside cosine of the same microfacet: reciprocal); the reflect / transmit
+choice by ``mean(F)``, each channel's weight ``F_k / mean(F)`` or ``(1 - F_k) / (1 - mean(F))``; the
+diffuse base under ``1 - mix(F_plain, max3(film), iridescence)`` (``rgb_mix``), the metal's Fresnel
+``mix(Schlick(base colour), film(base colour), iridescence)``. Factor 0: no film, the code of before
+(bit for bit).
+
 glTF ``alphaMode`` MASK / BLEND ("alpha_mode" 1 / 2, "alpha_cutoff", "alpha"; [Trans] "Blend Mode": alpha
 is coverage, transmission applies to the surface that is there): the coverage ``c`` at the hit
 (:meth:`TransmissiveMaterial.coverage`: glTF 2.0 3.9.4, MASK ``alpha >= alphaCutoff``, BLEND ``alpha``,
@@ -39,14 +52,15 @@ renders through ``volpath``. Where ``c`` is 1 everywhere :func:`gltf_shape_props
 (the OPAQUE material, bit for bit: :data:`COVERAGE_MARGIN`).
 
 API: :class:`MicrofacetGGX`, :class:`RoughDielectric`, :class:`ThinDielectric`, :class:`DiffuseBTDF`,
-:func:`fresnel_dielectric`; :data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
+:func:`fresnel_dielectric`, :class:`Film`, :func:`interface_fresnel`, :func:`thin_fresnel` (the film);
+:data:`PLUGIN_NAME`, :class:`TransmissiveMaterial`, :func:`register`,
 :func:`is_transmissive`, :func:`is_volume`, :func:`material_dict`, :func:`shape_fields`,
 :func:`gltf_shape_props` (a glTF primitive's, its material's factors constant or textured:
 :class:`TexturedTransmissive`, ``pbr_transmissive_textured``, :data:`TEXTURED_PLUGIN`),
 :func:`has_interior_media`, :func:`check_local`, :data:`REFERENCE_TRANSMISSION_EXTENSIONS`,
 :data:`NULL_COMPONENT`, :data:`MIN_COVERAGE`, :data:`COVERAGE_MARGIN` (the alpha coverage),
 :func:`reference.render.transmission_cache_parts` keys its renders.
-References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans],
+References: as :mod:`pbrcheck.transmission` ([glTF-B], [Trans], [Volume], [IOR], [DiffTrans], [Irid],
 [Walter07], [pbrt-v4], [Heitz14], [Heitz18]); glTF 2.0 3.9.4 (alpha coverage); Mitsuba 3's ``volpath``
 and ``homogeneous`` plugins.
 """
@@ -118,16 +132,78 @@ def _f0(ior):
     return ((ior - 1.0) / (ior + 1.0)) ** 2 if ior > 0 else 1.0
 
 
-def fresnel_dielectric(c, eta, f0):
-    """:func:`pbrcheck.transmission.fresnel_dielectric` (``eta`` a Python float)."""
-    if eta == 0.0:
-        return dr.full(mi.Float, 1.0, dr.width(c))
+def _outside_cos(c, eta):
+    """(the cosine on the outside (lower-IOR) side of an interface of ``eta`` met at cosine ``c``
+    (``c >= 0``: from outside), total internal reflection): the cosine Schlick takes."""
     e = dr.select(c >= 0.0, eta, 1.0 / eta)
     ci = dr.abs(c)
     sin2_t = (1.0 - ci * ci) / (e * e)
     ct = dr.sqrt(dr.maximum(1.0 - sin2_t, 0.0))
-    thin = dr.select(e >= 1.0, ci, ct)
-    return dr.select(sin2_t >= 1.0, 1.0, _schlick(thin, f0))
+    return dr.select(e >= 1.0, ci, ct), sin2_t >= 1.0
+
+
+def fresnel_dielectric(c, eta, f0):
+    """:func:`pbrcheck.transmission.fresnel_dielectric` (``eta`` a Python float)."""
+    if eta == 0.0:
+        return dr.full(mi.Float, 1.0, dr.width(c))
+    thin, tir = _outside_cos(c, eta)
+    return dr.select(tir, 1.0, _schlick(thin, f0))
+
+
+class Film:
+    """``KHR_materials_iridescence``'s thin film on a transmissive material's interface ([Irid]
+    ``iridescent_dielectric_layer``; :func:`pbrcheck.transmission.film_fresnel` the numpy twin):
+    strength ``w``, thickness ``d`` (nm), the film's IOR, over a base of Fresnel F0 ``f0`` (the
+    interface's ``((1 - ior) / (1 + ior))^2``; a metal's base colour), each a Python float or one value
+    per lane.
+    :meth:`fresnel` is ``mix(F, film(c), w)`` per channel, the film's reflectance evaluated spectrally
+    (:func:`reference.lobe_bsdf.film_spectral`, the opaque lobes' own film) at the outside cosine."""
+
+    def __init__(self, strength, thickness, film_ior, f0):
+        self.w, self.d, self.nf, self.f0 = strength, thickness, film_ior, f0
+
+    def over(self, f0):
+        """The same film over another base (F0 ``f0``)."""
+        return Film(self.w, self.d, self.nf, f0)
+
+    def fresnel(self, c_out, F):
+        """``mix(F, film(c_out), w)`` (Color3f) at the outside cosine ``c_out`` of plain Fresnel ``F``."""
+        from reference.lobe_bsdf import film_spectral   # (a function-level import: lobe_bsdf imports late)
+
+        n = dr.width(c_out)
+        R = film_spectral(c_out, dr.zeros(mi.Float, n) + self.d, dr.zeros(mi.Float, n) + self.nf,
+                          mi.Color3f(self.f0))
+        R = dr.clip(R, 0.0, 1.0)   # a saturated spectral colour lies outside Rec.709 (pbrcheck.transmission.FILM_CLIP's comment)
+        return mi.Color3f(F) * (1.0 - self.w) + R * self.w
+
+
+def interface_fresnel(c, eta, f0, film=None):
+    """(the reflectance, the probability the interface's sampler reflects with) at cosine ``c`` with
+    ``h`` of a dielectric of ``eta`` (``c >= 0`` from outside): plain Fresnel (:func:`fresnel_dielectric`,
+    one Float, twice) without ``film``; with it :meth:`Film.fresnel` at the outside cosine (Color3f; 1
+    under total internal reflection, whichever side), sampled with the channels' mean. The transmitted
+    part is ``1 - F`` per channel (:func:`pbrcheck.transmission.film_fresnel`: a lossless film's ``R + T = 1``)."""
+    if film is None or eta == 0.0:
+        F = fresnel_dielectric(c, eta, f0)
+        return F, F
+    thin, tir = _outside_cos(c, eta)
+    F = dr.select(tir, mi.Color3f(1.0), film.fresnel(thin, _schlick(thin, f0)))
+    return F, _mean(F)
+
+
+def thin_fresnel(c, f0, film=None):
+    """:func:`interface_fresnel` of a thin-walled interface (outside on both sides: Schlick at ``|c|``)."""
+    F = _schlick(c, f0)
+    if film is None:
+        return F, F
+    F = film.fresnel(dr.abs(c), F)
+    return F, _mean(F)
+
+
+def _split_weights(F, Fp, refl):
+    """The per-channel weight of a reflection / transmission chosen with probability ``Fp`` / ``1 - Fp``
+    whose value is ``F`` / ``1 - F`` (1 where ``F`` is ``Fp``, the plain interface: not called there)."""
+    return dr.select(refl, F / dr.maximum(Fp, 1e-30), (1.0 - F) / dr.maximum(1.0 - Fp, 1e-30))
 
 
 def _refract(v, h, e):
@@ -181,11 +257,12 @@ class MicrofacetGGX:
 class RoughDielectric:
     """:class:`pbrcheck.transmission.RoughDielectric` (Walter's interface, radiance form)."""
 
-    def __init__(self, roughness, ior):
+    def __init__(self, roughness, ior, film=None):
         self.ggx = MicrofacetGGX(roughness)
         self.eta = float(ior)
         self.f0 = _f0(self.eta)
         self.matched = self.eta == 1.0
+        self.film = film   # a Film (KHR_materials_iridescence) or None
 
     def _etas(self, v):
         outside = v.z > 0.0
@@ -201,45 +278,49 @@ class RoughDielectric:
             ok &= refl
         else:
             ok &= refl | (vh * lh < 0.0)
-        return refl, h, vh, lh, eta_v, eta_l, fresnel_dielectric(vh, self.eta, self.f0), ok
+        F, Fp = interface_fresnel(vh, self.eta, self.f0, self.film)
+        return refl, h, vh, lh, eta_v, eta_l, (F, Fp), ok
 
     def eval(self, v, l):
+        return self.eval_pdf(v, l)[0]
+
+    def pdf(self, v, l):
+        return self.eval_pdf(v, l)[1]
+
+    def eval_pdf(self, v, l):
+        """(:meth:`eval`, :meth:`pdf`) of one evaluation of the terms (the film's spectral loop once)."""
         if self.ggx.smooth:
-            return dr.zeros(mi.Float, dr.width(v))
-        refl, h, vh, lh, eta_v, eta_l, F, ok = self._terms(v, l)
+            return dr.zeros(mi.Float, dr.width(v)), dr.zeros(mi.Float, dr.width(v))
+        refl, h, vh, lh, eta_v, eta_l, (F, Fp), ok = self._terms(v, l)
         g = self.ggx
         cv, cl = dr.maximum(dr.abs(v.z), COS_EPS), dr.maximum(dr.abs(l.z), COS_EPS)
         DG = g.D(h) * g.G2(v, l)
         fr = F * DG / (4.0 * cv * cl)
         den = dr.maximum(dr.square(eta_v * vh + eta_l * lh), 1e-30)
         ft = dr.abs(vh * lh) * eta_v * eta_v * (1.0 - F) * DG / (cv * cl * den)
-        return dr.select(ok, dr.select(refl, fr, ft) * dr.abs(l.z), 0.0)
-
-    def pdf(self, v, l):
-        if self.ggx.smooth:
-            return dr.zeros(mi.Float, dr.width(v))
-        refl, h, vh, lh, eta_v, eta_l, F, ok = self._terms(v, l)
         Dv = self.ggx.visible_D(v, h)
-        pr = Dv / dr.maximum(4.0 * dr.abs(vh), 1e-30) * F
-        pt = Dv * eta_l * eta_l * dr.abs(lh) / dr.maximum(dr.square(eta_v * vh + eta_l * lh), 1e-30) * (1.0 - F)
-        return dr.select(ok, dr.select(refl, pr, pt), 0.0)
+        pr = Dv / dr.maximum(4.0 * dr.abs(vh), 1e-30) * Fp
+        pt = Dv * eta_l * eta_l * dr.abs(lh) / dr.maximum(dr.square(eta_v * vh + eta_l * lh), 1e-30) * (1.0 - Fp)
+        return dr.select(ok, dr.select(refl, fr, ft) * dr.abs(l.z), 0.0), dr.select(ok, dr.select(refl, pr, pt), 0.0)
 
     def sample(self, v, u, uc):
         g = self.ggx
         h = mi.Vector3f(0.0, 0.0, 1.0) if g.smooth else g.sample_h(v, u)
         vh = dr.dot(v, h)
-        F = fresnel_dielectric(vh, self.eta, self.f0)
+        F, Fp = interface_fresnel(vh, self.eta, self.f0, self.film)
         hs = dr.select(vh < 0.0, -h, h)
         eta_v, eta_l = self._etas(v)
         lr = _reflect(v, hs)
         lt = -v if self.matched else _refract(v, hs, eta_l / eta_v)
-        refl = uc < F
+        refl = uc < Fp
         l = dr.select(refl, lr, lt)
         side = dr.select(refl, l.z * v.z > 0.0, mi.Bool(True) if self.matched else l.z * v.z < 0.0)
         wr = mi.Float(1.0) if g.smooth else g.G2(v, l) / g.G1(v)
         delta_t = g.smooth or self.matched
         wt = dr.square(eta_v / eta_l) * (mi.Float(1.0) if delta_t else wr)
         weight = dr.select(side, dr.select(refl, wr, wt), 0.0)
+        if self.film is not None:   # the film's channels over the mean the choice was made with
+            weight = weight * _split_weights(F, Fp, refl)
         delta = dr.select(refl, g.smooth, delta_t) & side
         pdf = dr.select(delta | ~side, 0.0, self.pdf(v, l))
         weight = dr.select(delta | (pdf > 0.0), weight, 0.0)
@@ -249,9 +330,10 @@ class RoughDielectric:
 class ThinDielectric:
     """:class:`pbrcheck.transmission.ThinDielectric` (the thin-walled specular_btdf)."""
 
-    def __init__(self, roughness, ior):
+    def __init__(self, roughness, ior, film=None):
         self.ggx = MicrofacetGGX(roughness)
         self.f0 = _f0(float(ior))
+        self.film = film   # a Film (KHR_materials_iridescence) or None
 
     def lobe(self, v, lr):
         """(``D G2 / (4 |n.v|)``, its visible-normal pdf, ``v.h``) at ``v``, ``lr`` (one side)."""
@@ -266,9 +348,14 @@ class ThinDielectric:
     def _split(self, v, l):
         same = v.z * l.z > 0.0
         f, p, vh = self.lobe(v, dr.select(same, l, _mirror(l)))
-        F = _schlick(vh, self.f0)
-        w = dr.select(same, F, 1.0 - F)
-        return f * w, p * w
+        F, Fp = thin_fresnel(vh, self.f0, self.film)
+        return f * dr.select(same, F, 1.0 - F), p * dr.select(same, Fp, 1.0 - Fp)
+
+    def eval_pdf(self, v, l):
+        """(:meth:`eval`, :meth:`pdf`) of one evaluation (the film's spectral loop once)."""
+        if self.ggx.smooth:
+            return dr.zeros(mi.Float, dr.width(v)), dr.zeros(mi.Float, dr.width(v))
+        return self._split(v, l)
 
     def eval(self, v, l):
         if self.ggx.smooth:
@@ -285,10 +372,13 @@ class ThinDielectric:
         h = mi.Vector3f(0.0, 0.0, 1.0) if g.smooth else g.sample_h(v, u)
         vh = dr.dot(v, h)
         lr = _reflect(v, h)
-        refl = uc < _schlick(vh, self.f0)
+        F, Fp = thin_fresnel(vh, self.f0, self.film)
+        refl = uc < Fp
         l = dr.select(refl, lr, _mirror(lr))
         ok = lr.z * v.z > 0.0
         weight = dr.select(ok, mi.Float(1.0) if g.smooth else g.G2(v, lr) / g.G1(v), 0.0)
+        if self.film is not None:   # the film's channels over the mean the choice was made with
+            weight = weight * _split_weights(F, Fp, refl)
         delta = mi.Bool(g.smooth) & ok
         pdf = dr.select(delta | ~ok, 0.0, self.pdf(v, l))
         return l, weight, pdf, delta
@@ -318,6 +408,11 @@ def _mean(c):
     return (c.x + c.y + c.z) / 3.0
 
 
+def _channel(x, k):
+    """Channel ``k`` of a Color3f (a film's interface value), or the Float itself (a plain one's)."""
+    return x[k] if isinstance(x, mi.Color3f) else x
+
+
 class TransmissiveMaterial(mi.BSDF):
     """``pbr_transmissive`` (the module docstring). Parameters are constants (analytic objects, glTF
     materials of constant factors); :class:`TexturedTransmissive` passes per-lane ones (``p``)."""
@@ -341,8 +436,13 @@ class TransmissiveMaterial(mi.BSDF):
         # line's IOR (pbrcheck.transmission.channel_iors); one interface otherwise
         self.iors = (channel_iors(self.ior, self.dispersion) if self.volume and self.dispersion > 0.0 and self.ior > 1.0
                      else (self.ior,))
-        self.ifaces = ([RoughDielectric(self.roughness, n) for n in self.iors] if self.volume
-                       else [ThinDielectric(self.roughness, self.ior)])
+        # KHR_materials_iridescence ([Irid], issue 37): the film on the interface (Film); factor 0 is no
+        # film, the material's code unchanged (bit for bit)
+        self.iridescence = float(get("iridescence", 0.0))
+        self.film_ior = float(get("iridescence_ior", 1.3))
+        self.film_thickness = float(get("iridescence_thickness", 400.0))
+        self.film_thickness_min = float(get("iridescence_thickness_minimum", 100.0))
+        self.ifaces = self._interfaces(self.roughness, self._films(self.iridescence, self.film_thickness))
         self.iface = self.ifaces[0]
         self.spec = ThinDielectric(self.roughness, self.ior)          # the metal's reflection lobe
         self.f0 = _f0(self.ior)
@@ -366,7 +466,43 @@ class TransmissiveMaterial(mi.BSDF):
     def to_string(self):
         return (f"TransmissiveMaterial[base_color={self.base_color}, metallic={self.metallic}, roughness="
                 f"{self.roughness}, ior={self.ior}, transmission={self.transmission}, diffuse_transmission="
-                f"{self.dt}, volume={self.volume}]")
+                f"{self.dt}, volume={self.volume}, iridescence={self.iridescence}]")
+
+    def _films(self, strength, thickness):
+        """One :class:`Film` per interface IOR (its base), or Nones where the material has no film
+        (``strength`` a Python float 0: the iridescence factor 0, [Irid] "no effect")."""
+        if isinstance(strength, float) and strength <= 0.0:
+            return [None] * len(self.iors)
+        return [Film(strength, thickness, self.film_ior, _f0(n)) for n in self.iors]
+
+    def _interfaces(self, roughness, films):
+        """The dielectric interfaces: one :class:`RoughDielectric` per IOR where a volume, else one
+        :class:`ThinDielectric`; ``films`` their :class:`Film` (or None)."""
+        if self.volume:
+            return [RoughDielectric(roughness, n, f) for n, f in zip(self.iors, films)]
+        return [ThinDielectric(roughness, self.ior, films[0])]
+
+    def _metal_F(self, p, c):
+        """The metal's Fresnel at cosine ``c``: Schlick of the base colour, with a film [Irid]
+        ``iridescent_conductor_layer``'s ``mix(conductor_fresnel, film(base_f0 = baseColor), w)``; the
+        film skipped where the metallic factor is 0 (its weight is then 0 on every lane)."""
+        F = _schlick(c, p.base_color)
+        film = p.iface.film
+        if film is None or self.metallic == 0.0:
+            return F
+        return film.over(p.base_color).fresnel(dr.abs(c), F)
+
+    def _diffuse_F(self, p, c):
+        """The Fresnel the diffuse base lies under at cosine ``c``: Schlick of the material's F0
+        ([glTF-B] ``fresnel_mix``); with a film [Irid] ``mix(fresnel_mix, rgb_mix, w)``, whose base weight
+        is ``1 - max3(film)`` (``rgb_mix``), i.e. ``mix(F, max3(film), w)`` (one Float). Skipped where no
+        diffuse can show (transmission factor 1 without a texture, so ``1 - t`` is 0 on every lane)."""
+        F = _schlick(c, self.f0)
+        film = p.iface.film
+        if film is None or (self.transmission >= 1.0 and "transmission" not in getattr(self, "tex", {})):
+            return F
+        R = film.over(self.f0).fresnel(dr.abs(c), dr.zeros(mi.Float, dr.width(c)))   # w film(c)
+        return F * (1.0 - film.w) + dr.maximum(dr.maximum(R.x, R.y), R.z)
 
     def _probs(self, v, p=None):
         """The mixture's lobe probabilities at ``v``: (metal, interface, diffuse, diffuse transmission);
@@ -389,14 +525,15 @@ class TransmissiveMaterial(mi.BSDF):
         same = v.z * l.z > 0.0
         lr = dr.select(same, l, _mirror(l))
         f_spec, p_spec, vh = p.spec.lobe(v, lr)
-        metal = dr.select(same, _schlick(vh, p.base_color) * f_spec, 0.0) if not p.spec.ggx.smooth else mi.Color3f(0.0)
+        metal = dr.select(same, self._metal_F(p, vh) * f_spec, 0.0) if not p.spec.ggx.smooth else mi.Color3f(0.0)
         if len(p.ifaces) == 1:
-            iface, iface_pdf = p.iface.eval(v, l), p.iface.pdf(v, l)
+            iface, iface_pdf = p.iface.eval_pdf(v, l)
         else:   # each channel its own interface; sampled by a channel chosen uniformly: the mean pdf
-            iface = mi.Color3f(*[f.eval(v, l) for f in p.ifaces])
-            iface_pdf = sum(f.pdf(v, l) for f in p.ifaces) / 3.0
+            ev = [f.eval_pdf(v, l) for f in p.ifaces]
+            iface = mi.Color3f(*[_channel(e[0], k) for k, e in enumerate(ev)])
+            iface_pdf = (ev[0][1] + ev[1][1] + ev[2][1]) / 3.0
         tint = dr.select(same, mi.Color3f(1.0), t * p.base_color)
-        Fd = _schlick(vh, self.f0)
+        Fd = self._diffuse_F(p, vh)
         cos_l = dr.abs(l.z) / PI
         diff = dr.select(same, (1.0 - p.dt) * p.base_color * cos_l, p.dt * p.dt_color * cos_l)
         value = m * metal + (1.0 - m) * (iface * tint + (1.0 - Fd) * (1.0 - t) * diff)
@@ -493,11 +630,11 @@ class TransmissiveMaterial(mi.BSDF):
         smooth = p.iface.ggx.smooth
         delta = (use_i & delta_i) | (use_m & smooth)
         if self.volume:
-            F_c = [fresnel_dielectric(mi.Float(v.z), f.eta, f.f0) for f in p.ifaces]
-            F_i = mi.Color3f(*F_c) if len(F_c) == 3 else mi.Color3f(F_c[0])
+            F_c = [interface_fresnel(mi.Float(v.z), f.eta, f.f0, f.film)[0] for f in p.ifaces]
+            F_i = mi.Color3f(*[_channel(F, k) for k, F in enumerate(F_c)]) if len(F_c) == 3 else mi.Color3f(F_c[0])
         else:
-            F_i = mi.Color3f(_schlick(v.z, self.f0))
-        mass_r = m * _schlick(dr.abs(v.z), p.base_color) + (1.0 - m) * F_i
+            F_i = mi.Color3f(thin_fresnel(v.z, self.f0, p.iface.film)[0])
+        mass_r = m * self._metal_F(p, dr.abs(v.z)) + (1.0 - m) * F_i
         prob_r = pm + pi * _mean(F_i)
         # w_i: the lobe's value over its own choice's probability; a dispersive refraction carries its
         # channel only, chosen with probability 1/3 (each channel's delta lies elsewhere)
@@ -544,13 +681,15 @@ class TexturedTransmissive(TransmissiveMaterial):
     flipped: this material is two-sided, ``+Z`` the outside); ``<slot>_texture`` / ``<slot>_texcoord``
     for ``transmission`` (R), ``diffuse_transmission`` (A) and ``diffuse_transmission_color`` (RGB,
     sRGB-decoded): ``transmission = factor x R``, ``diffuse_transmission = factor x A``, its colour
-    ``factor x RGB`` ([Trans], [DiffTrans]). Roughness per lane when ``roughness`` (the factor, floored)
+    ``factor x RGB`` ([Trans], [DiffTrans]); ``iridescence`` (R) and ``iridescence_thickness`` (G):
+    the film's strength ``factor x R`` and thickness ``mix(min, max, G)`` ([Irid]). Roughness per lane when ``roughness`` (the factor, floored)
     is above the smooth limit: its interfaces glossy with ``alpha >= SMOOTH_ALPHA`` (a texel rougher
     than 0 but below that limit shades as the narrowest glossy lobe); else every lane is smooth (the
     texel only lowers it). ``thicknessTexture`` is not read: the path follows the mesh ([Volume]: a
     real-time hint)."""
 
-    SLOTS = ("transmission", "diffuse_transmission", "diffuse_transmission_color")
+    SLOTS = ("transmission", "diffuse_transmission", "diffuse_transmission_color", "iridescence",
+             "iridescence_thickness")
 
     def __init__(self, props):
         TransmissiveMaterial.__init__(self, props)
@@ -574,9 +713,19 @@ class TexturedTransmissive(TransmissiveMaterial):
         dt = mi.Float(self.dt) * (read["diffuse_transmission"].x if "diffuse_transmission" in read else 1.0)
         dt_color = self.dt_color * (read["diffuse_transmission_color"] if "diffuse_transmission_color" in read else 1.0)
         ifaces, spec = self.ifaces, self.spec
+        films = [f.film for f in self.ifaces]
+        if "iridescence" in read or "iridescence_thickness" in read:   # [Irid]: factor x R, mix(min, max, G)
+            w, d = self.iridescence, self.film_thickness
+            if "iridescence" in read:
+                w = mi.Float(w) * read["iridescence"].x
+            if "iridescence_thickness" in read:
+                g = read["iridescence_thickness"].x
+                d = self.film_thickness_min * (1.0 - g) + self.film_thickness * g
+            films = self._films(w, d)
+            ifaces = self._interfaces(self.roughness, films)
         if not self.iface.ggx.smooth:
             r = view.roughness
-            ifaces = [RoughDielectric(r, n) for n in self.iors] if self.volume else [ThinDielectric(r, self.ior)]
+            ifaces = self._interfaces(r, films)
             spec = ThinDielectric(r, self.ior)
         return _Params(base_color=view.base_color, metallic=view.metallic, transmission=t, dt=dt,
                        dt_color=mi.Color3f(dt_color), ifaces=ifaces, iface=ifaces[0], spec=spec), frame
@@ -646,7 +795,16 @@ def material_dict(obj, brdf) -> dict:
             "roughness": max(m.roughness, brdf.roughness_floor), "ior": _ior_of(m), "transmission": m.transmission,
             "diffuse_transmission": m.diffuse_transmission,
             "diffuse_transmission_color": list(m.diffuse_transmission_color), "volume": is_volume(obj),
-            "dispersion": m.dispersion}
+            "dispersion": m.dispersion, **_film_keys(m)}
+
+
+def _film_keys(m) -> dict:
+    """An analytic object's ``iridescence`` keys ({} at factor 0: no film, the keys of before)."""
+    w = float(getattr(m, "iridescence", 0.0))
+    if w <= 0.0:
+        return {}
+    return {"iridescence": w, "iridescence_ior": float(m.iridescence_ior),
+            "iridescence_thickness": float(m.iridescence_thickness)}
 
 
 def shape_fields(obj, brdf) -> dict:
@@ -685,6 +843,10 @@ def gltf_shape_props(material, brdf, asset=None, core=None, cache=None, texture=
          "diffuse_transmission": dt.factor if dt is not None else 0.0,
          "diffuse_transmission_color": list(dt.color) if dt is not None else [1.0, 1.0, 1.0],
          "dispersion": disp.dispersion if disp is not None else 0.0}
+    ir = getattr(material, "iridescence", None)
+    if ir is not None and ir.active:   # KHR_materials_iridescence's film ([Irid]; factor 0: no keys, no film)
+        d.update(iridescence=ir.factor, iridescence_ior=ir.ior, iridescence_thickness=ir.thickness_maximum,
+                 iridescence_thickness_minimum=ir.thickness_minimum)
     alpha, core_alpha = _alpha_props(material, asset, cache, texture)
     d.update(alpha)
     if has_varying(material):
@@ -697,13 +859,17 @@ def gltf_shape_props(material, brdf, asset=None, core=None, cache=None, texture=
 
 
 #: The core keys of ``pbr_textured`` the textured variant's ``core`` keeps (its lobes' keys dropped:
-#: :func:`pbrcheck.transmission_params.reference_renders` leaves materials with lobe textures opaque).
+#: :func:`pbrcheck.transmission_params.reference_renders` leaves materials with lobe textures other than
+#: iridescence's opaque; the film's are the material's own, :data:`_EXT_TEXTURES`).
 _CORE_KEYS = ("type", "vertex_color", "primary_texcoord", "base_color", "metallic", "roughness", "specular", "ndf",
               "geometry", "fresnel", "roughness_floor", "metallic_blend", "normal_scale")
-#: slot -> (the extension's field, its texture attribute, sRGB, the channels read).
+#: slot -> (the extension's field, its texture attribute, sRGB, the channels read); [Irid]: the
+#: iridescence texture's R, the thickness texture's G.
 _EXT_TEXTURES = {"transmission": ("transmission", "texture", False, (0,)),
                  "diffuse_transmission": ("diffuse_transmission", "texture", False, (3,)),
-                 "diffuse_transmission_color": ("diffuse_transmission", "color_texture", True, (0, 1, 2))}
+                 "diffuse_transmission_color": ("diffuse_transmission", "color_texture", True, (0, 1, 2)),
+                 "iridescence": ("iridescence", "texture", False, (0,)),
+                 "iridescence_thickness": ("iridescence", "thickness_texture", False, (1,))}
 
 
 def _alpha_props(material, asset, cache, texture_dict) -> tuple[dict, dict]:
@@ -746,7 +912,9 @@ def _textured_props(material, asset, core, cache, texture_dict) -> dict:
     core_dict["double_sided"] = False   # no frame flip on a back face: this material is two-sided, +Z outside
     out = {"type": TEXTURED_PLUGIN, "core": core_dict}
     for slot, (field, attr, srgb, ch) in _EXT_TEXTURES.items():
-        ext = getattr(material, field)
+        ext = getattr(material, field, None)
+        if field == "iridescence" and (ext is None or not ext.active):   # factor 0: no film, its textures unread
+            continue
         ref = getattr(ext, attr) if ext is not None else None
         if ref is None:
             continue

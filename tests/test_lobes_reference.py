@@ -383,9 +383,12 @@ def test_shared_asset_lobes_change_the_image(name, monkeypatch):
     if not path.exists() or not envs:
         pytest.skip(f"{path} or ../shared/envmaps is absent (the real assets live in ../shared)")
     sc = asset_scene(path, env=str(envs[0]), size=(64, 64))
-    a = render_uncached(sc, spp=4, mode="local", progress=False, aovs=False)
+    # IridescenceSuzanne's glass head is transmissive (the film on its interface, issue 37): local mode
+    # refuses a transmissive material it renders, so that asset renders in path mode
+    mode = "path" if name == "IridescenceSuzanne" else "local"
+    a = render_uncached(sc, spp=4, mode=mode, progress=False, aovs=False)
     monkeypatch.setattr(LB, "gltf_lobe_props", lambda *args, **kw: {})
-    b = render_uncached(sc, spp=4, mode="local", progress=False, aovs=False)
+    b = render_uncached(sc, spp=4, mode=mode, progress=False, aovs=False)
     A = np.stack([a.channels[c] for c in "RGB"], -1)
     B = np.stack([b.channels[c] for c in "RGB"], -1)
     assert np.isfinite(A).all()

@@ -71,24 +71,30 @@ MATERIALS = [dict(transmission=1.0, roughness=0.4, ior=1.5, volume=True),
              dict(transmission=1.0, roughness=0.3, ior=1.5, volume=True, dispersion=0.6)]
 
 
-@pytest.mark.parametrize("kw", MATERIALS, ids=[f"m{k}" for k in range(len(MATERIALS))])
-def test_material_sample_weight_is_eval_over_pdf(R, kw):
+def sample_and_eval(bsdf, mu, n, rng):
+    """``n`` samples of ``bsdf`` at ``v`` of cosine ``mu`` (local frame ``n = +Z``) and its eval_pdf at
+    the sampled directions: (weight (n, 3), value (n, 3), pdf, the sample's pdf), numpy."""
     import drjit as dr
     import mitsuba as mi
 
+    v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = _V(np.broadcast_to(v, (n, 3)))
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    ctx = mi.BSDFContext()
+    u = rng.random((n, 3)).astype(np.float32)
+    bs, w = bsdf.sample(ctx, si, mi.Float(u[:, 0]), mi.Point2f(mi.Float(u[:, 1]), mi.Float(u[:, 2])))
+    value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+    return np.array(w).T, np.array(value).T, np.array(pdf), np.array(bs.pdf)
+
+
+@pytest.mark.parametrize("kw", MATERIALS, ids=[f"m{k}" for k in range(len(MATERIALS))])
+def test_material_sample_weight_is_eval_over_pdf(R, kw):
     bsdf = _material(R, **kw)
     rng = np.random.default_rng(2)
     n = 4096
     for mu in (0.8, 0.2, -0.6):
-        v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
-        si = dr.zeros(mi.SurfaceInteraction3f, n)
-        si.wi = _V(np.broadcast_to(v, (n, 3)))
-        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-        ctx = mi.BSDFContext()
-        u = rng.random((n, 3)).astype(np.float32)
-        bs, w = bsdf.sample(ctx, si, mi.Float(u[:, 0]), mi.Point2f(mi.Float(u[:, 1]), mi.Float(u[:, 2])))
-        value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
-        w, value, pdf, bpdf = np.array(w).T, np.array(value).T, np.array(pdf), np.array(bs.pdf)
+        w, value, pdf, bpdf = sample_and_eval(bsdf, mu, n, rng)
         glossy = (pdf > 0) & (np.abs(bpdf - pdf) <= 1e-4 * pdf)
         assert glossy.mean() > 0.5
         np.testing.assert_allclose(w[glossy], value[glossy] / pdf[glossy, None], rtol=1e-3, atol=1e-6)
