@@ -57,7 +57,7 @@ from .corpus import tasks as T
 from .corpus.scheduler import (Dep, Failed, SchedulerSpec, Task, failure_of, open_executor, parse_scheduler,
                                unique_tasks)
 from .corpus.study import REFERENCE, code_identity
-from .corpus.study import RowWriter, resumed_rows  # the corpus's resume: the rows a previous run finished
+from .corpus.study import RowWriter, prune_superseded, resumed_rows  # the corpus's resume: the rows a previous run finished
 from .maps import srgb_oetf
 from .metrics import compare_images, pixel_classes
 from .verdict_spp import MIN_REFERENCE_SPP
@@ -568,6 +568,7 @@ def run_fidelity(config: str | Path, settings: FidelitySettings, out_dir: str | 
             for s in left:
                 write(make_row(s, Failed("task", "no result came back from the scheduler")))
     rows = [done[s.row_key] for s in slots]
+    prune_superseded(rows_dir, rows)  # a slot's earlier row under an old key
     return FidelityResult(out, settings, scenarios, rows, time.perf_counter() - t0, write.computed,
                           scheduler=str(spec or "executor"))
 

@@ -227,3 +227,20 @@ def test_a_row_key_changes_with_what_pbrcheck_leaves_out(tmp_path):
     keys = [s.row_key for s in F.plan([sc], st)[1]]
     assert keys == [s.row_key for s in F.plan([sc], st)[1]]                     # deterministic
     assert not set(keys) & {s.row_key for s in F.plan([left_out], st)[1]}      # every row's key moves
+
+
+def test_a_rerun_under_new_keys_leaves_one_row_file_a_slot(tmp_path, tmp_cache, stand_ins):
+    """--resume after a change of every row's key (here the truth's spp): the new rows replace the old
+    files of the same scenario x renderer (before, both stayed in rows/); a row file of a scenario
+    outside the run stays."""
+    cfg = _config(tmp_path, [{"name": "q", "model": "assets/q.gltf", "lighting": "neutral", "orbit": {"radius": 3}}])
+    out = tmp_path / "out"
+    first = F.run_fidelity(cfg, _settings("ext:threejs", "default"), out, progress=False)
+    other = out / "rows" / "0123456789abcdef0123456789abcdef01234567.json"
+    other.write_text(json.dumps({"key": other.stem, "scenario": "another", "renderer": "default"}))
+    st = F.FidelitySettings(tuple(renderers.RendererSpec.parse(n) for n in ("ext:threejs", "default")),
+                            spp=SPP * 2, size=SIZE)
+    second = F.run_fidelity(cfg, st, out, resume=True, progress=False)
+    old, new = {r["key"] for r in first.rows}, {r["key"] for r in second.rows}
+    assert old.isdisjoint(new)
+    assert {f.stem for f in (out / "rows").glob("*.json")} == new | {other.stem}

@@ -33,6 +33,8 @@ API
 - :class:`CorpusSettings` -- what is rendered (renderers as :class:`compare.renderers.RendererSpec`).
 - :func:`plan` -- the task graph and the rows it yields.
 - :func:`code_identity` -- what of a renderer's (or the reference's) code its pixels depend on.
+- :func:`resumed_rows`, :class:`RowWriter`, :func:`prune_superseded` -- rows on disk (shared with ``fidelity``):
+  resumed, written as they finish, and a slot's row under an old key removed at the end of a run.
 - :func:`run_corpus` -- run, write rows as they arrive, then the tables and plots; returns a
   :class:`CorpusResult`.
 - :data:`ROW_COLUMNS`, :data:`TIMING_COLUMNS` -- the columns of ``corpus.csv``.
@@ -308,6 +310,33 @@ def resumed_rows(rows_dir: Path, slots) -> dict[str, dict]:
     return done
 
 
+def _row_identity(row: dict) -> tuple:
+    """What a row is a row of: (its environment or scenario, its renderer)."""
+    return (row.get("scenario", row.get("environment")), row.get("renderer"))
+
+
+def prune_superseded(rows_dir: Path, rows: list[dict]) -> int:
+    """Remove from ``rows_dir`` the row files a run's ``rows`` supersede: a file of the same
+    environment or scenario and renderer as one of ``rows`` under another key (a row re-rendered
+    under a new key, e.g. after a code change, left its old file behind: ``--resume`` never reads it
+    again, but the folder would hold two rows of one slot). Files of slots outside this run (a
+    ``--scenarios`` subset) and unreadable files are left alone. Returns the number removed."""
+    keep = {r["key"] for r in rows}
+    mine = {_row_identity(r) for r in rows}
+    removed = 0
+    for f in sorted(Path(rows_dir).glob("*.json")) if Path(rows_dir).is_dir() else ():
+        if f.stem in keep:
+            continue
+        try:
+            row = json.loads(f.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(row, dict) and _row_identity(row) in mine:
+            f.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
 @dataclass
 class RowWriter:
     """Writes a run's rows as they finish (``corpus``, ``fidelity``): each atomically to
@@ -425,6 +454,7 @@ def run_corpus(source: str | Path, settings: CorpusSettings, out_dir: str | Path
             for s in slots_left:
                 write(make_row(s, Failed("task", "no result came back from the scheduler")))
     rows = [done[s.row_key] for s in slots]
+    prune_superseded(rows_dir, rows)  # a slot's earlier row under an old key
     env_keys = {s.entry.name: _keys(settings, s.entry, s.renderer)[0] for s in slots}
     summary = summarize(rows, settings, env_keys)
     files = write_outputs(out, rows, settings, summary, ROW_COLUMNS) if outputs else {}
