@@ -19,7 +19,9 @@ warm (one untimed render first, which compiles), median of ``RENDER_REPEATS`` al
   cache lookup, launch, run): ``bsdf_kernel_ratio`` is the ratio without tracing, which is what a
   render pays (the integrator traces the BSDF once per pass, not once per sample);
   ``bsdf_speed_ratio_pass_width``: the same ratio at a render pass's width
-  (:func:`reference.integrator.max_lanes`: 2^26 lanes on CUDA, 2^23 on LLVM), tracing included.
+  (:func:`reference.integrator.max_lanes`: 2^26 lanes on CUDA, 2^23 on LLVM), tracing included;
+  ``bsdf_speed_ratio_frozen``: ``pbr_material`` through ``dr.freeze``
+  (:class:`reference.frozen.FrozenSampleEval`: recorded once, replayed without tracing).
 * ``material_gather``: the local estimator with every ``pbr_material`` gathered per lane
   (:class:`reference.bsdf.MaterialView`, the default) against Mitsuba's per-material dispatch, which
   traces the lobes once per material (30 on ``spheres``): warm seconds of a small render
@@ -202,8 +204,10 @@ def _time_renders(scene, spp, mscene, env, repeats):
             for mode, r in runs.items()}
 
 
-def _time_bsdf(bsdf, lanes, repeats):
-    """(seconds per lane in total, tracing seconds per call, kernel seconds per call): medians."""
+def _time_bsdf(bsdf, lanes, repeats, frozen: bool = False):
+    """(seconds per lane in total, tracing seconds per call, kernel seconds per call): medians.
+    ``frozen``: through :class:`reference.frozen.FrozenSampleEval` (recorded on the compile run,
+    replayed after: "tracing" is then the replay's launch of the recorded kernels)."""
     mi, dr = _mi()
     rng = np.random.default_rng(0)
     wi = rng.normal(size=(lanes, 3)).astype(np.float32)
@@ -215,12 +219,13 @@ def _time_bsdf(bsdf, lanes, repeats):
     u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
     dr.eval(si, u1, u2)
     dr.sync_thread()
-    ctx = mi.BSDFContext()
+    from .frozen import FrozenSampleEval
+
+    fse = FrozenSampleEval(bsdf, freeze=frozen)
     total, trace, kernel = [], [], []
     for k in range(repeats + 1):
         t0 = time.perf_counter()
-        bs, w = bsdf.sample(ctx, si, u1, u2)
-        f, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+        bs, w, f, pdf = fse(si, u1, u2)
         t1 = time.perf_counter()
         dr.eval(w, f, pdf)
         dr.sync_thread()
@@ -543,6 +548,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
     repeats = 3 if quick else BSDF_REPEATS
     s_cpp, tr_cpp, k_cpp = _time_bsdf(cpp, lanes, repeats)
     s_py, tr_py, k_py = _time_bsdf(py, lanes, repeats)
+    s_fz, tr_fz, k_fz = _time_bsdf(py, lanes, repeats, frozen=True)   # issue 39: the frozen BSDF path
     # ... and at a render's pass width (reference.integrator.max_lanes: 2^26 lanes on CUDA, 2^23 on
     # LLVM), where the integrator traces the BSDF once per pass: the ratio a render pays
     from .integrator import max_lanes
@@ -570,6 +576,7 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "integrator_efficiency": (v_path * t_path) / (v_local * t_local),
         "integrator_efficiency_cpu_seconds": (v_path * c_path) / (v_local * c_local),
         "bsdf_speed_ratio": s_cpp / s_py,
+        "bsdf_speed_ratio_frozen": s_cpp / s_fz,
         "bsdf_kernel_ratio": k_cpp / k_py,
         "bsdf_speed_ratio_pass_width": sp_cpp / sp_py,
         "seconds_to_10x_noise_floor": seconds_floor,
@@ -618,8 +625,8 @@ def run_bench(quick: bool = False, envmap: str | None = None) -> dict:
         "bsdf_timed": "sample + eval_pdf per lane, median of repeats after a compile run",
         "roughconductor_seconds_per_sample": s_cpp,
         "pbr_material_seconds_per_sample": s_py,
-        "bsdf_trace_seconds": {"roughconductor": tr_cpp, "pbr_material": tr_py},
-        "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py},
+        "bsdf_trace_seconds": {"roughconductor": tr_cpp, "pbr_material": tr_py, "pbr_material_frozen": tr_fz},
+        "bsdf_kernel_seconds": {"roughconductor": k_cpp, "pbr_material": k_py, "pbr_material_frozen": k_fz},
         "peer_roughness": PEER_ROUGHNESS,
         "material_gather": gather,
         "asset": asset,

@@ -17,7 +17,14 @@ frozen 0.209. On the CPU the pass is bound by its kernel and the replay's traver
 costs about what the trace saved; hence opt-in (``ReferenceIntegrator.freeze``) until a GPU, where
 tracing is the larger share, measures it (issue 39).
 
-API: :func:`jit_state`.
+**The BSDF evaluation path** (:class:`FrozenSampleEval`): one BSDF's ``sample`` then
+``eval_pdf`` of the sampled direction (what the estimator asks of a BSDF per sample, and what
+``pbrcheck bench reference`` times as ``bsdf_speed_ratio``) through ``dr.freeze``, the BSDF's arrays
+as inputs and its Python structure (mirror limit, model, lobes) as a hashed key: a BSDF whose
+structure changes records anew. Bit for bit the traced values (``tests/test_reference_speed.py``).
+The differentiable fits' steps: :class:`reference.diff.GradientStep`.
+
+API: :func:`jit_state`, :func:`structure_key`, :class:`FrozenSampleEval`.
 """
 
 from __future__ import annotations
@@ -55,4 +62,37 @@ def jit_state(obj, out: list | None = None, seen: set | None = None) -> list:
     return out
 
 
-__all__ = ["OWN_MODULES", "jit_state"]
+def structure_key(bsdf) -> tuple:
+    """The Python-level structure of a BSDF that selects other code (a frozen function's hashed key):
+    its class, mirror-limit flag, scene-wide model and glTF lobes (``reference.bsdf.PBRMaterial``)."""
+    return (type(bsdf).__name__, getattr(bsdf, "delta", None), bsdf.model() if hasattr(bsdf, "model") else None,
+            getattr(getattr(bsdf, "lobes", None), "used", None))
+
+
+class FrozenSampleEval:
+    """``(bs, weight, f, pdf) = fse(si, u1, u2)``: ``bsdf.sample(ctx, si, u1, u2)`` and
+    ``bsdf.eval_pdf(ctx, si, bs.wo)`` of one BSDF (module docstring), frozen (``freeze``, default)
+    or traced; ``n_recordings``: how often the frozen function recorded."""
+
+    def __init__(self, bsdf, freeze: bool = True):
+        self.bsdf = bsdf
+        self.freeze = bool(freeze)
+        self._frozen = dr.freeze(self._run) if self.freeze else None
+
+    @staticmethod
+    def _run(bsdf, si, u1, u2, state, key):
+        ctx = mi.BSDFContext()
+        bs, w = bsdf.sample(ctx, si, u1, u2)
+        f, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+        return bs, w, f, pdf
+
+    @property
+    def n_recordings(self) -> int:
+        return int(self._frozen.n_recordings) if self._frozen is not None else 0
+
+    def __call__(self, si, u1, u2):
+        fn = self._frozen if self.freeze else self._run
+        return fn(self.bsdf, si, u1, u2, jit_state([self.bsdf]), structure_key(self.bsdf))
+
+
+__all__ = ["FrozenSampleEval", "OWN_MODULES", "jit_state", "structure_key"]

@@ -68,3 +68,54 @@ def test_frozen_pass_equals_the_traced_one_and_a_changed_scene_is_not_stale():
         outs[name] = want
     assert frozen._frozen is not None and frozen._frozen.n_recordings >= 1
     assert np.abs(outs["first"][..., :3] - outs["other"][..., :3]).max() > 0.05  # the replay is not stale
+
+
+def test_frozen_bsdf_path_equals_the_traced_one_and_records_again_for_another_structure():
+    """reference.frozen.FrozenSampleEval (issue 39): a pbr_material's sample + eval_pdf replayed by
+    dr.freeze equals the traced values bit for bit; new parameter values replay (their own values, not
+    the recording's); a mirror-limit roughness (another lobe's code) records anew."""
+    import numpy as np
+
+    from reference.frozen import FrozenSampleEval
+
+    mi, dr = rr._mi()
+    bsdf = mi.load_dict({"type": "pbr_material", "base_color": [0.8, 0.6, 0.4], "metallic": 0.3, "roughness": 0.5})
+    params = mi.traverse(bsdf)
+    lanes = 4096
+    rng = np.random.default_rng(0)
+    wi = rng.normal(size=(lanes, 3)).astype(np.float32)
+    wi[:, 2] = np.abs(wi[:, 2]) + 1e-3
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    si = dr.zeros(mi.SurfaceInteraction3f, lanes)
+    si.wi = mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2])
+    u1 = mi.Float(rng.random(lanes, dtype=np.float32))
+    u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
+    frozen, traced = FrozenSampleEval(bsdf), FrozenSampleEval(bsdf, freeze=False)
+
+    def both():
+        a, b = traced(si, u1, u2), frozen(si, u1, u2)
+        out = []
+        for x, y in zip((a[0].wo, a[1], a[2], a[3]), (b[0].wo, b[1], b[2], b[3])):
+            x, y = np.array(x), np.array(y)
+            assert np.array_equal(x, y, equal_nan=True)
+            out.append(y)
+        return out
+
+    key = next(k for k in params.keys() if k.endswith("roughness"))
+
+    def roughness(r):
+        params[key] = mi.Float(r)
+        params.update()
+        return both()
+
+    both()
+    # dr.freeze(auto_opaque): a literal that changes between calls is made opaque, once
+    roughness(0.4)
+    first = roughness(0.3)
+    n = frozen.n_recordings
+    assert 1 <= n <= 2
+    other = roughness(0.2)
+    assert frozen.n_recordings == n
+    assert not np.array_equal(other[2], first[2])   # the new roughness's values, not a stale replay
+    roughness(0.001)   # below the mirror limit: PBRMaterial.delta
+    assert frozen.n_recordings == n + 1
