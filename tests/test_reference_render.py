@@ -254,10 +254,10 @@ def test_cli_reference_and_bench(tmp_path, tmp_cache, capsys):
     capsys.readouterr()
     assert main(["bench", "reference", "--quick"]) == 0
     res = json.loads(capsys.readouterr().out)
-    for k in ("integrator_efficiency", "bsdf_speed_ratio", "bsdf_speed_ratio_pass_width", "local_seconds", "path_seconds", "spp",
+    for k in ("integrator_efficiency", "bsdf_speed_ratio", "bsdf_speed_ratio_pass_width", "bsdf_speed_ratio_frozen", "local_seconds", "path_seconds", "spp",
               "resolution", "variant"):
         assert k in res, k
-    assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0
+    assert res["integrator_efficiency"] > 0 and res["bsdf_speed_ratio"] > 0 and res["bsdf_speed_ratio_frozen"] > 0
     g = res["material_gather"]
     assert g["materials"] == 30 and g["gathered"]["render_seconds"] > 0 and g["per_instance"]["grad_step_seconds"] > 0
     assert res["material_gather_render_speedup"] == g["render_speedup"] > 0
