@@ -24,6 +24,8 @@ API
 - :func:`is_transmissive`, :func:`reference_renders` (whether the reference's path mode renders a
   transmissive glTF material), :func:`reference_refusal` (why not, in words), :func:`has_varying`,
   :data:`VARYING_SLOTS`, :data:`READ_SLOTS` (the textures it reads per hit).
+- :data:`TRANSMISSIVE_LOBE_EXTENSIONS` -- the lobe extensions the reference's transmissive BSDF
+  renders; :func:`lobes_left_out` -- the active others on a material it renders transmissive.
 - :func:`parse_ior` -- ``KHR_materials_ior``'s ``ior`` (>= 1, or 0), typed error naming the pointer.
 - :func:`abbe_number`, :func:`dispersion_ior` -- the IOR at a wavelength from ``dispersion`` (the
   README's Cauchy form).
@@ -60,7 +62,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .lobe_params import _Fields, _is_number, _lobe_textures, describe_extensions, parse_extensions
+from .lobe_params import IRIDESCENCE, LOBE_EXTENSIONS, _Fields, _is_number, _lobe_textures, describe_extensions, parse_extensions
+from .lobe_params import scene_features as lobe_scene_features
 
 TRANSMISSION, VOLUME = "KHR_materials_transmission", "KHR_materials_volume"
 DISPERSION, DIFFUSE_TRANSMISSION = "KHR_materials_dispersion", "KHR_materials_diffuse_transmission"
@@ -212,6 +215,32 @@ def reference_refusal(material) -> str:
     if slots:
         why.append(f"textures it does not read per hit: {', '.join(slots)}")
     return "; ".join(why) or "a material its path mode does not take"
+
+
+#: The glTF lobe extensions (:data:`pbrcheck.lobe_params.LOBE_EXTENSIONS`) the reference's transmissive
+#: BSDF (``reference.transmission``: ``pbr_transmissive`` and its textured variant) renders: the
+#: iridescent film on the interface. Its other lobes' factors (clearcoat, sheen, KHR_materials_specular,
+#: anisotropy) it does not take: :func:`lobes_left_out` names them, so the honesty contract records
+#: them for those materials instead of dropping them silently.
+TRANSMISSIVE_LOBE_EXTENSIONS: tuple[str, ...] = (IRIDESCENCE,)
+
+
+def lobes_left_out(material) -> tuple[str, ...]:
+    """The active lobe extensions of ``material`` (a glTF material, or a scene file's material) that the
+    reference leaves out because it renders the material with its transmissive BSDF: those outside
+    :data:`TRANSMISSIVE_LOBE_EXTENSIONS`, in :data:`pbrcheck.lobe_params.LOBE_EXTENSIONS`' order; ``()``
+    for a material it renders opaque (there the lobes are rendered and the transmission is named:
+    :func:`reference_refusal`) or one that lets no light through."""
+    if hasattr(material, "khr_specular"):   # a glTF material: the lobe objects, None when absent
+        if not reference_renders(material):
+            return ()
+        used = [e for e, (field, _) in LOBE_EXTENSIONS.items()
+                if getattr(material, field, None) is not None and getattr(material, field).active]
+    else:                                   # a scene file's material: the lobe fields' values
+        if not (getattr(material, "transmission", 0.0) > 0.0 or getattr(material, "diffuse_transmission", 0.0) > 0.0):
+            return ()
+        used = list(lobe_scene_features(material))
+    return tuple(e for e in used if e not in TRANSMISSIVE_LOBE_EXTENSIONS)
 
 
 #: Texture slot -> the channels the extension reads (its README).

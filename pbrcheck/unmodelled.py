@@ -18,7 +18,11 @@ The transmission extensions (:data:`pbrcheck.transmission_params.MODELLED_TRANSM
 modelled, except on a glTF material the reference's path mode renders opaque
 (:func:`pbrcheck.transmission_params.reference_renders` false: its alpha mode, unlit, a texture it does
 not read per hit): there the extension the material uses is recorded for that material alone, its
-notice saying why (:func:`pbrcheck.transmission_params.reference_refusal`).
+notice saying why (:func:`pbrcheck.transmission_params.reference_refusal`). Conversely, on a material
+the reference renders transmissive, the lobe extensions its transmissive BSDF does not take
+(:func:`pbrcheck.transmission_params.lobes_left_out`: clearcoat, sheen, KHR_materials_specular,
+anisotropy; modelled on opaque materials) are recorded for that material alone
+(:func:`transmissive_lobes_left_out`, notice :data:`TRANSMISSIVE_LOBE`).
 
 API
 ---
@@ -49,7 +53,8 @@ from pathlib import Path
 from .fmt import terminal_safe
 from .lobe_params import MODELLED_LOBE_EXTENSIONS, scene_features
 from .transmission_params import (MODELLED_TRANSMISSION_EXTENSIONS, REFERENCE_RENDERED, TRANSMISSION_EXTENSIONS,
-                                  reference_refusal, reference_renders, scene_features as transmission_scene_features)
+                                  lobes_left_out, reference_refusal, reference_renders,
+                                  scene_features as transmission_scene_features)
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,7 @@ def asset_unmodelled(doc: dict, primitives, material_names, modelled, modelled_c
             if objs:
                 core.append(_record(name, objs, set(), primitives, material_names))
     refused = transmission_refused(primitives, materials, modelled, material_names)
+    refused += transmissive_lobes_left_out(primitives, materials, modelled, material_names)
     if not features:
         return tuple(refused + core)
     materials = _list(doc, "materials")
@@ -193,6 +199,21 @@ def transmission_refused(primitives, materials, modelled, material_names) -> lis
     return out
 
 
+def transmissive_lobes_left_out(primitives, materials, modelled, material_names) -> list[Unmodelled]:
+    """The modelled lobe extensions (in ``modelled``) on loaded glTF ``materials`` the reference renders
+    with its transmissive BSDF, which leaves them out (:func:`pbrcheck.transmission_params.lobes_left_out`):
+    one record per extension, naming those materials and their primitives."""
+    left = {i: lobes_left_out(m) for i, m in enumerate(materials)}
+    out = []
+    for ext in dict.fromkeys(e for es in left.values() for e in es):
+        if ext not in modelled:   # unmodelled everywhere: asset_unmodelled names it already
+            continue
+        mats = {i for i, es in left.items() if ext in es}
+        objs = {k for k, p in enumerate(primitives) if p.material in mats}
+        out.append(_record(ext, objs, mats, primitives, material_names))
+    return out
+
+
 def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
     """The unmodelled features of every glTF asset of ``scene``, ``objects`` as scene object ids
     (an instance's primitive ``k`` is object ``first_id + k``), ``asset`` the file's path; then
@@ -212,6 +233,9 @@ def scene_unmodelled(scene) -> tuple[Unmodelled, ...]:
         if getattr(o, "type", "") in ("sphere", "plane"):
             for f in (*scene_features(o.material), *transmission_scene_features(o.material)):
                 if f not in MODELLED_LOBE_EXTENSIONS and f not in MODELLED_TRANSMISSION_EXTENSIONS:
+                    analytic.setdefault(f, []).append(o)
+            for f in lobes_left_out(o.material):   # modelled, but not by the transmissive BSDF
+                if f in MODELLED_LOBE_EXTENSIONS:
                     analytic.setdefault(f, []).append(o)
     for f, objs in analytic.items():
         out.append(Unmodelled(f, tuple(o.name for o in objs), tuple(o.id for o in objs), getattr(scene, "source", "")))
@@ -246,6 +270,8 @@ def notice_lines(asset) -> list[str]:
 PARTLY_RENDERED = "rendered in part: by the reference in path mode only, not by the real-time image"
 #: What a notice says of a modelled transmission extension on a material the reference renders opaque.
 REFERENCE_REFUSED = "the reference renders these materials opaque ({why})"
+#: What a notice says of a modelled lobe extension on a material the reference renders transmissive.
+TRANSMISSIVE_LOBE = "the reference's transmissive BSDF leaves it out on these transmissive materials"
 
 
 def _what_is_left_out(asset, u) -> str:
@@ -259,6 +285,8 @@ def _what_is_left_out(asset, u) -> str:
         return REFERENCE_REFUSED.format(why=why or "its path mode does not take these materials")
     if u.feature in REFERENCE_RENDERED and mats and all(reference_renders(m) for m in mats):
         return PARTLY_RENDERED
+    if u.feature in MODELLED_LOBE_EXTENSIONS and mats and all(u.feature in lobes_left_out(m) for m in mats):
+        return TRANSMISSIVE_LOBE
     return "the reference and the real-time image leave it out"
 
 
@@ -303,7 +331,9 @@ def announce_scene(scene):
         _NOTICES["seen"].add(key)
         # the transmission extensions of analytic objects: the reference's path mode renders them (issue 37);
         # named here only while MODELLED_TRANSMISSION_EXTENSIONS lacks them
-        what = (PARTLY_RENDERED if u.feature in REFERENCE_RENDERED else "the reference and the real-time image leave it out")
+        what = (PARTLY_RENDERED if u.feature in REFERENCE_RENDERED
+                else TRANSMISSIVE_LOBE if u.feature in MODELLED_LOBE_EXTENSIONS   # recorded only there
+                else "the reference and the real-time image leave it out")
         print(f"pbrcheck: {name}: not modelled: {terminal_safe(u.feature)} (objects: {materials_text(u.materials)}): "
               f"{what}; a gate check of it is not judged", file=stream)
     return scene

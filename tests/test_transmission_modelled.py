@@ -86,3 +86,45 @@ def test_the_fixture_restores_the_contract_with_transmission_unmodelled(tmp_path
                                       "material": {"transmission": 1.0}}]})
     ex = export_scene(s, tmp_path / "e")
     assert [f for f, _ in ex.unmodelled] == [tp.TRANSMISSION]
+
+
+def test_lobes_the_transmissive_bsdf_leaves_out_are_named_for_those_materials(tmp_path):
+    """A constant clearcoat / sheen / KHR_materials_specular / anisotropy factor on a material the
+    reference renders transmissive is not in its transmissive BSDF: recorded (for that material alone,
+    the notice saying so), never dropped silently; the iridescent film, which it renders, is not; a
+    transmissive material the reference renders opaque keeps the lobes (its transmission is named)."""
+    import io
+
+    from pbrcheck import unmodelled as um
+    from pbrcheck.lobe_params import ANISOTROPY, CLEARCOAT, IRIDESCENCE, SHEEN, SPECULAR
+
+    lobes = {CLEARCOAT: {"clearcoatFactor": 0.8}, SHEEN: {"sheenColorFactor": [0.5, 0.5, 0.5]},
+             SPECULAR: {"specularFactor": 0.5}, ANISOTROPY: {"anisotropyStrength": 0.6},
+             IRIDESCENCE: {"iridescenceFactor": 1.0}}
+    a = load_asset(_quad(tmp_path, "coated", extensions=dict(lobes)))
+    assert tp.lobes_left_out(a.materials[0]) == (CLEARCOAT, SHEEN, SPECULAR, ANISOTROPY)
+    assert a.unmodelled == tuple(Unmodelled(e, ("coated",), (0,)) for e in (CLEARCOAT, SHEEN, SPECULAR, ANISOTROPY))
+    assert notice_lines(a)[0] == (f"pbrcheck: coated.gltf: not modelled: {CLEARCOAT} (materials: coated): "
+                                  f"{um.TRANSMISSIVE_LOBE}; a gate check of it is not judged")
+    film = load_asset(_quad(tmp_path, "film", extensions={IRIDESCENCE: {"iridescenceFactor": 1.0}}))
+    assert film.unmodelled == () and tp.lobes_left_out(film.materials[0]) == ()
+    neutral = load_asset(_quad(tmp_path, "neutral", extensions={CLEARCOAT: {"clearcoatFactor": 0.0}}))
+    assert neutral.unmodelled == ()   # a disabled layer is not a lobe
+    opaque = load_asset(_quad(tmp_path, "unlitcoat", extensions={"KHR_materials_unlit": {}, CLEARCOAT: {"clearcoatFactor": 1.0}}))
+    assert [u.feature for u in opaque.unmodelled] == [tp.TRANSMISSION]
+
+    s = scene_from_dict({"camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "width": 8, "height": 6},
+                         "environment": {"type": "constant"},
+                         "objects": [{"type": "sphere", "center": [-1, 0, 0], "radius": 0.5, "name": "glass",
+                                      "material": {"transmission": 1.0, "clearcoat": 0.5, "iridescence": 1.0}},
+                                     {"type": "sphere", "center": [1, 0, 0], "radius": 0.5, "name": "paint",
+                                      "material": {"clearcoat": 0.5}}]}, file="coated.toml")
+    assert [(u.feature, u.materials) for u in s.unmodelled] == [(CLEARCOAT, ("glass",))]
+    out = io.StringIO()
+    um.start_notices(out)
+    try:
+        um.announce_scene(s)
+    finally:
+        um.stop_notices()
+    assert out.getvalue() == (f"pbrcheck: coated.toml: not modelled: {CLEARCOAT} (objects: glass): "
+                              f"{um.TRANSMISSIVE_LOBE}; a gate check of it is not judged\n")
