@@ -76,7 +76,7 @@ from .presets import (
     unmet_requirements,
 )
 from .transmission import raycast_notice as transmission_notice
-from .transmission import object_transmission_rows, scene_transmissive, transmission_defines
+from .transmission import object_transmission_rows, scene_transmissive, transmission_defines, transmission_meta
 from .registry import (DFGS, ENERGY_COMPENSATIONS, HORIZON_OCCLUSIONS, IRRADIANCE_METHODS, IRRADIANCES,
                        RUNTIME_SAMPLINGS, SHADINGS, SPECULAR_AAS, SPECULAR_OCCLUSIONS, role_reads)
 
@@ -774,6 +774,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
             meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
             meta["pipeline"] = pipeline
             _lobe_meta(meta, ldefs)
+            meta.update(transmission_meta(tdefs, o, pipeline))
             return _image(color, aov, obj, meta)
         t0 = time.perf_counter()
         prog = compute_program("render.comp", defines, (hooks.path, hooks.text) if hooks else None)
@@ -803,6 +804,7 @@ def render_realtime(scene: Scene, preset: str = "default", options: RealtimeOpti
     meta = _frame_meta(scene, preset, o, terms, timings, cached_before, fmt, warnings, hooks)
     meta["pipeline"] = pipeline
     _lobe_meta(meta, ldefs)
+    meta.update(transmission_meta(tdefs, o, pipeline))
     return _image(color, aov, obj, meta)
 
 

@@ -54,10 +54,13 @@ API
 :func:`volume_attenuation`, :func:`dispersion_iors`, :func:`ior_from_f0`, :func:`mip_count`,
 :data:`TRANSMISSION_SOURCES`, :func:`filament_refraction_roughness`, :func:`refraction_direction`,
 :func:`object_transmission_rows`, :func:`scene_transmissive`, :func:`transmission_defines`,
-:func:`raycast_notice` (now: a composition other than ``material``).
+:func:`raycast_notice` (now: a composition other than ``material``), :func:`transmission_source_used`,
+:func:`transmission_meta` (the source a render used, in its metadata).
 """
 
 from __future__ import annotations
+
+import json
 
 import math
 
@@ -219,6 +222,24 @@ def scene_transmissive(scene) -> bool:
     return False
 
 
+def transmission_source_used(o, pipeline: str) -> str:
+    """The member of :data:`TRANSMISSION_SOURCES` a render uses: the option's in the raster pipeline;
+    ``cubemap`` in the ray-cast one, which has no opaque pass to read (whatever the option says)."""
+    return o.transmission_source if pipeline == "raster" else "cubemap"
+
+
+def transmission_meta(tdefs: dict, o, pipeline: str) -> dict:
+    """``meta["transmission"]`` of a render whose programs hold transmission (``tdefs``, :func:`transmission_defines`):
+    the source it used (:func:`transmission_source_used`, not only the option requested, which
+    ``meta["options"]`` keeps), the option requested, the LOD rule, whether the source is per object;
+    ``{}`` for a render without transmission (its metadata is what it was)."""
+    if not tdefs:
+        return {}
+    return {"transmission": json.dumps({"source": transmission_source_used(o, pipeline),
+                                        "source_requested": o.transmission_source, "lod": o.transmission_lod,
+                                        "per_object": bool(tdefs.get("TRANSMISSION_PER_OBJECT"))}, sort_keys=True)}
+
+
 def transmission_defines(scene, o, pipeline: str) -> dict:
     """``TRANSMISSION``, the ``TRANSMISSION_LOD`` and ``TRANSMISSION_SOURCE`` members (the ray-cast
     pipeline: ``cubemap`` and ``TRANSMISSION_PER_OBJECT``) for a render of a scene with a transmissive
@@ -226,7 +247,7 @@ def transmission_defines(scene, o, pipeline: str) -> dict:
     transmission-free one)."""
     if o.shading != "material" or not scene_transmissive(scene):
         return {}
-    source = o.transmission_source if pipeline == "raster" else "cubemap"
+    source = transmission_source_used(o, pipeline)
     out = {"TRANSMISSION": 1, **TRANSMISSION_LODS.constants(), **TRANSMISSION_LODS.select(o.transmission_lod),
            **TRANSMISSION_SOURCES.constants(), **TRANSMISSION_SOURCES.select(source)}
     if pipeline != "raster":

@@ -7,6 +7,8 @@ names what it leaves out."""
 
 from __future__ import annotations
 
+import json
+
 import math
 import re
 import shutil
@@ -188,6 +190,16 @@ def test_raycast_renders_transmission_and_auto_takes_the_raster_pipeline():
     karis = render_realtime(scene, "default", {**SMALL, "pipeline": "raycast", "shading": "article000"},
                             progress=False)
     assert "transmission_unmodelled: shading=article000 renders transmissive materials opaque" in karis.meta["warnings"]
+    # the metadata says which source each render read, not only the option requested (screen, the default)
+    assert json.loads(img.meta["transmission"]) == {"source": "cubemap", "source_requested": "screen",
+                                                    "lod": img_lod(img), "per_object": True}
+    assert json.loads(auto.meta["transmission"])["source"] == "screen"
+    assert json.loads(auto.meta["transmission"])["per_object"] is False
+    assert "transmission" not in plain.meta and "transmission" not in karis.meta
+
+
+def img_lod(img) -> str:
+    return json.loads(img.meta["options"])["transmission_lod"]
 
 
 # ---- known answers in the raster pipeline ---------------------------------------------------------
