@@ -353,6 +353,27 @@ def is_mirror_limit(roughness):
     return dr.maximum(roughness * roughness, MIN_ALPHA) < DELTA_LOBE_ALPHA
 
 
+def table_indices(n: int) -> tuple:
+    """``(arange(n), [opaque j for j < n])``: the indices of :func:`material_table` (made per call:
+    a variable kept between calls would not be an input of a frozen pass, ``reference.frozen``)."""
+    return dr.arange(mi.UInt32, n), [dr.opaque(mi.UInt32, j) for j in range(n)]
+
+
+def material_table(tp, values, indices):
+    """``(len(values),)`` array of type ``tp`` whose entry j is ``values[j]`` (one Dr.Jit value per
+    material; ``indices``: :func:`table_indices`), differentiable in each value: the sum over j of
+    ``select(k == j, values[j], 0)``, j opaque. Exactly the values (one term of each lane is not zero).
+    Why not a chain ``t = select(k == j, v_j, t)``: its adjoint routes value j's gradient through the
+    n - j selects after it, so each material's backward kernel had its own length (``pbrcheck
+    report``'s fit-roughness compiled 30 of them for spheres' 30 materials); the sum's adjoint is the
+    same kernel for every j."""
+    k, idx = indices
+    t = dr.zeros(tp, len(values))
+    for j, v in enumerate(values):
+        t = t + dr.select(k == idx[j], tp(v), 0.0)
+    return t
+
+
 class MaterialView(PBRLobes):
     """Every ``pbr_material`` of a scene as one set of per-lane parameters, gathered by the shape
     each lane hit, so the lobes are traced once per call site instead of once per material.
@@ -404,17 +425,14 @@ class MaterialView(PBRLobes):
         # The tables: entry k = material k's value, built by selects (one kernel for the four, where a
         # scatter per material launched a kernel each: 120 per view, ~400 per differentiable step on
         # spheres, measured with Dr.Jit's kernel history); differentiable like the scatters were.
-        k = dr.arange(mi.UInt32, n)
+        ij = table_indices(n)
 
         def table_of(tp, name):
-            t = dr.zeros(tp, n)
-            for j, m in enumerate(mats):
-                t = dr.select(k == j, tp(getattr(m, name)), t)
-            return t
+            return material_table(tp, [getattr(m, name) for m in mats], ij)
 
         names = ((mi.Color3f, "base_color"), (mi.Float, "metallic"), (mi.Float, "roughness"), (mi.Float, "specular"))
         tables = [table_of(tp, name) for tp, name in names]
-        lobes = lobe_bsdf.view_tables(mats, k)   # the lobes some material uses (materials without: neutral)
+        lobes = lobe_bsdf.view_tables(mats, ij)   # the lobes some material uses (materials without: neutral)
         dr.eval(*tables, *(lobes[1].values() if lobes else ()))
         view = cls(model, *(dr.gather(tp, t, idx, active) for (tp, _), t in zip(names, tables)))
         if lobes:

@@ -46,6 +46,7 @@ import numpy as np
 from pbrcheck.environment import load_environment
 from pbrcheck.scene import Scene
 
+from .jit_input import aligned
 from .render import _mi, scene_dict
 
 DEFAULT_DIFF_DEPTH = 2
@@ -179,7 +180,7 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
     mi, dr = _mi()
     loss_fn = loss_fn or mse_loss
     bounds = clamp if isinstance(clamp, dict) else {k: clamp for k in keys}
-    tgt = mi.TensorXf(np.asarray(target, dtype=np.float32))
+    tgt = mi.TensorXf(aligned(target, np.float32))   # (reference.jit_input: one kernel whatever numpy's alignment)
     opt = mi.ad.Adam(lr=lr)
     for k in keys:
         opt[k] = params[k]
@@ -188,6 +189,8 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
     kept: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     n = min(int(average_last), iterations)
     step = GradientStep(mscene, params, keys, loss_fn, spp=spp, freeze=freeze)
+    # the bounds opaque: one clip kernel whatever each object's bracket (issue 39: compiled kernels)
+    lims = {k: tuple(dr.opaque(type(params[k]), float(b)) for b in bounds[k]) for k in keys}
     for it in range(iterations):
         if lr_final is not None and iterations > 1:
             opt.set_learning_rate(lr * (lr_final / lr) ** (it / (iterations - 1)))
@@ -198,7 +201,7 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
         keep = n > 1 and it >= iterations - n  # only the averaged iterates are read back
         # clipped together: the optimizer makes each value it is given opaque, one kernel per key
         # when given unevaluated values (30 a step on spheres)
-        clipped = {k: dr.clip(opt[k], *bounds[k]) for k in keys}
+        clipped = {k: dr.clip(opt[k], *lims[k]) for k in keys}
         dr.eval(*clipped.values())
         for k in keys:
             opt[k] = clipped[k]
@@ -210,6 +213,6 @@ def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, it
             history.append({k: np.array(params[k]) for k in keys})
     if n > 1:
         for k in keys:
-            params[k] = type(params[k])(np.mean(kept[k][-n:], axis=0))
+            params[k] = type(params[k])(aligned(np.mean(kept[k][-n:], axis=0), np.float32))
         params.update()
     return losses

@@ -205,9 +205,11 @@ def pixel_centre_rays(sensor, offset=(0.5, 0.5)):
     size = sensor.film().crop_size()
     W, H = int(size[0]), int(size[1])
     idx = dr.arange(mi.UInt32, W * H)
-    y = idx // W
-    x = idx - y * W
-    pos = mi.Point2f((mi.Float(x) + offset[0]) / W, (mi.Float(y) + offset[1]) / H)
+    # the resolution opaque: one kernel for every image size (issue 39: compiled kernels per report)
+    y = Divisor(W).div(idx)
+    iw, ih = (dr.opaque(mi.Float, float(np.float32(1.0) / np.float32(v))) for v in (W, H))
+    x = idx - y * dr.opaque(mi.UInt32, W)
+    pos = mi.Point2f((mi.Float(x) + offset[0]) * iw, (mi.Float(y) + offset[1]) * ih)
     ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5))
     return ray, idx
 
@@ -858,10 +860,12 @@ class ReferenceIntegrator(RBIntegrator):
                             sampler.advance()
                         L, hit = self._pass(scene, sensor, sampler, per, ids)
                         dr.eval(L, hit)  # one kernel (see render)
-                        p1 = dr.block_sum(L, per)
+                        # channel by channel: a Color3f's block sum first packs its three arrays into
+                        # one buffer in a kernel whose offsets are literals (one compile per pass size)
+                        p1 = [dr.block_sum(L[c], per) for c in range(3)]
                         ph = dr.block_sum(dr.select(hit, mi.Float(1.0), 0.0), per)
                         dr.eval(p1, ph)
-                        y[:, r0:r1, :] += np.array(p1, dtype=np.float64).reshape(3, r1 - r0, m)
+                        y[:, r0:r1, :] += np.stack([np.array(p, dtype=np.float64) for p in p1]).reshape(3, r1 - r0, m)
                         hits += np.array(ph, dtype=np.float64).reshape(r1 - r0, m).sum(0)
                         if self.progress is not None:
                             self.progress(per * m * (r1 - r0) / npix)

@@ -277,9 +277,9 @@ def lobes_of_material(material) -> dict:
     return out
 
 
-def view_tables(mats, k):
+def view_tables(mats, indices):
     """``(used, {prop: table})`` of the materials ``mats`` (entry j = material j's value, its neutral
-    value where material j lacks the lobe; ``k`` = ``arange(n)``), or None where none has a lobe
+    value where material j lacks the lobe; ``indices``: ``reference.bsdf.table_indices(n)``), or None where none has a lobe
     (:meth:`reference.bsdf.MaterialView.gather`)."""
     used = {lobe for m in mats if getattr(m, "lobes", None) is not None for lobe in m.lobes.used}
     if not used:
@@ -288,11 +288,9 @@ def view_tables(mats, k):
     tables = {}
     for p in proto.props():
         tp = LobeParams.props_type(p)
-        t = dr.zeros(tp, len(mats))
-        for j, m in enumerate(mats):
-            has = m.lobes is not None and p in m.lobes.values
-            t = dr.select(k == j, tp(m.lobes.values[p] if has else proto.neutral(p)), t)
-        tables[p] = t
+        from .bsdf import material_table   # (bsdf imports this module)
+        tables[p] = material_table(tp, [m.lobes.values[p] if m.lobes is not None and p in m.lobes.values
+                                        else proto.neutral(p) for m in mats], indices)
     return proto.used, tables
 
 

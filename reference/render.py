@@ -373,13 +373,19 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
     si, hit = past_back_faces(mscene, ray, si, si.is_valid(), culling_table(mscene))
     n = dr.select(hit, si.sh_frame.n, 0.0)
     ndv = dr.select(hit, dr.clip(dr.dot(si.sh_frame.n, -ray.d), 0.0, 1.0), 0.0)
-    obj = dr.full(mi.Float, -1.0, W * H)  # a scene without shapes too
-    for shape in mscene.shapes():
-        idx = shape_index.get(shape.id())
-        if idx is not None:
-            obj = dr.select(hit & (si.shape == mi.ShapePtr(shape)), float(idx), obj)
-    n_np = np.array(n).reshape(3, H, W)
-    return {"N.X": n_np[0], "N.Y": n_np[1], "N.Z": n_np[2],
+    # the object id by a lookup table from the shape's registry id (a kernel input: the same kernel
+    # for every scene, where a select per shape baked the scene's ids into it)
+    shapes = list(mscene.shapes())
+    if shapes:
+        ids = dr.reinterpret_array(mi.UInt32, mscene.shapes_dr())
+        lut = dr.full(mi.Float, -1.0, int(dr.max(ids)[0]) + 1)
+        dr.scatter(lut, mi.Float([float(shape_index.get(s.id(), -1)) for s in shapes]), ids)
+        obj = dr.select(hit, dr.gather(mi.Float, lut, dr.reinterpret_array(mi.UInt32, si.shape), hit), -1.0)
+    else:   # a scene without shapes
+        obj = dr.full(mi.Float, -1.0, W * H)
+    dr.eval(n, ndv, obj)   # one kernel for the five channels (each conversion alone would trace its own)
+    # channel by channel: a Color3f's numpy conversion packs it in a kernel whose offsets are literals
+    return {"N.X": np.array(n.x).reshape(H, W), "N.Y": np.array(n.y).reshape(H, W), "N.Z": np.array(n.z).reshape(H, W),
             "NdotV": np.array(ndv).reshape(H, W), "object": np.array(obj).reshape(H, W)}
 
 

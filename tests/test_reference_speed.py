@@ -12,6 +12,20 @@ ensure_variant()
 from reference import render as rr  # noqa: E402  (needs the variant set)
 from reference.render import render_uncached  # noqa: E402
 
+#: A frozen replay against the traced kernels (issue 39): bit for bit on the CPU (LLVM); on CUDA within
+#: float32 rounding (the recording may fuse and order a kernel's operations otherwise): a few ulps.
+FROZEN_CUDA_RTOL = 1e-5
+
+
+def assert_frozen_equal(got, want):
+    """Equal bit for bit on LLVM, within FROZEN_CUDA_RTOL on CUDA (NaNs equal)."""
+    mi, _ = rr._mi()
+    if mi.variant().startswith("cuda"):
+        np.testing.assert_allclose(got, want, rtol=FROZEN_CUDA_RTOL, atol=1e-7, equal_nan=True)
+    else:
+        np.testing.assert_array_equal(got, want)
+
+
 #: Share of pixel-channels within 1.96 standard deviations that two unbiased, calibrated estimates
 #: reach at least (0.95 expected; 0.85 leaves room for the variance channels' own noise, K = 16).
 WITHIN_MIN = 0.85
@@ -64,7 +78,7 @@ def test_frozen_pass_equals_the_traced_one_and_a_changed_scene_is_not_stale():
         want = np.array(traced.render_groups(ms, sensor, groups, 5, 24, 20))
         got = [np.array(frozen.render_groups(ms, sensor, groups, 5, 24, 20)) for _ in range(3)]
         for g in got:  # the first traced (it fills the caches), the next two replayed
-            np.testing.assert_array_equal(g, want)
+            assert_frozen_equal(g, want)
         outs[name] = want
     assert frozen._frozen is not None and frozen._frozen.n_recordings >= 1
     assert np.abs(outs["first"][..., :3] - outs["other"][..., :3]).max() > 0.05  # the replay is not stale
@@ -72,7 +86,7 @@ def test_frozen_pass_equals_the_traced_one_and_a_changed_scene_is_not_stale():
 
 def test_frozen_bsdf_path_equals_the_traced_one_and_records_again_for_another_structure():
     """reference.frozen.FrozenSampleEval (issue 39): a pbr_material's sample + eval_pdf replayed by
-    dr.freeze equals the traced values bit for bit; new parameter values replay (their own values, not
+    dr.freeze equals the traced values (assert_frozen_equal: bit for bit on the CPU); new parameter values replay (their own values, not
     the recording's); a mirror-limit roughness (another lobe's code) records anew."""
     import numpy as np
 
@@ -97,7 +111,7 @@ def test_frozen_bsdf_path_equals_the_traced_one_and_records_again_for_another_st
         out = []
         for x, y in zip((a[0].wo, a[1], a[2], a[3]), (b[0].wo, b[1], b[2], b[3])):
             x, y = np.array(x), np.array(y)
-            assert np.array_equal(x, y, equal_nan=True)
+            assert_frozen_equal(y, x)
             out.append(y)
         return out
 
@@ -119,3 +133,59 @@ def test_frozen_bsdf_path_equals_the_traced_one_and_records_again_for_another_st
     assert not np.array_equal(other[2], first[2])   # the new roughness's values, not a stale replay
     roughness(0.001)   # below the mirror limit: PBRMaterial.delta
     assert frozen.n_recordings == n + 1
+
+
+def _jit_hashes(fn):
+    """The hashes of the JIT kernels ``fn()`` launches (Dr.Jit's kernel history)."""
+    mi, dr = rr._mi()
+    dr.kernel_history()   # drop what came before
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        fn()
+        hist = dr.kernel_history()
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    return {h["hash"] for h in hist if h.get("type") == dr.KernelType.JIT}
+
+
+def test_a_level_of_another_size_launches_the_same_kernels():
+    """Issue 39 (compiled kernels per report): render_groups' passes of two sizes and counts (an adaptive
+    render's levels) launch the same JIT kernels, none with the pass's size as a literal (a Color3f's
+    block sum packed its channels in such a kernel: one compile per level)."""
+    from reference.integrator import sensor_dict
+
+    mi, _ = rr._mi()
+    scene = load_scene("spheres").with_camera(width=24, height=20)
+    ms = rr.load_mitsuba_scene(scene)
+    sensor = mi.load_dict(sensor_dict(scene.camera, 16, "qmc"))
+    integ = rr.load_integrator("local", sampler="qmc")
+    integ.render_groups(ms, sensor, [(np.arange(40), 16, 2, 3 << 20)], 1, 24, 20)   # the scene's one-off tables
+    a = _jit_hashes(lambda: integ.render_groups(ms, sensor, [(np.arange(100), 16, 4, 1 << 20)], 1, 24, 20))
+    b = _jit_hashes(lambda: integ.render_groups(ms, sensor, [(np.arange(240), 16, 16, 2 << 20)], 1, 24, 20))
+    assert a == b, (len(a), len(b))
+
+
+def test_material_table_values_and_one_adjoint_kernel_for_every_material():
+    """reference.bsdf.material_table: entry j is value j exactly; the gradient of a weighted sum of the
+    table reaches each value (its weight), through the same backward kernel for every material (a chain
+    of selects gave each material a kernel of its own length: 30 compiles for spheres' fit)."""
+    from reference.bsdf import material_table, table_indices
+
+    mi, dr = rr._mi()
+    n = 7
+    vals = [mi.Float(0.1 * (j + 1)) for j in range(n)]
+    for v in vals:
+        dr.enable_grad(v)
+    w = mi.Float(np.arange(1, n + 1, dtype=np.float32))
+
+    def run():
+        t = material_table(mi.Float, vals, table_indices(n))
+        dr.backward(dr.sum(t * w))
+        return t
+
+    hashes = _jit_hashes(run)
+    t = run()
+    np.testing.assert_array_equal(np.array(dr.detach(t)), np.float32([0.1 * (j + 1) for j in range(n)]))
+    g = [float(dr.grad(v)[0]) for v in vals]
+    assert g == [2.0 * (j + 1) for j in range(n)]   # two backward passes accumulated
+    assert len(hashes) <= 4, len(hashes)   # the primal table, one adjoint shape (not one per material)
