@@ -28,6 +28,8 @@ def test_goal_follows_the_reference_backend(monkeypatch):
     res = runlog.bench_report(["furnace"], progress=False)
     assert res["goal_machine"] == "cpu" and res["goal_s"] == runlog.REPORT_GOAL_S["cpu"]
     assert not res["first_meets_goal"] and res["again_meets_goal"]
+    # issue 39's first-run goal (150 s on this machine): the 150 s first run meets it
+    assert res["first_run_goal_s"] == runlog.FIRST_RUN_GOAL_S["cpu"] == 150.0 and res["first_meets_first_run_goal"]
     (a1, e1), (a2, e2) = seen
     assert a1 == a2 == ["furnace"]
     # both runs share one temporary cache and HOME, neither the user's
@@ -38,6 +40,7 @@ def test_goal_follows_the_reference_backend(monkeypatch):
     variant = "cuda_ad_rgb"
     res = runlog.bench_report(None, fresh_home=False, progress=False)
     assert res["goal_machine"] == "gpu" and res["goal_s"] == runlog.REPORT_GOAL_S["gpu"]
+    assert res["first_run_goal_s"] == 30.0 and not res["first_meets_first_run_goal"]
     assert seen[0][0] == list(runlog.MAKE_REPORT_ARGS)
     import os
 
