@@ -204,12 +204,12 @@ def _time_renders(scene, spp, mscene, env, repeats):
             for mode, r in runs.items()}
 
 
-def _time_bsdf(bsdf, lanes, repeats, frozen: bool = False):
-    """(seconds per lane in total, tracing seconds per call, kernel seconds per call): medians.
-    ``frozen``: through :class:`reference.frozen.FrozenSampleEval` (recorded on the compile run,
-    replayed after: "tracing" is then the replay's launch of the recorded kernels)."""
+def bsdf_lanes(lanes: int, seed: int = 0):
+    """``(si, u1, u2)``, evaluated: ``lanes`` surface interactions with random incident directions in
+    the upper hemisphere (local frame) and uniform samples, for timing or testing a BSDF's ``sample``
+    and ``eval_pdf`` (:func:`_time_bsdf`, ``tools/frozen_timings.py``, the frozen BSDF path's test)."""
     mi, dr = _mi()
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     wi = rng.normal(size=(lanes, 3)).astype(np.float32)
     wi[:, 2] = np.abs(wi[:, 2])
     wi /= np.linalg.norm(wi, axis=1, keepdims=True)
@@ -219,6 +219,15 @@ def _time_bsdf(bsdf, lanes, repeats, frozen: bool = False):
     u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
     dr.eval(si, u1, u2)
     dr.sync_thread()
+    return si, u1, u2
+
+
+def _time_bsdf(bsdf, lanes, repeats, frozen: bool = False):
+    """(seconds per lane in total, tracing seconds per call, kernel seconds per call): medians.
+    ``frozen``: through :class:`reference.frozen.FrozenSampleEval` (recorded on the compile run,
+    replayed after: "tracing" is then the replay's launch of the recorded kernels)."""
+    mi, dr = _mi()
+    si, u1, u2 = bsdf_lanes(lanes)
     from .frozen import FrozenSampleEval
 
     fse = FrozenSampleEval(bsdf, freeze=frozen)

@@ -95,15 +95,9 @@ def test_frozen_bsdf_path_equals_the_traced_one_and_records_again_for_another_st
     mi, dr = rr._mi()
     bsdf = mi.load_dict({"type": "pbr_material", "base_color": [0.8, 0.6, 0.4], "metallic": 0.3, "roughness": 0.5})
     params = mi.traverse(bsdf)
-    lanes = 4096
-    rng = np.random.default_rng(0)
-    wi = rng.normal(size=(lanes, 3)).astype(np.float32)
-    wi[:, 2] = np.abs(wi[:, 2]) + 1e-3
-    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
-    si = dr.zeros(mi.SurfaceInteraction3f, lanes)
-    si.wi = mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2])
-    u1 = mi.Float(rng.random(lanes, dtype=np.float32))
-    u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
+    from reference.bench import bsdf_lanes
+
+    si, u1, u2 = bsdf_lanes(4096)
     frozen, traced = FrozenSampleEval(bsdf), FrozenSampleEval(bsdf, freeze=False)
 
     def both():

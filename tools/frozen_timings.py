@@ -75,16 +75,7 @@ def main() -> None:
     out["render_pass"] = row
 
     bsdf = mi.load_dict({"type": "pbr_material", "base_color": [1.0, 1.0, 1.0], "metallic": 1.0, "roughness": 0.5})
-    lanes = 1 << 21
-    rng = np.random.default_rng(0)
-    wi = rng.normal(size=(lanes, 3)).astype(np.float32)
-    wi[:, 2] = np.abs(wi[:, 2]) + 1e-3
-    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
-    si = dr.zeros(mi.SurfaceInteraction3f, lanes)
-    si.wi = mi.Vector3f(wi[:, 0], wi[:, 1], wi[:, 2])
-    u1 = mi.Float(rng.random(lanes, dtype=np.float32))
-    u2 = mi.Point2f(rng.random(lanes, dtype=np.float32), rng.random(lanes, dtype=np.float32))
-    sync((si, u1, u2))
+    si, u1, u2 = bench.bsdf_lanes(1 << 21)
     row = {}
     for frozen in (False, True):
         fse = FrozenSampleEval(bsdf, freeze=frozen)
