@@ -57,6 +57,7 @@ from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, METALLIC_BLENDS, MIN_ALPHA
 from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import lobe_bsdf
+from .material_tables import material_table, table_indices
 from . import multiscatter
 from . import terms
 from .terms import INV_PI, fresnel_term, geometry_term
@@ -351,27 +352,6 @@ def is_mirror_limit(roughness):
     if isinstance(roughness, (int, float)):
         return max(roughness * roughness, MIN_ALPHA) < DELTA_LOBE_ALPHA
     return dr.maximum(roughness * roughness, MIN_ALPHA) < DELTA_LOBE_ALPHA
-
-
-def table_indices(n: int) -> tuple:
-    """``(arange(n), [opaque j for j < n])``: the indices of :func:`material_table` (made per call:
-    a variable kept between calls would not be an input of a frozen pass, ``reference.frozen``)."""
-    return dr.arange(mi.UInt32, n), [dr.opaque(mi.UInt32, j) for j in range(n)]
-
-
-def material_table(tp, values, indices):
-    """``(len(values),)`` array of type ``tp`` whose entry j is ``values[j]`` (one Dr.Jit value per
-    material; ``indices``: :func:`table_indices`), differentiable in each value: the sum over j of
-    ``select(k == j, values[j], 0)``, j opaque. Exactly the values (one term of each lane is not zero).
-    Why not a chain ``t = select(k == j, v_j, t)``: its adjoint routes value j's gradient through the
-    n - j selects after it, so each material's backward kernel had its own length (``pbrcheck
-    report``'s fit-roughness compiled 30 of them for spheres' 30 materials); the sum's adjoint is the
-    same kernel for every j."""
-    k, idx = indices
-    t = dr.zeros(tp, len(values))
-    for j, v in enumerate(values):
-        t = t + dr.select(k == idx[j], tp(v), 0.0)
-    return t
 
 
 class MaterialView(PBRLobes):

@@ -95,6 +95,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import multiscatter, terms
+from .material_tables import material_table
 
 PI = math.pi
 INV_PI = 1.0 / PI
@@ -279,7 +280,7 @@ def lobes_of_material(material) -> dict:
 
 def view_tables(mats, indices):
     """``(used, {prop: table})`` of the materials ``mats`` (entry j = material j's value, its neutral
-    value where material j lacks the lobe; ``indices``: ``reference.bsdf.table_indices(n)``), or None where none has a lobe
+    value where material j lacks the lobe; ``indices``: ``reference.material_tables.table_indices(n)``), or None where none has a lobe
     (:meth:`reference.bsdf.MaterialView.gather`)."""
     used = {lobe for m in mats if getattr(m, "lobes", None) is not None for lobe in m.lobes.used}
     if not used:
@@ -288,7 +289,6 @@ def view_tables(mats, indices):
     tables = {}
     for p in proto.props():
         tp = LobeParams.props_type(p)
-        from .bsdf import material_table   # (bsdf imports this module)
         tables[p] = material_table(tp, [m.lobes.values[p] if m.lobes is not None and p in m.lobes.values
                                         else proto.neutral(p) for m in mats], indices)
     return proto.used, tables

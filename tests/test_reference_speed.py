@@ -160,10 +160,10 @@ def test_a_level_of_another_size_launches_the_same_kernels():
 
 
 def test_material_table_values_and_one_adjoint_kernel_for_every_material():
-    """reference.bsdf.material_table: entry j is value j exactly; the gradient of a weighted sum of the
+    """reference.material_tables.material_table: entry j is value j exactly; the gradient of a weighted sum of the
     table reaches each value (its weight), through the same backward kernel for every material (a chain
     of selects gave each material a kernel of its own length: 30 compiles for spheres' fit)."""
-    from reference.bsdf import material_table, table_indices
+    from reference.material_tables import material_table, table_indices
 
     mi, dr = rr._mi()
     n = 7

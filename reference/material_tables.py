@@ -1,0 +1,36 @@
+"""The gathered materials' per-material tables (``reference.bsdf.MaterialView``, the lobes'
+``reference.lobe_bsdf.view_tables``): entry j of a table is material j's value, differentiable in each.
+
+API: :func:`table_indices`, :func:`material_table`.
+"""
+
+from __future__ import annotations
+
+import pbrcheck  # noqa: F401  (sets DRJIT_LIBLLVM_PATH before drjit loads)
+
+import drjit as dr
+import mitsuba as mi
+
+
+def table_indices(n: int) -> tuple:
+    """``(arange(n), [opaque j for j < n])``: the indices of :func:`material_table` (made per call:
+    a variable kept between calls would not be an input of a frozen pass, ``reference.frozen``)."""
+    return dr.arange(mi.UInt32, n), [dr.opaque(mi.UInt32, j) for j in range(n)]
+
+
+def material_table(tp, values, indices):
+    """``(len(values),)`` array of type ``tp`` whose entry j is ``values[j]`` (one Dr.Jit value per
+    material; ``indices``: :func:`table_indices`), differentiable in each value: the sum over j of
+    ``select(k == j, values[j], 0)``, j opaque. Exactly the values (one term of each lane is not zero).
+    Why not a chain ``t = select(k == j, v_j, t)``: its adjoint routes value j's gradient through the
+    n - j selects after it, so each material's backward kernel had its own length (``pbrcheck
+    report``'s fit-roughness compiled 30 of them for spheres' 30 materials); the sum's adjoint is the
+    same kernel for every j."""
+    k, idx = indices
+    t = dr.zeros(tp, len(values))
+    for j, v in enumerate(values):
+        t = t + dr.select(k == idx[j], tp(v), 0.0)
+    return t
+
+
+__all__ = ["material_table", "table_indices"]
