@@ -39,6 +39,7 @@ API: :func:`sensor_dict`, :func:`load_differentiable_scene`, :func:`param_key`,
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -123,6 +124,7 @@ class GradientStep:
         self.freeze = bool(freeze)
         self._frozen = dr.freeze(self._step) if self.freeze else None
         self._warm = None   # the shapes whose first step ran traced
+        self.fallback = None  # why a recording failed, where one did (the fit then runs traced)
 
     def _step(self, mscene, target, seed, state, key):
         mi, dr = _mi()
@@ -151,9 +153,25 @@ class GradientStep:
         # a recording cannot do; later steps replay.
         warm = self._warm is not None and len(self._warm) == len(shapes) and all(
             a is b for a, b in zip(self._warm, shapes))
-        fn = self._frozen if self.freeze and warm else self._step
+        frozen = self.freeze and warm
         self._warm = tuple(shapes)
-        return fn(self.mscene, target, dr.opaque(mi.UInt32, int(seed) & 0xFFFFFFFF), state, key)
+        args = (self.mscene, target, dr.opaque(mi.UInt32, int(seed) & 0xFFFFFFFF), state, key)
+        if not frozen:
+            return self._step(*args)
+        try:
+            return self._frozen(*args)
+        except RuntimeError as e:
+            # A recording Dr.Jit refuses (a read-back or an input it cannot see, e.g. on another
+            # backend): this step and the rest of the fit run traced, the same numbers, and it says so
+            # once; a frozen step is an optimisation, never a reason for a fit to fail.
+            if "record" not in str(e):
+                raise
+            self.freeze, self.fallback = False, str(e).splitlines()[0]
+            warnings.warn(f"GradientStep: dr.freeze could not record the step ({self.fallback}); "
+                          "the fit runs traced", RuntimeWarning, stacklevel=2)
+            for k in self.keys:
+                dr.clear_grad(self.params[k])
+            return self._step(*args)
 
 
 def fit_materials(mscene, params, keys: Sequence[str], target: np.ndarray, *, iterations: int = 20,

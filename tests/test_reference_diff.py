@@ -156,3 +156,41 @@ def test_frozen_gradient_step_records_again_when_a_bsdf_changes_structure():
     assert frozen.n_recordings == n
     both(0.005, 5)   # a mirror: PBRMaterial.delta flips
     assert frozen.n_recordings == n + 1
+
+
+def test_a_step_dr_freeze_cannot_record_runs_traced_and_says_so():
+    """GradientStep: where Dr.Jit refuses a recording (simulated), the step and the rest of the fit
+    run traced with the traced numbers, one RuntimeWarning naming the reason; other errors propagate."""
+    from reference.diff import GradientStep, mse_loss
+
+    mi, dr = _mi()
+    ms, params = load_differentiable_scene(_scene(0.3))
+    k = param_key(0, "roughness")
+    tgt = mi.TensorXf(np.asarray(render_image(ms, params, spp=16, seed=5), dtype=np.float32))
+    dr.enable_grad(params[k])
+    params.update()
+    step = GradientStep(ms, params, [k], mse_loss, spp=4, freeze=True)
+    traced = GradientStep(ms, params, [k], mse_loss, spp=4, freeze=False)
+
+    def refuse(*a):
+        raise RuntimeError("record(): error encountered while recording a frozen function (simulated)")
+
+    step(tgt, 1)                 # the scene's first step runs traced
+    step._frozen = refuse
+    dr.clear_grad(params[k])
+    with pytest.warns(RuntimeWarning, match="could not record"):
+        loss, (g,) = step(tgt, 2)
+    got = (np.array(loss).ravel()[0], np.array(g).tolist())
+    dr.clear_grad(params[k])
+    loss2, (g2,) = traced(tgt, 2)
+    assert got == (np.array(loss2).ravel()[0], np.array(g2).tolist())
+    assert step.freeze is False and "simulated" in step.fallback
+    step2 = GradientStep(ms, params, [k], mse_loss, spp=4, freeze=True)
+    step2(tgt, 1)
+
+    def other(*a):
+        raise RuntimeError("something else")
+
+    step2._frozen = other
+    with pytest.raises(RuntimeError, match="something else"):
+        step2(tgt, 2)
