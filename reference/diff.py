@@ -23,7 +23,8 @@ iteration (Dr.Jit then finds the compiled kernels in its cache, but the trace re
 passed as its inputs (:func:`reference.frozen.jit_state`: the integrator's tables, the emitters'
 and the Python BSDFs' arrays, the sensor), the seed as an opaque ``UInt32``, and the BSDFs' Python
 structure (their ``model()`` and mirror-limit flags, which select other code) as a hashed key, so a
-structural change records anew instead of replaying stale kernels. Adam's update stays outside the
+structural change records anew instead of replaying stale kernels. A recording Dr.Jit refuses makes the
+fit run traced (one ``RuntimeWarning``; ``GradientStep.fallback``). Adam's update stays outside the
 frozen function: ``dr.opt.Adam``'s learning rate is a Python float that the schedule changes every
 step (a changed Python value retraces), and an array learning rate is multiplied in place by
 ``_LRCache.product`` (Dr.Jit 1.5), which changes the caller's array. Tested
