@@ -57,7 +57,7 @@ from pbrcheck.brdf import COS_EPS, DELTA_LOBE_ALPHA, METALLIC_BLENDS, MIN_ALPHA
 from pbrcheck.scene import FRESNEL_NAMES, GEOMETRIC_ROUGHNESS_NAMES, GEOMETRY_NAMES, MULTISCATTER_NAMES, NDF_NAMES
 
 from . import lobe_bsdf
-from .material_tables import material_table, table_indices
+from .material_tables import material_table, shape_lookup, table_indices
 from . import multiscatter
 from . import terms
 from .terms import INV_PI, fresnel_term, geometry_term
@@ -389,11 +389,7 @@ class MaterialView(PBRLobes):
         model = mats[0].model()
         if any(m.model() != model for m in mats):
             return None
-        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
-        lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
-        dr.scatter(lut, dr.arange(mi.UInt32, len(mats)), ids)
-        dr.eval(lut)
-        return model, lut, mats
+        return model, shape_lookup(scene, list(range(len(mats)))), mats
 
     @classmethod
     def gather(cls, table, si, active):
@@ -472,11 +468,7 @@ class SceneCalls:
             elif k >= 0:
                 owners[k] = None
             index.append(k + 1)
-        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
-        lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
-        dr.scatter(lut, mi.UInt32(index), ids)
-        dr.eval(lut)
-        return lut, objects, owners
+        return shape_lookup(scene, index), objects, owners
 
     def _call(self, name, args):
         *args, mask = args  # the mask: always the last argument

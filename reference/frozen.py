@@ -24,7 +24,8 @@ as inputs and its Python structure (mirror limit, model, lobes) as a hashed key:
 structure changes records anew. Bit for bit the traced values (``tests/test_reference_speed.py``).
 The differentiable fits' steps: :class:`reference.diff.GradientStep`.
 
-API: :func:`jit_state`, :func:`structure_key`, :class:`FrozenSampleEval`.
+API: :func:`jit_state`, :func:`pass_state`, :data:`NOT_PASS_STATE`, :func:`structure_key`,
+:class:`FrozenSampleEval`.
 """
 
 from __future__ import annotations
@@ -62,6 +63,19 @@ def jit_state(obj, out: list | None = None, seen: set | None = None) -> list:
     return out
 
 
+#: Integrator attributes that are not state a pass reads (its progress callback, its own frozen
+#: function and the shapes it was warmed for).
+NOT_PASS_STATE = ("progress", "_frozen", "_warm")
+
+
+def pass_state(integrator, scene, sensor) -> list:
+    """:func:`jit_state` of what a reference pass reads: the integrator's cached tables, the scene's
+    emitters, its shapes' BSDFs and the sensor (``ReferenceIntegrator._pass``,
+    ``reference.diff.GradientStep``)."""
+    return jit_state([{k: v for k, v in vars(integrator).items() if k not in NOT_PASS_STATE},
+                      list(scene.emitters()), [s.bsdf() for s in scene.shapes()], sensor])
+
+
 def structure_key(bsdf) -> tuple:
     """The Python-level structure of a BSDF that selects other code (a frozen function's hashed key):
     its class, mirror-limit flag, scene-wide model and glTF lobes (``reference.bsdf.PBRMaterial``)."""
@@ -95,4 +109,4 @@ class FrozenSampleEval:
         return fn(self.bsdf, si, u1, u2, jit_state([self.bsdf]), structure_key(self.bsdf))
 
 
-__all__ = ["FrozenSampleEval", "OWN_MODULES", "jit_state", "structure_key"]
+__all__ = ["FrozenSampleEval", "NOT_PASS_STATE", "OWN_MODULES", "jit_state", "pass_state", "structure_key"]

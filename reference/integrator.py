@@ -93,6 +93,7 @@ from mitsuba.python.ad.integrators.common import RBIntegrator
 from .bsdf import MaterialView, SceneCalls
 from .env_radiance import bind_environment, exact_environment
 from .env_sampling import DEFAULT_ENV_SAMPLING, ENV_SAMPLING, CompensatedEnvironment, _luminance
+from .material_tables import shape_lookup
 from .opaque_sampler import Divisor, OpaqueMultijitter
 
 INTEGRATOR_NAME = "pbrcheck_reference"
@@ -359,11 +360,7 @@ def culling_table(scene):
     flags = [int(culls_back_faces(s.bsdf())) for s in scene.shapes()]
     if not any(flags):
         return None
-    ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
-    lut = dr.zeros(mi.UInt32, int(dr.max(ids)[0]) + 1)
-    dr.scatter(lut, mi.UInt32(flags), ids)
-    dr.eval(lut)
-    return lut
+    return shape_lookup(scene, flags)
 
 
 def can_pass(bsdf) -> bool:
@@ -787,10 +784,9 @@ class ReferenceIntegrator(RBIntegrator):
         if self._frozen is None:
             self._frozen = dr.freeze(lambda scene, sensor, sampler, per, ids, width, state:
                                      self._estimate(scene, sensor, sampler, per, ids))
-        from .frozen import jit_state
+        from .frozen import pass_state
 
-        state = jit_state([{k: v for k, v in vars(self).items() if k not in ("progress", "_frozen", "_warm")},
-                           list(scene.emitters()), [s.bsdf() for s in shapes], sensor])
+        state = pass_state(self, scene, sensor)
         return self._frozen(scene, sensor, sampler, per, ids, dr.width(ids) * per, state)
 
     def _replicate_sampler(self, sensor, n: int):

@@ -1,7 +1,12 @@
 """The gathered materials' per-material tables (``reference.bsdf.MaterialView``, the lobes'
 ``reference.lobe_bsdf.view_tables``): entry j of a table is material j's value, differentiable in each.
 
-API: :func:`table_indices`, :func:`material_table`.
+And the lookups from a shape's registry id (``si.shape`` reinterpreted as ``UInt32``) to a value
+per shape, :func:`shape_lookup` (the gathered materials' index, the dispatch tables, the culling
+flags, the AOV pass's object ids): a kernel input, so the kernels reading it do not depend on the
+scene's ids.
+
+API: :func:`table_indices`, :func:`material_table`, :func:`shape_lookup`.
 """
 
 from __future__ import annotations
@@ -33,4 +38,15 @@ def material_table(tp, values, indices):
     return t
 
 
-__all__ = ["material_table", "table_indices"]
+def shape_lookup(scene, values, tp=None, fill=0):
+    """Array of type ``tp`` (default ``mi.UInt32``) indexed by shape registry id: ``values[i]`` at
+    the id of ``scene.shapes()[i]``, ``fill`` elsewhere; evaluated."""
+    tp = tp or mi.UInt32
+    ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr())
+    lut = dr.full(tp, fill, int(dr.max(ids)[0]) + 1)
+    dr.scatter(lut, tp(values), ids)
+    dr.eval(lut)
+    return lut
+
+
+__all__ = ["material_table", "shape_lookup", "table_indices"]

@@ -364,6 +364,7 @@ def load_integrator(mode: str = "local", max_depth: int | None = None, *, moment
 
 def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, np.ndarray]:
     from .integrator import culling_table, past_back_faces, pixel_centre_rays  # local: loads Mitsuba (variant set first)
+    from .material_tables import shape_lookup
 
     W, H = scene.camera.width, scene.camera.height
     ray, _ = pixel_centre_rays(sensor)
@@ -377,9 +378,7 @@ def _aovs(mi, dr, mscene, sensor, scene: Scene, shape_index: dict) -> dict[str, 
     # for every scene, where a select per shape baked the scene's ids into it)
     shapes = list(mscene.shapes())
     if shapes:
-        ids = dr.reinterpret_array(mi.UInt32, mscene.shapes_dr())
-        lut = dr.full(mi.Float, -1.0, int(dr.max(ids)[0]) + 1)
-        dr.scatter(lut, mi.Float([float(shape_index.get(s.id(), -1)) for s in shapes]), ids)
+        lut = shape_lookup(mscene, [float(shape_index.get(s.id(), -1)) for s in shapes], mi.Float, -1.0)
         obj = dr.select(hit, dr.gather(mi.Float, lut, dr.reinterpret_array(mi.UInt32, si.shape), hit), -1.0)
     else:   # a scene without shapes
         obj = dr.full(mi.Float, -1.0, W * H)
